@@ -20,6 +20,8 @@
 #include <limits>
 #include <string>
 #include <vector>
+#include <cstdio>
+#include <cstdlib>
 
 namespace mtlod::core {
 namespace {
@@ -125,8 +127,13 @@ class Builder {
   std::vector<std::uint32_t> collapse_u_;
   std::vector<float> collapse_error_;
 
-  std::vector<std::uint32_t> adjacency_offsets_;
+  // Vertex → faces over the alive faces, rebuilt each pass; valid for alive vertices only.
+  std::vector<std::uint32_t> adjacency_begin_;
+  std::vector<std::uint32_t> adjacency_end_;
   std::vector<std::uint32_t> adjacency_;
+  std::vector<std::uint32_t> alive_face_list_;
+  std::vector<std::uint32_t> alive_vertex_list_;  // used by an alive face (may lag one pass)
+  std::vector<std::uint8_t> vertex_dead_;
   std::vector<std::uint8_t> kind_;
   std::vector<std::uint32_t> touched_;  // pass number that last changed a vertex's fan
   std::uint32_t pass_ = 0;
@@ -173,7 +180,7 @@ void Builder::init_quadrics() {
     for (int k = 0; k < 3; ++k) {
       const std::uint32_t a = t[k], b = t[(k + 1) % 3];
       bool shared = false;
-      for (std::uint32_t i = adjacency_offsets_[a]; i < adjacency_offsets_[a + 1] && !shared; ++i) {
+      for (std::uint32_t i = adjacency_begin_[a]; i < adjacency_end_[a] && !shared; ++i) {
         const std::uint32_t g = adjacency_[i];
         if (g == f) continue;
         const std::uint32_t* s = &working_[3 * std::size_t{g}];
@@ -198,25 +205,32 @@ void Builder::init_quadrics() {
 }
 
 void Builder::build_adjacency() {
-  adjacency_offsets_.assign(vertex_count_ + 1, 0);
-  for (std::size_t f = 0; f < face_count_; ++f) {
-    if (!face_alive_[f]) continue;
-    for (int k = 0; k < 3; ++k) ++adjacency_offsets_[working_[3 * f + k] + 1];
+  // Only what is alive is visited, so late passes over a small mesh cost little.
+  std::size_t kept = 0;
+  for (const std::uint32_t f : alive_face_list_)
+    if (face_alive_[f]) alive_face_list_[kept++] = f;
+  alive_face_list_.resize(kept);
+  kept = 0;
+  for (const std::uint32_t v : alive_vertex_list_)
+    if (!vertex_dead_[v]) alive_vertex_list_[kept++] = v;
+  alive_vertex_list_.resize(kept);
+
+  for (const std::uint32_t v : alive_vertex_list_) adjacency_end_[v] = 0;
+  for (const std::uint32_t f : alive_face_list_)
+    for (int k = 0; k < 3; ++k) ++adjacency_end_[working_[3 * std::size_t{f} + k]];
+  std::uint32_t total = 0;
+  for (const std::uint32_t v : alive_vertex_list_) {
+    adjacency_begin_[v] = total;
+    total += adjacency_end_[v];
+    adjacency_end_[v] = adjacency_begin_[v];
   }
-  for (std::size_t v = 0; v < vertex_count_; ++v) adjacency_offsets_[v + 1] += adjacency_offsets_[v];
-  adjacency_.resize(adjacency_offsets_[vertex_count_]);
-  // Fill from the back so each list ends up in face order and offsets are restored.
-  for (std::size_t f = face_count_; f-- > 0;) {
-    if (!face_alive_[f]) continue;
-    for (int k = 0; k < 3; ++k) adjacency_[--adjacency_offsets_[working_[3 * f + k] + 1]] = std::uint32_t(f);
-  }
-  // After the backward fill offsets_[v+1] holds the start of v's list; shift to restore CSR.
-  for (std::size_t v = 0; v < vertex_count_; ++v) adjacency_offsets_[v] = adjacency_offsets_[v + 1];
-  adjacency_offsets_[vertex_count_] = std::uint32_t(adjacency_.size());
+  adjacency_.resize(total);
+  for (const std::uint32_t f : alive_face_list_)
+    for (int k = 0; k < 3; ++k) adjacency_[adjacency_end_[working_[3 * std::size_t{f} + k]]++] = f;
 }
 
 VertexKind Builder::classify(std::uint32_t u, std::uint32_t& boundary_next, std::uint32_t& boundary_prev) const {
-  const std::uint32_t begin = adjacency_offsets_[u], end = adjacency_offsets_[u + 1];
+  const std::uint32_t begin = adjacency_begin_[u], end = adjacency_end_[u];
   const std::uint32_t degree = end - begin;
   if (degree == 0) return kUnused;
   if (degree > kMaxFan) return kComplex;
@@ -258,13 +272,13 @@ VertexKind Builder::classify(std::uint32_t u, std::uint32_t& boundary_next, std:
 bool Builder::can_collapse(std::uint32_t u, std::uint32_t v) {
   stamp_ += 1;
   const std::uint32_t link = stamp_;
-  for (std::uint32_t i = adjacency_offsets_[v]; i < adjacency_offsets_[v + 1]; ++i) {
+  for (std::uint32_t i = adjacency_begin_[v]; i < adjacency_end_[v]; ++i) {
     const std::uint32_t* t = &working_[3 * std::size_t{adjacency_[i]}];
     for (int k = 0; k < 3; ++k) link_stamp_[t[k]] = link;
   }
   std::uint32_t opposite[2] = {0, 0};
   int opposites = 0;
-  for (std::uint32_t i = adjacency_offsets_[u]; i < adjacency_offsets_[u + 1]; ++i) {
+  for (std::uint32_t i = adjacency_begin_[u]; i < adjacency_end_[u]; ++i) {
     std::uint32_t a = 0, b = 0;
     fan_corners(adjacency_[i], u, a, b);
     if (a == v || b == v) {
@@ -276,7 +290,7 @@ bool Builder::can_collapse(std::uint32_t u, std::uint32_t v) {
   int survivors = 0;
   const float* pu = position(u);
   const float* pv = position(v);
-  for (std::uint32_t i = adjacency_offsets_[u]; i < adjacency_offsets_[u + 1]; ++i) {
+  for (std::uint32_t i = adjacency_begin_[u]; i < adjacency_end_[u]; ++i) {
     std::uint32_t a = 0, b = 0;
     fan_corners(adjacency_[i], u, a, b);
     if (a == v || b == v) continue;
@@ -299,7 +313,7 @@ bool Builder::can_collapse(std::uint32_t u, std::uint32_t v) {
     if (!(dot(old_normal, new_normal) > options_.min_normal_cos * old_length * new_length)) return false;
     // The new face (v, a, b) must not repeat a face v already has (a tetrahedron folding flat).
     if (link_stamp_[a] == link && link_stamp_[b] == link) {
-      for (std::uint32_t j = adjacency_offsets_[v]; j < adjacency_offsets_[v + 1]; ++j) {
+      for (std::uint32_t j = adjacency_begin_[v]; j < adjacency_end_[v]; ++j) {
         const std::uint32_t* t = &working_[3 * std::size_t{adjacency_[j]}];
         const bool has_a = t[0] == a || t[1] == a || t[2] == a;
         const bool has_b = t[0] == b || t[1] == b || t[2] == b;
@@ -314,14 +328,14 @@ bool Builder::can_collapse(std::uint32_t u, std::uint32_t v) {
 void Builder::collapse(std::uint32_t u, std::uint32_t v) {
   const std::uint32_t tag = std::uint32_t(collapse_u_.size()) + 1;
   float fan_error = 0;
-  for (std::uint32_t i = adjacency_offsets_[u]; i < adjacency_offsets_[u + 1]; ++i)
+  for (std::uint32_t i = adjacency_begin_[u]; i < adjacency_end_[u]; ++i)
     fan_error = std::max(fan_error, mt_error(face_mt_[adjacency_[i]]));
   const Vec3 d = sub(position(u), position(v));
   // Round up so the float bound is never below the real-number bound.
   const float error = std::nextafter(float(fan_error + std::sqrt(dot(d, d))), std::numeric_limits<float>::max());
 
   touched_[u] = touched_[v] = pass_;
-  for (std::uint32_t i = adjacency_offsets_[u]; i < adjacency_offsets_[u + 1]; ++i) {
+  for (std::uint32_t i = adjacency_begin_[u]; i < adjacency_end_[u]; ++i) {
     const std::uint32_t f = adjacency_[i];
     std::uint32_t* t = &working_[3 * std::size_t{f}];
     mt_killed_by_[face_mt_[f]] = tag;
@@ -339,6 +353,7 @@ void Builder::collapse(std::uint32_t u, std::uint32_t v) {
     mt_killed_by_.push_back(0);
   }
   add_quadric(quadrics_[v], quadrics_[u]);
+  vertex_dead_[u] = 1;
   collapse_u_.push_back(u);
   collapse_error_.push_back(error);
 }
@@ -449,6 +464,18 @@ Result<Mt> Builder::run(BuildStats* stats) {
   collapse_u_.reserve(vertex_count_);
   collapse_error_.reserve(vertex_count_);
   kind_.assign(vertex_count_, kUnused);
+  adjacency_begin_.assign(vertex_count_, 0);
+  adjacency_end_.assign(vertex_count_, 0);
+  vertex_dead_.assign(vertex_count_, 0);
+  alive_face_list_.resize(face_count_);
+  for (std::size_t f = 0; f < face_count_; ++f) alive_face_list_[f] = std::uint32_t(f);
+  {
+    // Vertices no face uses never enter the lists.
+    std::vector<std::uint8_t> used(vertex_count_, 0);
+    for (const std::uint32_t v : mesh_.triangles) used[v] = 1;
+    for (std::uint32_t v = 0; v < vertex_count_; ++v)
+      if (used[v]) alive_vertex_list_.push_back(v);
+  }
   touched_.assign(vertex_count_, 0);
   link_stamp_.assign(vertex_count_, 0);
   seen_stamp_.assign(vertex_count_, 0);
@@ -461,20 +488,22 @@ Result<Mt> Builder::run(BuildStats* stats) {
   for (;;) {
     ++pass_;
     if (pass_ > 1) build_adjacency();
+    // A vertex's kind only changes when its fan does, i.e. when the last pass touched it.
     complex_vertices_ = 0;
-    for (std::uint32_t u = 0; u < vertex_count_; ++u) {
-      kind_[u] = classify(u, boundary_ends[2 * u], boundary_ends[2 * u + 1]);
+    for (const std::uint32_t u : alive_vertex_list_) {
+      if (pass_ == 1 || touched_[u] == pass_ - 1)
+        kind_[u] = classify(u, boundary_ends[2 * u], boundary_ends[2 * u + 1]);
       complex_vertices_ += kind_[u] == kComplex;
     }
     candidates_.clear();
-    for (std::uint32_t u = 0; u < vertex_count_; ++u) {
+    for (const std::uint32_t u : alive_vertex_list_) {
       Candidate best{std::numeric_limits<float>::infinity(), u, u};
       auto consider = [&](std::uint32_t v) {
         const float cost = evaluate(quadrics_[u], &unit_positions_[3 * std::size_t{v}]);
         if (cost < best.cost) best.cost = cost, best.v = v;
       };
       if (kind_[u] == kInterior) {
-        for (std::uint32_t i = adjacency_offsets_[u]; i < adjacency_offsets_[u + 1]; ++i) {
+        for (std::uint32_t i = adjacency_begin_[u]; i < adjacency_end_[u]; ++i) {
           std::uint32_t a = 0, b = 0;
           fan_corners(adjacency_[i], u, a, b);
           if (kind_[a] == kInterior || kind_[a] == kBoundary) consider(a);
@@ -490,20 +519,24 @@ Result<Mt> Builder::run(BuildStats* stats) {
     std::sort(candidates_.begin(), candidates_.end(),
               [](const Candidate& x, const Candidate& y) { return x.cost < y.cost || (x.cost == y.cost && x.u < y.u); });
 
+    // The quota counts candidates that took part in the order (collapsed, or blocked by an earlier
+    // collapse of this pass); invalid ones are skipped without using it up.
     const std::size_t quota = std::max<std::size_t>(1, std::size_t(double(candidates_.size()) * options_.pass_fraction));
-    std::size_t collapses = 0;
-    for (std::size_t i = 0; i < candidates_.size(); ++i) {
-      // Keep trying past the quota until one collapse succeeds, so a pass only ends empty when no
-      // candidate is valid.
-      if (i >= quota && collapses > 0) break;
+    std::size_t collapses = 0, ordered = 0;
+    for (std::size_t i = 0; i < candidates_.size() && ordered < quota; ++i) {
       const Candidate& c = candidates_[i];
-      if (touched_[c.u] == pass_ || touched_[c.v] == pass_) continue;
+      if (touched_[c.u] == pass_ || touched_[c.v] == pass_) {
+        ++ordered;
+        continue;
+      }
       if (!can_collapse(c.u, c.v)) continue;
       collapse(c.u, c.v);
       ++collapses;
+      ++ordered;
       if (alive_faces_ <= options_.min_triangles) break;
     }
     if (options_.progress) options_.progress(options_.progress_user, 1.0 - double(alive_faces_) / initial_faces);
+    if (getenv("MTLOD_TRACE")) fprintf(stderr, "pass %u faces %zu cands %zu collapses %zu\n", pass_, alive_faces_, candidates_.size(), collapses);
     if (collapses == 0 || alive_faces_ <= options_.min_triangles) break;
   }
 
