@@ -11,8 +11,6 @@
 #include <cstdint>
 #include <span>
 #include <string>
-#include <unordered_map>
-#include <unordered_set>
 #include <vector>
 
 #include "core/mesh.hpp"
@@ -41,30 +39,47 @@ inline std::uint64_t edge_key(std::uint32_t a, std::uint32_t b) {
   return a < b ? (std::uint64_t{a} << 32 | b) : (std::uint64_t{b} << 32 | a);
 }
 
-// Undirected edges that are non-manifold (> 2 faces) or walked twice in the same direction.
-inline std::unordered_set<std::uint64_t> defective_edges(std::span<const std::uint32_t> triangles) {
-  std::unordered_map<std::uint64_t, std::pair<int, int>> uses;  // key -> (faces, forward walks)
-  for (std::size_t i = 0; i < triangles.size(); i += 3)
+// Directed edges as (undirected key, forward flag), sorted by key: one pass groups each edge's uses.
+inline std::vector<std::uint64_t> sorted_edge_uses(std::span<const std::uint32_t> triangles) {
+  std::vector<std::uint64_t> uses;
+  uses.reserve(triangles.size());
+  for (std::size_t i = 0; i + 2 < triangles.size(); i += 3)
     for (int k = 0; k < 3; ++k) {
       const std::uint32_t a = triangles[i + k], b = triangles[i + (k + 1) % 3];
-      auto& u = uses[edge_key(a, b)];
-      ++u.first;
-      u.second += a < b;
+      // Low bit of the packed pair is free: ids < 2^31 in every test mesh.
+      uses.push_back(edge_key(a, b) << 1 | (a < b ? 1u : 0u));
     }
-  std::unordered_set<std::uint64_t> bad;
-  for (const auto& [key, u] : uses)
-    if (u.first > 2 || (u.first == 2 && u.second != 1)) bad.insert(key);
+  std::sort(uses.begin(), uses.end());
+  return uses;
+}
+
+// Undirected edges (sorted keys) that are non-manifold (> 2 faces) or walked twice the same way.
+inline std::vector<std::uint64_t> defective_edges(std::span<const std::uint32_t> triangles) {
+  const std::vector<std::uint64_t> uses = sorted_edge_uses(triangles);
+  std::vector<std::uint64_t> bad;
+  for (std::size_t i = 0; i < uses.size();) {
+    std::size_t j = i, forward = 0;
+    for (; j < uses.size() && (uses[j] >> 1) == (uses[i] >> 1); ++j) forward += uses[j] & 1;
+    const std::size_t faces = j - i;
+    if (faces > 2 || (faces == 2 && forward != 1)) bad.push_back(uses[i] >> 1);
+    i = j;
+  }
   return bad;
 }
 
 // Vertices on boundary edges (edges with exactly one face).
 inline std::vector<std::uint8_t> boundary_vertices(std::size_t vertex_count, std::span<const std::uint32_t> triangles) {
-  std::unordered_map<std::uint64_t, int> faces;
-  for (std::size_t i = 0; i < triangles.size(); i += 3)
-    for (int k = 0; k < 3; ++k) ++faces[edge_key(triangles[i + k], triangles[i + (k + 1) % 3])];
+  const std::vector<std::uint64_t> uses = sorted_edge_uses(triangles);
   std::vector<std::uint8_t> on(vertex_count, 0);
-  for (const auto& [key, n] : faces)
-    if (n == 1) on[key >> 32] = on[key & 0xffffffffu] = 1;
+  for (std::size_t i = 0; i < uses.size();) {
+    std::size_t j = i;
+    while (j < uses.size() && (uses[j] >> 1) == (uses[i] >> 1)) ++j;
+    if (j - i == 1) {
+      const std::uint64_t key = uses[i] >> 1;
+      on[key >> 32] = on[key & 0xffffffffu] = 1;
+    }
+    i = j;
+  }
   return on;
 }
 
@@ -72,7 +87,7 @@ inline std::vector<std::uint8_t> boundary_vertices(std::size_t vertex_count, std
 struct CutReference {
   const core::Mesh* input = nullptr;
   core::TopologyReport topology;
-  std::unordered_set<std::uint64_t> defects;
+  std::vector<std::uint64_t> defects;  // sorted undirected edge keys
   std::vector<std::uint8_t> boundary;
   std::vector<std::uint8_t> used;
 };
@@ -100,7 +115,7 @@ inline ::testing::AssertionResult validate_cut(const CutReference& ref, std::spa
     if (cut[i] >= vertex_count || !ref.used[cut[i]])
       return ::testing::AssertionFailure() << "cut corner " << i << " = " << cut[i] << " is not a used input vertex";
   for (const std::uint64_t key : defective_edges(cut))
-    if (!ref.defects.count(key))
+    if (!std::binary_search(ref.defects.begin(), ref.defects.end(), key))
       return ::testing::AssertionFailure() << "edge (" << (key >> 32) << ", " << (key & 0xffffffffu)
                                            << ") is non-manifold or inconsistently oriented in the cut only";
   const core::TopologyReport t = core::analyze_topology(ref.input->positions, cut);
