@@ -18,6 +18,7 @@ namespace mtlod::core {
 ViewMapping::ViewMapping(const Camera& camera, GridSize grid) : grid_(grid) {
   assert(grid.valid());
   mvp_ = camera.projection * camera.view * camera.model;
+  projection_ = camera.projection;
   // Rows x, y and w of the column-major matrix, stored column by column.
   for (int c = 0; c < 4; ++c) {
     m_[3 * c + 0] = mvp_[c][0];

@@ -46,6 +46,15 @@ class ViewMapping {
     cy = (m_[1] * x + m_[4] * y) + (m_[7] * z + m_[10]);
     cw = (m_[2] * x + m_[5] * y) + (m_[8] * z + m_[11]);
   }
+  // clip.z of a model-space point (needed only for depth: occupancy's nearest-depth grid).
+  float clip_z(float x, float y, float z) const {
+    return (mvp_[0][2] * x + mvp_[1][2] * y) + (mvp_[2][2] * z + mvp_[3][2]);
+  }
+  // Eye-space depth (−z_eye, positive in front of the camera) of a point whose ndc.z is ndc_z, for
+  // projections whose z and w rows depend on z_eye only (glm::perspective, glm::frustum, glm::ortho).
+  float eye_depth_from_ndc_z(float ndc_z) const {
+    return -(projection_[3][2] - ndc_z * projection_[3][3]) / (ndc_z * projection_[2][3] - projection_[2][2]);
+  }
   // Continuous grid coordinates of clip coordinates with clip_w > 0.
   GridPoint to_grid(float cx, float cy, float cw) const {
     return {(cx / cw + 1.0f) * 0.5f * width_f_, (1.0f - cy / cw) * 0.5f * height_f_, cw};
@@ -80,6 +89,7 @@ class ViewMapping {
  private:
   GridSize grid_{};
   glm::mat4 mvp_{1.0f};
+  glm::mat4 projection_{1.0f};
   float m_[12] = {};  // columns of P·V·M restricted to rows x, y, w
   float width_f_ = 0.0f;
   float height_f_ = 0.0f;
