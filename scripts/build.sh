@@ -1,0 +1,8 @@
+#!/usr/bin/env bash
+# Configures and builds mtlod into build/<name>. Usage: scripts/build.sh NAME [cmake options...]
+set -euo pipefail
+root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+name=$1
+shift
+cmake -S "$root" -B "$root/build/$name" "$@" >/dev/null
+cmake --build "$root/build/$name" -j "$(nproc)"

@@ -1,0 +1,40 @@
+// Small meshes with known properties and the locations of the test data, shared by core tests.
+#pragma once
+
+#include <filesystem>
+#include <string>
+
+#include "core/mesh.hpp"
+
+namespace mtlod::test {
+
+// The shared real scans (see their README); tests GTEST_SKIP when the folder is absent.
+inline std::filesystem::path shared_meshes_dir() { return MTLOD_SHARED_MESHES_DIR; }
+// Built-in models written by scripts/prepare-models.sh.
+inline std::filesystem::path models_dir() { return MTLOD_MODELS_DIR; }
+
+// A fresh, empty directory for files a test writes.
+inline std::filesystem::path scratch_dir(const std::string& name) {
+  auto dir = std::filesystem::temp_directory_path() / ("mtlod-test-" + name);
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  return dir;
+}
+
+// Regular tetrahedron, outward: closed 2-manifold, V=4 E=6 F=4, Euler characteristic 2.
+inline core::Mesh tetrahedron() {
+  core::Mesh m;
+  m.positions = {1, 1, 1, 1, -1, -1, -1, 1, -1, -1, -1, 1};
+  m.triangles = {0, 1, 2, 0, 3, 1, 0, 2, 3, 1, 3, 2};
+  return m;
+}
+
+// Unit square in z=0 as two triangles: one boundary loop of 4 edges, 5 edges, Euler characteristic 1.
+inline core::Mesh square() {
+  core::Mesh m;
+  m.positions = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0};
+  m.triangles = {0, 1, 2, 0, 2, 3};
+  return m;
+}
+
+}  // namespace mtlod::test
