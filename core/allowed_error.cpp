@@ -14,10 +14,6 @@ namespace {
 
 constexpr float kInfinity = std::numeric_limits<float>::infinity();
 
-float label_px(std::uint32_t label, DistanceMetric metric) {
-  return label >= kLabelUnreached ? kInfinity : distance_px(label, metric);
-}
-
 }  // namespace
 
 float eccentricity_deg(float distance_px, float tan_per_px) {
@@ -66,6 +62,24 @@ void AllowedErrorField::bind(const ViewMapping& mapping, const AllowedErrorOptio
                                   ? std::tan(options.fovy_deg * (std::numbers::pi_v<float> / 360.0f))
                                   : 1.0f / mapping.projection_y_scale();
   tan_per_px_ = 2.0f * tan_half_fovy / grid_height;
+  // error · model_units_per_pixel(clip_w) = error · 2·clip_w/(H·P[1][1]), with the constant part folded.
+  pixel_bound_per_clip_w_ = options.error * mapping.model_units_per_pixel(1.0f, viewport_height_px_);
+  assert(options.metric != DistanceMetric::kEuclidean);
+  if (options.use_silhouette)
+    tabulate(options.silhouette, options.metric, tan_per_px_, inputs.silhouette_dt, silhouette_table_);
+  if (options.use_focus) tabulate(options.focus, options.metric, tan_per_px_, inputs.focus_dt, focus_table_);
+  if (options.use_neglect)
+    tabulate(options.neglect, options.metric, tan_per_px_, inputs.neglect_dt, neglect_table_);
+}
+
+void AllowedErrorField::tabulate(const RegionLaw& law, DistanceMetric metric, float tan_per_px,
+                                 std::span<const std::uint16_t> dt, std::vector<float>& table) {
+  std::uint16_t largest = 0;
+  for (const std::uint16_t raw : dt)
+    largest = std::max(largest, raw == kChamferUnreached ? std::uint16_t{0} : raw);
+  table.resize(std::size_t{largest} + 1);
+  for (std::uint32_t raw = 0; raw <= largest; ++raw)
+    table[raw] = law_factor(law, distance_px(raw, metric), tan_per_px);
 }
 
 float AllowedErrorField::combine(std::uint32_t silhouette_label, std::uint32_t focus_label,
@@ -74,10 +88,9 @@ float AllowedErrorField::combine(std::uint32_t silhouette_label, std::uint32_t f
   const AllowedErrorOptions& o = options_;
   float m = 1.0f;
   // Silhouette and focus: the stricter (smaller) multiplier wins.
-  if (o.use_silhouette)
-    m = std::min(m, law_factor(o.silhouette, label_px(silhouette_label, o.metric), tan_per_px_));
-  if (o.use_focus) m = std::min(m, law_factor(o.focus, label_px(focus_label, o.metric), tan_per_px_));
-  if (o.use_neglect) m *= law_factor(o.neglect, label_px(neglect_label, o.metric), tan_per_px_);
+  if (o.use_silhouette) m = std::min(m, lookup(silhouette_table_, silhouette_label));
+  if (o.use_focus) m = std::min(m, lookup(focus_table_, focus_label));
+  if (o.use_neglect) m *= lookup(neglect_table_, neglect_label);
   if (!has_cell) m *= o.outside_view_factor;
   if (o.back_face_factor != 1.0f && !inputs_.normals.empty()) {
     const float* p = inputs_.positions.data() + 3 * std::size_t{vertex};
@@ -92,23 +105,30 @@ float AllowedErrorField::combine(std::uint32_t silhouette_label, std::uint32_t f
   // A pixel bound has no meaning behind the eye; such a vertex leaves the decision to the triangle's
   // other vertices, and a triangle wholly behind the eye is invisible.
   if (!(clip_w > 0.0f)) return kInfinity;
-  return o.error * mapping_->model_units_per_pixel(clip_w, viewport_height_px_) * m;
+  return pixel_bound_per_clip_w_ * clip_w * m;
 }
 
 void AllowedErrorField::compute_all(std::span<float> vertex_allowed_error) {
   assert(mapping_ != nullptr);
   const std::size_t n = inputs_.positions.size() / 3;
   assert(vertex_allowed_error.size() == n);
-  cells_.resize(n);
-  clip_w_.resize(n);
-  map_vertices(*mapping_, inputs_.positions, cells_, clip_w_);
+  // Blocks small enough for the projected cells and depths to stay in L1 between the two loops.
+  constexpr std::size_t kBlock = 1024;
+  cells_.resize(kBlock);
+  clip_w_.resize(kBlock);
   const bool sil = options_.use_silhouette, focus = options_.use_focus, neglect = options_.use_neglect;
-  for (std::size_t v = 0; v < n; ++v) {
-    const std::uint32_t cell = cells_[v];
-    vertex_allowed_error[v] = combine(sil ? cell_label(inputs_.silhouette_dt, cell) : kLabelNoCell,
-                                      focus ? cell_label(inputs_.focus_dt, cell) : kLabelNoCell,
-                                      neglect ? cell_label(inputs_.neglect_dt, cell) : kLabelNoCell,
-                                      cell != kNoCell, clip_w_[v], static_cast<std::uint32_t>(v));
+  for (std::size_t first = 0; first < n; first += kBlock) {
+    const std::size_t count = std::min(kBlock, n - first);
+    map_vertices(*mapping_, inputs_.positions.subspan(3 * first, 3 * count), std::span(cells_).first(count),
+                 std::span(clip_w_).first(count));
+    for (std::size_t k = 0; k < count; ++k) {
+      const std::uint32_t cell = cells_[k];
+      vertex_allowed_error[first + k] =
+          combine(sil ? cell_label(inputs_.silhouette_dt, cell) : kLabelNoCell,
+                  focus ? cell_label(inputs_.focus_dt, cell) : kLabelNoCell,
+                  neglect ? cell_label(inputs_.neglect_dt, cell) : kLabelNoCell, cell != kNoCell, clip_w_[k],
+                  static_cast<std::uint32_t>(first + k));
+    }
   }
 }
 

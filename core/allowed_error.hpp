@@ -86,8 +86,9 @@ float eccentricity_deg(float distance_px, float tan_per_px);
 // which gives 1). tan_per_px is used by kFoveal only. Pure; exposed for tests and for the refiner.
 float law_factor(const RegionLaw& law, float distance_px, float tan_per_px);
 
-// Per-request inputs: the grids of the criteria in use (W×H transforms of the metric in the options;
-// an unused criterion's span may be empty) and the mesh's vertex arrays.
+// Per-request inputs: the grids of the criteria in use (W×H chamfer transforms of the metric in the
+// options, which must not be kEuclidean; an unused criterion's span may be empty) and the mesh's
+// vertex arrays.
 struct AllowedErrorInputs {
   std::span<const std::uint16_t> silhouette_dt;  // chamfer transform seeded by the background (+ depth jumps)
   std::span<const std::uint16_t> focus_dt;       // chamfer transform seeded by the foci
@@ -113,12 +114,21 @@ class AllowedErrorField {
  private:
   float combine(std::uint32_t silhouette_label, std::uint32_t focus_label, std::uint32_t neglect_label,
                 bool has_cell, float clip_w, std::uint32_t vertex) const;
+  // Multiplier of a law at every raw label value present in its grid, so that no vertex pays for
+  // the law itself (the foveal law's atan costs more than the rest of a vertex).
+  static void tabulate(const RegionLaw& law, DistanceMetric metric, float tan_per_px,
+                       std::span<const std::uint16_t> dt, std::vector<float>& table);
+  static float lookup(const std::vector<float>& table, std::uint32_t label) {
+    return label < table.size() ? table[label] : 1.0f;  // labels past the grid's largest: unlabeled
+  }
 
   const ViewMapping* mapping_ = nullptr;
   AllowedErrorOptions options_{};
   AllowedErrorInputs inputs_{};
   float tan_per_px_ = 0.0f;
+  float pixel_bound_per_clip_w_ = 0.0f;
   float viewport_height_px_ = 0.0f;
+  std::vector<float> silhouette_table_, focus_table_, neglect_table_;
   std::vector<std::uint32_t> cells_;  // full variant scratch
   std::vector<float> clip_w_;
 };

@@ -1,7 +1,8 @@
 // Benchmarks of the per-request grid stages (DESIGN.md §1): the papers' two-pass 5-7-11 chamfer and the
 // exact Euclidean transform against OpenCV's cv::distanceTransform on the same images (one thread),
-// and the projection of 1M vertices hand-written against a generic glm::mat4 product.
-// Items are grid cells (transforms) or vertices (projection).
+// the projection of 1M vertices hand-written against a generic glm::mat4 product, occupancy of the
+// shared dragon meshes, and the allowed-error labels of the 871k dragon full against lazy.
+// Items are grid cells (transforms), vertices (projection, labels) or triangles (occupancy).
 #include <benchmark/benchmark.h>
 
 #include <opencv2/core.hpp>
@@ -16,7 +17,15 @@
 #include <random>
 #include <vector>
 
+#include <algorithm>
+#include <filesystem>
+#include <optional>
+
+#include "core/allowed_error.hpp"
 #include "core/distance_transform.hpp"
+#include "core/io/mesh_io.hpp"
+#include "core/labels.hpp"
+#include "core/occupancy.hpp"
 #include "core/view_grid.hpp"
 
 namespace mtlod::core {
@@ -159,6 +168,202 @@ void BM_ProjectGlm(benchmark::State& state) {
   state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * n));
 }
 BENCHMARK(BM_ProjectGlm)->Unit(benchmark::kMicrosecond);
+
+// The shared dragon meshes (loaded once), seen from the front so that the model fills ~80% of the view.
+struct DragonScene {
+  std::optional<Mesh> full;    // dragon-vrip-871k: 437,645 vertices, 871,414 triangles
+  std::optional<Mesh> coarse;  // dragon-vrip-res4-11k: 11,102 triangles, a stand-in for a coarse cut
+  Camera camera;
+  static const DragonScene& get() {
+    static const DragonScene scene;
+    return scene;
+  }
+
+ private:
+  DragonScene() {
+    const std::filesystem::path dir = MTLOD_SHARED_MESHES_DIR;
+    io::LoadOptions load;
+    load.clean = false;  // keep vertex ids of the files
+    if (auto m = io::load_mesh(dir / "dragon-vrip-871k.ply", load); m.ok()) full = std::move(m->mesh);
+    if (auto m = io::load_mesh(dir / "dragon-vrip-res4-11k.ply", load); m.ok()) coarse = std::move(m->mesh);
+    if (!full) return;
+    glm::vec3 lo(1e30f), hi(-1e30f);
+    for (std::size_t v = 0; v < full->vertex_count(); ++v) {
+      const glm::vec3 p(full->positions[3 * v], full->positions[3 * v + 1], full->positions[3 * v + 2]);
+      lo = glm::min(lo, p);
+      hi = glm::max(hi, p);
+    }
+    const glm::vec3 centre = 0.5f * (lo + hi);
+    const float radius = 0.5f * glm::length(hi - lo);
+    camera.view = glm::lookAt(centre + glm::vec3(0.0f, 0.0f, 2.6f * radius), centre, glm::vec3(0, 1, 0));
+    camera.projection = glm::perspective(glm::radians(45.0f), 1.0f, 0.1f * radius, 10.0f * radius);
+  }
+};
+
+void BM_OccupancyDragon(benchmark::State& state) {
+  const DragonScene& scene = DragonScene::get();
+  const Mesh* mesh =
+      state.range(1) == 0 ? (scene.full ? &*scene.full : nullptr) : (scene.coarse ? &*scene.coarse : nullptr);
+  if (mesh == nullptr) {
+    state.SkipWithError("shared dragon meshes not found");
+    return;
+  }
+  const auto side = static_cast<std::uint32_t>(state.range(0));
+  const ViewMapping mapping(scene.camera, GridSize{side, side});
+  std::vector<std::uint8_t> occupancy(mapping.grid().cell_count());
+  for (auto _ : state) {
+    rasterize_occupancy(mapping, mesh->positions, mesh->triangles, occupancy);
+    benchmark::DoNotOptimize(occupancy.data());
+  }
+  state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * mesh->triangle_count()));
+  // How far the coarse mesh's occupancy is from the full one's: cells that differ, and full-mesh
+  // vertices whose silhouette label (5-7-11) changes.
+  if (mesh == &*scene.coarse && scene.full) {
+    std::vector<std::uint8_t> reference(occupancy.size());
+    rasterize_occupancy(mapping, scene.full->positions, scene.full->triangles, reference);
+    std::size_t differing = 0, object = 0;
+    for (std::size_t c = 0; c < occupancy.size(); ++c) {
+      differing += occupancy[c] != reference[c];
+      object += reference[c] != 0;
+    }
+    std::vector<std::uint16_t> dt(occupancy.size()), dt_reference(occupancy.size());
+    chamfer_5_7_11(occupancy, mapping.grid(), dt);
+    chamfer_5_7_11(reference, mapping.grid(), dt_reference);
+    const std::size_t n = scene.full->vertex_count();
+    std::vector<std::uint32_t> cells(n);
+    std::vector<float> clip_w(n);
+    map_vertices(mapping, scene.full->positions, cells, clip_w);
+    std::size_t changed = 0, within_one_px = 0, labelled = 0;
+    for (std::size_t v = 0; v < n; ++v) {
+      if (cells[v] == kNoCell) continue;
+      ++labelled;
+      const int a = dt[cells[v]], b = dt_reference[cells[v]];
+      changed += a != b;
+      within_one_px += std::abs(a - b) <= 5;
+    }
+    state.counters["cells_differing_pct"] =
+        100.0 * static_cast<double>(differing) / static_cast<double>(object);
+    state.counters["labels_changed_pct"] =
+        100.0 * static_cast<double>(changed) / static_cast<double>(labelled);
+    state.counters["labels_off_by_gt1px_pct"] =
+        100.0 * static_cast<double>(labelled - within_one_px) / static_cast<double>(labelled);
+  }
+}
+// Args: grid side, mesh (0 = full 871k, 1 = the 11k stand-in for a coarse cut).
+BENCHMARK(BM_OccupancyDragon)
+    ->Args({256, 0})
+    ->Args({512, 0})
+    ->Args({256, 1})
+    ->Args({512, 1})
+    ->Unit(benchmark::kMillisecond);
+
+// Allowed error of the 871k dragon at 256², silhouette (step, d = 2 px, f = 0) + focus (foveal),
+// pixel bound. Full: every vertex through the SIMD projection. Lazy: only the vertices of a random
+// set of triangles (a refinement touching that many triangles), projected one by one.
+struct LabelScene {
+  ViewMapping mapping;
+  std::vector<std::uint16_t> silhouette, focus;
+  AllowedErrorOptions options;
+  explicit LabelScene(const DragonScene& dragon) {
+    mapping = ViewMapping(dragon.camera, GridSize{256, 256});
+    const GridSize grid = mapping.grid();
+    std::vector<std::uint8_t> occupancy(grid.cell_count());
+    rasterize_occupancy(mapping, dragon.coarse->positions, dragon.coarse->triangles, occupancy);
+    silhouette.resize(grid.cell_count());
+    focus.resize(grid.cell_count());
+    DistanceTransformer transformer;
+    transformer.chamfer(DistanceMetric::kChamfer5711, occupancy, grid, silhouette);
+    const std::vector<std::uint32_t> foci = {focus_cell(grid, 0.5f, 0.4f)};
+    transformer.chamfer_from_cells(DistanceMetric::kChamfer5711, foci, grid, focus);
+    options.error = 1.0f;
+    options.units = ErrorUnits::kScreenPixels;
+    options.use_silhouette = true;
+    options.silhouette = {FalloffLaw::kStep, 2.0f, 0.0f, 0.0f, 2.3f};
+    options.use_focus = true;
+    options.focus = {FalloffLaw::kFoveal, 0.0f, 0.2f, 0.0f, 2.3f};
+  }
+};
+
+void BM_AllowedErrorFull(benchmark::State& state) {
+  const DragonScene& dragon = DragonScene::get();
+  if (!dragon.full || !dragon.coarse) {
+    state.SkipWithError("shared dragon meshes not found");
+    return;
+  }
+  const LabelScene scene(dragon);
+  AllowedErrorField field;
+  field.bind(scene.mapping, scene.options, {scene.silhouette, scene.focus, {}, dragon.full->positions, {}});
+  std::vector<float> allowed(dragon.full->vertex_count());
+  for (auto _ : state) {
+    field.compute_all(allowed);
+    benchmark::DoNotOptimize(allowed.data());
+  }
+  state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * allowed.size()));
+}
+BENCHMARK(BM_AllowedErrorFull)->Unit(benchmark::kMicrosecond);
+
+void BM_AllowedErrorLazy(benchmark::State& state) {
+  const DragonScene& dragon = DragonScene::get();
+  if (!dragon.full || !dragon.coarse) {
+    state.SkipWithError("shared dragon meshes not found");
+    return;
+  }
+  const LabelScene scene(dragon);
+  AllowedErrorField field;
+  field.bind(scene.mapping, scene.options, {scene.silhouette, scene.focus, {}, dragon.full->positions, {}});
+  // Touched triangles: random (arg 1 = 0) or a contiguous run in file order (arg 1 = 1).
+  const auto touched = static_cast<std::size_t>(state.range(0));
+  std::vector<std::uint32_t> triangles(touched);
+  std::mt19937 rng(3);
+  std::uniform_int_distribution<std::uint32_t> pick(
+      0, static_cast<std::uint32_t>(dragon.full->triangle_count() - 1));
+  for (std::size_t k = 0; k < touched; ++k)
+    triangles[k] = state.range(1) == 0 ? pick(rng) : static_cast<std::uint32_t>(k);
+  for (auto _ : state) {
+    float sum = 0.0f;
+    for (const std::uint32_t t : triangles) {
+      const std::uint32_t* tri = dragon.full->triangles.data() + 3 * std::size_t{t};
+      sum += std::min({field.vertex_allowed_error(tri[0]), field.vertex_allowed_error(tri[1]),
+                       field.vertex_allowed_error(tri[2])});
+    }
+    benchmark::DoNotOptimize(sum);
+  }
+  state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * 3 * touched));
+}
+// Args: triangles touched, order (0 random, 1 file order).
+BENCHMARK(BM_AllowedErrorLazy)
+    ->Args({10000, 0})
+    ->Args({50000, 0})
+    ->Args({150000, 0})
+    ->Args({150000, 1})
+    ->Unit(benchmark::kMicrosecond);
+
+// The grid part of a request before refinement, 871k dragon at 256²: occupancy of the 11k stand-in
+// for a coarse cut, silhouette 5-7-11, focus 5-7-11, and the full allowed-error array.
+void BM_GridPipelineDragon256(benchmark::State& state) {
+  const DragonScene& dragon = DragonScene::get();
+  if (!dragon.full || !dragon.coarse) {
+    state.SkipWithError("shared dragon meshes not found");
+    return;
+  }
+  LabelScene scene(dragon);
+  const GridSize grid = scene.mapping.grid();
+  std::vector<std::uint8_t> occupancy(grid.cell_count());
+  DistanceTransformer transformer;
+  AllowedErrorField field;
+  std::vector<float> allowed(dragon.full->vertex_count());
+  const std::vector<std::uint32_t> foci = {focus_cell(grid, 0.5f, 0.4f)};
+  for (auto _ : state) {
+    rasterize_occupancy(scene.mapping, dragon.coarse->positions, dragon.coarse->triangles, occupancy);
+    transformer.chamfer(DistanceMetric::kChamfer5711, occupancy, grid, scene.silhouette);
+    transformer.chamfer_from_cells(DistanceMetric::kChamfer5711, foci, grid, scene.focus);
+    field.bind(scene.mapping, scene.options, {scene.silhouette, scene.focus, {}, dragon.full->positions, {}});
+    field.compute_all(allowed);
+    benchmark::DoNotOptimize(allowed.data());
+  }
+  state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * allowed.size()));
+}
+BENCHMARK(BM_GridPipelineDragon256)->Unit(benchmark::kMicrosecond);
 
 }  // namespace
 }  // namespace mtlod::core
