@@ -18,9 +18,9 @@ OccupancyLevels::OccupancyLevels(const Mt& mt) {
   }
 }
 
-const OccupancyLevel& OccupancyLevels::for_error(float error) const {
+const OccupancyLevel& OccupancyLevels::for_covered_cells(double covered_cells) const {
   for (const OccupancyLevel& level : levels_) {
-    if (level.max_error <= error) return level;
+    if (static_cast<double>(level.triangles.size() / 3) >= 0.5 * covered_cells) return level;
   }
   return levels_.back();
 }

@@ -33,18 +33,20 @@ void ViewExtractor::map(const ViewRequest& request) {
   mapping_ = ViewMapping(request.camera, request.grid);
 }
 
-float ViewExtractor::occupancy_error() const {
-  // One cell in model units at the centre's depth; a centre behind the eye or at it falls back to
-  // the nearest point of the bounding sphere in front, and never below a thousandth of the radius.
+double ViewExtractor::covered_cells() const {
+  // The bounding sphere's projected radius in cells at its centre's depth; a centre at or behind
+  // the eye means the model surrounds the camera: the whole grid.
   float clip_w = 0;
   mapping_.map_point(centre_[0], centre_[1], centre_[2], &clip_w);
-  clip_w = std::max(clip_w, 1e-3f * radius_);
-  const float cell = mapping_.model_units_per_pixel(clip_w, static_cast<float>(request_->grid.height));
-  return std::max(cell, 1e-6f * radius_);
+  const double grid_cells = static_cast<double>(request_->grid.cell_count());
+  if (!(clip_w > radius_)) return grid_cells;
+  const double cell = mapping_.model_units_per_pixel(clip_w, static_cast<float>(request_->grid.height));
+  const double radius_cells = radius_ / cell;
+  return std::min(grid_cells, 3.14159265358979 * radius_cells * radius_cells);
 }
 
 std::size_t ViewExtractor::occupancy() {
-  occupancy_triangles_ = levels_.for_error(occupancy_error()).triangles;
+  occupancy_triangles_ = levels_.for_covered_cells(covered_cells()).triangles;
   const std::size_t cells = request_->grid.cell_count();
   occupancy_.resize(cells);
   if (request_->internal_silhouettes) depth_.resize(cells);
@@ -122,8 +124,10 @@ void ViewExtractor::refine(Refiner& session, CutMesh& out) {
   const AllowedError allowed = AllowedError::from_vertices(vertex_allowed_error_);
   if (request_->budget) {
     session.refine_budget(allowed, *request_->budget, out);
-  } else {
+  } else if (request_->dynamic) {
     session.update(allowed, out);
+  } else {
+    session.refine(allowed, out);
   }
   if (request_->labels) {
     // Labels of the cut's vertices only: the silhouette distance when it was computed, else the focus's.

@@ -31,6 +31,7 @@ struct ViewRequest {
   bool internal_silhouettes = false;          // depth jumps seed the silhouette transform too
   float depth_jump = 0.1f;                    // relative depth difference that counts as a jump
   std::optional<std::size_t> budget;          // triangle budget: worst-first refinement
+  bool dynamic = true;                        // move the session's cut (false: refine from the root)
   bool labels = false;                        // fill vertex labels (silhouette, else focus) for encoding
 };
 
@@ -43,14 +44,15 @@ class ViewExtractor {
 
   // Stage 1: binds the request and builds the mapping.
   void map(const ViewRequest& request);
-  // Stage 2: rasterises the occupancy from the coarsest precomputed cut whose error is within one
-  // grid cell at the model's centre depth. Returns that cut's triangle count.
+  // Stage 2: rasterises the occupancy from a precomputed coarse cut sized to the grid cells the
+  // model covers (see OccupancyLevels). Returns that cut's triangle count.
   std::size_t occupancy();
   // Stage 3: the silhouette, focus and neglect transforms the request uses.
   void distance_transforms();
   // Stage 4: per-vertex allowed error (and labels when asked).
   void allowed_error();
-  // Stage 5: refines `session` (dynamic unless a budget is set) and writes the cut to `out`.
+  // Stage 5: refines `session` (dynamic unless a budget is set or `dynamic` is off) and writes the
+  // cut to `out`.
   void refine(Refiner& session, CutMesh& out);
 
   // After the stages: the per-vertex labels (model vertex count entries; only the cut's vertices are
@@ -63,8 +65,8 @@ class ViewExtractor {
   const ViewMapping& mapping() const { return mapping_; }
   std::span<const std::uint32_t> occupancy_triangles() const { return occupancy_triangles_; }
 
-  // The uniform error of the occupancy cut: one grid cell in model units at the model's centre.
-  float occupancy_error() const;
+  // Grid cells covered by the model's bounding sphere (at most the whole grid).
+  double covered_cells() const;
 
  private:
   void transform(std::span<const std::uint8_t> image, std::span<std::uint16_t> out);
