@@ -70,7 +70,8 @@ void add_extract_flags(CLI::App& app, ExtractFlags& f) {
   app.add_flag("--internal-silhouettes", f.internal_silhouettes, "depth jumps seed the silhouette distance too");
   app.add_option("--frustum-factor", f.frustum_factor, "error multiplier outside the view")->capture_default_str();
   app.add_option("--backface-factor", f.backface_factor, "error multiplier for back faces")->capture_default_str();
-  app.add_option("--draco", f.draco_method, "Draco method: edgebreaker or sequential")->capture_default_str();
+  app.add_option("--draco", f.draco_method,
+                 "Draco method: edgebreaker or sequential (default: edgebreaker for extract, sequential for gaze)");
   app.add_option("--draco-speed", f.draco_speed, "Draco speed 0 (smallest) .. 10 (fastest)")->capture_default_str();
   app.add_option("--position-bits", f.position_bits, "Draco position quantization bits")->capture_default_str();
   app.add_flag("--normals", f.normals, "send vertex normals");
@@ -132,7 +133,11 @@ Result<Extract> make_extract(const ExtractFlags& f, const std::string& model, co
   MTLOD_RETURN_IF_ERROR(named(e.criteria.falloff, kFalloffNames, f.falloff, "--falloff"));
   MTLOD_RETURN_IF_ERROR(named(e.criteria.distance, kDistanceKindNames, f.distance, "--distance"));
   MTLOD_RETURN_IF_ERROR(named(e.criteria.units, kDistanceUnitNames, f.units, "--units"));
-  MTLOD_RETURN_IF_ERROR(named(e.draco.method, kDracoMethodNames, f.draco_method, "--draco"));
+  if (!f.draco_method.empty()) {
+    DracoMethod method{};
+    MTLOD_RETURN_IF_ERROR(named(method, kDracoMethodNames, f.draco_method, "--draco"));
+    e.draco.method = method;
+  }
   // The same checks the server applies (ranges, singular matrices), with the same messages.
   ParsedRequest parsed = parse_request(to_json(e, 0), Limits{});
   if (!parsed.ok()) return make_error(ErrorCode::kInvalidArgument, parsed.error.message);

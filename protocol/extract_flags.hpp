@@ -30,7 +30,7 @@ struct ExtractFlags {
   std::string falloff = "step", distance = "chamfer-5-7-11", units = "pixels";
   bool internal_silhouettes = false;
   double frustum_factor = 8, backface_factor = 1;
-  std::string draco_method = "edgebreaker";
+  std::string draco_method;  // empty: the server's default for the request type
   int draco_speed = 7, position_bits = 14;
   bool normals = false, labels = false;
 };

@@ -80,7 +80,9 @@ struct Criteria {
 };
 
 struct DracoSettings {
-  DracoMethod method = DracoMethod::kEdgebreaker;
+  // Unset: edgebreaker for extract (smallest payload), sequential for gaze (lowest latency), the
+  // defaults chosen from tests/bench/bench_pipeline (README, "Draco").
+  std::optional<DracoMethod> method;
   int speed = 7;  // 0 best ratio .. 10 fastest
   int position_bits = 14;
   int normal_bits = 10;

@@ -275,7 +275,7 @@ Extract read_extract(ObjectReader& r, const Limits& limits) {
   }
   if (const json* d = r.find("draco")) {
     ObjectReader dr(*d, "draco");
-    e.draco.method = static_cast<DracoMethod>(dr.choice("method", kDracoMethodNames, 0));
+    if (dr.has("method")) e.draco.method = static_cast<DracoMethod>(dr.choice("method", kDracoMethodNames, 0));
     e.draco.speed = static_cast<int>(dr.integer("speed", e.draco.speed, 0, 10));
     e.draco.position_bits = static_cast<int>(dr.integer("position_bits", e.draco.position_bits, 1, 30));
     e.draco.normal_bits = static_cast<int>(dr.integer("normal_bits", e.draco.normal_bits, 1, 30));
@@ -402,10 +402,8 @@ json extract_json(const Extract& e) {
   j["criteria"] = c;
   if (e.budget) j["budget"] = *e.budget;
   j["attributes"] = {{"normals", e.normals}, {"labels", e.labels}};
-  j["draco"] = {{"method", enum_name(kDracoMethodNames, e.draco.method)},
-                {"speed", e.draco.speed},
-                {"position_bits", e.draco.position_bits},
-                {"normal_bits", e.draco.normal_bits}};
+  j["draco"] = {{"speed", e.draco.speed}, {"position_bits", e.draco.position_bits}, {"normal_bits", e.draco.normal_bits}};
+  if (e.draco.method) j["draco"]["method"] = enum_name(kDracoMethodNames, *e.draco.method);
   return j;
 }
 

@@ -154,7 +154,7 @@ void Connection::start_next_job() {
   if (!job) return;
   net::post(server_.workers, [self = shared_from_this(), job = std::move(*job)]() mutable {
     const std::int64_t started = now_ns();
-    auto outcome = self->server_.engine.extract(job.extract, self->cut_);
+    auto outcome = self->server_.engine.extract(job.extract, job.gaze, self->cut_);
     net::post(self->strand_, [self, job = std::move(job), started, outcome = std::move(outcome)]() mutable {
       self->finish_job(job, started, outcome);
     });

@@ -36,7 +36,7 @@ std::uint64_t elapsed_us(Clock::time_point& since) {
 
 }  // namespace
 
-std::variant<ExtractOutcome, protocol::ProtocolError> Engine::extract(const protocol::Extract& request,
+std::variant<ExtractOutcome, protocol::ProtocolError> Engine::extract(const protocol::Extract& request, bool gaze,
                                                                       SessionCut& session) {
   const Model* model = models_.find(request.model);
   if (!model) return protocol::ProtocolError{protocol::ErrorKind::kUnknownModel, fmt::format("no model named '{}'", request.model)};
@@ -78,8 +78,10 @@ std::variant<ExtractOutcome, protocol::ProtocolError> Engine::extract(const prot
   t.refine_us = elapsed_us(clock);
 
   core::DracoOptions draco;
-  draco.method = request.draco.method == protocol::DracoMethod::kEdgebreaker ? core::DracoMethod::kEdgebreaker
-                                                                             : core::DracoMethod::kSequential;
+  const protocol::DracoMethod method =
+      request.draco.method.value_or(gaze ? protocol::DracoMethod::kSequential : protocol::DracoMethod::kEdgebreaker);
+  draco.method = method == protocol::DracoMethod::kEdgebreaker ? core::DracoMethod::kEdgebreaker
+                                                               : core::DracoMethod::kSequential;
   draco.speed = request.draco.speed;
   draco.position_bits = request.draco.position_bits;
   draco.normal_bits = request.draco.normal_bits;

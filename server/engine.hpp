@@ -36,7 +36,9 @@ class Engine {
   explicit Engine(const ModelRegistry& models) : models_(models) {}
 
   // Thread-safe for distinct sessions; one call at a time per SessionCut.
-  std::variant<ExtractOutcome, protocol::ProtocolError> extract(const protocol::Extract& request, SessionCut& session);
+  // gaze: the request comes from a gaze update (it picks the gaze defaults, e.g. Draco's method).
+  std::variant<ExtractOutcome, protocol::ProtocolError> extract(const protocol::Extract& request, bool gaze,
+                                                                SessionCut& session);
 
   const ModelRegistry& models() const { return models_; }
 

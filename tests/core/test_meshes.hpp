@@ -1,8 +1,11 @@
 // Small meshes with known properties and the locations of the test data, shared by core tests.
 #pragma once
 
+#include <unistd.h>
+
 #include <filesystem>
 #include <string>
+#include <vector>
 
 #include "core/mesh.hpp"
 
@@ -13,11 +16,21 @@ inline std::filesystem::path shared_meshes_dir() { return MTLOD_SHARED_MESHES_DI
 // Built-in models written by scripts/prepare-models.sh.
 inline std::filesystem::path models_dir() { return MTLOD_MODELS_DIR; }
 
-// A fresh, empty directory for files a test writes.
+// A fresh, empty directory for files a test writes; per process, since ctest runs tests in parallel.
 inline std::filesystem::path scratch_dir(const std::string& name) {
-  auto dir = std::filesystem::temp_directory_path() / ("mtlod-test-" + name);
+  auto dir = std::filesystem::temp_directory_path() / ("mtlod-test-" + name + "-" + std::to_string(::getpid()));
   std::filesystem::remove_all(dir);
   std::filesystem::create_directories(dir);
+  // Removed when the test process ends.
+  struct Cleanup {
+    std::vector<std::filesystem::path> dirs;
+    ~Cleanup() {
+      std::error_code ignored;
+      for (const auto& d : dirs) std::filesystem::remove_all(d, ignored);
+    }
+  };
+  static Cleanup cleanup;
+  cleanup.dirs.push_back(dir);
   return dir;
 }
 

@@ -98,7 +98,7 @@ TEST(ParseRequest, DefaultsFillWhatAMinimalExtractLeavesOut) {
   EXPECT_EQ(e.error_unit, ErrorUnit::kModel);
   EXPECT_FALSE(e.criteria.silhouette);
   EXPECT_FALSE(e.budget);
-  EXPECT_EQ(e.draco.method, DracoMethod::kEdgebreaker);
+  EXPECT_FALSE(e.draco.method);
 }
 
 TEST(ParseRequest, LimitsComeFromTheServerConfiguration) {
