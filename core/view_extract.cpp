@@ -9,6 +9,19 @@
 #include "core/occupancy.hpp"
 
 namespace mtlod::core {
+namespace {
+
+// Exact squared distances → distances in fifths of a pixel: the 5-per-pixel scale of the papers'
+// labels, so the allowed-error laws read them as 5-7-11 units. Fits 16 bits on grids up to 4096².
+void to_fifths_of_pixel(std::span<const std::uint32_t> squared, std::span<std::uint16_t> out) {
+  for (std::size_t c = 0; c < out.size(); ++c) {
+    out[c] = squared[c] == kEuclideanUnreached
+                 ? kChamferUnreached
+                 : static_cast<std::uint16_t>(std::lround(5.0 * std::sqrt(static_cast<double>(squared[c]))));
+  }
+}
+
+}  // namespace
 
 ViewExtractor::ViewExtractor(const Mt& mt, const OccupancyLevels& levels) : mt_(mt), levels_(levels) {
   // Bounding sphere (box centre and half diagonal): enough to pick the occupancy cut's error.
@@ -60,13 +73,7 @@ void ViewExtractor::transform(std::span<const std::uint8_t> image, std::span<std
   if (metric != DistanceMetric::kEuclidean) return transformer_.chamfer(metric, image, request_->grid, out);
   euclidean_.resize(out.size());
   transformer_.euclidean_squared(image, request_->grid, euclidean_);
-  // Exact distances in fifths of a pixel: the 5-per-pixel scale of the papers' labels, so the
-  // allowed-error laws read them as 5-7-11 units. Fits 16 bits on grids up to 4096².
-  for (std::size_t c = 0; c < out.size(); ++c) {
-    out[c] = euclidean_[c] == kEuclideanUnreached
-                 ? kChamferUnreached
-                 : static_cast<std::uint16_t>(std::lround(5.0 * std::sqrt(static_cast<double>(euclidean_[c]))));
-  }
+  to_fifths_of_pixel(euclidean_, out);
 }
 
 void ViewExtractor::transform_from_cells(std::span<const std::uint32_t> cells, std::span<std::uint16_t> out) {
@@ -74,11 +81,7 @@ void ViewExtractor::transform_from_cells(std::span<const std::uint32_t> cells, s
   if (metric != DistanceMetric::kEuclidean) return transformer_.chamfer_from_cells(metric, cells, request_->grid, out);
   euclidean_.resize(out.size());
   transformer_.euclidean_squared_from_cells(cells, request_->grid, euclidean_);
-  for (std::size_t c = 0; c < out.size(); ++c) {
-    out[c] = euclidean_[c] == kEuclideanUnreached
-                 ? kChamferUnreached
-                 : static_cast<std::uint16_t>(std::lround(5.0 * std::sqrt(static_cast<double>(euclidean_[c]))));
-  }
+  to_fifths_of_pixel(euclidean_, out);
 }
 
 void ViewExtractor::distance_transforms() {
