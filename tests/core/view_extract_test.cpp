@@ -1,0 +1,240 @@
+// The request pipeline in core (view_extract), end to end on a real MT: the papers' silhouette
+// guarantee on the 871k dragon, falling density around a focus, exact Euclidean labels against
+// brute force, and occupancy cuts chosen by the model's size on the grid.
+#include "core/view_extract.hpp"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <memory>
+#include <set>
+
+#include "core/distance_transform.hpp"
+#include "core/io/mesh_io.hpp"
+#include "core/labels.hpp"
+#include "core/mesh_gen.hpp"
+#include "core/mt_builder.hpp"
+#include "core/occupancy_levels.hpp"
+#include "tests/core/cut_validator.hpp"
+#include "tests/core/test_meshes.hpp"
+
+#include <glm/ext/matrix_clip_space.hpp>
+#include <glm/ext/matrix_transform.hpp>
+
+namespace mtlod::core {
+namespace {
+
+struct Built {
+  Mesh input;
+  Mt mt;
+  std::unique_ptr<OccupancyLevels> levels;
+};
+
+std::unique_ptr<Built> build(Mesh mesh) {
+  auto b = std::make_unique<Built>();
+  b->input = std::move(mesh);
+  auto mt = build_mt(b->input);
+  EXPECT_TRUE(mt.ok()) << mt.error().message;
+  if (!mt.ok()) return nullptr;
+  b->mt = std::move(*mt);
+  b->levels = std::make_unique<OccupancyLevels>(b->mt);
+  return b;
+}
+
+// A perspective camera looking at the mesh's bounding-box centre from +z, the whole mesh in view.
+Camera front_camera(const Mesh& m, float aspect) {
+  glm::vec3 lo(INFINITY), hi(-INFINITY);
+  for (std::size_t v = 0; v < m.vertex_count(); ++v) {
+    const glm::vec3 p(m.positions[3 * v], m.positions[3 * v + 1], m.positions[3 * v + 2]);
+    lo = glm::min(lo, p), hi = glm::max(hi, p);
+  }
+  const glm::vec3 centre = 0.5f * (lo + hi);
+  const float radius = 0.5f * glm::length(hi - lo);
+  const float distance = 1.1f * radius / std::sin(glm::radians(22.5f));
+  Camera c;
+  c.view = glm::lookAt(centre + glm::vec3(0, 0, distance), centre, glm::vec3(0, 1, 0));
+  c.projection = glm::perspective(glm::radians(45.0f), aspect, distance / 100, distance * 100);
+  return c;
+}
+
+void run(ViewExtractor& x, const ViewRequest& r, Refiner& refiner, CutMesh& cut) {
+  x.map(r);
+  x.occupancy();
+  x.distance_transforms();
+  x.allowed_error();
+  x.refine(refiner, cut);
+}
+
+// Shared by the dragon tests: one MT build per process.
+const Built* dragon() {
+  static std::unique_ptr<Built> built = [] {
+    const auto path = test::shared_meshes_dir() / "dragon-vrip-871k.ply";
+    std::unique_ptr<Built> b;
+    if (auto mesh = io::load_mesh(path); mesh.ok()) b = build(std::move(mesh->mesh));
+    return b;
+  }();
+  return built.get();
+}
+
+TEST(ViewExtract, DragonSilhouetteRegionIsAtFullResolutionAndTheRestIsCoarser) {
+  const Built* d = dragon();
+  if (!d) GTEST_SKIP() << "no shared dragon-vrip-871k.ply";
+  ViewRequest r;
+  r.camera = front_camera(d->input, 1.0f);
+  r.grid = {256, 256};
+  r.allowed.error = 8.0f;  // pixels, outside the region
+  r.allowed.units = ErrorUnits::kScreenPixels;
+  r.allowed.viewport_height_px = 256;
+  r.allowed.use_silhouette = true;
+  r.allowed.silhouette = RegionLaw{FalloffLaw::kStep, 2.0f, 0.0f};  // d = 2 px, f = 0
+  r.labels = true;
+  ViewExtractor x(d->mt, *d->levels);
+  Refiner refiner(d->mt);
+  CutMesh cut;
+  run(x, r, refiner, cut);
+
+  // Independent labels: the 5-7-11 transform of the extractor's occupancy, each vertex projected
+  // through the mapping again.
+  std::vector<std::uint16_t> dt(r.grid.cell_count());
+  chamfer_5_7_11(x.occupancy_grid(), r.grid, dt);
+  const std::uint32_t d_raw = raw_threshold(2.0f, DistanceMetric::kChamfer5711);  // 10
+  std::set<std::array<std::uint32_t, 3>> input;
+  for (std::size_t t = 0; t < d->input.triangle_count(); ++t) {
+    input.insert(test::canonical(d->input.triangles[3 * t], d->input.triangles[3 * t + 1], d->input.triangles[3 * t + 2]));
+  }
+  std::size_t in_region = 0, coarse = 0, contour_vertices = 0;
+  for (std::size_t t = 0; t < cut.triangle_count(); ++t) {
+    const std::uint32_t* v = &cut.triangles[3 * t];
+    std::uint32_t label = kLabelNoCell;
+    for (int c = 0; c < 3; ++c) {
+      const std::uint32_t l = vertex_label(x.mapping(), std::span<const float>(d->mt.positions), v[c], std::span<const std::uint16_t>(dt));
+      label = std::min(label, l);
+      contour_vertices += l == 5;  // on a contour cell: one step from the background
+    }
+    const bool original = input.count(test::canonical(v[0], v[1], v[2])) != 0;
+    if (label <= d_raw) {
+      ++in_region;
+      ASSERT_TRUE(original) << "triangle " << t << " with label " << label << " is not at full resolution";
+    }
+    coarse += !original;
+  }
+  EXPECT_GT(in_region, 1000u);
+  EXPECT_GT(contour_vertices, 0u);
+  EXPECT_GT(coarse, 1000u) << "away from the silhouette the cut should be coarser";
+  EXPECT_LT(cut.triangle_count(), d->input.triangle_count());
+  EXPECT_TRUE(test::validate_cut(test::make_reference(d->input), cut.triangles));
+  // The labels handed to the encoder are the same labels.
+  for (std::size_t i = 0; i < std::min<std::size_t>(cut.triangles.size(), 3000); ++i) {
+    const std::uint32_t v = cut.triangles[i];
+    ASSERT_EQ(x.vertex_labels()[v], vertex_label(x.mapping(), std::span<const float>(d->mt.positions), v, std::span<const std::uint16_t>(dt)));
+  }
+}
+
+TEST(ViewExtract, DragonTriangleDensityFallsWithDistanceFromTheFocus) {
+  const Built* d = dragon();
+  if (!d) GTEST_SKIP() << "no shared dragon-vrip-871k.ply";
+  ViewRequest r;
+  r.camera = front_camera(d->input, 1.0f);
+  r.grid = {256, 256};
+  r.allowed.error = 6.0f;
+  r.allowed.units = ErrorUnits::kScreenPixels;
+  r.allowed.viewport_height_px = 256;
+  r.allowed.use_focus = true;
+  r.allowed.focus = RegionLaw{FalloffLaw::kLinear, 10.0f, 0.05f, 80.0f};
+  r.focus = {{0.5f, 0.5f}};
+  ViewExtractor x(d->mt, *d->levels);
+  Refiner refiner(d->mt);
+  CutMesh cut;
+  run(x, r, refiner, cut);
+  // Mean projected area of the cut's triangles by rings of 20 cells around the focus cell (128, 128),
+  // out to 80 cells: inside the dragon's outline, where grazing triangles at the rim do not blur it.
+  constexpr int kRings = 4;
+  double area[kRings] = {}, count[kRings] = {};
+  for (std::size_t t = 0; t < cut.triangle_count(); ++t) {
+    GridPoint g[3];
+    bool visible = true;
+    for (int c = 0; c < 3; ++c) {
+      const float* p = &d->mt.positions[3 * std::size_t{cut.triangles[3 * t + c]}];
+      float cx, cy, cw;
+      x.mapping().clip_xyw(p[0], p[1], p[2], cx, cy, cw);
+      visible = visible && cw > 0;
+      g[c] = x.mapping().to_grid(cx, cy, cw);
+    }
+    if (!visible) continue;
+    const double mx = (g[0].x + g[1].x + g[2].x) / 3 - 128, my = (g[0].y + g[1].y + g[2].y) / 3 - 128;
+    const int ring = static_cast<int>(std::sqrt(mx * mx + my * my) / 20);
+    if (ring >= kRings) continue;
+    area[ring] += 0.5 * std::abs((g[1].x - g[0].x) * (g[2].y - g[0].y) - (g[2].x - g[0].x) * (g[1].y - g[0].y));
+    count[ring] += 1;
+  }
+  for (int ring = 0; ring < kRings; ++ring) ASSERT_GT(count[ring], 20) << "ring " << ring << " is nearly empty";
+  // Triangles grow ring by ring away from the focus, the outer ring's at least twice the inner's.
+  for (int ring = 1; ring < kRings; ++ring) {
+    EXPECT_GT(area[ring] / count[ring], area[ring - 1] / count[ring - 1]) << "ring " << ring;
+  }
+  EXPECT_GT(area[kRings - 1] / count[kRings - 1], 2 * area[0] / count[0]);
+}
+
+TEST(ViewExtract, EuclideanLabelsAreExactDistancesInFifthsOfAPixel) {
+  GenerateOptions o;
+  o.target_triangles = 3000;
+  auto b = build(generate_mesh(o));
+  ASSERT_NE(b, nullptr);
+  ViewRequest r;
+  r.camera = front_camera(b->input, 1.0f);
+  r.grid = {48, 40};
+  r.allowed.error = 0.01f;
+  r.allowed.use_silhouette = true;
+  r.allowed.metric = DistanceMetric::kEuclidean;
+  r.focus = {{0.25f, 0.5f}, {0.8f, 0.1f}};
+  r.allowed.use_focus = true;
+  ViewExtractor x(b->mt, *b->levels);
+  Refiner refiner(b->mt);
+  CutMesh cut;
+  run(x, r, refiner, cut);
+  const std::span<const std::uint8_t> occ = x.occupancy_grid();
+  std::vector<std::uint32_t> focus_cells = {focus_cell(r.grid, 0.25f, 0.5f), focus_cell(r.grid, 0.8f, 0.1f)};
+  for (std::uint32_t j = 0; j < r.grid.height; ++j) {
+    for (std::uint32_t i = 0; i < r.grid.width; ++i) {
+      // Brute force: the nearest background cell, and the nearest focus.
+      double best = INFINITY, best_focus = INFINITY;
+      for (std::uint32_t jj = 0; jj < r.grid.height; ++jj) {
+        for (std::uint32_t ii = 0; ii < r.grid.width; ++ii) {
+          const double d2 = double(ii - double(i)) * (ii - double(i)) + (jj - double(j)) * (jj - double(j));
+          if (occ[r.grid.cell(ii, jj)] == 0) best = std::min(best, d2);
+          if (r.grid.cell(ii, jj) == focus_cells[0] || r.grid.cell(ii, jj) == focus_cells[1]) best_focus = std::min(best_focus, d2);
+        }
+      }
+      const std::uint32_t c = r.grid.cell(i, j);
+      ASSERT_EQ(x.silhouette_dt()[c], std::lround(5 * std::sqrt(best))) << "cell " << i << "," << j;
+      ASSERT_EQ(x.focus_dt()[c], std::lround(5 * std::sqrt(best_focus))) << "cell " << i << "," << j;
+    }
+  }
+}
+
+TEST(ViewExtract, OccupancyCutGrowsAsTheModelFillsMoreOfTheGrid) {
+  GenerateOptions o;
+  o.target_triangles = 200'000;
+  auto b = build(generate_mesh(o));
+  ASSERT_NE(b, nullptr);
+  ASSERT_GE(b->levels->levels().size(), 3u);
+  ViewExtractor x(b->mt, *b->levels);
+  std::size_t previous = 0;
+  for (std::uint32_t side : {16u, 64u, 256u, 1024u}) {
+    ViewRequest r;
+    r.camera = front_camera(b->input, 1.0f);
+    r.grid = {side, side};
+    x.map(r);
+    const std::size_t triangles = x.occupancy();
+    // About one triangle per two covered cells, from the precomputed levels.
+    EXPECT_GE(triangles, previous) << side;
+    EXPECT_GE(static_cast<double>(triangles), std::min(0.5 * x.covered_cells(),
+                                                      static_cast<double>(b->levels->levels().back().triangles.size() / 3)));
+    previous = triangles;
+  }
+  EXPECT_GT(previous, b->levels->levels().front().triangles.size() / 3);
+}
+
+}  // namespace
+}  // namespace mtlod::core
