@@ -367,17 +367,26 @@ Mt Builder::assemble() const {
   const std::uint32_t k = std::uint32_t(collapse_u_.size());
   const std::size_t node_count = std::size_t{k} + 1;
   const std::size_t mt_count = mt_made_by_.size();
-  // Collapse c (0-based, fine → coarse) becomes node k - c, so the coarsest change comes first.
-  auto creator = [&](std::size_t t) { return mt_killed_by_[t] == 0 ? 0u : k - (mt_killed_by_[t] - 1); };
-  auto remover = [&](std::size_t t) { return mt_made_by_[t] == 0 ? kNoNode : k - (mt_made_by_[t] - 1); };
+  // Nodes by decreasing error, ties by reverse collapse order. This is a topological order (a
+  // parent's error is at least its child's, and on a tie the parent collapsed later), and it makes
+  // the static cut for a uniform threshold e a prefix: the root and every node with error > e. Cuts
+  // then walk the arrays front to back instead of jumping around.
+  std::vector<std::uint32_t> order(k);
+  for (std::uint32_t c = 0; c < k; ++c) order[c] = k - 1 - c;  // coarsest collapse first
+  std::stable_sort(order.begin(), order.end(),
+                   [&](std::uint32_t x, std::uint32_t y) { return collapse_error_[x] > collapse_error_[y]; });
+  std::vector<std::uint32_t> node_of(k);
+  for (std::uint32_t i = 0; i < k; ++i) node_of[order[i]] = i + 1;
+  auto creator = [&](std::size_t t) { return mt_killed_by_[t] == 0 ? 0u : node_of[mt_killed_by_[t] - 1]; };
+  auto remover = [&](std::size_t t) { return mt_made_by_[t] == 0 ? kNoNode : node_of[mt_made_by_[t] - 1]; };
 
   mt.node_vertex.resize(node_count);
   mt.node_error.resize(node_count);
   mt.node_vertex[0] = kNoNode;
   mt.node_error[0] = 0;
   for (std::uint32_t c = 0; c < k; ++c) {
-    mt.node_vertex[k - c] = collapse_u_[c];
-    mt.node_error[k - c] = collapse_error_[c];
+    mt.node_vertex[node_of[c]] = collapse_u_[c];
+    mt.node_error[node_of[c]] = collapse_error_[c];
   }
 
   // Counting sort of triangles by creating node.

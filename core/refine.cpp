@@ -67,6 +67,16 @@ void Refiner::reset_to_root() {
 void Refiner::force(std::uint32_t r, std::uint32_t witness_triangle, std::uint32_t witness_creator) {
   const std::uint32_t* offsets = mt_.node_parent_offsets.data();
   const std::uint32_t* parents = mt_.node_parents.data();
+  // Usual case: every parent is already in the cut.
+  bool parents_in = true;
+  for (std::uint32_t i = offsets[r]; i < offsets[r + 1] && parents_in; ++i) parents_in = in_cut_[parents[i]] == kIn;
+  if (parents_in) {
+    in_cut_[r] = kIn;
+    cut_.push_back(r);
+    witness_triangle_[r] = witness_triangle;
+    witness_creator_[r] = witness_creator;
+    return;
+  }
   stack_.clear();
   stack_.push_back(r);
   stack_.push_back(offsets[r]);
@@ -108,20 +118,31 @@ void Refiner::close_over(const AllowedError& allowed, std::size_t first) {
 }
 
 void Refiner::emit(CutMesh& out) const {
-  out.triangles.clear();
+  // Upper bound first (everything the cut's nodes create), then one unchecked write per corner.
+  std::size_t created = 0;
+  for (const std::uint32_t n : cut_) created += mt_.node_triangle_offsets[n + 1] - mt_.node_triangle_offsets[n];
+  out.triangles.resize(3 * created);
+  std::uint32_t* write = out.triangles.data();
+  const std::uint32_t* remover = mt_.triangle_remover.data();
+  const std::uint32_t* corners = mt_.triangle_corners.data();
+  const std::uint8_t* in_cut = in_cut_.data();
   float max_error = 0.0f;
   for (const std::uint32_t n : cut_) {
     const std::uint32_t end = mt_.node_triangle_offsets[n + 1];
     const std::uint32_t first = n == 0 ? kNoNode : mt_.node_vertex[n];
     for (std::uint32_t t = mt_.node_triangle_offsets[n]; t < end; ++t) {
-      const std::uint32_t r = mt_.triangle_remover[t];
-      if (r != kNoNode && in_cut_[r] == kIn) continue;
-      if (r != kNoNode) max_error = std::max(max_error, mt_.node_error[r]);
-      out.triangles.push_back(n == 0 ? mt_.root_first_corner[t] : first);
-      out.triangles.push_back(mt_.triangle_corners[2 * std::size_t{t}]);
-      out.triangles.push_back(mt_.triangle_corners[2 * std::size_t{t} + 1]);
+      const std::uint32_t r = remover[t];
+      if (r != kNoNode) {
+        if (in_cut[r] == kIn) continue;
+        max_error = std::max(max_error, mt_.node_error[r]);
+      }
+      write[0] = n == 0 ? mt_.root_first_corner[t] : first;
+      write[1] = corners[2 * std::size_t{t}];
+      write[2] = corners[2 * std::size_t{t} + 1];
+      write += 3;
     }
   }
+  out.triangles.resize(std::size_t(write - out.triangles.data()));
   out.node_count = cut_.size();
   out.max_error = max_error;
 }
