@@ -17,6 +17,7 @@
 #include <array>
 #include <cassert>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <string>
 #include <vector>
@@ -76,6 +77,32 @@ struct Candidate {
   std::uint32_t v;
 };
 
+// Stable LSD radix sort on the cost's bits (non-negative floats order like their bit patterns), so
+// equal costs keep vertex order and the build stays deterministic.
+void sort_by_cost(std::vector<Candidate>& items, std::vector<Candidate>& scratch) {
+  constexpr int kBits = 11;
+  constexpr std::uint32_t kBuckets = 1u << kBits;
+  scratch.resize(items.size());
+  std::uint32_t counts[kBuckets];
+  for (int shift = 0; shift < 32; shift += kBits) {
+    std::fill(counts, counts + kBuckets, 0u);
+    auto key = [shift](const Candidate& c) {
+      std::uint32_t bits;
+      std::memcpy(&bits, &c.cost, 4);
+      return (bits >> shift) & (kBuckets - 1);
+    };
+    for (const Candidate& c : items) ++counts[key(c)];
+    std::uint32_t sum = 0;
+    for (std::uint32_t b = 0; b < kBuckets; ++b) {
+      const std::uint32_t n = counts[b];
+      counts[b] = sum;
+      sum += n;
+    }
+    for (const Candidate& c : items) scratch[counts[key(c)]++] = c;
+    items.swap(scratch);
+  }
+}
+
 class Builder {
  public:
   Builder(const Mesh& mesh, const BuildOptions& options) : mesh_(mesh), options_(options) {}
@@ -102,7 +129,7 @@ class Builder {
 
   void init_quadrics();
   void build_adjacency();
-  VertexKind classify(std::uint32_t u, std::uint32_t& boundary_next, std::uint32_t& boundary_prev) const;
+  VertexKind classify(std::uint32_t u, std::uint32_t& boundary_next, std::uint32_t& boundary_prev);
   bool can_collapse(std::uint32_t u, std::uint32_t v);
   void collapse(std::uint32_t u, std::uint32_t v);
   Mt assemble() const;
@@ -139,8 +166,11 @@ class Builder {
   std::uint32_t pass_ = 0;
   std::vector<std::uint32_t> link_stamp_;
   std::vector<std::uint32_t> seen_stamp_;
+  std::vector<std::uint32_t> fan_slot_;
+  std::vector<Candidate> best_;  // per vertex: cheapest partner found when it was last evaluated
   std::uint32_t stamp_ = 0;
   std::vector<Candidate> candidates_;
+  std::vector<Candidate> candidate_scratch_;
   std::size_t complex_vertices_ = 0;
 };
 
@@ -229,43 +259,42 @@ void Builder::build_adjacency() {
     for (int k = 0; k < 3; ++k) adjacency_[adjacency_end_[working_[3 * std::size_t{f} + k]]++] = f;
 }
 
-VertexKind Builder::classify(std::uint32_t u, std::uint32_t& boundary_next, std::uint32_t& boundary_prev) const {
+VertexKind Builder::classify(std::uint32_t u, std::uint32_t& boundary_next, std::uint32_t& boundary_prev) {
   const std::uint32_t begin = adjacency_begin_[u], end = adjacency_end_[u];
   const std::uint32_t degree = end - begin;
   if (degree == 0) return kUnused;
   if (degree > kMaxFan) return kComplex;
+  // Stamps replace sets: link_stamp_ marks the a corners (with their face in fan_slot_), seen_stamp_
+  // the b corners, so every test below is O(1) and the whole check O(degree).
+  const std::uint32_t s = ++stamp_;
   std::array<std::uint32_t, kMaxFan> a, b;
   for (std::uint32_t i = 0; i < degree; ++i) {
-    if (!fan_corners(adjacency_[begin + i], u, a[i], b[i])) return kComplex;
-    if (a[i] == b[i]) return kComplex;
+    if (!fan_corners(adjacency_[begin + i], u, a[i], b[i]) || a[i] == b[i]) return kComplex;
+    // Manifold fan: each edge (u, w) is walked at most once in each direction.
+    if (link_stamp_[a[i]] == s || seen_stamp_[b[i]] == s) return kComplex;
+    link_stamp_[a[i]] = s;
+    fan_slot_[a[i]] = i;
+    seen_stamp_[b[i]] = s;
   }
-  // Manifold fan: each edge (u, w) is walked at most once in each direction.
   int starts = 0, ends = 0;
   std::uint32_t start = 0;
   for (std::uint32_t i = 0; i < degree; ++i) {
-    bool a_in_b = false, b_in_a = false;
-    for (std::uint32_t j = 0; j < degree; ++j) {
-      if (j != i && (a[j] == a[i] || b[j] == b[i])) return kComplex;
-      a_in_b |= b[j] == a[i];
-      b_in_a |= a[j] == b[i];
-    }
-    if (!a_in_b) ++starts, start = i;
-    if (!b_in_a) ++ends;
+    if (seen_stamp_[a[i]] != s) ++starts, start = i;  // edge u→a has no face on its other side
+    if (link_stamp_[b[i]] != s) ++ends;
   }
   if (!((starts == 0 && ends == 0) || (starts == 1 && ends == 1))) return kComplex;
   // One fan, not several glued at u: walking across edges visits every face.
   std::uint32_t current = start, visited = 1;
   for (; visited < degree; ++visited) {
-    std::uint32_t next = degree;
-    for (std::uint32_t j = 0; j < degree; ++j)
-      if (a[j] == b[current]) next = j;
-    if (next == degree || next == start) break;
+    if (link_stamp_[b[current]] != s) break;
+    const std::uint32_t next = fan_slot_[b[current]];
+    if (next == start) break;
     current = next;
   }
   if (visited != degree) return kComplex;
   if (starts == 0) return kInterior;
-  boundary_next = a[start];   // edge u→a[start] has no face on its other side
-  boundary_prev = b[current];  // nor has edge b[last]→u
+  boundary_next = a[start];
+  boundary_prev = b[current];  // edge b[last]→u has no face on its other side either
   return kBoundary;
 }
 
@@ -488,6 +517,8 @@ Result<Mt> Builder::run(BuildStats* stats) {
   touched_.assign(vertex_count_, 0);
   link_stamp_.assign(vertex_count_, 0);
   seen_stamp_.assign(vertex_count_, 0);
+  fan_slot_.assign(vertex_count_, 0);
+  best_.assign(vertex_count_, Candidate{0, 0, 0});
 
   build_adjacency();
   init_quadrics();
@@ -506,27 +537,33 @@ Result<Mt> Builder::run(BuildStats* stats) {
     }
     candidates_.clear();
     for (const std::uint32_t u : alive_vertex_list_) {
-      Candidate best{std::numeric_limits<float>::infinity(), u, u};
-      auto consider = [&](std::uint32_t v) {
-        const float cost = evaluate(quadrics_[u], &unit_positions_[3 * std::size_t{v}]);
-        if (cost < best.cost) best.cost = cost, best.v = v;
-      };
-      if (kind_[u] == kInterior) {
-        for (std::uint32_t i = adjacency_begin_[u]; i < adjacency_end_[u]; ++i) {
-          std::uint32_t a = 0, b = 0;
-          fan_corners(adjacency_[i], u, a, b);
-          if (kind_[a] == kInterior || kind_[a] == kBoundary) consider(a);
+      Candidate& best = best_[u];
+      // The partner's cost Q_u(v) only changes when u's quadric or fan does, i.e. when u was
+      // touched; a cached partner that stopped being collapsible forces a new search too.
+      const bool stale = pass_ == 1 || touched_[u] == pass_ - 1 ||
+                         (best.v != u && kind_[best.v] != kInterior && kind_[best.v] != kBoundary);
+      if (stale) {
+        best = Candidate{std::numeric_limits<float>::infinity(), u, u};
+        auto consider = [&](std::uint32_t v) {
+          const float cost = evaluate(quadrics_[u], &unit_positions_[3 * std::size_t{v}]);
+          if (cost < best.cost) best.cost = cost, best.v = v;
+        };
+        if (kind_[u] == kInterior) {
+          for (std::uint32_t i = adjacency_begin_[u]; i < adjacency_end_[u]; ++i) {
+            std::uint32_t a = 0, b = 0;
+            fan_corners(adjacency_[i], u, a, b);
+            if (kind_[a] == kInterior || kind_[a] == kBoundary) consider(a);
+          }
+        } else if (kind_[u] == kBoundary) {
+          // A boundary vertex only slides along its boundary, onto another boundary vertex.
+          for (int e = 0; e < 2; ++e)
+            if (kind_[boundary_ends[2 * u + e]] == kBoundary) consider(boundary_ends[2 * u + e]);
         }
-      } else if (kind_[u] == kBoundary) {
-        // A boundary vertex only slides along its boundary, onto another boundary vertex.
-        for (int e = 0; e < 2; ++e)
-          if (kind_[boundary_ends[2 * u + e]] == kBoundary) consider(boundary_ends[2 * u + e]);
       }
       if (best.v != u) candidates_.push_back(best);
     }
     if (candidates_.empty()) break;
-    std::sort(candidates_.begin(), candidates_.end(),
-              [](const Candidate& x, const Candidate& y) { return x.cost < y.cost || (x.cost == y.cost && x.u < y.u); });
+    sort_by_cost(candidates_, candidate_scratch_);
 
     // The quota counts candidates that took part in the order (collapsed, or blocked by an earlier
     // collapse of this pass); invalid ones are skipped without using it up.
