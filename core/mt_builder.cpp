@@ -7,10 +7,12 @@
 // order while neither end has been touched by an earlier collapse of the same pass, so the adjacency
 // read at the start of the pass stays exact for every collapse that is tried.
 //
-// Global error (in the spirit of Jade): moving u onto v maps each point αu + βa + γb of u's fan to
-// αv + βa + γb on the new fan, at distance α|u − v| ≤ |u − v|. So if every original vertex was within
-// e of the old fan, it is within e + |u − v| of the new one: error = max(fan errors) + |u − v|. This
-// bound is monotone along the DAG by construction.
+// Global error (the Jade method's): every original vertex removed so far is assigned to one working
+// face. A collapse hands u and the vertices of u's faces to faces of the new fan, and its error is
+// the largest exact distance from those vertices to their faces, raised to the fan's largest error
+// so errors never grow from a node to its children. In any cut, each original vertex's chain of
+// assigned faces meets exactly one cut triangle (or the vertex is a corner of the cut), so every
+// original vertex lies within that triangle's error of the cut.
 #include "core/mt_builder.hpp"
 
 #include <algorithm>
@@ -70,6 +72,44 @@ Vec3 cross(const Vec3& a, const Vec3& b) {
   return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
 }
 double dot(const Vec3& a, const Vec3& b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+
+// Squared distance from p to triangle abc, exact in double (closest-point regions as in Ericson,
+// Real-Time Collision Detection §5.1.5).
+double point_triangle_distance_squared(const double* p, const double* a, const double* b, const double* c) {
+  const double ab[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+  const double ac[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+  const double ap[3] = {p[0] - a[0], p[1] - a[1], p[2] - a[2]};
+  auto d3 = [](const double* x, const double* y) { return x[0] * y[0] + x[1] * y[1] + x[2] * y[2]; };
+  auto dist2 = [p](double x, double y, double z) {
+    return (p[0] - x) * (p[0] - x) + (p[1] - y) * (p[1] - y) + (p[2] - z) * (p[2] - z);
+  };
+  const double d1 = d3(ab, ap), d2 = d3(ac, ap);
+  if (d1 <= 0 && d2 <= 0) return dist2(a[0], a[1], a[2]);
+  const double bp[3] = {p[0] - b[0], p[1] - b[1], p[2] - b[2]};
+  const double e3 = d3(ab, bp), e4 = d3(ac, bp);
+  if (e3 >= 0 && e4 <= e3) return dist2(b[0], b[1], b[2]);
+  const double vc = d1 * e4 - e3 * d2;
+  if (vc <= 0 && d1 >= 0 && e3 <= 0) {
+    const double t = d1 / (d1 - e3);
+    return dist2(a[0] + t * ab[0], a[1] + t * ab[1], a[2] + t * ab[2]);
+  }
+  const double cp[3] = {p[0] - c[0], p[1] - c[1], p[2] - c[2]};
+  const double e5 = d3(ab, cp), e6 = d3(ac, cp);
+  if (e6 >= 0 && e5 <= e6) return dist2(c[0], c[1], c[2]);
+  const double vb = e5 * d2 - d1 * e6;
+  if (vb <= 0 && d2 >= 0 && e6 <= 0) {
+    const double t = d2 / (d2 - e6);
+    return dist2(a[0] + t * ac[0], a[1] + t * ac[1], a[2] + t * ac[2]);
+  }
+  const double va = e3 * e6 - e5 * e4;
+  if (va <= 0 && (e4 - e3) >= 0 && (e5 - e6) >= 0) {
+    const double t = (e4 - e3) / ((e4 - e3) + (e5 - e6));
+    return dist2(b[0] + t * (c[0] - b[0]), b[1] + t * (c[1] - b[1]), b[2] + t * (c[2] - b[2]));
+  }
+  const double denom = 1.0 / (va + vb + vc);
+  const double s = vb * denom, t = vc * denom;
+  return dist2(a[0] + ab[0] * s + ac[0] * t, a[1] + ab[1] * s + ac[1] * t, a[2] + ab[2] * s + ac[2] * t);
+}
 
 struct Candidate {
   float cost;
@@ -171,6 +211,16 @@ class Builder {
   std::uint32_t stamp_ = 0;
   std::vector<Candidate> candidates_;
   std::vector<Candidate> candidate_scratch_;
+  // Jade-style assignment of removed original vertices to working faces: a list per face slot.
+  std::vector<double> positions_d_;
+  std::vector<std::uint32_t> face_head_;
+  std::vector<std::uint32_t> vertex_next_;
+  struct Moving {
+    std::uint32_t vertex;
+    std::uint32_t old_face;
+  };
+  std::vector<Moving> moving_;
+  std::vector<std::uint32_t> new_faces_;
   std::size_t complex_vertices_ = 0;
 };
 
@@ -356,16 +406,20 @@ bool Builder::can_collapse(std::uint32_t u, std::uint32_t v) {
 
 void Builder::collapse(std::uint32_t u, std::uint32_t v) {
   const std::uint32_t tag = std::uint32_t(collapse_u_.size()) + 1;
+  // Errors never drop from a node to its children, so the fan's largest error is a floor.
   float fan_error = 0;
   for (std::uint32_t i = adjacency_begin_[u]; i < adjacency_end_[u]; ++i)
     fan_error = std::max(fan_error, mt_error(face_mt_[adjacency_[i]]));
-  const Vec3 d = sub(position(u), position(v));
-  // Round up so the float bound is never below the real-number bound.
-  const float error = std::nextafter(float(fan_error + std::sqrt(dot(d, d))), std::numeric_limits<float>::max());
 
+  // Original vertices that leave with the fan: u itself and those assigned to u's faces.
+  moving_.clear();
+  moving_.push_back({u, kNoNode});
   touched_[u] = touched_[v] = pass_;
+  new_faces_.clear();
   for (std::uint32_t i = adjacency_begin_[u]; i < adjacency_end_[u]; ++i) {
     const std::uint32_t f = adjacency_[i];
+    for (std::uint32_t w = face_head_[f]; w != kNoNode; w = vertex_next_[w]) moving_.push_back({w, f});
+    face_head_[f] = kNoNode;
     std::uint32_t* t = &working_[3 * std::size_t{f}];
     mt_killed_by_[face_mt_[f]] = tag;
     for (int k = 0; k < 3; ++k) touched_[t[k]] = pass_;
@@ -376,11 +430,39 @@ void Builder::collapse(std::uint32_t u, std::uint32_t v) {
     }
     for (int k = 0; k < 3; ++k)
       if (t[k] == u) t[k] = v;
+    new_faces_.push_back(f);
     face_mt_[f] = std::uint32_t(mt_made_by_.size());
     mt_vertices_.insert(mt_vertices_.end(), t, t + 3);
     mt_made_by_.push_back(tag);
     mt_killed_by_.push_back(0);
   }
+
+  // Jade-style global error: each moving vertex goes to a new face and the error is the largest
+  // exact distance. A vertex stays on its own face (or takes the first face) when that is already
+  // within the floor, since a nearer face could not lower the maximum.
+  double measured = fan_error;
+  for (const auto& [w, old_face] : moving_) {
+    const double* p = &positions_d_[3 * std::size_t{w}];
+    std::uint32_t best_face = kNoNode;
+    double best = std::numeric_limits<double>::infinity();
+    auto try_face = [&](std::uint32_t f) {
+      const std::uint32_t* t = &working_[3 * std::size_t{f}];
+      const double d2 = point_triangle_distance_squared(p, &positions_d_[3 * std::size_t{t[0]}],
+                                                        &positions_d_[3 * std::size_t{t[1]}],
+                                                        &positions_d_[3 * std::size_t{t[2]}]);
+      if (d2 < best) best = d2, best_face = f;
+    };
+    const double floor2 = double(fan_error) * double(fan_error);
+    if (old_face != kNoNode && face_alive_[old_face]) try_face(old_face);
+    for (std::size_t i = 0; i < new_faces_.size() && !(best <= floor2); ++i)
+      if (new_faces_[i] != old_face) try_face(new_faces_[i]);
+    measured = std::max(measured, std::sqrt(best));
+    vertex_next_[w] = face_head_[best_face];
+    face_head_[best_face] = w;
+  }
+  // Round up so the float bound is never below the computed distance.
+  const float error = std::nextafter(float(measured), std::numeric_limits<float>::max());
+
   add_quadric(quadrics_[v], quadrics_[u]);
   vertex_dead_[u] = 1;
   collapse_u_.push_back(u);
@@ -502,6 +584,9 @@ Result<Mt> Builder::run(BuildStats* stats) {
   collapse_u_.reserve(vertex_count_);
   collapse_error_.reserve(vertex_count_);
   kind_.assign(vertex_count_, kUnused);
+  positions_d_.assign(mesh_.positions.begin(), mesh_.positions.end());
+  face_head_.assign(face_count_, kNoNode);
+  vertex_next_.assign(vertex_count_, kNoNode);
   adjacency_begin_.assign(vertex_count_, 0);
   adjacency_end_.assign(vertex_count_, 0);
   vertex_dead_.assign(vertex_count_, 0);

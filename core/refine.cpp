@@ -171,38 +171,27 @@ void Refiner::update(const AllowedError& allowed, CutMesh& out) {
   if (!dynamic_ready_) return refine(allowed, out);
 
   // Which vertices changed their allowed error: all of them when the field is or was uniform, or
-  // unknown because the cut came from refine.
+  // unknown because the cut came from refine; otherwise those differing from the kept copy
+  // (compared bitwise and lazily, only where the cut looks).
   bool all_changed = false;
-  bool any_changed = false;
-  bool diffed = false;
-  if (!field_known_) {
-    any_changed = all_changed = true;
-  } else if (allowed.per_vertex.empty() || previous_is_uniform_) {
-    any_changed = all_changed = !(allowed.per_vertex.empty() && previous_is_uniform_ &&
-                                  std::memcmp(&allowed.uniform, &previous_uniform_, sizeof(float)) == 0);
-  } else {
-    diffed = true;
-    const std::size_t count = allowed.per_vertex.size();
-    changed_.resize(count);
-    const float* now = allowed.per_vertex.data();
-    float* before = previous_field_.data();
-    // Bitwise comparison: NaN stays equal to itself and -0 differs from +0, both harmless here.
-    for (std::size_t v = 0; v < count; ++v) {
-      std::uint32_t x, y;
-      std::memcpy(&x, now + v, 4);
-      std::memcpy(&y, before + v, 4);
-      changed_[v] = x != y;
-      any_changed |= x != y;
-      before[v] = now[v];
+  if (!field_known_ || allowed.per_vertex.empty() || previous_is_uniform_) {
+    all_changed = !(field_known_ && allowed.per_vertex.empty() && previous_is_uniform_ &&
+                    std::memcmp(&allowed.uniform, &previous_uniform_, sizeof(float)) == 0);
+    if (!all_changed) {
+      emit(out);
+      out.within_budget = true;
+      return;
     }
   }
-  if (!diffed) remember_field(allowed);
-  if (!any_changed) {
-    emit(out);
-    out.within_budget = true;
-    return;
-  }
-  auto vertex_changed = [&](std::uint32_t v) { return all_changed || changed_[v] != 0; };
+  const float* now = allowed.per_vertex.data();
+  const float* before = previous_field_.data();
+  auto vertex_changed = [&](std::uint32_t v) {
+    if (all_changed) return true;
+    std::uint32_t x, y;
+    std::memcpy(&x, now + v, 4);
+    std::memcpy(&y, before + v, 4);
+    return x != y;
+  };
 
   // 1. Keep the nodes whose witness still holds (cut_[0] is the root, always kept).
   const std::uint32_t* parent_offsets = mt_.node_parent_offsets.data();
@@ -251,6 +240,7 @@ void Refiner::update(const AllowedError& allowed, CutMesh& out) {
   close_over(allowed, kept);
   for (const std::uint32_t n : dropped_)
     if (in_cut_[n] == kDropped) in_cut_[n] = kOut;
+  remember_field(allowed);
 
   emit(out);
   out.within_budget = true;

@@ -79,7 +79,6 @@ class Refiner {
   std::vector<std::uint32_t> witness_triangle_;  // per node: the failing triangle that forced it
   std::vector<std::uint32_t> witness_creator_;   // per node: that triangle's creator
   std::vector<std::uint32_t> stack_;            // DFS over missing ancestors: node, next parent index
-  std::vector<std::uint8_t> changed_;           // per vertex, during update
   std::vector<float> previous_field_;           // allowed error of the last call, per vertex
   float previous_uniform_ = 0.0f;
   bool previous_is_uniform_ = true;

@@ -178,10 +178,21 @@ const FieldPair& small_change_fields() {
   return pair;
 }
 
+// The same field with 20 vertices changed: the smallest change a request can bring.
+const FieldPair& few_vertex_fields() {
+  static const FieldPair pair = [] {
+    FieldPair p{small_change_fields().a, small_change_fields().a};
+    for (std::size_t i = 0; i < 20; ++i) p.b[(i * 7919 * 13) % p.b.size()] *= 0.25f;
+    return p;
+  }();
+  return pair;
+}
+const FieldPair& fields_for(std::int64_t which) { return which == 0 ? small_change_fields() : few_vertex_fields(); }
+
 void BM_RefinePerVertexStatic(benchmark::State& state) {
   const Mt* mt = dragon_mt();
   if (!mt) return state.SkipWithError("dragon-vrip-871k.ply not found");
-  const FieldPair& fields = small_change_fields();
+  const FieldPair& fields = fields_for(state.range(0));
   Refiner refiner(*mt);
   CutMesh cut;
   bool flip = false;
@@ -193,12 +204,13 @@ void BM_RefinePerVertexStatic(benchmark::State& state) {
   state.SetItemsProcessed(state.iterations() * std::int64_t(cut.triangle_count()));
   state.counters["triangles"] = double(cut.triangle_count());
 }
-BENCHMARK(BM_RefinePerVertexStatic)->Unit(benchmark::kMicrosecond);
+// Arg 0: the focus moved to a neighbouring vertex; arg 1: 20 vertices changed.
+BENCHMARK(BM_RefinePerVertexStatic)->Arg(0)->Arg(1)->Unit(benchmark::kMicrosecond);
 
 void BM_RefinePerVertexDynamic(benchmark::State& state) {
   const Mt* mt = dragon_mt();
   if (!mt) return state.SkipWithError("dragon-vrip-871k.ply not found");
-  const FieldPair& fields = small_change_fields();
+  const FieldPair& fields = fields_for(state.range(0));
   Refiner refiner(*mt);
   CutMesh cut;
   refiner.update(AllowedError::from_vertices(fields.a), cut);
@@ -212,6 +224,6 @@ void BM_RefinePerVertexDynamic(benchmark::State& state) {
   state.SetItemsProcessed(state.iterations() * std::int64_t(cut.triangle_count()));
   state.counters["triangles"] = double(cut.triangle_count());
 }
-BENCHMARK(BM_RefinePerVertexDynamic)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_RefinePerVertexDynamic)->Arg(0)->Arg(1)->Unit(benchmark::kMicrosecond);
 
 }  // namespace

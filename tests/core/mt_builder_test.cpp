@@ -52,7 +52,8 @@ TEST(MtBuilder, TetrahedronHasNoValidCollapse) {
 TEST(MtBuilder, SquareCollapsesOneCornerAlongItsBoundary) {
   // Corners 0 and 2 touch both triangles; sliding either onto a neighbour along the boundary leaves
   // one triangle. After that every corner has one triangle, and removing it would empty the mesh.
-  // The moved corner travels 1 unit, so the node's error is the float just above 1.
+  // The removed corner lies 1/√2 from the remaining triangle's long edge (the line x + y = 1 seen
+  // from (0,0) or (1,1)): the node's error is that distance, rounded up to the next float.
   const Mesh mesh = test::square();
   BuildStats stats;
   auto mt = build_mt(mesh, {}, &stats);
@@ -60,7 +61,7 @@ TEST(MtBuilder, SquareCollapsesOneCornerAlongItsBoundary) {
   ASSERT_EQ(mt->node_count(), 2u);
   EXPECT_EQ(mt->root_triangle_count(), 1u);
   EXPECT_EQ(mt->triangle_count(), 3u);  // 1 root triangle + the 2 input triangles of node 1
-  EXPECT_EQ(mt->node_error[1], std::nextafter(1.0f, 2.0f));
+  EXPECT_EQ(mt->node_error[1], std::nextafter(float(std::sqrt(0.5)), 2.0f));
   EXPECT_TRUE(mt->node_vertex[1] == 0 || mt->node_vertex[1] == 2);
   EXPECT_EQ(test::triangle_set(all_nodes_cut(*mt)), test::triangle_set(mesh.triangles));
   EXPECT_EQ(stats.nodes, 2u);

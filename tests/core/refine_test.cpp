@@ -90,7 +90,7 @@ std::vector<float> noise_field(std::size_t n, std::mt19937& rng, float lo, float
 float max_node_error(const Mt& mt) { return *std::max_element(mt.node_error.begin(), mt.node_error.end()); }
 
 TEST(Refine, SquareSwitchesBetweenItsTwoCutsAtTheNodeError) {
-  // The square's MT has one collapse of error e1 = nextafter(1): at allowed ≥ e1 the root triangle
+  // The square's MT has one collapse, of error e1 ≈ 1/√2: at allowed ≥ e1 the root triangle
   // passes; any smaller allowed error needs the two input triangles.
   auto mt = build_mt(test::square());
   ASSERT_TRUE(mt.ok());
