@@ -438,8 +438,8 @@ void Builder::collapse(std::uint32_t u, std::uint32_t v) {
   }
 
   // Jade-style global error: each moving vertex goes to a new face and the error is the largest
-  // exact distance. A vertex stays on its own face (or takes the first face) when that is already
-  // within the floor, since a nearer face could not lower the maximum.
+  // exact distance. A vertex stays on its own face (or takes the first face found) when that is
+  // already within the running maximum, since a nearer face could not lower the maximum.
   double measured = fan_error;
   for (const auto& [w, old_face] : moving_) {
     const double* p = &positions_d_[3 * std::size_t{w}];
@@ -452,7 +452,7 @@ void Builder::collapse(std::uint32_t u, std::uint32_t v) {
                                                         &positions_d_[3 * std::size_t{t[2]}]);
       if (d2 < best) best = d2, best_face = f;
     };
-    const double floor2 = double(fan_error) * double(fan_error);
+    const double floor2 = measured * measured;
     if (old_face != kNoNode && face_alive_[old_face]) try_face(old_face);
     for (std::size_t i = 0; i < new_faces_.size() && !(best <= floor2); ++i)
       if (new_faces_[i] != old_face) try_face(new_faces_[i]);
