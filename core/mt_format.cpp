@@ -94,6 +94,12 @@ Status validate(const Mt& mt) {
   for (std::uint64_t i = 0; i < n; ++i)
     if (!(mt.node_error[i] >= 0.0f) || !std::isfinite(mt.node_error[i]))
       return corrupt("node_error[" + std::to_string(i) + "] is negative or not finite");
+  // Sorted by decreasing error, so with parents before children errors never grow from a node to
+  // its children; refinement relies on both.
+  for (std::uint64_t i = 2; i < n; ++i)
+    if (mt.node_error[i] > mt.node_error[i - 1])
+      return corrupt("node_error[" + std::to_string(i) + "] is larger than node_error[" + std::to_string(i - 1) +
+                     "] (nodes must be sorted by decreasing error)");
 
   auto check_offsets = [&](const std::vector<std::uint32_t>& offsets, std::uint64_t total,
                            const char* name) -> Status {

@@ -226,4 +226,28 @@ void BM_RefinePerVertexDynamic(benchmark::State& state) {
 }
 BENCHMARK(BM_RefinePerVertexDynamic)->Arg(0)->Arg(1)->Unit(benchmark::kMicrosecond);
 
+// 20 vertices changed, and the caller says which (no O(vertices) comparison).
+void BM_RefinePerVertexDynamicChangedList(benchmark::State& state) {
+  const Mt* mt = dragon_mt();
+  if (!mt) return state.SkipWithError("dragon-vrip-871k.ply not found");
+  const FieldPair& fields = few_vertex_fields();
+  std::vector<std::uint32_t> changed;
+  for (std::uint32_t v = 0; v < fields.a.size(); ++v)
+    if (fields.a[v] != fields.b[v]) changed.push_back(v);
+  Refiner refiner(*mt);
+  CutMesh cut;
+  refiner.update(AllowedError::from_vertices(fields.a), cut);
+  refiner.update(AllowedError::from_vertices(fields.b), cut);
+  bool flip = false;
+  for (auto _ : state) {
+    refiner.update(AllowedError::from_vertices(flip ? fields.b : fields.a), changed, cut);
+    flip = !flip;
+    benchmark::DoNotOptimize(cut.triangles.data());
+  }
+  state.SetItemsProcessed(state.iterations() * std::int64_t(cut.triangle_count()));
+  state.counters["triangles"] = double(cut.triangle_count());
+  state.counters["changed_vertices"] = double(changed.size());
+}
+BENCHMARK(BM_RefinePerVertexDynamicChangedList)->Unit(benchmark::kMicrosecond);
+
 }  // namespace

@@ -134,6 +134,7 @@ TEST(MtFormat, ContentErrorsBehindAValidChecksumAreNamed) {
       {"node_vertex[", [](Mt& m) { m.node_vertex[1] = std::uint32_t(m.vertex_count()); }},
       {"node_error", [](Mt& m) { m.node_error[1] = std::nanf(""); }},
       {"node_error", [](Mt& m) { m.node_error[2] = -1.0f; }},
+      {"decreasing error", [](Mt& m) { m.node_error[1] = 0.0f; }},
       {"node_triangle_offsets", [](Mt& m) { std::swap(m.node_triangle_offsets[2], m.node_triangle_offsets[3]); }},
       {"parent", [](Mt& m) { m.node_parents[m.node_parent_offsets[1]] = 1; }},
       {"triangle_corners", [](Mt& m) { m.triangle_corners[5] = 1u << 30; }},

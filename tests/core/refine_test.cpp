@@ -149,6 +149,26 @@ TEST(Refine, StaticEqualsTheNaiveFixpointOnRandomFields) {
   }
 }
 
+TEST(Refine, UniformStaticEqualsTheNaiveFixpoint) {
+  // The uniform case reads the cut off a prefix of the node order; the reference forces from the root.
+  for (const MtCase* c : {test::shape_case(Shape::kSphere, 8'000), test::scan_case("dragon-vrip-res4-11k.ply")}) {
+    if (!c) continue;
+    const float top = max_node_error(c->mt);
+    Refiner refiner(c->mt);
+    CutMesh out;
+    for (const float e : {top * 2, top, top * 0.3f, top * 0.01f, top * 1e-4f, 0.0f, -1.0f}) {
+      const AllowedError allowed = AllowedError::everywhere(e);
+      refiner.refine(allowed, out);
+      const std::vector<std::uint8_t> expected = naive_minimal_cut(c->mt, allowed);
+      std::vector<std::uint32_t> expected_nodes;
+      for (std::uint32_t n = 0; n < expected.size(); ++n)
+        if (expected[n]) expected_nodes.push_back(n);
+      ASSERT_EQ(sorted_nodes(refiner), expected_nodes) << "e " << e;
+      EXPECT_EQ(out.node_count, expected_nodes.size());
+    }
+  }
+}
+
 // Conformity on every shared scan up to 70k triangles, uniform and per-vertex fields.
 TEST(Refine, RandomThresholdsGiveConformingCutsOnRealScans) {
   std::mt19937 rng(11);
@@ -276,6 +296,7 @@ void expect_dynamic_matches_static(const MtCase* c, std::uint32_t seed, int step
   Refiner dynamic(c->mt), fixed(c->mt);
   CutMesh moving, reference;
   std::vector<float> field = focus_field(c->mesh, rng, top * 1e-3f, top * 0.3f);
+  std::vector<std::uint32_t> changed;
   for (int step = 0; step < steps; ++step) {
     const int kind = std::uniform_int_distribution<int>(0, 6)(rng);
     float uniform = -1.0f;  // < 0: use the per-vertex field
@@ -286,10 +307,14 @@ void expect_dynamic_matches_static(const MtCase* c, std::uint32_t seed, int step
     } else if (kind == 2) {
       field = noise_field(c->mesh.vertex_count(), rng, top * 1e-3f, top * 0.3f);
     } else if (kind == 3 || kind == 4) {
-      // A small change: a few vertices rescaled.
-      std::uniform_int_distribution<std::size_t> pick(0, field.size() - 1);
+      // A small change: a few vertices rescaled (kind 4 tells the refiner which ones).
+      std::uniform_int_distribution<std::uint32_t> pick(0, std::uint32_t(field.size() - 1));
       std::uniform_real_distribution<float> scale(0.2f, 5.0f);
-      for (int i = 0; i < 20; ++i) field[pick(rng)] *= scale(rng);
+      changed.clear();
+      for (int i = 0; i < 20; ++i) {
+        changed.push_back(pick(rng));
+        field[changed.back()] *= scale(rng);
+      }
     }  // kind 6: the same field again
     const AllowedError allowed =
         uniform >= 0 ? AllowedError::everywhere(uniform) : AllowedError::from_vertices(field);
@@ -298,7 +323,13 @@ void expect_dynamic_matches_static(const MtCase* c, std::uint32_t seed, int step
       if (std::uniform_int_distribution<int>(0, 1)(rng)) dynamic.refine_budget(allowed, 500, ignored);
       else dynamic.refine(allowed, ignored);
     }
-    dynamic.update(allowed, moving);
+    if (kind == 4) {
+      dynamic.update(allowed, changed, moving);
+    } else if (kind == 6) {
+      dynamic.update(allowed, std::span<const std::uint32_t>(), moving);  // nothing changed
+    } else {
+      dynamic.update(allowed, moving);
+    }
     fixed.refine(allowed, reference);
     ASSERT_EQ(test::triangle_set(moving.triangles), test::triangle_set(reference.triangles)) << "step " << step;
     ASSERT_EQ(sorted_nodes(dynamic), sorted_nodes(fixed)) << "step " << step;
