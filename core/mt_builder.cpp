@@ -75,7 +75,9 @@ double dot(const Vec3& a, const Vec3& b) { return a.x * b.x + a.y * b.y + a.z * 
 
 // Squared distance from p to triangle abc, exact in double (closest-point regions as in Ericson,
 // Real-Time Collision Detection §5.1.5).
-double point_triangle_distance_squared(const double* p, const double* a, const double* b, const double* c) {
+double point_triangle_distance_squared(const float* pf, const float* af, const float* bf, const float* cf) {
+  const double p[3] = {pf[0], pf[1], pf[2]}, a[3] = {af[0], af[1], af[2]};
+  const double b[3] = {bf[0], bf[1], bf[2]}, c[3] = {cf[0], cf[1], cf[2]};
   const double ab[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
   const double ac[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
   const double ap[3] = {p[0] - a[0], p[1] - a[1], p[2] - a[2]};
@@ -212,7 +214,6 @@ class Builder {
   std::vector<Candidate> candidates_;
   std::vector<Candidate> candidate_scratch_;
   // Jade-style assignment of removed original vertices to working faces: a list per face slot.
-  std::vector<double> positions_d_;
   std::vector<std::uint32_t> face_head_;
   std::vector<std::uint32_t> vertex_next_;
   struct Moving {
@@ -442,14 +443,12 @@ void Builder::collapse(std::uint32_t u, std::uint32_t v) {
   // already within the running maximum, since a nearer face could not lower the maximum.
   double measured = fan_error;
   for (const auto& [w, old_face] : moving_) {
-    const double* p = &positions_d_[3 * std::size_t{w}];
+    const float* p = position(w);
     std::uint32_t best_face = kNoNode;
     double best = std::numeric_limits<double>::infinity();
     auto try_face = [&](std::uint32_t f) {
       const std::uint32_t* t = &working_[3 * std::size_t{f}];
-      const double d2 = point_triangle_distance_squared(p, &positions_d_[3 * std::size_t{t[0]}],
-                                                        &positions_d_[3 * std::size_t{t[1]}],
-                                                        &positions_d_[3 * std::size_t{t[2]}]);
+      const double d2 = point_triangle_distance_squared(p, position(t[0]), position(t[1]), position(t[2]));
       if (d2 < best) best = d2, best_face = f;
     };
     const double floor2 = measured * measured;
@@ -584,7 +583,6 @@ Result<Mt> Builder::run(BuildStats* stats) {
   collapse_u_.reserve(vertex_count_);
   collapse_error_.reserve(vertex_count_);
   kind_.assign(vertex_count_, kUnused);
-  positions_d_.assign(mesh_.positions.begin(), mesh_.positions.end());
   face_head_.assign(face_count_, kNoNode);
   vertex_next_.assign(vertex_count_, kNoNode);
   adjacency_begin_.assign(vertex_count_, 0);
