@@ -23,8 +23,6 @@
 #include <limits>
 #include <string>
 #include <vector>
-#include <cstdio>
-#include <cstdlib>
 
 namespace mtlod::core {
 namespace {
@@ -665,7 +663,6 @@ Result<Mt> Builder::run(BuildStats* stats) {
       if (alive_faces_ <= options_.min_triangles) break;
     }
     if (options_.progress) options_.progress(options_.progress_user, 1.0 - double(alive_faces_) / initial_faces);
-    if (getenv("MTLOD_TRACE")) fprintf(stderr, "pass %u faces %zu cands %zu collapses %zu\n", pass_, alive_faces_, candidates_.size(), collapses);
     if (collapses == 0 || alive_faces_ <= options_.min_triangles) break;
   }
 
