@@ -65,11 +65,15 @@ float evaluate(const Quadric& q, const float* p) {
 struct Vec3 {
   double x, y, z;
 };
-Vec3 sub(const float* a, const float* b) { return {double{a[0]} - b[0], double{a[1]} - b[1], double{a[2]} - b[2]}; }
+Vec3 sub(const float* a, const float* b) {
+  return {double{a[0]} - b[0], double{a[1]} - b[1], double{a[2]} - b[2]};
+}
 Vec3 cross(const Vec3& a, const Vec3& b) {
   return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
 }
-double dot(const Vec3& a, const Vec3& b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+double dot(const Vec3& a, const Vec3& b) {
+  return a.x * b.x + a.y * b.y + a.z * b.z;
+}
 
 // Squared distance from p to triangle abc, exact in double (closest-point regions as in Ericson,
 // Real-Time Collision Detection §5.1.5).
@@ -182,9 +186,9 @@ class Builder {
 
   std::vector<float> unit_positions_;  // positions scaled to the unit box, for quadrics
   std::vector<Quadric> quadrics_;
-  std::vector<std::uint32_t> working_;     // 3 vertex ids per face slot
+  std::vector<std::uint32_t> working_;  // 3 vertex ids per face slot
   std::vector<std::uint8_t> face_alive_;
-  std::vector<std::uint32_t> face_mt_;     // MT triangle currently in each face slot
+  std::vector<std::uint32_t> face_mt_;  // MT triangle currently in each face slot
 
   // MT triangles in order of appearance: vertices, and the collapses (index + 1, 0 = none) that
   // made and removed them during simplification.
@@ -564,8 +568,8 @@ Result<Mt> Builder::run(BuildStats* stats) {
   for (std::size_t i = 0; i < mesh_.triangles.size(); ++i)
     if (mesh_.triangles[i] >= vertex_count_)
       return make_error(ErrorCode::kInvalidArgument, "triangle " + std::to_string(i / 3) + " has vertex id " +
-                                                         std::to_string(mesh_.triangles[i]) + " >= vertex count " +
-                                                         std::to_string(vertex_count_));
+                                                         std::to_string(mesh_.triangles[i]) +
+                                                         " >= vertex count " + std::to_string(vertex_count_));
 
   working_ = mesh_.triangles;
   face_alive_.assign(face_count_, 1);
@@ -648,7 +652,8 @@ Result<Mt> Builder::run(BuildStats* stats) {
 
     // The quota counts candidates that took part in the order (collapsed, or blocked by an earlier
     // collapse of this pass); invalid ones are skipped without using it up.
-    const std::size_t quota = std::max<std::size_t>(1, std::size_t(double(candidates_.size()) * options_.pass_fraction));
+    const std::size_t quota =
+        std::max<std::size_t>(1, std::size_t(double(candidates_.size()) * options_.pass_fraction));
     std::size_t collapses = 0, ordered = 0;
     for (std::size_t i = 0; i < candidates_.size() && ordered < quota; ++i) {
       const Candidate& c = candidates_[i];
@@ -662,7 +667,8 @@ Result<Mt> Builder::run(BuildStats* stats) {
       ++ordered;
       if (alive_faces_ <= options_.min_triangles) break;
     }
-    if (options_.progress) options_.progress(options_.progress_user, 1.0 - double(alive_faces_) / initial_faces);
+    if (options_.progress)
+      options_.progress(options_.progress_user, 1.0 - double(alive_faces_) / initial_faces);
     if (collapses == 0 || alive_faces_ <= options_.min_triangles) break;
   }
 

@@ -37,7 +37,7 @@ bool Refiner::fails(std::uint32_t t, std::uint32_t creator, const AllowedError& 
   const float error = mt_.node_error[r];
   if (allowed.per_vertex.empty()) return error > allowed.uniform;
   const float* field = allowed.per_vertex.data();
-  const float a = field[mt_.first_corner(t, creator)];
+  const float a = field[mt_.first_corner(TriangleId{t}, NodeId{creator})];
   const float b = field[mt_.triangle_corners[2 * std::size_t{t}]];
   const float c = field[mt_.triangle_corners[2 * std::size_t{t} + 1]];
   return error > std::min(a, std::min(b, c));
@@ -51,12 +51,13 @@ bool Refiner::fails_at(std::uint32_t r, const std::uint32_t* corners, const Allo
   return error > std::min(field[corners[0]], std::min(field[corners[1]], field[corners[2]]));
 }
 
-Refiner::HeapEntry Refiner::heap_entry(std::uint32_t t, std::uint32_t creator, const AllowedError& allowed) const {
+Refiner::HeapEntry Refiner::heap_entry(std::uint32_t t, std::uint32_t creator,
+                                       const AllowedError& allowed) const {
   const float error = mt_.node_error[mt_.triangle_remover[t]];
   float a = allowed.uniform;
   if (!allowed.per_vertex.empty()) {
     const float* field = allowed.per_vertex.data();
-    a = std::min(field[mt_.first_corner(t, creator)],
+    a = std::min(field[mt_.first_corner(TriangleId{t}, NodeId{creator})],
                  std::min(field[mt_.triangle_corners[2 * std::size_t{t}]],
                           field[mt_.triangle_corners[2 * std::size_t{t} + 1]]));
   }
@@ -84,7 +85,8 @@ void Refiner::add_node(std::uint32_t x, std::uint32_t witness_triangle, std::uin
     for (std::uint32_t t = mt_.node_triangle_offsets[p]; t < mt_.node_triangle_offsets[p + 1]; ++t)
       if (mt_.triangle_remover[t] == x) mesh_remove(t);
   }
-  for (std::uint32_t t = mt_.node_triangle_offsets[x]; t < mt_.node_triangle_offsets[x + 1]; ++t) mesh_add(t, x);
+  for (std::uint32_t t = mt_.node_triangle_offsets[x]; t < mt_.node_triangle_offsets[x + 1]; ++t)
+    mesh_add(t, x);
 }
 
 void Refiner::force(std::uint32_t r, std::uint32_t witness_triangle, std::uint32_t witness_creator) {
@@ -92,7 +94,8 @@ void Refiner::force(std::uint32_t r, std::uint32_t witness_triangle, std::uint32
   const std::uint32_t* parents = mt_.node_parents.data();
   // Usual case: every parent is already in the cut.
   bool parents_in = true;
-  for (std::uint32_t i = offsets[r]; i < offsets[r + 1] && parents_in; ++i) parents_in = in_cut_[parents[i]] == kIn;
+  for (std::uint32_t i = offsets[r]; i < offsets[r + 1] && parents_in; ++i)
+    parents_in = in_cut_[parents[i]] == kIn;
   if (parents_in) return add_node(r, witness_triangle, witness_creator);
   stack_.clear();
   stack_.push_back(r);
@@ -134,7 +137,8 @@ void Refiner::close_over(const AllowedError& allowed, std::size_t first) {
 void Refiner::emit(CutMesh& out) const {
   // Upper bound first (everything the cut's nodes create), then one unchecked write per corner.
   std::size_t created = 0;
-  for (const std::uint32_t n : cut_) created += mt_.node_triangle_offsets[n + 1] - mt_.node_triangle_offsets[n];
+  for (const std::uint32_t n : cut_)
+    created += mt_.node_triangle_offsets[n + 1] - mt_.node_triangle_offsets[n];
   out.triangles.resize(3 * created);
   std::uint32_t* write = out.triangles.data();
   const std::uint32_t* remover = mt_.triangle_remover.data();
@@ -180,9 +184,9 @@ void Refiner::refine_uniform(float allowed_error, CutMesh& out) {
   // a file is loaded), so the minimal cut is the root plus the prefix of nodes with error above the
   // bound, and its mesh is read off the prefix of the triangle array in one sequential pass.
   const float* errors = mt_.node_error.data();
-  const std::uint32_t end =
-      std::uint32_t(std::partition_point(errors + 1, errors + mt_.node_count(),
-                                         [&](float e) { return e > allowed_error; }) - errors);
+  const std::uint32_t end = std::uint32_t(std::partition_point(errors + 1, errors + mt_.node_count(),
+                                                               [&](float e) { return e > allowed_error; }) -
+                                          errors);
   for (const std::uint32_t n : cut_) in_cut_[n] = kOut;
   cut_.resize(end);
   for (std::uint32_t n = 0; n < end; ++n) cut_[n] = n;
@@ -294,7 +298,7 @@ void Refiner::SlotTable::erase(std::uint32_t key) {
 void Refiner::mesh_add(std::uint32_t t, std::uint32_t creator) {
   slots_.insert(t, std::uint32_t(mesh_triangles_.size()));
   mesh_triangles_.push_back(t);
-  mesh_corners_.push_back(mt_.first_corner(t, creator));
+  mesh_corners_.push_back(mt_.first_corner(TriangleId{t}, NodeId{creator}));
   mesh_corners_.push_back(mt_.triangle_corners[2 * std::size_t{t}]);
   mesh_corners_.push_back(mt_.triangle_corners[2 * std::size_t{t} + 1]);
 }
@@ -362,7 +366,8 @@ void Refiner::update(const AllowedError& allowed, CutMesh& out) {
   std::fill(changed_bits_.begin(), changed_bits_.end(), 0);  // the list overload expects it clear
 }
 
-void Refiner::update(const AllowedError& allowed, std::span<const std::uint32_t> changed_vertices, CutMesh& out) {
+void Refiner::update(const AllowedError& allowed, std::span<const std::uint32_t> changed_vertices,
+                     CutMesh& out) {
   assert(allowed.per_vertex.empty() || allowed.per_vertex.size() == mt_.vertex_count());
   if (!dynamic_ready_) return refine_forced(allowed, out);
   const bool all_changed = !field_known_ || allowed.per_vertex.empty() || previous_is_uniform_;
@@ -384,7 +389,8 @@ void Refiner::update(const AllowedError& allowed, std::span<const std::uint32_t>
 
 void Refiner::move_cut(const AllowedError& allowed, bool all_changed, CutMesh& out) {
   if (!mesh_valid_) index_mesh();
-  if (changed_bits_.size() < (mt_.vertex_count() + 63) / 64) changed_bits_.assign((mt_.vertex_count() + 63) / 64, 0);
+  if (changed_bits_.size() < (mt_.vertex_count() + 63) / 64)
+    changed_bits_.assign((mt_.vertex_count() + 63) / 64, 0);
   auto changed = [&](std::uint32_t v) { return all_changed || vertex_changed(v); };
 
   // 1. Keep the nodes whose witness still holds (cut_[0] is the root, always kept).
@@ -397,12 +403,14 @@ void Refiner::move_cut(const AllowedError& allowed, bool all_changed, CutMesh& o
     const std::uint32_t c = witness_creator_[n];
     const std::uint32_t t = witness_triangle_[n];
     bool keep = in_cut_[c] == kIn;
-    if (keep && (changed(mt_.first_corner(t, c)) || changed(mt_.triangle_corners[2 * std::size_t{t}]) ||
+    if (keep && (changed(mt_.first_corner(TriangleId{t}, NodeId{c})) ||
+                 changed(mt_.triangle_corners[2 * std::size_t{t}]) ||
                  changed(mt_.triangle_corners[2 * std::size_t{t} + 1])))
       keep = fails(t, c, allowed);
     // Parents can only be missing once something was dropped.
     if (keep && !dropped_.empty())
-      for (std::uint32_t j = parent_offsets[n]; j < parent_offsets[n + 1] && keep; ++j) keep = in_cut_[parents[j]] == kIn;
+      for (std::uint32_t j = parent_offsets[n]; j < parent_offsets[n + 1] && keep; ++j)
+        keep = in_cut_[parents[j]] == kIn;
     if (keep) {
       cut_[kept++] = n;
     } else {
@@ -417,7 +425,8 @@ void Refiner::move_cut(const AllowedError& allowed, bool all_changed, CutMesh& o
   seeds_.clear();
   for (std::size_t i = dropped_.size(); i-- > 0;) {
     const std::uint32_t x = dropped_[i];
-    for (std::uint32_t t = mt_.node_triangle_offsets[x]; t < mt_.node_triangle_offsets[x + 1]; ++t) mesh_remove(t);
+    for (std::uint32_t t = mt_.node_triangle_offsets[x]; t < mt_.node_triangle_offsets[x + 1]; ++t)
+      mesh_remove(t);
     for (std::uint32_t j = parent_offsets[x]; j < parent_offsets[x + 1]; ++j) {
       const std::uint32_t p = parents[j];
       for (std::uint32_t t = mt_.node_triangle_offsets[p]; t < mt_.node_triangle_offsets[p + 1]; ++t)
@@ -437,7 +446,8 @@ void Refiner::move_cut(const AllowedError& allowed, bool all_changed, CutMesh& o
   seeds_.resize(uncovered);
   for (std::size_t i = 0; i < mesh_triangles_.size(); ++i) {
     const std::uint32_t* corners = &mesh_corners_[3 * i];
-    if (changed(corners[0]) || changed(corners[1]) || changed(corners[2])) seeds_.push_back(mesh_triangles_[i]);
+    if (changed(corners[0]) || changed(corners[1]) || changed(corners[2]))
+      seeds_.push_back(mesh_triangles_[i]);
   }
   std::size_t failing = 0;
   for (const std::uint32_t t : seeds_) {

@@ -21,8 +21,8 @@ namespace mtlod::core {
 
 // The allowed error per triangle, in model units.
 struct AllowedError {
-  float uniform = 0.0f;                 // used when per_vertex is empty
-  std::span<const float> per_vertex;    // empty, or one value per MT vertex (mt.vertex_count())
+  float uniform = 0.0f;               // used when per_vertex is empty
+  std::span<const float> per_vertex;  // empty, or one value per MT vertex (mt.vertex_count())
 
   static AllowedError everywhere(float error) { return {error, {}}; }
   static AllowedError from_vertices(std::span<const float> vertex_allowed_error) {
@@ -32,7 +32,7 @@ struct AllowedError {
 
 // A cut's mesh, ready for an encoder. Caller-owned and reused between calls.
 struct CutMesh {
-  std::vector<std::uint32_t> triangles;  // 3 vertex ids per triangle (CCW), ids into mt.positions
+  std::vector<std::uint32_t> triangles;  // 3 vertex ids per triangle (CCW), ids into mt.positions; any order
   std::size_t node_count = 0;            // nodes in the cut, root included
   float max_error = 0.0f;                // largest error(t) over the cut's triangles, model units
   bool within_budget = true;             // false only when a budget is below the root's size
@@ -56,13 +56,15 @@ class Refiner {
 
   // Dynamic refinement: moves the kept cut to the minimal cut for the new allowed error, by dropping
   // the nodes whose reason to be in the cut no longer holds and refining from what is left. The
-  // result equals refine(allowed) as a set of triangles (the order differs). The first call, or a
-  // call after refine / refine_budget, first indexes the cut's triangles (O(cut)). Changed vertices
-  // are found by comparing with a copy of the previous field (O(vertices), a sequential pass).
+  // result equals refine(allowed) as a set of triangles (the order differs). Without a kept cut (the
+  // first call, or after a uniform refine or refine_budget, which record no witnesses) it runs a
+  // static refinement that does; the next call then indexes that cut's triangles (O(cut)). Changed
+  // vertices are found by comparing with a copy of the previous field (one sequential O(vertices)
+  // pass); everything else costs O(cut) in sequential passes plus work proportional to the change.
   void update(const AllowedError& allowed, CutMesh& out);
   // The same, when the caller knows which vertices changed since the previous update: every other
-  // vertex must have the same allowed error as then. Skips the O(vertices) comparison, so the cost
-  // follows the cut and the change. A uniform field, or a previous uniform one, counts as all changed.
+  // vertex must have the same allowed error as then (duplicates in the list are fine). Skips the
+  // O(vertices) comparison. A uniform field, or a previous uniform one, counts as all changed.
   void update(const AllowedError& allowed, std::span<const std::uint32_t> changed_vertices, CutMesh& out);
 
   // Nodes of the kept cut, in the order they were added (parents before children).
@@ -108,26 +110,26 @@ class Refiner {
   bool vertex_changed(std::uint32_t v) const { return (changed_bits_[v >> 6] >> (v & 63)) & 1; }
 
   const Mt& mt_;
-  std::vector<std::uint8_t> in_cut_;            // per node: 0 out, 1 in, 2 being added, 3 dropped
-  std::vector<std::uint32_t> cut_;              // nodes in the cut, in the order added
+  std::vector<std::uint8_t> in_cut_;             // per node: 0 out, 1 in, 2 being added, 3 dropped
+  std::vector<std::uint32_t> cut_;               // nodes in the cut, in the order added
   std::vector<std::uint32_t> witness_triangle_;  // per node: the failing triangle that forced it
   std::vector<std::uint32_t> witness_creator_;   // per node: that triangle's creator
-  std::vector<std::uint32_t> stack_;            // DFS over missing ancestors: node, next parent index
-  std::vector<float> previous_field_;           // allowed error of the last update, per vertex
+  std::vector<std::uint32_t> stack_;             // DFS over missing ancestors: node, next parent index
+  std::vector<float> previous_field_;            // allowed error of the last update, per vertex
   float previous_uniform_ = 0.0f;
   bool previous_is_uniform_ = true;
-  bool field_known_ = false;                    // previous_* describe the field of the kept cut
-  bool dynamic_ready_ = false;                  // cut_ is the minimal cut of the previous field
+  bool field_known_ = false;    // previous_* describe the field of the kept cut
+  bool dynamic_ready_ = false;  // cut_ is the minimal cut of the previous field
   // The kept cut's mesh, maintained by update: triangle ids, their corners, and their slots.
   bool mesh_valid_ = false;
   std::vector<std::uint32_t> mesh_triangles_;
   std::vector<std::uint32_t> mesh_corners_;
   SlotTable slots_;
-  std::vector<std::uint64_t> changed_bits_;     // per vertex, during update
-  std::vector<std::uint32_t> dropped_;          // nodes dropped during one update
-  std::vector<std::uint32_t> seeds_;            // triangles to test during one update
+  std::vector<std::uint64_t> changed_bits_;  // per vertex, during update
+  std::vector<std::uint32_t> dropped_;       // nodes dropped during one update
+  std::vector<std::uint32_t> seeds_;         // triangles to test during one update
   struct HeapEntry {
-    std::uint32_t tier;   // 1: allowed ≤ 0, ranked by error; 0: ranked by error / allowed
+    std::uint32_t tier;  // 1: allowed ≤ 0, ranked by error; 0: ranked by error / allowed
     float key;
     std::uint32_t triangle;
     std::uint32_t creator;

@@ -38,11 +38,14 @@ mtlod::core::Mesh compact(const mtlod::core::Mt& mt, const std::vector<std::uint
   for (const std::uint32_t v : triangles) {
     if (remap[v] == UINT32_MAX) {
       remap[v] = std::uint32_t(mesh.positions.size() / 3);
-      mesh.positions.insert(mesh.positions.end(), &mt.positions[3 * std::size_t{v}], &mt.positions[3 * std::size_t{v} + 3]);
+      mesh.positions.insert(mesh.positions.end(), &mt.positions[3 * std::size_t{v}],
+                            &mt.positions[3 * std::size_t{v} + 3]);
       if (mt.has_normals())
-        mesh.normals.insert(mesh.normals.end(), &mt.normals[3 * std::size_t{v}], &mt.normals[3 * std::size_t{v} + 3]);
+        mesh.normals.insert(mesh.normals.end(), &mt.normals[3 * std::size_t{v}],
+                            &mt.normals[3 * std::size_t{v} + 3]);
       if (mt.has_colors())
-        mesh.colors.insert(mesh.colors.end(), &mt.colors[3 * std::size_t{v}], &mt.colors[3 * std::size_t{v} + 3]);
+        mesh.colors.insert(mesh.colors.end(), &mt.colors[3 * std::size_t{v}],
+                           &mt.colors[3 * std::size_t{v} + 3]);
     }
     mesh.triangles.push_back(remap[v]);
   }
@@ -89,8 +92,10 @@ int main(int argc, char** argv) {
     fmt::print(stderr, "mtlod-extract: {}\n", saved.error().message);
     return 1;
   }
-  fmt::print("{}: {} triangles, {} vertices, {} of {} nodes, max error {:.6g}\n  loaded in {:.3f} s, refined in {:.3f} ms; wrote {}\n",
-             options.model, cut.triangle_count(), mesh.vertex_count(), cut.node_count, mt->node_count(),
-             cut.max_error, load_s, refine_s * 1e3, options.output);
+  fmt::print(
+      "{}: {} triangles, {} vertices, {} of {} nodes, max error {:.6g}\n  loaded in {:.3f} s, refined in "
+      "{:.3f} ms; wrote {}\n",
+      options.model, cut.triangle_count(), mesh.vertex_count(), cut.node_count, mt->node_count(),
+      cut.max_error, load_s, refine_s * 1e3, options.output);
   return 0;
 }

@@ -24,7 +24,7 @@ namespace {
 using namespace mtlod::core;
 
 const Mesh* dragon() {
-  static const Mesh* mesh = [] () -> const Mesh* {
+  static const Mesh* mesh = []() -> const Mesh* {
     const auto path = std::filesystem::path(MTLOD_SHARED_MESHES_DIR) / "dragon-vrip-871k.ply";
     auto loaded = io::load_mesh(path);
     if (!loaded) {
@@ -37,7 +37,7 @@ const Mesh* dragon() {
 }
 
 const Mt* dragon_mt() {
-  static const Mt* mt = [] () -> const Mt* {
+  static const Mt* mt = []() -> const Mt* {
     if (!dragon()) return nullptr;
     auto built = build_mt(*dragon());
     return built ? new Mt(std::move(built).value()) : nullptr;
@@ -69,8 +69,8 @@ void BM_MeshoptSimplify(benchmark::State& state) {
   std::vector<std::uint32_t> out(mesh->triangles.size());
   std::size_t result = 0;
   for (auto _ : state) {
-    result = meshopt_simplify(out.data(), mesh->triangles.data(), mesh->triangles.size(), mesh->positions.data(),
-                              mesh->vertex_count(), 12, target, 1.0f, 0, nullptr);
+    result = meshopt_simplify(out.data(), mesh->triangles.data(), mesh->triangles.size(),
+                              mesh->positions.data(), mesh->vertex_count(), 12, target, 1.0f, 0, nullptr);
     benchmark::DoNotOptimize(out.data());
   }
   state.SetItemsProcessed(state.iterations() * std::int64_t(mesh->triangle_count()));
@@ -90,9 +90,11 @@ void BM_OpenMeshDecimater(benchmark::State& state) {
     OmMesh om;
     std::vector<OmMesh::VertexHandle> handles(mesh->vertex_count());
     for (std::size_t v = 0; v < mesh->vertex_count(); ++v)
-      handles[v] = om.add_vertex(OmMesh::Point(mesh->positions[3 * v], mesh->positions[3 * v + 1], mesh->positions[3 * v + 2]));
+      handles[v] = om.add_vertex(
+          OmMesh::Point(mesh->positions[3 * v], mesh->positions[3 * v + 1], mesh->positions[3 * v + 2]));
     for (std::size_t t = 0; t < mesh->triangle_count(); ++t)
-      om.add_face(handles[mesh->triangles[3 * t]], handles[mesh->triangles[3 * t + 1]], handles[mesh->triangles[3 * t + 2]]);
+      om.add_face(handles[mesh->triangles[3 * t]], handles[mesh->triangles[3 * t + 1]],
+                  handles[mesh->triangles[3 * t + 2]]);
     state.ResumeTiming();
     OpenMesh::Decimater::DecimaterT<OmMesh> decimater(om);
     OpenMesh::Decimater::ModQuadricT<OmMesh>::Handle quadric;
@@ -121,12 +123,14 @@ float error_for_size(const Mt& mt, std::size_t triangles) {
 }
 
 // A per-vertex field fine near a focus vertex and coarse away from it (what labels will give).
-std::vector<float> focus_field(const Mesh& mesh, std::size_t focus_vertex, float fine, float coarse, float radius) {
+std::vector<float> focus_field(const Mesh& mesh, std::size_t focus_vertex, float fine, float coarse,
+                               float radius) {
   std::vector<float> field(mesh.vertex_count());
   const float* f = &mesh.positions[3 * focus_vertex];
   for (std::size_t v = 0; v < field.size(); ++v) {
     const float* p = &mesh.positions[3 * v];
-    const float d = std::sqrt((p[0] - f[0]) * (p[0] - f[0]) + (p[1] - f[1]) * (p[1] - f[1]) + (p[2] - f[2]) * (p[2] - f[2]));
+    const float d = std::sqrt((p[0] - f[0]) * (p[0] - f[0]) + (p[1] - f[1]) * (p[1] - f[1]) +
+                              (p[2] - f[2]) * (p[2] - f[2]));
     field[v] = fine + (coarse - fine) * std::min(1.0f, d / radius);
   }
   return field;
@@ -144,7 +148,8 @@ void BM_RefineStatic(benchmark::State& state) {
   }
   state.SetItemsProcessed(state.iterations() * std::int64_t(cut.triangle_count()));
   state.counters["triangles"] = double(cut.triangle_count());
-  state.counters["bytes_per_input_triangle"] = double(mt->memory_bytes()) / double(dragon()->triangle_count());
+  state.counters["bytes_per_input_triangle"] =
+      double(mt->memory_bytes()) / double(dragon()->triangle_count());
 }
 BENCHMARK(BM_RefineStatic)->Arg(50'000)->Arg(500'000)->Unit(benchmark::kMicrosecond);
 
@@ -173,7 +178,8 @@ const FieldPair& small_change_fields() {
     const float e = error_for_size(mt, 50'000);
     const std::uint32_t f = mesh.triangles[3 * 1000];
     const std::uint32_t g = mesh.triangles[3 * 1000 + 1];  // a neighbour of f
-    return FieldPair{focus_field(mesh, f, e * 0.1f, e * 2, 0.02f), focus_field(mesh, g, e * 0.1f, e * 2, 0.02f)};
+    return FieldPair{focus_field(mesh, f, e * 0.1f, e * 2, 0.02f),
+                     focus_field(mesh, g, e * 0.1f, e * 2, 0.02f)};
   }();
   return pair;
 }
@@ -187,7 +193,9 @@ const FieldPair& few_vertex_fields() {
   }();
   return pair;
 }
-const FieldPair& fields_for(std::int64_t which) { return which == 0 ? small_change_fields() : few_vertex_fields(); }
+const FieldPair& fields_for(std::int64_t which) {
+  return which == 0 ? small_change_fields() : few_vertex_fields();
+}
 
 void BM_RefinePerVertexStatic(benchmark::State& state) {
   const Mt* mt = dragon_mt();

@@ -119,9 +119,11 @@ TEST(MtBuilder, SphereDagIsTopologicalWithMonotoneErrors) {
 }
 
 TEST(MtBuilder, AllNodesReproduceTheInputAndTheRootIsAConformingCoarsestMesh) {
-  std::vector<const MtCase*> cases = {test::shape_case(Shape::kSphere, 20'000), test::shape_case(Shape::kTerrain, 5'000),
+  std::vector<const MtCase*> cases = {test::shape_case(Shape::kSphere, 20'000),
+                                      test::shape_case(Shape::kTerrain, 5'000),
                                       test::shape_case(Shape::kShell, 8'000)};
-  for (const char* file : {"bunny-npm-3k.ply", "dragon-vrip-res4-11k.ply", "bunny-zipper-69k.ply", "armadillo-52k.ply"})
+  for (const char* file :
+       {"bunny-npm-3k.ply", "dragon-vrip-res4-11k.ply", "bunny-zipper-69k.ply", "armadillo-52k.ply"})
     if (const MtCase* c = test::scan_case(file)) cases.push_back(c);
   for (const MtCase* c : cases) {
     ASSERT_NE(c, nullptr);
@@ -139,8 +141,10 @@ TEST(MtBuilder, NonManifoldAndMisorientedEdgesAreNeverTouched) {
   if (!c) GTEST_SKIP() << "dragon-vrip-res4-11k.ply absent";
   ASSERT_FALSE(c->reference.defects.empty());
   std::vector<std::uint8_t> on_defect(c->mesh.vertex_count(), 0);
-  for (const std::uint64_t key : c->reference.defects) on_defect[key >> 32] = on_defect[key & 0xffffffffu] = 1;
-  for (std::uint32_t i = 1; i < c->mt.node_count(); ++i) ASSERT_FALSE(on_defect[c->mt.node_vertex[i]]) << "node " << i;
+  for (const std::uint64_t key : c->reference.defects)
+    on_defect[key >> 32] = on_defect[key & 0xffffffffu] = 1;
+  for (std::uint32_t i = 1; i < c->mt.node_count(); ++i)
+    ASSERT_FALSE(on_defect[c->mt.node_vertex[i]]) << "node " << i;
   // Every defective edge survives in the coarsest mesh, so its defect is still visible there.
   const auto root_defects = test::defective_edges(root_cut(c->mt));
   for (const std::uint64_t key : c->reference.defects)
