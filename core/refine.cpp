@@ -223,8 +223,42 @@ void Refiner::refine_uniform(float allowed_error, CutMesh& out) {
 void Refiner::refine_forced(const AllowedError& allowed, CutMesh& out) {
   mesh_valid_ = false;
   reset_to_root();
-  close_over(allowed, 0);
-  emit(out);
+  // Like close_over, but remembering every passing triangle: the final mesh is among them (a
+  // triangle examined while its remover was out either failed, forcing the remover in, or passed),
+  // so the output filters that list instead of walking all the cut's triangles again.
+  passing_.clear();
+  for (std::size_t i = 0; i < cut_.size(); ++i) {
+    const std::uint32_t n = cut_[i];
+    const std::uint32_t end = mt_.node_triangle_offsets[n + 1];
+    for (std::uint32_t t = mt_.node_triangle_offsets[n]; t < end; ++t) {
+      const std::uint32_t r = mt_.triangle_remover[t];
+      if (r != kNoNode && in_cut_[r] == kIn) continue;
+      if (fails(t, n, allowed)) {
+        force(r, t, n);
+      } else {
+        passing_.push_back(t);
+        passing_.push_back(n);
+      }
+    }
+  }
+  out.triangles.resize(3 * (passing_.size() / 2));
+  std::uint32_t* write = out.triangles.data();
+  float max_error = 0.0f;
+  for (std::size_t i = 0; i < passing_.size(); i += 2) {
+    const std::uint32_t t = passing_[i], n = passing_[i + 1];
+    const std::uint32_t r = mt_.triangle_remover[t];
+    if (r != kNoNode) {
+      if (in_cut_[r] == kIn) continue;  // refined after it passed
+      max_error = std::max(max_error, mt_.node_error[r]);
+    }
+    write[0] = mt_.first_corner(TriangleId{t}, NodeId{n});
+    write[1] = mt_.triangle_corners[2 * std::size_t{t}];
+    write[2] = mt_.triangle_corners[2 * std::size_t{t} + 1];
+    write += 3;
+  }
+  out.triangles.resize(std::size_t(write - out.triangles.data()));
+  out.node_count = cut_.size();
+  out.max_error = max_error;
   out.within_budget = true;
   // The field is not copied here, to keep static refinement free of O(vertices) work; the next
   // update treats every vertex as changed.
