@@ -134,6 +134,20 @@ TEST(MtBuilder, AllNodesReproduceTheInputAndTheRootIsAConformingCoarsestMesh) {
   }
 }
 
+TEST(MtBuilder, LoadedMtTakesAtMost64BytesPerInputTriangle) {
+  // The memory target, for position-only scans: about 3 MT triangles per input triangle at
+  // 12 bytes (two corners and a remover), plus nodes, parents and positions.
+  int meshes = 0;
+  for (const char* file : {"bunny-npm-3k.ply", "armadillo-52k.ply", "bunny-zipper-69k.ply"}) {
+    const MtCase* c = test::scan_case(file);
+    if (!c) continue;
+    ++meshes;
+    ASSERT_FALSE(c->mt.has_normals() || c->mt.has_colors()) << file;
+    EXPECT_LE(double(c->mt.memory_bytes()) / double(c->mesh.triangle_count()), 64.0) << file;
+  }
+  if (meshes == 0) GTEST_SKIP() << "no shared meshes";
+}
+
 TEST(MtBuilder, NonManifoldAndMisorientedEdgesAreNeverTouched) {
   // dragon_vrip_res4 has hundreds of edges with more than two faces or clashing orientation (see the
   // shared meshes' README): their vertices must never be split or merged into.
