@@ -1,0 +1,153 @@
+// Allowed-error functions (DESIGN.md §1.5, §3). See the header for why a per-vertex array whose
+// triangle value is the minimum over the vertices reproduces the papers' triangle-label law.
+#include "core/allowed_error.hpp"
+
+#include <algorithm>
+#include <cassert>
+#include <cmath>
+#include <limits>
+#include <numbers>
+
+namespace mtlod::core {
+
+namespace {
+
+constexpr float kInfinity = std::numeric_limits<float>::infinity();
+
+}  // namespace
+
+float eccentricity_deg(float distance_px, float tan_per_px) {
+  return std::atan(distance_px * tan_per_px) * (180.0f / std::numbers::pi_v<float>);
+}
+
+float law_factor(const RegionLaw& law, float distance_px, float tan_per_px) {
+  // Unlabeled (no cell, or no seed anywhere): outside every region.
+  if (!(distance_px < kInfinity)) return 1.0f;
+  const float f = law.factor;
+  switch (law.law) {
+    case FalloffLaw::kStep:
+      return distance_px <= law.distance_px ? f : 1.0f;
+    case FalloffLaw::kLinear:
+    case FalloffLaw::kSmoothstep: {
+      if (distance_px <= law.distance_px) return f;
+      if (!(law.falloff_px > 0.0f) || distance_px >= law.distance_px + law.falloff_px) return 1.0f;
+      float t = (distance_px - law.distance_px) / law.falloff_px;
+      if (law.law == FalloffLaw::kSmoothstep) t = t * t * (3.0f - 2.0f * t);
+      return f + (1.0f - f) * t;
+    }
+    case FalloffLaw::kFoveal: {
+      // Acuity falls linearly with eccentricity (MAR grows as 1 + e/e2), and so may the error; it never
+      // exceeds the base error when f ≤ 1.
+      const float grown = f * (1.0f + eccentricity_deg(distance_px, tan_per_px) / law.foveal_e2_deg);
+      return f <= 1.0f ? std::min(grown, 1.0f) : grown;
+    }
+  }
+  return 1.0f;
+}
+
+void AllowedErrorField::bind(const ViewMapping& mapping, const AllowedErrorOptions& options,
+                             const AllowedErrorInputs& inputs) {
+  const std::size_t cells = mapping.grid().cell_count();
+  assert(!options.use_silhouette || inputs.silhouette_dt.size() == cells);
+  assert(!options.use_focus || inputs.focus_dt.size() == cells);
+  assert(!options.use_neglect || inputs.neglect_dt.size() == cells);
+  assert(inputs.normals.empty() || inputs.normals.size() == inputs.positions.size());
+  (void)cells;
+  mapping_ = &mapping;
+  options_ = options;
+  inputs_ = inputs;
+  const float grid_height = static_cast<float>(mapping.grid().height);
+  viewport_height_px_ = options.viewport_height_px > 0.0f ? options.viewport_height_px : grid_height;
+  const float tan_half_fovy = options.fovy_deg > 0.0f
+                                  ? std::tan(options.fovy_deg * (std::numbers::pi_v<float> / 360.0f))
+                                  : 1.0f / mapping.projection_y_scale();
+  tan_per_px_ = 2.0f * tan_half_fovy / grid_height;
+  // error · model_units_per_pixel(clip_w) = error · 2·clip_w/(H·P[1][1]), with the constant part folded.
+  pixel_bound_per_clip_w_ = options.error * mapping.model_units_per_pixel(1.0f, viewport_height_px_);
+  assert(options.metric != DistanceMetric::kEuclidean);
+  if (options.use_silhouette)
+    tabulate(options.silhouette, options.metric, tan_per_px_, inputs.silhouette_dt, silhouette_table_);
+  if (options.use_focus) tabulate(options.focus, options.metric, tan_per_px_, inputs.focus_dt, focus_table_);
+  if (options.use_neglect)
+    tabulate(options.neglect, options.metric, tan_per_px_, inputs.neglect_dt, neglect_table_);
+}
+
+void AllowedErrorField::tabulate(const RegionLaw& law, DistanceMetric metric, float tan_per_px,
+                                 std::span<const std::uint16_t> dt, std::vector<float>& table) {
+  std::uint16_t largest = 0;
+  for (const std::uint16_t raw : dt)
+    largest = std::max(largest, raw == kChamferUnreached ? std::uint16_t{0} : raw);
+  table.resize(std::size_t{largest} + 1);
+  for (std::uint32_t raw = 0; raw <= largest; ++raw)
+    table[raw] = law_factor(law, distance_px(raw, metric), tan_per_px);
+}
+
+float AllowedErrorField::combine(std::uint32_t silhouette_label, std::uint32_t focus_label,
+                                 std::uint32_t neglect_label, bool has_cell, float clip_w,
+                                 std::uint32_t vertex) const {
+  const AllowedErrorOptions& o = options_;
+  float m = 1.0f;
+  // Silhouette and focus: the stricter (smaller) multiplier wins.
+  if (o.use_silhouette) m = std::min(m, lookup(silhouette_table_, silhouette_label));
+  if (o.use_focus) m = std::min(m, lookup(focus_table_, focus_label));
+  if (o.use_neglect) m *= lookup(neglect_table_, neglect_label);
+  if (!has_cell) m *= o.outside_view_factor;
+  if (o.back_face_factor != 1.0f && !inputs_.normals.empty()) {
+    const float* p = inputs_.positions.data() + 3 * std::size_t{vertex};
+    const float* n = inputs_.normals.data() + 3 * std::size_t{vertex};
+    const glm::vec4& eye = mapping_->eye_model();
+    const float vx = eye.x - eye.w * p[0], vy = eye.y - eye.w * p[1], vz = eye.z - eye.w * p[2];
+    const float dot = n[0] * vx + n[1] * vy + n[2] * vz;
+    // dot(n, v̂) < cos  ⇔  dot(n, v) < cos·|v|, without a division.
+    if (dot < o.back_face_cos * std::sqrt(vx * vx + vy * vy + vz * vz)) m *= o.back_face_factor;
+  }
+  if (o.units == ErrorUnits::kModel) return o.error * m;
+  // A pixel bound has no meaning behind the eye; such a vertex leaves the decision to the triangle's
+  // other vertices, and a triangle wholly behind the eye is invisible.
+  if (!(clip_w > 0.0f)) return kInfinity;
+  return pixel_bound_per_clip_w_ * clip_w * m;
+}
+
+void AllowedErrorField::compute_all(std::span<float> vertex_allowed_error) {
+  assert(mapping_ != nullptr);
+  const std::size_t n = inputs_.positions.size() / 3;
+  assert(vertex_allowed_error.size() == n);
+  // Blocks small enough for the projected cells and depths to stay in L1 between the two loops.
+  constexpr std::size_t kBlock = 1024;
+  cells_.resize(kBlock);
+  clip_w_.resize(kBlock);
+  const bool sil = options_.use_silhouette, focus = options_.use_focus, neglect = options_.use_neglect;
+  for (std::size_t first = 0; first < n; first += kBlock) {
+    const std::size_t count = std::min(kBlock, n - first);
+    map_vertices(*mapping_, inputs_.positions.subspan(3 * first, 3 * count), std::span(cells_).first(count),
+                 std::span(clip_w_).first(count));
+    for (std::size_t k = 0; k < count; ++k) {
+      const std::uint32_t cell = cells_[k];
+      vertex_allowed_error[first + k] =
+          combine(sil ? cell_label(inputs_.silhouette_dt, cell) : kLabelNoCell,
+                  focus ? cell_label(inputs_.focus_dt, cell) : kLabelNoCell,
+                  neglect ? cell_label(inputs_.neglect_dt, cell) : kLabelNoCell, cell != kNoCell, clip_w_[k],
+                  static_cast<std::uint32_t>(first + k));
+    }
+  }
+}
+
+float AllowedErrorField::vertex_allowed_error(std::uint32_t vertex) const {
+  assert(mapping_ != nullptr && 3 * std::size_t{vertex} + 2 < inputs_.positions.size());
+  const float* p = inputs_.positions.data() + 3 * std::size_t{vertex};
+  float clip_w = 0.0f;
+  const std::uint32_t cell = mapping_->map_point(p[0], p[1], p[2], &clip_w);
+  return combine(options_.use_silhouette ? cell_label(inputs_.silhouette_dt, cell) : kLabelNoCell,
+                 options_.use_focus ? cell_label(inputs_.focus_dt, cell) : kLabelNoCell,
+                 options_.use_neglect ? cell_label(inputs_.neglect_dt, cell) : kLabelNoCell, cell != kNoCell,
+                 clip_w, vertex);
+}
+
+void compute_vertex_allowed_error(const ViewMapping& mapping, const AllowedErrorOptions& options,
+                                  const AllowedErrorInputs& inputs, std::span<float> vertex_allowed_error) {
+  AllowedErrorField field;
+  field.bind(mapping, options, inputs);
+  field.compute_all(vertex_allowed_error);
+}
+
+}  // namespace mtlod::core

@@ -1,0 +1,57 @@
+// Draco compression of an extracted cut (DESIGN.md §4, "encoding"): positions, optional normals of
+// the original vertices and an optional per-vertex distance label as a generic attribute. Draco's
+// headers stay inside draco_encode.cpp; callers see byte vectors only.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "core/result.hpp"
+
+namespace mtlod::core {
+
+enum class DracoMethod : std::uint8_t {
+  kEdgebreaker,  // best ratio (~6–10 bits per triangle), slower
+  kSequential,   // fastest, ~80 bits per triangle
+};
+
+struct DracoOptions {
+  DracoMethod method = DracoMethod::kEdgebreaker;
+  int speed = 7;               // Draco's encoding speed 0 (best ratio) .. 10 (fastest)
+  int position_bits = 14;      // quantization of positions, 1..30 (0 = lossless float)
+  int normal_bits = 10;        // quantization of normals, 1..30
+  bool normals = false;        // encode the original vertices' normals (needs them in the input)
+  bool labels = false;         // encode per-vertex labels as a generic uint16 attribute "label"
+};
+
+// What a cut looks like to the encoder: the model's vertex arrays and the cut's triangles, whose
+// ids index those arrays. Only vertices the triangles use are encoded, in first-use order.
+struct DracoInput {
+  std::span<const float> positions;           // x, y, z per model vertex
+  std::span<const float> normals;             // empty, or x, y, z per model vertex
+  std::span<const std::uint32_t> labels;      // empty, or one per model vertex (saturated to 65535)
+  std::span<const std::uint32_t> triangles;   // three model vertex ids per triangle
+};
+
+struct DracoStats {
+  std::size_t vertices = 0;   // vertices encoded
+  std::size_t triangles = 0;  // triangles encoded
+  std::size_t bytes = 0;      // size of the payload
+};
+
+// Reusable encoder: keeps its remapping table between calls, sized to the largest model seen.
+class DracoEncoder {
+ public:
+  // Encodes into `out` (cleared first). Fails with kInvalidArgument when options are out of range
+  // or attributes asked for are missing, and kInternal when Draco refuses the mesh.
+  Result<DracoStats> encode(const DracoInput& input, const DracoOptions& options, std::vector<std::uint8_t>& out);
+
+ private:
+  std::vector<std::uint32_t> remap_;       // model vertex id -> encoded id, kUnused when not in the cut
+  std::vector<std::uint32_t> used_;        // encoded id -> model vertex id
+  std::vector<float> scratch_;             // compacted attribute values
+};
+
+}  // namespace mtlod::core

@@ -1,0 +1,68 @@
+// PNG writing with libpng's simplified API (png_image), for the debug images of DESIGN.md §1.2–1.4.
+#include "core/io/image_io.hpp"
+
+#include <png.h>
+
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include "core/debug_image.hpp"
+#include "core/distance_transform.hpp"
+
+namespace mtlod::core::io {
+
+namespace {
+
+Status write_png(const std::filesystem::path& path, const std::uint8_t* pixels, std::size_t size,
+                 GridSize grid, std::uint32_t format, std::size_t channels) {
+  if (!grid.valid()) {
+    return make_error(ErrorCode::kInvalidArgument, "image grid " + std::to_string(grid.width) + "x" +
+                                                       std::to_string(grid.height) +
+                                                       " is empty or too large");
+  }
+  if (size != channels * grid.cell_count()) {
+    return make_error(ErrorCode::kInvalidArgument,
+                      "image buffer of " + std::to_string(size) + " bytes does not match the grid");
+  }
+  png_image image;
+  std::memset(&image, 0, sizeof(image));
+  image.version = PNG_IMAGE_VERSION;
+  image.width = grid.width;
+  image.height = grid.height;
+  image.format = format;
+  if (png_image_write_to_file(&image, path.c_str(), 0, pixels, 0, nullptr) == 0) {
+    std::string message = "cannot write PNG " + path.string() + ": " + image.message;
+    png_image_free(&image);
+    return make_error(ErrorCode::kIoError, std::move(message));
+  }
+  return Ok{};
+}
+
+}  // namespace
+
+Status write_png_gray(const std::filesystem::path& path, std::span<const std::uint8_t> cells, GridSize grid) {
+  return write_png(path, cells.data(), cells.size(), grid, PNG_FORMAT_GRAY, 1);
+}
+
+Status write_png_rgb(const std::filesystem::path& path, std::span<const std::uint8_t> rgb, GridSize grid) {
+  return write_png(path, rgb.data(), rgb.size(), grid, PNG_FORMAT_RGB, 3);
+}
+
+Status write_occupancy_png(const std::filesystem::path& path, std::span<const std::uint8_t> occupancy,
+                           GridSize grid) {
+  if (occupancy.size() != grid.cell_count()) return make_error(ErrorCode::kInvalidArgument, "occupancy size");
+  std::vector<std::uint8_t> grey(occupancy.size());
+  for (std::size_t c = 0; c < grey.size(); ++c) grey[c] = occupancy[c] != 0 ? 255 : 0;
+  return write_png_gray(path, grey, grid);
+}
+
+Status write_distance_png(const std::filesystem::path& path, std::span<const std::uint16_t> raw,
+                          GridSize grid, std::uint32_t units_per_pixel, std::uint32_t band_px) {
+  if (raw.size() != grid.cell_count()) return make_error(ErrorCode::kInvalidArgument, "distance grid size");
+  std::vector<std::uint8_t> rgb(3 * raw.size());
+  colorize_distance(raw, grid, kChamferUnreached, 0, band_px * units_per_pixel, rgb);
+  return write_png_rgb(path, rgb, grid);
+}
+
+}  // namespace mtlod::core::io

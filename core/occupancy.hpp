@@ -1,0 +1,38 @@
+// Occupancy image of DESIGN.md §1.2 (the papers' binary image, JVRB 2006 §3.1): a cell is object if
+// any projected triangle covers any part of it, background otherwise. Conservative rasterization: a
+// triangle smaller than a cell still marks its cell. Per request this runs on a coarse cut of the MT
+// (triangles about a cell in size), not on the full-resolution mesh.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <span>
+
+#include "core/grid.hpp"
+#include "core/view_grid.hpp"
+
+namespace mtlod::core {
+
+// Triangles whose corners have clip.w below this are clipped to the plane clip.w = kMinClipW, the
+// numerical stand-in for "behind the camera" (clip.w ≤ 0) of the vertex mapping.
+inline constexpr float kMinClipW = 1e-5f;
+
+// Rasterizes triangles (three vertex ids each, into positions = x, y, z per vertex) into occupancy,
+// grid.cell_count() bytes: 1 for object cells, 0 for background (the whole grid is overwritten).
+// A cell (i, j) covers [i, i+1) × [j, j+1) in grid coordinates; a triangle marks every cell its closed
+// projection meets, after clipping away the part behind the camera.
+// depth: empty, or grid.cell_count() floats receiving per cell the nearest eye depth (−z_eye) of the
+// triangles covering it (+inf for background); a triangle's depth in a cell is its plane at the cell
+// centre, clamped to the triangle's depth range. Returns the number of triangles that marked a cell.
+std::size_t rasterize_occupancy(const ViewMapping& mapping, std::span<const float> positions,
+                                std::span<const std::uint32_t> triangles, std::span<std::uint8_t> occupancy,
+                                std::span<float> depth = {});
+
+// Internal silhouettes (DESIGN.md §3): for every pair of 4-neighbour object cells whose depths differ
+// by more than relative_jump times the nearer one, sets the farther cell of image to 0, so that a
+// distance transform of image seeds there too. image is usually a copy of the occupancy; depth comes
+// from rasterize_occupancy. Returns the number of cells newly set to 0.
+std::size_t mark_depth_discontinuities(std::span<const float> depth, GridSize grid, float relative_jump,
+                                       std::span<std::uint8_t> image);
+
+}  // namespace mtlod::core

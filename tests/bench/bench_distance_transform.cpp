@@ -1,0 +1,369 @@
+// Benchmarks of the per-request grid stages (DESIGN.md §1): the papers' two-pass 5-7-11 chamfer and the
+// exact Euclidean transform against OpenCV's cv::distanceTransform on the same images (one thread),
+// the projection of 1M vertices hand-written against a generic glm::mat4 product, occupancy of the
+// shared dragon meshes, and the allowed-error labels of the 871k dragon full against lazy.
+// Items are grid cells (transforms), vertices (projection, labels) or triangles (occupancy).
+#include <benchmark/benchmark.h>
+
+#include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include <glm/gtc/matrix_transform.hpp>
+#include <glm/mat4x4.hpp>
+#include <glm/vec4.hpp>
+
+#include <cmath>
+#include <cstdint>
+#include <random>
+#include <vector>
+
+#include <algorithm>
+#include <filesystem>
+#include <optional>
+
+#include "core/allowed_error.hpp"
+#include "core/distance_transform.hpp"
+#include "core/io/mesh_io.hpp"
+#include "core/labels.hpp"
+#include "core/occupancy.hpp"
+#include "core/view_grid.hpp"
+
+namespace mtlod::core {
+namespace {
+
+// Random discs covering about half of the image, fixed seed: object cells are 1, background 0.
+std::vector<std::uint8_t> blob_image(GridSize grid) {
+  std::mt19937 rng(4242);
+  std::vector<std::uint8_t> image(grid.cell_count(), 0);
+  const float side = static_cast<float>(grid.width);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  for (int disc = 0; disc < 40; ++disc) {
+    const float cx = u(rng) * side, cy = u(rng) * static_cast<float>(grid.height),
+                r = (0.04f + 0.12f * u(rng)) * side;
+    for (std::uint32_t j = 0; j < grid.height; ++j) {
+      for (std::uint32_t i = 0; i < grid.width; ++i) {
+        const float dx = static_cast<float>(i) - cx, dy = static_cast<float>(j) - cy;
+        if (dx * dx + dy * dy <= r * r) image[grid.cell(i, j)] = 1;
+      }
+    }
+  }
+  return image;
+}
+
+void BM_Chamfer5711(benchmark::State& state) {
+  const auto side = static_cast<std::uint32_t>(state.range(0));
+  const GridSize grid{side, side};
+  const auto image = blob_image(grid);
+  std::vector<std::uint16_t> out(grid.cell_count());
+  DistanceTransformer transformer;
+  for (auto _ : state) {
+    transformer.chamfer(DistanceMetric::kChamfer5711, image, grid, out);
+    benchmark::DoNotOptimize(out.data());
+  }
+  state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * grid.cell_count()));
+}
+BENCHMARK(BM_Chamfer5711)->Arg(256)->Arg(512)->Arg(1024)->Arg(2048)->Unit(benchmark::kMicrosecond);
+
+void BM_Chamfer34(benchmark::State& state) {
+  const auto side = static_cast<std::uint32_t>(state.range(0));
+  const GridSize grid{side, side};
+  const auto image = blob_image(grid);
+  std::vector<std::uint16_t> out(grid.cell_count());
+  DistanceTransformer transformer;
+  for (auto _ : state) {
+    transformer.chamfer(DistanceMetric::kChamfer34, image, grid, out);
+    benchmark::DoNotOptimize(out.data());
+  }
+  state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * grid.cell_count()));
+}
+BENCHMARK(BM_Chamfer34)->Arg(512)->Unit(benchmark::kMicrosecond);
+
+void BM_EuclideanSquared(benchmark::State& state) {
+  const auto side = static_cast<std::uint32_t>(state.range(0));
+  const GridSize grid{side, side};
+  const auto image = blob_image(grid);
+  std::vector<std::uint32_t> out(grid.cell_count());
+  DistanceTransformer transformer;
+  for (auto _ : state) {
+    transformer.euclidean_squared(image, grid, out);
+    benchmark::DoNotOptimize(out.data());
+  }
+  state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * grid.cell_count()));
+}
+BENCHMARK(BM_EuclideanSquared)->Arg(256)->Arg(512)->Arg(1024)->Arg(2048)->Unit(benchmark::kMicrosecond);
+
+// OpenCV peers: same images, 8-bit input with zero cells as seeds (the same convention), float output.
+void opencv_distance(benchmark::State& state, int mask) {
+  cv::setNumThreads(1);
+  const auto side = static_cast<std::uint32_t>(state.range(0));
+  const GridSize grid{side, side};
+  auto image = blob_image(grid);
+  const cv::Mat src(static_cast<int>(side), static_cast<int>(side), CV_8UC1, image.data());
+  cv::Mat dst;
+  for (auto _ : state) {
+    cv::distanceTransform(src, dst, cv::DIST_L2, mask);
+    benchmark::DoNotOptimize(dst.data);
+  }
+  state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * grid.cell_count()));
+}
+void BM_OpenCvMask5(benchmark::State& state) {
+  opencv_distance(state, cv::DIST_MASK_5);
+}
+void BM_OpenCvPrecise(benchmark::State& state) {
+  opencv_distance(state, cv::DIST_MASK_PRECISE);
+}
+BENCHMARK(BM_OpenCvMask5)->Arg(256)->Arg(512)->Arg(1024)->Arg(2048)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_OpenCvPrecise)->Arg(256)->Arg(512)->Arg(1024)->Arg(2048)->Unit(benchmark::kMicrosecond);
+
+// 1M random vertices in a unit cube seen by a perspective camera.
+struct ProjectionScene {
+  std::vector<float> positions;
+  ViewMapping mapping;
+  ProjectionScene() {
+    std::mt19937 rng(99);
+    std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+    positions.resize(3 * 1000000);
+    for (float& p : positions) p = u(rng);
+    Camera camera;
+    camera.view = glm::lookAt(glm::vec3(0.5f, 0.8f, 3.0f), glm::vec3(0.0f), glm::vec3(0.0f, 1.0f, 0.0f));
+    camera.projection = glm::perspective(glm::radians(45.0f), 1.0f, 0.1f, 100.0f);
+    mapping = ViewMapping(camera, GridSize{512, 512});
+  }
+};
+
+void BM_ProjectHandWritten(benchmark::State& state) {
+  const ProjectionScene scene;
+  const std::size_t n = scene.positions.size() / 3;
+  std::vector<std::uint32_t> cells(n);
+  std::vector<float> clip_w(n);
+  for (auto _ : state) {
+    map_vertices(scene.mapping, scene.positions, cells, clip_w);
+    benchmark::DoNotOptimize(cells.data());
+    benchmark::DoNotOptimize(clip_w.data());
+  }
+  state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * n));
+}
+BENCHMARK(BM_ProjectHandWritten)->Unit(benchmark::kMicrosecond);
+
+void BM_ProjectGlm(benchmark::State& state) {
+  const ProjectionScene scene;
+  const std::size_t n = scene.positions.size() / 3;
+  std::vector<std::uint32_t> cells(n);
+  std::vector<float> clip_w(n);
+  const glm::mat4 mvp = scene.mapping.model_view_projection();
+  const float w = 512.0f, h = 512.0f;
+  for (auto _ : state) {
+    for (std::size_t v = 0; v < n; ++v) {
+      const glm::vec4 clip = mvp * glm::vec4(scene.positions[3 * v], scene.positions[3 * v + 1],
+                                             scene.positions[3 * v + 2], 1.0f);
+      const glm::vec4 ndc = clip / clip.w;
+      const float gx = (ndc.x + 1.0f) / 2.0f * w, gy = (1.0f - ndc.y) / 2.0f * h;
+      const bool inside = clip.w > 0.0f && gx >= 0.0f && gx < w && gy >= 0.0f && gy < h;
+      cells[v] = inside ? static_cast<std::uint32_t>(gy) * 512u + static_cast<std::uint32_t>(gx) : kNoCell;
+      clip_w[v] = clip.w;
+    }
+    benchmark::DoNotOptimize(cells.data());
+    benchmark::DoNotOptimize(clip_w.data());
+  }
+  state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * n));
+}
+BENCHMARK(BM_ProjectGlm)->Unit(benchmark::kMicrosecond);
+
+// The shared dragon meshes (loaded once), seen from the front so that the model fills ~80% of the view.
+struct DragonScene {
+  std::optional<Mesh> full;    // dragon-vrip-871k: 437,645 vertices, 871,414 triangles
+  std::optional<Mesh> coarse;  // dragon-vrip-res4-11k: 11,102 triangles, a stand-in for a coarse cut
+  Camera camera;
+  static const DragonScene& get() {
+    static const DragonScene scene;
+    return scene;
+  }
+
+ private:
+  DragonScene() {
+    const std::filesystem::path dir = MTLOD_SHARED_MESHES_DIR;
+    io::LoadOptions load;
+    load.clean = false;  // keep vertex ids of the files
+    if (auto m = io::load_mesh(dir / "dragon-vrip-871k.ply", load); m.ok()) full = std::move(m->mesh);
+    if (auto m = io::load_mesh(dir / "dragon-vrip-res4-11k.ply", load); m.ok()) coarse = std::move(m->mesh);
+    if (!full) return;
+    glm::vec3 lo(1e30f), hi(-1e30f);
+    for (std::size_t v = 0; v < full->vertex_count(); ++v) {
+      const glm::vec3 p(full->positions[3 * v], full->positions[3 * v + 1], full->positions[3 * v + 2]);
+      lo = glm::min(lo, p);
+      hi = glm::max(hi, p);
+    }
+    const glm::vec3 centre = 0.5f * (lo + hi);
+    const float radius = 0.5f * glm::length(hi - lo);
+    camera.view = glm::lookAt(centre + glm::vec3(0.0f, 0.0f, 2.6f * radius), centre, glm::vec3(0, 1, 0));
+    camera.projection = glm::perspective(glm::radians(45.0f), 1.0f, 0.1f * radius, 10.0f * radius);
+  }
+};
+
+void BM_OccupancyDragon(benchmark::State& state) {
+  const DragonScene& scene = DragonScene::get();
+  const Mesh* mesh =
+      state.range(1) == 0 ? (scene.full ? &*scene.full : nullptr) : (scene.coarse ? &*scene.coarse : nullptr);
+  if (mesh == nullptr) {
+    state.SkipWithError("shared dragon meshes not found");
+    return;
+  }
+  const auto side = static_cast<std::uint32_t>(state.range(0));
+  const ViewMapping mapping(scene.camera, GridSize{side, side});
+  std::vector<std::uint8_t> occupancy(mapping.grid().cell_count());
+  for (auto _ : state) {
+    rasterize_occupancy(mapping, mesh->positions, mesh->triangles, occupancy);
+    benchmark::DoNotOptimize(occupancy.data());
+  }
+  state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * mesh->triangle_count()));
+  // How far the coarse mesh's occupancy is from the full one's: cells that differ, and full-mesh
+  // vertices whose silhouette label (5-7-11) changes.
+  if (mesh == &*scene.coarse && scene.full) {
+    std::vector<std::uint8_t> reference(occupancy.size());
+    rasterize_occupancy(mapping, scene.full->positions, scene.full->triangles, reference);
+    std::size_t differing = 0, object = 0;
+    for (std::size_t c = 0; c < occupancy.size(); ++c) {
+      differing += occupancy[c] != reference[c];
+      object += reference[c] != 0;
+    }
+    std::vector<std::uint16_t> dt(occupancy.size()), dt_reference(occupancy.size());
+    chamfer_5_7_11(occupancy, mapping.grid(), dt);
+    chamfer_5_7_11(reference, mapping.grid(), dt_reference);
+    const std::size_t n = scene.full->vertex_count();
+    std::vector<std::uint32_t> cells(n);
+    std::vector<float> clip_w(n);
+    map_vertices(mapping, scene.full->positions, cells, clip_w);
+    std::size_t changed = 0, within_one_px = 0, labelled = 0;
+    for (std::size_t v = 0; v < n; ++v) {
+      if (cells[v] == kNoCell) continue;
+      ++labelled;
+      const int a = dt[cells[v]], b = dt_reference[cells[v]];
+      changed += a != b;
+      within_one_px += std::abs(a - b) <= 5;
+    }
+    state.counters["cells_differing_pct"] =
+        100.0 * static_cast<double>(differing) / static_cast<double>(object);
+    state.counters["labels_changed_pct"] =
+        100.0 * static_cast<double>(changed) / static_cast<double>(labelled);
+    state.counters["labels_off_by_gt1px_pct"] =
+        100.0 * static_cast<double>(labelled - within_one_px) / static_cast<double>(labelled);
+  }
+}
+// Args: grid side, mesh (0 = full 871k, 1 = the 11k stand-in for a coarse cut).
+BENCHMARK(BM_OccupancyDragon)
+    ->Args({256, 0})
+    ->Args({512, 0})
+    ->Args({256, 1})
+    ->Args({512, 1})
+    ->Unit(benchmark::kMillisecond);
+
+// Allowed error of the 871k dragon at 256², silhouette (step, d = 2 px, f = 0) + focus (foveal),
+// pixel bound. Full: every vertex through the SIMD projection. Lazy: only the vertices of a random
+// set of triangles (a refinement touching that many triangles), projected one by one.
+struct LabelScene {
+  ViewMapping mapping;
+  std::vector<std::uint16_t> silhouette, focus;
+  AllowedErrorOptions options;
+  explicit LabelScene(const DragonScene& dragon) {
+    mapping = ViewMapping(dragon.camera, GridSize{256, 256});
+    const GridSize grid = mapping.grid();
+    std::vector<std::uint8_t> occupancy(grid.cell_count());
+    rasterize_occupancy(mapping, dragon.coarse->positions, dragon.coarse->triangles, occupancy);
+    silhouette.resize(grid.cell_count());
+    focus.resize(grid.cell_count());
+    DistanceTransformer transformer;
+    transformer.chamfer(DistanceMetric::kChamfer5711, occupancy, grid, silhouette);
+    const std::vector<std::uint32_t> foci = {focus_cell(grid, 0.5f, 0.4f)};
+    transformer.chamfer_from_cells(DistanceMetric::kChamfer5711, foci, grid, focus);
+    options.error = 1.0f;
+    options.units = ErrorUnits::kScreenPixels;
+    options.use_silhouette = true;
+    options.silhouette = {FalloffLaw::kStep, 2.0f, 0.0f, 0.0f, 2.3f};
+    options.use_focus = true;
+    options.focus = {FalloffLaw::kFoveal, 0.0f, 0.2f, 0.0f, 2.3f};
+  }
+};
+
+void BM_AllowedErrorFull(benchmark::State& state) {
+  const DragonScene& dragon = DragonScene::get();
+  if (!dragon.full || !dragon.coarse) {
+    state.SkipWithError("shared dragon meshes not found");
+    return;
+  }
+  const LabelScene scene(dragon);
+  AllowedErrorField field;
+  field.bind(scene.mapping, scene.options, {scene.silhouette, scene.focus, {}, dragon.full->positions, {}});
+  std::vector<float> allowed(dragon.full->vertex_count());
+  for (auto _ : state) {
+    field.compute_all(allowed);
+    benchmark::DoNotOptimize(allowed.data());
+  }
+  state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * allowed.size()));
+}
+BENCHMARK(BM_AllowedErrorFull)->Unit(benchmark::kMicrosecond);
+
+void BM_AllowedErrorLazy(benchmark::State& state) {
+  const DragonScene& dragon = DragonScene::get();
+  if (!dragon.full || !dragon.coarse) {
+    state.SkipWithError("shared dragon meshes not found");
+    return;
+  }
+  const LabelScene scene(dragon);
+  AllowedErrorField field;
+  field.bind(scene.mapping, scene.options, {scene.silhouette, scene.focus, {}, dragon.full->positions, {}});
+  // Touched triangles: random (arg 1 = 0) or a contiguous run in file order (arg 1 = 1).
+  const auto touched = static_cast<std::size_t>(state.range(0));
+  std::vector<std::uint32_t> triangles(touched);
+  std::mt19937 rng(3);
+  std::uniform_int_distribution<std::uint32_t> pick(
+      0, static_cast<std::uint32_t>(dragon.full->triangle_count() - 1));
+  for (std::size_t k = 0; k < touched; ++k)
+    triangles[k] = state.range(1) == 0 ? pick(rng) : static_cast<std::uint32_t>(k);
+  for (auto _ : state) {
+    float sum = 0.0f;
+    for (const std::uint32_t t : triangles) {
+      const std::uint32_t* tri = dragon.full->triangles.data() + 3 * std::size_t{t};
+      sum += std::min({field.vertex_allowed_error(tri[0]), field.vertex_allowed_error(tri[1]),
+                       field.vertex_allowed_error(tri[2])});
+    }
+    benchmark::DoNotOptimize(sum);
+  }
+  state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * 3 * touched));
+}
+// Args: triangles touched, order (0 random, 1 file order).
+BENCHMARK(BM_AllowedErrorLazy)
+    ->Args({10000, 0})
+    ->Args({50000, 0})
+    ->Args({150000, 0})
+    ->Args({150000, 1})
+    ->Unit(benchmark::kMicrosecond);
+
+// The grid part of a request before refinement, 871k dragon at 256²: occupancy of the 11k stand-in
+// for a coarse cut, silhouette 5-7-11, focus 5-7-11, and the full allowed-error array.
+void BM_GridPipelineDragon256(benchmark::State& state) {
+  const DragonScene& dragon = DragonScene::get();
+  if (!dragon.full || !dragon.coarse) {
+    state.SkipWithError("shared dragon meshes not found");
+    return;
+  }
+  LabelScene scene(dragon);
+  const GridSize grid = scene.mapping.grid();
+  std::vector<std::uint8_t> occupancy(grid.cell_count());
+  DistanceTransformer transformer;
+  AllowedErrorField field;
+  std::vector<float> allowed(dragon.full->vertex_count());
+  const std::vector<std::uint32_t> foci = {focus_cell(grid, 0.5f, 0.4f)};
+  for (auto _ : state) {
+    rasterize_occupancy(scene.mapping, dragon.coarse->positions, dragon.coarse->triangles, occupancy);
+    transformer.chamfer(DistanceMetric::kChamfer5711, occupancy, grid, scene.silhouette);
+    transformer.chamfer_from_cells(DistanceMetric::kChamfer5711, foci, grid, scene.focus);
+    field.bind(scene.mapping, scene.options, {scene.silhouette, scene.focus, {}, dragon.full->positions, {}});
+    field.compute_all(allowed);
+    benchmark::DoNotOptimize(allowed.data());
+  }
+  state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * allowed.size()));
+}
+BENCHMARK(BM_GridPipelineDragon256)->Unit(benchmark::kMicrosecond);
+
+}  // namespace
+}  // namespace mtlod::core

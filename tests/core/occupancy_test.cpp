@@ -1,0 +1,162 @@
+// Occupancy (DESIGN.md §1.2): conservative rasterization marks exactly the cells a triangle meets,
+// tiny triangles included; triangles behind the camera are clipped; depth discontinuities seed.
+#include "core/occupancy.hpp"
+
+#include <gtest/gtest.h>
+
+#include <random>
+#include <vector>
+
+#include "core/distance_transform.hpp"
+#include "tests/core/test_scenes.hpp"
+
+namespace mtlod::core {
+namespace {
+
+using test::ortho_camera;
+using test::rectangle;
+
+// Cells of `occupancy` that are set, as (i, j) ids.
+std::vector<std::uint32_t> set_cells(const std::vector<std::uint8_t>& occupancy) {
+  std::vector<std::uint32_t> cells;
+  for (std::uint32_t c = 0; c < occupancy.size(); ++c)
+    if (occupancy[c] != 0) cells.push_back(c);
+  return cells;
+}
+
+TEST(Occupancy, TriangleSmallerThanACellMarksItsCell) {
+  // Ortho over [-2, 2]² on 8×8: a cell is 0.5 units. Corners near (0.1, 0.1) map to about (4.2, 3.8).
+  const ViewMapping mapping = ortho_camera(2.0f, 8);
+  const std::vector<float> positions = {0.1f, 0.1f, 0.0f, 0.12f, 0.1f, 0.0f, 0.1f, 0.12f, 0.0f};
+  const std::vector<std::uint32_t> triangles = {0, 1, 2, 0, 0, 0};  // the second is a single point
+  std::vector<std::uint8_t> occupancy(64, 7);
+  EXPECT_EQ(rasterize_occupancy(mapping, positions, triangles, occupancy), 2u);
+  EXPECT_EQ(set_cells(occupancy), std::vector<std::uint32_t>{mapping.grid().cell(4, 3)});
+}
+
+TEST(Occupancy, SquareSeenHeadOnMarksExactlyItsCells) {
+  // Rectangle [-0.9, 0.6] × [-0.6, 1.1] on the 8×8 grid over [-2, 2]²: x ↦ (x + 2)·2 spans
+  // [2.2, 5.2] → columns 2..5; y ↦ (2 − y)·2 spans [1.8, 5.2] → rows 1..5. 4 × 5 = 20 cells; the
+  // shared diagonal adds none.
+  const ViewMapping mapping = ortho_camera(2.0f, 8);
+  const test::Scene square = rectangle(-0.9f, -0.6f, 0.6f, 1.1f, 0.0f);
+  std::vector<std::uint8_t> occupancy(64);
+  std::vector<float> depth(64);
+  rasterize_occupancy(mapping, square.positions, square.triangles, occupancy, depth);
+  std::vector<std::uint32_t> expected;
+  for (std::uint32_t j = 1; j <= 5; ++j)
+    for (std::uint32_t i = 2; i <= 5; ++i) expected.push_back(mapping.grid().cell(i, j));
+  EXPECT_EQ(set_cells(occupancy), expected);
+  // The camera sits at z = 5, so every covered cell is 5 units deep. Tolerance: the depth goes
+  // through float ndc.z and back (relative error ~1e-6 of the 0.1..10 depth range).
+  for (std::uint32_t c = 0; c < 64; ++c) {
+    if (occupancy[c] != 0)
+      EXPECT_NEAR(depth[c], 5.0f, 1e-4f) << c;
+    else
+      EXPECT_EQ(depth[c], std::numeric_limits<float>::infinity()) << c;
+  }
+}
+
+// Exact reference: does the closed triangle meet the closed square [i, i+1] × [j, j+1]? Separating
+// axis test on the two box axes and the three edge normals, in double.
+bool triangle_meets_cell(const double (&p)[3][2], double i, double j) {
+  double axes[5][2] = {{1, 0}, {0, 1}};
+  for (int k = 0; k < 3; ++k) {
+    axes[2 + k][0] = -(p[(k + 1) % 3][1] - p[k][1]);
+    axes[2 + k][1] = p[(k + 1) % 3][0] - p[k][0];
+  }
+  const double box[4][2] = {{i, j}, {i + 1, j}, {i, j + 1}, {i + 1, j + 1}};
+  for (const auto& a : axes) {
+    double tmin = 1e300, tmax = -1e300, bmin = 1e300, bmax = -1e300;
+    for (const auto& q : p) {
+      tmin = std::min(tmin, a[0] * q[0] + a[1] * q[1]);
+      tmax = std::max(tmax, a[0] * q[0] + a[1] * q[1]);
+    }
+    for (const auto& q : box) {
+      bmin = std::min(bmin, a[0] * q[0] + a[1] * q[1]);
+      bmax = std::max(bmax, a[0] * q[0] + a[1] * q[1]);
+    }
+    if (tmax < bmin || bmax < tmin) return false;
+  }
+  return true;
+}
+
+TEST(Occupancy, RandomTrianglesMarkExactlyTheCellsTheyMeet) {
+  // Orthographic over [-1, 1]² on 32×32: grid coordinates are (x + 1)·16 and (1 − y)·16, so the
+  // reference works on those. Triangles of every size, some partly off the grid.
+  const ViewMapping mapping = ortho_camera(1.0f, 32);
+  std::mt19937 rng(31);
+  std::uniform_real_distribution<float> centre(-1.1f, 1.1f), size(0.0f, 0.4f), offset(-1.0f, 1.0f);
+  for (int trial = 0; trial < 300; ++trial) {
+    const float cx = centre(rng), cy = centre(rng), s = size(rng) * size(rng) * 3.0f;
+    std::vector<float> positions;
+    double p[3][2];
+    for (int k = 0; k < 3; ++k) {
+      const float x = cx + s * offset(rng), y = cy + s * offset(rng);
+      positions.insert(positions.end(), {x, y, 0.0f});
+      p[k][0] = (static_cast<double>(x) + 1.0) * 16.0;
+      p[k][1] = (1.0 - static_cast<double>(y)) * 16.0;
+    }
+    std::vector<std::uint8_t> occupancy(32 * 32);
+    rasterize_occupancy(mapping, positions, std::vector<std::uint32_t>{0, 1, 2}, occupancy);
+    for (std::uint32_t j = 0; j < 32; ++j) {
+      for (std::uint32_t i = 0; i < 32; ++i) {
+        ASSERT_EQ(occupancy[j * 32 + i] != 0, triangle_meets_cell(p, i, j))
+            << "trial " << trial << " cell " << i << "," << j;
+      }
+    }
+  }
+}
+
+TEST(Occupancy, TrianglesBehindTheCameraAreClippedAway) {
+  // Perspective camera at the origin looking down −z, 90°, 16×16 grid.
+  Camera camera;
+  camera.view = glm::lookAt(glm::vec3(0, 0, 0), glm::vec3(0, 0, -1), glm::vec3(0, 1, 0));
+  camera.projection = glm::perspective(glm::radians(90.0f), 1.0f, 0.1f, 100.0f);
+  const ViewMapping mapping(camera, GridSize{16, 16});
+  std::vector<std::uint8_t> occupancy(256);
+  // Entirely behind: nothing.
+  const std::vector<float> behind = {-1, -1, 2, 1, -1, 2, 0, 1, 3};
+  EXPECT_EQ(rasterize_occupancy(mapping, behind, std::vector<std::uint32_t>{0, 1, 2}, occupancy), 0u);
+  EXPECT_TRUE(set_cells(occupancy).empty());
+  // Partly behind: the front corners' cells are marked, (4, 12) and (12, 12). The two edges to the
+  // third corner leave the front half-space at y ≈ −0.2 (t = 0.4 and 0.6 along them), just below the
+  // eye, so the visible part runs down to the grid's bottom row; nothing is drawn above row 12.
+  const std::vector<float> straddling = {-1, -1, -2, 1, -1, -2, 0, 1, 3};
+  EXPECT_EQ(rasterize_occupancy(mapping, straddling, std::vector<std::uint32_t>{0, 1, 2}, occupancy), 1u);
+  EXPECT_NE(occupancy[mapping.map_point(-1, -1, -2)], 0);
+  EXPECT_NE(occupancy[mapping.map_point(1, -1, -2)], 0);
+  EXPECT_NE(occupancy[mapping.grid().cell(8, 15)], 0);
+  EXPECT_NE(occupancy[mapping.grid().cell(0, 15)], 0);
+  EXPECT_EQ(occupancy[mapping.grid().cell(8, 11)], 0);
+  EXPECT_EQ(occupancy[mapping.grid().cell(8, 0)], 0);
+}
+
+TEST(Occupancy, DepthJumpSeedsTheFartherSide) {
+  // A front rectangle (z = 1, depth 4) over a back one filling the view (z = −3, depth 8), ortho
+  // 8×8 over [-2, 2]². The front one covers columns 2..5 and rows 1..5 (as in the head-on test); the
+  // back cells 4-adjacent to it are the ring: 5 + 5 left/right, 4 + 4 above/below = 18 cells.
+  const ViewMapping mapping = ortho_camera(2.0f, 8);
+  test::Scene scene = rectangle(-2.5f, -2.5f, 2.5f, 2.5f, -3.0f);
+  const test::Scene front = rectangle(-0.9f, -0.6f, 0.6f, 1.1f, 1.0f);
+  for (const float p : front.positions) scene.positions.push_back(p);
+  for (const std::uint32_t t : front.triangles) scene.triangles.push_back(t + 4);
+  std::vector<std::uint8_t> occupancy(64);
+  std::vector<float> depth(64);
+  rasterize_occupancy(mapping, scene.positions, scene.triangles, occupancy, depth);
+  std::vector<std::uint8_t> image = occupancy;
+  EXPECT_EQ(mark_depth_discontinuities(depth, mapping.grid(), 0.1f, image), 18u);
+  // The internal silhouette now behaves like the external one: the front rectangle's border cells
+  // are one edge step (5) from a seed, its interior cells 10.
+  std::vector<std::uint16_t> dt(64);
+  chamfer_5_7_11(image, mapping.grid(), dt);
+  EXPECT_EQ(dt[mapping.grid().cell(2, 1)], 5);
+  EXPECT_EQ(dt[mapping.grid().cell(3, 3)], 10);
+  EXPECT_EQ(dt[mapping.grid().cell(1, 3)], 0);
+  // A 20 % threshold is still exceeded by the 4 → 8 jump; 150 % is not.
+  image = occupancy;
+  EXPECT_EQ(mark_depth_discontinuities(depth, mapping.grid(), 1.5f, image), 0u);
+}
+
+}  // namespace
+}  // namespace mtlod::core
