@@ -15,7 +15,7 @@ std::uint32_t Mt::triangle_creator(std::uint32_t t) const {
 
 void Mt::triangle_vertices(std::uint32_t t, std::uint32_t out[3]) const {
   const std::uint32_t n = triangle_creator(t);
-  out[0] = first_corner(t, n);
+  out[0] = first_corner(TriangleId{t}, NodeId{n});
   out[1] = triangle_corners[2 * std::size_t{t}];
   out[2] = triangle_corners[2 * std::size_t{t} + 1];
 }

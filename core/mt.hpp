@@ -31,9 +31,9 @@ struct TriangleId {
 
 struct Mt {
   // Vertices: every vertex of the input, with its input id.
-  std::vector<float> positions;        // x, y, z per vertex
-  std::vector<float> normals;          // empty, or x, y, z per vertex
-  std::vector<std::uint8_t> colors;    // empty, or r, g, b per vertex
+  std::vector<float> positions;      // x, y, z per vertex
+  std::vector<float> normals;        // empty, or x, y, z per vertex
+  std::vector<std::uint8_t> colors;  // empty, or r, g, b per vertex
 
   // Nodes (node_count() of them), topological order: every parent has a smaller id.
   std::vector<std::uint32_t> node_vertex;            // split vertex of node n ≥ 1; kNoNode for the root
@@ -60,8 +60,8 @@ struct Mt {
     return r == kNoNode ? 0.0f : node_error[r];
   }
   // First corner of triangle t created by node n (n must be t's creator).
-  std::uint32_t first_corner(std::uint32_t t, std::uint32_t n) const {
-    return n == 0 ? root_first_corner[t] : node_vertex[n];
+  std::uint32_t first_corner(TriangleId t, NodeId n) const {
+    return n.value == 0 ? root_first_corner[t.value] : node_vertex[n.value];
   }
   // Node that creates triangle t (binary search over node_triangle_offsets, O(log nodes)).
   std::uint32_t triangle_creator(std::uint32_t t) const;

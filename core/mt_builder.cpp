@@ -7,21 +7,22 @@
 // order while neither end has been touched by an earlier collapse of the same pass, so the adjacency
 // read at the start of the pass stays exact for every collapse that is tried.
 //
-// Global error (in the spirit of Jade): moving u onto v maps each point αu + βa + γb of u's fan to
-// αv + βa + γb on the new fan, at distance α|u − v| ≤ |u − v|. So if every original vertex was within
-// e of the old fan, it is within e + |u − v| of the new one: error = max(fan errors) + |u − v|. This
-// bound is monotone along the DAG by construction.
+// Global error (the Jade method's): every original vertex removed so far is assigned to one working
+// face. A collapse hands u and the vertices of u's faces to faces of the new fan, and its error is
+// the largest exact distance from those vertices to their faces, raised to the fan's largest error
+// so errors never grow from a node to its children. In any cut, each original vertex's chain of
+// assigned faces meets exactly one cut triangle (or the vertex is a corner of the cut), so every
+// original vertex lies within that triangle's error of the cut.
 #include "core/mt_builder.hpp"
 
 #include <algorithm>
 #include <array>
 #include <cassert>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <string>
 #include <vector>
-#include <cstdio>
-#include <cstdlib>
 
 namespace mtlod::core {
 namespace {
@@ -64,17 +65,87 @@ float evaluate(const Quadric& q, const float* p) {
 struct Vec3 {
   double x, y, z;
 };
-Vec3 sub(const float* a, const float* b) { return {double{a[0]} - b[0], double{a[1]} - b[1], double{a[2]} - b[2]}; }
+Vec3 sub(const float* a, const float* b) {
+  return {double{a[0]} - b[0], double{a[1]} - b[1], double{a[2]} - b[2]};
+}
 Vec3 cross(const Vec3& a, const Vec3& b) {
   return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
 }
-double dot(const Vec3& a, const Vec3& b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+double dot(const Vec3& a, const Vec3& b) {
+  return a.x * b.x + a.y * b.y + a.z * b.z;
+}
+
+// Squared distance from p to triangle abc, exact in double (closest-point regions as in Ericson,
+// Real-Time Collision Detection §5.1.5).
+double point_triangle_distance_squared(const float* pf, const float* af, const float* bf, const float* cf) {
+  const double p[3] = {pf[0], pf[1], pf[2]}, a[3] = {af[0], af[1], af[2]};
+  const double b[3] = {bf[0], bf[1], bf[2]}, c[3] = {cf[0], cf[1], cf[2]};
+  const double ab[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+  const double ac[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+  const double ap[3] = {p[0] - a[0], p[1] - a[1], p[2] - a[2]};
+  auto d3 = [](const double* x, const double* y) { return x[0] * y[0] + x[1] * y[1] + x[2] * y[2]; };
+  auto dist2 = [p](double x, double y, double z) {
+    return (p[0] - x) * (p[0] - x) + (p[1] - y) * (p[1] - y) + (p[2] - z) * (p[2] - z);
+  };
+  const double d1 = d3(ab, ap), d2 = d3(ac, ap);
+  if (d1 <= 0 && d2 <= 0) return dist2(a[0], a[1], a[2]);
+  const double bp[3] = {p[0] - b[0], p[1] - b[1], p[2] - b[2]};
+  const double e3 = d3(ab, bp), e4 = d3(ac, bp);
+  if (e3 >= 0 && e4 <= e3) return dist2(b[0], b[1], b[2]);
+  const double vc = d1 * e4 - e3 * d2;
+  if (vc <= 0 && d1 >= 0 && e3 <= 0) {
+    const double t = d1 / (d1 - e3);
+    return dist2(a[0] + t * ab[0], a[1] + t * ab[1], a[2] + t * ab[2]);
+  }
+  const double cp[3] = {p[0] - c[0], p[1] - c[1], p[2] - c[2]};
+  const double e5 = d3(ab, cp), e6 = d3(ac, cp);
+  if (e6 >= 0 && e5 <= e6) return dist2(c[0], c[1], c[2]);
+  const double vb = e5 * d2 - d1 * e6;
+  if (vb <= 0 && d2 >= 0 && e6 <= 0) {
+    const double t = d2 / (d2 - e6);
+    return dist2(a[0] + t * ac[0], a[1] + t * ac[1], a[2] + t * ac[2]);
+  }
+  const double va = e3 * e6 - e5 * e4;
+  if (va <= 0 && (e4 - e3) >= 0 && (e5 - e6) >= 0) {
+    const double t = (e4 - e3) / ((e4 - e3) + (e5 - e6));
+    return dist2(b[0] + t * (c[0] - b[0]), b[1] + t * (c[1] - b[1]), b[2] + t * (c[2] - b[2]));
+  }
+  const double denom = 1.0 / (va + vb + vc);
+  const double s = vb * denom, t = vc * denom;
+  return dist2(a[0] + ab[0] * s + ac[0] * t, a[1] + ab[1] * s + ac[1] * t, a[2] + ab[2] * s + ac[2] * t);
+}
 
 struct Candidate {
   float cost;
   std::uint32_t u;
   std::uint32_t v;
 };
+
+// Stable LSD radix sort on the cost's bits (non-negative floats order like their bit patterns), so
+// equal costs keep vertex order and the build stays deterministic.
+void sort_by_cost(std::vector<Candidate>& items, std::vector<Candidate>& scratch) {
+  constexpr int kBits = 11;
+  constexpr std::uint32_t kBuckets = 1u << kBits;
+  scratch.resize(items.size());
+  std::uint32_t counts[kBuckets];
+  for (int shift = 0; shift < 32; shift += kBits) {
+    std::fill(counts, counts + kBuckets, 0u);
+    auto key = [shift](const Candidate& c) {
+      std::uint32_t bits;
+      std::memcpy(&bits, &c.cost, 4);
+      return (bits >> shift) & (kBuckets - 1);
+    };
+    for (const Candidate& c : items) ++counts[key(c)];
+    std::uint32_t sum = 0;
+    for (std::uint32_t b = 0; b < kBuckets; ++b) {
+      const std::uint32_t n = counts[b];
+      counts[b] = sum;
+      sum += n;
+    }
+    for (const Candidate& c : items) scratch[counts[key(c)]++] = c;
+    items.swap(scratch);
+  }
+}
 
 class Builder {
  public:
@@ -102,7 +173,7 @@ class Builder {
 
   void init_quadrics();
   void build_adjacency();
-  VertexKind classify(std::uint32_t u, std::uint32_t& boundary_next, std::uint32_t& boundary_prev) const;
+  VertexKind classify(std::uint32_t u, std::uint32_t& boundary_next, std::uint32_t& boundary_prev);
   bool can_collapse(std::uint32_t u, std::uint32_t v);
   void collapse(std::uint32_t u, std::uint32_t v);
   Mt assemble() const;
@@ -115,9 +186,9 @@ class Builder {
 
   std::vector<float> unit_positions_;  // positions scaled to the unit box, for quadrics
   std::vector<Quadric> quadrics_;
-  std::vector<std::uint32_t> working_;     // 3 vertex ids per face slot
+  std::vector<std::uint32_t> working_;  // 3 vertex ids per face slot
   std::vector<std::uint8_t> face_alive_;
-  std::vector<std::uint32_t> face_mt_;     // MT triangle currently in each face slot
+  std::vector<std::uint32_t> face_mt_;  // MT triangle currently in each face slot
 
   // MT triangles in order of appearance: vertices, and the collapses (index + 1, 0 = none) that
   // made and removed them during simplification.
@@ -139,8 +210,20 @@ class Builder {
   std::uint32_t pass_ = 0;
   std::vector<std::uint32_t> link_stamp_;
   std::vector<std::uint32_t> seen_stamp_;
+  std::vector<std::uint32_t> fan_slot_;
+  std::vector<Candidate> best_;  // per vertex: cheapest partner found when it was last evaluated
   std::uint32_t stamp_ = 0;
   std::vector<Candidate> candidates_;
+  std::vector<Candidate> candidate_scratch_;
+  // Jade-style assignment of removed original vertices to working faces: a list per face slot.
+  std::vector<std::uint32_t> face_head_;
+  std::vector<std::uint32_t> vertex_next_;
+  struct Moving {
+    std::uint32_t vertex;
+    std::uint32_t old_face;
+  };
+  std::vector<Moving> moving_;
+  std::vector<std::uint32_t> new_faces_;
   std::size_t complex_vertices_ = 0;
 };
 
@@ -229,43 +312,42 @@ void Builder::build_adjacency() {
     for (int k = 0; k < 3; ++k) adjacency_[adjacency_end_[working_[3 * std::size_t{f} + k]]++] = f;
 }
 
-VertexKind Builder::classify(std::uint32_t u, std::uint32_t& boundary_next, std::uint32_t& boundary_prev) const {
+VertexKind Builder::classify(std::uint32_t u, std::uint32_t& boundary_next, std::uint32_t& boundary_prev) {
   const std::uint32_t begin = adjacency_begin_[u], end = adjacency_end_[u];
   const std::uint32_t degree = end - begin;
   if (degree == 0) return kUnused;
   if (degree > kMaxFan) return kComplex;
+  // Stamps replace sets: link_stamp_ marks the a corners (with their face in fan_slot_), seen_stamp_
+  // the b corners, so every test below is O(1) and the whole check O(degree).
+  const std::uint32_t s = ++stamp_;
   std::array<std::uint32_t, kMaxFan> a, b;
   for (std::uint32_t i = 0; i < degree; ++i) {
-    if (!fan_corners(adjacency_[begin + i], u, a[i], b[i])) return kComplex;
-    if (a[i] == b[i]) return kComplex;
+    if (!fan_corners(adjacency_[begin + i], u, a[i], b[i]) || a[i] == b[i]) return kComplex;
+    // Manifold fan: each edge (u, w) is walked at most once in each direction.
+    if (link_stamp_[a[i]] == s || seen_stamp_[b[i]] == s) return kComplex;
+    link_stamp_[a[i]] = s;
+    fan_slot_[a[i]] = i;
+    seen_stamp_[b[i]] = s;
   }
-  // Manifold fan: each edge (u, w) is walked at most once in each direction.
   int starts = 0, ends = 0;
   std::uint32_t start = 0;
   for (std::uint32_t i = 0; i < degree; ++i) {
-    bool a_in_b = false, b_in_a = false;
-    for (std::uint32_t j = 0; j < degree; ++j) {
-      if (j != i && (a[j] == a[i] || b[j] == b[i])) return kComplex;
-      a_in_b |= b[j] == a[i];
-      b_in_a |= a[j] == b[i];
-    }
-    if (!a_in_b) ++starts, start = i;
-    if (!b_in_a) ++ends;
+    if (seen_stamp_[a[i]] != s) ++starts, start = i;  // edge u→a has no face on its other side
+    if (link_stamp_[b[i]] != s) ++ends;
   }
   if (!((starts == 0 && ends == 0) || (starts == 1 && ends == 1))) return kComplex;
   // One fan, not several glued at u: walking across edges visits every face.
   std::uint32_t current = start, visited = 1;
   for (; visited < degree; ++visited) {
-    std::uint32_t next = degree;
-    for (std::uint32_t j = 0; j < degree; ++j)
-      if (a[j] == b[current]) next = j;
-    if (next == degree || next == start) break;
+    if (link_stamp_[b[current]] != s) break;
+    const std::uint32_t next = fan_slot_[b[current]];
+    if (next == start) break;
     current = next;
   }
   if (visited != degree) return kComplex;
   if (starts == 0) return kInterior;
-  boundary_next = a[start];   // edge u→a[start] has no face on its other side
-  boundary_prev = b[current];  // nor has edge b[last]→u
+  boundary_next = a[start];
+  boundary_prev = b[current];  // edge b[last]→u has no face on its other side either
   return kBoundary;
 }
 
@@ -327,16 +409,20 @@ bool Builder::can_collapse(std::uint32_t u, std::uint32_t v) {
 
 void Builder::collapse(std::uint32_t u, std::uint32_t v) {
   const std::uint32_t tag = std::uint32_t(collapse_u_.size()) + 1;
+  // Errors never drop from a node to its children, so the fan's largest error is a floor.
   float fan_error = 0;
   for (std::uint32_t i = adjacency_begin_[u]; i < adjacency_end_[u]; ++i)
     fan_error = std::max(fan_error, mt_error(face_mt_[adjacency_[i]]));
-  const Vec3 d = sub(position(u), position(v));
-  // Round up so the float bound is never below the real-number bound.
-  const float error = std::nextafter(float(fan_error + std::sqrt(dot(d, d))), std::numeric_limits<float>::max());
 
+  // Original vertices that leave with the fan: u itself and those assigned to u's faces.
+  moving_.clear();
+  moving_.push_back({u, kNoNode});
   touched_[u] = touched_[v] = pass_;
+  new_faces_.clear();
   for (std::uint32_t i = adjacency_begin_[u]; i < adjacency_end_[u]; ++i) {
     const std::uint32_t f = adjacency_[i];
+    for (std::uint32_t w = face_head_[f]; w != kNoNode; w = vertex_next_[w]) moving_.push_back({w, f});
+    face_head_[f] = kNoNode;
     std::uint32_t* t = &working_[3 * std::size_t{f}];
     mt_killed_by_[face_mt_[f]] = tag;
     for (int k = 0; k < 3; ++k) touched_[t[k]] = pass_;
@@ -347,11 +433,37 @@ void Builder::collapse(std::uint32_t u, std::uint32_t v) {
     }
     for (int k = 0; k < 3; ++k)
       if (t[k] == u) t[k] = v;
+    new_faces_.push_back(f);
     face_mt_[f] = std::uint32_t(mt_made_by_.size());
     mt_vertices_.insert(mt_vertices_.end(), t, t + 3);
     mt_made_by_.push_back(tag);
     mt_killed_by_.push_back(0);
   }
+
+  // Jade-style global error: each moving vertex goes to a new face and the error is the largest
+  // exact distance. A vertex stays on its own face (or takes the first face found) when that is
+  // already within the running maximum, since a nearer face could not lower the maximum.
+  double measured = fan_error;
+  for (const auto& [w, old_face] : moving_) {
+    const float* p = position(w);
+    std::uint32_t best_face = kNoNode;
+    double best = std::numeric_limits<double>::infinity();
+    auto try_face = [&](std::uint32_t f) {
+      const std::uint32_t* t = &working_[3 * std::size_t{f}];
+      const double d2 = point_triangle_distance_squared(p, position(t[0]), position(t[1]), position(t[2]));
+      if (d2 < best) best = d2, best_face = f;
+    };
+    const double floor2 = measured * measured;
+    if (old_face != kNoNode && face_alive_[old_face]) try_face(old_face);
+    for (std::size_t i = 0; i < new_faces_.size() && !(best <= floor2); ++i)
+      if (new_faces_[i] != old_face) try_face(new_faces_[i]);
+    measured = std::max(measured, std::sqrt(best));
+    vertex_next_[w] = face_head_[best_face];
+    face_head_[best_face] = w;
+  }
+  // Round up so the float bound is never below the computed distance.
+  const float error = std::nextafter(float(measured), std::numeric_limits<float>::max());
+
   add_quadric(quadrics_[v], quadrics_[u]);
   vertex_dead_[u] = 1;
   collapse_u_.push_back(u);
@@ -367,17 +479,26 @@ Mt Builder::assemble() const {
   const std::uint32_t k = std::uint32_t(collapse_u_.size());
   const std::size_t node_count = std::size_t{k} + 1;
   const std::size_t mt_count = mt_made_by_.size();
-  // Collapse c (0-based, fine → coarse) becomes node k - c, so the coarsest change comes first.
-  auto creator = [&](std::size_t t) { return mt_killed_by_[t] == 0 ? 0u : k - (mt_killed_by_[t] - 1); };
-  auto remover = [&](std::size_t t) { return mt_made_by_[t] == 0 ? kNoNode : k - (mt_made_by_[t] - 1); };
+  // Nodes by decreasing error, ties by reverse collapse order. This is a topological order (a
+  // parent's error is at least its child's, and on a tie the parent collapsed later), and it makes
+  // the static cut for a uniform threshold e a prefix: the root and every node with error > e. Cuts
+  // then walk the arrays front to back instead of jumping around.
+  std::vector<std::uint32_t> order(k);
+  for (std::uint32_t c = 0; c < k; ++c) order[c] = k - 1 - c;  // coarsest collapse first
+  std::stable_sort(order.begin(), order.end(),
+                   [&](std::uint32_t x, std::uint32_t y) { return collapse_error_[x] > collapse_error_[y]; });
+  std::vector<std::uint32_t> node_of(k);
+  for (std::uint32_t i = 0; i < k; ++i) node_of[order[i]] = i + 1;
+  auto creator = [&](std::size_t t) { return mt_killed_by_[t] == 0 ? 0u : node_of[mt_killed_by_[t] - 1]; };
+  auto remover = [&](std::size_t t) { return mt_made_by_[t] == 0 ? kNoNode : node_of[mt_made_by_[t] - 1]; };
 
   mt.node_vertex.resize(node_count);
   mt.node_error.resize(node_count);
   mt.node_vertex[0] = kNoNode;
   mt.node_error[0] = 0;
   for (std::uint32_t c = 0; c < k; ++c) {
-    mt.node_vertex[k - c] = collapse_u_[c];
-    mt.node_error[k - c] = collapse_error_[c];
+    mt.node_vertex[node_of[c]] = collapse_u_[c];
+    mt.node_error[node_of[c]] = collapse_error_[c];
   }
 
   // Counting sort of triangles by creating node.
@@ -447,8 +568,8 @@ Result<Mt> Builder::run(BuildStats* stats) {
   for (std::size_t i = 0; i < mesh_.triangles.size(); ++i)
     if (mesh_.triangles[i] >= vertex_count_)
       return make_error(ErrorCode::kInvalidArgument, "triangle " + std::to_string(i / 3) + " has vertex id " +
-                                                         std::to_string(mesh_.triangles[i]) + " >= vertex count " +
-                                                         std::to_string(vertex_count_));
+                                                         std::to_string(mesh_.triangles[i]) +
+                                                         " >= vertex count " + std::to_string(vertex_count_));
 
   working_ = mesh_.triangles;
   face_alive_.assign(face_count_, 1);
@@ -464,6 +585,8 @@ Result<Mt> Builder::run(BuildStats* stats) {
   collapse_u_.reserve(vertex_count_);
   collapse_error_.reserve(vertex_count_);
   kind_.assign(vertex_count_, kUnused);
+  face_head_.assign(face_count_, kNoNode);
+  vertex_next_.assign(vertex_count_, kNoNode);
   adjacency_begin_.assign(vertex_count_, 0);
   adjacency_end_.assign(vertex_count_, 0);
   vertex_dead_.assign(vertex_count_, 0);
@@ -479,6 +602,8 @@ Result<Mt> Builder::run(BuildStats* stats) {
   touched_.assign(vertex_count_, 0);
   link_stamp_.assign(vertex_count_, 0);
   seen_stamp_.assign(vertex_count_, 0);
+  fan_slot_.assign(vertex_count_, 0);
+  best_.assign(vertex_count_, Candidate{0, 0, 0});
 
   build_adjacency();
   init_quadrics();
@@ -497,31 +622,38 @@ Result<Mt> Builder::run(BuildStats* stats) {
     }
     candidates_.clear();
     for (const std::uint32_t u : alive_vertex_list_) {
-      Candidate best{std::numeric_limits<float>::infinity(), u, u};
-      auto consider = [&](std::uint32_t v) {
-        const float cost = evaluate(quadrics_[u], &unit_positions_[3 * std::size_t{v}]);
-        if (cost < best.cost) best.cost = cost, best.v = v;
-      };
-      if (kind_[u] == kInterior) {
-        for (std::uint32_t i = adjacency_begin_[u]; i < adjacency_end_[u]; ++i) {
-          std::uint32_t a = 0, b = 0;
-          fan_corners(adjacency_[i], u, a, b);
-          if (kind_[a] == kInterior || kind_[a] == kBoundary) consider(a);
+      Candidate& best = best_[u];
+      // The partner's cost Q_u(v) only changes when u's quadric or fan does, i.e. when u was
+      // touched; a cached partner that stopped being collapsible forces a new search too.
+      const bool stale = pass_ == 1 || touched_[u] == pass_ - 1 ||
+                         (best.v != u && kind_[best.v] != kInterior && kind_[best.v] != kBoundary);
+      if (stale) {
+        best = Candidate{std::numeric_limits<float>::infinity(), u, u};
+        auto consider = [&](std::uint32_t v) {
+          const float cost = evaluate(quadrics_[u], &unit_positions_[3 * std::size_t{v}]);
+          if (cost < best.cost) best.cost = cost, best.v = v;
+        };
+        if (kind_[u] == kInterior) {
+          for (std::uint32_t i = adjacency_begin_[u]; i < adjacency_end_[u]; ++i) {
+            std::uint32_t a = 0, b = 0;
+            fan_corners(adjacency_[i], u, a, b);
+            if (kind_[a] == kInterior || kind_[a] == kBoundary) consider(a);
+          }
+        } else if (kind_[u] == kBoundary) {
+          // A boundary vertex only slides along its boundary, onto another boundary vertex.
+          for (int e = 0; e < 2; ++e)
+            if (kind_[boundary_ends[2 * u + e]] == kBoundary) consider(boundary_ends[2 * u + e]);
         }
-      } else if (kind_[u] == kBoundary) {
-        // A boundary vertex only slides along its boundary, onto another boundary vertex.
-        for (int e = 0; e < 2; ++e)
-          if (kind_[boundary_ends[2 * u + e]] == kBoundary) consider(boundary_ends[2 * u + e]);
       }
       if (best.v != u) candidates_.push_back(best);
     }
     if (candidates_.empty()) break;
-    std::sort(candidates_.begin(), candidates_.end(),
-              [](const Candidate& x, const Candidate& y) { return x.cost < y.cost || (x.cost == y.cost && x.u < y.u); });
+    sort_by_cost(candidates_, candidate_scratch_);
 
     // The quota counts candidates that took part in the order (collapsed, or blocked by an earlier
     // collapse of this pass); invalid ones are skipped without using it up.
-    const std::size_t quota = std::max<std::size_t>(1, std::size_t(double(candidates_.size()) * options_.pass_fraction));
+    const std::size_t quota =
+        std::max<std::size_t>(1, std::size_t(double(candidates_.size()) * options_.pass_fraction));
     std::size_t collapses = 0, ordered = 0;
     for (std::size_t i = 0; i < candidates_.size() && ordered < quota; ++i) {
       const Candidate& c = candidates_[i];
@@ -535,8 +667,8 @@ Result<Mt> Builder::run(BuildStats* stats) {
       ++ordered;
       if (alive_faces_ <= options_.min_triangles) break;
     }
-    if (options_.progress) options_.progress(options_.progress_user, 1.0 - double(alive_faces_) / initial_faces);
-    if (getenv("MTLOD_TRACE")) fprintf(stderr, "pass %u faces %zu cands %zu collapses %zu\n", pass_, alive_faces_, candidates_.size(), collapses);
+    if (options_.progress)
+      options_.progress(options_.progress_user, 1.0 - double(alive_faces_) / initial_faces);
     if (collapses == 0 || alive_faces_ <= options_.min_triangles) break;
   }
 

@@ -33,11 +33,11 @@ struct BuildOptions {
 struct BuildStats {
   std::size_t input_triangles = 0;
   std::size_t root_triangles = 0;
-  std::size_t nodes = 0;           // including the root
-  std::size_t mt_triangles = 0;    // all triangles of all nodes
+  std::size_t nodes = 0;         // including the root
+  std::size_t mt_triangles = 0;  // all triangles of all nodes
   std::size_t passes = 0;
   std::size_t complex_vertices = 0;  // never collapsed: non-manifold or inconsistently oriented fans
-  float max_error = 0.0f;          // largest node error, model units
+  float max_error = 0.0f;            // largest node error, model units
 };
 
 // Builds the MT of mesh. Triangles with a repeated vertex id are kept unchanged (their vertices are

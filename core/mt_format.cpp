@@ -20,7 +20,9 @@ constexpr std::uint32_t kFlagColors = 1u << 1;
 constexpr std::uint64_t kChecksumOffset = 48;
 constexpr std::uint64_t kFnvPrime = 0x100000001b3ull;
 
-std::uint64_t pad4(std::uint64_t n) { return (n + 3) & ~std::uint64_t{3}; }
+std::uint64_t pad4(std::uint64_t n) {
+  return (n + 3) & ~std::uint64_t{3};
+}
 
 struct Counts {
   std::uint32_t flags = 0;
@@ -34,11 +36,11 @@ struct Counts {
 // Payload bytes implied by the counts (each array 4-byte aligned).
 std::uint64_t payload_bytes(const Counts& c) {
   const std::uint64_t v = c.vertices, n = c.nodes, t = c.triangles;
-  std::uint64_t bytes = 12 * v;                              // positions
-  if (c.flags & kFlagNormals) bytes += 12 * v;               // normals
-  if (c.flags & kFlagColors) bytes += pad4(3 * v);           // colours
-  bytes += 4 * n + 4 * n + 4 * (n + 1) + 4 * (n + 1);        // vertex, error, triangle and parent offsets
-  bytes += 4 * std::uint64_t{c.parents};                     // parents
+  std::uint64_t bytes = 12 * v;                                  // positions
+  if (c.flags & kFlagNormals) bytes += 12 * v;                   // normals
+  if (c.flags & kFlagColors) bytes += pad4(3 * v);               // colours
+  bytes += 4 * n + 4 * n + 4 * (n + 1) + 4 * (n + 1);            // vertex, error, triangle and parent offsets
+  bytes += 4 * std::uint64_t{c.parents};                         // parents
   bytes += 8 * t + 4 * std::uint64_t{c.root_triangles} + 4 * t;  // corners, root corners, removers
   return bytes;
 }
@@ -79,13 +81,14 @@ void take_array(const std::uint8_t*& cursor, std::uint64_t count, std::vector<T>
   cursor += pad4(count * sizeof(T));
 }
 
-Error corrupt(std::string message) { return make_error(ErrorCode::kCorrupt, "corrupt MT file: " + std::move(message)); }
+Error corrupt(std::string message) {
+  return make_error(ErrorCode::kCorrupt, "corrupt MT file: " + std::move(message));
+}
 
 Status validate(const Mt& mt) {
   const std::uint64_t v = mt.vertex_count(), n = mt.node_count(), t = mt.triangle_count();
   for (std::uint64_t i = 0; i < mt.positions.size(); ++i)
-    if (!std::isfinite(mt.positions[i]))
-      return corrupt("positions[" + std::to_string(i) + "] is not finite");
+    if (!std::isfinite(mt.positions[i])) return corrupt("positions[" + std::to_string(i) + "] is not finite");
   if (mt.node_vertex[0] != kNoNode) return corrupt("node_vertex[0] of the root is not the none marker");
   for (std::uint64_t i = 1; i < n; ++i)
     if (mt.node_vertex[i] >= v)
@@ -94,6 +97,12 @@ Status validate(const Mt& mt) {
   for (std::uint64_t i = 0; i < n; ++i)
     if (!(mt.node_error[i] >= 0.0f) || !std::isfinite(mt.node_error[i]))
       return corrupt("node_error[" + std::to_string(i) + "] is negative or not finite");
+  // Sorted by decreasing error, so with parents before children errors never grow from a node to
+  // its children; refinement relies on both.
+  for (std::uint64_t i = 2; i < n; ++i)
+    if (mt.node_error[i] > mt.node_error[i - 1])
+      return corrupt("node_error[" + std::to_string(i) + "] is larger than node_error[" +
+                     std::to_string(i - 1) + "] (nodes must be sorted by decreasing error)");
 
   auto check_offsets = [&](const std::vector<std::uint32_t>& offsets, std::uint64_t total,
                            const char* name) -> Status {
@@ -102,7 +111,8 @@ Status validate(const Mt& mt) {
       if (offsets[i + 1] < offsets[i])
         return corrupt(std::string(name) + " decrease at node " + std::to_string(i));
     if (offsets[n] != total)
-      return corrupt(std::string(name) + " end at " + std::to_string(offsets[n]) + ", expected " + std::to_string(total));
+      return corrupt(std::string(name) + " end at " + std::to_string(offsets[n]) + ", expected " +
+                     std::to_string(total));
     return Ok{};
   };
   MTLOD_RETURN_IF_ERROR(check_offsets(mt.node_triangle_offsets, t, "node_triangle_offsets"));
@@ -118,15 +128,16 @@ Status validate(const Mt& mt) {
     if (begin == end) return corrupt("node " + std::to_string(i) + " has no parent");
     for (std::uint32_t j = begin; j < end; ++j) {
       const std::uint32_t p = mt.node_parents[j];
-      if (p >= i) return corrupt("node " + std::to_string(i) + " has parent " + std::to_string(p) + " not before it");
+      if (p >= i)
+        return corrupt("node " + std::to_string(i) + " has parent " + std::to_string(p) + " not before it");
       if (j > begin && p <= mt.node_parents[j - 1])
         return corrupt("parents of node " + std::to_string(i) + " are not strictly increasing");
     }
   }
   for (std::uint64_t i = 0; i < 2 * t; ++i)
     if (mt.triangle_corners[i] >= v)
-      return corrupt("triangle_corners[" + std::to_string(i) + "] = " + std::to_string(mt.triangle_corners[i]) +
-                     " >= vertex count " + std::to_string(v));
+      return corrupt("triangle_corners[" + std::to_string(i) + "] = " +
+                     std::to_string(mt.triangle_corners[i]) + " >= vertex count " + std::to_string(v));
   for (std::uint64_t i = 0; i < mt.root_triangle_count(); ++i)
     if (mt.root_first_corner[i] >= v)
       return corrupt("root_first_corner[" + std::to_string(i) + "] >= vertex count " + std::to_string(v));
@@ -229,7 +240,8 @@ Result<Mt> deserialize_mt(std::span<const std::uint8_t> bytes) {
                    std::to_string(expected) + " bytes)");
   if (bytes.size() - kMtHeaderBytes != expected)
     return corrupt("payload has " + std::to_string(bytes.size() - kMtHeaderBytes) + " bytes, counts need " +
-                   std::to_string(expected) + (bytes.size() - kMtHeaderBytes < expected ? " (truncated)" : ""));
+                   std::to_string(expected) +
+                   (bytes.size() - kMtHeaderBytes < expected ? " (truncated)" : ""));
   // Checksum over the whole image with its own field read as zero.
   const std::uint64_t stored = get64(p + kChecksumOffset);
   std::uint64_t sum = mt_checksum(bytes.subspan(0, kChecksumOffset));

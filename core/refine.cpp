@@ -37,18 +37,27 @@ bool Refiner::fails(std::uint32_t t, std::uint32_t creator, const AllowedError& 
   const float error = mt_.node_error[r];
   if (allowed.per_vertex.empty()) return error > allowed.uniform;
   const float* field = allowed.per_vertex.data();
-  const float a = field[mt_.first_corner(t, creator)];
+  const float a = field[mt_.first_corner(TriangleId{t}, NodeId{creator})];
   const float b = field[mt_.triangle_corners[2 * std::size_t{t}]];
   const float c = field[mt_.triangle_corners[2 * std::size_t{t} + 1]];
   return error > std::min(a, std::min(b, c));
 }
 
-Refiner::HeapEntry Refiner::heap_entry(std::uint32_t t, std::uint32_t creator, const AllowedError& allowed) const {
+bool Refiner::fails_at(std::uint32_t r, const std::uint32_t* corners, const AllowedError& allowed) const {
+  if (r == kNoNode) return false;
+  const float error = mt_.node_error[r];
+  if (allowed.per_vertex.empty()) return error > allowed.uniform;
+  const float* field = allowed.per_vertex.data();
+  return error > std::min(field[corners[0]], std::min(field[corners[1]], field[corners[2]]));
+}
+
+Refiner::HeapEntry Refiner::heap_entry(std::uint32_t t, std::uint32_t creator,
+                                       const AllowedError& allowed) const {
   const float error = mt_.node_error[mt_.triangle_remover[t]];
   float a = allowed.uniform;
   if (!allowed.per_vertex.empty()) {
     const float* field = allowed.per_vertex.data();
-    a = std::min(field[mt_.first_corner(t, creator)],
+    a = std::min(field[mt_.first_corner(TriangleId{t}, NodeId{creator})],
                  std::min(field[mt_.triangle_corners[2 * std::size_t{t}]],
                           field[mt_.triangle_corners[2 * std::size_t{t} + 1]]));
   }
@@ -64,9 +73,30 @@ void Refiner::reset_to_root() {
   cut_.push_back(0);
 }
 
+void Refiner::add_node(std::uint32_t x, std::uint32_t witness_triangle, std::uint32_t witness_creator) {
+  in_cut_[x] = kIn;
+  cut_.push_back(x);
+  witness_triangle_[x] = witness_triangle;
+  witness_creator_[x] = witness_creator;
+  if (!mesh_valid_) return;
+  // x's parents are all in the cut: what it removes is in the mesh, what it creates is not yet.
+  for (std::uint32_t j = mt_.node_parent_offsets[x]; j < mt_.node_parent_offsets[x + 1]; ++j) {
+    const std::uint32_t p = mt_.node_parents[j];
+    for (std::uint32_t t = mt_.node_triangle_offsets[p]; t < mt_.node_triangle_offsets[p + 1]; ++t)
+      if (mt_.triangle_remover[t] == x) mesh_remove(t);
+  }
+  for (std::uint32_t t = mt_.node_triangle_offsets[x]; t < mt_.node_triangle_offsets[x + 1]; ++t)
+    mesh_add(t, x);
+}
+
 void Refiner::force(std::uint32_t r, std::uint32_t witness_triangle, std::uint32_t witness_creator) {
   const std::uint32_t* offsets = mt_.node_parent_offsets.data();
   const std::uint32_t* parents = mt_.node_parents.data();
+  // Usual case: every parent is already in the cut.
+  bool parents_in = true;
+  for (std::uint32_t i = offsets[r]; i < offsets[r + 1] && parents_in; ++i)
+    parents_in = in_cut_[parents[i]] == kIn;
+  if (parents_in) return add_node(r, witness_triangle, witness_creator);
   stack_.clear();
   stack_.push_back(r);
   stack_.push_back(offsets[r]);
@@ -86,10 +116,7 @@ void Refiner::force(std::uint32_t r, std::uint32_t witness_triangle, std::uint32
       continue;
     }
     stack_.resize(top);
-    in_cut_[x] = kIn;
-    cut_.push_back(x);
-    witness_triangle_[x] = witness_triangle;
-    witness_creator_[x] = witness_creator;
+    add_node(x, witness_triangle, witness_creator);
   }
 }
 
@@ -108,20 +135,32 @@ void Refiner::close_over(const AllowedError& allowed, std::size_t first) {
 }
 
 void Refiner::emit(CutMesh& out) const {
-  out.triangles.clear();
+  // Upper bound first (everything the cut's nodes create), then one unchecked write per corner.
+  std::size_t created = 0;
+  for (const std::uint32_t n : cut_)
+    created += mt_.node_triangle_offsets[n + 1] - mt_.node_triangle_offsets[n];
+  out.triangles.resize(3 * created);
+  std::uint32_t* write = out.triangles.data();
+  const std::uint32_t* remover = mt_.triangle_remover.data();
+  const std::uint32_t* corners = mt_.triangle_corners.data();
+  const std::uint8_t* in_cut = in_cut_.data();
   float max_error = 0.0f;
   for (const std::uint32_t n : cut_) {
     const std::uint32_t end = mt_.node_triangle_offsets[n + 1];
     const std::uint32_t first = n == 0 ? kNoNode : mt_.node_vertex[n];
     for (std::uint32_t t = mt_.node_triangle_offsets[n]; t < end; ++t) {
-      const std::uint32_t r = mt_.triangle_remover[t];
-      if (r != kNoNode && in_cut_[r] == kIn) continue;
-      if (r != kNoNode) max_error = std::max(max_error, mt_.node_error[r]);
-      out.triangles.push_back(n == 0 ? mt_.root_first_corner[t] : first);
-      out.triangles.push_back(mt_.triangle_corners[2 * std::size_t{t}]);
-      out.triangles.push_back(mt_.triangle_corners[2 * std::size_t{t} + 1]);
+      const std::uint32_t r = remover[t];
+      if (r != kNoNode) {
+        if (in_cut[r] == kIn) continue;
+        max_error = std::max(max_error, mt_.node_error[r]);
+      }
+      write[0] = n == 0 ? mt_.root_first_corner[t] : first;
+      write[1] = corners[2 * std::size_t{t}];
+      write[2] = corners[2 * std::size_t{t} + 1];
+      write += 3;
     }
   }
+  out.triangles.resize(std::size_t(write - out.triangles.data()));
   out.node_count = cut_.size();
   out.max_error = max_error;
 }
@@ -135,9 +174,91 @@ void Refiner::remember_field(const AllowedError& allowed) {
 
 void Refiner::refine(const AllowedError& allowed, CutMesh& out) {
   assert(allowed.per_vertex.empty() || allowed.per_vertex.size() == mt_.vertex_count());
+  mesh_valid_ = false;  // static refinement emits at the end instead of tracking the mesh
+  if (allowed.per_vertex.empty()) return refine_uniform(allowed.uniform, out);
+  refine_forced(allowed, out);
+}
+
+void Refiner::refine_uniform(float allowed_error, CutMesh& out) {
+  // Nodes are stored by decreasing error and errors never grow from parent to child (checked when
+  // a file is loaded), so the minimal cut is the root plus the prefix of nodes with error above the
+  // bound, and its mesh is read off the prefix of the triangle array in one sequential pass.
+  const float* errors = mt_.node_error.data();
+  const std::uint32_t end = std::uint32_t(std::partition_point(errors + 1, errors + mt_.node_count(),
+                                                               [&](float e) { return e > allowed_error; }) -
+                                          errors);
+  for (const std::uint32_t n : cut_) in_cut_[n] = kOut;
+  cut_.resize(end);
+  for (std::uint32_t n = 0; n < end; ++n) cut_[n] = n;
+  std::fill(in_cut_.begin(), in_cut_.begin() + end, kIn);
+  // No witnesses were recorded: the next update starts with a forced refinement.
+  dynamic_ready_ = false;
+
+  const std::uint32_t triangle_end = mt_.node_triangle_offsets[end];
+  out.triangles.resize(3 * std::size_t{triangle_end});
+  std::uint32_t* write = out.triangles.data();
+  const std::uint32_t* remover = mt_.triangle_remover.data();
+  const std::uint32_t* corners = mt_.triangle_corners.data();
+  float max_error = 0.0f;
+  for (std::uint32_t n = 0; n < end; ++n) {
+    const std::uint32_t first = n == 0 ? kNoNode : mt_.node_vertex[n];
+    const std::uint32_t last = mt_.node_triangle_offsets[n + 1];
+    for (std::uint32_t t = mt_.node_triangle_offsets[n]; t < last; ++t) {
+      const std::uint32_t r = remover[t];
+      // In the mesh unless its remover is in the prefix (kNoNode is larger than any node).
+      if (r < end) continue;
+      if (r != kNoNode) max_error = std::max(max_error, errors[r]);
+      write[0] = n == 0 ? mt_.root_first_corner[t] : first;
+      write[1] = corners[2 * std::size_t{t}];
+      write[2] = corners[2 * std::size_t{t} + 1];
+      write += 3;
+    }
+  }
+  out.triangles.resize(std::size_t(write - out.triangles.data()));
+  out.node_count = end;
+  out.max_error = max_error;
+  out.within_budget = true;
+}
+
+void Refiner::refine_forced(const AllowedError& allowed, CutMesh& out) {
+  mesh_valid_ = false;
   reset_to_root();
-  close_over(allowed, 0);
-  emit(out);
+  // Like close_over, but remembering every passing triangle: the final mesh is among them (a
+  // triangle examined while its remover was out either failed, forcing the remover in, or passed),
+  // so the output filters that list instead of walking all the cut's triangles again.
+  passing_.clear();
+  for (std::size_t i = 0; i < cut_.size(); ++i) {
+    const std::uint32_t n = cut_[i];
+    const std::uint32_t end = mt_.node_triangle_offsets[n + 1];
+    for (std::uint32_t t = mt_.node_triangle_offsets[n]; t < end; ++t) {
+      const std::uint32_t r = mt_.triangle_remover[t];
+      if (r != kNoNode && in_cut_[r] == kIn) continue;
+      if (fails(t, n, allowed)) {
+        force(r, t, n);
+      } else {
+        passing_.push_back(t);
+        passing_.push_back(n);
+      }
+    }
+  }
+  out.triangles.resize(3 * (passing_.size() / 2));
+  std::uint32_t* write = out.triangles.data();
+  float max_error = 0.0f;
+  for (std::size_t i = 0; i < passing_.size(); i += 2) {
+    const std::uint32_t t = passing_[i], n = passing_[i + 1];
+    const std::uint32_t r = mt_.triangle_remover[t];
+    if (r != kNoNode) {
+      if (in_cut_[r] == kIn) continue;  // refined after it passed
+      max_error = std::max(max_error, mt_.node_error[r]);
+    }
+    write[0] = mt_.first_corner(TriangleId{t}, NodeId{n});
+    write[1] = mt_.triangle_corners[2 * std::size_t{t}];
+    write[2] = mt_.triangle_corners[2 * std::size_t{t} + 1];
+    write += 3;
+  }
+  out.triangles.resize(std::size_t(write - out.triangles.data()));
+  out.node_count = cut_.size();
+  out.max_error = max_error;
   out.within_budget = true;
   // The field is not copied here, to keep static refinement free of O(vertices) work; the next
   // update treats every vertex as changed.
@@ -145,98 +266,251 @@ void Refiner::refine(const AllowedError& allowed, CutMesh& out) {
   dynamic_ready_ = true;
 }
 
-void Refiner::update(const AllowedError& allowed, CutMesh& out) {
-  assert(allowed.per_vertex.empty() || allowed.per_vertex.size() == mt_.vertex_count());
-  if (!dynamic_ready_) return refine(allowed, out);
+// --- dynamic refinement -------------------------------------------------------------------------
 
-  // Which vertices changed their allowed error: all of them when the field is or was uniform, or
-  // unknown because the cut came from refine.
-  bool all_changed = false;
-  bool any_changed = false;
-  bool diffed = false;
-  if (!field_known_) {
-    any_changed = all_changed = true;
-  } else if (allowed.per_vertex.empty() || previous_is_uniform_) {
-    any_changed = all_changed = !(allowed.per_vertex.empty() && previous_is_uniform_ &&
-                                  std::memcmp(&allowed.uniform, &previous_uniform_, sizeof(float)) == 0);
-  } else {
-    diffed = true;
-    const std::size_t count = allowed.per_vertex.size();
-    changed_.resize(count);
-    const float* now = allowed.per_vertex.data();
-    float* before = previous_field_.data();
-    // Bitwise comparison: NaN stays equal to itself and -0 differs from +0, both harmless here.
-    for (std::size_t v = 0; v < count; ++v) {
-      std::uint32_t x, y;
-      std::memcpy(&x, now + v, 4);
-      std::memcpy(&y, before + v, 4);
-      changed_[v] = x != y;
-      any_changed |= x != y;
-      before[v] = now[v];
+void Refiner::SlotTable::reset(std::size_t expected) {
+  std::size_t capacity = 16;
+  shift_ = 60;
+  while (capacity < 2 * expected) capacity *= 2, --shift_;
+  keys_.assign(capacity, kNoNode);
+  values_.resize(capacity);
+  size_ = 0;
+}
+
+void Refiner::SlotTable::grow() {
+  std::vector<std::uint32_t> keys, values;
+  keys.swap(keys_);
+  values.swap(values_);
+  reset(keys.size());  // doubles: reset makes room for twice the expected count
+  for (std::size_t i = 0; i < keys.size(); ++i)
+    if (keys[i] != kNoNode) insert(keys[i], values[i]);
+}
+
+void Refiner::SlotTable::insert(std::uint32_t key, std::uint32_t value) {
+  if (2 * (size_ + 1) > keys_.size()) grow();
+  const std::size_t mask = keys_.size() - 1;
+  std::size_t i = home(key);
+  while (keys_[i] != kNoNode) i = (i + 1) & mask;
+  keys_[i] = key;
+  values_[i] = value;
+  ++size_;
+}
+
+std::uint32_t Refiner::SlotTable::find(std::uint32_t key) const {
+  const std::size_t mask = keys_.size() - 1;
+  for (std::size_t i = home(key);; i = (i + 1) & mask) {
+    if (keys_[i] == key) return values_[i];
+    if (keys_[i] == kNoNode) return kNoNode;
+  }
+}
+
+void Refiner::SlotTable::assign(std::uint32_t key, std::uint32_t value) {
+  const std::size_t mask = keys_.size() - 1;
+  std::size_t i = home(key);
+  while (keys_[i] != key) i = (i + 1) & mask;
+  values_[i] = value;
+}
+
+void Refiner::SlotTable::erase(std::uint32_t key) {
+  const std::size_t mask = keys_.size() - 1;
+  std::size_t i = home(key);
+  while (keys_[i] != key) i = (i + 1) & mask;
+  // Backward shift: pull later entries of the probe run into the hole so lookups never stop early.
+  for (std::size_t j = (i + 1) & mask; keys_[j] != kNoNode; j = (j + 1) & mask) {
+    const std::size_t h = home(keys_[j]);
+    // Entry j may move to i only if its home is not in the cyclic range (i, j].
+    if (((j - h) & mask) >= ((j - i) & mask)) {
+      keys_[i] = keys_[j];
+      values_[i] = values_[j];
+      i = j;
     }
   }
-  if (!diffed) remember_field(allowed);
-  if (!any_changed) {
-    emit(out);
-    out.within_budget = true;
-    return;
+  keys_[i] = kNoNode;
+  --size_;
+}
+
+void Refiner::mesh_add(std::uint32_t t, std::uint32_t creator) {
+  slots_.insert(t, std::uint32_t(mesh_triangles_.size()));
+  mesh_triangles_.push_back(t);
+  mesh_corners_.push_back(mt_.first_corner(TriangleId{t}, NodeId{creator}));
+  mesh_corners_.push_back(mt_.triangle_corners[2 * std::size_t{t}]);
+  mesh_corners_.push_back(mt_.triangle_corners[2 * std::size_t{t} + 1]);
+}
+
+void Refiner::mesh_remove(std::uint32_t t) {
+  const std::uint32_t slot = slots_.find(t);
+  assert(slot != kNoNode);
+  const std::uint32_t last = std::uint32_t(mesh_triangles_.size() - 1);
+  if (slot != last) {
+    // Swap with the last entry so the arrays stay dense.
+    const std::uint32_t moved = mesh_triangles_[last];
+    mesh_triangles_[slot] = moved;
+    std::copy_n(&mesh_corners_[3 * std::size_t{last}], 3, &mesh_corners_[3 * std::size_t{slot}]);
+    slots_.assign(moved, slot);
   }
-  auto vertex_changed = [&](std::uint32_t v) { return all_changed || changed_[v] != 0; };
+  slots_.erase(t);
+  mesh_triangles_.pop_back();
+  mesh_corners_.resize(3 * std::size_t{last});
+}
+
+void Refiner::index_mesh() {
+  mesh_triangles_.clear();
+  mesh_corners_.clear();
+  std::size_t count = 0;
+  for (const std::uint32_t n : cut_) count += mt_.node_triangle_offsets[n + 1] - mt_.node_triangle_offsets[n];
+  slots_.reset(count);
+  for (const std::uint32_t n : cut_)
+    for (std::uint32_t t = mt_.node_triangle_offsets[n]; t < mt_.node_triangle_offsets[n + 1]; ++t) {
+      const std::uint32_t r = mt_.triangle_remover[t];
+      if (r == kNoNode || in_cut_[r] != kIn) mesh_add(t, n);
+    }
+  mesh_valid_ = true;
+}
+
+void Refiner::update(const AllowedError& allowed, CutMesh& out) {
+  assert(allowed.per_vertex.empty() || allowed.per_vertex.size() == mt_.vertex_count());
+  if (!dynamic_ready_) return refine_forced(allowed, out);
+  bool all_changed = !field_known_ || allowed.per_vertex.empty() || previous_is_uniform_;
+  if (all_changed && field_known_ && allowed.per_vertex.empty() && previous_is_uniform_ &&
+      std::memcmp(&allowed.uniform, &previous_uniform_, sizeof(float)) == 0) {
+    all_changed = false;  // the same uniform value: nothing changed
+    changed_bits_.assign((mt_.vertex_count() + 63) / 64, 0);
+  } else if (!all_changed) {
+    // Bitwise comparison with the kept copy (NaN equals itself, -0 differs from +0: both harmless),
+    // 64 vertices per word, copying the new values as we go.
+    const std::size_t count = allowed.per_vertex.size();
+    changed_bits_.assign((count + 63) / 64, 0);
+    const float* now = allowed.per_vertex.data();
+    float* before = previous_field_.data();
+    for (std::size_t base = 0; base < count; base += 64) {
+      const std::size_t end = std::min(count, base + 64);
+      std::uint64_t word = 0;
+      for (std::size_t v = base; v < end; ++v) {
+        std::uint32_t x, y;
+        std::memcpy(&x, now + v, 4);
+        std::memcpy(&y, before + v, 4);
+        word |= std::uint64_t{x != y} << (v - base);
+      }
+      changed_bits_[base / 64] = word;
+    }
+    std::memcpy(before, now, count * sizeof(float));
+  }
+  move_cut(allowed, all_changed, out);
+  if (all_changed) remember_field(allowed);
+  std::fill(changed_bits_.begin(), changed_bits_.end(), 0);  // the list overload expects it clear
+}
+
+void Refiner::update(const AllowedError& allowed, std::span<const std::uint32_t> changed_vertices,
+                     CutMesh& out) {
+  assert(allowed.per_vertex.empty() || allowed.per_vertex.size() == mt_.vertex_count());
+  if (!dynamic_ready_) return refine_forced(allowed, out);
+  const bool all_changed = !field_known_ || allowed.per_vertex.empty() || previous_is_uniform_;
+  if (!all_changed) {
+    changed_bits_.resize((mt_.vertex_count() + 63) / 64);
+    for (const std::uint32_t v : changed_vertices) {
+      assert(v < mt_.vertex_count());
+      changed_bits_[v >> 6] |= std::uint64_t{1} << (v & 63);
+      previous_field_[v] = allowed.per_vertex[v];
+    }
+  }
+  move_cut(allowed, all_changed, out);
+  if (all_changed) {
+    remember_field(allowed);
+  } else {
+    for (const std::uint32_t v : changed_vertices) changed_bits_[v >> 6] = 0;  // leave the bitmap clear
+  }
+}
+
+void Refiner::move_cut(const AllowedError& allowed, bool all_changed, CutMesh& out) {
+  if (!mesh_valid_) index_mesh();
+  if (changed_bits_.size() < (mt_.vertex_count() + 63) / 64)
+    changed_bits_.assign((mt_.vertex_count() + 63) / 64, 0);
+  auto changed = [&](std::uint32_t v) { return all_changed || vertex_changed(v); };
 
   // 1. Keep the nodes whose witness still holds (cut_[0] is the root, always kept).
   const std::uint32_t* parent_offsets = mt_.node_parent_offsets.data();
   const std::uint32_t* parents = mt_.node_parents.data();
   std::size_t kept = 1;
-  bool dropped_any = false;
   dropped_.clear();
   for (std::size_t i = 1; i < cut_.size(); ++i) {
     const std::uint32_t n = cut_[i];
     const std::uint32_t c = witness_creator_[n];
     const std::uint32_t t = witness_triangle_[n];
     bool keep = in_cut_[c] == kIn;
-    if (keep && (vertex_changed(mt_.first_corner(t, c)) || vertex_changed(mt_.triangle_corners[2 * std::size_t{t}]) ||
-                 vertex_changed(mt_.triangle_corners[2 * std::size_t{t} + 1])))
+    if (keep && (changed(mt_.first_corner(TriangleId{t}, NodeId{c})) ||
+                 changed(mt_.triangle_corners[2 * std::size_t{t}]) ||
+                 changed(mt_.triangle_corners[2 * std::size_t{t} + 1])))
       keep = fails(t, c, allowed);
     // Parents can only be missing once something was dropped.
-    if (keep && dropped_any)
-      for (std::uint32_t j = parent_offsets[n]; j < parent_offsets[n + 1] && keep; ++j) keep = in_cut_[parents[j]] == kIn;
+    if (keep && !dropped_.empty())
+      for (std::uint32_t j = parent_offsets[n]; j < parent_offsets[n + 1] && keep; ++j)
+        keep = in_cut_[parents[j]] == kIn;
     if (keep) {
       cut_[kept++] = n;
     } else {
       in_cut_[n] = kDropped;
       dropped_.push_back(n);
-      dropped_any = true;
     }
   }
   cut_.resize(kept);
 
-  // 2. Examine the triangles of the remaining cut that may fail now: those with a changed vertex and
-  // those uncovered by a dropped node. Every other triangle passed before and still does.
-  for (std::size_t i = 0; i < kept; ++i) {
-    const std::uint32_t n = cut_[i];
-    const std::uint32_t end = mt_.node_triangle_offsets[n + 1];
-    const bool first_changed = n == 0 ? false : vertex_changed(mt_.node_vertex[n]);
-    for (std::uint32_t t = mt_.node_triangle_offsets[n]; t < end; ++t) {
-      const std::uint32_t r = mt_.triangle_remover[t];
-      if (r == kNoNode || in_cut_[r] == kIn) continue;
-      const bool check = in_cut_[r] == kDropped || first_changed ||
-                         vertex_changed(mt_.triangle_corners[2 * std::size_t{t}]) ||
-                         vertex_changed(mt_.triangle_corners[2 * std::size_t{t} + 1]) ||
-                         (n == 0 && vertex_changed(mt_.root_first_corner[t]));
-      if (check && fails(t, n, allowed)) force(r, t, n);
+  // 2. Undo the dropped nodes, children first: their triangles leave the mesh, the ones they had
+  // removed come back and must be tested.
+  seeds_.clear();
+  for (std::size_t i = dropped_.size(); i-- > 0;) {
+    const std::uint32_t x = dropped_[i];
+    for (std::uint32_t t = mt_.node_triangle_offsets[x]; t < mt_.node_triangle_offsets[x + 1]; ++t)
+      mesh_remove(t);
+    for (std::uint32_t j = parent_offsets[x]; j < parent_offsets[x + 1]; ++j) {
+      const std::uint32_t p = parents[j];
+      for (std::uint32_t t = mt_.node_triangle_offsets[p]; t < mt_.node_triangle_offsets[p + 1]; ++t)
+        if (mt_.triangle_remover[t] == x) {
+          mesh_add(t, p);
+          seeds_.push_back(t);
+        }
     }
   }
-  // 3. Nodes added in step 2 (and theirs, in turn) are examined in full.
+
+  // 3. Test what may fail now: uncovered triangles still in the mesh, and mesh triangles with a
+  // changed corner. Every other mesh triangle passed before and still does. Candidates are
+  // collected first because forcing edits the mesh arrays.
+  std::size_t uncovered = 0;
+  for (const std::uint32_t t : seeds_)
+    if (slots_.find(t) != kNoNode) seeds_[uncovered++] = t;
+  seeds_.resize(uncovered);
+  for (std::size_t i = 0; i < mesh_triangles_.size(); ++i) {
+    const std::uint32_t* corners = &mesh_corners_[3 * i];
+    if (changed(corners[0]) || changed(corners[1]) || changed(corners[2]))
+      seeds_.push_back(mesh_triangles_[i]);
+  }
+  std::size_t failing = 0;
+  for (const std::uint32_t t : seeds_) {
+    const std::uint32_t slot = slots_.find(t);
+    if (slot != kNoNode && fails_at(mt_.triangle_remover[t], &mesh_corners_[3 * std::size_t{slot}], allowed))
+      seeds_[failing++] = t;
+  }
+  seeds_.resize(failing);
+  for (const std::uint32_t t : seeds_) {
+    const std::uint32_t r = mt_.triangle_remover[t];
+    if (in_cut_[r] == kIn) continue;  // refined meanwhile through another triangle
+    force(r, t, mt_.triangle_creator(t));
+  }
+  // 4. Nodes added in step 3 (and theirs, in turn) are examined in full.
   close_over(allowed, kept);
   for (const std::uint32_t n : dropped_)
     if (in_cut_[n] == kDropped) in_cut_[n] = kOut;
 
-  emit(out);
+  out.triangles.assign(mesh_corners_.begin(), mesh_corners_.end());
+  float max_error = 0.0f;
+  for (const std::uint32_t t : mesh_triangles_) max_error = std::max(max_error, mt_.triangle_error(t));
+  out.max_error = max_error;
+  out.node_count = cut_.size();
   out.within_budget = true;
 }
 
 void Refiner::refine_budget(const AllowedError& allowed, std::size_t max_triangles, CutMesh& out) {
   assert(allowed.per_vertex.empty() || allowed.per_vertex.size() == mt_.vertex_count());
+  mesh_valid_ = false;
   reset_to_root();
   dynamic_ready_ = false;
   std::size_t count = mt_.root_triangle_count();

@@ -21,8 +21,8 @@ namespace mtlod::core {
 
 // The allowed error per triangle, in model units.
 struct AllowedError {
-  float uniform = 0.0f;                 // used when per_vertex is empty
-  std::span<const float> per_vertex;    // empty, or one value per MT vertex (mt.vertex_count())
+  float uniform = 0.0f;               // used when per_vertex is empty
+  std::span<const float> per_vertex;  // empty, or one value per MT vertex (mt.vertex_count())
 
   static AllowedError everywhere(float error) { return {error, {}}; }
   static AllowedError from_vertices(std::span<const float> vertex_allowed_error) {
@@ -32,7 +32,7 @@ struct AllowedError {
 
 // A cut's mesh, ready for an encoder. Caller-owned and reused between calls.
 struct CutMesh {
-  std::vector<std::uint32_t> triangles;  // 3 vertex ids per triangle (CCW), ids into mt.positions
+  std::vector<std::uint32_t> triangles;  // 3 vertex ids per triangle (CCW), ids into mt.positions; any order
   std::size_t node_count = 0;            // nodes in the cut, root included
   float max_error = 0.0f;                // largest error(t) over the cut's triangles, model units
   bool within_budget = true;             // false only when a budget is below the root's size
@@ -56,38 +56,81 @@ class Refiner {
 
   // Dynamic refinement: moves the kept cut to the minimal cut for the new allowed error, by dropping
   // the nodes whose reason to be in the cut no longer holds and refining from what is left. The
-  // result equals refine(allowed) as a set of triangles (the order may differ). The first call, or a
-  // call after refine_budget, runs refine.
+  // result equals refine(allowed) as a set of triangles (the order differs). Without a kept cut (the
+  // first call, or after a uniform refine or refine_budget, which record no witnesses) it runs a
+  // static refinement that does; the next call then indexes that cut's triangles (O(cut)). Changed
+  // vertices are found by comparing with a copy of the previous field (one sequential O(vertices)
+  // pass); everything else costs O(cut) in sequential passes plus work proportional to the change.
   void update(const AllowedError& allowed, CutMesh& out);
+  // The same, when the caller knows which vertices changed since the previous update: every other
+  // vertex must have the same allowed error as then (duplicates in the list are fine). Skips the
+  // O(vertices) comparison. A uniform field, or a previous uniform one, counts as all changed.
+  void update(const AllowedError& allowed, std::span<const std::uint32_t> changed_vertices, CutMesh& out);
 
   // Nodes of the kept cut, in the order they were added (parents before children).
   std::span<const std::uint32_t> cut_nodes() const { return cut_; }
 
  private:
+  // Open-addressing map from triangle id to its slot in mesh_triangles_ (linear probing, backward
+  // shift deletion): no node allocations in the request path.
+  class SlotTable {
+   public:
+    void reset(std::size_t expected);
+    void insert(std::uint32_t key, std::uint32_t value);
+    std::uint32_t find(std::uint32_t key) const;  // kNoNode when absent
+    void assign(std::uint32_t key, std::uint32_t value);
+    void erase(std::uint32_t key);
+
+   private:
+    std::size_t home(std::uint32_t key) const { return std::size_t((key * 0x9E3779B97F4A7C15ull) >> shift_); }
+    void grow();
+    std::vector<std::uint32_t> keys_;
+    std::vector<std::uint32_t> values_;
+    std::size_t size_ = 0;
+    unsigned shift_ = 64;
+  };
+
+  void refine_uniform(float allowed_error, CutMesh& out);
+  // Static refinement by forcing from the root; records witnesses so update can start from it.
+  void refine_forced(const AllowedError& allowed, CutMesh& out);
   bool fails(std::uint32_t t, std::uint32_t creator, const AllowedError& allowed) const;
+  bool fails_at(std::uint32_t remover, const std::uint32_t* corners, const AllowedError& allowed) const;
   void reset_to_root();
   // Adds node r and its missing ancestors, parents first; witness_triangle forced r.
   void force(std::uint32_t r, std::uint32_t witness_triangle, std::uint32_t witness_creator);
+  void add_node(std::uint32_t x, std::uint32_t witness_triangle, std::uint32_t witness_creator);
   void examine(std::uint32_t n, const AllowedError& allowed);
   void close_over(const AllowedError& allowed, std::size_t first);
   void emit(CutMesh& out) const;
   void remember_field(const AllowedError& allowed);
+  void index_mesh();
+  void mesh_add(std::uint32_t t, std::uint32_t creator);
+  void mesh_remove(std::uint32_t t);
+  void move_cut(const AllowedError& allowed, bool all_changed, CutMesh& out);
+  bool vertex_changed(std::uint32_t v) const { return (changed_bits_[v >> 6] >> (v & 63)) & 1; }
 
   const Mt& mt_;
-  std::vector<std::uint8_t> in_cut_;            // per node: 0 out, 1 in, 2 being added
-  std::vector<std::uint32_t> cut_;              // nodes in the cut, in the order added
+  std::vector<std::uint8_t> in_cut_;             // per node: 0 out, 1 in, 2 being added, 3 dropped
+  std::vector<std::uint32_t> cut_;               // nodes in the cut, in the order added
   std::vector<std::uint32_t> witness_triangle_;  // per node: the failing triangle that forced it
   std::vector<std::uint32_t> witness_creator_;   // per node: that triangle's creator
-  std::vector<std::uint32_t> stack_;            // DFS over missing ancestors: node, next parent index
-  std::vector<std::uint8_t> changed_;           // per vertex, during update
-  std::vector<float> previous_field_;           // allowed error of the last call, per vertex
+  std::vector<std::uint32_t> stack_;             // DFS over missing ancestors: node, next parent index
+  std::vector<float> previous_field_;            // allowed error of the last update, per vertex
   float previous_uniform_ = 0.0f;
   bool previous_is_uniform_ = true;
-  bool dynamic_ready_ = false;                  // cut_ is the minimal cut of the previous field
-  std::vector<std::uint32_t> dropped_;          // nodes dropped during one update
-  bool field_known_ = false;                    // previous_* describe the field of the kept cut
+  bool field_known_ = false;    // previous_* describe the field of the kept cut
+  bool dynamic_ready_ = false;  // cut_ is the minimal cut of the previous field
+  // The kept cut's mesh, maintained by update: triangle ids, their corners, and their slots.
+  bool mesh_valid_ = false;
+  std::vector<std::uint32_t> mesh_triangles_;
+  std::vector<std::uint32_t> mesh_corners_;
+  SlotTable slots_;
+  std::vector<std::uint64_t> changed_bits_;  // per vertex, during update
+  std::vector<std::uint32_t> dropped_;       // nodes dropped during one update
+  std::vector<std::uint32_t> seeds_;         // triangles to test during one update
+  std::vector<std::uint32_t> passing_;       // triangle, creator pairs seen passing (refine_forced)
   struct HeapEntry {
-    std::uint32_t tier;   // 1: allowed ≤ 0, ranked by error; 0: ranked by error / allowed
+    std::uint32_t tier;  // 1: allowed ≤ 0, ranked by error; 0: ranked by error / allowed
     float key;
     std::uint32_t triangle;
     std::uint32_t creator;

@@ -28,7 +28,8 @@ Result<Mt> read_mt_file(const std::filesystem::path& path) {
   const std::uintmax_t size = std::filesystem::file_size(path, ec);
   if (ec) return make_error(ErrorCode::kIoError, "cannot stat " + path.string() + ": " + ec.message());
   File file(std::fopen(path.c_str(), "rb"));
-  if (!file) return make_error(ErrorCode::kIoError, "cannot open " + path.string() + ": " + std::strerror(errno));
+  if (!file)
+    return make_error(ErrorCode::kIoError, "cannot open " + path.string() + ": " + std::strerror(errno));
   std::vector<std::uint8_t> bytes(size);
   if (size != 0 && std::fread(bytes.data(), 1, size, file.get()) != size)
     return make_error(ErrorCode::kIoError, "short read of " + path.string());
@@ -45,7 +46,8 @@ Result<std::uint64_t> write_mt_file(const std::filesystem::path& path, const Mt&
   std::vector<std::uint8_t> bytes;
   serialize_mt(mt, bytes);
   File file(std::fopen(path.c_str(), "wb"));
-  if (!file) return make_error(ErrorCode::kIoError, "cannot create " + path.string() + ": " + std::strerror(errno));
+  if (!file)
+    return make_error(ErrorCode::kIoError, "cannot create " + path.string() + ": " + std::strerror(errno));
   if (std::fwrite(bytes.data(), 1, bytes.size(), file.get()) != bytes.size() || std::fflush(file.get()) != 0)
     return make_error(ErrorCode::kIoError, "cannot write " + path.string() + ": " + std::strerror(errno));
   return std::uint64_t{bytes.size()};

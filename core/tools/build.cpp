@@ -25,8 +25,8 @@ void draw_bar(void* user, double fraction) {
   state->last_percent = percent;
   constexpr int kWidth = 40;
   const int filled = percent * kWidth / 100;
-  fmt::print(stderr, "\r  simplifying [{}{}] {:3d}%", std::string(filled, '#'), std::string(kWidth - filled, ' '),
-             percent);
+  fmt::print(stderr, "\r  simplifying [{}{}] {:3d}%", std::string(filled, '#'),
+             std::string(kWidth - filled, ' '), percent);
   std::fflush(stderr);
 }
 
@@ -43,7 +43,8 @@ int main(int argc, char** argv) {
   app.add_option("--pass-fraction", options.pass_fraction,
                  "share of the cheapest collapses tried per pass (smaller: closer to greedy order, slower)")
       ->check(CLI::Range(0.01f, 1.0f));
-  app.add_flag("--raw", raw, "no clean-up of the input (keep unused vertices, degenerate and duplicate triangles)");
+  app.add_flag("--raw", raw,
+               "no clean-up of the input (keep unused vertices, degenerate and duplicate triangles)");
   CLI11_PARSE(app, argc, argv);
 
   io::LoadOptions load_options;
@@ -77,13 +78,15 @@ int main(int argc, char** argv) {
     fmt::print(stderr, "mtlod-build: {}\n", size.error().message);
     return 1;
   }
-  const double per_triangle = double(mt->memory_bytes()) / double(std::max<std::size_t>(stats.input_triangles, 1));
+  const double per_triangle =
+      double(mt->memory_bytes()) / double(std::max<std::size_t>(stats.input_triangles, 1));
   fmt::print(
       "  input triangles {}, root triangles {}, nodes {}, MT triangles {}\n"
       "  max error {:.6g} (model units), {} passes, {} complex vertices kept\n"
       "  built in {:.3f} s ({:.0f} input triangles/s)\n"
       "  wrote {} ({} bytes), {:.1f} bytes per input triangle in memory\n",
-      stats.input_triangles, stats.root_triangles, stats.nodes, stats.mt_triangles, stats.max_error, stats.passes,
-      stats.complex_vertices, seconds, double(stats.input_triangles) / seconds, output, *size, per_triangle);
+      stats.input_triangles, stats.root_triangles, stats.nodes, stats.mt_triangles, stats.max_error,
+      stats.passes, stats.complex_vertices, seconds, double(stats.input_triangles) / seconds, output, *size,
+      per_triangle);
   return 0;
 }

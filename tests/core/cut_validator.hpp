@@ -68,7 +68,8 @@ inline std::vector<std::uint64_t> defective_edges(std::span<const std::uint32_t>
 }
 
 // Vertices on boundary edges (edges with exactly one face).
-inline std::vector<std::uint8_t> boundary_vertices(std::size_t vertex_count, std::span<const std::uint32_t> triangles) {
+inline std::vector<std::uint8_t> boundary_vertices(std::size_t vertex_count,
+                                                   std::span<const std::uint32_t> triangles) {
   const std::vector<std::uint64_t> uses = sorted_edge_uses(triangles);
   std::vector<std::uint8_t> on(vertex_count, 0);
   for (std::size_t i = 0; i < uses.size();) {
@@ -110,28 +111,35 @@ inline CutReference make_reference(const core::Mesh& input) {
 // loops and components equal the input's; a closed manifold input gives a closed manifold cut.
 inline ::testing::AssertionResult validate_cut(const CutReference& ref, std::span<const std::uint32_t> cut) {
   const std::size_t vertex_count = ref.input->vertex_count();
-  if (cut.size() % 3 != 0) return ::testing::AssertionFailure() << "cut size " << cut.size() << " not a multiple of 3";
+  if (cut.size() % 3 != 0)
+    return ::testing::AssertionFailure() << "cut size " << cut.size() << " not a multiple of 3";
   for (std::size_t i = 0; i < cut.size(); ++i)
     if (cut[i] >= vertex_count || !ref.used[cut[i]])
-      return ::testing::AssertionFailure() << "cut corner " << i << " = " << cut[i] << " is not a used input vertex";
+      return ::testing::AssertionFailure()
+             << "cut corner " << i << " = " << cut[i] << " is not a used input vertex";
   for (const std::uint64_t key : defective_edges(cut))
     if (!std::binary_search(ref.defects.begin(), ref.defects.end(), key))
       return ::testing::AssertionFailure() << "edge (" << (key >> 32) << ", " << (key & 0xffffffffu)
                                            << ") is non-manifold or inconsistently oriented in the cut only";
   const core::TopologyReport t = core::analyze_topology(ref.input->positions, cut);
-  if (t.degenerate_triangles != 0) return ::testing::AssertionFailure() << t.degenerate_triangles << " degenerate triangles";
-  if (t.duplicate_triangles != 0) return ::testing::AssertionFailure() << t.duplicate_triangles << " duplicate triangles";
+  if (t.degenerate_triangles != 0)
+    return ::testing::AssertionFailure() << t.degenerate_triangles << " degenerate triangles";
+  if (t.duplicate_triangles != 0)
+    return ::testing::AssertionFailure() << t.duplicate_triangles << " duplicate triangles";
   const std::vector<std::uint8_t> boundary = boundary_vertices(vertex_count, cut);
   for (std::size_t v = 0; v < vertex_count; ++v)
     if (boundary[v] && !ref.boundary[v])
-      return ::testing::AssertionFailure() << "vertex " << v << " is on the cut's boundary but inside the input";
+      return ::testing::AssertionFailure()
+             << "vertex " << v << " is on the cut's boundary but inside the input";
   if (t.euler_characteristic != ref.topology.euler_characteristic)
     return ::testing::AssertionFailure() << "Euler characteristic " << t.euler_characteristic << ", input "
                                          << ref.topology.euler_characteristic;
   if (t.boundary_loops != ref.topology.boundary_loops)
-    return ::testing::AssertionFailure() << "boundary loops " << t.boundary_loops << ", input " << ref.topology.boundary_loops;
+    return ::testing::AssertionFailure()
+           << "boundary loops " << t.boundary_loops << ", input " << ref.topology.boundary_loops;
   if (t.components != ref.topology.components)
-    return ::testing::AssertionFailure() << "components " << t.components << ", input " << ref.topology.components;
+    return ::testing::AssertionFailure()
+           << "components " << t.components << ", input " << ref.topology.components;
   if (ref.topology.is_closed_manifold() && !t.is_closed_manifold())
     return ::testing::AssertionFailure() << "closed manifold input, cut is not: " << t.summary();
   return ::testing::AssertionSuccess();
@@ -139,8 +147,11 @@ inline ::testing::AssertionResult validate_cut(const CutReference& ref, std::spa
 
 // Exact squared distance from p to triangle abc (Ericson, Real-Time Collision Detection 5.1.5), in
 // double precision.
-inline double point_triangle_distance_squared(const double* p, const double* a, const double* b, const double* c) {
-  auto sub = [](const double* x, const double* y) { return std::array<double, 3>{x[0] - y[0], x[1] - y[1], x[2] - y[2]}; };
+inline double point_triangle_distance_squared(const double* p, const double* a, const double* b,
+                                              const double* c) {
+  auto sub = [](const double* x, const double* y) {
+    return std::array<double, 3>{x[0] - y[0], x[1] - y[1], x[2] - y[2]};
+  };
   auto dot = [](const std::array<double, 3>& x, const std::array<double, 3>& y) {
     return x[0] * y[0] + x[1] * y[1] + x[2] * y[2];
   };
@@ -180,7 +191,8 @@ inline double point_triangle_distance_squared(const double* p, const double* a, 
 // Every used input vertex i must lie within bound[i] of the cut's surface. Exact distances; a grid
 // only skips triangles whose box, grown by the largest bound, cannot reach the point (so a skipped
 // triangle is always farther than the bound). Returns the first violation.
-inline ::testing::AssertionResult every_vertex_within(const core::Mesh& input, std::span<const std::uint32_t> cut,
+inline ::testing::AssertionResult every_vertex_within(const core::Mesh& input,
+                                                      std::span<const std::uint32_t> cut,
                                                       std::span<const double> bound) {
   const std::size_t vertex_count = input.vertex_count();
   std::vector<double> p(input.positions.begin(), input.positions.end());
@@ -193,18 +205,22 @@ inline ::testing::AssertionResult every_vertex_within(const core::Mesh& input, s
   const int cells = std::max(1, std::min(64, int(std::cbrt(double(tris)) + 1)));
   double size[3];
   for (int k = 0; k < 3; ++k) size[k] = std::max((hi[k] - lo[k]) / cells, 1e-30);
-  auto cell = [&](double x, int k) { return std::clamp(int(std::floor((x - lo[k]) / size[k])), 0, cells - 1); };
+  auto cell = [&](double x, int k) {
+    return std::clamp(int(std::floor((x - lo[k]) / size[k])), 0, cells - 1);
+  };
   std::vector<std::vector<std::uint32_t>> grid(std::size_t(cells) * cells * cells);
   for (std::size_t t = 0; t < tris; ++t) {
     int c0[3], c1[3];
     for (int k = 0; k < 3; ++k) {
       double a = 1e300, b = -1e300;
-      for (int j = 0; j < 3; ++j) a = std::min(a, p[3 * cut[3 * t + j] + k]), b = std::max(b, p[3 * cut[3 * t + j] + k]);
+      for (int j = 0; j < 3; ++j)
+        a = std::min(a, p[3 * cut[3 * t + j] + k]), b = std::max(b, p[3 * cut[3 * t + j] + k]);
       c0[k] = cell(a - reach, k), c1[k] = cell(b + reach, k);
     }
     for (int x = c0[0]; x <= c1[0]; ++x)
       for (int y = c0[1]; y <= c1[1]; ++y)
-        for (int z = c0[2]; z <= c1[2]; ++z) grid[(std::size_t(x) * cells + y) * cells + z].push_back(std::uint32_t(t));
+        for (int z = c0[2]; z <= c1[2]; ++z)
+          grid[(std::size_t(x) * cells + y) * cells + z].push_back(std::uint32_t(t));
   }
   std::vector<std::uint8_t> used(vertex_count, 0);
   for (const std::uint32_t v : input.triangles) used[v] = 1;
@@ -220,8 +236,8 @@ inline ::testing::AssertionResult every_vertex_within(const core::Mesh& input, s
       if (best <= limit) break;
     }
     if (!(best <= limit))
-      return ::testing::AssertionFailure() << "vertex " << v << " is " << std::sqrt(best) << " from the cut, bound "
-                                           << bound[v];
+      return ::testing::AssertionFailure()
+             << "vertex " << v << " is " << std::sqrt(best) << " from the cut, bound " << bound[v];
   }
   return ::testing::AssertionSuccess();
 }

@@ -52,7 +52,8 @@ TEST(MtBuilder, TetrahedronHasNoValidCollapse) {
 TEST(MtBuilder, SquareCollapsesOneCornerAlongItsBoundary) {
   // Corners 0 and 2 touch both triangles; sliding either onto a neighbour along the boundary leaves
   // one triangle. After that every corner has one triangle, and removing it would empty the mesh.
-  // The moved corner travels 1 unit, so the node's error is the float just above 1.
+  // The removed corner lies 1/√2 from the remaining triangle's long edge (the line x + y = 1 seen
+  // from (0,0) or (1,1)): the node's error is that distance, rounded up to the next float.
   const Mesh mesh = test::square();
   BuildStats stats;
   auto mt = build_mt(mesh, {}, &stats);
@@ -60,7 +61,7 @@ TEST(MtBuilder, SquareCollapsesOneCornerAlongItsBoundary) {
   ASSERT_EQ(mt->node_count(), 2u);
   EXPECT_EQ(mt->root_triangle_count(), 1u);
   EXPECT_EQ(mt->triangle_count(), 3u);  // 1 root triangle + the 2 input triangles of node 1
-  EXPECT_EQ(mt->node_error[1], std::nextafter(1.0f, 2.0f));
+  EXPECT_EQ(mt->node_error[1], std::nextafter(float(std::sqrt(0.5)), 2.0f));
   EXPECT_TRUE(mt->node_vertex[1] == 0 || mt->node_vertex[1] == 2);
   EXPECT_EQ(test::triangle_set(all_nodes_cut(*mt)), test::triangle_set(mesh.triangles));
   EXPECT_EQ(stats.nodes, 2u);
@@ -118,9 +119,11 @@ TEST(MtBuilder, SphereDagIsTopologicalWithMonotoneErrors) {
 }
 
 TEST(MtBuilder, AllNodesReproduceTheInputAndTheRootIsAConformingCoarsestMesh) {
-  std::vector<const MtCase*> cases = {test::shape_case(Shape::kSphere, 20'000), test::shape_case(Shape::kTerrain, 5'000),
+  std::vector<const MtCase*> cases = {test::shape_case(Shape::kSphere, 20'000),
+                                      test::shape_case(Shape::kTerrain, 5'000),
                                       test::shape_case(Shape::kShell, 8'000)};
-  for (const char* file : {"bunny-npm-3k.ply", "dragon-vrip-res4-11k.ply", "bunny-zipper-69k.ply", "armadillo-52k.ply"})
+  for (const char* file :
+       {"bunny-npm-3k.ply", "dragon-vrip-res4-11k.ply", "bunny-zipper-69k.ply", "armadillo-52k.ply"})
     if (const MtCase* c = test::scan_case(file)) cases.push_back(c);
   for (const MtCase* c : cases) {
     ASSERT_NE(c, nullptr);
@@ -131,6 +134,20 @@ TEST(MtBuilder, AllNodesReproduceTheInputAndTheRootIsAConformingCoarsestMesh) {
   }
 }
 
+TEST(MtBuilder, LoadedMtTakesAtMost64BytesPerInputTriangle) {
+  // The memory target, for position-only scans: about 3 MT triangles per input triangle at
+  // 12 bytes (two corners and a remover), plus nodes, parents and positions.
+  int meshes = 0;
+  for (const char* file : {"bunny-npm-3k.ply", "armadillo-52k.ply", "bunny-zipper-69k.ply"}) {
+    const MtCase* c = test::scan_case(file);
+    if (!c) continue;
+    ++meshes;
+    ASSERT_FALSE(c->mt.has_normals() || c->mt.has_colors()) << file;
+    EXPECT_LE(double(c->mt.memory_bytes()) / double(c->mesh.triangle_count()), 64.0) << file;
+  }
+  if (meshes == 0) GTEST_SKIP() << "no shared meshes";
+}
+
 TEST(MtBuilder, NonManifoldAndMisorientedEdgesAreNeverTouched) {
   // dragon_vrip_res4 has hundreds of edges with more than two faces or clashing orientation (see the
   // shared meshes' README): their vertices must never be split or merged into.
@@ -138,8 +155,10 @@ TEST(MtBuilder, NonManifoldAndMisorientedEdgesAreNeverTouched) {
   if (!c) GTEST_SKIP() << "dragon-vrip-res4-11k.ply absent";
   ASSERT_FALSE(c->reference.defects.empty());
   std::vector<std::uint8_t> on_defect(c->mesh.vertex_count(), 0);
-  for (const std::uint64_t key : c->reference.defects) on_defect[key >> 32] = on_defect[key & 0xffffffffu] = 1;
-  for (std::uint32_t i = 1; i < c->mt.node_count(); ++i) ASSERT_FALSE(on_defect[c->mt.node_vertex[i]]) << "node " << i;
+  for (const std::uint64_t key : c->reference.defects)
+    on_defect[key >> 32] = on_defect[key & 0xffffffffu] = 1;
+  for (std::uint32_t i = 1; i < c->mt.node_count(); ++i)
+    ASSERT_FALSE(on_defect[c->mt.node_vertex[i]]) << "node " << i;
   // Every defective edge survives in the coarsest mesh, so its defect is still visible there.
   const auto root_defects = test::defective_edges(root_cut(c->mt));
   for (const std::uint64_t key : c->reference.defects)

@@ -53,8 +53,9 @@ inline const MtCase* shape_case(core::Shape shape, std::size_t triangles, std::u
   options.shape = shape;
   options.target_triangles = triangles;
   options.seed = seed;
-  return build_case("shape" + std::to_string(int(shape)) + "-" + std::to_string(triangles) + "-" + std::to_string(seed),
-                    core::generate_mesh(options));
+  return build_case(
+      "shape" + std::to_string(int(shape)) + "-" + std::to_string(triangles) + "-" + std::to_string(seed),
+      core::generate_mesh(options));
 }
 
 }  // namespace mtlod::test

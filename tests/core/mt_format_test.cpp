@@ -6,8 +6,8 @@
 
 #include <cmath>
 #include <cstring>
-#include <limits>
 #include <fstream>
+#include <limits>
 #include <random>
 #include <vector>
 
@@ -84,7 +84,8 @@ TEST(MtFormat, FileRoundTripOfARealScanIsBitExact) {
   ASSERT_TRUE(back.ok()) << back.error().message;
   expect_same(c->mt, *back);
   std::ifstream in(path, std::ios::binary);
-  const std::vector<std::uint8_t> on_disk((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::vector<std::uint8_t> on_disk((std::istreambuf_iterator<char>(in)),
+                                          std::istreambuf_iterator<char>());
   EXPECT_EQ(on_disk, bytes_of(c->mt));
 }
 
@@ -134,7 +135,9 @@ TEST(MtFormat, ContentErrorsBehindAValidChecksumAreNamed) {
       {"node_vertex[", [](Mt& m) { m.node_vertex[1] = std::uint32_t(m.vertex_count()); }},
       {"node_error", [](Mt& m) { m.node_error[1] = std::nanf(""); }},
       {"node_error", [](Mt& m) { m.node_error[2] = -1.0f; }},
-      {"node_triangle_offsets", [](Mt& m) { std::swap(m.node_triangle_offsets[2], m.node_triangle_offsets[3]); }},
+      {"decreasing error", [](Mt& m) { m.node_error[1] = 0.0f; }},
+      {"node_triangle_offsets",
+       [](Mt& m) { std::swap(m.node_triangle_offsets[2], m.node_triangle_offsets[3]); }},
       {"parent", [](Mt& m) { m.node_parents[m.node_parent_offsets[1]] = 1; }},
       {"triangle_corners", [](Mt& m) { m.triangle_corners[5] = 1u << 30; }},
       {"root_first_corner", [](Mt& m) { m.root_first_corner[0] = std::uint32_t(m.vertex_count()); }},

@@ -30,7 +30,8 @@ std::vector<std::uint8_t> naive_minimal_cut(const Mt& mt, const AllowedError& al
   auto add_with_ancestors = [&](auto&& self, std::uint32_t n) -> void {
     if (in[n]) return;
     in[n] = 1;
-    for (std::uint32_t j = mt.node_parent_offsets[n]; j < mt.node_parent_offsets[n + 1]; ++j) self(self, mt.node_parents[j]);
+    for (std::uint32_t j = mt.node_parent_offsets[n]; j < mt.node_parent_offsets[n + 1]; ++j)
+      self(self, mt.node_parents[j]);
   };
   for (bool changed = true; changed;) {
     changed = false;
@@ -39,9 +40,10 @@ std::vector<std::uint8_t> naive_minimal_cut(const Mt& mt, const AllowedError& al
       if (!in[creator[t]] || r == kNoNode || in[r]) continue;
       std::uint32_t v[3];
       mt.triangle_vertices(t, v);
-      const float a = allowed.per_vertex.empty()
-                          ? allowed.uniform
-                          : std::min({allowed.per_vertex[v[0]], allowed.per_vertex[v[1]], allowed.per_vertex[v[2]]});
+      const float a =
+          allowed.per_vertex.empty()
+              ? allowed.uniform
+              : std::min({allowed.per_vertex[v[0]], allowed.per_vertex[v[1]], allowed.per_vertex[v[2]]});
       if (mt.triangle_error(t) > a) {
         add_with_ancestors(add_with_ancestors, r);
         changed = true;
@@ -60,8 +62,10 @@ std::vector<std::uint32_t> sorted_nodes(const Refiner& r) {
 float bbox_diagonal(const Mesh& mesh) {
   float lo[3] = {kInf, kInf, kInf}, hi[3] = {-kInf, -kInf, -kInf};
   for (std::size_t v = 0; v < mesh.vertex_count(); ++v)
-    for (int k = 0; k < 3; ++k) lo[k] = std::min(lo[k], mesh.positions[3 * v + k]), hi[k] = std::max(hi[k], mesh.positions[3 * v + k]);
-  return std::sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) + (hi[2] - lo[2]) * (hi[2] - lo[2]));
+    for (int k = 0; k < 3; ++k)
+      lo[k] = std::min(lo[k], mesh.positions[3 * v + k]), hi[k] = std::max(hi[k], mesh.positions[3 * v + k]);
+  return std::sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
+                   (hi[2] - lo[2]) * (hi[2] - lo[2]));
 }
 
 // Allowed error growing with distance from a focus vertex (a stand-in for the DT labels of the
@@ -73,7 +77,8 @@ std::vector<float> focus_field(const Mesh& mesh, std::mt19937& rng, float fine, 
   std::vector<float> field(mesh.vertex_count());
   for (std::size_t v = 0; v < mesh.vertex_count(); ++v) {
     const float* p = &mesh.positions[3 * v];
-    const float d = std::sqrt((p[0] - f[0]) * (p[0] - f[0]) + (p[1] - f[1]) * (p[1] - f[1]) + (p[2] - f[2]) * (p[2] - f[2]));
+    const float d = std::sqrt((p[0] - f[0]) * (p[0] - f[0]) + (p[1] - f[1]) * (p[1] - f[1]) +
+                              (p[2] - f[2]) * (p[2] - f[2]));
     field[v] = fine + (coarse - fine) * std::min(1.0f, d / radius);
   }
   return field;
@@ -87,10 +92,12 @@ std::vector<float> noise_field(std::size_t n, std::mt19937& rng, float lo, float
   return field;
 }
 
-float max_node_error(const Mt& mt) { return *std::max_element(mt.node_error.begin(), mt.node_error.end()); }
+float max_node_error(const Mt& mt) {
+  return *std::max_element(mt.node_error.begin(), mt.node_error.end());
+}
 
 TEST(Refine, SquareSwitchesBetweenItsTwoCutsAtTheNodeError) {
-  // The square's MT has one collapse of error e1 = nextafter(1): at allowed ≥ e1 the root triangle
+  // The square's MT has one collapse, of error e1 ≈ 1/√2: at allowed ≥ e1 the root triangle
   // passes; any smaller allowed error needs the two input triangles.
   auto mt = build_mt(test::square());
   ASSERT_TRUE(mt.ok());
@@ -135,8 +142,9 @@ TEST(Refine, StaticEqualsTheNaiveFixpointOnRandomFields) {
     Refiner refiner(c->mt);
     CutMesh out;
     for (int round = 0; round < 6; ++round) {
-      std::vector<float> field = round % 2 ? focus_field(c->mesh, rng, top * 1e-3f, top * 0.3f)
-                                           : noise_field(c->mesh.vertex_count(), rng, top * 1e-3f, top * 0.5f);
+      std::vector<float> field = round % 2
+                                     ? focus_field(c->mesh, rng, top * 1e-3f, top * 0.3f)
+                                     : noise_field(c->mesh.vertex_count(), rng, top * 1e-3f, top * 0.5f);
       const AllowedError allowed = AllowedError::from_vertices(field);
       refiner.refine(allowed, out);
       const std::vector<std::uint8_t> expected = naive_minimal_cut(c->mt, allowed);
@@ -149,12 +157,33 @@ TEST(Refine, StaticEqualsTheNaiveFixpointOnRandomFields) {
   }
 }
 
+TEST(Refine, UniformStaticEqualsTheNaiveFixpoint) {
+  // The uniform case reads the cut off a prefix of the node order; the reference forces from the root.
+  for (const MtCase* c :
+       {test::shape_case(Shape::kSphere, 8'000), test::scan_case("dragon-vrip-res4-11k.ply")}) {
+    if (!c) continue;
+    const float top = max_node_error(c->mt);
+    Refiner refiner(c->mt);
+    CutMesh out;
+    for (const float e : {top * 2, top, top * 0.3f, top * 0.01f, top * 1e-4f, 0.0f, -1.0f}) {
+      const AllowedError allowed = AllowedError::everywhere(e);
+      refiner.refine(allowed, out);
+      const std::vector<std::uint8_t> expected = naive_minimal_cut(c->mt, allowed);
+      std::vector<std::uint32_t> expected_nodes;
+      for (std::uint32_t n = 0; n < expected.size(); ++n)
+        if (expected[n]) expected_nodes.push_back(n);
+      ASSERT_EQ(sorted_nodes(refiner), expected_nodes) << "e " << e;
+      EXPECT_EQ(out.node_count, expected_nodes.size());
+    }
+  }
+}
+
 // Conformity on every shared scan up to 70k triangles, uniform and per-vertex fields.
 TEST(Refine, RandomThresholdsGiveConformingCutsOnRealScans) {
   std::mt19937 rng(11);
   int meshes = 0;
-  for (const char* file : {"bunny-npm-3k.ply", "dragon-vrip-res4-11k.ply", "lucy-15k.ply", "armadillo-52k.ply",
-                           "bunny-zipper-69k.ply"}) {
+  for (const char* file : {"bunny-npm-3k.ply", "dragon-vrip-res4-11k.ply", "lucy-15k.ply",
+                           "armadillo-52k.ply", "bunny-zipper-69k.ply"}) {
     const MtCase* c = test::scan_case(file);
     if (!c) continue;
     ++meshes;
@@ -171,7 +200,8 @@ TEST(Refine, RandomThresholdsGiveConformingCutsOnRealScans) {
         const std::vector<float> field = focus_field(c->mesh, rng, e * 0.01f, e);
         refiner.refine(AllowedError::from_vertices(field), out);
       }
-      ASSERT_TRUE(test::validate_cut(c->reference, out.triangles)) << file << " round " << round << " e " << e;
+      ASSERT_TRUE(test::validate_cut(c->reference, out.triangles))
+          << file << " round " << round << " e " << e;
     }
   }
   if (meshes == 0) GTEST_SKIP() << "no shared meshes";
@@ -210,7 +240,8 @@ TEST(Refine, BudgetIsNeverExceededAndCutsStayConforming) {
     const std::size_t root = c->mt.root_triangle_count(), full = c->mesh.triangle_count();
     std::size_t previous = 0;
     std::vector<std::size_t> budgets;
-    for (int i = 0; i < 6; ++i) budgets.push_back(std::uniform_int_distribution<std::size_t>(root, full)(rng));
+    for (int i = 0; i < 6; ++i)
+      budgets.push_back(std::uniform_int_distribution<std::size_t>(root, full)(rng));
     std::sort(budgets.begin(), budgets.end());
     for (const std::size_t budget : budgets) {
       // allowed 0 everywhere: every triangle with an error fails, ranked by error.
@@ -256,7 +287,8 @@ TEST(Refine, BudgetRefinesTheWorstRatioFirst) {
     if (!c) continue;
     Refiner budgeted(c->mt), fixed(c->mt);
     CutMesh out, reference;
-    for (std::size_t budget = c->mt.root_triangle_count() + 10; budget < c->mesh.triangle_count(); budget += 397) {
+    for (std::size_t budget = c->mt.root_triangle_count() + 10; budget < c->mesh.triangle_count();
+         budget += 397) {
       budgeted.refine_budget(AllowedError::everywhere(0.0f), budget, out);
       const std::vector<std::uint32_t> nodes = sorted_nodes(budgeted);
       fixed.refine(AllowedError::everywhere(out.max_error), reference);
@@ -276,6 +308,7 @@ void expect_dynamic_matches_static(const MtCase* c, std::uint32_t seed, int step
   Refiner dynamic(c->mt), fixed(c->mt);
   CutMesh moving, reference;
   std::vector<float> field = focus_field(c->mesh, rng, top * 1e-3f, top * 0.3f);
+  std::vector<std::uint32_t> changed;
   for (int step = 0; step < steps; ++step) {
     const int kind = std::uniform_int_distribution<int>(0, 6)(rng);
     float uniform = -1.0f;  // < 0: use the per-vertex field
@@ -286,21 +319,34 @@ void expect_dynamic_matches_static(const MtCase* c, std::uint32_t seed, int step
     } else if (kind == 2) {
       field = noise_field(c->mesh.vertex_count(), rng, top * 1e-3f, top * 0.3f);
     } else if (kind == 3 || kind == 4) {
-      // A small change: a few vertices rescaled.
-      std::uniform_int_distribution<std::size_t> pick(0, field.size() - 1);
+      // A small change: a few vertices rescaled (kind 4 tells the refiner which ones).
+      std::uniform_int_distribution<std::uint32_t> pick(0, std::uint32_t(field.size() - 1));
       std::uniform_real_distribution<float> scale(0.2f, 5.0f);
-      for (int i = 0; i < 20; ++i) field[pick(rng)] *= scale(rng);
+      changed.clear();
+      for (int i = 0; i < 20; ++i) {
+        changed.push_back(pick(rng));
+        field[changed.back()] *= scale(rng);
+      }
     }  // kind 6: the same field again
     const AllowedError allowed =
         uniform >= 0 ? AllowedError::everywhere(uniform) : AllowedError::from_vertices(field);
     if (kind == 5) {
       CutMesh ignored;  // interleaved budgeted and static calls reset the kept cut
-      if (std::uniform_int_distribution<int>(0, 1)(rng)) dynamic.refine_budget(allowed, 500, ignored);
-      else dynamic.refine(allowed, ignored);
+      if (std::uniform_int_distribution<int>(0, 1)(rng))
+        dynamic.refine_budget(allowed, 500, ignored);
+      else
+        dynamic.refine(allowed, ignored);
     }
-    dynamic.update(allowed, moving);
+    if (kind == 4) {
+      dynamic.update(allowed, changed, moving);
+    } else if (kind == 6) {
+      dynamic.update(allowed, std::span<const std::uint32_t>(), moving);  // nothing changed
+    } else {
+      dynamic.update(allowed, moving);
+    }
     fixed.refine(allowed, reference);
-    ASSERT_EQ(test::triangle_set(moving.triangles), test::triangle_set(reference.triangles)) << "step " << step;
+    ASSERT_EQ(test::triangle_set(moving.triangles), test::triangle_set(reference.triangles))
+        << "step " << step;
     ASSERT_EQ(sorted_nodes(dynamic), sorted_nodes(fixed)) << "step " << step;
     ASSERT_EQ(moving.max_error, reference.max_error);
     ASSERT_EQ(moving.node_count, reference.node_count);
@@ -337,7 +383,8 @@ TEST(Refine, DynamicAfterSmallMovesOfTheFocusEqualsStatic) {
     }
     dynamic.update(AllowedError::from_vertices(field), moving);
     refine_static(c->mt, AllowedError::from_vertices(field), reference);
-    ASSERT_EQ(test::triangle_set(moving.triangles), test::triangle_set(reference.triangles)) << "step " << step;
+    ASSERT_EQ(test::triangle_set(moving.triangles), test::triangle_set(reference.triangles))
+        << "step " << step;
   }
   EXPECT_TRUE(test::validate_cut(c->reference, moving.triangles));
 }
@@ -357,7 +404,8 @@ TEST(Refine, FullResolutionDragonCutsAreConformingAndDynamicMatchesStatic) {
     refine_static(c->mt, AllowedError::everywhere(diagonal * relative), out);
     EXPECT_LE(out.max_error, diagonal * relative);
     EXPECT_TRUE(test::validate_cut(c->reference, out.triangles)) << relative;
-    const std::vector<float> field = focus_field(c->mesh, rng, diagonal * relative * 0.1f, diagonal * relative);
+    const std::vector<float> field =
+        focus_field(c->mesh, rng, diagonal * relative * 0.1f, diagonal * relative);
     dynamic.update(AllowedError::from_vertices(field), moving);
     refine_static(c->mt, AllowedError::from_vertices(field), out);
     EXPECT_EQ(test::triangle_set(moving.triangles), test::triangle_set(out.triangles));
