@@ -135,10 +135,12 @@ void backward_pass(std::uint16_t* buffer, std::size_t stride, GridSize grid, std
   }
 }
 
-#else  // portable scalar passes, cell by cell exactly as Algorithm 1
+#endif
 
+// Portable scalar passes, cell by cell exactly as Algorithm 1: the fallback without SSE2, and a second
+// implementation the tests hold against the same Dijkstra reference.
 template <const auto& kMask>
-void forward_pass(std::uint16_t* buffer, std::size_t stride, GridSize grid) {
+void forward_pass_scalar(std::uint16_t* buffer, std::size_t stride, GridSize grid) {
   for (std::size_t y = 0; y < grid.height; ++y) {
     std::uint16_t* row = buffer + (y + kPadRows) * stride + kPadLeft;
     for (std::size_t x = 0; x < grid.width; ++x) {
@@ -153,7 +155,7 @@ void forward_pass(std::uint16_t* buffer, std::size_t stride, GridSize grid) {
 }
 
 template <const auto& kMask>
-void backward_pass(std::uint16_t* buffer, std::size_t stride, GridSize grid, std::uint16_t* out) {
+void backward_pass_scalar(std::uint16_t* buffer, std::size_t stride, GridSize grid, std::uint16_t* out) {
   for (std::size_t y = grid.height; y-- > 0;) {
     std::uint16_t* row = buffer + (y + kPadRows) * stride + kPadLeft;
     for (std::size_t x = grid.width; x-- > 0;) {
@@ -168,12 +170,18 @@ void backward_pass(std::uint16_t* buffer, std::size_t stride, GridSize grid, std
   }
 }
 
-#endif
-
 template <const auto& kMask>
-void two_pass(std::uint16_t* buffer, std::size_t stride, GridSize grid, std::uint16_t* out) {
-  forward_pass<kMask>(buffer, stride, grid);
-  backward_pass<kMask>(buffer, stride, grid, out);
+void two_pass(std::uint16_t* buffer, std::size_t stride, GridSize grid, std::uint16_t* out, bool scalar) {
+#if defined(__SSE2__)
+  if (!scalar) {
+    forward_pass<kMask>(buffer, stride, grid);
+    backward_pass<kMask>(buffer, stride, grid, out);
+    return;
+  }
+#endif
+  (void)scalar;
+  forward_pass_scalar<kMask>(buffer, stride, grid);
+  backward_pass_scalar<kMask>(buffer, stride, grid, out);
 }
 
 // floor(a / b) for b > 0; C++ division truncates towards zero.
@@ -223,16 +231,16 @@ void DistanceTransformer::run_chamfer(DistanceMetric metric, GridSize grid, std:
   std::uint16_t* buffer = padded_.data();
   switch (metric) {
     case DistanceMetric::kChamfer5711:
-      two_pass<kChamfer5711Forward>(buffer, stride_, grid, out.data());
+      two_pass<kChamfer5711Forward>(buffer, stride_, grid, out.data(), scalar_);
       break;
     case DistanceMetric::kChamfer34:
-      two_pass<kChamfer34Forward>(buffer, stride_, grid, out.data());
+      two_pass<kChamfer34Forward>(buffer, stride_, grid, out.data(), scalar_);
       break;
     case DistanceMetric::kCityBlock:
-      two_pass<kCityBlockForward>(buffer, stride_, grid, out.data());
+      two_pass<kCityBlockForward>(buffer, stride_, grid, out.data(), scalar_);
       break;
     case DistanceMetric::kChessboard:
-      two_pass<kChessboardForward>(buffer, stride_, grid, out.data());
+      two_pass<kChessboardForward>(buffer, stride_, grid, out.data(), scalar_);
       break;
     case DistanceMetric::kEuclidean:
       assert(false && "use euclidean_squared");

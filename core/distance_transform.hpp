@@ -91,6 +91,10 @@ class DistanceTransformer {
   void euclidean_squared_from_cells(std::span<const std::uint32_t> seed_cells, GridSize grid,
                                     std::span<std::uint32_t> out);
 
+  // Runs the chamfer passes cell by cell (the portable code used without SSE2) instead of 8 cells at
+  // a time. Same results; for tests and comparisons.
+  void set_scalar(bool scalar) { scalar_ = scalar; }
+
  private:
   void prepare_padded(GridSize grid);
   void run_chamfer(DistanceMetric metric, GridSize grid, std::span<std::uint16_t> out);
@@ -98,6 +102,7 @@ class DistanceTransformer {
 
   std::vector<std::uint16_t> padded_;    // chamfer grid with 2 cells of +inf on every side
   std::size_t stride_ = 0;               // padded row length
+  bool scalar_ = false;                  // set_scalar
   std::vector<std::uint16_t> column_;    // Euclidean phase 1: distance to the nearest seed in the column
   std::vector<std::uint32_t> envelope_;  // Euclidean phase 2: s and t of the lower envelope
 };

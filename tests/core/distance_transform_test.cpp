@@ -103,6 +103,26 @@ TEST(Chessboard, MatchesDijkstraOnRandomGrids) {
   expect_matches_dijkstra(chessboard, kChessboardForward);
 }
 
+// The cell-by-cell scalar passes (the non-SSE2 build) against the same reference.
+void chamfer_scalar(DistanceMetric metric, std::span<const std::uint8_t> image, GridSize grid,
+                    std::span<std::uint16_t> out) {
+  DistanceTransformer transformer;
+  transformer.set_scalar(true);
+  transformer.chamfer(metric, image, grid, out);
+}
+void chamfer_5_7_11_scalar(std::span<const std::uint8_t> image, GridSize grid, std::span<std::uint16_t> out) {
+  chamfer_scalar(DistanceMetric::kChamfer5711, image, grid, out);
+}
+void chessboard_scalar(std::span<const std::uint8_t> image, GridSize grid, std::span<std::uint16_t> out) {
+  chamfer_scalar(DistanceMetric::kChessboard, image, grid, out);
+}
+TEST(Chamfer5711, ScalarPassesMatchDijkstraOnRandomGrids) {
+  expect_matches_dijkstra(chamfer_5_7_11_scalar, kChamfer5711Forward);
+}
+TEST(Chessboard, ScalarPassesMatchDijkstraOnRandomGrids) {
+  expect_matches_dijkstra(chessboard_scalar, kChessboardForward);
+}
+
 TEST(Chamfer5711, SingleSeedGivesMaskDistancesByHand) {
   // One seed at (2, 2) of a 5×5 grid. Two cells away: 10 along an axis, 14 diagonally, 11 for the
   // knight move; the corner (0, 0) is two diagonal steps (14), (0, 1) a knight move (11).
