@@ -1,0 +1,30 @@
+// Accessors of the in-memory Multi-Tessellation (DESIGN.md §2).
+#include "core/mt.hpp"
+
+#include <algorithm>
+#include <cassert>
+
+namespace mtlod::core {
+
+std::uint32_t Mt::triangle_creator(std::uint32_t t) const {
+  assert(t < triangle_count());
+  // The first offset greater than t ends the creator's range.
+  const auto it = std::upper_bound(node_triangle_offsets.begin(), node_triangle_offsets.end(), t);
+  return static_cast<std::uint32_t>(it - node_triangle_offsets.begin()) - 1;
+}
+
+void Mt::triangle_vertices(std::uint32_t t, std::uint32_t out[3]) const {
+  const std::uint32_t n = triangle_creator(t);
+  out[0] = first_corner(t, n);
+  out[1] = triangle_corners[2 * std::size_t{t}];
+  out[2] = triangle_corners[2 * std::size_t{t} + 1];
+}
+
+std::size_t Mt::memory_bytes() const {
+  auto bytes = [](const auto& v) { return v.size() * sizeof(v[0]); };
+  return bytes(positions) + bytes(normals) + bytes(colors) + bytes(node_vertex) + bytes(node_error) +
+         bytes(node_triangle_offsets) + bytes(node_parent_offsets) + bytes(node_parents) +
+         bytes(triangle_corners) + bytes(root_first_corner) + bytes(triangle_remover);
+}
+
+}  // namespace mtlod::core

@@ -1,0 +1,565 @@
+// Multi-Tessellation builder (DESIGN.md §2): greedy half-edge collapse by quadric error, done in
+// passes of independent collapses (as meshoptimizer's simplifier does), each collapse recorded as
+// one MT node.
+//
+// Per pass: rebuild vertex→face adjacency (CSR), classify every vertex (interior / boundary /
+// complex), give each collapsible vertex u its cheapest partner v, sort, and apply collapses in cost
+// order while neither end has been touched by an earlier collapse of the same pass, so the adjacency
+// read at the start of the pass stays exact for every collapse that is tried.
+//
+// Global error (in the spirit of Jade): moving u onto v maps each point αu + βa + γb of u's fan to
+// αv + βa + γb on the new fan, at distance α|u − v| ≤ |u − v|. So if every original vertex was within
+// e of the old fan, it is within e + |u − v| of the new one: error = max(fan errors) + |u − v|. This
+// bound is monotone along the DAG by construction.
+#include "core/mt_builder.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cassert>
+#include <cmath>
+#include <limits>
+#include <string>
+#include <vector>
+#include <cstdio>
+#include <cstdlib>
+
+namespace mtlod::core {
+namespace {
+
+enum VertexKind : std::uint8_t { kUnused = 0, kInterior = 1, kBoundary = 2, kComplex = 3 };
+
+// Fans larger than this are treated as complex: they never occur on scans except at defects.
+constexpr std::uint32_t kMaxFan = 64;
+
+struct Quadric {
+  float a00 = 0, a01 = 0, a02 = 0, a11 = 0, a12 = 0, a22 = 0;
+  float b0 = 0, b1 = 0, b2 = 0, c = 0;
+};
+
+void add_plane(Quadric& q, float nx, float ny, float nz, float d, float w) {
+  q.a00 += w * nx * nx;
+  q.a01 += w * nx * ny;
+  q.a02 += w * nx * nz;
+  q.a11 += w * ny * ny;
+  q.a12 += w * ny * nz;
+  q.a22 += w * nz * nz;
+  q.b0 += w * nx * d;
+  q.b1 += w * ny * d;
+  q.b2 += w * nz * d;
+  q.c += w * d * d;
+}
+
+void add_quadric(Quadric& q, const Quadric& r) {
+  q.a00 += r.a00, q.a01 += r.a01, q.a02 += r.a02, q.a11 += r.a11, q.a12 += r.a12, q.a22 += r.a22;
+  q.b0 += r.b0, q.b1 += r.b1, q.b2 += r.b2, q.c += r.c;
+}
+
+float evaluate(const Quadric& q, const float* p) {
+  const float x = p[0], y = p[1], z = p[2];
+  const float r = x * (q.a00 * x + 2 * (q.a01 * y + q.a02 * z + q.b0)) +
+                  y * (q.a11 * y + 2 * (q.a12 * z + q.b1)) + z * (q.a22 * z + 2 * q.b2) + q.c;
+  return r > 0 ? r : 0;  // rounding can make a positive semi-definite form slightly negative
+}
+
+struct Vec3 {
+  double x, y, z;
+};
+Vec3 sub(const float* a, const float* b) { return {double{a[0]} - b[0], double{a[1]} - b[1], double{a[2]} - b[2]}; }
+Vec3 cross(const Vec3& a, const Vec3& b) {
+  return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
+}
+double dot(const Vec3& a, const Vec3& b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+
+struct Candidate {
+  float cost;
+  std::uint32_t u;
+  std::uint32_t v;
+};
+
+class Builder {
+ public:
+  Builder(const Mesh& mesh, const BuildOptions& options) : mesh_(mesh), options_(options) {}
+
+  Result<Mt> run(BuildStats* stats);
+
+ private:
+  const float* position(std::uint32_t v) const { return &mesh_.positions[3 * std::size_t{v}]; }
+  float mt_error(std::uint32_t t) const {
+    const std::uint32_t c = mt_made_by_[t];
+    return c == 0 ? 0.0f : collapse_error_[c - 1];
+  }
+  // Corners of face f that follow u, counter-clockwise; false when u is not exactly once in f.
+  bool fan_corners(std::uint32_t f, std::uint32_t u, std::uint32_t& a, std::uint32_t& b) const {
+    const std::uint32_t* t = &working_[3 * std::size_t{f}];
+    a = b = 0;
+    const int hits = (t[0] == u) + (t[1] == u) + (t[2] == u);
+    if (hits != 1) return false;
+    const int i = t[0] == u ? 0 : (t[1] == u ? 1 : 2);
+    a = t[(i + 1) % 3];
+    b = t[(i + 2) % 3];
+    return true;
+  }
+
+  void init_quadrics();
+  void build_adjacency();
+  VertexKind classify(std::uint32_t u, std::uint32_t& boundary_next, std::uint32_t& boundary_prev) const;
+  bool can_collapse(std::uint32_t u, std::uint32_t v);
+  void collapse(std::uint32_t u, std::uint32_t v);
+  Mt assemble() const;
+
+  const Mesh& mesh_;
+  BuildOptions options_;
+  std::size_t vertex_count_ = 0;
+  std::size_t face_count_ = 0;
+  std::size_t alive_faces_ = 0;
+
+  std::vector<float> unit_positions_;  // positions scaled to the unit box, for quadrics
+  std::vector<Quadric> quadrics_;
+  std::vector<std::uint32_t> working_;     // 3 vertex ids per face slot
+  std::vector<std::uint8_t> face_alive_;
+  std::vector<std::uint32_t> face_mt_;     // MT triangle currently in each face slot
+
+  // MT triangles in order of appearance: vertices, and the collapses (index + 1, 0 = none) that
+  // made and removed them during simplification.
+  std::vector<std::uint32_t> mt_vertices_;
+  std::vector<std::uint32_t> mt_made_by_;
+  std::vector<std::uint32_t> mt_killed_by_;
+  std::vector<std::uint32_t> collapse_u_;
+  std::vector<float> collapse_error_;
+
+  // Vertex → faces over the alive faces, rebuilt each pass; valid for alive vertices only.
+  std::vector<std::uint32_t> adjacency_begin_;
+  std::vector<std::uint32_t> adjacency_end_;
+  std::vector<std::uint32_t> adjacency_;
+  std::vector<std::uint32_t> alive_face_list_;
+  std::vector<std::uint32_t> alive_vertex_list_;  // used by an alive face (may lag one pass)
+  std::vector<std::uint8_t> vertex_dead_;
+  std::vector<std::uint8_t> kind_;
+  std::vector<std::uint32_t> touched_;  // pass number that last changed a vertex's fan
+  std::uint32_t pass_ = 0;
+  std::vector<std::uint32_t> link_stamp_;
+  std::vector<std::uint32_t> seen_stamp_;
+  std::uint32_t stamp_ = 0;
+  std::vector<Candidate> candidates_;
+  std::size_t complex_vertices_ = 0;
+};
+
+void Builder::init_quadrics() {
+  float lo[3] = {std::numeric_limits<float>::max(), std::numeric_limits<float>::max(),
+                 std::numeric_limits<float>::max()};
+  float hi[3] = {-lo[0], -lo[1], -lo[2]};
+  for (std::size_t v = 0; v < vertex_count_; ++v) {
+    for (int k = 0; k < 3; ++k) {
+      lo[k] = std::min(lo[k], mesh_.positions[3 * v + k]);
+      hi[k] = std::max(hi[k], mesh_.positions[3 * v + k]);
+    }
+  }
+  const float extent = std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]});
+  // Quadrics in float lose precision on large coordinates; the unit box keeps them well scaled.
+  const float scale = extent > 0 ? 1.0f / extent : 1.0f;
+  unit_positions_.resize(3 * vertex_count_);
+  for (std::size_t v = 0; v < vertex_count_; ++v)
+    for (int k = 0; k < 3; ++k) unit_positions_[3 * v + k] = (mesh_.positions[3 * v + k] - lo[k]) * scale;
+
+  quadrics_.assign(vertex_count_, Quadric{});
+  for (std::size_t f = 0; f < face_count_; ++f) {
+    const std::uint32_t* t = &working_[3 * f];
+    const float* p0 = &unit_positions_[3 * std::size_t{t[0]}];
+    const Vec3 n = cross(sub(&unit_positions_[3 * std::size_t{t[1]}], p0),
+                         sub(&unit_positions_[3 * std::size_t{t[2]}], p0));
+    const double length = std::sqrt(dot(n, n));
+    if (length == 0) continue;
+    const float nx = float(n.x / length), ny = float(n.y / length), nz = float(n.z / length);
+    const float d = -(nx * p0[0] + ny * p0[1] + nz * p0[2]);
+    for (int k = 0; k < 3; ++k) add_plane(quadrics_[t[k]], nx, ny, nz, d, float(length * 0.5));
+  }
+
+  // Boundary edges: a plane through the edge, perpendicular to its face, holds the outline.
+  for (std::size_t f = 0; f < face_count_; ++f) {
+    const std::uint32_t* t = &working_[3 * f];
+    for (int k = 0; k < 3; ++k) {
+      const std::uint32_t a = t[k], b = t[(k + 1) % 3];
+      bool shared = false;
+      for (std::uint32_t i = adjacency_begin_[a]; i < adjacency_end_[a] && !shared; ++i) {
+        const std::uint32_t g = adjacency_[i];
+        if (g == f) continue;
+        const std::uint32_t* s = &working_[3 * std::size_t{g}];
+        shared = s[0] == b || s[1] == b || s[2] == b;
+      }
+      if (shared) continue;
+      const float* pa = &unit_positions_[3 * std::size_t{a}];
+      const float* p0 = &unit_positions_[3 * std::size_t{t[0]}];
+      const Vec3 e = sub(&unit_positions_[3 * std::size_t{b}], pa);
+      const Vec3 n = cross(sub(&unit_positions_[3 * std::size_t{t[1]}], p0),
+                           sub(&unit_positions_[3 * std::size_t{t[2]}], p0));
+      Vec3 m = cross(e, n);
+      const double length = std::sqrt(dot(m, m));
+      if (length == 0) continue;
+      m = {m.x / length, m.y / length, m.z / length};
+      const float d = float(-(m.x * pa[0] + m.y * pa[1] + m.z * pa[2]));
+      const float w = float(dot(e, e)) * options_.boundary_weight;
+      add_plane(quadrics_[a], float(m.x), float(m.y), float(m.z), d, w);
+      add_plane(quadrics_[b], float(m.x), float(m.y), float(m.z), d, w);
+    }
+  }
+}
+
+void Builder::build_adjacency() {
+  // Only what is alive is visited, so late passes over a small mesh cost little.
+  std::size_t kept = 0;
+  for (const std::uint32_t f : alive_face_list_)
+    if (face_alive_[f]) alive_face_list_[kept++] = f;
+  alive_face_list_.resize(kept);
+  kept = 0;
+  for (const std::uint32_t v : alive_vertex_list_)
+    if (!vertex_dead_[v]) alive_vertex_list_[kept++] = v;
+  alive_vertex_list_.resize(kept);
+
+  for (const std::uint32_t v : alive_vertex_list_) adjacency_end_[v] = 0;
+  for (const std::uint32_t f : alive_face_list_)
+    for (int k = 0; k < 3; ++k) ++adjacency_end_[working_[3 * std::size_t{f} + k]];
+  std::uint32_t total = 0;
+  for (const std::uint32_t v : alive_vertex_list_) {
+    adjacency_begin_[v] = total;
+    total += adjacency_end_[v];
+    adjacency_end_[v] = adjacency_begin_[v];
+  }
+  adjacency_.resize(total);
+  for (const std::uint32_t f : alive_face_list_)
+    for (int k = 0; k < 3; ++k) adjacency_[adjacency_end_[working_[3 * std::size_t{f} + k]]++] = f;
+}
+
+VertexKind Builder::classify(std::uint32_t u, std::uint32_t& boundary_next, std::uint32_t& boundary_prev) const {
+  const std::uint32_t begin = adjacency_begin_[u], end = adjacency_end_[u];
+  const std::uint32_t degree = end - begin;
+  if (degree == 0) return kUnused;
+  if (degree > kMaxFan) return kComplex;
+  std::array<std::uint32_t, kMaxFan> a, b;
+  for (std::uint32_t i = 0; i < degree; ++i) {
+    if (!fan_corners(adjacency_[begin + i], u, a[i], b[i])) return kComplex;
+    if (a[i] == b[i]) return kComplex;
+  }
+  // Manifold fan: each edge (u, w) is walked at most once in each direction.
+  int starts = 0, ends = 0;
+  std::uint32_t start = 0;
+  for (std::uint32_t i = 0; i < degree; ++i) {
+    bool a_in_b = false, b_in_a = false;
+    for (std::uint32_t j = 0; j < degree; ++j) {
+      if (j != i && (a[j] == a[i] || b[j] == b[i])) return kComplex;
+      a_in_b |= b[j] == a[i];
+      b_in_a |= a[j] == b[i];
+    }
+    if (!a_in_b) ++starts, start = i;
+    if (!b_in_a) ++ends;
+  }
+  if (!((starts == 0 && ends == 0) || (starts == 1 && ends == 1))) return kComplex;
+  // One fan, not several glued at u: walking across edges visits every face.
+  std::uint32_t current = start, visited = 1;
+  for (; visited < degree; ++visited) {
+    std::uint32_t next = degree;
+    for (std::uint32_t j = 0; j < degree; ++j)
+      if (a[j] == b[current]) next = j;
+    if (next == degree || next == start) break;
+    current = next;
+  }
+  if (visited != degree) return kComplex;
+  if (starts == 0) return kInterior;
+  boundary_next = a[start];   // edge u→a[start] has no face on its other side
+  boundary_prev = b[current];  // nor has edge b[last]→u
+  return kBoundary;
+}
+
+bool Builder::can_collapse(std::uint32_t u, std::uint32_t v) {
+  stamp_ += 1;
+  const std::uint32_t link = stamp_;
+  for (std::uint32_t i = adjacency_begin_[v]; i < adjacency_end_[v]; ++i) {
+    const std::uint32_t* t = &working_[3 * std::size_t{adjacency_[i]}];
+    for (int k = 0; k < 3; ++k) link_stamp_[t[k]] = link;
+  }
+  std::uint32_t opposite[2] = {0, 0};
+  int opposites = 0;
+  for (std::uint32_t i = adjacency_begin_[u]; i < adjacency_end_[u]; ++i) {
+    std::uint32_t a = 0, b = 0;
+    fan_corners(adjacency_[i], u, a, b);
+    if (a == v || b == v) {
+      if (opposites == 2) return false;
+      opposite[opposites++] = a == v ? b : a;
+    }
+  }
+  // Link condition: the only common neighbours of u and v are the corners opposite edge uv.
+  int survivors = 0;
+  const float* pu = position(u);
+  const float* pv = position(v);
+  for (std::uint32_t i = adjacency_begin_[u]; i < adjacency_end_[u]; ++i) {
+    std::uint32_t a = 0, b = 0;
+    fan_corners(adjacency_[i], u, a, b);
+    if (a == v || b == v) continue;
+    for (const std::uint32_t w : {a, b}) {
+      if (link_stamp_[w] != link || seen_stamp_[w] == link) continue;
+      seen_stamp_[w] = link;
+      if (!((opposites > 0 && w == opposite[0]) || (opposites > 1 && w == opposite[1]))) return false;
+    }
+    ++survivors;
+    const float* pa = position(a);
+    const float* pb = position(b);
+    const Vec3 old_normal = cross(sub(pa, pu), sub(pb, pu));
+    const Vec3 new_normal = cross(sub(pa, pv), sub(pb, pv));
+    const double old_length = std::sqrt(dot(old_normal, old_normal));
+    const double new_length = std::sqrt(dot(new_normal, new_normal));
+    // Degenerate: area tiny against the longest edge squared (a sliver or a zero-area triangle).
+    const Vec3 ab = sub(pb, pa), av = sub(pv, pa), bv = sub(pv, pb);
+    const double longest = std::max({dot(ab, ab), dot(av, av), dot(bv, bv)});
+    if (!(new_length > 1e-6 * longest)) return false;
+    if (!(dot(old_normal, new_normal) > options_.min_normal_cos * old_length * new_length)) return false;
+    // The new face (v, a, b) must not repeat a face v already has (a tetrahedron folding flat).
+    if (link_stamp_[a] == link && link_stamp_[b] == link) {
+      for (std::uint32_t j = adjacency_begin_[v]; j < adjacency_end_[v]; ++j) {
+        const std::uint32_t* t = &working_[3 * std::size_t{adjacency_[j]}];
+        const bool has_a = t[0] == a || t[1] == a || t[2] == a;
+        const bool has_b = t[0] == b || t[1] == b || t[2] == b;
+        if (has_a && has_b) return false;
+      }
+    }
+  }
+  // A collapse that leaves no face would make a node that removes nothing (detached from the DAG).
+  return survivors > 0;
+}
+
+void Builder::collapse(std::uint32_t u, std::uint32_t v) {
+  const std::uint32_t tag = std::uint32_t(collapse_u_.size()) + 1;
+  float fan_error = 0;
+  for (std::uint32_t i = adjacency_begin_[u]; i < adjacency_end_[u]; ++i)
+    fan_error = std::max(fan_error, mt_error(face_mt_[adjacency_[i]]));
+  const Vec3 d = sub(position(u), position(v));
+  // Round up so the float bound is never below the real-number bound.
+  const float error = std::nextafter(float(fan_error + std::sqrt(dot(d, d))), std::numeric_limits<float>::max());
+
+  touched_[u] = touched_[v] = pass_;
+  for (std::uint32_t i = adjacency_begin_[u]; i < adjacency_end_[u]; ++i) {
+    const std::uint32_t f = adjacency_[i];
+    std::uint32_t* t = &working_[3 * std::size_t{f}];
+    mt_killed_by_[face_mt_[f]] = tag;
+    for (int k = 0; k < 3; ++k) touched_[t[k]] = pass_;
+    if (t[0] == v || t[1] == v || t[2] == v) {
+      face_alive_[f] = 0;
+      --alive_faces_;
+      continue;
+    }
+    for (int k = 0; k < 3; ++k)
+      if (t[k] == u) t[k] = v;
+    face_mt_[f] = std::uint32_t(mt_made_by_.size());
+    mt_vertices_.insert(mt_vertices_.end(), t, t + 3);
+    mt_made_by_.push_back(tag);
+    mt_killed_by_.push_back(0);
+  }
+  add_quadric(quadrics_[v], quadrics_[u]);
+  vertex_dead_[u] = 1;
+  collapse_u_.push_back(u);
+  collapse_error_.push_back(error);
+}
+
+Mt Builder::assemble() const {
+  Mt mt;
+  mt.positions = mesh_.positions;
+  mt.normals = mesh_.normals;
+  mt.colors = mesh_.colors;
+
+  const std::uint32_t k = std::uint32_t(collapse_u_.size());
+  const std::size_t node_count = std::size_t{k} + 1;
+  const std::size_t mt_count = mt_made_by_.size();
+  // Collapse c (0-based, fine → coarse) becomes node k - c, so the coarsest change comes first.
+  auto creator = [&](std::size_t t) { return mt_killed_by_[t] == 0 ? 0u : k - (mt_killed_by_[t] - 1); };
+  auto remover = [&](std::size_t t) { return mt_made_by_[t] == 0 ? kNoNode : k - (mt_made_by_[t] - 1); };
+
+  mt.node_vertex.resize(node_count);
+  mt.node_error.resize(node_count);
+  mt.node_vertex[0] = kNoNode;
+  mt.node_error[0] = 0;
+  for (std::uint32_t c = 0; c < k; ++c) {
+    mt.node_vertex[k - c] = collapse_u_[c];
+    mt.node_error[k - c] = collapse_error_[c];
+  }
+
+  // Counting sort of triangles by creating node.
+  mt.node_triangle_offsets.assign(node_count + 1, 0);
+  for (std::size_t t = 0; t < mt_count; ++t) ++mt.node_triangle_offsets[creator(t) + 1];
+  for (std::size_t n = 0; n < node_count; ++n) mt.node_triangle_offsets[n + 1] += mt.node_triangle_offsets[n];
+  std::vector<std::uint32_t> next(mt.node_triangle_offsets.begin(), mt.node_triangle_offsets.end() - 1);
+  std::vector<std::uint32_t> new_id(mt_count);
+  for (std::size_t t = 0; t < mt_count; ++t) new_id[t] = next[creator(t)]++;
+
+  const std::size_t root_count = mt.node_triangle_offsets[1];
+  mt.triangle_corners.resize(2 * mt_count);
+  mt.root_first_corner.resize(root_count);
+  mt.triangle_remover.resize(mt_count);
+  for (std::size_t t = 0; t < mt_count; ++t) {
+    const std::uint32_t n = creator(t), id = new_id[t];
+    const std::uint32_t* tv = &mt_vertices_[3 * t];
+    int first = 0;
+    if (n == 0) {
+      mt.root_first_corner[id] = tv[0];
+    } else {
+      // Every triangle of node n surrounded its split vertex before the collapse.
+      first = tv[0] == mt.node_vertex[n] ? 0 : (tv[1] == mt.node_vertex[n] ? 1 : 2);
+      assert(tv[first] == mt.node_vertex[n]);
+    }
+    mt.triangle_corners[2 * std::size_t{id}] = tv[(first + 1) % 3];
+    mt.triangle_corners[2 * std::size_t{id} + 1] = tv[(first + 2) % 3];
+    mt.triangle_remover[id] = remover(t);
+  }
+
+  // Parents: distinct creators of each node's removed triangles, sorted.
+  mt.node_parent_offsets.assign(node_count + 1, 0);
+  for (std::size_t t = 0; t < mt_count; ++t)
+    if (remover(t) != kNoNode) ++mt.node_parent_offsets[remover(t) + 1];
+  for (std::size_t n = 0; n < node_count; ++n) mt.node_parent_offsets[n + 1] += mt.node_parent_offsets[n];
+  std::vector<std::uint32_t> parents(mt.node_parent_offsets[node_count]);
+  std::copy(mt.node_parent_offsets.begin(), mt.node_parent_offsets.end() - 1, next.begin());
+  for (std::size_t t = 0; t < mt_count; ++t)
+    if (remover(t) != kNoNode) parents[next[remover(t)]++] = creator(t);
+  mt.node_parents.reserve(parents.size());
+  std::uint32_t begin = 0;
+  for (std::size_t n = 0; n < node_count; ++n) {
+    const std::uint32_t end = mt.node_parent_offsets[n + 1];
+    std::sort(parents.begin() + begin, parents.begin() + end);
+    mt.node_parent_offsets[n] = std::uint32_t(mt.node_parents.size());
+    for (std::uint32_t i = begin; i < end; ++i)
+      if (i == begin || parents[i] != parents[i - 1]) mt.node_parents.push_back(parents[i]);
+    begin = end;
+  }
+  mt.node_parent_offsets[node_count] = std::uint32_t(mt.node_parents.size());
+  return mt;
+}
+
+Result<Mt> Builder::run(BuildStats* stats) {
+  vertex_count_ = mesh_.vertex_count();
+  face_count_ = mesh_.triangle_count();
+  if (mesh_.positions.size() % 3 != 0 || mesh_.triangles.size() % 3 != 0)
+    return make_error(ErrorCode::kInvalidArgument, "mesh arrays are not multiples of 3");
+  if (!mesh_.normals.empty() && mesh_.normals.size() != mesh_.positions.size())
+    return make_error(ErrorCode::kInvalidArgument, "mesh normals do not match its vertex count");
+  if (!mesh_.colors.empty() && mesh_.colors.size() != mesh_.positions.size())
+    return make_error(ErrorCode::kInvalidArgument, "mesh colors do not match its vertex count");
+  // Each collapse adds fewer faces than the input has corners, so 5 × triangles bounds every count.
+  if (vertex_count_ >= kNoNode || face_count_ * 15 >= kNoNode)
+    return make_error(ErrorCode::kLimitExceeded,
+                      "mesh with " + std::to_string(face_count_) + " triangles exceeds 32-bit MT ids");
+  for (std::size_t i = 0; i < mesh_.triangles.size(); ++i)
+    if (mesh_.triangles[i] >= vertex_count_)
+      return make_error(ErrorCode::kInvalidArgument, "triangle " + std::to_string(i / 3) + " has vertex id " +
+                                                         std::to_string(mesh_.triangles[i]) + " >= vertex count " +
+                                                         std::to_string(vertex_count_));
+
+  working_ = mesh_.triangles;
+  face_alive_.assign(face_count_, 1);
+  alive_faces_ = face_count_;
+  face_mt_.resize(face_count_);
+  mt_made_by_.reserve(3 * face_count_);
+  mt_killed_by_.reserve(3 * face_count_);
+  mt_vertices_.reserve(9 * face_count_);
+  for (std::size_t f = 0; f < face_count_; ++f) face_mt_[f] = std::uint32_t(f);
+  mt_vertices_ = mesh_.triangles;
+  mt_made_by_.assign(face_count_, 0);
+  mt_killed_by_.assign(face_count_, 0);
+  collapse_u_.reserve(vertex_count_);
+  collapse_error_.reserve(vertex_count_);
+  kind_.assign(vertex_count_, kUnused);
+  adjacency_begin_.assign(vertex_count_, 0);
+  adjacency_end_.assign(vertex_count_, 0);
+  vertex_dead_.assign(vertex_count_, 0);
+  alive_face_list_.resize(face_count_);
+  for (std::size_t f = 0; f < face_count_; ++f) alive_face_list_[f] = std::uint32_t(f);
+  {
+    // Vertices no face uses never enter the lists.
+    std::vector<std::uint8_t> used(vertex_count_, 0);
+    for (const std::uint32_t v : mesh_.triangles) used[v] = 1;
+    for (std::uint32_t v = 0; v < vertex_count_; ++v)
+      if (used[v]) alive_vertex_list_.push_back(v);
+  }
+  touched_.assign(vertex_count_, 0);
+  link_stamp_.assign(vertex_count_, 0);
+  seen_stamp_.assign(vertex_count_, 0);
+
+  build_adjacency();
+  init_quadrics();
+
+  std::vector<std::uint32_t> boundary_ends(2 * vertex_count_);
+  const double initial_faces = double(std::max<std::size_t>(face_count_, 1));
+  for (;;) {
+    ++pass_;
+    if (pass_ > 1) build_adjacency();
+    // A vertex's kind only changes when its fan does, i.e. when the last pass touched it.
+    complex_vertices_ = 0;
+    for (const std::uint32_t u : alive_vertex_list_) {
+      if (pass_ == 1 || touched_[u] == pass_ - 1)
+        kind_[u] = classify(u, boundary_ends[2 * u], boundary_ends[2 * u + 1]);
+      complex_vertices_ += kind_[u] == kComplex;
+    }
+    candidates_.clear();
+    for (const std::uint32_t u : alive_vertex_list_) {
+      Candidate best{std::numeric_limits<float>::infinity(), u, u};
+      auto consider = [&](std::uint32_t v) {
+        const float cost = evaluate(quadrics_[u], &unit_positions_[3 * std::size_t{v}]);
+        if (cost < best.cost) best.cost = cost, best.v = v;
+      };
+      if (kind_[u] == kInterior) {
+        for (std::uint32_t i = adjacency_begin_[u]; i < adjacency_end_[u]; ++i) {
+          std::uint32_t a = 0, b = 0;
+          fan_corners(adjacency_[i], u, a, b);
+          if (kind_[a] == kInterior || kind_[a] == kBoundary) consider(a);
+        }
+      } else if (kind_[u] == kBoundary) {
+        // A boundary vertex only slides along its boundary, onto another boundary vertex.
+        for (int e = 0; e < 2; ++e)
+          if (kind_[boundary_ends[2 * u + e]] == kBoundary) consider(boundary_ends[2 * u + e]);
+      }
+      if (best.v != u) candidates_.push_back(best);
+    }
+    if (candidates_.empty()) break;
+    std::sort(candidates_.begin(), candidates_.end(),
+              [](const Candidate& x, const Candidate& y) { return x.cost < y.cost || (x.cost == y.cost && x.u < y.u); });
+
+    // The quota counts candidates that took part in the order (collapsed, or blocked by an earlier
+    // collapse of this pass); invalid ones are skipped without using it up.
+    const std::size_t quota = std::max<std::size_t>(1, std::size_t(double(candidates_.size()) * options_.pass_fraction));
+    std::size_t collapses = 0, ordered = 0;
+    for (std::size_t i = 0; i < candidates_.size() && ordered < quota; ++i) {
+      const Candidate& c = candidates_[i];
+      if (touched_[c.u] == pass_ || touched_[c.v] == pass_) {
+        ++ordered;
+        continue;
+      }
+      if (!can_collapse(c.u, c.v)) continue;
+      collapse(c.u, c.v);
+      ++collapses;
+      ++ordered;
+      if (alive_faces_ <= options_.min_triangles) break;
+    }
+    if (options_.progress) options_.progress(options_.progress_user, 1.0 - double(alive_faces_) / initial_faces);
+    if (getenv("MTLOD_TRACE")) fprintf(stderr, "pass %u faces %zu cands %zu collapses %zu\n", pass_, alive_faces_, candidates_.size(), collapses);
+    if (collapses == 0 || alive_faces_ <= options_.min_triangles) break;
+  }
+
+  Mt mt = assemble();
+  if (stats) {
+    stats->input_triangles = face_count_;
+    stats->root_triangles = mt.root_triangle_count();
+    stats->nodes = mt.node_count();
+    stats->mt_triangles = mt.triangle_count();
+    stats->passes = pass_;
+    stats->complex_vertices = complex_vertices_;
+    stats->max_error = 0;
+    for (const float e : mt.node_error) stats->max_error = std::max(stats->max_error, e);
+  }
+  if (options_.progress) options_.progress(options_.progress_user, 1.0);
+  return mt;
+}
+
+}  // namespace
+
+Result<Mt> build_mt(const Mesh& mesh, const BuildOptions& options, BuildStats* stats) {
+  Builder builder(mesh, options);
+  return builder.run(stats);
+}
+
+}  // namespace mtlod::core

@@ -1,0 +1,32 @@
+// The .mt file format (DESIGN.md §2 "Storage", layout in core/FORMAT.md): serialisation of an Mt to
+// and from bytes. Pure: no file access (core/io/mt_file.hpp reads and writes files).
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "core/mt.hpp"
+#include "core/result.hpp"
+
+namespace mtlod::core {
+
+inline constexpr std::uint32_t kMtFormatVersion = 1;
+inline constexpr std::size_t kMtHeaderBytes = 64;
+
+// 64-bit checksum over bytes: FNV-1a style mixing of little-endian 8-byte words, then the tail
+// bytes. Any change to a single word changes the result (each step is a bijection of the state).
+std::uint64_t mt_checksum(std::span<const std::uint8_t> bytes, std::uint64_t seed = 0xcbf29ce484222325ull);
+
+// Appends the file image of mt to out (cleared first). mt must be valid (as build_mt makes it).
+void serialize_mt(const Mt& mt, std::vector<std::uint8_t>& out);
+
+// Parses and validates a file image: magic, version, flags, every size against the byte count, the
+// checksum, every vertex/node/triangle index, the DAG order (parents precede children, a
+// triangle's remover comes after its creator and lists it as a parent) and finite, non-negative
+// errors. Never reads outside bytes. Errors: kCorrupt (with the field and offending value),
+// kUnsupported (another version).
+Result<Mt> deserialize_mt(std::span<const std::uint8_t> bytes);
+
+}  // namespace mtlod::core

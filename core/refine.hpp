@@ -1,0 +1,104 @@
+// Selective refinement of a Multi-Tessellation (DESIGN.md §2 "Cut", "Selective refinement",
+// "Budgeted refinement", "Dynamic refinement").
+//
+// A triangle t passes when error(t) ≤ allowed(t). allowed(t) is either one uniform value or the
+// minimum of a per-vertex array over t's three vertices (DESIGN.md §1.4: a triangle's label is the
+// minimum of its vertices' labels; for allowed-error laws non-decreasing in the label both agree).
+//
+// Static refinement returns the unique minimal cut whose triangles all pass: starting from the root,
+// a failing triangle forces the node that removes it, and that node's missing ancestors. Any cut in
+// which all triangles pass contains every forced node, so the result does not depend on the order.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "core/mt.hpp"
+
+namespace mtlod::core {
+
+// The allowed error per triangle, in model units.
+struct AllowedError {
+  float uniform = 0.0f;                 // used when per_vertex is empty
+  std::span<const float> per_vertex;    // empty, or one value per MT vertex (mt.vertex_count())
+
+  static AllowedError everywhere(float error) { return {error, {}}; }
+  static AllowedError from_vertices(std::span<const float> vertex_allowed_error) {
+    return {0.0f, vertex_allowed_error};
+  }
+};
+
+// A cut's mesh, ready for an encoder. Caller-owned and reused between calls.
+struct CutMesh {
+  std::vector<std::uint32_t> triangles;  // 3 vertex ids per triangle (CCW), ids into mt.positions
+  std::size_t node_count = 0;            // nodes in the cut, root included
+  float max_error = 0.0f;                // largest error(t) over the cut's triangles, model units
+  bool within_budget = true;             // false only when a budget is below the root's size
+
+  std::size_t triangle_count() const { return triangles.size() / 3; }
+};
+
+// Keeps a cut and its scratch memory between requests (one per worker or client session). No
+// allocation once the buffers have grown to the model's size.
+class Refiner {
+ public:
+  explicit Refiner(const Mt& mt);
+
+  // Static refinement from the root: the minimal cut in which every triangle passes.
+  void refine(const AllowedError& allowed, CutMesh& out);
+
+  // Budgeted refinement from the root: repeatedly refines the failing triangle with the largest
+  // error/allowed ratio (allowed ≤ 0 ranks by error alone) and stops before the next refinement
+  // would take the mesh over max_triangles. out.within_budget is false when the root alone is larger.
+  void refine_budget(const AllowedError& allowed, std::size_t max_triangles, CutMesh& out);
+
+  // Dynamic refinement: moves the kept cut to the minimal cut for the new allowed error, by dropping
+  // the nodes whose reason to be in the cut no longer holds and refining from what is left. The
+  // result equals refine(allowed) as a set of triangles (the order may differ). The first call, or a
+  // call after refine_budget, runs refine.
+  void update(const AllowedError& allowed, CutMesh& out);
+
+  // Nodes of the kept cut, in the order they were added (parents before children).
+  std::span<const std::uint32_t> cut_nodes() const { return cut_; }
+
+ private:
+  bool fails(std::uint32_t t, std::uint32_t creator, const AllowedError& allowed) const;
+  void reset_to_root();
+  // Adds node r and its missing ancestors, parents first; witness_triangle forced r.
+  void force(std::uint32_t r, std::uint32_t witness_triangle, std::uint32_t witness_creator);
+  void examine(std::uint32_t n, const AllowedError& allowed);
+  void close_over(const AllowedError& allowed, std::size_t first);
+  void emit(CutMesh& out) const;
+  void remember_field(const AllowedError& allowed);
+
+  const Mt& mt_;
+  std::vector<std::uint8_t> in_cut_;            // per node: 0 out, 1 in, 2 being added
+  std::vector<std::uint32_t> cut_;              // nodes in the cut, in the order added
+  std::vector<std::uint32_t> witness_triangle_;  // per node: the failing triangle that forced it
+  std::vector<std::uint32_t> witness_creator_;   // per node: that triangle's creator
+  std::vector<std::uint32_t> stack_;            // DFS over missing ancestors: node, next parent index
+  std::vector<std::uint8_t> changed_;           // per vertex, during update
+  std::vector<float> previous_field_;           // allowed error of the last call, per vertex
+  float previous_uniform_ = 0.0f;
+  bool previous_is_uniform_ = true;
+  bool dynamic_ready_ = false;                  // cut_ is the minimal cut of the previous field
+  std::vector<std::uint32_t> dropped_;          // nodes dropped during one update
+  bool field_known_ = false;                    // previous_* describe the field of the kept cut
+  struct HeapEntry {
+    std::uint32_t tier;   // 1: allowed ≤ 0, ranked by error; 0: ranked by error / allowed
+    float key;
+    std::uint32_t triangle;
+    std::uint32_t creator;
+  };
+  HeapEntry heap_entry(std::uint32_t t, std::uint32_t creator, const AllowedError& allowed) const;
+  std::vector<HeapEntry> heap_;
+};
+
+// One-off static refinement (allocates a Refiner).
+void refine_static(const Mt& mt, const AllowedError& allowed, CutMesh& out);
+// One-off budgeted refinement.
+void refine_budget(const Mt& mt, const AllowedError& allowed, std::size_t max_triangles, CutMesh& out);
+
+}  // namespace mtlod::core

@@ -1,0 +1,32 @@
+// Error codes of the mtlod protocol (PROTOCOL.md, "Errors"). Each becomes the `code` string of an
+// `error` reply; the message says which field, which value and which limit.
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+namespace mtlod::protocol {
+
+enum class ErrorKind : std::uint8_t {
+  kBadFrame,            // frame header broken or frame larger than the limit (connection closes)
+  kBadJson,             // the JSON text does not parse
+  kBadRequest,          // a field is missing, has the wrong type, a bad value, or is unknown
+  kUnknownType,         // the `type` is not a request this server knows
+  kUnsupportedVersion,  // hello asked for a protocol version the server does not speak
+  kLimitExceeded,       // grid, budget, foci or in-flight requests over the server's limits
+  kUnknownModel,        // no model of that name is loaded
+  kNoView,              // gaze before any extract on this connection
+  kCancelled,           // the request was cancelled before it ran
+  kSuperseded,          // a newer gaze replaced this one before it ran
+  kShuttingDown,        // the server is draining and takes no new work
+  kInternal,            // the server failed; the message says how
+};
+
+const char* to_string(ErrorKind kind);
+
+struct ProtocolError {
+  ErrorKind code = ErrorKind::kInternal;
+  std::string message;
+};
+
+}  // namespace mtlod::protocol

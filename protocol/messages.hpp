@@ -1,0 +1,108 @@
+// The messages of the mtlod protocol as plain structs (PROTOCOL.md, "Messages"). Requests are what
+// a client sends; replies are what the server answers. Units are in the field names.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <variant>
+#include <vector>
+
+namespace mtlod::protocol {
+
+inline constexpr int kProtocolVersion = 1;
+
+// Limits a server enforces and states in its hello reply.
+struct Limits {
+  std::uint32_t max_frame_bytes = 1u << 20;     // JSON + payload of one client frame
+  std::uint32_t max_connections = 256;
+  std::uint32_t max_in_flight = 8;              // requests queued or running per connection
+  std::uint32_t max_grid = 4096;                // grid width and height
+  std::uint32_t max_budget = 5'000'000;         // triangles per extraction
+  std::uint32_t max_foci = 16;                  // focus points plus neglect regions
+  std::uint32_t idle_timeout_ms = 300'000;      // a connection with no request for this long is closed
+  std::uint32_t read_timeout_ms = 10'000;       // a frame started must arrive within this time
+};
+
+using Matrix4 = std::array<double, 16>;  // column-major, as OpenGL and GLM store them
+
+enum class ErrorUnit : std::uint8_t { kModel, kPixels };
+enum class Falloff : std::uint8_t { kStep, kLinear, kSmoothstep, kFoveal };
+enum class DistanceKind : std::uint8_t { kChamfer5711, kChamfer34, kCityBlock, kChessboard, kEuclidean };
+enum class DistanceUnit : std::uint8_t { kPixels, kChamfer };
+enum class DracoMethod : std::uint8_t { kEdgebreaker, kSequential };
+
+// A point of interest in normalised viewport coordinates (0,0 top left, 1,1 bottom right).
+struct Focus {
+  double x = 0.5;
+  double y = 0.5;
+  double distance = 20;  // threshold d, in `Criteria::units`
+  double factor = 0.25;  // f: allowed error is e·f inside (f < 1 for a focus, f > 1 for neglect)
+};
+
+struct Silhouette {
+  double distance = 2;  // threshold d, in `Criteria::units`
+  double factor = 0;    // f: 0 keeps full resolution along the silhouette
+};
+
+struct Criteria {
+  std::optional<Silhouette> silhouette;
+  std::vector<Focus> focus;
+  std::vector<Focus> neglect;
+  Falloff falloff = Falloff::kStep;
+  DistanceKind distance = DistanceKind::kChamfer5711;
+  DistanceUnit units = DistanceUnit::kPixels;
+  bool internal_silhouettes = false;  // depth discontinuities seed the silhouette distance too
+  double frustum_factor = 8;          // allowed error multiplier outside the view (1 = off)
+  double backface_factor = 1;         // allowed error multiplier for back faces (1 = off)
+};
+
+struct DracoSettings {
+  DracoMethod method = DracoMethod::kEdgebreaker;
+  int speed = 7;  // 0 best ratio .. 10 fastest
+  int position_bits = 14;
+  int normal_bits = 10;
+};
+
+struct Hello {
+  int version = kProtocolVersion;
+  std::string client;
+};
+struct ListModels {};
+struct ModelInfo {
+  std::string model;
+};
+struct Extract {
+  std::string model;
+  Matrix4 view{};
+  Matrix4 projection{};
+  std::array<std::uint32_t, 2> viewport{800, 600};  // pixels
+  std::array<std::uint32_t, 2> grid{256, 256};      // distance-transform cells
+  double error = 0;                                 // the bound e
+  ErrorUnit error_unit = ErrorUnit::kModel;
+  Criteria criteria;
+  std::optional<std::uint32_t> budget;              // at most this many triangles
+  bool normals = false;
+  bool labels = false;
+  DracoSettings draco;
+};
+// A new focus for the connection's latest extract: the newest gaze replaces a queued one.
+struct Gaze {
+  double x = 0.5;
+  double y = 0.5;
+  std::optional<double> distance;  // replaces the first focus's threshold when given
+  std::optional<double> factor;    // replaces the first focus's factor when given
+};
+struct Cancel {
+  std::uint64_t target = 0;  // id of the request to cancel
+};
+struct Stats {};
+struct Ping {};
+
+using Request = std::variant<Hello, ListModels, ModelInfo, Extract, Gaze, Cancel, Stats, Ping>;
+
+// The request type's name on the wire ("extract", ...).
+const char* request_type_name(const Request& request);
+
+}  // namespace mtlod::protocol

@@ -1,0 +1,181 @@
+// Reply serialisation and the clients' lenient reply parser (PROTOCOL.md, "Replies").
+#include "protocol/replies.hpp"
+
+#include "fmt/format.h"
+#include "nlohmann/json.hpp"
+
+namespace mtlod::protocol {
+namespace {
+
+using nlohmann::json;
+
+json limits_json(const Limits& l) {
+  return {{"max_frame_bytes", l.max_frame_bytes}, {"max_connections", l.max_connections},
+          {"max_in_flight", l.max_in_flight},     {"max_grid", l.max_grid},
+          {"max_budget", l.max_budget},           {"max_foci", l.max_foci},
+          {"idle_timeout_ms", l.idle_timeout_ms}, {"read_timeout_ms", l.read_timeout_ms}};
+}
+
+Limits limits_from(const json& j) {
+  Limits l;
+  l.max_frame_bytes = j.value("max_frame_bytes", l.max_frame_bytes);
+  l.max_connections = j.value("max_connections", l.max_connections);
+  l.max_in_flight = j.value("max_in_flight", l.max_in_flight);
+  l.max_grid = j.value("max_grid", l.max_grid);
+  l.max_budget = j.value("max_budget", l.max_budget);
+  l.max_foci = j.value("max_foci", l.max_foci);
+  l.idle_timeout_ms = j.value("idle_timeout_ms", l.idle_timeout_ms);
+  l.read_timeout_ms = j.value("read_timeout_ms", l.read_timeout_ms);
+  return l;
+}
+
+json summary_json(const ModelSummary& m) {
+  return {{"name", m.name},         {"vertices", m.vertices},         {"input_triangles", m.input_triangles},
+          {"root_triangles", m.root_triangles}, {"nodes", m.nodes}, {"memory_bytes", m.memory_bytes},
+          {"max_error", m.max_error}};
+}
+
+ModelSummary summary_from(const json& j) {
+  ModelSummary m;
+  m.name = j.value("name", "");
+  m.vertices = j.value("vertices", std::uint64_t{0});
+  m.input_triangles = j.value("input_triangles", std::uint64_t{0});
+  m.root_triangles = j.value("root_triangles", std::uint64_t{0});
+  m.nodes = j.value("nodes", std::uint64_t{0});
+  m.memory_bytes = j.value("memory_bytes", std::uint64_t{0});
+  m.max_error = j.value("max_error", 0.0);
+  return m;
+}
+
+json timings_json(const StageTimings& t) {
+  return {{"queue", t.queue_us},   {"map", t.map_us},       {"occupancy", t.occupancy_us}, {"dt", t.dt_us},
+          {"labels", t.labels_us}, {"refine", t.refine_us}, {"encode", t.encode_us},       {"total", t.total_us}};
+}
+
+StageTimings timings_from(const json& j) {
+  StageTimings t;
+  t.queue_us = j.value("queue", std::uint64_t{0});
+  t.map_us = j.value("map", std::uint64_t{0});
+  t.occupancy_us = j.value("occupancy", std::uint64_t{0});
+  t.dt_us = j.value("dt", std::uint64_t{0});
+  t.labels_us = j.value("labels", std::uint64_t{0});
+  t.refine_us = j.value("refine", std::uint64_t{0});
+  t.encode_us = j.value("encode", std::uint64_t{0});
+  t.total_us = j.value("total", std::uint64_t{0});
+  return t;
+}
+
+ErrorKind error_kind_from(const std::string& code) {
+  for (int k = 0; k <= static_cast<int>(ErrorKind::kInternal); ++k) {
+    if (code == to_string(static_cast<ErrorKind>(k))) return static_cast<ErrorKind>(k);
+  }
+  return ErrorKind::kInternal;
+}
+
+}  // namespace
+
+const char* reply_type_name(const Reply& reply) {
+  static constexpr const char* kNames[] = {"hello", "models", "model_info", "mesh", "error", "cancel", "stats", "pong"};
+  return kNames[reply.index()];
+}
+
+std::string to_json(const Reply& reply, std::optional<std::uint64_t> id) {
+  json j = std::visit(
+      [](const auto& r) -> json {
+        using T = std::decay_t<decltype(r)>;
+        if constexpr (std::is_same_v<T, HelloReply>) {
+          return {{"version", r.version}, {"server", r.server}, {"limits", limits_json(r.limits)}};
+        } else if constexpr (std::is_same_v<T, ModelsReply>) {
+          json models = json::array();
+          for (const ModelSummary& m : r.models) models.push_back(summary_json(m));
+          return {{"models", models}};
+        } else if constexpr (std::is_same_v<T, ModelInfoReply>) {
+          json m = summary_json(r.model);
+          m["bounds_min"] = r.bounds_min;
+          m["bounds_max"] = r.bounds_max;
+          m["min_error"] = r.min_error;
+          m["normals"] = r.normals;
+          m["colors"] = r.colors;
+          return m;
+        } else if constexpr (std::is_same_v<T, MeshReply>) {
+          json m = {{"model", r.model},           {"triangles", r.triangles},
+                    {"vertices", r.vertices},     {"max_error", r.max_error},
+                    {"bytes", r.bytes},           {"budget_reached", r.budget_reached},
+                    {"superseded", r.superseded}, {"timings_us", timings_json(r.timings)}};
+          if (r.focus) m["focus"] = *r.focus;
+          return m;
+        } else if constexpr (std::is_same_v<T, ErrorReply>) {
+          return {{"code", to_string(r.code)}, {"message", r.message}};
+        } else if constexpr (std::is_same_v<T, CancelReply>) {
+          return {{"target", r.target}, {"cancelled", r.cancelled}};
+        } else if constexpr (std::is_same_v<T, StatsReply>) {
+          json counters = json::object();
+          for (const auto& [name, value] : r.counters) counters[name] = value;
+          return {{"counters", counters}};
+        } else {
+          return json::object();
+        }
+      },
+      reply);
+  j["type"] = reply_type_name(reply);
+  if (id) j["id"] = *id;
+  return j.dump();
+}
+
+Result<ParsedReply> parse_reply(std::string_view text) {
+  try {
+    const json j = json::parse(text.begin(), text.end());
+    ParsedReply out{std::nullopt, Pong{}};
+    if (j.contains("id") && j["id"].is_number_unsigned()) out.id = j["id"].get<std::uint64_t>();
+    const std::string type = j.value("type", "");
+    if (type == "hello") {
+      out.reply = HelloReply{j.value("version", 0), j.value("server", ""), limits_from(j.value("limits", json::object()))};
+    } else if (type == "models") {
+      ModelsReply r;
+      const json models = j.value("models", json::array());
+      for (const json& m : models) r.models.push_back(summary_from(m));
+      out.reply = std::move(r);
+    } else if (type == "model_info") {
+      ModelInfoReply r;
+      r.model = summary_from(j);
+      r.bounds_min = j.value("bounds_min", r.bounds_min);
+      r.bounds_max = j.value("bounds_max", r.bounds_max);
+      r.min_error = j.value("min_error", 0.0);
+      r.normals = j.value("normals", false);
+      r.colors = j.value("colors", false);
+      out.reply = std::move(r);
+    } else if (type == "mesh") {
+      MeshReply r;
+      r.model = j.value("model", "");
+      r.triangles = j.value("triangles", std::uint64_t{0});
+      r.vertices = j.value("vertices", std::uint64_t{0});
+      r.max_error = j.value("max_error", 0.0);
+      r.bytes = j.value("bytes", std::uint64_t{0});
+      r.budget_reached = j.value("budget_reached", false);
+      r.superseded = j.value("superseded", std::uint64_t{0});
+      if (j.contains("focus")) r.focus = j["focus"].get<std::array<double, 2>>();
+      r.timings = timings_from(j.value("timings_us", json::object()));
+      out.reply = std::move(r);
+    } else if (type == "error") {
+      out.reply = ErrorReply{error_kind_from(j.value("code", "")), j.value("message", "")};
+    } else if (type == "cancel") {
+      out.reply = CancelReply{j.value("target", std::uint64_t{0}), j.value("cancelled", false)};
+    } else if (type == "stats") {
+      StatsReply r;
+      const json counters = j.value("counters", json::object());
+      for (const auto& [name, value] : counters.items()) {
+        r.counters.emplace_back(name, value.is_number() ? value.get<double>() : 0.0);
+      }
+      out.reply = std::move(r);
+    } else if (type == "pong") {
+      out.reply = Pong{};
+    } else {
+      return make_error(ErrorCode::kCorrupt, fmt::format("unknown reply type '{}'", type));
+    }
+    return out;
+  } catch (const json::exception& e) {
+    return make_error(ErrorCode::kCorrupt, fmt::format("reply does not parse: {}", e.what()));
+  }
+}
+
+}  // namespace mtlod::protocol

@@ -1,0 +1,107 @@
+// Server replies (PROTOCOL.md, "Replies"): structs, JSON for the server to send, and a parser for
+// clients. Clients read replies leniently (unknown fields are ignored) so that a newer server with
+// extra fields still talks to an older client.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <utility>
+#include <variant>
+#include <vector>
+
+#include "core/result.hpp"
+#include "protocol/errors.hpp"
+#include "protocol/messages.hpp"
+
+namespace mtlod::protocol {
+
+struct HelloReply {
+  int version = kProtocolVersion;
+  std::string server;
+  Limits limits;
+};
+
+struct ModelSummary {
+  std::string name;
+  std::uint64_t vertices = 0;
+  std::uint64_t input_triangles = 0;  // the full-resolution mesh
+  std::uint64_t root_triangles = 0;   // the coarsest mesh
+  std::uint64_t nodes = 0;
+  std::uint64_t memory_bytes = 0;     // resident size of the loaded model
+  double max_error = 0;               // model units
+};
+
+struct ModelsReply {
+  std::vector<ModelSummary> models;
+};
+
+struct ModelInfoReply {
+  ModelSummary model;
+  std::array<double, 3> bounds_min{};
+  std::array<double, 3> bounds_max{};
+  double min_error = 0;  // smallest non-zero triangle error, model units
+  bool normals = false;
+  bool colors = false;
+};
+
+// Microseconds spent per stage of one extraction.
+struct StageTimings {
+  std::uint64_t queue_us = 0;      // waiting for a worker
+  std::uint64_t map_us = 0;        // vertices to grid cells
+  std::uint64_t occupancy_us = 0;  // rasterising the occupancy grid
+  std::uint64_t dt_us = 0;         // distance transform(s)
+  std::uint64_t labels_us = 0;     // labels and allowed errors
+  std::uint64_t refine_us = 0;     // selective refinement of the MT
+  std::uint64_t encode_us = 0;     // Draco
+  std::uint64_t total_us = 0;      // from frame received to reply ready
+};
+
+// Header of an extract or gaze result; the Draco bytes follow as the frame's payload.
+struct MeshReply {
+  std::string model;
+  std::uint64_t triangles = 0;
+  std::uint64_t vertices = 0;
+  double max_error = 0;           // largest error of a triangle in the cut, model units
+  std::uint64_t bytes = 0;        // payload size
+  bool budget_reached = false;    // refinement stopped at the triangle budget
+  std::optional<std::array<double, 2>> focus;  // the focus this mesh reflects (gaze replies)
+  std::uint64_t superseded = 0;   // gaze updates replaced by this one before they ran
+  StageTimings timings;
+};
+
+struct ErrorReply {
+  ErrorKind code = ErrorKind::kInternal;
+  std::string message;
+};
+
+struct CancelReply {
+  std::uint64_t target = 0;
+  bool cancelled = false;  // false: it had already started or finished
+};
+
+struct StatsReply {
+  std::vector<std::pair<std::string, double>> counters;  // name → value, in the server's order
+};
+
+struct Pong {};
+
+using Reply = std::variant<HelloReply, ModelsReply, ModelInfoReply, MeshReply, ErrorReply, CancelReply, StatsReply, Pong>;
+
+// The JSON header of a reply; `id` is the request's id (absent only when the request had none).
+std::string to_json(const Reply& reply, std::optional<std::uint64_t> id);
+
+struct ParsedReply {
+  std::optional<std::uint64_t> id;
+  Reply reply;
+};
+
+// For clients: errors are kCorrupt with the reason.
+Result<ParsedReply> parse_reply(std::string_view json);
+
+// The reply type's name on the wire ("mesh", "error", ...).
+const char* reply_type_name(const Reply& reply);
+
+}  // namespace mtlod::protocol

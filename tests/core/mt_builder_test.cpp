@@ -1,0 +1,186 @@
+// MT builder: hand-made cases whose answer is known, and structural invariants of the DAG on
+// synthetic and real meshes (DESIGN.md §2 "Nodes", "Arcs", "Triangle error").
+#include "core/mt_builder.hpp"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <set>
+#include <vector>
+
+#include "core/mt_format.hpp"
+#include "tests/core/cut_validator.hpp"
+#include "tests/core/mt_fixtures.hpp"
+
+namespace mtlod::core {
+namespace {
+
+using test::MtCase;
+
+// Triangles of the cut made of every node: created by someone, removed by no one.
+std::vector<std::uint32_t> all_nodes_cut(const Mt& mt) {
+  std::vector<std::uint32_t> out;
+  for (std::uint32_t t = 0; t < mt.triangle_count(); ++t) {
+    if (mt.triangle_remover[t] != kNoNode) continue;
+    std::uint32_t v[3];
+    mt.triangle_vertices(t, v);
+    out.insert(out.end(), v, v + 3);
+  }
+  return out;
+}
+
+std::vector<std::uint32_t> root_cut(const Mt& mt) {
+  std::vector<std::uint32_t> out;
+  for (std::uint32_t t = 0; t < mt.root_triangle_count(); ++t) {
+    std::uint32_t v[3];
+    mt.triangle_vertices(t, v);
+    out.insert(out.end(), v, v + 3);
+  }
+  return out;
+}
+
+TEST(MtBuilder, TetrahedronHasNoValidCollapse) {
+  // Any edge collapse of a tetrahedron folds it into two copies of one triangle; refused.
+  const Mesh mesh = test::tetrahedron();
+  auto mt = build_mt(mesh);
+  ASSERT_TRUE(mt.ok());
+  EXPECT_EQ(mt->node_count(), 1u);
+  EXPECT_EQ(test::triangle_set(root_cut(*mt)), test::triangle_set(mesh.triangles));
+}
+
+TEST(MtBuilder, SquareCollapsesOneCornerAlongItsBoundary) {
+  // Corners 0 and 2 touch both triangles; sliding either onto a neighbour along the boundary leaves
+  // one triangle. After that every corner has one triangle, and removing it would empty the mesh.
+  // The moved corner travels 1 unit, so the node's error is the float just above 1.
+  const Mesh mesh = test::square();
+  BuildStats stats;
+  auto mt = build_mt(mesh, {}, &stats);
+  ASSERT_TRUE(mt.ok());
+  ASSERT_EQ(mt->node_count(), 2u);
+  EXPECT_EQ(mt->root_triangle_count(), 1u);
+  EXPECT_EQ(mt->triangle_count(), 3u);  // 1 root triangle + the 2 input triangles of node 1
+  EXPECT_EQ(mt->node_error[1], std::nextafter(1.0f, 2.0f));
+  EXPECT_TRUE(mt->node_vertex[1] == 0 || mt->node_vertex[1] == 2);
+  EXPECT_EQ(test::triangle_set(all_nodes_cut(*mt)), test::triangle_set(mesh.triangles));
+  EXPECT_EQ(stats.nodes, 2u);
+  EXPECT_EQ(stats.root_triangles, 1u);
+}
+
+TEST(MtBuilder, RejectsAnIndexOutOfRange) {
+  Mesh mesh = test::square();
+  mesh.triangles[4] = 4;
+  auto mt = build_mt(mesh);
+  ASSERT_FALSE(mt.ok());
+  EXPECT_EQ(mt.error().code, ErrorCode::kInvalidArgument);
+  EXPECT_NE(mt.error().message.find("vertex id 4"), std::string::npos) << mt.error().message;
+}
+
+// The DAG promised by DESIGN.md §2: parents before children, parents exactly the creators of what a
+// node removes, each vertex split once, errors non-increasing from parent to child, and all
+// triangles a node creates contain its split vertex.
+void expect_valid_dag(const Mt& mt) {
+  const std::size_t n = mt.node_count();
+  std::vector<std::set<std::uint32_t>> creators(n);
+  for (std::uint32_t c = 0; c < n; ++c)
+    for (std::uint32_t t = mt.node_triangle_offsets[c]; t < mt.node_triangle_offsets[c + 1]; ++t) {
+      const std::uint32_t r = mt.triangle_remover[t];
+      if (r == kNoNode) continue;
+      ASSERT_GT(r, c) << "triangle " << t;
+      ASSERT_LT(r, n);
+      creators[r].insert(c);
+      // Removing what a node created cannot be more accurate than the node's own triangles.
+      if (c != 0) {
+        ASSERT_GE(mt.node_error[c], mt.node_error[r]) << "node " << c << " -> " << r;
+      }
+    }
+  std::vector<std::uint8_t> split(mt.vertex_count(), 0);
+  for (std::uint32_t i = 1; i < n; ++i) {
+    const std::set<std::uint32_t> parents(mt.node_parents.begin() + mt.node_parent_offsets[i],
+                                          mt.node_parents.begin() + mt.node_parent_offsets[i + 1]);
+    ASSERT_EQ(parents, creators[i]) << "node " << i;
+    ASSERT_FALSE(parents.empty());
+    const std::uint32_t u = mt.node_vertex[i];
+    ASSERT_LT(u, mt.vertex_count());
+    ASSERT_EQ(split[u], 0) << "vertex " << u << " split twice";
+    split[u] = 1;
+    ASSERT_GE(mt.node_error[i], 0.0f);
+  }
+}
+
+TEST(MtBuilder, SphereDagIsTopologicalWithMonotoneErrors) {
+  const MtCase* c = test::shape_case(Shape::kSphere, 20'000);
+  ASSERT_NE(c, nullptr);
+  expect_valid_dag(c->mt);
+  // A closed genus-0 surface simplifies to a handful of triangles.
+  EXPECT_LE(c->mt.root_triangle_count(), 16u);
+  EXPECT_EQ(c->mt.node_count(), c->mesh.vertex_count() - c->mt.root_triangle_count() / 2 - 1);
+}
+
+TEST(MtBuilder, AllNodesReproduceTheInputAndTheRootIsAConformingCoarsestMesh) {
+  std::vector<const MtCase*> cases = {test::shape_case(Shape::kSphere, 20'000), test::shape_case(Shape::kTerrain, 5'000),
+                                      test::shape_case(Shape::kShell, 8'000)};
+  for (const char* file : {"bunny-npm-3k.ply", "dragon-vrip-res4-11k.ply", "bunny-zipper-69k.ply", "armadillo-52k.ply"})
+    if (const MtCase* c = test::scan_case(file)) cases.push_back(c);
+  for (const MtCase* c : cases) {
+    ASSERT_NE(c, nullptr);
+    expect_valid_dag(c->mt);
+    EXPECT_EQ(test::triangle_set(all_nodes_cut(c->mt)), test::triangle_set(c->mesh.triangles));
+    EXPECT_TRUE(test::validate_cut(c->reference, root_cut(c->mt)));
+    EXPECT_LT(c->mt.root_triangle_count(), c->mesh.triangle_count() / 4);
+  }
+}
+
+TEST(MtBuilder, NonManifoldAndMisorientedEdgesAreNeverTouched) {
+  // dragon_vrip_res4 has hundreds of edges with more than two faces or clashing orientation (see the
+  // shared meshes' README): their vertices must never be split or merged into.
+  const MtCase* c = test::scan_case("dragon-vrip-res4-11k.ply");
+  if (!c) GTEST_SKIP() << "dragon-vrip-res4-11k.ply absent";
+  ASSERT_FALSE(c->reference.defects.empty());
+  std::vector<std::uint8_t> on_defect(c->mesh.vertex_count(), 0);
+  for (const std::uint64_t key : c->reference.defects) on_defect[key >> 32] = on_defect[key & 0xffffffffu] = 1;
+  for (std::uint32_t i = 1; i < c->mt.node_count(); ++i) ASSERT_FALSE(on_defect[c->mt.node_vertex[i]]) << "node " << i;
+  // Every defective edge survives in the coarsest mesh, so its defect is still visible there.
+  const auto root_defects = test::defective_edges(root_cut(c->mt));
+  for (const std::uint64_t key : c->reference.defects)
+    EXPECT_TRUE(std::binary_search(root_defects.begin(), root_defects.end(), key)) << key;
+}
+
+TEST(MtBuilder, BuildIsDeterministic) {
+  GenerateOptions options;
+  options.shape = Shape::kShell;
+  options.target_triangles = 6'000;
+  const Mesh mesh = generate_mesh(options);
+  auto a = build_mt(mesh);
+  auto b = build_mt(mesh);
+  ASSERT_TRUE(a.ok() && b.ok());
+  std::vector<std::uint8_t> bytes_a, bytes_b;
+  serialize_mt(*a, bytes_a);
+  serialize_mt(*b, bytes_b);
+  EXPECT_EQ(bytes_a, bytes_b);
+}
+
+TEST(MtBuilder, ProgressIsReportedUpToOne) {
+  struct Seen {
+    int calls = 0;
+    double last = -1;
+    bool monotone = true;
+  } seen;
+  BuildOptions options;
+  options.progress = [](void* user, double fraction) {
+    auto* s = static_cast<Seen*>(user);
+    s->monotone &= fraction >= s->last;
+    s->last = fraction;
+    ++s->calls;
+  };
+  options.progress_user = &seen;
+  GenerateOptions shape;
+  shape.target_triangles = 2'000;
+  ASSERT_TRUE(build_mt(generate_mesh(shape), options).ok());
+  EXPECT_GT(seen.calls, 1);
+  EXPECT_TRUE(seen.monotone);
+  EXPECT_EQ(seen.last, 1.0);
+}
+
+}  // namespace
+}  // namespace mtlod::core

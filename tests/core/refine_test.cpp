@@ -1,0 +1,368 @@
+// Selective refinement (DESIGN.md §2): hand-made cases, a naive fixpoint reference for minimality,
+// conformity and the error bound on real scans, budgets, and dynamic == static after random field
+// sequences.
+#include "core/refine.hpp"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <random>
+#include <vector>
+
+#include "tests/core/cut_validator.hpp"
+#include "tests/core/mt_fixtures.hpp"
+
+namespace mtlod::core {
+namespace {
+
+using test::MtCase;
+constexpr float kInf = std::numeric_limits<float>::infinity();
+
+// Reference: the minimal passing cut by the definition, recomputed from scratch each round — add the
+// remover (and its ancestors) of every failing triangle of the current mesh until none fails.
+std::vector<std::uint8_t> naive_minimal_cut(const Mt& mt, const AllowedError& allowed) {
+  std::vector<std::uint8_t> in(mt.node_count(), 0);
+  in[0] = 1;
+  std::vector<std::uint32_t> creator(mt.triangle_count());
+  for (std::uint32_t t = 0; t < mt.triangle_count(); ++t) creator[t] = mt.triangle_creator(t);
+  auto add_with_ancestors = [&](auto&& self, std::uint32_t n) -> void {
+    if (in[n]) return;
+    in[n] = 1;
+    for (std::uint32_t j = mt.node_parent_offsets[n]; j < mt.node_parent_offsets[n + 1]; ++j) self(self, mt.node_parents[j]);
+  };
+  for (bool changed = true; changed;) {
+    changed = false;
+    for (std::uint32_t t = 0; t < mt.triangle_count(); ++t) {
+      const std::uint32_t r = mt.triangle_remover[t];
+      if (!in[creator[t]] || r == kNoNode || in[r]) continue;
+      std::uint32_t v[3];
+      mt.triangle_vertices(t, v);
+      const float a = allowed.per_vertex.empty()
+                          ? allowed.uniform
+                          : std::min({allowed.per_vertex[v[0]], allowed.per_vertex[v[1]], allowed.per_vertex[v[2]]});
+      if (mt.triangle_error(t) > a) {
+        add_with_ancestors(add_with_ancestors, r);
+        changed = true;
+      }
+    }
+  }
+  return in;
+}
+
+std::vector<std::uint32_t> sorted_nodes(const Refiner& r) {
+  std::vector<std::uint32_t> nodes(r.cut_nodes().begin(), r.cut_nodes().end());
+  std::sort(nodes.begin(), nodes.end());
+  return nodes;
+}
+
+float bbox_diagonal(const Mesh& mesh) {
+  float lo[3] = {kInf, kInf, kInf}, hi[3] = {-kInf, -kInf, -kInf};
+  for (std::size_t v = 0; v < mesh.vertex_count(); ++v)
+    for (int k = 0; k < 3; ++k) lo[k] = std::min(lo[k], mesh.positions[3 * v + k]), hi[k] = std::max(hi[k], mesh.positions[3 * v + k]);
+  return std::sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) + (hi[2] - lo[2]) * (hi[2] - lo[2]));
+}
+
+// Allowed error growing with distance from a focus vertex (a stand-in for the DT labels of the
+// next issue): fine near the focus, coarse far away.
+std::vector<float> focus_field(const Mesh& mesh, std::mt19937& rng, float fine, float coarse) {
+  std::uniform_int_distribution<std::size_t> pick(0, mesh.vertex_count() - 1);
+  const float* f = &mesh.positions[3 * pick(rng)];
+  const float radius = bbox_diagonal(mesh) * std::uniform_real_distribution<float>(0.05f, 0.5f)(rng);
+  std::vector<float> field(mesh.vertex_count());
+  for (std::size_t v = 0; v < mesh.vertex_count(); ++v) {
+    const float* p = &mesh.positions[3 * v];
+    const float d = std::sqrt((p[0] - f[0]) * (p[0] - f[0]) + (p[1] - f[1]) * (p[1] - f[1]) + (p[2] - f[2]) * (p[2] - f[2]));
+    field[v] = fine + (coarse - fine) * std::min(1.0f, d / radius);
+  }
+  return field;
+}
+
+// Independent per-vertex noise: the harshest case for dynamic refinement (no spatial coherence).
+std::vector<float> noise_field(std::size_t n, std::mt19937& rng, float lo, float hi) {
+  std::vector<float> field(n);
+  std::uniform_real_distribution<float> u(std::log(lo), std::log(hi));
+  for (float& x : field) x = std::exp(u(rng));
+  return field;
+}
+
+float max_node_error(const Mt& mt) { return *std::max_element(mt.node_error.begin(), mt.node_error.end()); }
+
+TEST(Refine, SquareSwitchesBetweenItsTwoCutsAtTheNodeError) {
+  // The square's MT has one collapse of error e1 = nextafter(1): at allowed ≥ e1 the root triangle
+  // passes; any smaller allowed error needs the two input triangles.
+  auto mt = build_mt(test::square());
+  ASSERT_TRUE(mt.ok());
+  const float e1 = mt->node_error[1];
+  CutMesh out;
+  refine_static(*mt, AllowedError::everywhere(e1), out);
+  EXPECT_EQ(out.triangle_count(), 1u);
+  EXPECT_EQ(out.max_error, e1);
+  EXPECT_EQ(out.node_count, 1u);
+  refine_static(*mt, AllowedError::everywhere(std::nextafter(e1, 0.0f)), out);
+  EXPECT_EQ(test::triangle_set(out.triangles), test::triangle_set(test::square().triangles));
+  EXPECT_EQ(out.max_error, 0.0f);
+  EXPECT_EQ(out.node_count, 2u);
+  // Per vertex: one fine corner is enough, since a triangle takes the minimum of its corners.
+  std::vector<float> field = {kInf, kInf, kInf, kInf};
+  field[mt->root_first_corner[0]] = 0.5f;
+  refine_static(*mt, AllowedError::from_vertices(field), out);
+  EXPECT_EQ(out.triangle_count(), 2u);
+}
+
+TEST(Refine, ExtremeThresholdsGiveTheInputAndTheRoot) {
+  for (const char* file : {"bunny-npm-3k.ply", "dragon-vrip-res4-11k.ply"}) {
+    const MtCase* c = test::scan_case(file);
+    if (!c) continue;
+    CutMesh out;
+    // Error ≥ 0 > -1 for every triangle that has a remover: everything is refined.
+    refine_static(c->mt, AllowedError::everywhere(-1.0f), out);
+    EXPECT_EQ(test::triangle_set(out.triangles), test::triangle_set(c->mesh.triangles)) << file;
+    EXPECT_EQ(out.node_count, c->mt.node_count());
+    refine_static(c->mt, AllowedError::everywhere(kInf), out);
+    EXPECT_EQ(out.triangle_count(), c->mt.root_triangle_count()) << file;
+    EXPECT_EQ(out.node_count, 1u);
+  }
+}
+
+TEST(Refine, StaticEqualsTheNaiveFixpointOnRandomFields) {
+  std::mt19937 rng(7);
+  for (const MtCase* c : {test::shape_case(Shape::kSphere, 8'000), test::shape_case(Shape::kTerrain, 3'000),
+                          test::scan_case("bunny-npm-3k.ply"), test::scan_case("dragon-vrip-res4-11k.ply")}) {
+    if (!c) continue;
+    const float top = max_node_error(c->mt);
+    Refiner refiner(c->mt);
+    CutMesh out;
+    for (int round = 0; round < 6; ++round) {
+      std::vector<float> field = round % 2 ? focus_field(c->mesh, rng, top * 1e-3f, top * 0.3f)
+                                           : noise_field(c->mesh.vertex_count(), rng, top * 1e-3f, top * 0.5f);
+      const AllowedError allowed = AllowedError::from_vertices(field);
+      refiner.refine(allowed, out);
+      const std::vector<std::uint8_t> expected = naive_minimal_cut(c->mt, allowed);
+      std::vector<std::uint32_t> expected_nodes;
+      for (std::uint32_t n = 0; n < expected.size(); ++n)
+        if (expected[n]) expected_nodes.push_back(n);
+      ASSERT_EQ(sorted_nodes(refiner), expected_nodes) << "round " << round;
+      ASSERT_TRUE(test::validate_cut(c->reference, out.triangles)) << "round " << round;
+    }
+  }
+}
+
+// Conformity on every shared scan up to 70k triangles, uniform and per-vertex fields.
+TEST(Refine, RandomThresholdsGiveConformingCutsOnRealScans) {
+  std::mt19937 rng(11);
+  int meshes = 0;
+  for (const char* file : {"bunny-npm-3k.ply", "dragon-vrip-res4-11k.ply", "lucy-15k.ply", "armadillo-52k.ply",
+                           "bunny-zipper-69k.ply"}) {
+    const MtCase* c = test::scan_case(file);
+    if (!c) continue;
+    ++meshes;
+    const float top = max_node_error(c->mt);
+    std::uniform_real_distribution<float> exponent(-5.0f, 0.0f);
+    Refiner refiner(c->mt);
+    CutMesh out;
+    for (int round = 0; round < 8; ++round) {
+      const float e = top * std::pow(10.0f, exponent(rng));
+      if (round % 2 == 0) {
+        refiner.refine(AllowedError::everywhere(e), out);
+        EXPECT_LE(out.max_error, e);
+      } else {
+        const std::vector<float> field = focus_field(c->mesh, rng, e * 0.01f, e);
+        refiner.refine(AllowedError::from_vertices(field), out);
+      }
+      ASSERT_TRUE(test::validate_cut(c->reference, out.triangles)) << file << " round " << round << " e " << e;
+    }
+  }
+  if (meshes == 0) GTEST_SKIP() << "no shared meshes";
+}
+
+// For a uniform threshold e, every input vertex lies within e of the cut (exact point–triangle
+// distances). The 1e-5 relative slack covers float rounding of positions inside the distance.
+TEST(Refine, EveryInputVertexIsWithinTheThresholdOfTheCut) {
+  int meshes = 0;
+  for (const char* file : {"bunny-npm-3k.ply", "lucy-15k.ply", "armadillo-52k.ply", "bunny-zipper-69k.ply",
+                           "dragon-vrip-res4-11k.ply"}) {
+    const MtCase* c = test::scan_case(file);
+    if (!c) continue;
+    ++meshes;
+    const float diagonal = bbox_diagonal(c->mesh);
+    CutMesh out;
+    for (const float relative : {0.001f, 0.004f, 0.02f, 0.1f}) {
+      const float e = diagonal * relative;
+      refine_static(c->mt, AllowedError::everywhere(e), out);
+      ASSERT_LE(out.max_error, e);
+      std::vector<double> bound(c->mesh.vertex_count(), double(e) * (1 + 1e-5));
+      EXPECT_TRUE(test::every_vertex_within(c->mesh, out.triangles, bound))
+          << file << " e " << e << " (" << out.triangle_count() << " triangles)";
+    }
+  }
+  if (meshes == 0) GTEST_SKIP() << "no shared meshes";
+}
+
+TEST(Refine, BudgetIsNeverExceededAndCutsStayConforming) {
+  std::mt19937 rng(5);
+  for (const MtCase* c : {test::scan_case("bunny-npm-3k.ply"), test::scan_case("dragon-vrip-res4-11k.ply"),
+                          test::scan_case("armadillo-52k.ply"), test::shape_case(Shape::kTerrain, 3'000)}) {
+    if (!c) continue;
+    Refiner refiner(c->mt);
+    CutMesh out;
+    const std::size_t root = c->mt.root_triangle_count(), full = c->mesh.triangle_count();
+    std::size_t previous = 0;
+    std::vector<std::size_t> budgets;
+    for (int i = 0; i < 6; ++i) budgets.push_back(std::uniform_int_distribution<std::size_t>(root, full)(rng));
+    std::sort(budgets.begin(), budgets.end());
+    for (const std::size_t budget : budgets) {
+      // allowed 0 everywhere: every triangle with an error fails, ranked by error.
+      refiner.refine_budget(AllowedError::everywhere(0.0f), budget, out);
+      EXPECT_TRUE(out.within_budget);
+      ASSERT_LE(out.triangle_count(), budget);
+      EXPECT_GE(out.triangle_count(), previous) << "a larger budget gave fewer triangles";
+      previous = out.triangle_count();
+      ASSERT_TRUE(test::validate_cut(c->reference, out.triangles));
+    }
+    // Allowed -1: every triangle with a remover fails, so an ample budget ends at the input.
+    refiner.refine_budget(AllowedError::everywhere(-1.0f), full, out);
+    EXPECT_EQ(test::triangle_set(out.triangles), test::triangle_set(c->mesh.triangles));
+    refiner.refine_budget(AllowedError::everywhere(0.0f), root - 1, out);
+    EXPECT_FALSE(out.within_budget);
+    EXPECT_EQ(out.triangle_count(), root);
+  }
+}
+
+TEST(Refine, UnlimitedBudgetEqualsStaticRefinement) {
+  std::mt19937 rng(3);
+  for (const MtCase* c : {test::scan_case("bunny-npm-3k.ply"), test::shape_case(Shape::kSphere, 8'000)}) {
+    if (!c) continue;
+    const float top = max_node_error(c->mt);
+    Refiner refiner(c->mt);
+    CutMesh budgeted, fixed;
+    for (int round = 0; round < 4; ++round) {
+      const std::vector<float> field = focus_field(c->mesh, rng, top * 1e-3f, top * 0.2f);
+      const AllowedError allowed = AllowedError::from_vertices(field);
+      refiner.refine_budget(allowed, std::numeric_limits<std::size_t>::max(), budgeted);
+      refine_static(c->mt, allowed, fixed);
+      EXPECT_EQ(test::triangle_set(budgeted.triangles), test::triangle_set(fixed.triangles));
+    }
+  }
+}
+
+TEST(Refine, BudgetRefinesTheWorstRatioFirst) {
+  // Uniform allowed error: worst ratio first means largest error first. When the budget stops the
+  // refinement with max error m left in the cut, every triangle above m was refined (so the cut
+  // contains the static cut for m), and only triangles of error ≥ m were (so it lies inside the
+  // static cut for the float just below m). Any other order breaks the second inclusion.
+  for (const MtCase* c : {test::scan_case("bunny-npm-3k.ply"), test::shape_case(Shape::kSphere, 8'000)}) {
+    if (!c) continue;
+    Refiner budgeted(c->mt), fixed(c->mt);
+    CutMesh out, reference;
+    for (std::size_t budget = c->mt.root_triangle_count() + 10; budget < c->mesh.triangle_count(); budget += 397) {
+      budgeted.refine_budget(AllowedError::everywhere(0.0f), budget, out);
+      const std::vector<std::uint32_t> nodes = sorted_nodes(budgeted);
+      fixed.refine(AllowedError::everywhere(out.max_error), reference);
+      const std::vector<std::uint32_t> lower = sorted_nodes(fixed);
+      fixed.refine(AllowedError::everywhere(std::nextafter(out.max_error, 0.0f)), reference);
+      const std::vector<std::uint32_t> upper = sorted_nodes(fixed);
+      EXPECT_TRUE(std::includes(nodes.begin(), nodes.end(), lower.begin(), lower.end())) << budget;
+      EXPECT_TRUE(std::includes(upper.begin(), upper.end(), nodes.begin(), nodes.end())) << budget;
+    }
+  }
+}
+
+// Dynamic refinement after random sequences of fields equals static refinement of the last field.
+void expect_dynamic_matches_static(const MtCase* c, std::uint32_t seed, int steps) {
+  std::mt19937 rng(seed);
+  const float top = max_node_error(c->mt);
+  Refiner dynamic(c->mt), fixed(c->mt);
+  CutMesh moving, reference;
+  std::vector<float> field = focus_field(c->mesh, rng, top * 1e-3f, top * 0.3f);
+  for (int step = 0; step < steps; ++step) {
+    const int kind = std::uniform_int_distribution<int>(0, 6)(rng);
+    float uniform = -1.0f;  // < 0: use the per-vertex field
+    if (kind == 0) {
+      uniform = top * std::pow(10.0f, std::uniform_real_distribution<float>(-4, 0)(rng));
+    } else if (kind == 1) {
+      field = focus_field(c->mesh, rng, top * 1e-3f, top * 0.3f);
+    } else if (kind == 2) {
+      field = noise_field(c->mesh.vertex_count(), rng, top * 1e-3f, top * 0.3f);
+    } else if (kind == 3 || kind == 4) {
+      // A small change: a few vertices rescaled.
+      std::uniform_int_distribution<std::size_t> pick(0, field.size() - 1);
+      std::uniform_real_distribution<float> scale(0.2f, 5.0f);
+      for (int i = 0; i < 20; ++i) field[pick(rng)] *= scale(rng);
+    }  // kind 6: the same field again
+    const AllowedError allowed =
+        uniform >= 0 ? AllowedError::everywhere(uniform) : AllowedError::from_vertices(field);
+    if (kind == 5) {
+      CutMesh ignored;  // interleaved budgeted and static calls reset the kept cut
+      if (std::uniform_int_distribution<int>(0, 1)(rng)) dynamic.refine_budget(allowed, 500, ignored);
+      else dynamic.refine(allowed, ignored);
+    }
+    dynamic.update(allowed, moving);
+    fixed.refine(allowed, reference);
+    ASSERT_EQ(test::triangle_set(moving.triangles), test::triangle_set(reference.triangles)) << "step " << step;
+    ASSERT_EQ(sorted_nodes(dynamic), sorted_nodes(fixed)) << "step " << step;
+    ASSERT_EQ(moving.max_error, reference.max_error);
+    ASSERT_EQ(moving.node_count, reference.node_count);
+  }
+}
+
+TEST(Refine, DynamicEqualsStaticAfterRandomSequences) {
+  int meshes = 0;
+  for (const char* file : {"bunny-npm-3k.ply", "dragon-vrip-res4-11k.ply", "armadillo-52k.ply"}) {
+    if (const MtCase* c = test::scan_case(file)) {
+      ++meshes;
+      expect_dynamic_matches_static(c, 17, 40);
+    }
+  }
+  expect_dynamic_matches_static(test::shape_case(Shape::kTerrain, 3'000), 23, 60);
+  expect_dynamic_matches_static(test::shape_case(Shape::kSphere, 8'000), 29, 60);
+}
+
+TEST(Refine, DynamicAfterSmallMovesOfTheFocusEqualsStatic) {
+  // The expected use: a focus drifting a little between requests.
+  const MtCase* c = test::scan_case("bunny-zipper-69k.ply");
+  if (!c) GTEST_SKIP();
+  const float top = max_node_error(c->mt);
+  const float diagonal = bbox_diagonal(c->mesh);
+  Refiner dynamic(c->mt);
+  CutMesh moving, reference;
+  std::vector<float> field(c->mesh.vertex_count());
+  for (int step = 0; step < 12; ++step) {
+    const float fx = -0.05f + 0.01f * step;  // the focus walks along x through the model
+    for (std::size_t v = 0; v < field.size(); ++v) {
+      const float* p = &c->mesh.positions[3 * v];
+      const float d = std::sqrt((p[0] - fx) * (p[0] - fx) + (p[1] - 0.1f) * (p[1] - 0.1f) + p[2] * p[2]);
+      field[v] = top * (1e-3f + 0.1f * std::min(1.0f, d / (0.2f * diagonal)));
+    }
+    dynamic.update(AllowedError::from_vertices(field), moving);
+    refine_static(c->mt, AllowedError::from_vertices(field), reference);
+    ASSERT_EQ(test::triangle_set(moving.triangles), test::triangle_set(reference.triangles)) << "step " << step;
+  }
+  EXPECT_TRUE(test::validate_cut(c->reference, moving.triangles));
+}
+
+// The 871k dragon: one build, a few cuts (this test dominates the suite's time, keep it small).
+TEST(Refine, FullResolutionDragonCutsAreConformingAndDynamicMatchesStatic) {
+  const MtCase* c = test::scan_case("dragon-vrip-871k.ply");
+  if (!c) GTEST_SKIP() << "dragon-vrip-871k.ply absent";
+  CutMesh out;
+  refine_static(c->mt, AllowedError::everywhere(-1.0f), out);
+  EXPECT_EQ(test::triangle_set(out.triangles), test::triangle_set(c->mesh.triangles));
+  const float diagonal = bbox_diagonal(c->mesh);
+  Refiner dynamic(c->mt);
+  CutMesh moving;
+  std::mt19937 rng(1);
+  for (const float relative : {0.02f, 0.002f}) {
+    refine_static(c->mt, AllowedError::everywhere(diagonal * relative), out);
+    EXPECT_LE(out.max_error, diagonal * relative);
+    EXPECT_TRUE(test::validate_cut(c->reference, out.triangles)) << relative;
+    const std::vector<float> field = focus_field(c->mesh, rng, diagonal * relative * 0.1f, diagonal * relative);
+    dynamic.update(AllowedError::from_vertices(field), moving);
+    refine_static(c->mt, AllowedError::from_vertices(field), out);
+    EXPECT_EQ(test::triangle_set(moving.triangles), test::triangle_set(out.triangles));
+  }
+}
+
+}  // namespace
+}  // namespace mtlod::core
