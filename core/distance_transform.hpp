@@ -95,6 +95,16 @@ class DistanceTransformer {
   // a time. Same results; for tests and comparisons.
   void set_scalar(bool scalar) { scalar_ = scalar; }
 
+  // Constrained chamfer transform (DESIGN.md §3): distance from the seed cells along paths of mask
+  // moves whose cells are all passable (passable[c] ≠ 0, e.g. the occupancy, so a focus's distance
+  // spreads only over the object). Seed cells count as passable. Cells no such path reaches are
+  // kChamferUnreached. The two passes repeat until a round changes nothing or max_rounds rounds ran;
+  // returns the rounds run (a path that turns back against the scan order needs one more round).
+  // metric must not be kEuclidean.
+  std::size_t chamfer_constrained(DistanceMetric metric, std::span<const std::uint32_t> seed_cells,
+                                  std::span<const std::uint8_t> passable, GridSize grid,
+                                  std::span<std::uint16_t> out, std::size_t max_rounds = 256);
+
  private:
   void prepare_padded(GridSize grid);
   void run_chamfer(DistanceMetric metric, GridSize grid, std::span<std::uint16_t> out);
@@ -103,6 +113,7 @@ class DistanceTransformer {
   std::vector<std::uint16_t> padded_;    // chamfer grid with 2 cells of +inf on every side
   std::size_t stride_ = 0;               // padded row length
   bool scalar_ = false;                  // set_scalar
+  std::vector<std::uint8_t> passable_;   // chamfer_constrained: padded passable mask (padding blocked)
   std::vector<std::uint16_t> column_;    // Euclidean phase 1: distance to the nearest seed in the column
   std::vector<std::uint32_t> envelope_;  // Euclidean phase 2: s and t of the lower envelope
 };
