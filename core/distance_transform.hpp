@@ -35,21 +35,25 @@ struct ChamferStep {
 // The forward halves of the masks (Table 1's bold weights for 5-7-11): the neighbours visited before
 // a cell in a top-to-bottom, left-to-right scan. The backward halves are the same steps negated. The
 // last step of every table is the in-row neighbour (−1, 0).
+// clang-format off
 inline constexpr std::array<ChamferStep, 8> kChamfer5711Forward{{
-    {-1, -2, 11},
-    {1, -2, 11},  // knight moves two rows up
-    {-2, -1, 11},
-    {-1, -1, 7},
-    {0, -1, 5},
-    {1, -1, 7},
-    {2, -1, 11},  // the row above
-    {-1, 0, 5},   // the left neighbour
+                  {-1, -2, 11},             {1, -2, 11},                   // knights, two rows up
+    {-2, -1, 11}, {-1, -1, 7},  {0, -1, 5}, {1, -1, 7},  {2, -1, 11},      // the row above
+                  {-1,  0, 5},                                             // the left neighbour
 }};
-inline constexpr std::array<ChamferStep, 4> kChamfer34Forward{
-    {{-1, -1, 4}, {0, -1, 3}, {1, -1, 4}, {-1, 0, 3}}};
-inline constexpr std::array<ChamferStep, 2> kCityBlockForward{{{0, -1, 1}, {-1, 0, 1}}};
-inline constexpr std::array<ChamferStep, 4> kChessboardForward{
-    {{-1, -1, 1}, {0, -1, 1}, {1, -1, 1}, {-1, 0, 1}}};
+inline constexpr std::array<ChamferStep, 4> kChamfer34Forward{{
+    {-1, -1, 4}, {0, -1, 3}, {1, -1, 4},
+    {-1,  0, 3},
+}};
+inline constexpr std::array<ChamferStep, 2> kCityBlockForward{{
+                 {0, -1, 1},
+    {-1,  0, 1},
+}};
+inline constexpr std::array<ChamferStep, 4> kChessboardForward{{
+    {-1, -1, 1}, {0, -1, 1}, {1, -1, 1},
+    {-1,  0, 1},
+}};
+// clang-format on
 
 // Value of a chamfer cell that no seed reaches (an image without zero cells). Every real distance on
 // a grid of at most kMaxGridSide² cells is smaller (5-7-11: at most 4095·7 = 28665).
