@@ -472,6 +472,61 @@ void BM_RequestPipelineDragon256(benchmark::State& state) {
 }
 BENCHMARK(BM_RequestPipelineDragon256)->Unit(benchmark::kMillisecond);
 
+// Occupancy from uniform MT cuts of the dragon at 256² (arg: error bound in thousandths of the
+// bounding radius), and how far the silhouette labels of the full-resolution vertices move from those
+// of the full mesh's occupancy: share of vertices whose label changes at all, and by more than 1 px.
+void BM_OccupancyFromMtCut256(benchmark::State& state) {
+  const DragonMt& dragon = DragonMt::get();
+  if (!dragon.mt) {
+    state.SkipWithError("no dragon MT");
+    return;
+  }
+  const Mt& mt = *dragon.mt;
+  const ViewMapping mapping(dragon.camera, GridSize{256, 256});
+  const GridSize grid = mapping.grid();
+  CutMesh coarse, full;
+  refine_static(mt, AllowedError::everywhere(static_cast<float>(state.range(0)) / 1000.0f * dragon.radius),
+                coarse);
+  refine_static(mt, AllowedError::everywhere(-1.0f), full);
+  std::vector<std::uint8_t> occupancy(grid.cell_count()), reference(grid.cell_count());
+  for (auto _ : state) {
+    rasterize_occupancy(mapping, mt.positions, coarse.triangles, occupancy);
+    benchmark::DoNotOptimize(occupancy.data());
+  }
+  rasterize_occupancy(mapping, mt.positions, full.triangles, reference);
+  std::vector<std::uint16_t> dt(grid.cell_count()), dt_reference(grid.cell_count());
+  chamfer_5_7_11(occupancy, grid, dt);
+  chamfer_5_7_11(reference, grid, dt_reference);
+  std::vector<std::uint32_t> cells(mt.vertex_count());
+  std::vector<float> clip_w(mt.vertex_count());
+  map_vertices(mapping, mt.positions, cells, clip_w);
+  std::size_t labelled = 0, changed = 0, far = 0, cells_differing = 0, object = 0;
+  for (std::size_t v = 0; v < cells.size(); ++v) {
+    if (cells[v] == kNoCell) continue;
+    ++labelled;
+    const int a = dt[cells[v]], b = dt_reference[cells[v]];
+    changed += a != b;
+    far += std::abs(a - b) > 5;
+  }
+  for (std::size_t c = 0; c < occupancy.size(); ++c) {
+    cells_differing += occupancy[c] != reference[c];
+    object += reference[c] != 0;
+  }
+  state.counters["cut_triangles"] = static_cast<double>(coarse.triangle_count());
+  state.counters["cells_differing_pct"] =
+      100.0 * static_cast<double>(cells_differing) / static_cast<double>(object);
+  state.counters["labels_changed_pct"] = 100.0 * static_cast<double>(changed) / static_cast<double>(labelled);
+  state.counters["labels_off_gt1px_pct"] = 100.0 * static_cast<double>(far) / static_cast<double>(labelled);
+  state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * coarse.triangle_count()));
+}
+BENCHMARK(BM_OccupancyFromMtCut256)
+    ->Arg(50)
+    ->Arg(100)
+    ->Arg(200)
+    ->Arg(300)
+    ->Arg(500)
+    ->Unit(benchmark::kMillisecond);
+
 // The refinement alone, with the allowed errors of the pipeline above (for the breakdown).
 void BM_RefineOnlyDragon256(benchmark::State& state) {
   const DragonMt& dragon = DragonMt::get();
