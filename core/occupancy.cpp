@@ -110,7 +110,12 @@ class Rasterizer {
       const auto first = static_cast<std::uint32_t>(std::max(0.0, floor_clamped(xmin)));
       const auto last = static_cast<std::uint32_t>(std::min<double>(grid_.width - 1, floor_clamped(xmax)));
       std::uint8_t* row = occupancy_.data() + std::size_t{j} * grid_.width;
-      std::fill(row + first, row + last + 1, std::uint8_t{1});
+      // Spans are mostly a few cells: a plain loop beats a call to memset.
+      if (last - first < 16) {
+        for (std::uint32_t i = first; i <= last; ++i) row[i] = 1;
+      } else {
+        std::fill(row + first, row + last + 1, std::uint8_t{1});
+      }
       if (with_depth) {
         float* depth_row = depth_.data() + std::size_t{j} * grid_.width;
         for (std::uint32_t i = first; i <= last; ++i) {
