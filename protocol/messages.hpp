@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <variant>
 #include <vector>
 
@@ -17,7 +18,7 @@ inline constexpr int kProtocolVersion = 1;
 struct Limits {
   std::uint32_t max_frame_bytes = 1u << 20;     // JSON + payload of one client frame
   std::uint32_t max_connections = 256;
-  std::uint32_t max_in_flight = 8;              // requests queued or running per connection
+  std::uint32_t max_in_flight = 8;              // extractions queued or running per connection
   std::uint32_t max_grid = 4096;                // grid width and height
   std::uint32_t max_budget = 5'000'000;         // triangles per extraction
   std::uint32_t max_foci = 16;                  // focus points plus neglect regions
@@ -27,11 +28,31 @@ struct Limits {
 
 using Matrix4 = std::array<double, 16>;  // column-major, as OpenGL and GLM store them
 
+// Enumerations and their names on the wire, in enumerator order.
 enum class ErrorUnit : std::uint8_t { kModel, kPixels };
+inline constexpr std::array<const char*, 2> kErrorUnitNames{"model", "pixels"};
 enum class Falloff : std::uint8_t { kStep, kLinear, kSmoothstep, kFoveal };
+inline constexpr std::array<const char*, 4> kFalloffNames{"step", "linear", "smoothstep", "foveal"};
 enum class DistanceKind : std::uint8_t { kChamfer5711, kChamfer34, kCityBlock, kChessboard, kEuclidean };
+inline constexpr std::array<const char*, 5> kDistanceKindNames{"chamfer-5-7-11", "chamfer-3-4", "city-block",
+                                                                "chessboard", "euclidean"};
 enum class DistanceUnit : std::uint8_t { kPixels, kChamfer };
+inline constexpr std::array<const char*, 2> kDistanceUnitNames{"pixels", "chamfer"};
 enum class DracoMethod : std::uint8_t { kEdgebreaker, kSequential };
+inline constexpr std::array<const char*, 2> kDracoMethodNames{"edgebreaker", "sequential"};
+
+// The enumerator named `name` in `names`, or nullopt.
+template <class Enum, std::size_t N>
+std::optional<Enum> enum_from_name(const std::array<const char*, N>& names, std::string_view name) {
+  for (std::size_t i = 0; i < N; ++i) {
+    if (name == names[i]) return static_cast<Enum>(i);
+  }
+  return std::nullopt;
+}
+template <class Enum, std::size_t N>
+const char* enum_name(const std::array<const char*, N>& names, Enum value) {
+  return names[static_cast<std::size_t>(value)];
+}
 
 // A point of interest in normalised viewport coordinates (0,0 top left, 1,1 bottom right).
 struct Focus {

@@ -229,10 +229,9 @@ Criteria read_criteria(const json& v, const Limits& limits) {
     fail(ErrorKind::kLimitExceeded, fmt::format("{} focus and neglect points exceed the server limit {}",
                                                 c.focus.size() + c.neglect.size(), limits.max_foci));
   }
-  c.falloff = static_cast<Falloff>(r.choice("falloff", std::array{"step", "linear", "smoothstep", "foveal"}, 0));
-  c.distance = static_cast<DistanceKind>(
-      r.choice("distance", std::array{"chamfer-5-7-11", "chamfer-3-4", "city-block", "chessboard", "euclidean"}, 0));
-  c.units = static_cast<DistanceUnit>(r.choice("units", std::array{"pixels", "chamfer"}, 0));
+  c.falloff = static_cast<Falloff>(r.choice("falloff", kFalloffNames, 0));
+  c.distance = static_cast<DistanceKind>(r.choice("distance", kDistanceKindNames, 0));
+  c.units = static_cast<DistanceUnit>(r.choice("units", kDistanceUnitNames, 0));
   c.internal_silhouettes = r.boolean("internal_silhouettes", false);
   c.frustum_factor = r.number("frustum_factor", c.frustum_factor, 1, 1e6);
   c.backface_factor = r.number("backface_factor", c.backface_factor, 1, 1e6);
@@ -257,7 +256,7 @@ Extract read_extract(ObjectReader& r, const Limits& limits) {
   } else {
     ObjectReader er(error, "error");
     e.error = er.required_number("value", 0, 1e12);
-    e.error_unit = static_cast<ErrorUnit>(er.choice("unit", std::array{"model", "pixels"}, 0));
+    e.error_unit = static_cast<ErrorUnit>(er.choice("unit", kErrorUnitNames, 0));
     er.finish();
   }
   if (const json* c = r.find("criteria")) e.criteria = read_criteria(*c, limits);
@@ -276,7 +275,7 @@ Extract read_extract(ObjectReader& r, const Limits& limits) {
   }
   if (const json* d = r.find("draco")) {
     ObjectReader dr(*d, "draco");
-    e.draco.method = static_cast<DracoMethod>(dr.choice("method", std::array{"edgebreaker", "sequential"}, 0));
+    e.draco.method = static_cast<DracoMethod>(dr.choice("method", kDracoMethodNames, 0));
     e.draco.speed = static_cast<int>(dr.integer("speed", e.draco.speed, 0, 10));
     e.draco.position_bits = static_cast<int>(dr.integer("position_bits", e.draco.position_bits, 1, 30));
     e.draco.normal_bits = static_cast<int>(dr.integer("normal_bits", e.draco.normal_bits, 1, 30));
@@ -383,29 +382,27 @@ json foci_json(const std::vector<Focus>& foci) {
 }
 
 json extract_json(const Extract& e) {
-  static constexpr const char* kFalloff[] = {"step", "linear", "smoothstep", "foveal"};
-  static constexpr const char* kDistance[] = {"chamfer-5-7-11", "chamfer-3-4", "city-block", "chessboard", "euclidean"};
   json j;
   j["model"] = e.model;
   j["camera"] = {{"view", e.view}, {"projection", e.projection}, {"viewport", e.viewport}};
   j["grid"] = e.grid;
-  j["error"] = {{"value", e.error}, {"unit", e.error_unit == ErrorUnit::kModel ? "model" : "pixels"}};
+  j["error"] = {{"value", e.error}, {"unit", enum_name(kErrorUnitNames, e.error_unit)}};
   json c;
   if (e.criteria.silhouette) {
     c["silhouette"] = {{"distance", e.criteria.silhouette->distance}, {"factor", e.criteria.silhouette->factor}};
   }
   if (!e.criteria.focus.empty()) c["focus"] = foci_json(e.criteria.focus);
   if (!e.criteria.neglect.empty()) c["neglect"] = foci_json(e.criteria.neglect);
-  c["falloff"] = kFalloff[static_cast<int>(e.criteria.falloff)];
-  c["distance"] = kDistance[static_cast<int>(e.criteria.distance)];
-  c["units"] = e.criteria.units == DistanceUnit::kPixels ? "pixels" : "chamfer";
+  c["falloff"] = enum_name(kFalloffNames, e.criteria.falloff);
+  c["distance"] = enum_name(kDistanceKindNames, e.criteria.distance);
+  c["units"] = enum_name(kDistanceUnitNames, e.criteria.units);
   c["internal_silhouettes"] = e.criteria.internal_silhouettes;
   c["frustum_factor"] = e.criteria.frustum_factor;
   c["backface_factor"] = e.criteria.backface_factor;
   j["criteria"] = c;
   if (e.budget) j["budget"] = *e.budget;
   j["attributes"] = {{"normals", e.normals}, {"labels", e.labels}};
-  j["draco"] = {{"method", e.draco.method == DracoMethod::kEdgebreaker ? "edgebreaker" : "sequential"},
+  j["draco"] = {{"method", enum_name(kDracoMethodNames, e.draco.method)},
                 {"speed", e.draco.speed},
                 {"position_bits", e.draco.position_bits},
                 {"normal_bits", e.draco.normal_bits}};

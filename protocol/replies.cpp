@@ -100,7 +100,7 @@ std::string to_json(const Reply& reply, std::optional<std::uint64_t> id) {
         } else if constexpr (std::is_same_v<T, MeshReply>) {
           json m = {{"model", r.model},           {"triangles", r.triangles},
                     {"vertices", r.vertices},     {"max_error", r.max_error},
-                    {"bytes", r.bytes},           {"budget_reached", r.budget_reached},
+                    {"bytes", r.bytes},
                     {"superseded", r.superseded}, {"timings_us", timings_json(r.timings)}};
           if (r.focus) m["focus"] = *r.focus;
           return m;
@@ -151,7 +151,6 @@ Result<ParsedReply> parse_reply(std::string_view text) {
       r.vertices = j.value("vertices", std::uint64_t{0});
       r.max_error = j.value("max_error", 0.0);
       r.bytes = j.value("bytes", std::uint64_t{0});
-      r.budget_reached = j.value("budget_reached", false);
       r.superseded = j.value("superseded", std::uint64_t{0});
       if (j.contains("focus")) r.focus = j["focus"].get<std::array<double, 2>>();
       r.timings = timings_from(j.value("timings_us", json::object()));

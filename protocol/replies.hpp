@@ -66,7 +66,6 @@ struct MeshReply {
   std::uint64_t vertices = 0;
   double max_error = 0;           // largest error of a triangle in the cut, model units
   std::uint64_t bytes = 0;        // payload size
-  bool budget_reached = false;    // refinement stopped at the triangle budget
   std::optional<std::array<double, 2>> focus;  // the focus this mesh reflects (gaze replies)
   std::uint64_t superseded = 0;   // gaze updates replaced by this one before they ran
   StageTimings timings;

@@ -1,11 +1,21 @@
 #!/usr/bin/env bash
 # The main job: installs what is missing, builds mtlod (Release), prepares the built-in models and
-# prints their statistics.
+# serves them: the Stanford bunny and the 871k-triangle Stanford dragon. Their Multi-Tessellations
+# are built into build/models on the first run and reused afterwards. Extra arguments go to
+# mtlod-server (e.g. --port 9000).
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 "$root/scripts/bootstrap.sh"
 "$root/scripts/build.sh" release -DCMAKE_BUILD_TYPE=Release
 "$root/scripts/prepare-models.sh"
-bin="$root/build/release/core"
-"$bin/mtlod-mesh" "$root/build/models/bunny.ply"
-"$bin/mtlod-mesh" "$root/build/models/dragon-871k.ply"
+bin="$root/build/release"
+models="$root/build/models"
+meshes=(--mesh "$models/bunny.ply")
+[ -s "$models/dragon-871k.ply" ] && meshes+=(--mesh "$models/dragon-871k.ply")
+cat <<MSG
+mtlod-server is starting on 127.0.0.1 (port 7878 unless you passed --port). Query it with:
+  $bin/clients/client/mtlod-client list
+  $bin/clients/client/mtlod-client extract bunny --error-px 1 --silhouette 2,0 -o bunny.ply
+Stop it with Ctrl-C (it finishes in-flight requests first).
+MSG
+exec "$bin/server/mtlod-server" "${meshes[@]}" --cache-dir "$models" "$@"

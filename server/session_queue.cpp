@@ -26,7 +26,7 @@ std::optional<std::vector<std::uint8_t>> ReplyOrder::pop() {
 }
 
 std::optional<Job> JobQueue::push(Job job) {
-  if (job.gaze && !queue_.empty() && queue_.back().gaze) {
+  if (job.gaze && last_is_gaze()) {
     // Latest wins: the waiting gaze is replaced, never queued behind.
     Job replaced = std::move(queue_.back());
     job.superseded = replaced.superseded + 1;

@@ -53,6 +53,8 @@ class JobQueue {
   void finish() { running_ = false; }
   bool running() const { return running_; }
   std::size_t queued() const { return queue_.size(); }
+  // True when a push of a gaze would replace the last queued job.
+  bool last_is_gaze() const { return !queue_.empty() && queue_.back().gaze; }
   // Drops every queued job (shutdown), returning them to be answered.
   std::vector<Job> drain();
 

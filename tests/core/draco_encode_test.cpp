@@ -2,7 +2,6 @@
 // cut that was encoded: same triangles over the same vertices, positions within quantization.
 #include "core/draco_encode.hpp"
 
-#include <draco/compression/decode.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -12,8 +11,10 @@
 #include <fstream>
 #include <unordered_map>
 
+#include "core/draco_decode.hpp"
 #include "core/io/mesh_io.hpp"
 #include "core/mesh_gen.hpp"
+#include "tests/core/mesh_compare.hpp"
 #include "tests/core/test_meshes.hpp"
 
 namespace mtlod::core {
@@ -32,66 +33,6 @@ Mesh sphere(std::size_t triangles) {
   return m;
 }
 
-std::unique_ptr<draco::Mesh> decode(const std::vector<std::uint8_t>& bytes) {
-  draco::DecoderBuffer buffer;
-  buffer.Init(reinterpret_cast<const char*>(bytes.data()), bytes.size());
-  draco::Decoder decoder;
-  auto decoded = decoder.DecodeMeshFromBuffer(&buffer);
-  EXPECT_TRUE(decoded.ok()) << decoded.status().error_msg_string();
-  return decoded.ok() ? std::move(decoded).value() : nullptr;
-}
-
-// Maps each decoded point to the model vertex nearest to it (a hashed grid of cell `cell`), and
-// checks the distance is within `tolerance`.
-std::vector<std::uint32_t> match_points(const draco::Mesh& decoded, const Mesh& model,
-                                        std::span<const std::uint32_t> candidates, float cell, float tolerance) {
-  auto key = [cell](const float* p) {
-    std::array<long, 3> k;
-    for (int c = 0; c < 3; ++c) k[c] = std::lround(std::floor(p[c] / cell));
-    return k;
-  };
-  struct KeyHash {
-    std::size_t operator()(const std::array<long, 3>& k) const { return k[0] * 73856093 ^ k[1] * 19349663 ^ k[2] * 83492791; }
-  };
-  std::unordered_map<std::array<long, 3>, std::vector<std::uint32_t>, KeyHash> grid;
-  for (std::uint32_t v : candidates) grid[key(&model.positions[3 * v])].push_back(v);
-  const draco::PointAttribute* pos = decoded.GetNamedAttribute(draco::GeometryAttribute::POSITION);
-  std::vector<std::uint32_t> match(decoded.num_points(), UINT32_MAX);
-  for (draco::PointIndex i(0); i < decoded.num_points(); ++i) {
-    float p[3];
-    pos->GetMappedValue(i, p);
-    const auto k = key(p);
-    float best = INFINITY;
-    for (long dx = -1; dx <= 1; ++dx)
-      for (long dy = -1; dy <= 1; ++dy)
-        for (long dz = -1; dz <= 1; ++dz) {
-          auto it = grid.find({k[0] + dx, k[1] + dy, k[2] + dz});
-          if (it == grid.end()) continue;
-          for (std::uint32_t v : it->second) {
-            const float* q = &model.positions[3 * v];
-            const float d = std::max({std::abs(p[0] - q[0]), std::abs(p[1] - q[1]), std::abs(p[2] - q[2])});
-            if (d < best) best = d, match[i.value()] = v;
-          }
-        }
-    EXPECT_LE(best, tolerance) << "decoded point " << i.value() << " is far from every model vertex";
-  }
-  return match;
-}
-
-// Triangles as vertex-id triples rotated to start at their smallest id (orientation kept), sorted.
-std::vector<std::array<std::uint32_t, 3>> canonical(std::vector<std::array<std::uint32_t, 3>> tris) {
-  for (auto& t : tris) std::rotate(t.begin(), std::min_element(t.begin(), t.end()), t.end());
-  std::sort(tris.begin(), tris.end());
-  return tris;
-}
-
-float max_extent(const Mesh& m) {
-  float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-  for (std::size_t v = 0; v < m.vertex_count(); ++v)
-    for (int c = 0; c < 3; ++c) lo[c] = std::min(lo[c], m.positions[3 * v + c]), hi[c] = std::max(hi[c], m.positions[3 * v + c]);
-  return std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]});
-}
-
 // Encodes `cut` (triangles of `model`), decodes, and checks the triangle set is unchanged.
 void expect_round_trip(const Mesh& model, const std::vector<std::uint32_t>& cut, const DracoOptions& options) {
   DracoEncoder encoder;
@@ -101,20 +42,12 @@ void expect_round_trip(const Mesh& model, const std::vector<std::uint32_t>& cut,
   ASSERT_TRUE(stats.ok()) << stats.error().message;
   EXPECT_EQ(stats->bytes, bytes.size());
   EXPECT_EQ(stats->triangles, cut.size() / 3);
-  auto decoded = decode(bytes);
-  ASSERT_NE(decoded, nullptr);
-  ASSERT_EQ(decoded->num_faces(), cut.size() / 3);
-  // Draco quantizes over the largest extent: one step is extent / (2^bits - 1); a value moves by
-  // at most half a step (plus float rounding, hence the factor 0.75 rather than 0.5).
-  const float step = max_extent(model) / static_cast<float>((1 << options.position_bits) - 1);
-  const auto match = match_points(*decoded, model, cut, 4 * step, 0.75f * step);
-  std::vector<std::array<std::uint32_t, 3>> got, want;
-  for (draco::FaceIndex f(0); f < decoded->num_faces(); ++f) {
-    const auto& face = decoded->face(f);
-    got.push_back({match[face[0].value()], match[face[1].value()], match[face[2].value()]});
-  }
-  for (std::size_t t = 0; t < cut.size() / 3; ++t) want.push_back({cut[3 * t], cut[3 * t + 1], cut[3 * t + 2]});
-  EXPECT_EQ(canonical(got), canonical(want));
+  auto decoded = decode_draco(bytes);
+  ASSERT_TRUE(decoded.ok()) << decoded.error().message;
+  ASSERT_EQ(decoded->mesh.triangle_count(), cut.size() / 3);
+  const float tolerance = test::draco_tolerance(test::used_extent(model.positions, cut), options.position_bits);
+  const auto match = test::match_vertices(decoded->mesh.positions, model.positions, cut, 4 * tolerance, tolerance);
+  EXPECT_EQ(test::canonical_triangles(decoded->mesh.triangles, &match), test::canonical_triangles(cut));
 }
 
 TEST(DracoEncoder, DecodesToTheSameTrianglesForEveryMethodAndSpeed) {
@@ -167,23 +100,18 @@ TEST(DracoEncoder, NormalsAndLabelsSurviveTheRoundTrip) {
   options.method = DracoMethod::kSequential;
   std::vector<std::uint8_t> bytes;
   ASSERT_TRUE(DracoEncoder().encode({m.positions, m.normals, labels, m.triangles}, options, bytes).ok());
-  auto decoded = decode(bytes);
-  ASSERT_NE(decoded, nullptr);
-  const float step = max_extent(m) / ((1 << options.position_bits) - 1);
-  const auto match = match_points(*decoded, m, m.triangles, 4 * step, 0.75f * step);
-  const draco::PointAttribute* normal = decoded->GetNamedAttribute(draco::GeometryAttribute::NORMAL);
-  const draco::PointAttribute* label = decoded->GetNamedAttribute(draco::GeometryAttribute::GENERIC);
-  ASSERT_NE(normal, nullptr);
-  ASSERT_NE(label, nullptr);
-  for (draco::PointIndex i(0); i < decoded->num_points(); ++i) {
-    const std::uint32_t v = match[i.value()];
-    float n[3];
-    normal->GetMappedValue(i, n);
+  auto decoded = decode_draco(bytes);
+  ASSERT_TRUE(decoded.ok()) << decoded.error().message;
+  const float tolerance = test::draco_tolerance(test::used_extent(m.positions, m.triangles), options.position_bits);
+  const auto match = test::match_vertices(decoded->mesh.positions, m.positions, m.triangles, 4 * tolerance, tolerance);
+  ASSERT_EQ(decoded->mesh.normals.size(), decoded->mesh.positions.size());
+  ASSERT_EQ(decoded->labels.size(), decoded->mesh.vertex_count());
+  for (std::size_t i = 0; i < match.size(); ++i) {
+    const std::uint32_t v = match[i];
+    const float* n = &decoded->mesh.normals[3 * i];
     // 10-bit octahedral quantization keeps directions within about 0.1 degree: cos > 0.9999.
     EXPECT_GT(n[0] * m.normals[3 * v] + n[1] * m.normals[3 * v + 1] + n[2] * m.normals[3 * v + 2], 0.9999f);
-    std::uint16_t l = 0;
-    label->GetMappedValue(i, &l);
-    EXPECT_EQ(l, std::min<std::uint32_t>(labels[v], 65535));  // labels over 65535 saturate
+    EXPECT_EQ(decoded->labels[i], std::min<std::uint32_t>(labels[v], 65535));  // labels over 65535 saturate
   }
 }
 

@@ -1,0 +1,50 @@
+// A blocking connection to mtlod-server for command-line clients and tests: connect, send a
+// request, read the reply frame (JSON header + payload). One request at a time or pipelined.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "core/result.hpp"
+#include "protocol/messages.hpp"
+#include "protocol/replies.hpp"
+
+namespace mtlod::clients {
+
+struct ReplyFrame {
+  protocol::ParsedReply header;
+  std::string json;                   // the reply's JSON text as received
+  std::vector<std::uint8_t> payload;  // Draco bytes for mesh replies
+};
+
+class Connection {
+ public:
+  Connection();
+  ~Connection();
+  Connection(Connection&&) noexcept;
+  Connection& operator=(Connection&&) noexcept;
+
+  // Connects within `timeout`. Errors name the address.
+  static Result<Connection> open(const std::string& host, std::uint16_t port,
+                                 std::chrono::milliseconds timeout = std::chrono::seconds(5));
+
+  // Sends one request frame. `id` is the request id.
+  Status send(const protocol::Request& request, std::uint64_t id);
+  // Sends raw bytes (tests send malformed frames this way).
+  Status send_raw(const std::vector<std::uint8_t>& bytes);
+  // Reads the next reply frame; fails on a closed connection, a timeout or a broken frame.
+  Result<ReplyFrame> receive(std::chrono::milliseconds timeout = std::chrono::seconds(30));
+  // Sends and waits for the reply with that id (replies come in request order).
+  Result<ReplyFrame> call(const protocol::Request& request, std::uint64_t id,
+                          std::chrono::milliseconds timeout = std::chrono::seconds(30));
+  void close();
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace mtlod::clients

@@ -1,0 +1,38 @@
+// Precomputed coarse cuts of a Multi-Tessellation for the occupancy stage (DESIGN.md §1.2; issue:
+// "not from the full-resolution mesh per request: use a cut whose triangles are about a cell in
+// size"). A few cuts of growing size are built once per model; a request rasterises the coarsest
+// one with about a triangle per two covered grid cells, so the occupancy costs a rasterisation,
+// not a refinement. Measured on the dragon at 256² (README, "grid stages"): a 16k-triangle cut moves
+// no silhouette label by more than a pixel against the full 871k mesh.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "core/mt.hpp"
+
+namespace mtlod::core {
+
+struct OccupancyLevel {
+  float max_error = 0;                   // largest triangle error of the cut, model units
+  std::vector<std::uint32_t> triangles;  // 3 vertex ids per triangle
+};
+
+class OccupancyLevels {
+ public:
+  // Cuts with at most 2k, 8k, 32k, 128k and 512k triangles (worst error first), stopping early at
+  // the full-resolution mesh.
+  explicit OccupancyLevels(const Mt& mt);
+
+  // The coarsest level with at least covered_cells / 2 triangles (the finest when none has as many).
+  const OccupancyLevel& for_covered_cells(double covered_cells) const;
+  std::span<const OccupancyLevel> levels() const { return levels_; }
+  std::size_t memory_bytes() const;
+
+ private:
+  std::vector<OccupancyLevel> levels_;  // coarse to fine
+};
+
+}  // namespace mtlod::core

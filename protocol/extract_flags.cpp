@@ -1,0 +1,142 @@
+// Extraction flags (see extract_flags.hpp). The request is validated by round-tripping through
+// parse_request, so a bad flag gets exactly the message a bad request would.
+#include "protocol/extract_flags.hpp"
+
+#include <sstream>
+
+#include "CLI/CLI.hpp"
+#include "fmt/format.h"
+#include "protocol/camera.hpp"
+#include "protocol/parse.hpp"
+
+namespace mtlod::protocol {
+namespace {
+
+// "a,b,c" → numbers; false when the count or a number is wrong.
+bool parse_numbers(const std::string& text, std::size_t count, std::vector<double>& out) {
+  out.clear();
+  std::stringstream in(text);
+  std::string part;
+  while (std::getline(in, part, ',')) {
+    try {
+      std::size_t used = 0;
+      out.push_back(std::stod(part, &used));
+      if (used != part.size()) return false;
+    } catch (const std::exception&) {
+      return false;
+    }
+  }
+  return out.size() == count;
+}
+
+Result<std::array<std::uint32_t, 2>> parse_size(const std::string& text, const char* flag) {
+  const auto x = text.find('x');
+  try {
+    const unsigned long w = std::stoul(text.substr(0, x));
+    const unsigned long h = x == std::string::npos ? w : std::stoul(text.substr(x + 1));
+    return std::array<std::uint32_t, 2>{static_cast<std::uint32_t>(w), static_cast<std::uint32_t>(h)};
+  } catch (const std::exception&) {
+    return make_error(ErrorCode::kInvalidArgument, fmt::format("{} '{}': expected W or WxH", flag, text));
+  }
+}
+
+Result<std::array<double, 3>> parse_vec3(const std::string& text, const char* flag) {
+  std::vector<double> v;
+  if (!parse_numbers(text, 3, v)) return make_error(ErrorCode::kInvalidArgument, fmt::format("{} '{}': expected X,Y,Z", flag, text));
+  return std::array<double, 3>{v[0], v[1], v[2]};
+}
+
+}  // namespace
+
+void add_extract_flags(CLI::App& app, ExtractFlags& f) {
+  app.add_option("--eye", f.eye, "camera position X,Y,Z (default: frame the model from its front)");
+  app.add_option("--target", f.target, "point looked at X,Y,Z (default: the model's centre)");
+  app.add_option("--up", f.up, "up direction X,Y,Z")->capture_default_str();
+  app.add_option("--fov", f.fov_deg, "vertical field of view in degrees")->capture_default_str();
+  app.add_option("--grid", f.grid, "distance-transform grid W or WxH")->capture_default_str();
+  app.add_option("--viewport", f.viewport, "screen size WxH in pixels")->capture_default_str();
+  app.add_option("--error", f.error, "error bound e in model units");
+  app.add_option("--error-px", f.error_px, "error bound e in screen pixels (converted per vertex by depth)");
+  app.add_option("--silhouette", f.silhouette, "D,F: allowed error e·F within D pixels of the silhouette");
+  app.add_option("--focus", f.focus, "X,Y,D,F: focus at normalised X,Y (0..1), e·F within D pixels; repeatable")
+      ->take_all();
+  app.add_option("--neglect", f.neglect, "X,Y,D,F: region of neglect, e·F (F ≥ 1) within D pixels; repeatable")
+      ->take_all();
+  app.add_option("--budget", f.budget, "at most this many triangles (worst first)");
+  app.add_option("--falloff", f.falloff, "step, linear, smoothstep or foveal")->capture_default_str();
+  app.add_option("--distance", f.distance, "chamfer-5-7-11, chamfer-3-4, city-block, chessboard or euclidean")
+      ->capture_default_str();
+  app.add_option("--units", f.units, "distances D in pixels or raw chamfer units")->capture_default_str();
+  app.add_flag("--internal-silhouettes", f.internal_silhouettes, "depth jumps seed the silhouette distance too");
+  app.add_option("--frustum-factor", f.frustum_factor, "error multiplier outside the view")->capture_default_str();
+  app.add_option("--backface-factor", f.backface_factor, "error multiplier for back faces")->capture_default_str();
+  app.add_option("--draco", f.draco_method, "Draco method: edgebreaker or sequential")->capture_default_str();
+  app.add_option("--draco-speed", f.draco_speed, "Draco speed 0 (smallest) .. 10 (fastest)")->capture_default_str();
+  app.add_option("--position-bits", f.position_bits, "Draco position quantization bits")->capture_default_str();
+  app.add_flag("--normals", f.normals, "send vertex normals");
+  app.add_flag("--labels", f.labels, "send per-vertex distance labels");
+}
+
+Result<Extract> make_extract(const ExtractFlags& f, const std::string& model, const std::array<double, 3>& bounds_min,
+                             const std::array<double, 3>& bounds_max) {
+  Extract e;
+  e.model = model;
+  MTLOD_TRY(e.viewport, parse_size(f.viewport, "--viewport"));
+  MTLOD_TRY(e.grid, parse_size(f.grid, "--grid"));
+  LookAt camera = frame_bounds(bounds_min, bounds_max, f.fov_deg);
+  if (!f.eye.empty()) {
+    MTLOD_TRY(camera.eye, parse_vec3(f.eye, "--eye"));
+  }
+  if (!f.target.empty()) {
+    MTLOD_TRY(camera.target, parse_vec3(f.target, "--target"));
+  }
+  MTLOD_TRY(camera.up, parse_vec3(f.up, "--up"));
+  camera.fov_deg = f.fov_deg;
+  look_at_camera(camera, static_cast<double>(e.viewport[0]) / std::max<std::uint32_t>(1, e.viewport[1]), e.view, e.projection);
+  if (f.error.has_value() == f.error_px.has_value()) {
+    return make_error(ErrorCode::kInvalidArgument, "give exactly one of --error (model units) and --error-px (pixels)");
+  }
+  e.error = f.error ? *f.error : *f.error_px;
+  e.error_unit = f.error ? ErrorUnit::kModel : ErrorUnit::kPixels;
+  std::vector<double> v;
+  if (!f.silhouette.empty()) {
+    if (!parse_numbers(f.silhouette, 2, v)) return make_error(ErrorCode::kInvalidArgument, fmt::format("--silhouette '{}': expected D,F", f.silhouette));
+    e.criteria.silhouette = Silhouette{v[0], v[1]};
+  }
+  for (const auto& [list, flag, out] : {std::tuple{&f.focus, "--focus", &e.criteria.focus},
+                                        std::tuple{&f.neglect, "--neglect", &e.criteria.neglect}}) {
+    for (const std::string& text : *list) {
+      if (!parse_numbers(text, 4, v)) return make_error(ErrorCode::kInvalidArgument, fmt::format("{} '{}': expected X,Y,D,F", flag, text));
+      out->push_back(Focus{v[0], v[1], v[2], v[3]});
+    }
+  }
+  e.budget = f.budget;
+  e.normals = f.normals;
+  e.labels = f.labels;
+  e.draco.speed = f.draco_speed;
+  e.draco.position_bits = f.position_bits;
+  e.criteria.internal_silhouettes = f.internal_silhouettes;
+  e.criteria.frustum_factor = f.frustum_factor;
+  e.criteria.backface_factor = f.backface_factor;
+  auto named = [](auto& out, const auto& names, const std::string& value, const char* flag) -> Status {
+    using Enum = std::decay_t<decltype(out)>;
+    const auto found = enum_from_name<Enum>(names, value);
+    if (!found) {
+      std::string options;
+      for (const char* n : names) options += fmt::format("{}{}", options.empty() ? "" : ", ", n);
+      return make_error(ErrorCode::kInvalidArgument, fmt::format("{} '{}': expected one of {}", flag, value, options));
+    }
+    out = *found;
+    return Ok{};
+  };
+  MTLOD_RETURN_IF_ERROR(named(e.criteria.falloff, kFalloffNames, f.falloff, "--falloff"));
+  MTLOD_RETURN_IF_ERROR(named(e.criteria.distance, kDistanceKindNames, f.distance, "--distance"));
+  MTLOD_RETURN_IF_ERROR(named(e.criteria.units, kDistanceUnitNames, f.units, "--units"));
+  MTLOD_RETURN_IF_ERROR(named(e.draco.method, kDracoMethodNames, f.draco_method, "--draco"));
+  // The same checks the server applies (ranges, singular matrices), with the same messages.
+  ParsedRequest parsed = parse_request(to_json(e, 0), Limits{});
+  if (!parsed.ok()) return make_error(ErrorCode::kInvalidArgument, parsed.error.message);
+  return std::get<Extract>(std::move(*parsed.request));
+}
+
+}  // namespace mtlod::protocol

@@ -1,0 +1,46 @@
+// The command-line flags of an extraction, shared by mtlod-extract (local) and mtlod-client
+// (remote) so that both mean the same thing: camera, grid, error bound, criteria, budget, Draco.
+#pragma once
+
+#include <array>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/result.hpp"
+#include "protocol/messages.hpp"
+
+namespace CLI {
+class App;
+}
+
+namespace mtlod::protocol {
+
+struct ExtractFlags {
+  std::string eye, target, up = "0,1,0";  // "X,Y,Z"; without --eye the model is framed from the front
+  double fov_deg = 45;
+  std::string grid = "256";        // "W" or "WxH"
+  std::string viewport = "800x600";
+  std::optional<double> error;     // model units
+  std::optional<double> error_px;  // screen pixels
+  std::string silhouette;          // "D,F"
+  std::vector<std::string> focus;  // "X,Y,D,F", repeatable
+  std::vector<std::string> neglect;
+  std::optional<std::uint32_t> budget;
+  std::string falloff = "step", distance = "chamfer-5-7-11", units = "pixels";
+  bool internal_silhouettes = false;
+  double frustum_factor = 8, backface_factor = 1;
+  std::string draco_method = "edgebreaker";
+  int draco_speed = 7, position_bits = 14;
+  bool normals = false, labels = false;
+};
+
+// Registers the flags on `app`, writing into `flags`.
+void add_extract_flags(CLI::App& app, ExtractFlags& flags);
+
+// Builds the request for `model` whose bounding box is given (for the default camera). The result
+// is checked by the same parser the server uses; errors name the flag.
+Result<Extract> make_extract(const ExtractFlags& flags, const std::string& model, const std::array<double, 3>& bounds_min,
+                             const std::array<double, 3>& bounds_max);
+
+}  // namespace mtlod::protocol

@@ -1,0 +1,253 @@
+// A connection's request logic (see connection.hpp). Everything runs on the connection's strand;
+// extractions run on the worker pool and post their result back to it.
+#include "server/connection.hpp"
+
+#include <boost/asio/dispatch.hpp>
+#include <boost/asio/post.hpp>
+
+#include <chrono>
+
+#include "fmt/format.h"
+#include "protocol/frame.hpp"
+#include "protocol/parse.hpp"
+#include "protocol/replies.hpp"
+#include "spdlog/spdlog.h"
+
+namespace mtlod::server {
+namespace net = boost::asio;
+
+namespace {
+
+std::int64_t now_ns() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+std::vector<std::uint8_t> make_frame(const protocol::Reply& reply, std::optional<std::uint64_t> id,
+                                     std::span<const std::uint8_t> payload = {}) {
+  std::vector<std::uint8_t> frame;
+  const std::string json = protocol::to_json(reply, id);
+  frame.reserve(protocol::kFrameHeaderBytes + json.size() + payload.size());
+  protocol::append_frame(json, payload, frame);
+  return frame;
+}
+
+std::vector<std::uint8_t> error_frame(protocol::ErrorKind code, std::string message, std::optional<std::uint64_t> id) {
+  return make_frame(protocol::ErrorReply{code, std::move(message)}, id);
+}
+
+}  // namespace
+
+Connection::Connection(ServerContext& server, net::any_io_executor strand, std::uint64_t number)
+    : server_(server), strand_(std::move(strand)), number_(number) {}
+
+void Connection::opened() { server_.metrics.connection_opened(); }
+
+void Connection::shutdown() {
+  net::dispatch(strand_, [self = shared_from_this()] {
+    if (self->stopping_) return;
+    self->stopping_ = true;
+    self->drain_jobs(protocol::ErrorKind::kShuttingDown, "the server is shutting down");
+    self->stop_reading();
+    self->flush();
+  });
+}
+
+void Connection::force_close() {
+  net::dispatch(strand_, [self = shared_from_this()] { self->close(); });
+}
+
+void Connection::handle_frame(std::string_view json, std::int64_t received_ns) {
+  const protocol::ParsedRequest parsed = protocol::parse_request(json, server_.config.limits);
+  const std::uint64_t seq = replies_.open();
+  if (!parsed.ok()) {
+    reply_error(seq, parsed.error.code, parsed.error.message, parsed.id);
+  } else {
+    server_.metrics.request(parsed.request->index());
+    received_ns_ = received_ns;
+    std::visit([&](const auto& request) { on_request(seq, *parsed.id, request); }, *parsed.request);
+  }
+  flush();
+}
+
+void Connection::bad_frame(const std::string& message) {
+  // The stream cannot be resynchronised: answer, then close once the answer is written.
+  server_.metrics.error(protocol::ErrorKind::kBadFrame);
+  spdlog::warn("conn={} bad frame: {}", number_, message);
+  replies_.fill(replies_.open(), error_frame(protocol::ErrorKind::kBadFrame, message, std::nullopt));
+  stopping_ = true;
+  drain_jobs(protocol::ErrorKind::kShuttingDown, "connection closing after a bad frame");
+  flush();
+}
+
+void Connection::on_read_end() {
+  // The client closed its side or the read failed: nothing more will come. Queued work is
+  // answered if the socket still takes it; the connection closes once the replies are out.
+  stopping_ = true;
+  drain_jobs(protocol::ErrorKind::kCancelled, "connection closed");
+  flush();
+}
+
+void Connection::on_request(std::uint64_t seq, std::uint64_t id, const protocol::Hello&) {
+  replies_.fill(seq, make_frame(protocol::HelloReply{protocol::kProtocolVersion, "mtlod/0.1", server_.config.limits}, id));
+}
+void Connection::on_request(std::uint64_t seq, std::uint64_t id, const protocol::ListModels&) {
+  protocol::ModelsReply reply;
+  for (const auto& model : server_.models.models()) reply.models.push_back(model->summary());
+  replies_.fill(seq, make_frame(reply, id));
+}
+void Connection::on_request(std::uint64_t seq, std::uint64_t id, const protocol::ModelInfo& request) {
+  const Model* model = server_.models.find(request.model);
+  if (!model) return reply_unknown_model(seq, id, request.model);
+  replies_.fill(seq, make_frame(model->info(), id));
+}
+void Connection::on_request(std::uint64_t seq, std::uint64_t id, const protocol::Stats&) {
+  replies_.fill(seq, make_frame(protocol::StatsReply{server_.metrics.snapshot()}, id));
+}
+void Connection::on_request(std::uint64_t seq, std::uint64_t id, const protocol::Ping&) {
+  replies_.fill(seq, make_frame(protocol::Pong{}, id));
+}
+void Connection::on_request(std::uint64_t seq, std::uint64_t id, const protocol::Cancel& request) {
+  std::optional<Job> job = jobs_.cancel(request.target);
+  if (job) replies_.fill(job->seq, error_frame(protocol::ErrorKind::kCancelled, "cancelled by the client", job->id));
+  replies_.fill(seq, make_frame(protocol::CancelReply{request.target, job.has_value()}, id));
+}
+void Connection::on_request(std::uint64_t seq, std::uint64_t id, const protocol::Extract& request) {
+  if (!server_.models.find(request.model)) return reply_unknown_model(seq, id, request.model);
+  last_extract_ = request;
+  enqueue(Job{seq, id, false, request, 0, received_ns_});
+}
+void Connection::on_request(std::uint64_t seq, std::uint64_t id, const protocol::Gaze& gaze) {
+  if (!last_extract_) {
+    return reply_error(seq, protocol::ErrorKind::kNoView,
+                       "gaze needs an earlier extract on this connection to know the view", id);
+  }
+  protocol::Extract request = *last_extract_;
+  if (request.criteria.focus.empty()) request.criteria.focus.emplace_back();
+  protocol::Focus& focus = request.criteria.focus.front();
+  focus.x = gaze.x;
+  focus.y = gaze.y;
+  if (gaze.distance) focus.distance = *gaze.distance;
+  if (gaze.factor) focus.factor = *gaze.factor;
+  last_extract_ = request;  // later gazes and extracts start from here
+  enqueue(Job{seq, id, true, std::move(request), 0, received_ns_});
+}
+
+void Connection::enqueue(Job job) {
+  // In flight: extractions queued or running. A gaze that replaces a queued gaze adds none.
+  const bool coalesces = job.gaze && jobs_.last_is_gaze();
+  const std::size_t in_flight = jobs_.queued() + (jobs_.running() ? 1 : 0);
+  if (!coalesces && in_flight >= server_.config.limits.max_in_flight) {
+    return reply_error(job.seq, protocol::ErrorKind::kLimitExceeded,
+                       fmt::format("{} extractions are in flight on this connection; the limit is {}", in_flight,
+                                   server_.config.limits.max_in_flight),
+                       job.id);
+  }
+  if (std::optional<Job> replaced = jobs_.push(std::move(job))) {
+    server_.metrics.error(protocol::ErrorKind::kSuperseded);
+    replies_.fill(replaced->seq, error_frame(protocol::ErrorKind::kSuperseded, "a newer gaze replaced this one", replaced->id));
+  }
+  start_next_job();
+}
+
+void Connection::start_next_job() {
+  std::optional<Job> job = jobs_.start_next();
+  if (!job) return;
+  net::post(server_.workers, [self = shared_from_this(), job = std::move(*job)]() mutable {
+    const std::int64_t started = now_ns();
+    auto outcome = self->server_.engine.extract(job.extract, self->cut_);
+    net::post(self->strand_, [self, job = std::move(job), started, outcome = std::move(outcome)]() mutable {
+      self->finish_job(job, started, outcome);
+    });
+  });
+}
+
+void Connection::finish_job(const Job& job, std::int64_t started_ns,
+                            std::variant<ExtractOutcome, protocol::ProtocolError>& outcome) {
+  jobs_.finish();
+  if (auto* error = std::get_if<protocol::ProtocolError>(&outcome)) {
+    reply_error(job.seq, error->code, error->message, job.id);
+  } else {
+    ExtractOutcome& result = std::get<ExtractOutcome>(outcome);
+    protocol::MeshReply& reply = result.reply;
+    reply.timings.queue_us = static_cast<std::uint64_t>(std::max<std::int64_t>(0, started_ns - job.received_ns) / 1000);
+    reply.timings.total_us = static_cast<std::uint64_t>((now_ns() - job.received_ns) / 1000);
+    reply.superseded = job.superseded;
+    if (job.gaze && !job.extract.criteria.focus.empty()) {
+      reply.focus = std::array<double, 2>{job.extract.criteria.focus.front().x, job.extract.criteria.focus.front().y};
+    }
+    const auto& t = reply.timings;
+    spdlog::info("conn={} id={} {} model={} triangles={} bytes={} max_error={:.4g} us: queue={} map={} occupancy={} "
+                 "dt={} labels={} refine={} encode={} total={}",
+                 number_, job.id, job.gaze ? "gaze" : "extract", reply.model, reply.triangles, reply.bytes,
+                 reply.max_error, t.queue_us, t.map_us, t.occupancy_us, t.dt_us, t.labels_us, t.refine_us, t.encode_us,
+                 t.total_us);
+    server_.metrics.extraction(t, reply.triangles);
+    replies_.fill(job.seq, make_frame(reply, job.id, result.payload));
+  }
+  start_next_job();
+  flush();
+}
+
+void Connection::reply_unknown_model(std::uint64_t seq, std::uint64_t id, const std::string& name) {
+  std::string known;
+  for (const auto& m : server_.models.models()) known += (known.empty() ? "" : ", ") + m->name;
+  reply_error(seq, protocol::ErrorKind::kUnknownModel, fmt::format("no model named '{}'; loaded: {}", name, known), id);
+}
+
+void Connection::reply_error(std::uint64_t seq, protocol::ErrorKind code, const std::string& message,
+                             std::optional<std::uint64_t> id) {
+  server_.metrics.error(code);
+  spdlog::debug("conn={} id={} error {}: {}", number_, id.value_or(0), protocol::to_string(code), message);
+  replies_.fill(seq, error_frame(code, message, id));
+}
+
+void Connection::drain_jobs(protocol::ErrorKind code, const char* message) {
+  for (Job& job : jobs_.drain()) replies_.fill(job.seq, error_frame(code, message, job.id));
+}
+
+void Connection::flush() {
+  if (writing_ || closed_) return;
+  std::optional<std::vector<std::uint8_t>> frame = replies_.pop();
+  if (!frame) {
+    if (stopping_ && replies_.outstanding() == 0 && !jobs_.running()) close();
+    return;
+  }
+  writing_ = true;
+  outgoing_ = std::move(*frame);
+  write_frame(outgoing_);
+}
+
+void Connection::on_written(bool ok, std::size_t bytes) {
+  writing_ = false;
+  if (!ok) return close();
+  server_.metrics.bytes_out(bytes);
+  flush();
+  if (read_paused_ && !paused() && !ending()) {
+    read_paused_ = false;
+    resume_reading();
+  }
+}
+
+bool Connection::paused() const {
+  // A client that sends faster than it reads gets no more reads until it catches up.
+  return replies_.outstanding() > 2 * std::size_t{server_.config.limits.max_in_flight} + 32;
+}
+
+bool Connection::may_read() {
+  if (ending()) return false;
+  if (paused()) {
+    read_paused_ = true;
+    return false;
+  }
+  return true;
+}
+
+void Connection::close() {
+  if (closed_) return;
+  closed_ = true;
+  close_transport();
+  server_.metrics.connection_closed();
+  server_.on_connection_closed();
+}
+
+}  // namespace mtlod::server

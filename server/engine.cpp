@@ -1,0 +1,103 @@
+// The request pipeline (see engine.hpp): protocol request → core::ViewRequest → the five timed
+// stages of core::ViewExtractor → Draco. Per-worker extractors and encoder are thread_local so no
+// lock is taken per request and buffers are reused.
+#include "server/engine.hpp"
+
+#include <chrono>
+#include <unordered_map>
+
+#include "core/draco_encode.hpp"
+#include "core/view_extract.hpp"
+#include "fmt/format.h"
+#include "protocol/view_request.hpp"
+
+namespace mtlod::server {
+
+struct SessionCut::State {
+  const Model* model = nullptr;
+  std::unique_ptr<core::Refiner> refiner;
+};
+
+SessionCut::SessionCut() = default;
+SessionCut::~SessionCut() = default;
+SessionCut::SessionCut(SessionCut&&) noexcept = default;
+SessionCut& SessionCut::operator=(SessionCut&&) noexcept = default;
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+std::uint64_t elapsed_us(Clock::time_point& since) {
+  const auto now = Clock::now();
+  const auto us = std::chrono::duration_cast<std::chrono::microseconds>(now - since).count();
+  since = now;
+  return static_cast<std::uint64_t>(us);
+}
+
+}  // namespace
+
+std::variant<ExtractOutcome, protocol::ProtocolError> Engine::extract(const protocol::Extract& request,
+                                                                      SessionCut& session) {
+  const Model* model = models_.find(request.model);
+  if (!model) return protocol::ProtocolError{protocol::ErrorKind::kUnknownModel, fmt::format("no model named '{}'", request.model)};
+  if (request.normals && !model->mt.has_normals()) {
+    return protocol::ProtocolError{protocol::ErrorKind::kBadRequest,
+                                   fmt::format("model '{}' has no normals to send", request.model)};
+  }
+
+  // Per worker: one extractor per model and one encoder, created on first use, reused ever after.
+  struct Worker {
+    std::unordered_map<const Model*, std::unique_ptr<core::ViewExtractor>> extractors;
+    core::DracoEncoder encoder;
+    core::CutMesh cut;
+  };
+  thread_local Worker worker;
+  auto& extractor = worker.extractors[model];
+  if (!extractor) extractor = std::make_unique<core::ViewExtractor>(model->mt, *model->occupancy);
+
+  if (!session.state) session.state = std::make_unique<SessionCut::State>();
+  SessionCut::State& state = *session.state;
+  if (state.model != model) {
+    state.model = model;
+    state.refiner = std::make_unique<core::Refiner>(model->mt);
+  }
+
+  const core::ViewRequest view = protocol::to_view_request(request, model->mt.has_normals());
+  ExtractOutcome outcome;
+  protocol::StageTimings& t = outcome.reply.timings;
+  auto clock = Clock::now();
+  extractor->map(view);
+  t.map_us = elapsed_us(clock);
+  extractor->occupancy();
+  t.occupancy_us = elapsed_us(clock);
+  extractor->distance_transforms();
+  t.dt_us = elapsed_us(clock);
+  extractor->allowed_error();
+  t.labels_us = elapsed_us(clock);
+  extractor->refine(*state.refiner, worker.cut);
+  t.refine_us = elapsed_us(clock);
+
+  core::DracoOptions draco;
+  draco.method = request.draco.method == protocol::DracoMethod::kEdgebreaker ? core::DracoMethod::kEdgebreaker
+                                                                             : core::DracoMethod::kSequential;
+  draco.speed = request.draco.speed;
+  draco.position_bits = request.draco.position_bits;
+  draco.normal_bits = request.draco.normal_bits;
+  draco.normals = request.normals;
+  draco.labels = request.labels;
+  const core::DracoInput input{model->mt.positions, model->mt.normals,
+                               request.labels ? extractor->vertex_labels() : std::span<const std::uint32_t>(),
+                               worker.cut.triangles};
+  auto encoded = worker.encoder.encode(input, draco, outcome.payload);
+  t.encode_us = elapsed_us(clock);
+  if (!encoded) return protocol::ProtocolError{protocol::ErrorKind::kInternal, encoded.error().message};
+
+  outcome.reply.model = model->name;
+  outcome.reply.triangles = encoded->triangles;
+  outcome.reply.vertices = encoded->vertices;
+  outcome.reply.bytes = encoded->bytes;
+  outcome.reply.max_error = worker.cut.max_error;
+  return outcome;
+}
+
+}  // namespace mtlod::server

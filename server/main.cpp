@@ -1,0 +1,99 @@
+// mtlod-server: serves view-dependent, Draco-compressed extractions of Multi-Tessellations over the
+// protocol in protocol/PROTOCOL.md.
+#include <cstdio>
+#include <string>
+#include <vector>
+
+#include "CLI/CLI.hpp"
+#include "server/model_registry.hpp"
+#include "server/server.hpp"
+#include "spdlog/spdlog.h"
+
+int main(int argc, char** argv) {
+  using namespace mtlod;
+  CLI::App app{"mtlod-server: a network level-of-detail server. Clients send camera matrices and gaze points "
+               "(protocol/PROTOCOL.md) and receive Draco-compressed view-dependent extractions."};
+  server::ServerConfig config;
+  std::vector<std::string> model_files, meshes;
+  std::string models_dir, cache_dir = "build/models", log_level = "info", port_file;
+  app.add_option("models", model_files, "MT files to serve (model name = file stem)");
+  app.add_option("--models", models_dir, "serve every .mt file in this directory");
+  app.add_option("--mesh", meshes,
+                 "a mesh (PLY/OBJ/OFF/STL) to serve; its MT is built into --cache-dir on first run and reused "
+                 "while newer than the mesh")
+      ->take_all();
+  app.add_option("--cache-dir", cache_dir, "where MT files built from --mesh go")->capture_default_str();
+  app.add_option("--host", config.host, "address to listen on")->capture_default_str();
+  app.add_option("--port", config.port, "TCP port for the protocol (0: any free port, printed at start)")
+      ->capture_default_str();
+  app.add_option("--port-file", port_file, "write the bound port to this file once listening (for scripts and tests)");
+  app.add_option("--io-threads", config.io_threads, "threads serving sockets")->capture_default_str();
+  app.add_option("--workers", config.workers, "threads computing extractions (0: one per core)")->capture_default_str();
+  auto& limits = config.limits;
+  app.add_option("--max-frame-bytes", limits.max_frame_bytes, "largest request frame (JSON + payload) accepted")
+      ->capture_default_str();
+  app.add_option("--max-connections", limits.max_connections, "connections served at once; more are refused")
+      ->capture_default_str();
+  app.add_option("--max-in-flight", limits.max_in_flight, "unanswered requests allowed per connection")
+      ->capture_default_str();
+  app.add_option("--max-grid", limits.max_grid, "largest distance-transform grid side")->capture_default_str();
+  app.add_option("--max-budget", limits.max_budget, "largest triangle budget per extraction")->capture_default_str();
+  app.add_option("--max-foci", limits.max_foci, "most focus points plus neglect regions per request")
+      ->capture_default_str();
+  app.add_option("--idle-timeout-ms", limits.idle_timeout_ms, "close connections idle this long")->capture_default_str();
+  app.add_option("--read-timeout-ms", limits.read_timeout_ms, "a started frame must arrive within this time")
+      ->capture_default_str();
+  app.add_option("--drain-timeout-ms", config.drain_timeout_ms,
+                 "on SIGINT/SIGTERM, in-flight work gets this long before connections are closed")
+      ->capture_default_str();
+  app.add_option("--log-level", log_level, "trace, debug, info, warn, error or off")->capture_default_str();
+  CLI11_PARSE(app, argc, argv);
+
+  spdlog::set_level(spdlog::level::from_str(log_level));
+  spdlog::set_pattern("%Y-%m-%dT%H:%M:%S.%e %^%l%$ %v");
+
+  server::ModelRegistry registry;
+  auto check = [](const Status& status) {
+    if (!status) {
+      spdlog::error("{}", status.error().message);
+      std::exit(1);
+    }
+  };
+  if (!models_dir.empty()) check(registry.add_directory(models_dir));
+  for (const std::string& file : model_files) check(registry.add_file(file));
+  for (const std::string& mesh : meshes) {
+    const std::filesystem::path path(mesh);
+    check(registry.add_mesh(path, std::filesystem::path(cache_dir) / (path.stem().string() + ".mt")));
+  }
+  if (registry.models().empty()) {
+    spdlog::error("no models: give MT files, --models DIR or --mesh FILE");
+    return 1;
+  }
+  for (const auto& model : registry.models()) {
+    const auto s = model->summary();
+    spdlog::info("model {}: {} vertices, {} input triangles, {} root triangles, {} nodes, {:.1f} MiB ({:.1f} bytes per "
+                 "input triangle)",
+                 s.name, s.vertices, s.input_triangles, s.root_triangles, s.nodes, s.memory_bytes / 1048576.0,
+                 static_cast<double>(s.memory_bytes) / static_cast<double>(std::max<std::uint64_t>(1, s.input_triangles)));
+  }
+
+  server::Server server(config, registry);
+  check(server.listen());
+  spdlog::info("listening on {}:{} (protocol version {}); try: mtlod-client --port {} list", config.host, server.port(),
+               protocol::kProtocolVersion, server.port());
+  if (!port_file.empty()) {
+    // Written to a temporary name and renamed, so a reader never sees a half-written port.
+    const std::string temporary = port_file + ".tmp";
+    if (std::FILE* f = std::fopen(temporary.c_str(), "w")) {
+      std::fprintf(f, "%u\n", static_cast<unsigned>(server.port()));
+      std::fclose(f);
+      std::rename(temporary.c_str(), port_file.c_str());
+    } else {
+      spdlog::error("cannot write {}", port_file);
+      return 1;
+    }
+  }
+  server.run();
+  spdlog::info("stopped");
+  return 0;
+}

@@ -1,0 +1,109 @@
+// The models a server holds (see model_registry.hpp).
+#include "server/model_registry.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+
+#include "core/io/mesh_io.hpp"
+#include "core/io/mt_file.hpp"
+#include "core/mt_builder.hpp"
+#include "fmt/format.h"
+#include "spdlog/spdlog.h"
+
+namespace mtlod::server {
+namespace fs = std::filesystem;
+
+protocol::ModelSummary Model::summary() const {
+  return {name, mt.vertex_count(), input_triangles, mt.root_triangle_count(), mt.node_count(), memory_bytes, max_error};
+}
+
+protocol::ModelInfoReply Model::info() const {
+  protocol::ModelInfoReply r;
+  r.model = summary();
+  for (int c = 0; c < 3; ++c) r.bounds_min[c] = bounds_min[c], r.bounds_max[c] = bounds_max[c];
+  r.min_error = min_error;
+  r.normals = mt.has_normals();
+  r.colors = mt.has_colors();
+  return r;
+}
+
+namespace {
+
+std::unique_ptr<Model> describe(std::string name, fs::path path, core::Mt mt) {
+  auto model = std::make_unique<Model>();
+  model->name = std::move(name);
+  model->path = std::move(path);
+  model->mt = std::move(mt);
+  const core::Mt& m = model->mt;
+  model->occupancy = std::make_unique<core::OccupancyLevels>(m);
+  model->memory_bytes = m.memory_bytes() + model->occupancy->memory_bytes();
+  model->bounds_min = {INFINITY, INFINITY, INFINITY};
+  model->bounds_max = {-INFINITY, -INFINITY, -INFINITY};
+  for (std::size_t v = 0; v < m.vertex_count(); ++v) {
+    for (int c = 0; c < 3; ++c) {
+      model->bounds_min[c] = std::min(model->bounds_min[c], m.positions[3 * v + c]);
+      model->bounds_max[c] = std::max(model->bounds_max[c], m.positions[3 * v + c]);
+    }
+  }
+  // The full-resolution mesh is the set of triangles no node removes.
+  model->input_triangles = static_cast<std::size_t>(
+      std::count(m.triangle_remover.begin(), m.triangle_remover.end(), core::kNoNode));
+  model->min_error = INFINITY;
+  for (float e : m.node_error) {
+    model->max_error = std::max(model->max_error, e);
+    if (e > 0) model->min_error = std::min(model->min_error, e);
+  }
+  if (!std::isfinite(model->min_error)) model->min_error = 0;
+  return model;
+}
+
+}  // namespace
+
+Status ModelRegistry::add_file(const fs::path& path) {
+  const std::string name = path.stem().string();
+  if (find(name)) return make_error(ErrorCode::kInvalidArgument, fmt::format("{}: a model named '{}' is already loaded", path.string(), name));
+  MTLOD_TRY(core::Mt mt, core::io::read_mt_file(path));
+  models_.push_back(describe(name, path, std::move(mt)));
+  return Ok{};
+}
+
+Status ModelRegistry::add_directory(const fs::path& dir) {
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec)) return make_error(ErrorCode::kNotFound, fmt::format("{}: not a directory", dir.string()));
+  std::vector<fs::path> files;
+  for (const auto& entry : fs::directory_iterator(dir, ec)) {
+    if (entry.path().extension() == ".mt") files.push_back(entry.path());
+  }
+  std::sort(files.begin(), files.end());
+  for (const fs::path& f : files) MTLOD_RETURN_IF_ERROR(add_file(f));
+  if (files.empty()) return make_error(ErrorCode::kNotFound, fmt::format("{}: no .mt files", dir.string()));
+  return Ok{};
+}
+
+Status ModelRegistry::add_mesh(const fs::path& mesh, const fs::path& mt_path) {
+  std::error_code ec;
+  const bool fresh = fs::exists(mt_path, ec) && fs::exists(mesh, ec) &&
+                     fs::last_write_time(mt_path, ec) >= fs::last_write_time(mesh, ec);
+  if (!fresh) {
+    const auto start = std::chrono::steady_clock::now();
+    MTLOD_TRY(core::io::LoadedMesh loaded, core::io::load_mesh(mesh));
+    core::BuildStats stats;
+    MTLOD_TRY(core::Mt mt, core::build_mt(loaded.mesh, {}, &stats));
+    fs::create_directories(mt_path.parent_path(), ec);
+    MTLOD_TRY(std::uint64_t bytes, core::io::write_mt_file(mt_path, mt));
+    spdlog::info("built {} from {}: {} triangles → {} root triangles, {} nodes, {:.1f} MiB, {:.2f} s", mt_path.string(),
+                 mesh.string(), stats.input_triangles, stats.root_triangles, stats.nodes, bytes / 1048576.0,
+                 std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+  }
+  return add_file(mt_path);
+}
+
+const Model* ModelRegistry::find(std::string_view name) const {
+  for (const auto& m : models_) {
+    if (m->name == name) return m.get();
+  }
+  return nullptr;
+}
+
+}  // namespace mtlod::server

@@ -1,0 +1,178 @@
+// mtlod-server's network shell: the listener, the worker pool, signals and the drain. Connections
+// (server/connection.*) hold the request logic; transports (server/tcp_session.*) move the bytes.
+#include "server/server.hpp"
+
+#include <boost/asio.hpp>
+
+#include <atomic>
+#include <chrono>
+#include <list>
+#include <mutex>
+#include <thread>
+
+#include "fmt/format.h"
+#include "protocol/frame.hpp"
+#include "protocol/replies.hpp"
+#include "server/connection.hpp"
+#include "server/tcp_session.hpp"
+#include "spdlog/spdlog.h"
+
+namespace mtlod::server {
+namespace {
+
+namespace net = boost::asio;
+using tcp = net::ip::tcp;
+using boost::system::error_code;
+
+}  // namespace
+
+struct Server::Impl {
+  ServerConfig config;
+  const ModelRegistry& models;
+  Engine engine;
+  Metrics metrics;
+  net::io_context ioc;
+  // Listener, signals and shutdown run on one strand, whatever the number of I/O threads.
+  net::strand<net::io_context::executor_type> control{net::make_strand(ioc)};
+  tcp::acceptor acceptor{control};
+  std::unique_ptr<net::thread_pool> workers;
+  std::unique_ptr<ServerContext> context;
+  net::signal_set signals{control, SIGINT, SIGTERM};
+  net::steady_timer drain_timer{control};
+  std::atomic<bool> stopping{false};
+  std::atomic<std::uint64_t> next_connection{1};
+  std::mutex connections_mutex;
+  std::list<std::weak_ptr<Connection>> connections;
+
+  Impl(ServerConfig c, const ModelRegistry& m) : config(std::move(c)), models(m), engine(m) {}
+
+  void accept();
+  void begin_stop();
+  // Refuses a connection over the limit with an error frame; returns false when it was refused.
+  bool admit(tcp::socket& socket, std::uint64_t number);
+  void track(const std::shared_ptr<Connection>& connection) {
+    std::lock_guard lock(connections_mutex);
+    connections.remove_if([](const std::weak_ptr<Connection>& c) { return c.expired(); });
+    connections.push_back(connection);
+  }
+  // Called by each connection as it closes: the last one during a shutdown ends the drain early.
+  void on_connection_closed() {
+    net::post(control, [this] {
+      if (stopping && metrics.open_connections() == 0) drain_timer.cancel();
+    });
+  }
+};
+
+bool Server::Impl::admit(tcp::socket& socket, std::uint64_t number) {
+  if (metrics.open_connections() < config.limits.max_connections) return true;
+  metrics.connection_refused();
+  spdlog::warn("conn={} refused: {} connections open, the limit", number, config.limits.max_connections);
+  std::vector<std::uint8_t> frame;
+  protocol::append_frame(protocol::to_json(protocol::ErrorReply{protocol::ErrorKind::kLimitExceeded,
+                                                                fmt::format("the server has {} connections, its limit",
+                                                                            config.limits.max_connections)},
+                                           std::nullopt),
+                         {}, frame);
+  auto bytes = std::make_shared<std::vector<std::uint8_t>>(std::move(frame));
+  auto refused = std::make_shared<tcp::socket>(std::move(socket));
+  net::async_write(*refused, net::buffer(*bytes), [bytes, refused](error_code, std::size_t) {
+    error_code ignored;
+    refused->shutdown(tcp::socket::shutdown_both, ignored);
+    refused->close(ignored);
+  });
+  return false;
+}
+
+void Server::Impl::accept() {
+  acceptor.async_accept(net::make_strand(ioc), [this](error_code ec, tcp::socket socket) {
+    if (ec) {
+      if (ec != net::error::operation_aborted) spdlog::warn("accept failed: {}", ec.message());
+      if (!stopping && acceptor.is_open()) accept();
+      return;
+    }
+    if (stopping) return;
+    const std::uint64_t number = next_connection++;
+    if (admit(socket, number)) track(start_tcp_session(*context, std::move(socket), number));
+    accept();
+  });
+}
+
+void Server::Impl::begin_stop() {
+  if (stopping.exchange(true)) return;
+  spdlog::info("shutting down: no new connections, finishing in-flight work (at most {} ms)", config.drain_timeout_ms);
+  error_code ignored;
+  acceptor.close(ignored);
+  signals.cancel(ignored);
+  std::vector<std::shared_ptr<Connection>> live;
+  {
+    std::lock_guard lock(connections_mutex);
+    for (auto& weak : connections) {
+      if (auto c = weak.lock()) live.push_back(std::move(c));
+    }
+  }
+  for (auto& s : live) s->shutdown();
+  if (live.empty()) return;
+  drain_timer.expires_after(std::chrono::milliseconds(config.drain_timeout_ms));
+  drain_timer.async_wait([this](error_code ec) {
+    if (ec) return;
+    spdlog::warn("drain timeout: closing the remaining connections");
+    std::lock_guard lock(connections_mutex);
+    for (auto& weak : connections) {
+      if (auto c = weak.lock()) c->force_close();
+    }
+  });
+}
+
+Server::Server(ServerConfig config, const ModelRegistry& models) : impl_(std::make_unique<Impl>(std::move(config), models)) {}
+
+Server::~Server() {
+  if (impl_->workers) impl_->workers->join();
+}
+
+Status Server::listen() {
+  error_code ec;
+  const auto address = net::ip::make_address(impl_->config.host, ec);
+  if (ec) return make_error(ErrorCode::kInvalidArgument, fmt::format("bad host '{}': {}", impl_->config.host, ec.message()));
+  const tcp::endpoint endpoint(address, impl_->config.port);
+  auto& acceptor = impl_->acceptor;
+  acceptor.open(endpoint.protocol(), ec);
+  if (!ec) acceptor.set_option(net::socket_base::reuse_address(true), ec);
+  if (!ec) acceptor.bind(endpoint, ec);
+  if (!ec) acceptor.listen(net::socket_base::max_listen_connections, ec);
+  if (ec) {
+    return make_error(ErrorCode::kIoError,
+                      fmt::format("cannot listen on {}:{}: {}", impl_->config.host, impl_->config.port, ec.message()));
+  }
+  return Ok{};
+}
+
+std::uint16_t Server::port() const {
+  error_code ec;
+  return impl_->acceptor.local_endpoint(ec).port();
+}
+
+void Server::run() {
+  Impl& s = *impl_;
+  const unsigned workers = s.config.workers ? s.config.workers : std::max(1u, std::thread::hardware_concurrency());
+  s.workers = std::make_unique<net::thread_pool>(workers);
+  s.context.reset(new ServerContext{s.config, s.models, s.engine, s.metrics, *s.workers, [&s] { s.on_connection_closed(); }});
+  s.signals.async_wait([&s](error_code ec, int signal) {
+    if (ec) return;
+    spdlog::info("received signal {}", signal);
+    s.begin_stop();
+  });
+  s.accept();
+  std::vector<std::thread> extra;
+  for (unsigned i = 1; i < std::max(1u, s.config.io_threads); ++i) extra.emplace_back([&s] { s.ioc.run(); });
+  s.ioc.run();
+  for (auto& t : extra) t.join();
+  s.workers->join();
+}
+
+void Server::stop() {
+  net::post(impl_->control, [this] { impl_->begin_stop(); });
+}
+
+const Metrics& Server::metrics() const { return impl_->metrics; }
+
+}  // namespace mtlod::server

@@ -1,0 +1,47 @@
+// mtlod-server's network shell (DESIGN.md §4): a Boost.Asio TCP listener, one session per
+// connection, a worker pool for extractions, limits, metrics and graceful shutdown. Asio stays in
+// server.cpp; this header is light.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+
+#include "protocol/messages.hpp"
+#include "server/engine.hpp"
+#include "server/metrics.hpp"
+
+namespace mtlod::server {
+
+struct ServerConfig {
+  std::string host = "127.0.0.1";
+  std::uint16_t port = 7878;        // 0: let the OS choose (see Server::port)
+  unsigned io_threads = 1;          // socket threads
+  unsigned workers = 0;             // extraction threads; 0 = one per core
+  std::uint32_t drain_timeout_ms = 10'000;  // on SIGINT/SIGTERM: in-flight work must finish by then
+  protocol::Limits limits;
+};
+
+class Server {
+ public:
+  Server(ServerConfig config, const ModelRegistry& models);
+  ~Server();
+
+  // Binds and listens; errors name the address.
+  Status listen();
+  // The bound port (useful with port 0).
+  std::uint16_t port() const;
+  // Serves until stop() or SIGINT/SIGTERM has drained every connection.
+  void run();
+  // Starts a graceful shutdown: stop accepting, answer queued work `shutting_down`, finish running
+  // extractions, write their replies, close. Safe from any thread.
+  void stop();
+
+  const Metrics& metrics() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace mtlod::server

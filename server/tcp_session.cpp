@@ -1,0 +1,122 @@
+// The TCP transport (see tcp_session.hpp). Shaped after Beast's async examples: do_read/on_read,
+// every error branch returns; a steady_timer enforces the idle and read timeouts.
+#include "server/tcp_session.hpp"
+
+#include <boost/asio/dispatch.hpp>
+#include <boost/asio/read.hpp>
+#include <boost/asio/steady_timer.hpp>
+#include <boost/asio/write.hpp>
+
+#include <chrono>
+
+#include "protocol/frame.hpp"
+#include "spdlog/spdlog.h"
+
+namespace mtlod::server {
+namespace {
+
+namespace net = boost::asio;
+using tcp = net::ip::tcp;
+using boost::system::error_code;
+
+class TcpSession final : public Connection {
+ public:
+  TcpSession(ServerContext& server, tcp::socket socket, std::uint64_t number)
+      : Connection(server, socket.get_executor(), number), socket_(std::move(socket)), deadline_(socket_.get_executor()) {}
+
+  void start() {
+    net::dispatch(strand(), [self = shared_self()] {
+      self->opened();
+      self->do_read_header();
+    });
+  }
+
+ private:
+  std::shared_ptr<TcpSession> shared_self() { return std::static_pointer_cast<TcpSession>(shared_from_this()); }
+
+  void do_read_header() {
+    if (!may_read()) return;
+    reading_ = true;
+    arm_deadline(server_.config.limits.idle_timeout_ms, /*idle=*/true);
+    net::async_read(socket_, net::buffer(header_),
+                    [self = shared_self()](error_code ec, std::size_t) { self->on_header(ec); });
+  }
+
+  void on_header(error_code ec) {
+    reading_ = false;
+    if (ec) return end(ec, "read header");
+    server_.metrics.bytes_in(header_.size());
+    auto header = protocol::decode_frame_header(header_, server_.config.limits.max_frame_bytes);
+    if (!header) return bad_frame(header.error().message);
+    body_.resize(header->body_bytes());
+    json_bytes_ = header->json_bytes;
+    reading_ = true;
+    arm_deadline(server_.config.limits.read_timeout_ms, /*idle=*/false);
+    net::async_read(socket_, net::buffer(body_),
+                    [self = shared_self()](error_code ec, std::size_t n) { self->on_body(ec, n); });
+  }
+
+  void on_body(error_code ec, std::size_t n) {
+    reading_ = false;
+    if (ec) return end(ec, "read body");
+    server_.metrics.bytes_in(n);
+    const auto received = std::chrono::steady_clock::now().time_since_epoch();
+    handle_frame(std::string_view(reinterpret_cast<const char*>(body_.data()), json_bytes_),
+                 std::chrono::duration_cast<std::chrono::nanoseconds>(received).count());
+    do_read_header();
+  }
+
+  void end(error_code ec, const char* what) {
+    if (ec != net::error::eof && ec != net::error::operation_aborted && ec != net::error::connection_reset) {
+      spdlog::debug("conn={} {} failed: {}", number(), what, ec.message());
+    }
+    on_read_end();
+  }
+
+  void arm_deadline(std::uint32_t timeout_ms, bool idle) {
+    deadline_.expires_after(std::chrono::milliseconds(timeout_ms));
+    deadline_.async_wait([self = shared_self(), idle](error_code ec) {
+      if (ec || !self->reading_) return;  // cancelled, or the read it guarded has completed
+      if (idle && self->waiting_on_server()) {
+        return self->arm_deadline(self->server_.config.limits.idle_timeout_ms, true);  // not idle: we owe replies
+      }
+      spdlog::info("conn={} closed: {} timeout", self->number(), idle ? "idle" : "read");
+      self->force_close();
+    });
+  }
+
+  void write_frame(std::vector<std::uint8_t>& frame) override {
+    net::async_write(socket_, net::buffer(frame), [self = shared_self()](error_code ec, std::size_t n) {
+      if (ec) spdlog::debug("conn={} write failed: {}", self->number(), ec.message());
+      self->on_written(!ec, n);
+    });
+  }
+  void stop_reading() override {
+    error_code ignored;
+    socket_.shutdown(tcp::socket::shutdown_receive, ignored);  // completes the pending read with EOF
+  }
+  void resume_reading() override { do_read_header(); }
+  void close_transport() override {
+    error_code ignored;
+    deadline_.cancel();
+    socket_.shutdown(tcp::socket::shutdown_both, ignored);
+    socket_.close(ignored);
+  }
+
+  tcp::socket socket_;
+  net::steady_timer deadline_;
+  std::array<std::uint8_t, protocol::kFrameHeaderBytes> header_{};
+  std::vector<std::uint8_t> body_;
+  std::uint32_t json_bytes_ = 0;
+  bool reading_ = false;
+};
+
+}  // namespace
+
+std::shared_ptr<Connection> start_tcp_session(ServerContext& server, tcp::socket socket, std::uint64_t number) {
+  auto session = std::make_shared<TcpSession>(server, std::move(socket), number);
+  session->start();
+  return session;
+}
+
+}  // namespace mtlod::server

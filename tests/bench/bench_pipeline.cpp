@@ -1,0 +1,195 @@
+// The per-request pipeline, stage by stage, on real models: map → occupancy → distance transforms →
+// allowed error → refinement → Draco. Counters give microseconds per stage, the cut's size and the
+// payload's bits per triangle. Run: build/release/tests/mtlod_bench_pipeline
+// (MTLOD_BENCH_DRAGON=path overrides the dragon, default ../shared/meshes or build/models).
+#include <benchmark/benchmark.h>
+
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <map>
+#include <memory>
+
+#include "core/draco_encode.hpp"
+#include "core/io/mesh_io.hpp"
+#include "core/mt_builder.hpp"
+#include "core/occupancy_levels.hpp"
+#include "core/view_extract.hpp"
+#include "protocol/camera.hpp"
+#include "protocol/view_request.hpp"
+
+namespace {
+
+using namespace mtlod;
+namespace fs = std::filesystem;
+
+struct Model {
+  core::Mt mt;
+  std::unique_ptr<core::OccupancyLevels> levels;
+  std::array<double, 3> lo{}, hi{};
+};
+
+fs::path find_mesh(const char* env, std::initializer_list<fs::path> candidates) {
+  if (const char* path = std::getenv(env)) return path;
+  for (const fs::path& p : candidates) {
+    if (fs::exists(p)) return p;
+  }
+  return {};
+}
+
+// Loads and builds once per process; nullptr when the mesh is not there.
+const Model* model(const std::string& name) {
+  static std::map<std::string, std::unique_ptr<Model>> cache;
+  if (auto it = cache.find(name); it != cache.end()) return it->second.get();
+  const fs::path shared = MTLOD_SHARED_MESHES_DIR, models = MTLOD_MODELS_DIR;
+  const fs::path path = name == "dragon" ? find_mesh("MTLOD_BENCH_DRAGON", {shared / "dragon-vrip-871k.ply", models / "dragon-871k.ply"})
+                                         : find_mesh("MTLOD_BENCH_BUNNY", {models / "bunny.ply", shared / "bunny-npm-3k.ply"});
+  auto& slot = cache[name];
+  if (path.empty()) return nullptr;
+  auto mesh = core::io::load_mesh(path);
+  if (!mesh) return nullptr;
+  auto mt = core::build_mt(mesh->mesh);
+  if (!mt) return nullptr;
+  slot = std::make_unique<Model>();
+  slot->mt = std::move(*mt);
+  slot->levels = std::make_unique<core::OccupancyLevels>(slot->mt);
+  slot->lo = {INFINITY, INFINITY, INFINITY};
+  slot->hi = {-INFINITY, -INFINITY, -INFINITY};
+  for (std::size_t v = 0; v < slot->mt.vertex_count(); ++v) {
+    for (int c = 0; c < 3; ++c) {
+      slot->lo[c] = std::min<double>(slot->lo[c], slot->mt.positions[3 * v + c]);
+      slot->hi[c] = std::max<double>(slot->hi[c], slot->mt.positions[3 * v + c]);
+    }
+  }
+  return slot.get();
+}
+
+// A front view, 800×600 screen, 256² grid, silhouette (2 px, f = 0.1) and a focus at the centre.
+// (With f = 0 the dragon's cut stays above 230k triangles: every contour triangle at full resolution.)
+protocol::Extract request_for(const Model& m, double error_px) {
+  protocol::Extract e;
+  protocol::look_at_camera(protocol::frame_bounds(m.lo, m.hi), 800.0 / 600.0, e.view, e.projection);
+  e.grid = {256, 256};
+  e.error = error_px;
+  e.error_unit = protocol::ErrorUnit::kPixels;
+  e.criteria.silhouette = protocol::Silhouette{2, 0.1};
+  e.criteria.focus = {protocol::Focus{0.5, 0.5, 40, 0.25}};
+  return e;
+}
+
+std::size_t static_cut_size(const Model& m, double error_px) {
+  core::ViewExtractor x(m.mt, *m.levels);
+  core::Refiner r(m.mt);
+  core::CutMesh cut;
+  core::ViewRequest v = protocol::to_view_request(request_for(m, error_px), false);
+  v.dynamic = false;
+  x.map(v), x.occupancy(), x.distance_transforms(), x.allowed_error(), x.refine(r, cut);
+  return cut.triangle_count();
+}
+
+// The pixel error whose static cut has about `target` triangles (bisection on a log scale).
+double error_for_size(const Model& m, std::size_t target) {
+  double lo = 0.01, hi = 1000;
+  for (int i = 0; i < 30; ++i) {
+    const double mid = std::sqrt(lo * hi);
+    (static_cast<double>(static_cut_size(m, mid)) > target ? lo : hi) = mid;
+  }
+  return hi;
+}
+
+using Clock = std::chrono::steady_clock;
+double us_since(Clock::time_point& t) {
+  const auto now = Clock::now();
+  const double us = std::chrono::duration<double, std::micro>(now - t).count();
+  t = now;
+  return us;
+}
+
+// Args: model (0 bunny, 1 dragon), target triangles, Draco mode (0, 5, 10 = edgebreaker speed; -1 sequential).
+void BM_Request(benchmark::State& state) {
+  const Model* m = model(state.range(0) == 0 ? "bunny" : "dragon");
+  if (!m) return state.SkipWithError("mesh not found");
+  const auto target = static_cast<std::size_t>(state.range(1));
+  const double error_px = error_for_size(*m, target);
+  core::ViewRequest view = protocol::to_view_request(request_for(*m, error_px), false);
+  view.dynamic = false;
+  core::DracoOptions draco;
+  draco.method = state.range(2) < 0 ? core::DracoMethod::kSequential : core::DracoMethod::kEdgebreaker;
+  draco.speed = state.range(2) < 0 ? 10 : static_cast<int>(state.range(2));
+  core::ViewExtractor extractor(m->mt, *m->levels);
+  core::Refiner refiner(m->mt);
+  core::CutMesh cut;
+  core::DracoEncoder encoder;
+  std::vector<std::uint8_t> payload;
+  double t_map = 0, t_occ = 0, t_dt = 0, t_labels = 0, t_refine = 0, t_encode = 0;
+  for (auto _ : state) {
+    auto t = Clock::now();
+    extractor.map(view);
+    t_map += us_since(t);
+    extractor.occupancy();
+    t_occ += us_since(t);
+    extractor.distance_transforms();
+    t_dt += us_since(t);
+    extractor.allowed_error();
+    t_labels += us_since(t);
+    extractor.refine(refiner, cut);
+    t_refine += us_since(t);
+    auto stats = encoder.encode({m->mt.positions, {}, {}, cut.triangles}, draco, payload);
+    t_encode += us_since(t);
+    benchmark::DoNotOptimize(stats);
+  }
+  const auto avg = benchmark::Counter::kAvgIterations;
+  state.counters["map_us"] = benchmark::Counter(t_map, avg);
+  state.counters["occupancy_us"] = benchmark::Counter(t_occ, avg);
+  state.counters["dt_us"] = benchmark::Counter(t_dt, avg);
+  state.counters["labels_us"] = benchmark::Counter(t_labels, avg);
+  state.counters["refine_us"] = benchmark::Counter(t_refine, avg);
+  state.counters["encode_us"] = benchmark::Counter(t_encode, avg);
+  state.counters["before_encode_us"] = benchmark::Counter(t_map + t_occ + t_dt + t_labels + t_refine, avg);
+  state.counters["triangles"] = static_cast<double>(cut.triangle_count());
+  state.counters["bits_per_tri"] = 8.0 * payload.size() / std::max<std::size_t>(1, cut.triangle_count());
+  state.counters["error_px"] = error_px;
+  state.SetItemsProcessed(state.iterations() * static_cast<std::int64_t>(cut.triangle_count()));
+}
+
+void request_args(benchmark::internal::Benchmark* b) {
+  for (int draco : {-1, 0, 5, 10}) b->Args({0, 3674, draco});  // the bunny whole: it has 3,674 triangles
+  for (int size : {10'000, 50'000, 200'000}) {
+    for (int draco : {-1, 0, 5, 10}) b->Args({1, size, draco});
+  }
+  b->ArgNames({"model", "triangles", "draco"})->Unit(benchmark::kMillisecond);
+}
+BENCHMARK(BM_Request)->Apply(request_args);
+
+// Dynamic refinement after a small camera move against refinement from the root, same result size.
+void BM_RefineAfterSmallMove(benchmark::State& state) {
+  const Model* m = model("dragon");
+  if (!m) return state.SkipWithError("mesh not found");
+  const bool dynamic = state.range(0) == 1;
+  const double error_px = error_for_size(*m, 50'000);
+  protocol::Extract a = request_for(*m, error_px), b = a;
+  b.criteria.focus[0].x += 0.01;  // the gaze moves by 1% of the screen
+  core::ViewRequest va = protocol::to_view_request(a, false), vb = protocol::to_view_request(b, false);
+  va.dynamic = vb.dynamic = dynamic;
+  core::ViewExtractor x(m->mt, *m->levels);
+  core::Refiner refiner(m->mt);
+  core::CutMesh cut;
+  bool flip = false;
+  double refine_us = 0;
+  for (auto _ : state) {
+    const core::ViewRequest& v = flip ? vb : va;
+    flip = !flip;
+    state.PauseTiming();
+    x.map(v), x.occupancy(), x.distance_transforms(), x.allowed_error();
+    state.ResumeTiming();
+    auto t = Clock::now();
+    x.refine(refiner, cut);
+    refine_us += us_since(t);
+  }
+  state.counters["refine_us"] = benchmark::Counter(refine_us, benchmark::Counter::kAvgIterations);
+  state.counters["triangles"] = static_cast<double>(cut.triangle_count());
+  state.SetItemsProcessed(state.iterations() * static_cast<std::int64_t>(cut.triangle_count()));
+}
+BENCHMARK(BM_RefineAfterSmallMove)->Arg(0)->Arg(1)->ArgName("dynamic")->Unit(benchmark::kMillisecond);
+
+}  // namespace

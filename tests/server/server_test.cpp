@@ -1,0 +1,358 @@
+// Integration tests: the real mtlod-server binary on an OS-chosen loopback port, driven by the
+// clients' connection code. Payloads are decoded and compared with an in-process extraction.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <cstdlib>
+#include <fstream>
+#include <thread>
+
+#include "clients/common/connection.hpp"
+#include "core/draco_decode.hpp"
+#include "core/io/mesh_io.hpp"
+#include "core/io/mt_file.hpp"
+#include "core/mesh_gen.hpp"
+#include "core/mt_builder.hpp"
+#include "core/occupancy_levels.hpp"
+#include "core/view_extract.hpp"
+#include "protocol/camera.hpp"
+#include "protocol/frame.hpp"
+#include "protocol/parse.hpp"
+#include "protocol/view_request.hpp"
+#include "tests/core/mesh_compare.hpp"
+#include "tests/core/test_meshes.hpp"
+#include "tests/protocol/protocol_cases.hpp"
+#include "tests/server/server_process.hpp"
+
+namespace mtlod {
+namespace {
+
+using clients::Connection;
+using clients::ReplyFrame;
+
+// The model served: the built-in bunny (or a generated sphere when models are not prepared),
+// saved as bunny.mt in a scratch folder.
+struct Fixture {
+  std::filesystem::path dir;
+  core::Mt mt;
+  std::unique_ptr<core::OccupancyLevels> levels;
+  std::unique_ptr<test::ServerProcess> server;
+};
+
+Fixture* g_fixture = nullptr;
+
+class ServerTest : public testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    g_fixture = new Fixture;
+    g_fixture->dir = test::scratch_dir("server");
+    core::Mesh mesh;
+    if (auto bunny = core::io::load_mesh(test::models_dir() / "bunny.ply"); bunny.ok()) {
+      mesh = std::move(bunny->mesh);
+    } else {
+      core::GenerateOptions o;
+      o.target_triangles = 4000;
+      mesh = core::generate_mesh(o);
+    }
+    auto mt = core::build_mt(mesh);
+    ASSERT_TRUE(mt.ok()) << mt.error().message;
+    ASSERT_TRUE(core::io::write_mt_file(g_fixture->dir / "bunny.mt", *mt).ok());
+    g_fixture->mt = std::move(*mt);
+    g_fixture->levels = std::make_unique<core::OccupancyLevels>(g_fixture->mt);
+    g_fixture->server = std::make_unique<test::ServerProcess>(
+        std::vector<std::string>{(g_fixture->dir / "bunny.mt").string(), "--workers", "2", "--log-level", "warn"},
+        g_fixture->dir);
+    ASSERT_TRUE(g_fixture->server->running()) << g_fixture->server->log();
+  }
+  static void TearDownTestSuite() {
+    delete g_fixture;
+    g_fixture = nullptr;
+  }
+  void SetUp() override {
+    ASSERT_NE(g_fixture, nullptr);
+    ASSERT_TRUE(g_fixture->server->running()) << g_fixture->server->log();
+  }
+
+  static Connection connect() {
+    auto c = Connection::open("127.0.0.1", g_fixture->server->port());
+    EXPECT_TRUE(c.ok()) << c.error().message;
+    return std::move(*c);
+  }
+
+  // A camera looking at the model from the front, with silhouette and focus criteria.
+  static protocol::Extract extract_request(double focus_x = 0.5, double focus_y = 0.5) {
+    protocol::Extract e;
+    e.model = "bunny";
+    std::array<double, 3> lo{INFINITY, INFINITY, INFINITY}, hi{-INFINITY, -INFINITY, -INFINITY};
+    const core::Mt& mt = g_fixture->mt;
+    for (std::size_t v = 0; v < mt.vertex_count(); ++v)
+      for (int c = 0; c < 3; ++c) lo[c] = std::min<double>(lo[c], mt.positions[3 * v + c]), hi[c] = std::max<double>(hi[c], mt.positions[3 * v + c]);
+    protocol::look_at_camera(protocol::frame_bounds(lo, hi), 4.0 / 3.0, e.view, e.projection);
+    e.grid = {128, 96};
+    e.error = 2;
+    e.error_unit = protocol::ErrorUnit::kPixels;
+    e.criteria.silhouette = protocol::Silhouette{2, 0};
+    e.criteria.focus = {protocol::Focus{focus_x, focus_y, 10, 0.2}};
+    return e;
+  }
+};
+
+const protocol::MeshReply* as_mesh(const ReplyFrame& f) { return std::get_if<protocol::MeshReply>(&f.header.reply); }
+const protocol::ErrorReply* as_error(const ReplyFrame& f) { return std::get_if<protocol::ErrorReply>(&f.header.reply); }
+
+TEST_F(ServerTest, HelloStatesVersionAndLimits) {
+  Connection c = connect();
+  auto reply = c.call(protocol::Hello{1, "test"}, 1);
+  ASSERT_TRUE(reply.ok()) << reply.error().message;
+  const auto& hello = std::get<protocol::HelloReply>(reply->header.reply);
+  EXPECT_EQ(hello.version, protocol::kProtocolVersion);
+  EXPECT_EQ(hello.limits.max_grid, protocol::Limits{}.max_grid);
+  auto models = c.call(protocol::ListModels{}, 2);
+  ASSERT_TRUE(models.ok());
+  const auto& list = std::get<protocol::ModelsReply>(models->header.reply).models;
+  ASSERT_EQ(list.size(), 1u);
+  EXPECT_EQ(list[0].name, "bunny");
+  EXPECT_EQ(list[0].vertices, g_fixture->mt.vertex_count());
+  EXPECT_GT(list[0].memory_bytes, 0u);
+}
+
+TEST_F(ServerTest, ExtractDecodesToTheInProcessCut) {
+  const protocol::Extract request = extract_request(0.3, 0.4);
+  Connection c = connect();
+  auto reply = c.call(request, 7);
+  ASSERT_TRUE(reply.ok()) << reply.error().message;
+  const auto* mesh = as_mesh(*reply);
+  ASSERT_NE(mesh, nullptr) << reply->json;
+  EXPECT_EQ(mesh->bytes, reply->payload.size());
+
+  // The same request computed here, from the same MT file, with a fresh session cut.
+  core::ViewExtractor extractor(g_fixture->mt, *g_fixture->levels);
+  core::Refiner refiner(g_fixture->mt);
+  core::CutMesh cut;
+  const core::ViewRequest view = protocol::to_view_request(request, g_fixture->mt.has_normals());
+  extractor.map(view);
+  extractor.occupancy();
+  extractor.distance_transforms();
+  extractor.allowed_error();
+  extractor.refine(refiner, cut);
+  EXPECT_EQ(mesh->triangles, cut.triangle_count());
+  EXPECT_FLOAT_EQ(static_cast<float>(mesh->max_error), cut.max_error);
+
+  auto decoded = core::decode_draco(reply->payload);
+  ASSERT_TRUE(decoded.ok()) << decoded.error().message;
+  ASSERT_EQ(decoded->mesh.triangle_count(), cut.triangle_count());
+  EXPECT_EQ(decoded->mesh.vertex_count(), mesh->vertices);
+  const float tolerance = test::draco_tolerance(test::used_extent(g_fixture->mt.positions, cut.triangles),
+                                                request.draco.position_bits);
+  const auto match = test::match_vertices(decoded->mesh.positions, g_fixture->mt.positions, cut.triangles,
+                                          4 * tolerance, tolerance);
+  EXPECT_EQ(test::canonical_triangles(decoded->mesh.triangles, &match), test::canonical_triangles(cut.triangles));
+}
+
+TEST_F(ServerTest, GooglesDracoDecoderReadsAServerPayload) {
+  Connection c = connect();
+  protocol::Extract request = extract_request();
+  request.draco.method = protocol::DracoMethod::kSequential;
+  auto reply = c.call(request, 1);
+  ASSERT_TRUE(reply.ok()) << reply.error().message;
+  ASSERT_NE(as_mesh(*reply), nullptr) << reply->json;
+  const auto drc = g_fixture->dir / "reply.drc", ply = g_fixture->dir / "reply.ply";
+  std::ofstream(drc, std::ios::binary)
+      .write(reinterpret_cast<const char*>(reply->payload.data()), static_cast<std::streamsize>(reply->payload.size()));
+  const std::string command = "draco_decoder -i " + drc.string() + " -o " + ply.string() + " > /dev/null 2>&1";
+  ASSERT_EQ(std::system(command.c_str()), 0) << "draco_decoder (Debian package draco) failed or is missing";
+  auto loaded = core::io::load_mesh(ply, {.clean = false});
+  ASSERT_TRUE(loaded.ok()) << loaded.error().message;
+  EXPECT_EQ(loaded->mesh.triangle_count(), as_mesh(*reply)->triangles);
+}
+
+TEST_F(ServerTest, ThirtyTwoConcurrentClientsMixingExtractAndGaze) {
+  constexpr int kClients = 32, kRounds = 4;
+  std::atomic<int> meshes{0}, failures{0};
+  std::vector<std::thread> threads;
+  for (int client = 0; client < kClients; ++client) {
+    threads.emplace_back([&, client] {
+      auto c = Connection::open("127.0.0.1", g_fixture->server->port());
+      if (!c.ok()) return void(++failures);
+      std::uint64_t id = 1;
+      for (int round = 0; round < kRounds; ++round) {
+        const bool gaze = round > 0 && (client + round) % 2 == 0;
+        const protocol::Request request = gaze ? protocol::Request(protocol::Gaze{0.1 * round, 0.5, {}, {}})
+                                               : protocol::Request(extract_request(0.02 * client, 0.5));
+        auto reply = c->call(request, id++, std::chrono::seconds(120));
+        if (!reply.ok() || !as_mesh(*reply) || as_mesh(*reply)->bytes != reply->payload.size()) {
+          ++failures;
+          continue;
+        }
+        if (core::decode_draco(reply->payload).ok()) ++meshes;
+      }
+    });
+  }
+  for (auto& t : threads) t.join();
+  EXPECT_EQ(failures.load(), 0);
+  EXPECT_EQ(meshes.load(), kClients * kRounds);
+}
+
+TEST_F(ServerTest, EveryDocumentedMalformedRequestGetsItsCodeWhileOthersAreServed) {
+  const auto cases = test::malformed_cases();
+  ASSERT_GE(cases.size(), 15u);
+  Connection bad = connect();
+  Connection good = connect();
+  std::uint64_t good_id = 100;
+  for (const auto& c : cases) {
+    std::vector<std::uint8_t> frame;
+    protocol::append_frame(c.json, {}, frame);
+    ASSERT_TRUE(bad.send_raw(frame).ok());
+    auto reply = bad.receive(std::chrono::seconds(30));
+    ASSERT_TRUE(reply.ok()) << c.json << ": " << reply.error().message;
+    const auto* error = as_error(*reply);
+    ASSERT_NE(error, nullptr) << c.json << " -> " << reply->json;
+    EXPECT_EQ(protocol::to_string(error->code), c.code) << c.json << " -> " << error->message;
+    EXPECT_NE(error->message.find(c.message_contains), std::string::npos) << c.json << " -> " << error->message;
+    // Everyone else is still served.
+    auto pong = good.call(protocol::Ping{}, good_id++);
+    ASSERT_TRUE(pong.ok()) << pong.error().message;
+    EXPECT_TRUE(std::holds_alternative<protocol::Pong>(pong->header.reply));
+  }
+  // And the connection that sent them all still works.
+  auto last = bad.call(extract_request(), 999);
+  ASSERT_TRUE(last.ok()) << last.error().message;
+  EXPECT_NE(as_mesh(*last), nullptr) << last->json;
+}
+
+TEST_F(ServerTest, GazeBurstIsCoalescedAndTheLastReplyReflectsTheLastGaze) {
+  Connection c = connect();
+  auto first = c.call(extract_request(), 1);
+  ASSERT_TRUE(first.ok() && as_mesh(*first));
+  constexpr int kGazes = 200;
+  for (int i = 0; i < kGazes; ++i) {
+    ASSERT_TRUE(c.send(protocol::Gaze{(i % 100) / 100.0, 0.25 + 0.5 * (i % 2), {}, {}}, 1000 + i).ok());
+  }
+  int meshes = 0, superseded = 0;
+  std::uint64_t superseded_reported = 0;
+  const protocol::MeshReply* last_mesh = nullptr;
+  std::vector<ReplyFrame> replies;
+  for (int i = 0; i < kGazes; ++i) {
+    auto reply = c.receive(std::chrono::seconds(120));
+    ASSERT_TRUE(reply.ok()) << reply.error().message;
+    EXPECT_EQ(reply->header.id, 1000u + i) << "replies must come in request order";
+    replies.push_back(std::move(*reply));
+  }
+  for (const ReplyFrame& r : replies) {
+    if (const auto* m = as_mesh(r)) {
+      ++meshes;
+      superseded_reported += m->superseded;
+      last_mesh = m;
+    } else {
+      const auto* e = as_error(r);
+      ASSERT_NE(e, nullptr) << r.json;
+      EXPECT_EQ(e->code, protocol::ErrorKind::kSuperseded) << e->message;
+      ++superseded;
+    }
+  }
+  EXPECT_EQ(meshes + superseded, kGazes);
+  EXPECT_LT(meshes, kGazes / 4) << "gaze updates were queued up instead of coalesced";
+  EXPECT_EQ(superseded_reported, static_cast<std::uint64_t>(superseded));
+  ASSERT_NE(as_mesh(replies.back()), nullptr) << "the newest gaze must be served";
+  ASSERT_TRUE(last_mesh->focus.has_value());
+  EXPECT_DOUBLE_EQ((*last_mesh->focus)[0], ((kGazes - 1) % 100) / 100.0);
+  EXPECT_DOUBLE_EQ((*last_mesh->focus)[1], 0.25 + 0.5 * ((kGazes - 1) % 2));
+}
+
+TEST_F(ServerTest, OversizedFrameClosesOnlyThatConnection) {
+  Connection bad = connect();
+  Connection good = connect();
+  const auto header = protocol::encode_frame_header({1u << 30, 0});
+  ASSERT_TRUE(bad.send_raw({header.begin(), header.end()}).ok());
+  auto reply = bad.receive(std::chrono::seconds(10));
+  ASSERT_TRUE(reply.ok()) << reply.error().message;
+  ASSERT_NE(as_error(*reply), nullptr);
+  EXPECT_EQ(as_error(*reply)->code, protocol::ErrorKind::kBadFrame);
+  EXPECT_FALSE(bad.receive(std::chrono::seconds(10)).ok()) << "the connection should be closed";
+  auto pong = good.call(protocol::Ping{}, 5);
+  ASSERT_TRUE(pong.ok()) << pong.error().message;
+}
+
+TEST_F(ServerTest, AbruptDisconnectsMidFrameAndMidRequestLoseNothingForOthers) {
+  Connection good = connect();
+  for (int i = 0; i < 10; ++i) {
+    Connection gone = connect();
+    std::vector<std::uint8_t> frame;
+    protocol::append_frame(protocol::to_json(protocol::Request(extract_request()), 1), {}, frame);
+    if (i % 2 == 0) frame.resize(frame.size() / 2);  // half a frame, then gone
+    ASSERT_TRUE(gone.send_raw(frame).ok());
+    gone.close();
+  }
+  auto reply = good.call(extract_request(), 2);
+  ASSERT_TRUE(reply.ok()) << reply.error().message;
+  EXPECT_NE(as_mesh(*reply), nullptr);
+  auto stats = good.call(protocol::Stats{}, 3);
+  ASSERT_TRUE(stats.ok());
+  double open = -1;
+  for (const auto& [name, value] : std::get<protocol::StatsReply>(stats->header.reply).counters) {
+    if (name == "connections_open") open = value;
+  }
+  EXPECT_GE(open, 1);
+}
+
+TEST_F(ServerTest, CancelAnswersTheCancelledRequestOrSaysItHadStarted) {
+  Connection c = connect();
+  for (std::uint64_t id = 1; id <= 4; ++id) ASSERT_TRUE(c.send(extract_request(0.1 * id, 0.5), id).ok());
+  ASSERT_TRUE(c.send(protocol::Cancel{4}, 5).ok());
+  std::vector<ReplyFrame> replies;
+  for (int i = 0; i < 5; ++i) {
+    auto r = c.receive(std::chrono::seconds(60));
+    ASSERT_TRUE(r.ok()) << r.error().message;
+    replies.push_back(std::move(*r));
+  }
+  const auto& cancel = std::get<protocol::CancelReply>(replies[4].header.reply);
+  EXPECT_EQ(cancel.target, 4u);
+  if (cancel.cancelled) {
+    ASSERT_NE(as_error(replies[3]), nullptr);
+    EXPECT_EQ(as_error(replies[3])->code, protocol::ErrorKind::kCancelled);
+  } else {
+    EXPECT_NE(as_mesh(replies[3]), nullptr);
+  }
+}
+
+TEST(ServerShutdown, SigtermFinishesInFlightWorkThenExits) {
+  const auto dir = test::scratch_dir("server-drain");
+  core::GenerateOptions o;
+  o.target_triangles = 60'000;
+  auto mt = core::build_mt(core::generate_mesh(o));
+  ASSERT_TRUE(mt.ok());
+  ASSERT_TRUE(core::io::write_mt_file(dir / "sphere.mt", *mt).ok());
+  test::ServerProcess server({(dir / "sphere.mt").string(), "--workers", "1", "--log-level", "info"}, dir);
+  ASSERT_TRUE(server.running()) << server.log();
+  auto c = Connection::open("127.0.0.1", server.port());
+  ASSERT_TRUE(c.ok());
+  protocol::Extract e;
+  e.model = "sphere";
+  protocol::look_at_camera(protocol::LookAt{}, 1.0, e.view, e.projection);
+  e.error = 0;  // full resolution: long enough to still be running at the signal
+  for (std::uint64_t id = 1; id <= 3; ++id) ASSERT_TRUE(c->send(e, id).ok());
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  std::thread stopper([&] { server.stop(SIGTERM); });
+  int meshes = 0, shutting_down = 0;
+  for (int i = 0; i < 3; ++i) {
+    auto r = c->receive(std::chrono::seconds(60));
+    ASSERT_TRUE(r.ok()) << r.error().message;
+    if (as_mesh(*r)) {
+      ++meshes;
+      EXPECT_TRUE(core::decode_draco(r->payload).ok());
+    } else {
+      ASSERT_NE(as_error(*r), nullptr);
+      EXPECT_EQ(as_error(*r)->code, protocol::ErrorKind::kShuttingDown);
+      ++shutting_down;
+    }
+  }
+  stopper.join();
+  EXPECT_GE(meshes, 1) << "the running extraction must finish";
+  EXPECT_EQ(meshes + shutting_down, 3);
+  EXPECT_NE(server.log().find("stopped"), std::string::npos) << server.log();
+  EXPECT_FALSE(Connection::open("127.0.0.1", server.port(), std::chrono::milliseconds(500)).ok())
+      << "a stopped server accepts no connection";
+}
+
+}  // namespace
+}  // namespace mtlod
