@@ -135,10 +135,12 @@ void backward_pass(std::uint16_t* buffer, std::size_t stride, GridSize grid, std
   }
 }
 
-#else  // portable scalar passes, cell by cell exactly as Algorithm 1
+#endif
 
+// Portable scalar passes, cell by cell exactly as Algorithm 1: the fallback without SSE2, and a second
+// implementation the tests hold against the same Dijkstra reference.
 template <const auto& kMask>
-void forward_pass(std::uint16_t* buffer, std::size_t stride, GridSize grid) {
+void forward_pass_scalar(std::uint16_t* buffer, std::size_t stride, GridSize grid) {
   for (std::size_t y = 0; y < grid.height; ++y) {
     std::uint16_t* row = buffer + (y + kPadRows) * stride + kPadLeft;
     for (std::size_t x = 0; x < grid.width; ++x) {
@@ -153,7 +155,7 @@ void forward_pass(std::uint16_t* buffer, std::size_t stride, GridSize grid) {
 }
 
 template <const auto& kMask>
-void backward_pass(std::uint16_t* buffer, std::size_t stride, GridSize grid, std::uint16_t* out) {
+void backward_pass_scalar(std::uint16_t* buffer, std::size_t stride, GridSize grid, std::uint16_t* out) {
   for (std::size_t y = grid.height; y-- > 0;) {
     std::uint16_t* row = buffer + (y + kPadRows) * stride + kPadLeft;
     for (std::size_t x = grid.width; x-- > 0;) {
@@ -168,12 +170,18 @@ void backward_pass(std::uint16_t* buffer, std::size_t stride, GridSize grid, std
   }
 }
 
-#endif
-
 template <const auto& kMask>
-void two_pass(std::uint16_t* buffer, std::size_t stride, GridSize grid, std::uint16_t* out) {
-  forward_pass<kMask>(buffer, stride, grid);
-  backward_pass<kMask>(buffer, stride, grid, out);
+void two_pass(std::uint16_t* buffer, std::size_t stride, GridSize grid, std::uint16_t* out, bool scalar) {
+#if defined(__SSE2__)
+  if (!scalar) {
+    forward_pass<kMask>(buffer, stride, grid);
+    backward_pass<kMask>(buffer, stride, grid, out);
+    return;
+  }
+#endif
+  (void)scalar;
+  forward_pass_scalar<kMask>(buffer, stride, grid);
+  backward_pass_scalar<kMask>(buffer, stride, grid, out);
 }
 
 // floor(a / b) for b > 0; C++ division truncates towards zero.
@@ -223,16 +231,16 @@ void DistanceTransformer::run_chamfer(DistanceMetric metric, GridSize grid, std:
   std::uint16_t* buffer = padded_.data();
   switch (metric) {
     case DistanceMetric::kChamfer5711:
-      two_pass<kChamfer5711Forward>(buffer, stride_, grid, out.data());
+      two_pass<kChamfer5711Forward>(buffer, stride_, grid, out.data(), scalar_);
       break;
     case DistanceMetric::kChamfer34:
-      two_pass<kChamfer34Forward>(buffer, stride_, grid, out.data());
+      two_pass<kChamfer34Forward>(buffer, stride_, grid, out.data(), scalar_);
       break;
     case DistanceMetric::kCityBlock:
-      two_pass<kCityBlockForward>(buffer, stride_, grid, out.data());
+      two_pass<kCityBlockForward>(buffer, stride_, grid, out.data(), scalar_);
       break;
     case DistanceMetric::kChessboard:
-      two_pass<kChessboardForward>(buffer, stride_, grid, out.data());
+      two_pass<kChessboardForward>(buffer, stride_, grid, out.data(), scalar_);
       break;
     case DistanceMetric::kEuclidean:
       assert(false && "use euclidean_squared");
@@ -262,6 +270,95 @@ void DistanceTransformer::chamfer_from_cells(DistanceMetric metric, std::span<co
     padded_[(c / grid.width + kPadRows) * stride_ + kPadLeft + c % grid.width] = 0;
   }
   run_chamfer(metric, grid, out);
+}
+
+namespace {
+
+// One forward and one backward pass restricted to passable cells; returns whether any value fell.
+template <const auto& kMask>
+bool constrained_round(std::uint16_t* buffer, const std::uint8_t* passable, std::size_t stride,
+                       GridSize grid) {
+  bool changed = false;
+  auto relax = [&](std::size_t y, std::size_t x, int sign) {
+    const std::size_t c = (y + kPadRows) * stride + kPadLeft + x;
+    if (!passable[c]) return;
+    std::uint32_t best = buffer[c];
+    for (const ChamferStep& s : kMask) {
+      const std::ptrdiff_t n =
+          static_cast<std::ptrdiff_t>(c) + sign * (s.dy * static_cast<std::ptrdiff_t>(stride) + s.dx);
+      // A blocked neighbour keeps +inf unless it is a seed, so it needs no test of its own.
+      best = std::min<std::uint32_t>(best, buffer[n] + s.weight);
+    }
+    if (best < buffer[c]) {
+      buffer[c] = static_cast<std::uint16_t>(best);
+      changed = true;
+    }
+  };
+  for (std::size_t y = 0; y < grid.height; ++y)
+    for (std::size_t x = 0; x < grid.width; ++x) relax(y, x, 1);
+  for (std::size_t y = grid.height; y-- > 0;)
+    for (std::size_t x = grid.width; x-- > 0;) relax(y, x, -1);
+  return changed;
+}
+
+template <const auto& kMask>
+std::size_t constrained_rounds(std::uint16_t* buffer, const std::uint8_t* passable, std::size_t stride,
+                               GridSize grid, std::size_t max_rounds) {
+  std::size_t rounds = 0;
+  while (rounds < max_rounds) {
+    ++rounds;
+    if (!constrained_round<kMask>(buffer, passable, stride, grid)) break;
+  }
+  return rounds;
+}
+
+}  // namespace
+
+std::size_t DistanceTransformer::chamfer_constrained(DistanceMetric metric,
+                                                     std::span<const std::uint32_t> seed_cells,
+                                                     std::span<const std::uint8_t> passable, GridSize grid,
+                                                     std::span<std::uint16_t> out, std::size_t max_rounds) {
+  assert(passable.size() == grid.cell_count() && out.size() == grid.cell_count());
+  prepare_padded(grid);
+  passable_.assign(padded_.size(), 0);  // padding is blocked
+  for (std::size_t y = 0; y < grid.height; ++y) {
+    const std::size_t row = (y + kPadRows) * stride_ + kPadLeft;
+    for (std::size_t x = 0; x < grid.width; ++x) passable_[row + x] = passable[y * grid.width + x] != 0;
+  }
+  for (const std::uint32_t c : seed_cells) {
+    if (c == kNoCell) continue;
+    assert(c < grid.cell_count());
+    const std::size_t p = (c / grid.width + kPadRows) * stride_ + kPadLeft + c % grid.width;
+    padded_[p] = 0;
+    passable_[p] = 1;
+  }
+  std::size_t rounds = 0;
+  switch (metric) {
+    case DistanceMetric::kChamfer5711:
+      rounds = constrained_rounds<kChamfer5711Forward>(padded_.data(), passable_.data(), stride_, grid,
+                                                       max_rounds);
+      break;
+    case DistanceMetric::kChamfer34:
+      rounds =
+          constrained_rounds<kChamfer34Forward>(padded_.data(), passable_.data(), stride_, grid, max_rounds);
+      break;
+    case DistanceMetric::kCityBlock:
+      rounds =
+          constrained_rounds<kCityBlockForward>(padded_.data(), passable_.data(), stride_, grid, max_rounds);
+      break;
+    case DistanceMetric::kChessboard:
+      rounds =
+          constrained_rounds<kChessboardForward>(padded_.data(), passable_.data(), stride_, grid, max_rounds);
+      break;
+    case DistanceMetric::kEuclidean:
+      assert(false && "no constrained Euclidean transform");
+      break;
+  }
+  for (std::size_t y = 0; y < grid.height; ++y) {
+    std::memcpy(out.data() + y * grid.width, padded_.data() + (y + kPadRows) * stride_ + kPadLeft,
+                grid.width * sizeof(std::uint16_t));
+  }
+  return rounds;
 }
 
 void DistanceTransformer::euclidean_squared(std::span<const std::uint8_t> image, GridSize grid,

@@ -35,21 +35,25 @@ struct ChamferStep {
 // The forward halves of the masks (Table 1's bold weights for 5-7-11): the neighbours visited before
 // a cell in a top-to-bottom, left-to-right scan. The backward halves are the same steps negated. The
 // last step of every table is the in-row neighbour (−1, 0).
+// clang-format off
 inline constexpr std::array<ChamferStep, 8> kChamfer5711Forward{{
-    {-1, -2, 11},
-    {1, -2, 11},  // knight moves two rows up
-    {-2, -1, 11},
-    {-1, -1, 7},
-    {0, -1, 5},
-    {1, -1, 7},
-    {2, -1, 11},  // the row above
-    {-1, 0, 5},   // the left neighbour
+                  {-1, -2, 11},             {1, -2, 11},                   // knights, two rows up
+    {-2, -1, 11}, {-1, -1, 7},  {0, -1, 5}, {1, -1, 7},  {2, -1, 11},      // the row above
+                  {-1,  0, 5},                                             // the left neighbour
 }};
-inline constexpr std::array<ChamferStep, 4> kChamfer34Forward{
-    {{-1, -1, 4}, {0, -1, 3}, {1, -1, 4}, {-1, 0, 3}}};
-inline constexpr std::array<ChamferStep, 2> kCityBlockForward{{{0, -1, 1}, {-1, 0, 1}}};
-inline constexpr std::array<ChamferStep, 4> kChessboardForward{
-    {{-1, -1, 1}, {0, -1, 1}, {1, -1, 1}, {-1, 0, 1}}};
+inline constexpr std::array<ChamferStep, 4> kChamfer34Forward{{
+    {-1, -1, 4}, {0, -1, 3}, {1, -1, 4},
+    {-1,  0, 3},
+}};
+inline constexpr std::array<ChamferStep, 2> kCityBlockForward{{
+                 {0, -1, 1},
+    {-1,  0, 1},
+}};
+inline constexpr std::array<ChamferStep, 4> kChessboardForward{{
+    {-1, -1, 1}, {0, -1, 1}, {1, -1, 1},
+    {-1,  0, 1},
+}};
+// clang-format on
 
 // Value of a chamfer cell that no seed reaches (an image without zero cells). Every real distance on
 // a grid of at most kMaxGridSide² cells is smaller (5-7-11: at most 4095·7 = 28665).
@@ -91,6 +95,20 @@ class DistanceTransformer {
   void euclidean_squared_from_cells(std::span<const std::uint32_t> seed_cells, GridSize grid,
                                     std::span<std::uint32_t> out);
 
+  // Runs the chamfer passes cell by cell (the portable code used without SSE2) instead of 8 cells at
+  // a time. Same results; for tests and comparisons.
+  void set_scalar(bool scalar) { scalar_ = scalar; }
+
+  // Constrained chamfer transform (DESIGN.md §3): distance from the seed cells along paths of mask
+  // moves whose cells are all passable (passable[c] ≠ 0, e.g. the occupancy, so a focus's distance
+  // spreads only over the object). Seed cells count as passable. Cells no such path reaches are
+  // kChamferUnreached. The two passes repeat until a round changes nothing or max_rounds rounds ran;
+  // returns the rounds run (a path that turns back against the scan order needs one more round).
+  // metric must not be kEuclidean.
+  std::size_t chamfer_constrained(DistanceMetric metric, std::span<const std::uint32_t> seed_cells,
+                                  std::span<const std::uint8_t> passable, GridSize grid,
+                                  std::span<std::uint16_t> out, std::size_t max_rounds = 256);
+
  private:
   void prepare_padded(GridSize grid);
   void run_chamfer(DistanceMetric metric, GridSize grid, std::span<std::uint16_t> out);
@@ -98,6 +116,8 @@ class DistanceTransformer {
 
   std::vector<std::uint16_t> padded_;    // chamfer grid with 2 cells of +inf on every side
   std::size_t stride_ = 0;               // padded row length
+  bool scalar_ = false;                  // set_scalar
+  std::vector<std::uint8_t> passable_;   // chamfer_constrained: padded passable mask (padding blocked)
   std::vector<std::uint16_t> column_;    // Euclidean phase 1: distance to the nearest seed in the column
   std::vector<std::uint32_t> envelope_;  // Euclidean phase 2: s and t of the lower envelope
 };

@@ -41,6 +41,14 @@ int clip_to_front(const std::array<ClipCorner, 3>& in, std::array<ClipCorner, 4>
   return count;
 }
 
+// floor(x) for a coordinate, clamped to ±2^30 first (far beyond any grid): without SSE4.1 std::floor
+// is a libm call, and it ran several times per triangle.
+inline double floor_clamped(double x) {
+  x = std::clamp(x, -1073741824.0, 1073741824.0);
+  const auto t = static_cast<double>(static_cast<std::int64_t>(x));
+  return t > x ? t - 1.0 : t;
+}
+
 class Rasterizer {
  public:
   Rasterizer(GridSize grid, std::span<std::uint8_t> occupancy, std::span<float> depth,
@@ -56,27 +64,42 @@ class Rasterizer {
     }
     // Half-open cells: a polygon reaching y = H exactly touches no row, one starting at y = 0 does.
     if (!(ymax >= 0.0 && ymin < grid_.height)) return false;
-    const auto row_first = static_cast<std::uint32_t>(std::max(0.0, std::floor(ymin)));
-    const auto row_last = static_cast<std::uint32_t>(std::min<double>(grid_.height - 1, std::floor(ymax)));
+    const auto row_first = static_cast<std::uint32_t>(std::max(0.0, floor_clamped(ymin)));
+    const auto row_last = static_cast<std::uint32_t>(std::min<double>(grid_.height - 1, floor_clamped(ymax)));
     const bool with_depth = !depth_.empty();
     Plane plane{};
     if (with_depth) plane = fit_plane(corners, count);
+    // Edge slopes dx/dy once per polygon; horizontal edges never cross a strip line strictly.
+    double slope[4];
+    for (int k = 0; k < count; ++k) {
+      const Corner& a = corners[k];
+      const Corner& b = corners[(k + 1) % count];
+      slope[k] = a.y != b.y ? (b.x - a.x) / (b.y - a.y) : 0.0;
+    }
+    // Unclamped: a polygon running off the grid's top or bottom is not in a single row.
+    const bool single_row = floor_clamped(ymin) == floor_clamped(ymax);
     bool marked = false;
     for (std::uint32_t j = row_first; j <= row_last; ++j) {
-      const double y0 = std::max<double>(j, ymin), y1 = std::min<double>(j + 1.0, ymax);
       double xmin = std::numeric_limits<double>::infinity(), xmax = -xmin;
-      for (int k = 0; k < count; ++k) {
-        const Corner& a = corners[k];
-        const Corner& b = corners[(k + 1) % count];
-        if (a.y >= y0 && a.y <= y1) {
-          xmin = std::min(xmin, a.x);
-          xmax = std::max(xmax, a.x);
+      if (single_row) {
+        // The whole polygon lies in this row (most cut triangles are about a cell in size).
+        for (int k = 0; k < count; ++k) {
+          xmin = std::min(xmin, corners[k].x);
+          xmax = std::max(xmax, corners[k].x);
         }
-        // Crossings of the strip's lines by edge (a, b); horizontal edges have both ends counted above.
-        if (a.y != b.y) {
+      } else {
+        const double y0 = std::max<double>(j, ymin), y1 = std::min<double>(j + 1.0, ymax);
+        for (int k = 0; k < count; ++k) {
+          const Corner& a = corners[k];
+          const Corner& b = corners[(k + 1) % count];
+          if (a.y >= y0 && a.y <= y1) {
+            xmin = std::min(xmin, a.x);
+            xmax = std::max(xmax, a.x);
+          }
+          // Crossings of the strip's lines by edge (a, b); an end on a line was counted above.
           for (const double line : {y0, y1}) {
             if ((a.y - line) * (b.y - line) < 0.0) {
-              const double x = a.x + (line - a.y) / (b.y - a.y) * (b.x - a.x);
+              const double x = a.x + (line - a.y) * slope[k];
               xmin = std::min(xmin, x);
               xmax = std::max(xmax, x);
             }
@@ -84,10 +107,15 @@ class Rasterizer {
         }
       }
       if (!(xmax >= 0.0 && xmin < grid_.width)) continue;
-      const auto first = static_cast<std::uint32_t>(std::max(0.0, std::floor(xmin)));
-      const auto last = static_cast<std::uint32_t>(std::min<double>(grid_.width - 1, std::floor(xmax)));
+      const auto first = static_cast<std::uint32_t>(std::max(0.0, floor_clamped(xmin)));
+      const auto last = static_cast<std::uint32_t>(std::min<double>(grid_.width - 1, floor_clamped(xmax)));
       std::uint8_t* row = occupancy_.data() + std::size_t{j} * grid_.width;
-      std::fill(row + first, row + last + 1, std::uint8_t{1});
+      // Spans are mostly a few cells: a plain loop beats a call to memset.
+      if (last - first < 16) {
+        for (std::uint32_t i = first; i <= last; ++i) row[i] = 1;
+      } else {
+        std::fill(row + first, row + last + 1, std::uint8_t{1});
+      }
       if (with_depth) {
         float* depth_row = depth_.data() + std::size_t{j} * grid_.width;
         for (std::uint32_t i = first; i <= last; ++i) {
@@ -145,8 +173,10 @@ std::size_t rasterize_occupancy(const ViewMapping& mapping, std::span<const floa
   Rasterizer rasterizer(grid, occupancy, depth, mapping);
   const double width = grid.width, height = grid.height;
   std::size_t marking = 0;
+  const bool with_depth = !depth.empty();
   for (std::size_t t = 0; t < triangles.size(); t += 3) {
     std::array<ClipCorner, 3> clip;
+    Corner corners[4];
     bool all_front = true;
     for (int k = 0; k < 3; ++k) {
       const std::uint32_t v = triangles[t + k];
@@ -154,22 +184,26 @@ std::size_t rasterize_occupancy(const ViewMapping& mapping, std::span<const floa
       const float* p = positions.data() + 3 * std::size_t{v};
       float cx, cy, cw;
       mapping.clip_xyw(p[0], p[1], p[2], cx, cy, cw);
-      clip[k] = {cx, cy, mapping.clip_z(p[0], p[1], p[2]), cw};
+      const float cz = with_depth ? mapping.clip_z(p[0], p[1], p[2]) : 0.0f;
+      clip[k] = {cx, cy, cz, cw};
       all_front &= cw >= kMinClipW;
+      // In front, the corner's grid point is computed exactly as the vertex mapping does (float), so
+      // a vertex's own cell is always marked by its triangles.
+      if (all_front) {
+        const GridPoint g = mapping.to_grid(cx, cy, cw);
+        corners[k] = {g.x, g.y, cz / cw};
+      }
     }
-    std::array<ClipCorner, 4> front;
     int count = 3;
-    if (all_front) {
-      std::copy(clip.begin(), clip.end(), front.begin());
-    } else {
+    if (!all_front) {
+      std::array<ClipCorner, 4> front;
       count = clip_to_front(clip, front);
       if (count < 3) continue;  // entirely behind the camera
-    }
-    // The grid coordinates of ViewMapping::to_grid, in double for the clipped, far-flung corners.
-    Corner corners[4];
-    for (int k = 0; k < count; ++k) {
-      const ClipCorner& c = front[k];
-      corners[k] = {(c.x / c.w + 1.0) * 0.5 * width, (1.0 - c.y / c.w) * 0.5 * height, c.z / c.w};
+      // Clipped corners can be far off the grid: double precision.
+      for (int k = 0; k < count; ++k) {
+        const ClipCorner& c = front[k];
+        corners[k] = {(c.x / c.w + 1.0) * 0.5 * width, (1.0 - c.y / c.w) * 0.5 * height, c.z / c.w};
+      }
     }
     marking += rasterizer.fill(corners, count) ? 1 : 0;
   }

@@ -24,8 +24,11 @@
 #include "core/allowed_error.hpp"
 #include "core/distance_transform.hpp"
 #include "core/io/mesh_io.hpp"
+#include "core/io/mt_file.hpp"
 #include "core/labels.hpp"
+#include "core/mt_builder.hpp"
 #include "core/occupancy.hpp"
+#include "core/refine.hpp"
 #include "core/view_grid.hpp"
 
 namespace mtlod::core {
@@ -63,6 +66,22 @@ void BM_Chamfer5711(benchmark::State& state) {
   state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * grid.cell_count()));
 }
 BENCHMARK(BM_Chamfer5711)->Arg(256)->Arg(512)->Arg(1024)->Arg(2048)->Unit(benchmark::kMicrosecond);
+
+// The same transform through the cell-by-cell scalar passes (the portable fallback), for reference.
+void BM_Chamfer5711Scalar(benchmark::State& state) {
+  const auto side = static_cast<std::uint32_t>(state.range(0));
+  const GridSize grid{side, side};
+  const auto image = blob_image(grid);
+  std::vector<std::uint16_t> out(grid.cell_count());
+  DistanceTransformer transformer;
+  transformer.set_scalar(true);
+  for (auto _ : state) {
+    transformer.chamfer(DistanceMetric::kChamfer5711, image, grid, out);
+    benchmark::DoNotOptimize(out.data());
+  }
+  state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * grid.cell_count()));
+}
+BENCHMARK(BM_Chamfer5711Scalar)->Arg(512)->Unit(benchmark::kMicrosecond);
 
 void BM_Chamfer34(benchmark::State& state) {
   const auto side = static_cast<std::uint32_t>(state.range(0));
@@ -364,6 +383,180 @@ void BM_GridPipelineDragon256(benchmark::State& state) {
   state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * allowed.size()));
 }
 BENCHMARK(BM_GridPipelineDragon256)->Unit(benchmark::kMicrosecond);
+
+// The whole per-request pipeline before encoding (issue 4): 871k dragon at 256², occupancy of the
+// session's previous coarse cut (a uniform cut of ~9k triangles here), silhouette 5-7-11, labels and
+// allowed error for every vertex (step law, d = 2 px, f = 0.25), and static refinement with a reused
+// Refiner. The error bound is tuned once so that the cut has about 50k triangles.
+struct DragonMt {
+  std::optional<Mt> mt;
+  Camera camera;
+  float radius = 0.0f;
+  static const DragonMt& get() {
+    static const DragonMt d;
+    return d;
+  }
+
+ private:
+  DragonMt() {
+    const std::filesystem::path prepared = std::filesystem::path(MTLOD_MODELS_DIR) / "dragon-871k.mt";
+    if (auto read = io::read_mt_file(prepared); read.ok()) {
+      mt = std::move(read).value();
+    } else {
+      auto loaded = io::load_mesh(std::filesystem::path(MTLOD_SHARED_MESHES_DIR) / "dragon-vrip-871k.ply");
+      if (!loaded.ok()) return;
+      auto built = build_mt(loaded->mesh);
+      if (!built.ok()) return;
+      mt = std::move(built).value();
+    }
+    glm::vec3 lo(1e30f), hi(-1e30f);
+    for (std::size_t v = 0; v < mt->vertex_count(); ++v) {
+      const glm::vec3 p(mt->positions[3 * v], mt->positions[3 * v + 1], mt->positions[3 * v + 2]);
+      lo = glm::min(lo, p);
+      hi = glm::max(hi, p);
+    }
+    const glm::vec3 centre = 0.5f * (lo + hi);
+    radius = 0.5f * glm::length(hi - lo);
+    camera.view = glm::lookAt(centre + glm::vec3(0.0f, 0.0f, 2.6f * radius), centre, glm::vec3(0, 1, 0));
+    camera.projection = glm::perspective(glm::radians(45.0f), 1.0f, 0.1f * radius, 10.0f * radius);
+  }
+};
+
+void BM_RequestPipelineDragon256(benchmark::State& state) {
+  const DragonMt& dragon = DragonMt::get();
+  if (!dragon.mt) {
+    state.SkipWithError("no dragon MT (models dir) and no shared dragon mesh");
+    return;
+  }
+  const Mt& mt = *dragon.mt;
+  const ViewMapping mapping(dragon.camera, GridSize{256, 256});
+  const GridSize grid = mapping.grid();
+  CutMesh previous, cut;
+  refine_static(mt, AllowedError::everywhere(0.3f * dragon.radius), previous);
+  std::vector<std::uint8_t> occupancy(grid.cell_count());
+  std::vector<std::uint16_t> silhouette(grid.cell_count());
+  std::vector<float> allowed(mt.vertex_count());
+  DistanceTransformer transformer;
+  AllowedErrorField field;
+  Refiner refiner(mt);
+  AllowedErrorOptions options;
+  options.use_silhouette = true;
+  options.silhouette = {FalloffLaw::kStep, 2.0f, 0.25f, 0.0f, 2.3f};
+  auto request = [&] {
+    rasterize_occupancy(mapping, mt.positions, previous.triangles, occupancy);
+    transformer.chamfer(DistanceMetric::kChamfer5711, occupancy, grid, silhouette);
+    field.bind(mapping, options, {silhouette, {}, {}, mt.positions, {}});
+    field.compute_all(allowed);
+    refiner.refine(AllowedError::from_vertices(allowed), cut);
+  };
+  // Bisection on the error bound (cut size falls as the bound grows) for a cut of 50k ± 2%.
+  float lo = 0.01f * dragon.radius, hi = dragon.radius;
+  for (int step = 0; step < 30; ++step) {
+    options.error = std::sqrt(lo * hi);
+    request();
+    if (cut.triangle_count() > 51000)
+      lo = options.error;
+    else if (cut.triangle_count() < 49000)
+      hi = options.error;
+    else
+      break;
+  }
+  for (auto _ : state) {
+    request();
+    benchmark::DoNotOptimize(cut.triangles.data());
+  }
+  state.counters["cut_triangles"] = static_cast<double>(cut.triangle_count());
+  state.counters["occupancy_triangles"] = static_cast<double>(previous.triangle_count());
+  state.counters["error_over_radius"] = options.error / dragon.radius;
+  state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations()));
+}
+BENCHMARK(BM_RequestPipelineDragon256)->Unit(benchmark::kMillisecond);
+
+// Occupancy from uniform MT cuts of the dragon at 256² (arg: error bound in thousandths of the
+// bounding radius), and how far the silhouette labels of the full-resolution vertices move from those
+// of the full mesh's occupancy: share of vertices whose label changes at all, and by more than 1 px.
+void BM_OccupancyFromMtCut256(benchmark::State& state) {
+  const DragonMt& dragon = DragonMt::get();
+  if (!dragon.mt) {
+    state.SkipWithError("no dragon MT");
+    return;
+  }
+  const Mt& mt = *dragon.mt;
+  const ViewMapping mapping(dragon.camera, GridSize{256, 256});
+  const GridSize grid = mapping.grid();
+  CutMesh coarse, full;
+  refine_static(mt, AllowedError::everywhere(static_cast<float>(state.range(0)) / 1000.0f * dragon.radius),
+                coarse);
+  refine_static(mt, AllowedError::everywhere(-1.0f), full);
+  std::vector<std::uint8_t> occupancy(grid.cell_count()), reference(grid.cell_count());
+  for (auto _ : state) {
+    rasterize_occupancy(mapping, mt.positions, coarse.triangles, occupancy);
+    benchmark::DoNotOptimize(occupancy.data());
+  }
+  rasterize_occupancy(mapping, mt.positions, full.triangles, reference);
+  std::vector<std::uint16_t> dt(grid.cell_count()), dt_reference(grid.cell_count());
+  chamfer_5_7_11(occupancy, grid, dt);
+  chamfer_5_7_11(reference, grid, dt_reference);
+  std::vector<std::uint32_t> cells(mt.vertex_count());
+  std::vector<float> clip_w(mt.vertex_count());
+  map_vertices(mapping, mt.positions, cells, clip_w);
+  std::size_t labelled = 0, changed = 0, far = 0, cells_differing = 0, object = 0;
+  for (std::size_t v = 0; v < cells.size(); ++v) {
+    if (cells[v] == kNoCell) continue;
+    ++labelled;
+    const int a = dt[cells[v]], b = dt_reference[cells[v]];
+    changed += a != b;
+    far += std::abs(a - b) > 5;
+  }
+  for (std::size_t c = 0; c < occupancy.size(); ++c) {
+    cells_differing += occupancy[c] != reference[c];
+    object += reference[c] != 0;
+  }
+  state.counters["cut_triangles"] = static_cast<double>(coarse.triangle_count());
+  state.counters["cells_differing_pct"] =
+      100.0 * static_cast<double>(cells_differing) / static_cast<double>(object);
+  state.counters["labels_changed_pct"] = 100.0 * static_cast<double>(changed) / static_cast<double>(labelled);
+  state.counters["labels_off_gt1px_pct"] = 100.0 * static_cast<double>(far) / static_cast<double>(labelled);
+  state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * coarse.triangle_count()));
+}
+BENCHMARK(BM_OccupancyFromMtCut256)
+    ->Arg(50)
+    ->Arg(100)
+    ->Arg(200)
+    ->Arg(300)
+    ->Arg(500)
+    ->Unit(benchmark::kMillisecond);
+
+// The refinement alone, with the allowed errors of the pipeline above (for the breakdown).
+void BM_RefineOnlyDragon256(benchmark::State& state) {
+  const DragonMt& dragon = DragonMt::get();
+  if (!dragon.mt) {
+    state.SkipWithError("no dragon MT");
+    return;
+  }
+  const Mt& mt = *dragon.mt;
+  const ViewMapping mapping(dragon.camera, GridSize{256, 256});
+  CutMesh previous, cut;
+  refine_static(mt, AllowedError::everywhere(0.3f * dragon.radius), previous);
+  std::vector<std::uint8_t> occupancy(mapping.grid().cell_count());
+  std::vector<std::uint16_t> silhouette(occupancy.size());
+  rasterize_occupancy(mapping, mt.positions, previous.triangles, occupancy);
+  chamfer_5_7_11(occupancy, mapping.grid(), silhouette);
+  AllowedErrorOptions options;
+  options.error = static_cast<float>(state.range(0)) / 1000.0f * dragon.radius;
+  options.use_silhouette = true;
+  options.silhouette = {FalloffLaw::kStep, 2.0f, 0.25f, 0.0f, 2.3f};
+  std::vector<float> allowed(mt.vertex_count());
+  compute_vertex_allowed_error(mapping, options, {silhouette, {}, {}, mt.positions, {}}, allowed);
+  Refiner refiner(mt);
+  for (auto _ : state) {
+    refiner.refine(AllowedError::from_vertices(allowed), cut);
+    benchmark::DoNotOptimize(cut.triangles.data());
+  }
+  state.counters["cut_triangles"] = static_cast<double>(cut.triangle_count());
+}
+// Arg: error bound in thousandths of the bounding radius.
+BENCHMARK(BM_RefineOnlyDragon256)->Arg(100)->Arg(150)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 }  // namespace mtlod::core

@@ -103,6 +103,26 @@ TEST(Chessboard, MatchesDijkstraOnRandomGrids) {
   expect_matches_dijkstra(chessboard, kChessboardForward);
 }
 
+// The cell-by-cell scalar passes (the non-SSE2 build) against the same reference.
+void chamfer_scalar(DistanceMetric metric, std::span<const std::uint8_t> image, GridSize grid,
+                    std::span<std::uint16_t> out) {
+  DistanceTransformer transformer;
+  transformer.set_scalar(true);
+  transformer.chamfer(metric, image, grid, out);
+}
+void chamfer_5_7_11_scalar(std::span<const std::uint8_t> image, GridSize grid, std::span<std::uint16_t> out) {
+  chamfer_scalar(DistanceMetric::kChamfer5711, image, grid, out);
+}
+void chessboard_scalar(std::span<const std::uint8_t> image, GridSize grid, std::span<std::uint16_t> out) {
+  chamfer_scalar(DistanceMetric::kChessboard, image, grid, out);
+}
+TEST(Chamfer5711, ScalarPassesMatchDijkstraOnRandomGrids) {
+  expect_matches_dijkstra(chamfer_5_7_11_scalar, kChamfer5711Forward);
+}
+TEST(Chessboard, ScalarPassesMatchDijkstraOnRandomGrids) {
+  expect_matches_dijkstra(chessboard_scalar, kChessboardForward);
+}
+
 TEST(Chamfer5711, SingleSeedGivesMaskDistancesByHand) {
   // One seed at (2, 2) of a 5×5 grid. Two cells away: 10 along an axis, 14 diagonally, 11 for the
   // knight move; the corner (0, 0) is two diagonal steps (14), (0, 1) a knight move (11).
@@ -200,6 +220,80 @@ TEST(DistanceTransformer, ReusedObjectGivesSameResultsAcrossGridSizes) {
     euclidean_squared(image, grid, e_fresh);
     EXPECT_EQ(e_reused, e_fresh);
   }
+}
+
+// Reference for the constrained transform: Dijkstra from the seeds over mask moves whose two ends are
+// passable (seeds count as passable).
+std::vector<std::uint16_t> constrained_dijkstra(const std::vector<std::uint32_t>& seeds,
+                                                std::vector<std::uint8_t> passable, GridSize grid) {
+  for (const std::uint32_t c : seeds) passable[c] = 1;
+  std::vector<std::uint32_t> dist(grid.cell_count(), 0xFFFFFFFFu);
+  using Entry = std::pair<std::uint32_t, std::uint32_t>;
+  std::priority_queue<Entry, std::vector<Entry>, std::greater<>> queue;
+  for (const std::uint32_t c : seeds) {
+    dist[c] = 0;
+    queue.push({0, c});
+  }
+  while (!queue.empty()) {
+    const auto [d, c] = queue.top();
+    queue.pop();
+    if (d != dist[c]) continue;
+    const int x = static_cast<int>(c % grid.width), y = static_cast<int>(c / grid.width);
+    for (const ChamferStep& s : kChamfer5711Forward) {
+      for (const int sign : {1, -1}) {
+        const int nx = x + sign * s.dx, ny = y + sign * s.dy;
+        if (nx < 0 || ny < 0 || nx >= static_cast<int>(grid.width) || ny >= static_cast<int>(grid.height))
+          continue;
+        const std::uint32_t n = grid.cell(static_cast<std::uint32_t>(nx), static_cast<std::uint32_t>(ny));
+        if (!passable[n]) continue;
+        if (d + s.weight < dist[n]) {
+          dist[n] = d + s.weight;
+          queue.push({dist[n], n});
+        }
+      }
+    }
+  }
+  std::vector<std::uint16_t> out(dist.size());
+  for (std::size_t c = 0; c < dist.size(); ++c) {
+    out[c] = dist[c] == 0xFFFFFFFFu ? kChamferUnreached : static_cast<std::uint16_t>(dist[c]);
+  }
+  return out;
+}
+
+TEST(ChamferConstrained, MatchesDijkstraThroughPassableCellsOnly) {
+  std::mt19937 rng(2006);
+  DistanceTransformer transformer;
+  for (const GridSize grid : {GridSize{1, 30}, GridSize{30, 1}, GridSize{17, 13}, GridSize{64, 48}}) {
+    for (const int blocked_percent : {0, 20, 45}) {
+      std::vector<std::uint8_t> passable = random_image(grid, rng, blocked_percent);  // 0 = blocked
+      std::uniform_int_distribution<std::uint32_t> cell(0, static_cast<std::uint32_t>(grid.cell_count() - 1));
+      const std::vector<std::uint32_t> seeds = {cell(rng), cell(rng), kNoCell};
+      std::vector<std::uint16_t> out(grid.cell_count());
+      const std::size_t rounds =
+          transformer.chamfer_constrained(DistanceMetric::kChamfer5711, seeds, passable, grid, out);
+      EXPECT_LT(rounds, 256u) << "did not converge";
+      const std::vector<std::uint32_t> real_seeds(seeds.begin(), seeds.end() - 1);
+      ASSERT_EQ(out, constrained_dijkstra(real_seeds, passable, grid))
+          << grid.width << "x" << grid.height << " blocked " << blocked_percent << "%";
+    }
+  }
+}
+
+TEST(ChamferConstrained, WallIsCrossedOnlyByAKnightMove) {
+  // 7×5 grid, seed at (0, 0), column 3 blocked except its bottom cell. The straight path to (6, 0)
+  // (30) is cut. Edge and diagonal moves cannot skip column 3, but a knight move (2, ±1) has both ends
+  // passable and jumps it (the constraint applies to the ends of each move): (0,0) → (2,0) costs 10,
+  // the knight to (4,1) 11, the knight back to (6,0) 11, so 32, less than the way round the gap.
+  const GridSize grid{7, 5};
+  std::vector<std::uint8_t> passable(grid.cell_count(), 1);
+  for (std::uint32_t j = 0; j < 4; ++j) passable[grid.cell(3, j)] = 0;
+  std::vector<std::uint16_t> out(grid.cell_count());
+  DistanceTransformer transformer;
+  const std::vector<std::uint32_t> seeds = {0};
+  transformer.chamfer_constrained(DistanceMetric::kChamfer5711, seeds, passable, grid, out);
+  EXPECT_EQ(out[grid.cell(3, 1)], kChamferUnreached);  // inside the wall
+  EXPECT_EQ(out[grid.cell(6, 0)], 32);
+  EXPECT_EQ(out, constrained_dijkstra(seeds, passable, grid));
 }
 
 std::vector<std::uint32_t> brute_force_edt(const std::vector<std::uint8_t>& image, GridSize grid) {
