@@ -137,7 +137,7 @@ TEST(ViewExtract, DragonTriangleDensityFallsWithDistanceFromTheFocus) {
   ViewRequest r;
   r.camera = front_camera(d->input, 1.0f);
   r.grid = {256, 256};
-  r.allowed.error = 6.0f;
+  r.allowed.error = 2.0f;
   r.allowed.units = ErrorUnits::kScreenPixels;
   r.allowed.viewport_height_px = 256;
   r.allowed.use_focus = true;
@@ -150,7 +150,7 @@ TEST(ViewExtract, DragonTriangleDensityFallsWithDistanceFromTheFocus) {
   // Mean projected area of the cut's triangles by rings of 20 cells around the focus cell (128, 128),
   // out to 80 cells: inside the dragon's outline, where grazing triangles at the rim do not blur it.
   constexpr int kRings = 4;
-  double area[kRings] = {}, count[kRings] = {};
+  std::vector<double> areas[kRings];
   for (std::size_t t = 0; t < cut.triangle_count(); ++t) {
     GridPoint g[3];
     bool visible = true;
@@ -165,15 +165,21 @@ TEST(ViewExtract, DragonTriangleDensityFallsWithDistanceFromTheFocus) {
     const double mx = (g[0].x + g[1].x + g[2].x) / 3 - 128, my = (g[0].y + g[1].y + g[2].y) / 3 - 128;
     const int ring = static_cast<int>(std::sqrt(mx * mx + my * my) / 20);
     if (ring >= kRings) continue;
-    area[ring] += 0.5 * std::abs((g[1].x - g[0].x) * (g[2].y - g[0].y) - (g[2].x - g[0].x) * (g[1].y - g[0].y));
-    count[ring] += 1;
+    areas[ring].push_back(0.5 * std::abs((g[1].x - g[0].x) * (g[2].y - g[0].y) - (g[2].x - g[0].x) * (g[1].y - g[0].y)));
   }
-  for (int ring = 0; ring < kRings; ++ring) ASSERT_GT(count[ring], 20) << "ring " << ring << " is nearly empty";
+  // Per ring, the area-weighted mean area Σa²/Σa: the size of the triangle under a random covered
+  // cell. The dragon's never-collapsed slivers (boundary and non-manifold bits, full resolution in
+  // every cut) are many but cover little, so they barely move it, unlike a plain mean or median.
+  double size[kRings];
+  for (int ring = 0; ring < kRings; ++ring) {
+    ASSERT_GT(areas[ring].size(), 20u) << "ring " << ring << " is nearly empty";
+    double sum = 0, sum2 = 0;
+    for (double a : areas[ring]) sum += a, sum2 += a * a;
+    size[ring] = sum2 / sum;
+  }
   // Triangles grow ring by ring away from the focus, the outer ring's at least twice the inner's.
-  for (int ring = 1; ring < kRings; ++ring) {
-    EXPECT_GT(area[ring] / count[ring], area[ring - 1] / count[ring - 1]) << "ring " << ring;
-  }
-  EXPECT_GT(area[kRings - 1] / count[kRings - 1], 2 * area[0] / count[0]);
+  for (int ring = 1; ring < kRings; ++ring) EXPECT_GT(size[ring], size[ring - 1]) << "ring " << ring;
+  EXPECT_GT(size[kRings - 1], 2 * size[0]);
 }
 
 TEST(ViewExtract, EuclideanLabelsAreExactDistancesInFifthsOfAPixel) {
