@@ -1,7 +1,8 @@
 // mtlod-extract: loads an .mt file and writes one selective refinement of it as a mesh
-// (DESIGN.md §2): a uniform error bound (--error, model units) and/or a triangle budget (--budget).
-// Option parsing fills ExtractOptions in one function so further flags (view-dependent refinement)
-// slot in beside the existing ones.
+// (DESIGN.md §2): a uniform error bound (--error, model units) and/or a triangle budget (--budget),
+// or, with a camera or criteria, the view-dependent extraction the server computes for the same
+// flags (DESIGN.md §1; the flags and their meaning are protocol/extract_flags, shared with
+// mtlod-client), with the occupancy and distance images on request.
 #include <chrono>
 #include <cstdint>
 #include <optional>
@@ -9,25 +10,40 @@
 #include <vector>
 
 #include "CLI/CLI.hpp"
+#include "core/draco_encode.hpp"
+#include "core/io/image_io.hpp"
 #include "core/io/mesh_io.hpp"
 #include "core/io/mt_file.hpp"
+#include "core/occupancy_levels.hpp"
 #include "core/refine.hpp"
+#include "core/view_extract.hpp"
 #include "fmt/format.h"
+#include "protocol/extract_flags.hpp"
+#include "protocol/view_request.hpp"
 
 namespace {
 
 struct ExtractOptions {
-  std::string model;                  // .mt file to read
-  std::string output;                 // mesh to write (.ply or .obj)
-  std::optional<float> error;         // uniform allowed error, model units
-  std::optional<std::size_t> budget;  // at most this many triangles
+  std::string model;                 // .mt file to read
+  std::string output;                // mesh to write (.ply, .obj or .drc)
+  std::string dump_dt;               // PNG of the silhouette (else focus) distance transform
+  std::string dump_occupancy;        // PNG of the occupancy grid
+  mtlod::protocol::ExtractFlags view;  // --error, --budget, camera, criteria, grid, Draco
 };
 
 void add_extract_options(CLI::App& app, ExtractOptions& o) {
   app.add_option("model", o.model, "MT file written by mtlod-build")->required();
-  app.add_option("-o,--output", o.output, "mesh to write: .ply (binary) or .obj")->required();
-  app.add_option("--error", o.error, "allowed error everywhere, in model units");
-  app.add_option("--budget", o.budget, "at most this many triangles, worst error first");
+  app.add_option("-o,--output", o.output, "mesh to write: .ply (binary), .obj, or .drc (Draco)")->required();
+  app.add_option("--dump-dt", o.dump_dt, "write the distance transform as PNG (view-dependent mode)");
+  app.add_option("--dump-occupancy", o.dump_occupancy, "write the occupancy grid as PNG (view-dependent mode)");
+  mtlod::protocol::add_extract_flags(app, o.view);
+}
+
+// View-dependent when a camera, a criterion or a pixel bound is given; otherwise uniform.
+bool view_dependent(const ExtractOptions& o) {
+  const auto& v = o.view;
+  return !v.eye.empty() || !v.target.empty() || !v.silhouette.empty() || !v.focus.empty() || !v.neglect.empty() ||
+         v.error_px.has_value() || !o.dump_dt.empty() || !o.dump_occupancy.empty();
 }
 
 // The cut with its used vertices only, renumbered in first-use order; normals and colours follow.
@@ -52,16 +68,46 @@ mtlod::core::Mesh compact(const mtlod::core::Mt& mt, const std::vector<std::uint
   return mesh;
 }
 
+using namespace mtlod;
+using namespace mtlod::core;
+
+// Writes the cut as a mesh file, or as the Draco payload the server would send for the request.
+Status write_output(const std::string& path, const Mt& mt, const CutMesh& cut, const protocol::Extract* request,
+                    std::span<const std::uint32_t> labels) {
+  if (std::filesystem::path(path).extension() != ".drc") return io::save_mesh(path, compact(mt, cut.triangles));
+  DracoOptions draco;
+  if (request) {
+    draco.method = request->draco.method.value_or(mtlod::protocol::DracoMethod::kEdgebreaker) ==
+                           mtlod::protocol::DracoMethod::kSequential
+                       ? DracoMethod::kSequential
+                       : DracoMethod::kEdgebreaker;
+    draco.speed = request->draco.speed;
+    draco.position_bits = request->draco.position_bits;
+    draco.normals = request->normals && mt.has_normals();
+    draco.labels = request->labels && !labels.empty();
+  }
+  std::vector<std::uint8_t> bytes;
+  MTLOD_TRY(DracoStats stats, DracoEncoder().encode({mt.positions, mt.normals, labels, cut.triangles}, draco, bytes));
+  std::FILE* f = std::fopen(path.c_str(), "wb");
+  const bool ok = f && std::fwrite(bytes.data(), 1, bytes.size(), f) == bytes.size();
+  if (f) std::fclose(f);
+  if (!ok) return make_error(ErrorCode::kIoError, fmt::format("{}: write failed", path));
+  (void)stats;
+  return Ok{};
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   using namespace mtlod::core;
-  CLI::App app{"Extract a level of detail from a Multi-Tessellation."};
+  CLI::App app{"Extract a level of detail from a Multi-Tessellation: uniform (--error, --budget) or "
+               "view-dependent (camera, silhouette, focus... as mtlod-client extract)."};
   ExtractOptions options;
   add_extract_options(app, options);
   CLI11_PARSE(app, argc, argv);
-  if (!options.error && !options.budget) {
-    fmt::print(stderr, "mtlod-extract: give --error E, --budget N or both\n");
+  const bool view = view_dependent(options);
+  if (!view && !options.view.error && !options.view.budget) {
+    fmt::print(stderr, "mtlod-extract: give --error E, --budget N or both, or a camera and criteria\n");
     return 2;
   }
 
@@ -75,27 +121,81 @@ int main(int argc, char** argv) {
 
   Refiner refiner(*mt);
   CutMesh cut;
-  start = std::chrono::steady_clock::now();
-  if (options.budget) {
-    // Without --error every triangle that has a finer version competes, ranked by its error.
-    refiner.refine_budget(AllowedError::everywhere(options.error.value_or(0.0f)), *options.budget, cut);
+  std::optional<mtlod::protocol::Extract> request;
+  std::unique_ptr<OccupancyLevels> levels;
+  std::unique_ptr<ViewExtractor> extractor;
+  double refine_s = 0;
+  if (view) {
+    std::array<double, 3> lo{INFINITY, INFINITY, INFINITY}, hi{-INFINITY, -INFINITY, -INFINITY};
+    for (std::size_t v = 0; v < mt->vertex_count(); ++v) {
+      for (int c = 0; c < 3; ++c) {
+        lo[c] = std::min<double>(lo[c], mt->positions[3 * v + c]);
+        hi[c] = std::max<double>(hi[c], mt->positions[3 * v + c]);
+      }
+    }
+    auto made = mtlod::protocol::make_extract(options.view, options.model, lo, hi);
+    if (!made) {
+      fmt::print(stderr, "mtlod-extract: {}\n", made.error().message);
+      return 2;
+    }
+    request = std::move(*made);
+    levels = std::make_unique<OccupancyLevels>(*mt);
+    extractor = std::make_unique<ViewExtractor>(*mt, *levels);
+    ViewRequest v = mtlod::protocol::to_view_request(*request, mt->has_normals());
+    v.dynamic = false;
+    start = std::chrono::steady_clock::now();
+    extractor->map(v);
+    extractor->occupancy();
+    extractor->distance_transforms();
+    extractor->allowed_error();
+    extractor->refine(refiner, cut);
+    refine_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    const GridSize grid{request->grid[0], request->grid[1]};
+    if (!options.dump_occupancy.empty()) {
+      if (auto s = io::write_occupancy_png(options.dump_occupancy, extractor->occupancy_grid(), grid); !s) {
+        fmt::print(stderr, "mtlod-extract: {}\n", s.error().message);
+        return 1;
+      }
+    }
+    if (!options.dump_dt.empty()) {
+      const auto dt = extractor->silhouette_dt().empty() ? extractor->focus_dt() : extractor->silhouette_dt();
+      if (dt.empty()) {
+        fmt::print(stderr, "mtlod-extract: --dump-dt needs --silhouette or --focus\n");
+        return 2;
+      }
+      // Exact Euclidean labels come in fifths of a pixel, like 5-7-11 (see core/view_extract).
+      const DistanceMetric metric = v.allowed.metric;
+      const std::uint32_t per_px = metric == DistanceMetric::kEuclidean ? 5 : units_per_pixel(metric);
+      if (auto s = io::write_distance_png(options.dump_dt, dt, grid, per_px); !s) {
+        fmt::print(stderr, "mtlod-extract: {}\n", s.error().message);
+        return 1;
+      }
+    }
   } else {
-    refiner.refine(AllowedError::everywhere(*options.error), cut);
+    start = std::chrono::steady_clock::now();
+    if (options.view.budget) {
+      // Without --error every triangle that has a finer version competes, ranked by its error.
+      refiner.refine_budget(AllowedError::everywhere(static_cast<float>(options.view.error.value_or(0.0))),
+                            *options.view.budget, cut);
+    } else {
+      refiner.refine(AllowedError::everywhere(static_cast<float>(*options.view.error)), cut);
+    }
+    refine_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   }
-  const double refine_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   if (!cut.within_budget)
     fmt::print(stderr, "mtlod-extract: warning: the coarsest mesh has {} triangles, over the budget of {}\n",
-               cut.triangle_count(), *options.budget);
+               cut.triangle_count(), *options.view.budget);
 
-  const Mesh mesh = compact(*mt, cut.triangles);
-  if (auto saved = io::save_mesh(options.output, mesh); !saved) {
+  const std::span<const std::uint32_t> labels = extractor ? extractor->vertex_labels() : std::span<const std::uint32_t>();
+  if (auto saved = write_output(options.output, *mt, cut, request ? &*request : nullptr, labels); !saved) {
     fmt::print(stderr, "mtlod-extract: {}\n", saved.error().message);
     return 1;
   }
   fmt::print(
-      "{}: {} triangles, {} vertices, {} of {} nodes, max error {:.6g}\n  loaded in {:.3f} s, refined in "
-      "{:.3f} ms; wrote {}\n",
-      options.model, cut.triangle_count(), mesh.vertex_count(), cut.node_count, mt->node_count(),
-      cut.max_error, load_s, refine_s * 1e3, options.output);
+      "{}: {} triangles, {} of {} nodes, max error {:.6g}{}\n  loaded in {:.3f} s, {} in {:.3f} ms; wrote {}\n",
+      options.model, cut.triangle_count(), cut.node_count, mt->node_count(), cut.max_error,
+      view ? fmt::format(", occupancy from {} triangles", extractor->occupancy_triangles().size() / 3) : "", load_s,
+      view ? "extracted (map, occupancy, distance transforms, allowed error, refinement)" : "refined", refine_s * 1e3,
+      options.output);
   return 0;
 }
