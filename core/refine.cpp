@@ -384,6 +384,8 @@ void Refiner::update(const AllowedError& allowed, CutMesh& out) {
     float* before = previous_field_.data();
     for (std::size_t base = 0; base < count; base += 64) {
       const std::size_t end = std::min(count, base + 64);
+      // Whole blocks compare with memcmp (vectorised); only differing blocks are split into bits.
+      if (std::memcmp(now + base, before + base, (end - base) * sizeof(float)) == 0) continue;
       std::uint64_t word = 0;
       for (std::size_t v = base; v < end; ++v) {
         std::uint32_t x, y;
@@ -392,8 +394,8 @@ void Refiner::update(const AllowedError& allowed, CutMesh& out) {
         word |= std::uint64_t{x != y} << (v - base);
       }
       changed_bits_[base / 64] = word;
+      std::memcpy(before + base, now + base, (end - base) * sizeof(float));
     }
-    std::memcpy(before, now, count * sizeof(float));
   }
   move_cut(allowed, all_changed, out);
   if (all_changed) remember_field(allowed);
