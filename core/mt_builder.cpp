@@ -565,6 +565,10 @@ Result<Mt> Builder::run(BuildStats* stats) {
   if (vertex_count_ >= kNoNode || face_count_ * 15 >= kNoNode)
     return make_error(ErrorCode::kLimitExceeded,
                       "mesh with " + std::to_string(face_count_) + " triangles exceeds 32-bit MT ids");
+  for (std::size_t i = 0; i < mesh_.positions.size(); ++i)
+    if (!std::isfinite(mesh_.positions[i]))
+      return make_error(ErrorCode::kInvalidArgument,
+                        "vertex " + std::to_string(i / 3) + " has a non-finite coordinate");
   for (std::size_t i = 0; i < mesh_.triangles.size(); ++i)
     if (mesh_.triangles[i] >= vertex_count_)
       return make_error(ErrorCode::kInvalidArgument, "triangle " + std::to_string(i / 3) + " has vertex id " +

@@ -42,7 +42,8 @@ struct BuildStats {
 
 // Builds the MT of mesh. Triangles with a repeated vertex id are kept unchanged (their vertices are
 // never collapsed). Normals and colours are copied. Fails with kInvalidArgument on an index out of
-// range or with kLimitExceeded when counts do not fit 32-bit ids. stats may be null.
+// range or a non-finite coordinate, or with kLimitExceeded when counts do not fit 32-bit ids. An
+// empty mesh gives an MT of one empty root. stats may be null.
 Result<Mt> build_mt(const Mesh& mesh, const BuildOptions& options = {}, BuildStats* stats = nullptr);
 
 }  // namespace mtlod::core

@@ -17,9 +17,11 @@ static_assert(std::endian::native == std::endian::little,
 constexpr char kMagic[8] = {'M', 'T', 'L', 'O', 'D', 'M', 'T', '\0'};
 constexpr std::uint32_t kFlagNormals = 1u << 0;
 constexpr std::uint32_t kFlagColors = 1u << 1;
+// The checksum field sits inside the checksummed bytes and is read as zero, so writers fill it last.
 constexpr std::uint64_t kChecksumOffset = 48;
 constexpr std::uint64_t kFnvPrime = 0x100000001b3ull;
 
+// Every array starts 4-byte aligned so a memory map can be read as u32/f32 arrays in place.
 std::uint64_t pad4(std::uint64_t n) {
   return (n + 3) & ~std::uint64_t{3};
 }
@@ -62,6 +64,7 @@ void put_array(std::vector<std::uint8_t>& out, const std::vector<T>& a) {
   if (!a.empty()) std::memcpy(out.data() + at, a.data(), a.size() * sizeof(T));
 }
 
+// memcpy, not a cast: the buffer may be unaligned and type punning through pointers is UB.
 std::uint32_t get32(const std::uint8_t* p) {
   std::uint32_t x;
   std::memcpy(&x, p, 4);
@@ -117,12 +120,14 @@ Status validate(const Mt& mt) {
   };
   MTLOD_RETURN_IF_ERROR(check_offsets(mt.node_triangle_offsets, t, "node_triangle_offsets"));
   MTLOD_RETURN_IF_ERROR(check_offsets(mt.node_parent_offsets, mt.node_parents.size(), "node_parent_offsets"));
+  // Root triangles keep their first corner apart (they have no split vertex); the counts must agree.
   if (mt.node_triangle_offsets[1] != mt.root_triangle_count())
     return corrupt("root creates " + std::to_string(mt.node_triangle_offsets[1]) + " triangles but " +
                    std::to_string(mt.root_triangle_count()) + " root corners are stored");
   if (mt.node_parent_offsets[1] != 0) return corrupt("the root has parents");
 
-  // DAG order: parents strictly increasing and smaller than their child; every node has one.
+  // DAG order: parents strictly increasing and smaller than their child; every node has one. This
+  // also bounds the ancestor walk of refinement (ids only decrease along it).
   for (std::uint64_t i = 1; i < n; ++i) {
     const std::uint32_t begin = mt.node_parent_offsets[i], end = mt.node_parent_offsets[i + 1];
     if (begin == end) return corrupt("node " + std::to_string(i) + " has no parent");
@@ -141,7 +146,8 @@ Status validate(const Mt& mt) {
   for (std::uint64_t i = 0; i < mt.root_triangle_count(); ++i)
     if (mt.root_first_corner[i] >= v)
       return corrupt("root_first_corner[" + std::to_string(i) + "] >= vertex count " + std::to_string(v));
-  // Each triangle's remover comes after its creator and lists the creator as a parent.
+  // Each triangle's remover comes after its creator and lists the creator as a parent: refinement
+  // adds a node after its parents and then expects everything the node removes to be in the mesh.
   for (std::uint64_t c = 0; c < n; ++c) {
     for (std::uint32_t k = mt.node_triangle_offsets[c]; k < mt.node_triangle_offsets[c + 1]; ++k) {
       const std::uint32_t r = mt.triangle_remover[k];

@@ -182,11 +182,18 @@ void Refiner::refine(const AllowedError& allowed, CutMesh& out) {
 void Refiner::refine_uniform(float allowed_error, CutMesh& out) {
   // Nodes are stored by decreasing error and errors never grow from parent to child (checked when
   // a file is loaded), so the minimal cut is the root plus the prefix of nodes with error above the
-  // bound, and its mesh is read off the prefix of the triangle array in one sequential pass.
+  // bound.
   const float* errors = mt_.node_error.data();
-  const std::uint32_t end = std::uint32_t(std::partition_point(errors + 1, errors + mt_.node_count(),
-                                                               [&](float e) { return e > allowed_error; }) -
-                                          errors);
+  refine_prefix(std::uint32_t(std::partition_point(errors + 1, errors + mt_.node_count(),
+                                                   [&](float e) { return e > allowed_error; }) -
+                              errors),
+                out);
+}
+
+void Refiner::refine_prefix(std::uint32_t end, CutMesh& out) {
+  // The cut of nodes [0, end) (every prefix is a cut: parents come first); its mesh is read off the
+  // prefix of the triangle array in one sequential pass.
+  const float* errors = mt_.node_error.data();
   for (const std::uint32_t n : cut_) in_cut_[n] = kOut;
   cut_.resize(end);
   for (std::uint32_t n = 0; n < end; ++n) cut_[n] = n;
@@ -384,6 +391,8 @@ void Refiner::update(const AllowedError& allowed, CutMesh& out) {
     float* before = previous_field_.data();
     for (std::size_t base = 0; base < count; base += 64) {
       const std::size_t end = std::min(count, base + 64);
+      // Whole blocks compare with memcmp (vectorised); only differing blocks are split into bits.
+      if (std::memcmp(now + base, before + base, (end - base) * sizeof(float)) == 0) continue;
       std::uint64_t word = 0;
       for (std::size_t v = base; v < end; ++v) {
         std::uint32_t x, y;
@@ -392,8 +401,8 @@ void Refiner::update(const AllowedError& allowed, CutMesh& out) {
         word |= std::uint64_t{x != y} << (v - base);
       }
       changed_bits_[base / 64] = word;
+      std::memcpy(before + base, now + base, (end - base) * sizeof(float));
     }
-    std::memcpy(before, now, count * sizeof(float));
   }
   move_cut(allowed, all_changed, out);
   if (all_changed) remember_field(allowed);
@@ -508,11 +517,41 @@ void Refiner::move_cut(const AllowedError& allowed, bool all_changed, CutMesh& o
   out.within_budget = true;
 }
 
+std::size_t Refiner::removed_count(std::uint32_t x) const {
+  std::size_t removed = 0;
+  for (std::uint32_t j = mt_.node_parent_offsets[x]; j < mt_.node_parent_offsets[x + 1]; ++j) {
+    const std::uint32_t p = mt_.node_parents[j];
+    for (std::uint32_t t = mt_.node_triangle_offsets[p]; t < mt_.node_triangle_offsets[p + 1]; ++t)
+      removed += mt_.triangle_remover[t] == x;
+  }
+  return removed;
+}
+
 void Refiner::refine_budget(const AllowedError& allowed, std::size_t max_triangles, CutMesh& out) {
   assert(allowed.per_vertex.empty() || allowed.per_vertex.size() == mt_.vertex_count());
   mesh_valid_ = false;
-  reset_to_root();
   dynamic_ready_ = false;
+  if (allowed.per_vertex.empty()) {
+    // Uniform: worst ratio first is largest error first, which is node order, and every node's
+    // parents come before it. So the result is the longest prefix of failing nodes that fits.
+    const float* errors = mt_.node_error.data();
+    const std::uint32_t failing_end =
+        std::uint32_t(std::partition_point(errors + 1, errors + mt_.node_count(),
+                                           [&](float e) { return e > allowed.uniform; }) -
+                      errors);
+    std::size_t count = mt_.root_triangle_count();
+    std::uint32_t end = 1;
+    for (; end < failing_end; ++end) {
+      const std::size_t next =
+          count + (mt_.node_triangle_offsets[end + 1] - mt_.node_triangle_offsets[end]) - removed_count(end);
+      if (next > max_triangles) break;
+      count = next;
+    }
+    refine_prefix(end, out);
+    out.within_budget = out.triangle_count() <= max_triangles;
+    return;
+  }
+  reset_to_root();
   std::size_t count = mt_.root_triangle_count();
   heap_.clear();
   auto less = [](const HeapEntry& x, const HeapEntry& y) {
@@ -543,11 +582,7 @@ void Refiner::refine_budget(const AllowedError& allowed, std::size_t max_triangl
     for (std::size_t i = first_new; i < cut_.size(); ++i) {
       const std::uint32_t x = cut_[i];
       added += mt_.node_triangle_offsets[x + 1] - mt_.node_triangle_offsets[x];
-      for (std::uint32_t j = mt_.node_parent_offsets[x]; j < mt_.node_parent_offsets[x + 1]; ++j) {
-        const std::uint32_t p = mt_.node_parents[j];
-        for (std::uint32_t t = mt_.node_triangle_offsets[p]; t < mt_.node_triangle_offsets[p + 1]; ++t)
-          removed += mt_.triangle_remover[t] == x;
-      }
+      removed += removed_count(x);
     }
     if (count + added - removed > max_triangles) {
       for (std::size_t i = first_new; i < cut_.size(); ++i) in_cut_[cut_[i]] = kOut;

@@ -91,6 +91,10 @@ class Refiner {
   };
 
   void refine_uniform(float allowed_error, CutMesh& out);
+  // The cut of nodes [0, end): the uniform static and budgeted results.
+  void refine_prefix(std::uint32_t end, CutMesh& out);
+  // Triangles node x removes (counted over its parents' triangles).
+  std::size_t removed_count(std::uint32_t x) const;
   // Static refinement by forcing from the root; records witnesses so update can start from it.
   void refine_forced(const AllowedError& allowed, CutMesh& out);
   bool fails(std::uint32_t t, std::uint32_t creator, const AllowedError& allowed) const;

@@ -167,6 +167,23 @@ void BM_RefineBudget(benchmark::State& state) {
 }
 BENCHMARK(BM_RefineBudget)->Arg(50'000)->Unit(benchmark::kMicrosecond);
 
+// Budget with a per-vertex field: the error/allowed ratio heap.
+void BM_RefineBudgetPerVertex(benchmark::State& state) {
+  const Mt* mt = dragon_mt();
+  if (!mt) return state.SkipWithError("dragon-vrip-871k.ply not found");
+  const Mesh& mesh = *dragon();
+  const std::vector<float> field = focus_field(mesh, mesh.triangles[3 * 1000], 1e-5f, 1e-3f, 0.05f);
+  Refiner refiner(*mt);
+  CutMesh cut;
+  for (auto _ : state) {
+    refiner.refine_budget(AllowedError::from_vertices(field), std::size_t(state.range(0)), cut);
+    benchmark::DoNotOptimize(cut.triangles.data());
+  }
+  state.SetItemsProcessed(state.iterations() * std::int64_t(cut.triangle_count()));
+  state.counters["triangles"] = double(cut.triangle_count());
+}
+BENCHMARK(BM_RefineBudgetPerVertex)->Arg(50'000)->Unit(benchmark::kMicrosecond);
+
 // Two per-vertex fields whose foci are neighbouring vertices: a small change between requests.
 struct FieldPair {
   std::vector<float> a, b;

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <set>
 #include <vector>
 
@@ -66,6 +67,27 @@ TEST(MtBuilder, SquareCollapsesOneCornerAlongItsBoundary) {
   EXPECT_EQ(test::triangle_set(all_nodes_cut(*mt)), test::triangle_set(mesh.triangles));
   EXPECT_EQ(stats.nodes, 2u);
   EXPECT_EQ(stats.root_triangles, 1u);
+}
+
+TEST(MtBuilder, EmptyMeshGivesAnEmptyRootThatRoundTrips) {
+  Mesh mesh;
+  mesh.positions = {0, 0, 0};  // one unused vertex
+  auto mt = build_mt(mesh);
+  ASSERT_TRUE(mt.ok());
+  EXPECT_EQ(mt->node_count(), 1u);
+  EXPECT_EQ(mt->triangle_count(), 0u);
+  std::vector<std::uint8_t> bytes;
+  serialize_mt(*mt, bytes);
+  EXPECT_TRUE(deserialize_mt(bytes).ok());
+}
+
+TEST(MtBuilder, RejectsANonFiniteCoordinate) {
+  Mesh mesh = test::square();
+  mesh.positions[4] = std::numeric_limits<float>::quiet_NaN();
+  auto mt = build_mt(mesh);
+  ASSERT_FALSE(mt.ok());
+  EXPECT_EQ(mt.error().code, ErrorCode::kInvalidArgument);
+  EXPECT_NE(mt.error().message.find("vertex 1"), std::string::npos) << mt.error().message;
 }
 
 TEST(MtBuilder, RejectsAnIndexOutOfRange) {

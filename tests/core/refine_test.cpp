@@ -251,6 +251,12 @@ TEST(Refine, BudgetIsNeverExceededAndCutsStayConforming) {
       EXPECT_GE(out.triangle_count(), previous) << "a larger budget gave fewer triangles";
       previous = out.triangle_count();
       ASSERT_TRUE(test::validate_cut(c->reference, out.triangles));
+      // A per-vertex field goes through the ratio heap instead of the node order.
+      const float top = max_node_error(c->mt);
+      const std::vector<float> field = focus_field(c->mesh, rng, top * 1e-4f, top * 0.1f);
+      refiner.refine_budget(AllowedError::from_vertices(field), budget, out);
+      ASSERT_LE(out.triangle_count(), budget);
+      ASSERT_TRUE(test::validate_cut(c->reference, out.triangles));
     }
     // Allowed -1: every triangle with a remover fails, so an ample budget ends at the input.
     refiner.refine_budget(AllowedError::everywhere(-1.0f), full, out);
