@@ -108,6 +108,13 @@ class AllowedErrorField {
   // +inf for a vertex behind the camera when the bound is in pixels.
   void compute_all(std::span<float> vertex_allowed_error);
 
+  // Bytes of scratch memory held.
+  std::size_t memory_bytes() const {
+    return (silhouette_table_.capacity() + focus_table_.capacity() + neglect_table_.capacity() + clip_w_.capacity()) *
+               sizeof(float) +
+           cells_.capacity() * sizeof(std::uint32_t);
+  }
+
   // Lazy variant: the same value for one vertex, projecting it on demand.
   float vertex_allowed_error(std::uint32_t vertex) const;
 

@@ -114,6 +114,14 @@ class DistanceTransformer {
   void run_chamfer(DistanceMetric metric, GridSize grid, std::span<std::uint16_t> out);
   void run_euclidean(GridSize grid, std::span<std::uint32_t> out);
 
+
+ public:
+  // Bytes of scratch memory held.
+  std::size_t memory_bytes() const {
+    return padded_.capacity() * 2 + passable_.capacity() + column_.capacity() * 2 + envelope_.capacity() * 4;
+  }
+
+ private:
   std::vector<std::uint16_t> padded_;    // chamfer grid with 2 cells of +inf on every side
   std::size_t stride_ = 0;               // padded row length
   bool scalar_ = false;                  // set_scalar

@@ -606,4 +606,11 @@ void refine_budget(const Mt& mt, const AllowedError& allowed, std::size_t max_tr
   refiner.refine_budget(allowed, max_triangles, out);
 }
 
+std::size_t Refiner::memory_bytes() const {
+  auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
+  return bytes(in_cut_) + bytes(cut_) + bytes(witness_triangle_) + bytes(witness_creator_) + bytes(stack_) +
+         bytes(previous_field_) + bytes(mesh_triangles_) + bytes(mesh_corners_) + slots_.memory_bytes() +
+         bytes(changed_bits_) + bytes(dropped_) + bytes(seeds_) + bytes(passing_) + bytes(heap_);
+}
+
 }  // namespace mtlod::core

@@ -70,6 +70,9 @@ class Refiner {
   // Nodes of the kept cut, in the order they were added (parents before children).
   std::span<const std::uint32_t> cut_nodes() const { return cut_; }
 
+  // Bytes this refiner holds (buffer capacities): the memory a session's cut costs.
+  std::size_t memory_bytes() const;
+
  private:
   // Open-addressing map from triangle id to its slot in mesh_triangles_ (linear probing, backward
   // shift deletion): no node allocations in the request path.
@@ -78,6 +81,7 @@ class Refiner {
     void reset(std::size_t expected);
     void insert(std::uint32_t key, std::uint32_t value);
     std::uint32_t find(std::uint32_t key) const;  // kNoNode when absent
+    std::size_t memory_bytes() const { return (keys_.capacity() + values_.capacity()) * sizeof(std::uint32_t); }
     void assign(std::uint32_t key, std::uint32_t value);
     void erase(std::uint32_t key);
 

@@ -141,4 +141,11 @@ void ViewExtractor::refine(Refiner& session, CutMesh& out) {
   }
 }
 
+std::size_t ViewExtractor::memory_bytes() const {
+  auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
+  return transformer_.memory_bytes() + bytes(occupancy_) + bytes(seeds_image_) + bytes(depth_) + bytes(silhouette_dt_) +
+         bytes(focus_dt_) + bytes(neglect_dt_) + bytes(euclidean_) + bytes(cells_) + bytes(vertex_allowed_error_) +
+         bytes(vertex_labels_) + field_.memory_bytes();
+}
+
 }  // namespace mtlod::core

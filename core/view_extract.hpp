@@ -68,6 +68,9 @@ class ViewExtractor {
   // Grid cells covered by the model's bounding sphere (at most the whole grid).
   double covered_cells() const;
 
+  // Bytes of scratch memory held (grids, transforms, per-vertex arrays): a worker's cost per model.
+  std::size_t memory_bytes() const;
+
  private:
   void transform(std::span<const std::uint8_t> image, std::span<std::uint16_t> out);
   void transform_from_cells(std::span<const std::uint32_t> cells, std::span<std::uint16_t> out);

@@ -101,7 +101,8 @@ std::string to_json(const Reply& reply, std::optional<std::uint64_t> id) {
           json m = {{"model", r.model},           {"triangles", r.triangles},
                     {"vertices", r.vertices},     {"max_error", r.max_error},
                     {"bytes", r.bytes},
-                    {"superseded", r.superseded}, {"timings_us", timings_json(r.timings)}};
+                    {"superseded", r.superseded}, {"timings_us", timings_json(r.timings)},
+                    {"memory", {{"session_bytes", r.session_bytes}, {"scratch_bytes", r.scratch_bytes}}}};
           if (r.focus) m["focus"] = *r.focus;
           return m;
         } else if constexpr (std::is_same_v<T, ErrorReply>) {
@@ -152,6 +153,9 @@ Result<ParsedReply> parse_reply(std::string_view text) {
       r.max_error = j.value("max_error", 0.0);
       r.bytes = j.value("bytes", std::uint64_t{0});
       r.superseded = j.value("superseded", std::uint64_t{0});
+      const json memory = j.value("memory", json::object());
+      r.session_bytes = memory.value("session_bytes", std::uint64_t{0});
+      r.scratch_bytes = memory.value("scratch_bytes", std::uint64_t{0});
       if (j.contains("focus")) r.focus = j["focus"].get<std::array<double, 2>>();
       r.timings = timings_from(j.value("timings_us", json::object()));
       out.reply = std::move(r);

@@ -68,6 +68,8 @@ struct MeshReply {
   std::uint64_t bytes = 0;        // payload size
   std::optional<std::array<double, 2>> focus;  // the focus this mesh reflects (gaze replies)
   std::uint64_t superseded = 0;   // gaze updates replaced by this one before they ran
+  std::uint64_t session_bytes = 0;  // memory the connection's cut holds on the server
+  std::uint64_t scratch_bytes = 0;  // memory the worker that ran it holds for this model
   StageTimings timings;
 };
 

@@ -99,6 +99,8 @@ std::variant<ExtractOutcome, protocol::ProtocolError> Engine::extract(const prot
   outcome.reply.vertices = encoded->vertices;
   outcome.reply.bytes = encoded->bytes;
   outcome.reply.max_error = worker.cut.max_error;
+  outcome.reply.session_bytes = state.refiner->memory_bytes();
+  outcome.reply.scratch_bytes = extractor->memory_bytes() + worker.cut.triangles.capacity() * sizeof(std::uint32_t);
   return outcome;
 }
 

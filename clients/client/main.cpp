@@ -109,6 +109,8 @@ int main(int argc, char** argv) {
   fmt::print("server µs: queue {} map {} occupancy {} dt {} labels {} refine {} encode {} total {}; round trip {:.2f} ms\n",
              t.queue_us, t.map_us, t.occupancy_us, t.dt_us, t.labels_us, t.refine_us, t.encode_us, t.total_us,
              round_trip_ms);
+  fmt::print("server memory: {:.1f} MiB for this connection's cut, {:.1f} MiB of worker scratch\n",
+             mesh.session_bytes / 1048576.0, mesh.scratch_bytes / 1048576.0);
   if (!output.empty()) {
     const std::string ext = std::filesystem::path(output).extension().string();
     if (ext == ".drc") {

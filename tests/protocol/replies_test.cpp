@@ -16,6 +16,8 @@ TEST(Replies, MeshReplyRoundTripsWithTimingsAndFocus) {
   m.bytes = 61'234;
   m.focus = std::array<double, 2>{0.25, 0.5};
   m.superseded = 3;
+  m.session_bytes = 6'000'000;
+  m.scratch_bytes = 4'000'000;
   m.timings = {1, 2, 3, 4, 5, 6, 7, 28};
   auto parsed = parse_reply(to_json(m, 12));
   ASSERT_TRUE(parsed.ok()) << parsed.error().message;
@@ -26,6 +28,8 @@ TEST(Replies, MeshReplyRoundTripsWithTimingsAndFocus) {
   EXPECT_EQ(r.max_error, 0.0125);
   EXPECT_EQ(r.focus, m.focus);
   EXPECT_EQ(r.superseded, 3u);
+  EXPECT_EQ(r.session_bytes, 6'000'000u);
+  EXPECT_EQ(r.scratch_bytes, 4'000'000u);
   EXPECT_EQ(r.timings.refine_us, 6u);
   EXPECT_EQ(r.timings.total_us, 28u);
 }

@@ -137,6 +137,10 @@ TEST_F(ServerTest, ExtractDecodesToTheInProcessCut) {
   extractor.refine(refiner, cut);
   EXPECT_EQ(mesh->triangles, cut.triangle_count());
   EXPECT_FLOAT_EQ(static_cast<float>(mesh->max_error), cut.max_error);
+  // The memory reported is what the same refinement holds here, and the worker's scratch at least
+  // holds a per-vertex allowed error.
+  EXPECT_EQ(mesh->session_bytes, refiner.memory_bytes());
+  EXPECT_GE(mesh->scratch_bytes, g_fixture->mt.vertex_count() * sizeof(float));
 
   auto decoded = core::decode_draco(reply->payload);
   ASSERT_TRUE(decoded.ok()) << decoded.error().message;
