@@ -11,7 +11,7 @@ OccupancyLevels::OccupancyLevels(const Mt& mt) {
   // Uniform allowed error 0 ranks triangles by error alone: each budget gives the cut with the
   // smallest maximum error at that size.
   const AllowedError everywhere_exact = AllowedError::everywhere(0.0f);
-  for (std::size_t budget = 2048; budget <= (std::size_t{1} << 19); budget *= 4) {
+  for (std::size_t budget = 2048; budget <= (std::size_t{1} << 18); budget *= 2) {
     refiner.refine_budget(everywhere_exact, budget, cut);
     if (!levels_.empty() && cut.triangle_count() == levels_.back().triangles.size() / 3) break;  // nothing finer
     levels_.push_back({cut.max_error, cut.triangles});
@@ -20,7 +20,7 @@ OccupancyLevels::OccupancyLevels(const Mt& mt) {
 
 const OccupancyLevel& OccupancyLevels::for_covered_cells(double covered_cells) const {
   for (const OccupancyLevel& level : levels_) {
-    if (static_cast<double>(level.triangles.size() / 3) >= 0.5 * covered_cells) return level;
+    if (static_cast<double>(level.triangles.size() / 3) >= 0.25 * covered_cells) return level;
   }
   return levels_.back();
 }
