@@ -93,6 +93,10 @@ void Server::Impl::accept() {
       return;
     }
     if (stopping) return;
+    // Replies are written whole: without this, Nagle's algorithm meeting the client's delayed ACK
+    // holds a reply back for up to 40 ms.
+    error_code ignored;
+    socket.set_option(tcp::no_delay(true), ignored);
     const std::uint64_t number = next_connection++;
     if (admit(socket, number)) track(start_tcp_session(*context, std::move(socket), number));
     accept();

@@ -365,6 +365,8 @@ void WebServer::Impl::accept() {
       return;
     }
     if (self->stopping) return;
+    error_code ignored;
+    socket.set_option(tcp::no_delay(true), ignored);  // as for TCP sessions: no Nagle delay on replies
     auto session = std::make_shared<HttpSession>(std::move(socket), self);
     {
       std::lock_guard lock(self->sessions_mutex);
