@@ -39,6 +39,7 @@ const state = {
   bounds: null,
   meshes: 0,            // mesh replies decoded and shown
   lastReply: null,      // JSON of the last mesh reply
+  lastReplyHadLabels: false,  // its Draco data carried the `label` attribute
   displayedTriangles: 0,
   focus: [0.5, 0.5],
   errors: [],
@@ -165,6 +166,7 @@ async function showReply({ json, payload, latencyMs }) {
   mesh.material.wireframe = $('wireframe').checked;
   state.displayedTriangles = geometry.index ? geometry.index.count / 3 : 0;
   state.lastReply = json;
+  state.lastReplyHadLabels = geometry.getAttribute('label') !== undefined;
   state.meshes += 1;
   $('triangles').textContent = String(state.displayedTriangles);
   $('vertices').textContent = String(geometry.getAttribute('position').count);
