@@ -286,13 +286,19 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     }
     Request request = parser_->release();
     if (websocket::is_upgrade(request)) {
+      // A refused upgrade ends the connection: the client wanted a WebSocket, not more HTTP.
+      auto refuse = [&](http::status status, std::string text) {
+        auto response = text_response(request, status, std::move(text));
+        response.keep_alive(false);
+        send(std::move(response));
+      };
       const std::string_view target(request.target().data(), request.target().size());
-      if (target != "/ws") return send(text_response(request, http::status::not_found, "WebSocket endpoint is /ws\n"));
-      if (server_->stopping) return send(text_response(request, http::status::service_unavailable, "shutting down\n"));
+      if (target != "/ws") return refuse(http::status::not_found, "WebSocket endpoint is /ws\n");
+      if (server_->stopping) return refuse(http::status::service_unavailable, "shutting down\n");
       if (!server_->admit()) {
-        return send(text_response(request, http::status::service_unavailable,
-                                  fmt::format("the server has {} connections, its limit\n",
-                                              server_->context->config.limits.max_connections)));
+        return refuse(http::status::service_unavailable,
+                      fmt::format("the server has {} connections, its limit\n",
+                                  server_->context->config.limits.max_connections));
       }
       stream_.expires_never();
       return server_->upgrade(stream_.release_socket(), std::move(request));
