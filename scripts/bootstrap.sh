@@ -11,6 +11,7 @@ debian_packages=(
   libcli11-dev libspdlog-dev libfmt-dev libpng-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libmeshoptimizer-dev libopencv-dev          # peers measured in the benchmarks
+  chromium                                    # the browser test drives the viewer headless
 )
 
 missing=()
@@ -30,7 +31,7 @@ if ((${#missing[@]})); then
   $sudo apt-get install -y -qq "${missing[@]}" >/dev/null
 fi
 
-# npm packages (built-in models). --ignore-scripts: the dragon package's build hook is not needed.
+# npm packages (built-in models; three.js for the viewer; playwright-core drives Chromium in tests). --ignore-scripts: the dragon package's build hook is not needed.
 if ! (cd "$root/scripts" && npm ls --silent >/dev/null 2>&1); then
   echo "bootstrap: installing npm packages into scripts/node_modules"
   (cd "$root/scripts" && npm ci --ignore-scripts --no-audit --no-fund --loglevel=error)

@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # The main job: installs what is missing, builds mtlod (Release), prepares the built-in models and
 # serves them: the Stanford bunny and the 871k-triangle Stanford dragon. Their Multi-Tessellations
-# are built into build/models on the first run and reused afterwards. Extra arguments go to
-# mtlod-server (e.g. --port 9000).
+# are built into build/models on the first run and reused afterwards. The browser viewer is served
+# on HTTP port $MTLOD_HTTP_PORT (default 8080). Extra arguments go to mtlod-server (e.g. --port 9000).
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 "$root/scripts/bootstrap.sh"
@@ -12,10 +12,15 @@ bin="$root/build/release"
 models="$root/build/models"
 meshes=(--mesh "$models/bunny.ply")
 [ -s "$models/dragon-871k.ply" ] && meshes+=(--mesh "$models/dragon-871k.ply")
+http_port=${MTLOD_HTTP_PORT:-8080}
 cat <<MSG
-mtlod-server is starting on 127.0.0.1 (port 7878 unless you passed --port). Query it with:
+mtlod-server is starting on 127.0.0.1 (port 7878 unless you passed --port).
+Open the viewer:  http://127.0.0.1:$http_port/   (orbit with the mouse; the pointer is the focus)
+Query it with:
   $bin/clients/client/mtlod-client list
   $bin/clients/client/mtlod-client extract bunny --error-px 1 --silhouette 2,0 -o bunny.ply
+  $bin/clients/load/mtlod-load --model dragon-871k --connections 4 --duration 10 --budget 50000
+  $bin/clients/gaze/mtlod-gaze --model dragon-871k --streams 4 --hz 120 --budget 50000
 Stop it with Ctrl-C (it finishes in-flight requests first).
 MSG
-exec "$bin/server/mtlod-server" "${meshes[@]}" --cache-dir "$models" "$@"
+exec "$bin/server/mtlod-server" "${meshes[@]}" --cache-dir "$models" --http-port "$http_port" "$@"

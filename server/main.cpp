@@ -26,7 +26,16 @@ int main(int argc, char** argv) {
   app.add_option("--host", config.host, "address to listen on")->capture_default_str();
   app.add_option("--port", config.port, "TCP port for the protocol (0: any free port, printed at start)")
       ->capture_default_str();
-  app.add_option("--port-file", port_file, "write the bound port to this file once listening (for scripts and tests)");
+  app.add_option("--port-file", port_file,
+                 "write the bound port to this file once listening (for scripts and tests); with --http-port the "
+                 "HTTP port follows on a second line");
+  app.add_option("--http-port", config.http_port,
+                 "serve the browser viewer and the protocol over WebSocket (/ws) on this HTTP port (0: any free "
+                 "port); off when not given");
+  config.web_root = MTLOD_DEFAULT_WEB_ROOT;
+  app.add_option("--web-root", config.web_root,
+                 "folder holding clients/web/ and scripts/node_modules/three/ (the viewer's files)")
+      ->capture_default_str();
   app.add_option("--io-threads", config.io_threads, "threads serving sockets")->capture_default_str();
   app.add_option("--workers", config.workers, "threads computing extractions (0: one per core)")->capture_default_str();
   auto& limits = config.limits;
@@ -81,11 +90,16 @@ int main(int argc, char** argv) {
   check(server.listen());
   spdlog::info("listening on {}:{} (protocol version {}); try: mtlod-client --port {} list", config.host, server.port(),
                protocol::kProtocolVersion, server.port());
+  if (config.http_port) {
+    spdlog::info("viewer: http://{}:{}/ (WebSocket at /ws, files from {})", config.host, server.http_port(),
+                 config.web_root);
+  }
   if (!port_file.empty()) {
     // Written to a temporary name and renamed, so a reader never sees a half-written port.
     const std::string temporary = port_file + ".tmp";
     if (std::FILE* f = std::fopen(temporary.c_str(), "w")) {
       std::fprintf(f, "%u\n", static_cast<unsigned>(server.port()));
+      if (config.http_port) std::fprintf(f, "%u\n", static_cast<unsigned>(server.http_port()));
       std::fclose(f);
       std::rename(temporary.c_str(), port_file.c_str());
     } else {

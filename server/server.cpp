@@ -15,6 +15,7 @@
 #include "protocol/replies.hpp"
 #include "server/connection.hpp"
 #include "server/tcp_session.hpp"
+#include "server/web_session.hpp"
 #include "spdlog/spdlog.h"
 
 namespace mtlod::server {
@@ -43,6 +44,7 @@ struct Server::Impl {
   std::atomic<std::uint64_t> next_connection{1};
   std::mutex connections_mutex;
   std::list<std::weak_ptr<Connection>> connections;
+  std::unique_ptr<WebServer> web;  // HTTP + WebSocket, when config.http_port is set
 
   Impl(ServerConfig c, const ModelRegistry& m) : config(std::move(c)), models(m), engine(m) {}
 
@@ -91,6 +93,10 @@ void Server::Impl::accept() {
       return;
     }
     if (stopping) return;
+    // Replies are written whole: without this, Nagle's algorithm meeting the client's delayed ACK
+    // holds a reply back for up to 40 ms.
+    error_code ignored;
+    socket.set_option(tcp::no_delay(true), ignored);
     const std::uint64_t number = next_connection++;
     if (admit(socket, number)) track(start_tcp_session(*context, std::move(socket), number));
     accept();
@@ -103,6 +109,7 @@ void Server::Impl::begin_stop() {
   error_code ignored;
   acceptor.close(ignored);
   signals.cancel(ignored);
+  if (web) web->stop();  // before collecting connections: an upgrade in progress sees `stopping`
   std::vector<std::shared_ptr<Connection>> live;
   {
     std::lock_guard lock(connections_mutex);
@@ -143,6 +150,10 @@ Status Server::listen() {
     return make_error(ErrorCode::kIoError,
                       fmt::format("cannot listen on {}:{}: {}", impl_->config.host, impl_->config.port, ec.message()));
   }
+  if (impl_->config.http_port) {
+    impl_->web = std::make_unique<WebServer>(impl_->ioc, impl_->control, WebConfig{impl_->config.web_root});
+    MTLOD_RETURN_IF_ERROR(impl_->web->listen(impl_->config.host, *impl_->config.http_port));
+  }
   return Ok{};
 }
 
@@ -150,6 +161,8 @@ std::uint16_t Server::port() const {
   error_code ec;
   return impl_->acceptor.local_endpoint(ec).port();
 }
+
+std::uint16_t Server::http_port() const { return impl_->web ? impl_->web->port() : 0; }
 
 void Server::run() {
   Impl& s = *impl_;
@@ -162,6 +175,10 @@ void Server::run() {
     s.begin_stop();
   });
   s.accept();
+  if (s.web) {
+    s.web->start(*s.context, WebHooks{[&s] { return s.next_connection++; },
+                                      [&s](const std::shared_ptr<Connection>& c) { s.track(c); }});
+  }
   std::vector<std::thread> extra;
   for (unsigned i = 1; i < std::max(1u, s.config.io_threads); ++i) extra.emplace_back([&s] { s.ioc.run(); });
   s.ioc.run();

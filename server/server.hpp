@@ -5,6 +5,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 
 #include "protocol/messages.hpp"
@@ -20,6 +21,9 @@ struct ServerConfig {
   unsigned workers = 0;             // extraction threads; 0 = one per core
   std::uint32_t drain_timeout_ms = 10'000;  // on SIGINT/SIGTERM: in-flight work must finish by then
   protocol::Limits limits;
+  // The browser viewer over HTTP + WebSocket (server/web_session.hpp); off when empty, 0 = any port.
+  std::optional<std::uint16_t> http_port;
+  std::string web_root;             // repository root holding clients/web and scripts/node_modules/three
 };
 
 class Server {
@@ -31,6 +35,8 @@ class Server {
   Status listen();
   // The bound port (useful with port 0).
   std::uint16_t port() const;
+  // The bound HTTP port, 0 when HTTP is off.
+  std::uint16_t http_port() const;
   // Serves until stop() or SIGINT/SIGTERM has drained every connection.
   void run();
   // Starts a graceful shutdown: stop accepting, answer queued work `shutting_down`, finish running

@@ -157,4 +157,8 @@ Result<ReplyFrame> Connection::call(const protocol::Request& request, std::uint6
 
 void Connection::close() { impl_.reset(); }
 
+void Connection::interrupt() {
+  if (impl_ && impl_->fd >= 0) ::shutdown(impl_->fd, SHUT_RDWR);
+}
+
 }  // namespace mtlod::clients

@@ -41,6 +41,9 @@ class Connection {
   Result<ReplyFrame> call(const protocol::Request& request, std::uint64_t id,
                           std::chrono::milliseconds timeout = std::chrono::seconds(30));
   void close();
+  // From another thread: shuts the socket down so that a receive() blocked in it returns an error.
+  // send() and receive() may run on two threads at once; interrupt() ends both.
+  void interrupt();
 
  private:
   struct Impl;

@@ -41,9 +41,13 @@ class ServerProcess {
     // Model loading may take a while under sanitizers: wait up to a minute for the port.
     for (int i = 0; i < 600 && port_ == 0; ++i) {
       std::ifstream in(port_file);
-      unsigned p = 0;
-      if (in >> p) port_ = static_cast<std::uint16_t>(p);
-      else std::this_thread::sleep_for(std::chrono::milliseconds(100));
+      unsigned p = 0, http = 0;
+      if (in >> p) {
+        port_ = static_cast<std::uint16_t>(p);
+        if (in >> http) http_port_ = static_cast<std::uint16_t>(http);  // with --http-port
+      } else {
+        std::this_thread::sleep_for(std::chrono::milliseconds(100));
+      }
       int status = 0;
       if (::waitpid(pid_, &status, WNOHANG) == pid_) {
         pid_ = -1;
@@ -54,6 +58,8 @@ class ServerProcess {
   ~ServerProcess() { stop(SIGTERM); }
 
   std::uint16_t port() const { return port_; }
+  // The HTTP port when the server was given --http-port, else 0.
+  std::uint16_t http_port() const { return http_port_; }
   bool running() const { return pid_ > 0; }
   std::string log() const {
     std::ifstream in(log_);
@@ -85,6 +91,7 @@ class ServerProcess {
  private:
   pid_t pid_ = -1;
   std::uint16_t port_ = 0;
+  std::uint16_t http_port_ = 0;
   int exit_status_ = -1;
   std::filesystem::path log_;
 };

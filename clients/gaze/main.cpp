@@ -1,0 +1,297 @@
+// mtlod-gaze: replays eye-tracker gaze against mtlod-server (issue 6) and measures gaze-to-mesh
+// latency: from a sample's timestamp (its due time in the replay, so a late send counts) to the
+// arrival of the mesh reply that reflects it. Gaze updates the server coalesced away are counted;
+// each sample's wait for a mesh showing it or a newer sample is reported too.
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <cstdio>
+#include <deque>
+#include <fstream>
+#include <map>
+#include <mutex>
+#include <sstream>
+#include <thread>
+
+#include "CLI/CLI.hpp"
+#include "clients/common/connection.hpp"
+#include "clients/gaze/trace.hpp"
+#include "clients/load/histogram.hpp"
+#include "fmt/format.h"
+#include "nlohmann/json.hpp"
+#include "protocol/extract_flags.hpp"
+
+namespace {
+
+using namespace mtlod;
+using Clock = std::chrono::steady_clock;
+
+int fail(const std::string& message) {
+  fmt::print(stderr, "mtlod-gaze: {}\n", message);
+  return 1;
+}
+
+std::int64_t since(Clock::time_point start) {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now() - start).count();
+}
+
+struct Totals {
+  std::mutex mutex;
+  clients::LatencyHistogram mesh_latency_us;    // per mesh reply: its sample's time → arrival
+  clients::LatencyHistogram sample_latency_us;  // per sample: its time → a mesh showing it or a newer one
+  std::uint64_t sent = 0, meshes = 0, superseded = 0, superseded_counted = 0, errors = 0, focus_mismatches = 0;
+  std::uint64_t bytes = 0, triangles = 0, server_total_us = 0;
+  std::map<std::string, std::uint64_t> errors_by_code;
+};
+
+struct Stream {
+  clients::Connection connection;
+  std::vector<clients::GazeSample> trace;
+  std::mutex mutex;
+  std::size_t sent = 0;       // samples sent; sample i has request id i + 1
+  std::size_t answered = 0;   // samples answered (mesh or error)
+  std::size_t reflected = 0;  // samples [0, reflected) have a mesh showing them or a newer sample
+  bool broken = false;
+};
+
+void receive_loop(Stream& stream, Totals& totals, Clock::time_point start) {
+  for (;;) {
+    auto frame = stream.connection.receive(std::chrono::hours(1));
+    const std::int64_t now = since(start);
+    if (!frame) break;
+    const std::uint64_t id = frame->header.id.value_or(0);
+    if (id == 0 || id > stream.trace.size()) continue;
+    const std::size_t index = id - 1;
+    const clients::GazeSample& sample = stream.trace[index];
+    const auto sample_ns = static_cast<std::int64_t>(sample.time_ms * 1e6);
+    std::size_t newly_from = 0, newly_to = 0;
+    {
+      std::lock_guard lock(stream.mutex);
+      stream.answered = std::max(stream.answered, index + 1);
+      if (std::holds_alternative<protocol::MeshReply>(frame->header.reply) && stream.reflected <= index) {
+        newly_from = stream.reflected;
+        newly_to = index + 1;
+        stream.reflected = index + 1;
+      }
+    }
+    std::lock_guard lock(totals.mutex);
+    if (const auto* mesh = std::get_if<protocol::MeshReply>(&frame->header.reply)) {
+      ++totals.meshes;
+      totals.mesh_latency_us.record(static_cast<std::uint64_t>(std::max<std::int64_t>(0, now - sample_ns) / 1000));
+      for (std::size_t i = newly_from; i < newly_to; ++i) {
+        const auto t = static_cast<std::int64_t>(stream.trace[i].time_ms * 1e6);
+        totals.sample_latency_us.record(static_cast<std::uint64_t>(std::max<std::int64_t>(0, now - t) / 1000));
+      }
+      // The reply must say it reflects this sample (JSON carries doubles exactly).
+      if (!mesh->focus || (*mesh->focus)[0] != sample.x || (*mesh->focus)[1] != sample.y) ++totals.focus_mismatches;
+      totals.superseded_counted += mesh->superseded;
+      totals.bytes += frame->payload.size();
+      totals.triangles += mesh->triangles;
+      totals.server_total_us += mesh->timings.total_us;
+    } else if (const auto* error = std::get_if<protocol::ErrorReply>(&frame->header.reply)) {
+      ++totals.errors_by_code[protocol::to_string(error->code)];
+      if (error->code == protocol::ErrorKind::kSuperseded) ++totals.superseded;
+      else ++totals.errors;
+    }
+  }
+  std::lock_guard lock(stream.mutex);
+  stream.broken = true;
+}
+
+nlohmann::ordered_json percentiles_ms(const clients::LatencyHistogram& h) {
+  auto ms = [](std::uint64_t us) { return us / 1000.0; };
+  return {{"p50", ms(h.value_at_percentile(50))},   {"p90", ms(h.value_at_percentile(90))},
+          {"p99", ms(h.value_at_percentile(99))},   {"p999", ms(h.value_at_percentile(99.9))},
+          {"max", ms(h.max())},                     {"mean", h.mean() / 1000.0},
+          {"count", h.count()}};
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"mtlod-gaze: replay a gaze trace (CSV time_ms,x,y) or a synthetic one against mtlod-server and "
+               "measure gaze-to-mesh latency."};
+  std::string host = "127.0.0.1", model = "bunny", trace_file, json_file;
+  std::uint16_t port = 7878;
+  unsigned streams_count = 1;
+  double drain_timeout_s = 10;
+  bool quiet = false;
+  clients::SynthesisOptions synthesis;
+  app.add_option("--host", host, "server address")->capture_default_str();
+  app.add_option("--port", port, "server port")->capture_default_str();
+  app.add_option("--model", model, "model name")->capture_default_str();
+  app.add_option("--trace", trace_file, "CSV trace: time_ms,x,y per line (x, y normalised, 0,0 top left); "
+                                        "without it a trace is synthesised");
+  app.add_option("--hz", synthesis.rate_hz, "synthesised trace: samples per second")
+      ->capture_default_str()
+      ->check(CLI::Range(1.0, 10000.0));
+  app.add_option("-d,--duration", synthesis.duration_ms, "synthesised trace: length in ms")
+      ->capture_default_str()
+      ->check(CLI::Range(1.0, 86400e3));
+  app.add_option("--seed", synthesis.seed, "synthesised trace: random seed (stream k uses seed + k)")
+      ->capture_default_str();
+  app.add_option("--streams", streams_count, "concurrent gaze streams, one connection each")
+      ->capture_default_str()
+      ->check(CLI::Range(1u, 1024u));
+  app.add_option("--drain-timeout", drain_timeout_s, "seconds to wait for outstanding replies at the end")
+      ->capture_default_str();
+  app.add_option("--json", json_file, "write the report as JSON to this file");
+  app.add_flag("-q,--quiet", quiet, "no progress line");
+  std::string write_trace;
+  app.add_option("--write-trace", write_trace, "write the (first stream's) trace as CSV to this file and exit");
+  protocol::ExtractFlags flags;
+  protocol::add_extract_flags(app, flags);
+  CLI11_PARSE(app, argc, argv);
+  if (!flags.error && !flags.error_px) flags.error_px = 1;
+  if (flags.silhouette.empty()) flags.silhouette = "2,0";
+  if (flags.focus.empty()) flags.focus.push_back("0.5,0.5,20,0.1");
+
+  std::vector<clients::GazeSample> file_trace;
+  if (!trace_file.empty()) {
+    std::ifstream in(trace_file);
+    if (!in) return fail(fmt::format("{}: cannot read", trace_file));
+    std::stringstream text;
+    text << in.rdbuf();
+    auto parsed = clients::parse_gaze_trace(text.str());
+    if (!parsed) return fail(fmt::format("{}: {}", trace_file, parsed.error().message));
+    file_trace = std::move(*parsed);
+  }
+
+  if (!write_trace.empty()) {
+    const auto trace = file_trace.empty() ? clients::synthesize_gaze_trace(synthesis) : file_trace;
+    std::ofstream out(write_trace);
+    out << "time_ms,x,y\n";
+    for (const auto& s : trace) out << fmt::format("{:.3f},{:.5f},{:.5f}\n", s.time_ms, s.x, s.y);
+    if (!out) return fail(fmt::format("{}: write failed", write_trace));
+    fmt::print("wrote {} samples to {}\n", trace.size(), write_trace);
+    return 0;
+  }
+
+  // Every stream opens its view with one extract first; that set-up is not measured.
+  std::vector<std::unique_ptr<Stream>> streams;
+  for (unsigned k = 0; k < streams_count; ++k) {
+    auto stream = std::make_unique<Stream>();
+    if (file_trace.empty()) {
+      clients::SynthesisOptions o = synthesis;
+      o.seed = synthesis.seed + k;
+      stream->trace = clients::synthesize_gaze_trace(o);
+    } else {
+      stream->trace = file_trace;
+    }
+    auto connection = clients::Connection::open(host, port);
+    if (!connection) return fail(connection.error().message);
+    auto hello = connection->call(protocol::Hello{protocol::kProtocolVersion, "mtlod-gaze/0.1"}, 0);
+    if (!hello) return fail(hello.error().message);
+    auto info = connection->call(protocol::ModelInfo{model}, 0);
+    if (!info) return fail(info.error().message);
+    const auto* m = std::get_if<protocol::ModelInfoReply>(&info->header.reply);
+    if (!m) return fail(fmt::format("model '{}' is not served", model));
+    auto request = protocol::make_extract(flags, model, m->bounds_min, m->bounds_max);
+    if (!request) return fail(request.error().message);
+    request->criteria.focus.front().x = stream->trace.front().x;
+    request->criteria.focus.front().y = stream->trace.front().y;
+    auto first = connection->call(*request, 0, std::chrono::seconds(120));
+    if (!first) return fail(first.error().message);
+    if (const auto* e = std::get_if<protocol::ErrorReply>(&first->header.reply)) return fail("extract: " + e->message);
+    stream->connection = std::move(*connection);
+    streams.push_back(std::move(stream));
+  }
+
+  Totals totals;
+  std::atomic<unsigned> senders_done{0};
+  const Clock::time_point start = Clock::now();
+  std::vector<std::thread> threads;
+  for (auto& s : streams) {
+    Stream& stream = *s;
+    threads.emplace_back([&stream, &totals, start] { receive_loop(stream, totals, start); });
+    threads.emplace_back([&stream, &totals, &senders_done, start] {
+      for (std::size_t i = 0; i < stream.trace.size(); ++i) {
+        const clients::GazeSample& sample = stream.trace[i];
+        std::this_thread::sleep_until(start + std::chrono::nanoseconds(static_cast<std::int64_t>(sample.time_ms * 1e6)));
+        {
+          std::lock_guard lock(stream.mutex);
+          if (stream.broken) break;
+          stream.sent = i + 1;
+        }
+        if (!stream.connection.send(protocol::Gaze{sample.x, sample.y, std::nullopt, std::nullopt}, i + 1)) break;
+        std::lock_guard lock(totals.mutex);
+        ++totals.sent;
+      }
+      ++senders_done;
+    });
+  }
+
+  double trace_ms = 0;
+  for (auto& s : streams) trace_ms = std::max(trace_ms, s->trace.back().time_ms);
+  const auto drain_deadline = start + std::chrono::milliseconds(static_cast<std::int64_t>(trace_ms + drain_timeout_s * 1000));
+  const bool progress = !quiet && ::isatty(STDERR_FILENO);
+  auto outstanding = [&] {
+    std::size_t n = 0;
+    for (auto& s : streams) {
+      std::lock_guard lock(s->mutex);
+      if (!s->broken) n += s->sent - s->answered;
+    }
+    return n;
+  };
+  for (;;) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    if (progress) {
+      std::lock_guard lock(totals.mutex);
+      fmt::print(stderr, "\r{:6.1f} s  samples {:>7}  meshes {:>7}  superseded {:>7}  p99 {:>7.2f} ms   ",
+                 since(start) / 1e9, totals.sent, totals.meshes, totals.superseded,
+                 totals.mesh_latency_us.value_at_percentile(99) / 1e3);
+    }
+    if (senders_done == streams.size() && outstanding() == 0) break;
+    if (Clock::now() >= drain_deadline) break;
+  }
+  if (progress) fmt::print(stderr, "\n");
+  const std::size_t lost = outstanding();
+  for (auto& s : streams) s->connection.interrupt();
+  for (auto& t : threads) t.join();
+
+  const Totals& r = totals;
+  const double elapsed_s = since(start) / 1e9;
+  const double per_mesh = std::max<double>(1, static_cast<double>(r.meshes));
+  nlohmann::ordered_json report = {
+      {"model", model},
+      {"streams", streams_count},
+      {"trace", trace_file.empty() ? fmt::format("synthetic {} Hz, {} ms", synthesis.rate_hz, synthesis.duration_ms)
+                                   : trace_file},
+      {"budget", flags.budget ? nlohmann::json(*flags.budget) : nlohmann::json(nullptr)},
+      {"elapsed_s", elapsed_s},
+      {"samples", r.sent},
+      {"requests", r.meshes + r.superseded + r.errors},
+      {"meshes", r.meshes},
+      {"superseded", r.superseded},
+      {"superseded_counted_by_server", r.superseded_counted},
+      {"errors", r.errors},
+      {"errors_by_code", r.errors_by_code},
+      {"lost", lost},
+      {"focus_mismatches", r.focus_mismatches},
+      {"throughput_rps", r.meshes / std::max(elapsed_s, 1e-9)},
+      {"latency_ms", percentiles_ms(r.mesh_latency_us)},
+      {"sample_latency_ms", percentiles_ms(r.sample_latency_us)},
+      {"mean_triangles", r.triangles / per_mesh},
+      {"bytes", r.bytes},
+      {"server_total_us_mean", r.server_total_us / per_mesh},
+  };
+  const auto& h = r.mesh_latency_us;
+  fmt::print("{} stream(s) on {}: {} samples, {} meshes, {} superseded (server counted {}), {} errors, {} lost\n",
+             streams_count, model, r.sent, r.meshes, r.superseded, r.superseded_counted, r.errors, lost);
+  fmt::print("  gaze-to-mesh ms  p50 {:.2f}  p90 {:.2f}  p99 {:.2f}  p99.9 {:.2f}  max {:.2f}\n",
+             h.value_at_percentile(50) / 1e3, h.value_at_percentile(90) / 1e3, h.value_at_percentile(99) / 1e3,
+             h.value_at_percentile(99.9) / 1e3, h.max() / 1e3);
+  const auto& q = r.sample_latency_us;
+  fmt::print("  every sample until a mesh shows it or a newer one, ms  p50 {:.2f}  p99 {:.2f}  max {:.2f}\n",
+             q.value_at_percentile(50) / 1e3, q.value_at_percentile(99) / 1e3, q.max() / 1e3);
+  fmt::print("  {:.0f} triangles per mesh, server total {:.0f} µs mean, focus mismatches {}\n", r.triangles / per_mesh,
+             r.server_total_us / per_mesh, r.focus_mismatches);
+  if (!json_file.empty()) {
+    std::ofstream out(json_file);
+    out << report.dump(2) << "\n";
+    if (!out) return fail(fmt::format("{}: write failed", json_file));
+  }
+  return r.meshes > 0 ? 0 : 1;
+}

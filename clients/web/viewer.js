@@ -1,0 +1,269 @@
+// mtlod viewer (issue 6): orbit the model, and the server sends a view-dependent cut refined near
+// the silhouette and around the mouse (the gaze/focus point of the attention-driven papers). Speaks
+// protocol/PROTOCOL.md over the /ws WebSocket: text messages are JSON, binary messages are whole
+// frames (8-byte header, JSON, Draco payload).
+import * as THREE from 'three';
+import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
+import { DRACOLoader } from 'three/addons/loaders/DRACOLoader.js';
+
+const $ = (id) => document.getElementById(id);
+const container = $('view');
+
+const renderer = new THREE.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
+renderer.setPixelRatio(window.devicePixelRatio);
+container.appendChild(renderer.domElement);
+const scene = new THREE.Scene();
+scene.background = new THREE.Color(0x202428);
+scene.add(new THREE.HemisphereLight(0xffffff, 0x404050, 2.0));
+const sun = new THREE.DirectionalLight(0xffffff, 1.5);
+scene.add(sun);
+const camera = new THREE.PerspectiveCamera(45, 1, 0.01, 100);
+const controls = new OrbitControls(camera, renderer.domElement);
+
+const material = new THREE.MeshStandardMaterial({ color: 0xc8c0b0, flatShading: true, roughness: 0.8 });
+const labelMaterial = new THREE.MeshStandardMaterial({ vertexColors: true, flatShading: true, roughness: 0.8 });
+const mesh = new THREE.Mesh(new THREE.BufferGeometry(), material);
+scene.add(mesh);
+
+// The generic uint16 attribute the server names `label` is Draco's GENERIC attribute: map it by
+// semantic name like position and normal.
+const draco = new DRACOLoader();
+draco.setDecoderPath('/three/examples/jsm/libs/draco/');
+draco.defaultAttributeIDs.label = 'GENERIC';
+draco.defaultAttributeTypes.label = 'Uint16Array';
+
+// State the page shares with tests (tests/clients/viewer_test.mjs).
+const state = {
+  connected: false,
+  model: null,
+  bounds: null,
+  meshes: 0,            // mesh replies decoded and shown
+  lastReply: null,      // JSON of the last mesh reply
+  lastReplyHadLabels: false,  // its Draco data carried the `label` attribute
+  displayedTriangles: 0,
+  focus: [0.5, 0.5],
+  errors: [],
+};
+window.mtlod = state;
+
+let ws = null;
+let nextId = 1;
+const waiting = new Map();   // id → {resolve, sentAt}
+let inFlight = false;        // one extraction at a time from this page: the next waits for the reply
+let wantExtract = false;
+let wantGaze = null;
+
+function setStatus(text, error = false) {
+  $('status').textContent = text;
+  $('status').classList.toggle('error', error);
+  if (error) state.errors.push(text);
+}
+
+function send(message) {
+  const id = nextId++;
+  message.id = id;
+  ws.send(JSON.stringify(message));
+  return new Promise((resolve) => waiting.set(id, { resolve, sentAt: performance.now() }));
+}
+
+// A reply: text is JSON only; binary is a frame whose payload follows the JSON.
+function onMessage(event) {
+  let json, payload = null;
+  if (typeof event.data === 'string') {
+    json = JSON.parse(event.data);
+  } else {
+    const view = new DataView(event.data);
+    const jsonBytes = view.getUint32(0, true), payloadBytes = view.getUint32(4, true);
+    json = JSON.parse(new TextDecoder().decode(new Uint8Array(event.data, 8, jsonBytes)));
+    payload = event.data.slice(8 + jsonBytes, 8 + jsonBytes + payloadBytes);
+  }
+  const pending = waiting.get(json.id);
+  if (pending) {
+    waiting.delete(json.id);
+    pending.resolve({ json, payload, latencyMs: performance.now() - pending.sentAt });
+  } else if (json.type === 'error') {
+    setStatus(`${json.code}: ${json.message}`, true);
+  }
+}
+
+function viewportSize() {
+  return [Math.max(1, container.clientWidth), Math.max(1, container.clientHeight)];
+}
+
+function extractRequest() {
+  const [width, height] = viewportSize();
+  camera.updateMatrixWorld();
+  const criteria = {};
+  if ($('silhouette').checked) {
+    criteria.silhouette = { distance: Number($('silhouette-distance').value), factor: Number($('silhouette-factor').value) };
+  }
+  if ($('focus').checked) {
+    criteria.focus = [{ x: state.focus[0], y: state.focus[1], distance: Number($('focus-distance').value),
+                        factor: Number($('focus-factor').value) }];
+  }
+  const request = {
+    type: 'extract', model: state.model,
+    camera: { view: Array.from(camera.matrixWorldInverse.elements), projection: Array.from(camera.projectionMatrix.elements),
+              viewport: [width, height] },
+    grid: [Math.min(512, Math.round(width / 2)), Math.min(512, Math.round(height / 2))],
+    error: { value: Number($('error').value), unit: 'pixels' },
+    criteria,
+    attributes: { labels: $('labels').checked },
+  };
+  const budget = Number($('budget').value);
+  if (budget > 0) request.budget = budget;
+  return request;
+}
+
+// Sends what the user asked for last: a new view wins over a gaze (it carries the focus too).
+function pump() {
+  if (inFlight || !state.connected || !state.model) return;
+  let request;
+  if (wantExtract) {
+    request = extractRequest();
+    wantExtract = false;
+    wantGaze = null;
+  } else if (wantGaze) {
+    request = { type: 'gaze', x: wantGaze[0], y: wantGaze[1] };
+    wantGaze = null;
+  } else {
+    return;
+  }
+  inFlight = true;
+  send(request).then(showReply).finally(() => {
+    inFlight = false;
+    pump();
+  });
+}
+
+function colourByLabel(geometry) {
+  const labels = geometry.getAttribute('label');
+  if (!labels) return false;
+  let top = 1;
+  for (let i = 0; i < labels.count; ++i) top = Math.max(top, labels.getX(i));
+  const colours = new Float32Array(labels.count * 3);
+  const c = new THREE.Color();
+  for (let i = 0; i < labels.count; ++i) {
+    // Near the silhouette or focus (small labels) red, far away blue, as in the papers' figure 2.
+    c.setHSL(0.66 * Math.sqrt(labels.getX(i) / top), 0.9, 0.5);
+    colours.set([c.r, c.g, c.b], 3 * i);
+  }
+  geometry.setAttribute('color', new THREE.BufferAttribute(colours, 3));
+  return true;
+}
+
+async function showReply({ json, payload, latencyMs }) {
+  if (json.type === 'error') {
+    if (json.code !== 'superseded') setStatus(`${json.code}: ${json.message}`, true);
+    return;
+  }
+  if (json.type !== 'mesh') return;
+  const geometry = await new Promise((resolve, reject) => draco.parse(payload, resolve, reject));
+  const labelled = $('labels').checked && colourByLabel(geometry);
+  mesh.geometry.dispose();
+  mesh.geometry = geometry;
+  mesh.material = labelled ? labelMaterial : material;
+  mesh.material.wireframe = $('wireframe').checked;
+  state.displayedTriangles = geometry.index ? geometry.index.count / 3 : 0;
+  state.lastReply = json;
+  state.lastReplyHadLabels = geometry.getAttribute('label') !== undefined;
+  state.meshes += 1;
+  $('triangles').textContent = String(state.displayedTriangles);
+  $('vertices').textContent = String(geometry.getAttribute('position').count);
+  $('bytes').textContent = String(json.bytes);
+  $('latency').textContent = latencyMs.toFixed(1);
+  $('server-ms').textContent = (json.timings_us.total / 1000).toFixed(1);
+  if (json.focus) $('focus-point').textContent = `${json.focus[0].toFixed(3)}, ${json.focus[1].toFixed(3)}`;
+  $('meshes').textContent = String(state.meshes);
+  setStatus('ok');
+}
+
+async function selectModel(name) {
+  const { json } = await send({ type: 'model_info', model: name });
+  if (json.type !== 'model_info') return setStatus(`model_info: ${json.message}`, true);
+  state.model = name;
+  const lo = new THREE.Vector3(...json.bounds_min), hi = new THREE.Vector3(...json.bounds_max);
+  const centre = lo.clone().add(hi).multiplyScalar(0.5);
+  const radius = hi.clone().sub(lo).length() / 2;
+  state.bounds = { lo, hi };
+  camera.near = radius / 100;
+  camera.far = radius * 100;
+  camera.position.copy(centre).add(new THREE.Vector3(0, 0, radius / Math.tan(THREE.MathUtils.degToRad(camera.fov / 2))));
+  controls.target.copy(centre);
+  controls.update();
+  resize();
+  wantExtract = true;
+  pump();
+}
+
+function resize() {
+  const [width, height] = viewportSize();
+  renderer.setSize(width, height);
+  camera.aspect = width / height;
+  camera.updateProjectionMatrix();
+}
+
+// Camera changes ask for a new view at most every 50 ms; pump() keeps one request in flight.
+let extractTimer = null;
+function requestExtract() {
+  if (extractTimer) return;
+  extractTimer = setTimeout(() => {
+    extractTimer = null;
+    wantExtract = true;
+    pump();
+  }, 50);
+}
+
+controls.addEventListener('change', requestExtract);
+window.addEventListener('resize', () => {
+  resize();
+  requestExtract();
+});
+renderer.domElement.addEventListener('pointermove', (event) => {
+  if (!$('focus').checked || event.buttons) return;
+  const rect = renderer.domElement.getBoundingClientRect();
+  const x = Math.min(1, Math.max(0, (event.clientX - rect.left) / rect.width));
+  const y = Math.min(1, Math.max(0, (event.clientY - rect.top) / rect.height));
+  state.focus = [x, y];
+  wantGaze = [x, y];
+  pump();
+});
+for (const id of ['error', 'budget', 'silhouette', 'silhouette-distance', 'silhouette-factor', 'focus', 'focus-distance',
+                  'focus-factor', 'labels']) {
+  $(id).addEventListener('change', requestExtract);
+}
+$('wireframe').addEventListener('change', () => { mesh.material.wireframe = $('wireframe').checked; });
+$('model').addEventListener('change', () => selectModel($('model').value));
+
+function connect() {
+  ws = new WebSocket(`${location.protocol === 'https:' ? 'wss' : 'ws'}://${location.host}/ws`);
+  ws.binaryType = 'arraybuffer';
+  ws.onmessage = onMessage;
+  ws.onclose = () => {
+    state.connected = false;
+    setStatus('disconnected', true);
+  };
+  ws.onopen = async () => {
+    state.connected = true;
+    await send({ type: 'hello', version: 1, client: 'mtlod-viewer/0.1' });
+    const { json } = await send({ type: 'list_models' });
+    const select = $('model');
+    for (const m of json.models) select.add(new Option(`${m.name} (${m.input_triangles} triangles)`, m.name));
+    const wanted = new URLSearchParams(location.search).get('model');
+    const first = json.models.find((m) => m.name === wanted) ?? json.models[0];
+    if (!first) return setStatus('the server has no model', true);
+    select.value = first.name;
+    setStatus('loading');
+    await selectModel(first.name);
+  };
+}
+
+function animate() {
+  sun.position.copy(camera.position);
+  renderer.render(scene, camera);
+  requestAnimationFrame(animate);
+}
+
+resize();
+connect();
+animate();

@@ -1,0 +1,435 @@
+// The browser transport (see web_session.hpp), after Beast's example/advanced/server: an HTTP
+// session per accepted socket serves files and, on `GET /ws` with an upgrade, hands its socket to a
+// WebSocket session. Text messages are JSON requests; binary messages hold a whole frame (header
+// included). Replies without payload go out as text, mesh replies as binary whole frames.
+#include "server/web_session.hpp"
+
+#include <boost/asio/dispatch.hpp>
+#include <boost/asio/ip/tcp.hpp>
+#include <boost/asio/post.hpp>
+#include <boost/asio/steady_timer.hpp>
+#include <boost/asio/strand.hpp>
+#include <boost/beast/core.hpp>
+#include <boost/beast/http.hpp>
+#include <boost/beast/websocket.hpp>
+
+#include <atomic>
+#include <cassert>
+#include <chrono>
+#include <list>
+#include <mutex>
+#include <optional>
+
+#include "fmt/format.h"
+#include "protocol/frame.hpp"
+#include "spdlog/spdlog.h"
+
+namespace mtlod::server {
+namespace {
+
+namespace net = boost::asio;
+namespace beast = boost::beast;
+namespace http = beast::http;
+namespace websocket = beast::websocket;
+using tcp = net::ip::tcp;
+using boost::system::error_code;
+using Request = http::request<http::string_body>;
+
+constexpr auto kHttpTimeout = std::chrono::seconds(30);        // a request must arrive within this time
+constexpr auto kWebSocketHandshake = std::chrono::seconds(10);  // opening and closing handshakes
+constexpr std::size_t kHttpRequestMaxBytes = 16 * 1024;        // the viewer only sends small GETs
+
+std::int64_t now_ns() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+const char* content_type(const std::filesystem::path& path) {
+  const std::string ext = path.extension().string();
+  if (ext == ".html") return "text/html; charset=utf-8";
+  if (ext == ".js" || ext == ".mjs") return "text/javascript; charset=utf-8";
+  if (ext == ".wasm") return "application/wasm";  // WebAssembly.instantiateStreaming insists on it
+  if (ext == ".css") return "text/css; charset=utf-8";
+  if (ext == ".json") return "application/json";
+  if (ext == ".csv" || ext == ".txt" || ext == ".md") return "text/plain; charset=utf-8";
+  if (ext == ".png") return "image/png";
+  return "application/octet-stream";
+}
+
+// The file a request target names, or nullopt. Only plain names are served: no escapes, no "..",
+// nothing outside the two folders.
+std::optional<std::filesystem::path> resolve_target(std::string_view target, const std::filesystem::path& root) {
+  if (const std::size_t query = target.find('?'); query != std::string_view::npos) target = target.substr(0, query);
+  if (target.empty() || target.front() != '/') return std::nullopt;
+  for (const char c : target) {
+    const bool plain = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '-' ||
+                       c == '_' || c == '.' || c == '/';
+    if (!plain) return std::nullopt;
+  }
+  if (target.find("..") != std::string_view::npos || target.find("//") != std::string_view::npos) return std::nullopt;
+  if (target == "/") return root / "clients/web/index.html";
+  constexpr std::string_view kThree = "/three/";
+  if (target.starts_with(kThree)) {
+    const std::string_view rest = target.substr(kThree.size());
+    if (!rest.starts_with("build/") && !rest.starts_with("examples/jsm/")) return std::nullopt;
+    return root / "scripts/node_modules/three" / std::string(rest);
+  }
+  return root / "clients/web" / std::string(target.substr(1));
+}
+
+// ---- WebSocket: a Connection whose frames are WebSocket messages ----
+
+class WebSocketSession final : public Connection {
+ public:
+  WebSocketSession(ServerContext& server, tcp::socket socket, std::uint64_t number)
+      : Connection(server, socket.get_executor(), number), ws_(std::move(socket)), deadline_(ws_.get_executor()) {}
+
+  // Answers the upgrade request (already read by the HTTP session) and starts reading.
+  void start(Request request) {
+    request_ = std::move(request);
+    net::dispatch(strand(), [self = shared_self()] {
+      self->opened();
+      auto& ws = self->ws_;
+      beast::get_lowest_layer(ws).expires_never();  // the WebSocket's own timeouts apply instead
+      ws.set_option(websocket::stream_base::timeout{kWebSocketHandshake, websocket::stream_base::none(), false});
+      ws.set_option(websocket::stream_base::decorator(
+          [](websocket::response_type& response) { response.set(http::field::server, "mtlod/0.1"); }));
+      // A binary message holds a whole frame: the header comes on top of the frame limit.
+      ws.read_message_max(std::size_t{self->server_.config.limits.max_frame_bytes} + protocol::kFrameHeaderBytes);
+      ws.async_accept(self->request_, [self](error_code ec) { self->on_accept(ec); });
+    });
+  }
+
+ private:
+  std::shared_ptr<WebSocketSession> shared_self() {
+    return std::static_pointer_cast<WebSocketSession>(shared_from_this());
+  }
+
+  void on_accept(error_code ec) {
+    request_ = {};
+    if (ec) {
+      spdlog::debug("conn={} websocket handshake failed: {}", number(), ec.message());
+      read_failed_ = true;
+      return on_read_end();
+    }
+    do_read();
+  }
+
+  void do_read() {
+    if (!may_read()) return;
+    reading_ = true;
+    arm_idle_deadline();
+    ws_.async_read(buffer_, [self = shared_self()](error_code ec, std::size_t n) { self->on_read(ec, n); });
+  }
+
+  void on_read(error_code ec, std::size_t n) {
+    reading_ = false;
+    if (ec) {
+      read_failed_ = true;
+      if (ec != websocket::error::closed && ec != net::error::eof && ec != net::error::operation_aborted) {
+        spdlog::debug("conn={} websocket read failed: {}", number(), ec.message());
+      }
+      return on_read_end();
+    }
+    server_.metrics.bytes_in(n);
+    if (ending()) return buffer_.clear();  // draining: nothing new is taken
+    const auto data = buffer_.cdata();
+    const std::string_view message(static_cast<const char*>(data.data()), data.size());
+    if (ws_.got_text()) {
+      handle_frame(message, now_ns());
+    } else {
+      // A binary message is a whole frame: its header must announce exactly the bytes that follow.
+      if (message.size() < protocol::kFrameHeaderBytes) {
+        buffer_.clear();
+        return bad_frame(fmt::format("a binary message of {} bytes is shorter than the {}-byte frame header",
+                                     message.size(), protocol::kFrameHeaderBytes));
+      }
+      const auto* bytes = reinterpret_cast<const std::uint8_t*>(message.data());
+      auto header = protocol::decode_frame_header(std::span<const std::uint8_t, protocol::kFrameHeaderBytes>(
+                                                      bytes, protocol::kFrameHeaderBytes),
+                                                  server_.config.limits.max_frame_bytes);
+      const std::size_t body_bytes = message.size() - protocol::kFrameHeaderBytes;
+      if (!header || header->body_bytes() != body_bytes) {
+        const std::string reason =
+            header ? fmt::format("the frame header announces {} bytes but the message holds {} after it",
+                                 header->body_bytes(), body_bytes)
+                   : header.error().message;
+        buffer_.clear();
+        return bad_frame(reason);
+      }
+      handle_frame(message.substr(protocol::kFrameHeaderBytes, header->json_bytes), now_ns());
+    }
+    buffer_.clear();
+    do_read();
+  }
+
+  void arm_idle_deadline() {
+    deadline_.expires_after(std::chrono::milliseconds(server_.config.limits.idle_timeout_ms));
+    deadline_.async_wait([self = shared_self()](error_code ec) {
+      if (ec || !self->reading_) return;  // cancelled, or a message has arrived since
+      if (self->waiting_on_server()) return self->arm_idle_deadline();  // not idle: we owe replies
+      spdlog::info("conn={} closed: idle timeout", self->number());
+      self->force_close();
+    });
+  }
+
+  void write_frame(std::vector<std::uint8_t>& frame) override {
+    assert(frame.size() >= protocol::kFrameHeaderBytes);
+    const auto header = protocol::decode_frame_header(
+        std::span<const std::uint8_t, protocol::kFrameHeaderBytes>(frame.data(), protocol::kFrameHeaderBytes),
+        frame.size());
+    const bool has_payload = header.ok() && header->payload_bytes > 0;
+    write_pending_ = true;
+    auto done = [self = shared_self()](error_code ec, std::size_t n) {
+      self->write_pending_ = false;
+      if (ec) spdlog::debug("conn={} websocket write failed: {}", self->number(), ec.message());
+      self->on_written(!ec, n);
+    };
+    if (has_payload) {
+      ws_.binary(true);
+      ws_.async_write(net::buffer(frame), std::move(done));
+    } else {
+      // JSON only: a text message without the frame header.
+      ws_.text(true);
+      ws_.async_write(net::buffer(frame.data() + protocol::kFrameHeaderBytes, frame.size() - protocol::kFrameHeaderBytes),
+                      std::move(done));
+    }
+  }
+  // A WebSocket cannot half-close its reading side without failing the stream, which would lose the
+  // replies still owed. The pending read stays; on_read drops what arrives while ending, and the
+  // connection closes once its replies are written.
+  void stop_reading() override {}
+  void resume_reading() override { do_read(); }
+  void close_transport() override {
+    deadline_.cancel();
+    if (closing_) return;
+    closing_ = true;
+    if (write_pending_ || read_failed_ || !ws_.is_open()) return close_socket();
+    // A close handshake when the stream is idle, bounded by the handshake timeout.
+    ws_.async_close(websocket::close_code::normal, [self = shared_self()](error_code) { self->close_socket(); });
+  }
+  void close_socket() {
+    error_code ignored;
+    auto& socket = beast::get_lowest_layer(ws_).socket();
+    socket.shutdown(tcp::socket::shutdown_both, ignored);
+    socket.close(ignored);
+  }
+
+  websocket::stream<beast::tcp_stream> ws_;
+  net::steady_timer deadline_;
+  beast::flat_buffer buffer_;
+  Request request_;
+  bool reading_ = false;
+  bool write_pending_ = false;
+  bool read_failed_ = false;
+  bool closing_ = false;
+};
+
+}  // namespace
+
+// ---- HTTP ----
+
+class HttpSession;
+
+struct WebServer::Impl : std::enable_shared_from_this<WebServer::Impl> {
+  Impl(boost::asio::io_context& i, net::any_io_executor control, WebConfig c)
+      : ioc(i), config(std::move(c)), acceptor(std::move(control)) {}
+
+  void accept();
+  // Whether another WebSocket connection fits under max_connections.
+  bool admit() const {
+    if (context->metrics.open_connections() < context->config.limits.max_connections) return true;
+    context->metrics.connection_refused();
+    return false;
+  }
+  void upgrade(tcp::socket socket, Request request);
+
+  boost::asio::io_context& ioc;
+  WebConfig config;
+  tcp::acceptor acceptor;
+  ServerContext* context = nullptr;
+  WebHooks hooks;
+  std::atomic<bool> stopping{false};
+  std::mutex sessions_mutex;
+  std::list<std::weak_ptr<HttpSession>> sessions;
+};
+
+class HttpSession : public std::enable_shared_from_this<HttpSession> {
+ public:
+  HttpSession(tcp::socket socket, std::shared_ptr<WebServer::Impl> server)
+      : stream_(std::move(socket)), server_(std::move(server)) {}
+
+  void start() {
+    net::dispatch(stream_.get_executor(), [self = shared_from_this()] { self->do_read(); });
+  }
+  // From any thread: ends the session (server shutdown).
+  void close() {
+    net::post(stream_.get_executor(), [self = shared_from_this()] { self->close_socket(); });
+  }
+
+ private:
+  void do_read() {
+    parser_.emplace();
+    parser_->header_limit(kHttpRequestMaxBytes);
+    parser_->body_limit(kHttpRequestMaxBytes);
+    stream_.expires_after(kHttpTimeout);
+    http::async_read(stream_, buffer_, *parser_,
+                     [self = shared_from_this()](error_code ec, std::size_t) { self->on_read(ec); });
+  }
+
+  void on_read(error_code ec) {
+    if (ec == http::error::end_of_stream) return close_socket();
+    if (ec) {
+      if (ec != net::error::operation_aborted && ec != beast::error::timeout) {
+        spdlog::debug("http read failed: {}", ec.message());
+      }
+      return close_socket();
+    }
+    Request request = parser_->release();
+    if (websocket::is_upgrade(request)) {
+      // A refused upgrade ends the connection: the client wanted a WebSocket, not more HTTP.
+      auto refuse = [&](http::status status, std::string text) {
+        auto response = text_response(request, status, std::move(text));
+        response.keep_alive(false);
+        send(std::move(response));
+      };
+      const std::string_view target(request.target().data(), request.target().size());
+      if (target != "/ws") return refuse(http::status::not_found, "WebSocket endpoint is /ws\n");
+      if (server_->stopping) return refuse(http::status::service_unavailable, "shutting down\n");
+      if (!server_->admit()) {
+        return refuse(http::status::service_unavailable,
+                      fmt::format("the server has {} connections, its limit\n",
+                                  server_->context->config.limits.max_connections));
+      }
+      stream_.expires_never();
+      return server_->upgrade(stream_.release_socket(), std::move(request));
+    }
+    respond(request);
+  }
+
+  void respond(const Request& request) {
+    if (request.method() != http::verb::get) {
+      return send(text_response(request, http::status::method_not_allowed, "only GET is served\n"));
+    }
+    const std::string_view target(request.target().data(), request.target().size());
+    if (target == "/health") return send(text_response(request, http::status::ok, "ok\n"));
+    const auto path = resolve_target(target, server_->config.root);
+    std::error_code missing;
+    if (!path || !std::filesystem::is_regular_file(*path, missing)) {
+      return send(text_response(request, http::status::not_found, fmt::format("{} not found\n", target)));
+    }
+    error_code ec;
+    http::file_body::value_type body;
+    body.open(path->c_str(), beast::file_mode::scan, ec);
+    if (ec) return send(text_response(request, http::status::internal_server_error, ec.message() + "\n"));
+    const std::uint64_t size = body.size();
+    http::response<http::file_body> response{std::piecewise_construct, std::make_tuple(std::move(body)),
+                                             std::make_tuple(http::status::ok, request.version())};
+    response.set(http::field::server, "mtlod/0.1");
+    response.set(http::field::content_type, content_type(*path));
+    response.set(http::field::cache_control, "no-cache");
+    response.content_length(size);
+    response.keep_alive(request.keep_alive());
+    send(std::move(response));
+  }
+
+  static http::response<http::string_body> text_response(const Request& request, http::status status, std::string text) {
+    http::response<http::string_body> response{status, request.version()};
+    response.set(http::field::server, "mtlod/0.1");
+    response.set(http::field::content_type, "text/plain; charset=utf-8");
+    response.keep_alive(request.keep_alive());
+    response.body() = std::move(text);
+    response.prepare_payload();
+    return response;
+  }
+
+  template <class Body>
+  void send(http::response<Body>&& response) {
+    auto message = std::make_shared<http::response<Body>>(std::move(response));
+    http::async_write(stream_, *message, [self = shared_from_this(), message](error_code ec, std::size_t) {
+      if (ec || !message->keep_alive()) return self->close_socket();
+      self->do_read();
+    });
+  }
+
+  void close_socket() {
+    error_code ignored;
+    stream_.socket().shutdown(tcp::socket::shutdown_both, ignored);
+    stream_.close();
+  }
+
+  beast::tcp_stream stream_;
+  beast::flat_buffer buffer_;
+  std::optional<http::request_parser<http::string_body>> parser_;
+  std::shared_ptr<WebServer::Impl> server_;
+};
+
+void WebServer::Impl::accept() {
+  acceptor.async_accept(net::make_strand(ioc), [self = shared_from_this()](error_code ec, tcp::socket socket) {
+    if (ec) {
+      if (ec != net::error::operation_aborted) spdlog::warn("http accept failed: {}", ec.message());
+      if (!self->stopping && self->acceptor.is_open()) self->accept();
+      return;
+    }
+    if (self->stopping) return;
+    error_code ignored;
+    socket.set_option(tcp::no_delay(true), ignored);  // as for TCP sessions: no Nagle delay on replies
+    auto session = std::make_shared<HttpSession>(std::move(socket), self);
+    {
+      std::lock_guard lock(self->sessions_mutex);
+      self->sessions.remove_if([](const std::weak_ptr<HttpSession>& s) { return s.expired(); });
+      self->sessions.push_back(session);
+    }
+    session->start();
+    self->accept();
+  });
+}
+
+void WebServer::Impl::upgrade(tcp::socket socket, Request request) {
+  auto session = std::make_shared<WebSocketSession>(*context, std::move(socket), hooks.next_number());
+  hooks.track(session);
+  session->start(std::move(request));
+  // A shutdown that began while this upgrade was on its way has not seen the connection.
+  if (stopping) session->shutdown();
+}
+
+WebServer::WebServer(boost::asio::io_context& ioc, net::any_io_executor control, WebConfig config)
+    : impl_(std::make_shared<Impl>(ioc, std::move(control), std::move(config))) {}
+
+WebServer::~WebServer() = default;
+
+Status WebServer::listen(const std::string& host, std::uint16_t port) {
+  error_code ec;
+  const auto address = net::ip::make_address(host, ec);
+  if (ec) return make_error(ErrorCode::kInvalidArgument, fmt::format("bad host '{}': {}", host, ec.message()));
+  const tcp::endpoint endpoint(address, port);
+  auto& acceptor = impl_->acceptor;
+  acceptor.open(endpoint.protocol(), ec);
+  if (!ec) acceptor.set_option(net::socket_base::reuse_address(true), ec);
+  if (!ec) acceptor.bind(endpoint, ec);
+  if (!ec) acceptor.listen(net::socket_base::max_listen_connections, ec);
+  if (ec) return make_error(ErrorCode::kIoError, fmt::format("cannot listen for HTTP on {}:{}: {}", host, port, ec.message()));
+  return Ok{};
+}
+
+std::uint16_t WebServer::port() const {
+  error_code ec;
+  return impl_->acceptor.local_endpoint(ec).port();
+}
+
+void WebServer::start(ServerContext& context, WebHooks hooks) {
+  impl_->context = &context;
+  impl_->hooks = std::move(hooks);
+  impl_->accept();
+}
+
+void WebServer::stop() {
+  if (impl_->stopping.exchange(true)) return;
+  error_code ignored;
+  impl_->acceptor.close(ignored);
+  std::lock_guard lock(impl_->sessions_mutex);
+  for (auto& weak : impl_->sessions) {
+    if (auto session = weak.lock()) session->close();
+  }
+}
+
+}  // namespace mtlod::server

@@ -1,0 +1,163 @@
+// End to end: mtlod-load and mtlod-gaze run for a few seconds against the real mtlod-server, and
+// their JSON reports are checked against the server's own counters (the `stats` request).
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <fstream>
+#include <map>
+
+#include "clients/common/connection.hpp"
+#include "core/io/mesh_io.hpp"
+#include "core/mesh_gen.hpp"
+#include "fmt/format.h"
+#include "nlohmann/json.hpp"
+#include "tests/core/test_meshes.hpp"
+#include "tests/server/server_process.hpp"
+
+namespace mtlod {
+namespace {
+
+using nlohmann::json;
+
+class ToolsTest : public testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    // The built-in bunny, or a generated stand-in of the same name when models are not prepared.
+    dir_ = new std::filesystem::path(test::scratch_dir("clients-tools"));
+    const auto bunny = test::models_dir() / "bunny.ply";
+    if (std::filesystem::exists(bunny)) {
+      std::filesystem::copy_file(bunny, *dir_ / "bunny.ply");
+    } else {
+      core::GenerateOptions o;
+      o.target_triangles = 4000;
+      ASSERT_TRUE(core::io::save_mesh(*dir_ / "bunny.ply", core::generate_mesh(o)).ok());
+    }
+  }
+  static void TearDownTestSuite() { delete dir_; }
+
+  void SetUp() override {
+    server_ = std::make_unique<test::ServerProcess>(
+        std::vector<std::string>{"--mesh", (*dir_ / "bunny.ply").string(), "--cache-dir", dir_->string(), "--workers",
+                                 "2", "--log-level", "warn"},
+        *dir_);
+    ASSERT_TRUE(server_->running()) << server_->log();
+  }
+
+  // Runs a tool with `args` and returns its JSON report.
+  json run(const std::string& binary, const std::string& args) {
+    const auto report = *dir_ / "report.json";
+    std::filesystem::remove(report);
+    const std::string command = fmt::format("{} --port {} --quiet --json {} {} > {} 2>&1", binary, server_->port(),
+                                            report.string(), args, (*dir_ / "tool.log").string());
+    const int status = std::system(command.c_str());
+    std::ifstream log(*dir_ / "tool.log");
+    const std::string output{std::istreambuf_iterator<char>(log), std::istreambuf_iterator<char>()};
+    EXPECT_EQ(status, 0) << command << "\n" << output;
+    std::ifstream in(report);
+    if (!in) {
+      ADD_FAILURE() << "no report from " << command << "\n" << output;
+      return json::object();
+    }
+    return json::parse(in);
+  }
+
+  // The server's counters by name.
+  std::map<std::string, double> server_counters() {
+    auto c = clients::Connection::open("127.0.0.1", server_->port());
+    EXPECT_TRUE(c.ok());
+    auto reply = c->call(protocol::Stats{}, 1);
+    EXPECT_TRUE(reply.ok());
+    std::map<std::string, double> out;
+    for (const auto& [name, value] : std::get<protocol::StatsReply>(reply->header.reply).counters) out[name] = value;
+    return out;
+  }
+
+  static void expect_ordered_latency(const json& latency) {
+    ASSERT_TRUE(latency.is_object());
+    const double p50 = latency.at("p50"), p90 = latency.at("p90"), p99 = latency.at("p99"),
+                 p999 = latency.at("p999"), max = latency.at("max");
+    EXPECT_GT(p50, 0);
+    EXPECT_LE(p50, p90);
+    EXPECT_LE(p90, p99);
+    EXPECT_LE(p99, p999);
+    EXPECT_LE(p999, max);
+  }
+
+  static std::filesystem::path* dir_;
+  std::unique_ptr<test::ServerProcess> server_;
+};
+
+std::filesystem::path* ToolsTest::dir_ = nullptr;
+
+TEST_F(ToolsTest, ClosedLoopLoadReportAgreesWithTheServer) {
+  const json r = run(MTLOD_LOAD_BINARY, "--model bunny --connections 2 --duration 2 --budget 2000");
+  ASSERT_TRUE(r.contains("requests")) << r.dump(2);
+  const std::uint64_t requests = r.at("requests");
+  EXPECT_GT(requests, 0u);
+  EXPECT_EQ(r.at("mode"), "closed");
+  EXPECT_EQ(r.at("errors"), 0);
+  EXPECT_EQ(r.at("ok"), requests);
+  EXPECT_EQ(r.at("sent"), requests);
+  EXPECT_EQ(r.at("lost"), 0);
+  EXPECT_NEAR(r.at("throughput_rps").get<double>(), requests / r.at("elapsed_s").get<double>(), 1e-6);
+  expect_ordered_latency(r.at("latency_ms"));
+  const double mean_triangles = r.at("mean_triangles");
+  EXPECT_GT(mean_triangles, 0);
+  EXPECT_LE(mean_triangles, 2000);
+
+  // Every extract the tool counted reached the server, and nothing else did.
+  auto counters = server_counters();
+  EXPECT_EQ(counters["requests_extract"], static_cast<double>(requests));
+  EXPECT_EQ(counters["requests_gaze"], 0);
+  EXPECT_EQ(counters["extractions"], static_cast<double>(requests));
+  EXPECT_NEAR(counters["triangles_out"] / counters["extractions"], mean_triangles, 1e-6 * mean_triangles);
+  EXPECT_GE(counters["bytes_out"], r.at("bytes").get<double>());
+}
+
+TEST_F(ToolsTest, OpenLoopLoadSendsItsScheduleExactly) {
+  // 50 requests/s for 2 s: due at 0, 20, ..., 1980 ms, 100 requests whatever the server does; half
+  // of them (by weight) gazes, which the server may coalesce.
+  const json r = run(MTLOD_LOAD_BINARY, "--model bunny --connections 2 --duration 2 --rate 50 --mix extract=1,gaze=1 "
+                                        "--budget 1500");
+  ASSERT_TRUE(r.contains("sent")) << r.dump(2);
+  EXPECT_EQ(r.at("mode"), "open");
+  EXPECT_EQ(r.at("sent"), 100);
+  EXPECT_EQ(r.at("unsent"), 0);
+  EXPECT_EQ(r.at("lost"), 0);
+  EXPECT_EQ(r.at("errors"), 0);
+  EXPECT_EQ(r.at("requests"), 100);
+  EXPECT_EQ(r.at("ok").get<int>() + r.at("superseded").get<int>(), 100);
+  expect_ordered_latency(r.at("latency_ms"));
+  auto counters = server_counters();
+  EXPECT_EQ(counters["requests_extract"] + counters["requests_gaze"], 100);
+  EXPECT_GT(counters["requests_gaze"], 0);
+  EXPECT_EQ(counters["errors_superseded"], r.at("superseded").get<double>());
+  EXPECT_EQ(counters["extractions"], r.at("ok").get<double>());
+}
+
+TEST_F(ToolsTest, GazeReplayMeasuresEverySample) {
+  // Two streams replay the shipped 3-second trace: every sample is answered by a mesh showing it
+  // or as superseded, and the server saw exactly those gazes plus one opening extract per stream.
+  const std::string trace = std::string(MTLOD_SOURCE_DIR) + "/clients/gaze/example-trace.csv";
+  std::ifstream in(trace);
+  std::size_t lines = 0;
+  for (std::string line; std::getline(in, line);) lines += !line.empty() && line[0] != 't';
+  const json r = run(MTLOD_GAZE_BINARY, "--model bunny --streams 2 --budget 1500 --trace " + trace);
+  ASSERT_TRUE(r.contains("samples")) << r.dump(2);
+  const std::uint64_t samples = r.at("samples");
+  EXPECT_EQ(samples, 2 * lines);
+  EXPECT_EQ(r.at("meshes").get<std::uint64_t>() + r.at("superseded").get<std::uint64_t>(), samples);
+  EXPECT_EQ(r.at("errors"), 0);
+  EXPECT_EQ(r.at("lost"), 0);
+  EXPECT_EQ(r.at("focus_mismatches"), 0);
+  EXPECT_EQ(r.at("superseded_counted_by_server"), r.at("superseded"));
+  expect_ordered_latency(r.at("latency_ms"));
+  EXPECT_EQ(r.at("sample_latency_ms").at("count"), samples);
+  auto counters = server_counters();
+  EXPECT_EQ(counters["requests_gaze"], static_cast<double>(samples));
+  EXPECT_EQ(counters["errors_superseded"], r.at("superseded").get<double>());
+  EXPECT_EQ(counters["extractions"], r.at("meshes").get<double>() + 2);
+}
+
+}  // namespace
+}  // namespace mtlod

@@ -1,0 +1,146 @@
+// Browser test of the viewer (issue 6): starts the real mtlod-server with HTTP on an OS-chosen port,
+// drives clients/web/ in headless Debian Chromium through playwright-core, and checks what the page
+// shows against the server's replies as they crossed the WebSocket (read here from the frames, not
+// from the page): a mesh arrives, the displayed triangle count (counted from the decoded Draco
+// index) equals the reply's `triangles`, and moving the mouse sends a gaze whose mesh reflects the
+// new focus. Saves a screenshot into --out.
+//
+// node viewer_test.mjs --server BIN --mesh bunny.ply --out DIR
+import { spawn } from 'node:child_process';
+import fs from 'node:fs';
+import { createRequire } from 'node:module';
+import path from 'node:path';
+import { fileURLToPath } from 'node:url';
+
+const root = path.resolve(path.dirname(fileURLToPath(import.meta.url)), '../..');
+const { chromium } = createRequire(path.join(root, 'scripts/package.json'))('playwright-core');
+
+const args = Object.fromEntries(process.argv.slice(2).reduce((pairs, a, i, all) =>
+  (a.startsWith('--') ? [...pairs, [a.slice(2), all[i + 1]]] : pairs), []));
+for (const required of ['server', 'mesh', 'out']) {
+  if (!args[required]) throw new Error(`missing --${required}`);
+}
+fs.mkdirSync(args.out, { recursive: true });
+const chromiumPath = process.env.MTLOD_CHROMIUM ?? '/usr/bin/chromium';
+if (!fs.existsSync(chromiumPath)) {
+  console.log(`skipped: ${chromiumPath} is not installed (scripts/bootstrap.sh installs Debian's chromium)`);
+  process.exit(77);
+}
+if (!fs.existsSync(args.mesh)) {
+  console.log(`skipped: ${args.mesh} is missing (scripts/prepare-models.sh writes it)`);
+  process.exit(77);
+}
+
+let failures = 0;
+function check(condition, message) {
+  console.log(`${condition ? 'ok  ' : 'FAIL'} ${message}`);
+  if (!condition) failures += 1;
+}
+
+const sleep = (ms) => new Promise((resolve) => setTimeout(resolve, ms));
+
+// The server, with the port file telling both ports (protocol, then HTTP).
+const portFile = path.join(args.out, 'viewer-ports');
+fs.rmSync(portFile, { force: true });
+const serverLog = fs.openSync(path.join(args.out, 'viewer-server.log'), 'w');
+const server = spawn(args.server, ['--mesh', args.mesh, '--cache-dir', args.out, '--port', '0', '--http-port', '0',
+                                   '--port-file', portFile, '--workers', '2', '--log-level', 'info'],
+                     { stdio: ['ignore', serverLog, serverLog] });
+let serverExit = null;
+server.on('exit', (code, signal) => { serverExit = { code, signal }; });
+
+let browser = null;
+const deadline = setTimeout(() => {
+  console.log('FAIL the test did not finish within 90 s');
+  server.kill('SIGKILL');
+  process.exit(1);
+}, 90_000);
+
+try {
+  let httpPort = 0;
+  for (let i = 0; i < 600 && !httpPort && !serverExit; ++i) {
+    const lines = fs.existsSync(portFile) ? fs.readFileSync(portFile, 'utf8').trim().split('\n') : [];
+    if (lines.length >= 2) httpPort = Number(lines[1]);
+    else await sleep(100);
+  }
+  if (!httpPort) throw new Error(`the server did not start: ${JSON.stringify(serverExit)}`);
+
+  browser = await chromium.launch({
+    executablePath: chromiumPath,
+    args: ['--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run', '--disable-background-networking',
+           '--disable-component-update', '--disable-sync', '--use-angle=swiftshader', '--enable-unsafe-swiftshader'],
+  });
+  const page = await browser.newPage({ viewport: { width: 800, height: 600 } });
+  page.on('console', (m) => { if (m.type() === 'error') console.log(`page console: ${m.text()}`); });
+  page.on('pageerror', (e) => console.log(`page error: ${e.message}`));
+
+  // The server's replies and the page's requests, read off the WebSocket.
+  const meshReplies = [];
+  const gazesSent = [];
+  page.on('websocket', (ws) => {
+    ws.on('framereceived', ({ payload }) => {
+      if (typeof payload === 'string') return;  // JSON-only replies (hello, models, errors)
+      const jsonBytes = payload.readUInt32LE(0), payloadBytes = payload.readUInt32LE(4);
+      const json = JSON.parse(payload.subarray(8, 8 + jsonBytes).toString('utf8'));
+      if (json.type === 'mesh') meshReplies.push({ json, dracoBytes: payloadBytes });
+    });
+    ws.on('framesent', ({ payload }) => {
+      const json = JSON.parse(typeof payload === 'string' ? payload : payload.toString('utf8'));
+      if (json.type === 'gaze') gazesSent.push(json);
+    });
+  });
+
+  await page.goto(`http://127.0.0.1:${httpPort}/`);
+  await page.waitForFunction(() => window.mtlod && window.mtlod.meshes >= 1, null, { timeout: 30_000 });
+  const first = await page.evaluate(() => ({ id: window.mtlod.lastReply.id, shown: document.getElementById('triangles').textContent,
+                                           errors: window.mtlod.errors }));
+  const firstReply = meshReplies.find((r) => r.json.id === first.id);
+  check(firstReply !== undefined, `the mesh shown (request ${first.id}) crossed the WebSocket`);
+  check(firstReply && firstReply.json.bytes === firstReply.dracoBytes, 'its Draco payload has the announced size');
+  check(firstReply && Number(first.shown) === firstReply.json.triangles && firstReply.json.triangles > 0,
+        `displayed triangles ${first.shown} = the server's reply ${firstReply?.json.triangles}`);
+  check(first.errors.length === 0, `no error shown (${first.errors.join('; ')})`);
+
+  // The mouse is the focus: a gaze goes out and a mesh reflecting it comes back.
+  const target = [0.6, 0.45];  // clear of the control panel at the top left
+  const before = meshReplies.length;
+  await page.mouse.move(800 * target[0], 600 * target[1]);
+  await page.waitForFunction((want) => {
+    const r = window.mtlod.lastReply;
+    return r && r.focus && Math.abs(r.focus[0] - want[0]) < 0.01 && Math.abs(r.focus[1] - want[1]) < 0.01;
+  }, target, { timeout: 30_000 });
+  const second = await page.evaluate(() => ({ id: window.mtlod.lastReply.id, shown: document.getElementById('triangles').textContent,
+                                            focus: document.getElementById('focus-point').textContent }));
+  const secondReply = meshReplies.find((r) => r.json.id === second.id);
+  check(meshReplies.length > before, `a new mesh arrived after the mouse moved (${meshReplies.length - before})`);
+  check(gazesSent.some((g) => Math.abs(g.x - target[0]) < 0.01 && Math.abs(g.y - target[1]) < 0.01),
+        `a gaze at ${target} was sent (${JSON.stringify(gazesSent.at(-1))})`);
+  check(secondReply && secondReply.json.focus && Math.abs(secondReply.json.focus[0] - target[0]) < 0.01,
+        `the server's mesh reflects the new focus ${JSON.stringify(secondReply?.json.focus)}`);
+  check(secondReply && Number(second.shown) === secondReply.json.triangles,
+        `displayed triangles ${second.shown} = the reply's ${secondReply?.json.triangles}`);
+  check(second.focus === `${target[0].toFixed(3)}, ${target[1].toFixed(3)}`, `the overlay shows the focus (${second.focus})`);
+
+  // Colouring by distance label: the page asks for labels and decodes the generic attribute.
+  await page.check('#labels');
+  await page.waitForFunction((id) => window.mtlod.lastReply.id > id, second.id, { timeout: 30_000 });
+  const labelled = await page.evaluate(() => window.mtlod.lastReplyHadLabels);
+  check(labelled === true, 'with labels on, the decoded mesh carries the label attribute');
+
+  const screenshot = path.join(args.out, 'viewer.png');
+  await page.screenshot({ path: screenshot });
+  check(fs.statSync(screenshot).size > 1000, `screenshot saved to ${screenshot}`);
+} catch (error) {
+  console.log(`FAIL ${error.stack ?? error}`);
+  failures += 1;
+} finally {
+  if (browser) await browser.close();
+  if (!serverExit) {
+    server.kill('SIGTERM');
+    for (let i = 0; i < 200 && !serverExit; ++i) await sleep(50);
+  }
+  check(serverExit && serverExit.code === 0, `the server drained and exited cleanly (${JSON.stringify(serverExit)})`);
+  if (!serverExit) server.kill('SIGKILL');
+  clearTimeout(deadline);
+}
+process.exit(failures ? 1 : 0);
