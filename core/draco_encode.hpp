@@ -19,7 +19,7 @@ enum class DracoMethod : std::uint8_t {
 
 struct DracoOptions {
   DracoMethod method = DracoMethod::kEdgebreaker;
-  int speed = 7;               // Draco's encoding speed 0 (best ratio) .. 10 (fastest)
+  int speed = 10;              // Draco's encoding speed 0 (best ratio) .. 10 (fastest)
   int position_bits = 14;      // quantization of positions, 1..30 (0 = lossless float)
   int normal_bits = 10;        // quantization of normals, 1..30
   bool normals = false;        // encode the original vertices' normals (needs them in the input)

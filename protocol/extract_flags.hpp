@@ -31,7 +31,7 @@ struct ExtractFlags {
   bool internal_silhouettes = false;
   double frustum_factor = 8, backface_factor = 1;
   std::string draco_method;  // empty: the server's default for the request type
-  int draco_speed = 7, position_bits = 14;
+  int draco_speed = 10, position_bits = 14;
   bool normals = false, labels = false;
 };
 

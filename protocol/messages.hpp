@@ -83,7 +83,7 @@ struct DracoSettings {
   // Unset: edgebreaker for extract (smallest payload), sequential for gaze (lowest latency), the
   // defaults chosen from tests/bench/bench_pipeline (README, "Draco").
   std::optional<DracoMethod> method;
-  int speed = 7;  // 0 best ratio .. 10 fastest
+  int speed = 10;  // 0 best ratio .. 10 fastest; 10 is also no larger than 5-8 (bench_pipeline)
   int position_bits = 14;
   int normal_bits = 10;
 };
