@@ -14,7 +14,7 @@ OccupancyLevels::OccupancyLevels(const Mt& mt) {
   for (std::size_t budget = 2048; budget <= (std::size_t{1} << 18); budget *= 2) {
     refiner.refine_budget(everywhere_exact, budget, cut);
     if (!levels_.empty() && cut.triangle_count() == levels_.back().triangles.size() / 3) break;  // nothing finer
-    levels_.push_back({cut.max_error, cut.triangles});
+    levels_.push_back({cut.triangles});
   }
 }
 

@@ -17,7 +17,6 @@
 namespace mtlod::core {
 
 struct OccupancyLevel {
-  float max_error = 0;                   // largest triangle error of the cut, model units
   std::vector<std::uint32_t> triangles;  // 3 vertex ids per triangle
 };
 

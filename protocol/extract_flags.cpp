@@ -2,6 +2,8 @@
 // parse_request, so a bad flag gets exactly the message a bad request would.
 #include "protocol/extract_flags.hpp"
 
+#include <cctype>
+#include <cmath>
 #include <sstream>
 
 #include "CLI/CLI.hpp"
@@ -12,21 +14,9 @@
 namespace mtlod::protocol {
 namespace {
 
-// "a,b,c" → numbers; false when the count or a number is wrong.
+// "a,b,c" → exactly `count` numbers.
 bool parse_numbers(const std::string& text, std::size_t count, std::vector<double>& out) {
-  out.clear();
-  std::stringstream in(text);
-  std::string part;
-  while (std::getline(in, part, ',')) {
-    try {
-      std::size_t used = 0;
-      out.push_back(std::stod(part, &used));
-      if (used != part.size()) return false;
-    } catch (const std::exception&) {
-      return false;
-    }
-  }
-  return out.size() == count;
+  return parse_number_list(text, out) && out.size() == count;
 }
 
 Result<std::array<std::uint32_t, 2>> parse_size(const std::string& text, const char* flag) {
@@ -47,6 +37,23 @@ Result<std::array<double, 3>> parse_vec3(const std::string& text, const char* fl
 }
 
 }  // namespace
+
+bool parse_number_list(const std::string& text, std::vector<double>& out) {
+  out.clear();
+  std::stringstream in(text);
+  std::string part;
+  while (std::getline(in, part, ',')) {
+    try {
+      std::size_t used = 0;  // std::stod skips leading spaces; trailing ones are skipped here
+      out.push_back(std::stod(part, &used));
+      while (used < part.size() && std::isspace(static_cast<unsigned char>(part[used]))) ++used;
+      if (used != part.size() || !std::isfinite(out.back())) return false;
+    } catch (const std::exception&) {
+      return false;
+    }
+  }
+  return true;
+}
 
 void add_extract_flags(CLI::App& app, ExtractFlags& f) {
   app.add_option("--eye", f.eye, "camera position X,Y,Z (default: frame the model from its front)");

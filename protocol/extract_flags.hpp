@@ -35,6 +35,10 @@ struct ExtractFlags {
   bool normals = false, labels = false;
 };
 
+// Parses comma-separated numbers ("0.5, 0.25,20"; spaces around each allowed) into `out`. False
+// when a part is not a whole finite number. Shared by every flag and file format of the clients.
+bool parse_number_list(const std::string& text, std::vector<double>& out);
+
 // Registers the flags on `app`, writing into `flags`.
 void add_extract_flags(CLI::App& app, ExtractFlags& flags);
 

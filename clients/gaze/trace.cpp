@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "fmt/format.h"
+#include "protocol/extract_flags.hpp"
 
 namespace mtlod::clients {
 
@@ -18,27 +19,8 @@ Result<std::vector<GazeSample>> parse_gaze_trace(const std::string& text) {
     if (!line.empty() && line.back() == '\r') line.pop_back();
     const auto first = line.find_first_not_of(" \t");
     if (first == std::string::npos || line[first] == '#') continue;
-    double v[3];
-    int fields = 0;
-    bool ok = true;
-    std::stringstream parts(line);
-    std::string part;
-    while (ok && std::getline(parts, part, ',')) {
-      if (fields == 3) {
-        ok = false;
-        break;
-      }
-      try {
-        std::size_t used = 0;
-        v[fields] = std::stod(part, &used);
-        while (used < part.size() && std::isspace(static_cast<unsigned char>(part[used]))) ++used;
-        ok = used == part.size() && std::isfinite(v[fields]);
-      } catch (const std::exception&) {
-        ok = false;
-      }
-      ++fields;
-    }
-    if (!ok || fields != 3) {
+    std::vector<double> v;
+    if (!protocol::parse_number_list(line, v) || v.size() != 3) {
       if (samples.empty() && number == 1) continue;  // a header line such as "time_ms,x,y"
       return make_error(ErrorCode::kInvalidArgument, fmt::format("line {}: expected time_ms,x,y, got '{}'", number, line));
     }

@@ -7,29 +7,9 @@
 
 #include "fmt/format.h"
 #include "protocol/camera.hpp"
+#include "protocol/extract_flags.hpp"
 
 namespace mtlod::clients {
-namespace {
-
-bool parse_csv_numbers(const std::string& line, std::vector<double>& out) {
-  out.clear();
-  std::stringstream in(line);
-  std::string part;
-  while (std::getline(in, part, ',')) {
-    try {
-      std::size_t used = 0;
-      out.push_back(std::stod(part, &used));
-      while (used < part.size() && std::isspace(static_cast<unsigned char>(part[used]))) ++used;
-      if (used != part.size() || !std::isfinite(out.back())) return false;
-    } catch (const std::exception&) {
-      return false;
-    }
-  }
-  return true;
-}
-
-}  // namespace
-
 Result<std::vector<ScriptedCamera>> parse_camera_script(const std::string& text) {
   std::vector<ScriptedCamera> cameras;
   std::stringstream in(text);
@@ -38,7 +18,7 @@ Result<std::vector<ScriptedCamera>> parse_camera_script(const std::string& text)
   for (std::size_t number = 1; std::getline(in, line); ++number) {
     if (!line.empty() && line.back() == '\r') line.pop_back();
     if (line.find_first_not_of(" \t") == std::string::npos || line[line.find_first_not_of(" \t")] == '#') continue;
-    if (!parse_csv_numbers(line, v) || (v.size() != 6 && v.size() != 8)) {
+    if (!protocol::parse_number_list(line, v) || (v.size() != 6 && v.size() != 8)) {
       return make_error(ErrorCode::kInvalidArgument,
                         fmt::format("camera script line {}: expected ex,ey,ez,tx,ty,tz[,fx,fy], got '{}'", number, line));
     }
