@@ -45,6 +45,9 @@ class TcpSession final : public Connection {
   void on_header(error_code ec) {
     reading_ = false;
     if (ec) return end(ec, "read header");
+    // Closed or draining while the header was on its way: read no further. (Reading on would also
+    // arm a read deadline after close_transport cancelled it, and hold up a shutdown by that long.)
+    if (ending()) return end(net::error::operation_aborted, "read header");
     server_.metrics.bytes_in(header_.size());
     auto header = protocol::decode_frame_header(header_, server_.config.limits.max_frame_bytes);
     if (!header) return bad_frame(header.error().message);
@@ -74,6 +77,7 @@ class TcpSession final : public Connection {
   }
 
   void arm_deadline(std::uint32_t timeout_ms, bool idle) {
+    if (ending()) return;  // nothing more is read, and a pending timer would keep the server alive
     deadline_.expires_after(std::chrono::milliseconds(timeout_ms));
     deadline_.async_wait([self = shared_self(), idle](error_code ec) {
       if (ec || !self->reading_) return;  // cancelled, or the read it guarded has completed
