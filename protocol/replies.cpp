@@ -84,7 +84,7 @@ std::string to_json(const Reply& reply, std::optional<std::uint64_t> id) {
       [](const auto& r) -> json {
         using T = std::decay_t<decltype(r)>;
         if constexpr (std::is_same_v<T, HelloReply>) {
-          return {{"version", r.version}, {"server", r.server}, {"limits", limits_json(r.limits)}};
+          return {{"version", r.version}, {"server", r.server}, {"limits", limits_json(r.limits)}, {"instance", r.instance}};
         } else if constexpr (std::is_same_v<T, ModelsReply>) {
           json models = json::array();
           for (const ModelSummary& m : r.models) models.push_back(summary_json(m));
@@ -130,7 +130,8 @@ Result<ParsedReply> parse_reply(std::string_view text) {
     if (j.contains("id") && j["id"].is_number_unsigned()) out.id = j["id"].get<std::uint64_t>();
     const std::string type = j.value("type", "");
     if (type == "hello") {
-      out.reply = HelloReply{j.value("version", 0), j.value("server", ""), limits_from(j.value("limits", json::object()))};
+      out.reply = HelloReply{j.value("version", 0), j.value("server", ""), limits_from(j.value("limits", json::object())),
+                             j.value("instance", "")};
     } else if (type == "models") {
       ModelsReply r;
       const json models = j.value("models", json::array());

@@ -22,6 +22,9 @@ struct HelloReply {
   int version = kProtocolVersion;
   std::string server;
   Limits limits;
+  // Which server process answered: "<name>@<random hex>", new at every start, so a client behind a
+  // load balancer can tell replicas, and a restarted replica from its previous run, apart.
+  std::string instance;
 };
 
 struct ModelSummary {

@@ -88,7 +88,8 @@ void Connection::on_read_end() {
 }
 
 void Connection::on_request(std::uint64_t seq, std::uint64_t id, const protocol::Hello&) {
-  replies_.fill(seq, make_frame(protocol::HelloReply{protocol::kProtocolVersion, "mtlod/0.1", server_.config.limits}, id));
+  replies_.fill(seq, make_frame(protocol::HelloReply{protocol::kProtocolVersion, "mtlod/0.1", server_.config.limits,
+                                                      server_.config.instance}, id));
 }
 void Connection::on_request(std::uint64_t seq, std::uint64_t id, const protocol::ListModels&) {
   protocol::ModelsReply reply;

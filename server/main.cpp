@@ -1,5 +1,9 @@
 // mtlod-server: serves view-dependent, Draco-compressed extractions of Multi-Tessellations over the
 // protocol in protocol/PROTOCOL.md.
+#include <unistd.h>
+
+#include <algorithm>
+#include <cctype>
 #include <cstdio>
 #include <string>
 #include <vector>
@@ -55,10 +59,29 @@ int main(int argc, char** argv) {
   app.add_option("--drain-timeout-ms", config.drain_timeout_ms,
                  "on SIGINT/SIGTERM, in-flight work gets this long before connections are closed")
       ->capture_default_str();
+  std::string name;
+  app.add_option("--name", name,
+                 "this replica's name in hello replies and /health (letters, digits, '.', '_', '-'); default: the "
+                 "host name")
+      ->check([](const std::string& value) {
+        const bool plain = !value.empty() && value.size() <= 64 &&
+                           value.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789._-") ==
+                               std::string::npos;
+        return plain ? std::string() : "a name of 1 to 64 letters, digits, '.', '_' or '-'";
+      });
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error or off")->capture_default_str();
   CLI11_PARSE(app, argc, argv);
 
   spdlog::set_level(spdlog::level::from_str(log_level));
+  if (name.empty()) {
+    char host[256] = {};
+    name = ::gethostname(host, sizeof host - 1) == 0 ? host : "mtlod";
+    name.erase(std::remove_if(name.begin(), name.end(),
+                              [](char c) { return !std::isalnum(static_cast<unsigned char>(c)) && c != '.' && c != '_' && c != '-'; }),
+               name.end());
+    if (name.empty()) name = "mtlod";
+  }
+  config.instance = server::instance_id(name);
   spdlog::set_pattern("%Y-%m-%dT%H:%M:%S.%e %^%l%$ %v");
 
   server::ModelRegistry registry;
@@ -88,8 +111,8 @@ int main(int argc, char** argv) {
 
   server::Server server(config, registry);
   check(server.listen());
-  spdlog::info("listening on {}:{} (protocol version {}); try: mtlod-client --port {} list", config.host, server.port(),
-               protocol::kProtocolVersion, server.port());
+  spdlog::info("{} listening on {}:{} (protocol version {}); try: mtlod-client --port {} list", config.instance,
+               config.host, server.port(), protocol::kProtocolVersion, server.port());
   if (config.http_port) {
     spdlog::info("viewer: http://{}:{}/ (WebSocket at /ws, files from {})", config.host, server.http_port(),
                  config.web_root);

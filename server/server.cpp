@@ -8,6 +8,7 @@
 #include <chrono>
 #include <list>
 #include <mutex>
+#include <random>
 #include <thread>
 
 #include "fmt/format.h"
@@ -26,6 +27,11 @@ using tcp = net::ip::tcp;
 using boost::system::error_code;
 
 }  // namespace
+
+std::string instance_id(const std::string& name) {
+  std::random_device entropy;
+  return fmt::format("{}@{:08x}", name, entropy());
+}
 
 struct Server::Impl {
   ServerConfig config;

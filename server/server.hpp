@@ -24,7 +24,12 @@ struct ServerConfig {
   // The browser viewer over HTTP + WebSocket (server/web_session.hpp); off when empty, 0 = any port.
   std::optional<std::uint16_t> http_port;
   std::string web_root;             // repository root holding clients/web and scripts/node_modules/three
+  // This process in hello replies and /health: "<name>@<random hex>" (see instance_id()).
+  std::string instance = "mtlod";
 };
+
+// "<name>@<8 hex digits>", random per call: a replica's identity for this run.
+std::string instance_id(const std::string& name);
 
 class Server {
  public:

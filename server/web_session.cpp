@@ -293,7 +293,7 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
         send(std::move(response));
       };
       const std::string_view target(request.target().data(), request.target().size());
-      if (target != "/ws") return refuse(http::status::not_found, "WebSocket endpoint is /ws\n");
+      if (target.substr(0, target.find('?')) != "/ws") return refuse(http::status::not_found, "WebSocket endpoint is /ws\n");
       if (server_->stopping) return refuse(http::status::service_unavailable, "shutting down\n");
       if (!server_->admit()) {
         return refuse(http::status::service_unavailable,
@@ -311,7 +311,18 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
       return send(text_response(request, http::status::method_not_allowed, "only GET is served\n"));
     }
     const std::string_view target(request.target().data(), request.target().size());
-    if (target == "/health") return send(text_response(request, http::status::ok, "ok\n"));
+    if (target == "/health") {
+      // For load balancers and orchestrators: this replica serves. While it drains, the HTTP
+      // listener is closed, so probes fail to connect and traffic moves elsewhere.
+      const ServerContext& context = *server_->context;
+      auto response = text_response(request, http::status::ok,
+                                    fmt::format(R"({{"status": "ok", "instance": "{}", "models": {}, "connections": {}}})"
+                                                "\n",
+                                                context.config.instance, context.models.models().size(),
+                                                context.metrics.open_connections()));
+      response.set(http::field::content_type, "application/json");
+      return send(std::move(response));
+    }
     const auto path = resolve_target(target, server_->config.root);
     std::error_code missing;
     if (!path || !std::filesystem::is_regular_file(*path, missing)) {

@@ -236,7 +236,11 @@ $('wireframe').addEventListener('change', () => { mesh.material.wireframe = $('w
 $('model').addEventListener('change', () => selectModel($('model').value));
 
 function connect() {
-  ws = new WebSocket(`${location.protocol === 'https:' ? 'wss' : 'ws'}://${location.host}/ws`);
+  // ?model= goes on to the WebSocket too: a load balancer in front of replicas can route by it
+  // (docker/haproxy.cfg), so each replica keeps its models hot.
+  const model = new URLSearchParams(location.search).get('model');
+  const query = model ? `?model=${encodeURIComponent(model)}` : '';
+  ws = new WebSocket(`${location.protocol === 'https:' ? 'wss' : 'ws'}://${location.host}/ws${query}`);
   ws.binaryType = 'arraybuffer';
   ws.onmessage = onMessage;
   ws.onclose = () => {

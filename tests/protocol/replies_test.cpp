@@ -37,7 +37,7 @@ TEST(Replies, MeshReplyRoundTripsWithTimingsAndFocus) {
 TEST(Replies, EveryReplyTypeKeepsItsType) {
   Limits limits;
   limits.max_grid = 1024;
-  const std::vector<Reply> replies = {HelloReply{1, "mtlod/test", limits},
+  const std::vector<Reply> replies = {HelloReply{1, "mtlod/test", limits, "replica-1@00c0ffee"},
                                       ModelsReply{{ModelSummary{"bunny", 1839, 3674, 12, 900, 4096, 0.5}}},
                                       ModelInfoReply{},
                                       MeshReply{},
@@ -52,6 +52,7 @@ TEST(Replies, EveryReplyTypeKeepsItsType) {
   }
   auto hello = parse_reply(to_json(replies[0], 1));
   EXPECT_EQ(std::get<HelloReply>(hello->reply).limits.max_grid, 1024u);
+  EXPECT_EQ(std::get<HelloReply>(hello->reply).instance, "replica-1@00c0ffee");
   auto models = parse_reply(to_json(replies[1], 1));
   EXPECT_EQ(std::get<ModelsReply>(models->reply).models.at(0).root_triangles, 12u);
   auto error = parse_reply(to_json(replies[4], 1));

@@ -104,10 +104,10 @@ TEST_F(WebTest, ServesTheViewerAndThreeJsFromTheSourceTree) {
   }
 }
 
-TEST_F(WebTest, HealthAnswersOk) {
+TEST_F(WebTest, HealthAnswersOkWithTheInstance) {
   const HttpReply health = get(server_->http_port(), "/health");
   EXPECT_EQ(health.status, 200);
-  EXPECT_EQ(health.body, "ok\n");
+  EXPECT_EQ(health.body.rfind(R"({"status": "ok", "instance": ")", 0), 0u) << health.body;
 }
 
 TEST_F(WebTest, NothingOutsideTheTwoFoldersIsServed) {
