@@ -6,7 +6,7 @@
 #include <string>
 
 #include "CLI/CLI.hpp"
-#include "clients/common/connection.hpp"
+#include "clients/common/retry.hpp"
 #include "core/draco_decode.hpp"
 #include "core/io/mesh_io.hpp"
 #include "fmt/format.h"
@@ -38,6 +38,13 @@ int main(int argc, char** argv) {
   std::uint16_t port = 7878;
   app.add_option("--host", host, "server address")->capture_default_str();
   app.add_option("--port", port, "server port")->capture_default_str();
+  clients::RetryPolicy retry;
+  retry.attempts = 5;
+  app.add_option("--attempts", retry.attempts,
+                 "tries per request: a dropped connection or a draining server (shutting_down) makes the client "
+                 "reconnect with backoff and send the request again")
+      ->capture_default_str()
+      ->check(CLI::Range(1u, 100u));
   app.require_subcommand(1);
   auto* list = app.add_subcommand("list", "list the server's models");
   auto* info = app.add_subcommand("info", "describe one model");
@@ -50,16 +57,11 @@ int main(int argc, char** argv) {
   protocol::add_extract_flags(*extract, flags);
   CLI11_PARSE(app, argc, argv);
 
-  auto connection = clients::Connection::open(host, port);
-  if (!connection) return fail(connection.error().message);
-  clients::Connection& c = *connection;
-  std::uint64_t id = 1;
-  auto hello = c.call(protocol::Hello{protocol::kProtocolVersion, "mtlod-client/0.1"}, id++);
-  if (!hello) return fail(hello.error().message);
-  if (is_error(*hello)) return 1;
+  // Every request here is idempotent, so each is retried on a new connection when one drops.
+  clients::RetryingConnection c(host, port, "mtlod-client/0.1", retry);
 
   if (*list) {
-    auto reply = c.call(protocol::ListModels{}, id++);
+    auto reply = c.call(protocol::ListModels{});
     if (!reply) return fail(reply.error().message);
     if (is_error(*reply)) return 1;
     fmt::print("{:<16} {:>10} {:>12} {:>8} {:>9} {:>10} {:>10}\n", "model", "vertices", "triangles", "root", "nodes",
@@ -71,7 +73,7 @@ int main(int argc, char** argv) {
     return 0;
   }
   if (*stats) {
-    auto reply = c.call(protocol::Stats{}, id++);
+    auto reply = c.call(protocol::Stats{});
     if (!reply) return fail(reply.error().message);
     if (is_error(*reply)) return 1;
     for (const auto& [name, value] : std::get<protocol::StatsReply>(reply->header.reply).counters) {
@@ -80,7 +82,7 @@ int main(int argc, char** argv) {
     return 0;
   }
 
-  auto described = c.call(protocol::ModelInfo{model}, id++);
+  auto described = c.call(protocol::ModelInfo{model});
   if (!described) return fail(described.error().message);
   if (is_error(*described)) return 1;
   const auto& m = std::get<protocol::ModelInfoReply>(described->header.reply);
@@ -97,7 +99,7 @@ int main(int argc, char** argv) {
   auto request = protocol::make_extract(flags, model, m.bounds_min, m.bounds_max);
   if (!request) return fail(request.error().message);
   const auto start = std::chrono::steady_clock::now();
-  auto reply = c.call(*request, id++);
+  auto reply = c.call(*request, std::chrono::seconds(120));
   if (!reply) return fail(reply.error().message);
   if (is_error(*reply)) return 1;
   const double round_trip_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
@@ -111,6 +113,8 @@ int main(int argc, char** argv) {
              round_trip_ms);
   fmt::print("server memory: {:.1f} MiB for this connection's cut, {:.1f} MiB of worker scratch\n",
              mesh.session_bytes / 1048576.0, mesh.scratch_bytes / 1048576.0);
+  fmt::print("served by {}{}\n", c.hello().instance,
+             c.retries() ? fmt::format(" after {} retr{}", c.retries(), c.retries() == 1 ? "y" : "ies") : "");
   if (!output.empty()) {
     const std::string ext = std::filesystem::path(output).extension().string();
     if (ext == ".drc") {

@@ -1,7 +1,9 @@
 // mtlod-gaze: replays eye-tracker gaze against mtlod-server (issue 6) and measures gaze-to-mesh
 // latency: from a sample's timestamp (its due time in the replay, so a late send counts) to the
 // arrival of the mesh reply that reflects it. Gaze updates the server coalesced away are counted;
-// each sample's wait for a mesh showing it or a newer sample is reported too.
+// each sample's wait for a mesh showing it or a newer sample is reported too. A dropped connection
+// is reopened with backoff; the view's extract and the newest unanswered sample are sent again
+// (older samples are stale: the newest one supersedes them, as the server's coalescing would).
 #include <unistd.h>
 
 #include <atomic>
@@ -16,7 +18,7 @@
 #include <thread>
 
 #include "CLI/CLI.hpp"
-#include "clients/common/connection.hpp"
+#include "clients/common/retry.hpp"
 #include "clients/gaze/trace.hpp"
 #include "clients/load/histogram.hpp"
 #include "fmt/format.h"
@@ -44,23 +46,103 @@ struct Totals {
   std::uint64_t sent = 0, meshes = 0, superseded = 0, superseded_counted = 0, errors = 0, focus_mismatches = 0;
   std::uint64_t bytes = 0, triangles = 0, server_total_us = 0;
   std::map<std::string, std::uint64_t> errors_by_code;
+  std::uint64_t reconnects = 0, resent = 0;
 };
 
 struct Stream {
-  clients::Connection connection;
   std::vector<clients::GazeSample> trace;
-  std::mutex mutex;
+  protocol::Extract view;  // the extract that opened the stream's view
+  std::mutex send_mutex;   // held while sending and while the connection is replaced (before `mutex`)
+  std::mutex mutex;        // guards what follows
+  std::condition_variable changed;
+  std::shared_ptr<clients::Connection> connection;
+  std::uint64_t generation = 0;
+  bool reconnecting = false;
   std::size_t sent = 0;       // samples sent; sample i has request id i + 1
   std::size_t answered = 0;   // samples answered (mesh or error)
   std::size_t reflected = 0;  // samples [0, reflected) have a mesh showing them or a newer sample
   bool broken = false;
+  std::mt19937_64 rng;  // backoff jitter
 };
 
-void receive_loop(Stream& stream, Totals& totals, Clock::time_point start) {
+struct Link {
+  const std::string& host;
+  std::uint16_t port;
+  const clients::RetryPolicy& retry;
+  Totals& totals;
+  std::atomic<bool>& finished;
+};
+
+// Reopens a dropped connection (unless the other thread already did): the view's extract (id 0,
+// focused on the newest sample sent) and then the newest unanswered sample again. False: gave up.
+bool reconnect(Stream& stream, const Link& link, std::uint64_t failed) {
+  std::lock_guard send_lock(stream.send_mutex);
+  {
+    std::lock_guard lock(stream.mutex);
+    if (stream.generation != failed || stream.broken) return !stream.broken;
+    stream.reconnecting = true;
+  }
+  std::optional<clients::Session> session;
+  for (unsigned attempt = 0; attempt < std::max(1u, link.retry.attempts) && !link.finished; ++attempt) {
+    if (attempt > 0) std::this_thread::sleep_for(link.retry.backoff.delay(attempt - 1, stream.rng));
+    clients::RetryPolicy once = link.retry;
+    once.attempts = 1;
+    if (auto opened = clients::open_session(link.host, link.port, "mtlod-gaze/0.1", once, stream.rng)) {
+      session = std::move(*opened);
+      break;
+    }
+  }
+  auto connection = session ? std::make_shared<clients::Connection>(std::move(session->connection)) : nullptr;
+  std::size_t sent = 0, answered = 0;
+  {
+    std::lock_guard lock(stream.mutex);
+    stream.reconnecting = false;
+    if (connection) {
+      stream.connection = connection;
+      ++stream.generation;
+    } else {
+      stream.broken = true;
+    }
+    sent = stream.sent;
+    answered = stream.answered;
+  }
+  stream.changed.notify_all();
+  if (!connection) return false;
+  protocol::Extract view = stream.view;
+  if (sent > 0) {
+    view.criteria.focus.front().x = stream.trace[sent - 1].x;
+    view.criteria.focus.front().y = stream.trace[sent - 1].y;
+  }
+  (void)connection->send(view, 0);
+  const bool resend = sent > answered;
+  if (resend) {
+    const clients::GazeSample& newest = stream.trace[sent - 1];
+    (void)connection->send(protocol::Gaze{newest.x, newest.y, std::nullopt, std::nullopt}, sent);
+  }
+  std::lock_guard lock(link.totals.mutex);
+  ++link.totals.reconnects;
+  link.totals.resent += resend ? 1 : 0;
+  return true;
+}
+
+void receive_loop(Stream& stream, const Link& link, Clock::time_point start) {
+  Totals& totals = link.totals;
   for (;;) {
-    auto frame = stream.connection.receive(std::chrono::hours(1));
+    std::shared_ptr<clients::Connection> connection;
+    std::uint64_t generation = 0;
+    {
+      std::unique_lock lock(stream.mutex);
+      stream.changed.wait(lock, [&] { return !stream.reconnecting; });
+      if (stream.broken) break;
+      connection = stream.connection;
+      generation = stream.generation;
+    }
+    auto frame = connection->receive(std::chrono::hours(1));
     const std::int64_t now = since(start);
-    if (!frame) break;
+    if (!frame || clients::asks_for_retry(*frame)) {
+      if (link.finished || !reconnect(stream, link, generation)) break;
+      continue;
+    }
     const std::uint64_t id = frame->header.id.value_or(0);
     if (id == 0 || id > stream.trace.size()) continue;
     const std::size_t index = id - 1;
@@ -96,8 +178,11 @@ void receive_loop(Stream& stream, Totals& totals, Clock::time_point start) {
       else ++totals.errors;
     }
   }
-  std::lock_guard lock(stream.mutex);
-  stream.broken = true;
+  {
+    std::lock_guard lock(stream.mutex);
+    stream.broken = true;
+  }
+  stream.changed.notify_all();
 }
 
 nlohmann::ordered_json percentiles_ms(const clients::LatencyHistogram& h) {
@@ -137,6 +222,11 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(1u, 1024u));
   app.add_option("--drain-timeout", drain_timeout_s, "seconds to wait for outstanding replies at the end")
       ->capture_default_str();
+  clients::RetryPolicy retry;
+  app.add_option("--attempts", retry.attempts,
+                 "connection attempts, with exponential backoff, when a connection drops (1: give up at once)")
+      ->capture_default_str()
+      ->check(CLI::Range(1u, 1000u));
   app.add_option("--json", json_file, "write the report as JSON to this file");
   app.add_flag("-q,--quiet", quiet, "no progress line");
   std::string write_trace;
@@ -180,10 +270,10 @@ int main(int argc, char** argv) {
     } else {
       stream->trace = file_trace;
     }
-    auto connection = clients::Connection::open(host, port);
-    if (!connection) return fail(connection.error().message);
-    auto hello = connection->call(protocol::Hello{protocol::kProtocolVersion, "mtlod-gaze/0.1"}, 0);
-    if (!hello) return fail(hello.error().message);
+    stream->rng.seed(synthesis.seed * 7919 + k);
+    auto session = clients::open_session(host, port, "mtlod-gaze/0.1", retry, stream->rng);
+    if (!session) return fail(session.error().message);
+    auto connection = std::make_shared<clients::Connection>(std::move(session->connection));
     auto info = connection->call(protocol::ModelInfo{model}, 0);
     if (!info) return fail(info.error().message);
     const auto* m = std::get_if<protocol::ModelInfoReply>(&info->header.reply);
@@ -195,27 +285,34 @@ int main(int argc, char** argv) {
     auto first = connection->call(*request, 0, std::chrono::seconds(120));
     if (!first) return fail(first.error().message);
     if (const auto* e = std::get_if<protocol::ErrorReply>(&first->header.reply)) return fail("extract: " + e->message);
-    stream->connection = std::move(*connection);
+    stream->view = std::move(*request);
+    stream->connection = std::move(connection);
     streams.push_back(std::move(stream));
   }
 
   Totals totals;
+  std::atomic<bool> finished{false};
+  const Link link{host, port, retry, totals, finished};
   std::atomic<unsigned> senders_done{0};
   const Clock::time_point start = Clock::now();
   std::vector<std::thread> threads;
   for (auto& s : streams) {
     Stream& stream = *s;
-    threads.emplace_back([&stream, &totals, start] { receive_loop(stream, totals, start); });
+    threads.emplace_back([&stream, &link, start] { receive_loop(stream, link, start); });
     threads.emplace_back([&stream, &totals, &senders_done, start] {
       for (std::size_t i = 0; i < stream.trace.size(); ++i) {
         const clients::GazeSample& sample = stream.trace[i];
         std::this_thread::sleep_until(start + std::chrono::nanoseconds(static_cast<std::int64_t>(sample.time_ms * 1e6)));
+        std::lock_guard send_lock(stream.send_mutex);
+        std::shared_ptr<clients::Connection> connection;
         {
           std::lock_guard lock(stream.mutex);
           if (stream.broken) break;
           stream.sent = i + 1;
+          connection = stream.connection;
         }
-        if (!stream.connection.send(protocol::Gaze{sample.x, sample.y, std::nullopt, std::nullopt}, i + 1)) break;
+        // A failed send is the receiver's to handle: it reconnects and sends the newest sample again.
+        (void)connection->send(protocol::Gaze{sample.x, sample.y, std::nullopt, std::nullopt}, i + 1);
         std::lock_guard lock(totals.mutex);
         ++totals.sent;
       }
@@ -248,7 +345,11 @@ int main(int argc, char** argv) {
   }
   if (progress) fmt::print(stderr, "\n");
   const std::size_t lost = outstanding();
-  for (auto& s : streams) s->connection.interrupt();
+  finished = true;
+  for (auto& s : streams) {
+    std::lock_guard lock(s->mutex);
+    if (s->connection) s->connection->interrupt();
+  }
   for (auto& t : threads) t.join();
 
   const Totals& r = totals;
@@ -269,6 +370,8 @@ int main(int argc, char** argv) {
       {"errors", r.errors},
       {"errors_by_code", r.errors_by_code},
       {"lost", lost},
+      {"reconnects", r.reconnects},
+      {"resent", r.resent},
       {"focus_mismatches", r.focus_mismatches},
       {"throughput_rps", r.meshes / std::max(elapsed_s, 1e-9)},
       {"latency_ms", percentiles_ms(r.mesh_latency_us)},

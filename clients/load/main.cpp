@@ -2,6 +2,9 @@
 // next request when the previous reply is in. Open loop (--rate): requests are due on a fixed
 // schedule whatever the server does, and latency counts from the due time, so queueing shows.
 // Each connection has a sending and a receiving thread; replies come back in request order.
+// When a connection drops or its server drains (`shutting_down`), the stream reconnects with
+// backoff and sends its unanswered requests again, so a failover shows as latency and retries,
+// not as lost requests; --reconnect-after recycles connections so a load balancer can rebalance.
 #include <unistd.h>
 
 #include <atomic>
@@ -18,7 +21,7 @@
 #include <vector>
 
 #include "CLI/CLI.hpp"
-#include "clients/common/connection.hpp"
+#include "clients/common/retry.hpp"
 #include "clients/load/histogram.hpp"
 #include "clients/load/schedule.hpp"
 #include "clients/load/workload.hpp"
@@ -48,6 +51,8 @@ struct Options {
   double gaze_hz = 0;
   double drain_timeout_s = 10;
   std::uint64_t seed = 1;
+  clients::RetryPolicy retry;
+  std::uint64_t reconnect_after = 0;  // requests per connection before it is replaced; 0: never
   std::string json_file;
   bool quiet = false;
 };
@@ -67,21 +72,45 @@ struct Totals {
   std::map<std::string, std::uint64_t> errors_by_code;
   protocol::StageTimings stage_sums;
   std::int64_t last_reply_ns = 0;
+  std::uint64_t reconnects = 0, retried = 0, gave_up = 0;
+  struct Instance {
+    std::uint64_t ok = 0;
+    std::int64_t first_ns = -1, last_ns = 0;
+  };
+  std::map<std::string, Instance> instances;  // mesh replies by the server process that sent them
 };
 
 struct Pending {
   std::uint64_t id;
   std::int64_t intended_ns;  // latency starts here
+  protocol::Request request;  // kept to send again after a reconnect
+  bool setup = false;         // an extract re-sent to restore the view for gazes: not counted
 };
 
-// One connection: the sender thread fills `pending`, the receiver thread empties it.
+// One logical connection: the sender thread fills `pending`, the receiver thread empties it. The
+// socket under it may be replaced (a drop, a draining server, --reconnect-after).
 struct Stream {
-  clients::Connection connection;
-  std::mutex mutex;
+  std::mutex send_mutex;  // held while sending and while the connection is replaced (before `mutex`)
+  std::mutex mutex;       // guards what follows
   std::condition_variable changed;
+  std::shared_ptr<clients::Connection> connection;
+  std::uint64_t generation = 0;  // bumped at every new connection
+  bool reconnecting = false;
+  bool broken = false;  // no connection and no attempts left
+  std::string instance;  // the server process on the current connection
   std::deque<Pending> pending;
-  bool broken = false;
+  std::optional<protocol::Extract> view;  // the last extract sent: restores the view for gazes
+  std::uint64_t next_id = 1;
+  std::uint64_t sent_on_connection = 0;
   std::uint64_t unsent = 0;  // due requests the window held back past the end of the test
+  std::mt19937_64 rng;       // backoff jitter
+};
+
+// What reconnecting needs from the run.
+struct Link {
+  const Options& options;
+  Totals& totals;
+  std::atomic<bool>& finished;  // the run is over: no more reconnecting
 };
 
 std::int64_t since(Clock::time_point start) {
@@ -93,25 +122,117 @@ int fail(const std::string& message) {
   return 1;
 }
 
-void receive_loop(Stream& stream, Totals& totals, Clock::time_point start) {
+// Replaces the stream's connection, unless another thread already replaced generation `failed`:
+// closes it, reconnects with backoff, and sends every unanswered request again in order (an
+// extract first when gazes need their view back). Returns false when the stream gave up.
+bool reconnect(Stream& stream, const Link& link, std::uint64_t failed) {
+  std::lock_guard send_lock(stream.send_mutex);
+  std::shared_ptr<clients::Connection> old;
+  {
+    std::lock_guard lock(stream.mutex);
+    if (stream.generation != failed || stream.broken) return !stream.broken;
+    stream.reconnecting = true;
+    old = stream.connection;
+  }
+  if (old) old->interrupt();
+  const clients::RetryPolicy& policy = link.options.retry;
+  std::optional<clients::Session> session;
+  for (unsigned attempt = 0; attempt < std::max(1u, policy.attempts) && !link.finished; ++attempt) {
+    if (attempt > 0) std::this_thread::sleep_for(policy.backoff.delay(attempt - 1, stream.rng));
+    clients::RetryPolicy once = policy;
+    once.attempts = 1;
+    auto opened = clients::open_session(link.options.host, link.options.port, "mtlod-load/0.1", once, stream.rng);
+    if (opened) {
+      session = std::move(*opened);
+      break;
+    }
+  }
+  std::vector<Pending> resend;
+  auto connection = session ? std::make_shared<clients::Connection>(std::move(session->connection)) : nullptr;
+  {
+    std::lock_guard lock(stream.mutex);
+    stream.reconnecting = false;
+    if (!connection) {
+      stream.broken = true;
+    } else {
+      stream.connection = connection;
+      ++stream.generation;
+      stream.instance = session->hello.instance;
+      stream.sent_on_connection = 0;
+      // A gaze before any extract in the queue needs the view back first.
+      for (const Pending& p : stream.pending) {
+        if (std::holds_alternative<protocol::Extract>(p.request)) break;
+        if (std::holds_alternative<protocol::Gaze>(p.request) && stream.view) {
+          stream.pending.push_front(Pending{stream.next_id++, 0, *stream.view, true});
+          break;
+        }
+      }
+      resend.assign(stream.pending.begin(), stream.pending.end());
+    }
+  }
+  stream.changed.notify_all();
+  {
+    std::lock_guard lock(link.totals.mutex);
+    if (!connection) {
+      ++link.totals.gave_up;
+    } else {
+      ++link.totals.reconnects;
+      for (const Pending& p : resend) link.totals.retried += p.setup ? 0 : 1;
+    }
+  }
+  if (!connection) return false;
+  // A send that fails here shows up as a failed receive on the new connection.
+  for (const Pending& p : resend) {
+    if (!connection->send(p.request, p.id)) break;
+  }
+  return true;
+}
+
+void receive_loop(Stream& stream, const Link& link, Clock::time_point start) {
+  Totals& totals = link.totals;
   for (;;) {
-    auto frame = stream.connection.receive(std::chrono::hours(1));
+    std::shared_ptr<clients::Connection> connection;
+    std::uint64_t generation = 0;
+    std::string instance;
+    {
+      std::unique_lock lock(stream.mutex);
+      stream.changed.wait(lock, [&] { return !stream.reconnecting; });
+      if (stream.broken) break;
+      connection = stream.connection;
+      generation = stream.generation;
+      instance = stream.instance;
+    }
+    auto frame = connection->receive(std::chrono::hours(1));
     const std::int64_t now = since(start);
-    if (!frame) break;
-    Pending pending{0, now};
+    if (!frame || clients::asks_for_retry(*frame)) {
+      if (link.finished) break;
+      {
+        // Replaced on purpose (--reconnect-after) or by the other thread: carry on with the new one.
+        std::lock_guard lock(stream.mutex);
+        if (stream.reconnecting || stream.generation != generation) continue;
+      }
+      if (!reconnect(stream, link, generation)) break;
+      continue;
+    }
+    Pending pending{0, now, protocol::Ping{}};
     {
       std::lock_guard lock(stream.mutex);
       // Replies come in request order; an unmatched id (a refusal without id) takes no request.
       if (!stream.pending.empty() && frame->header.id == stream.pending.front().id) {
-        pending = stream.pending.front();
+        pending = std::move(stream.pending.front());
         stream.pending.pop_front();
       }
     }
     stream.changed.notify_all();
     std::lock_guard lock(totals.mutex);
     totals.last_reply_ns = std::max(totals.last_reply_ns, now);
+    if (pending.setup && std::holds_alternative<protocol::MeshReply>(frame->header.reply)) continue;
     if (const auto* mesh = std::get_if<protocol::MeshReply>(&frame->header.reply)) {
       ++totals.ok;
+      auto& server = totals.instances[instance];
+      ++server.ok;
+      if (server.first_ns < 0) server.first_ns = now;
+      server.last_ns = now;
       totals.latency_us.record(static_cast<std::uint64_t>(std::max<std::int64_t>(0, now - pending.intended_ns) / 1000));
       totals.server_total_us.record(mesh->timings.total_us);
       totals.bytes += frame->payload.size();
@@ -173,6 +294,15 @@ int main(int argc, char** argv) {
   app.add_option("--drain-timeout", o.drain_timeout_s, "seconds to wait for outstanding replies at the end")
       ->capture_default_str();
   app.add_option("--seed", o.seed, "random seed for cameras, foci, mix and Poisson arrivals")->capture_default_str();
+  app.add_option("--attempts", o.retry.attempts,
+                 "connection attempts when a connection drops or its server drains, with exponential backoff; the "
+                 "unanswered requests are then sent again (1: give up at once)")
+      ->capture_default_str()
+      ->check(CLI::Range(1u, 1000u));
+  app.add_option("--reconnect-after", o.reconnect_after,
+                 "requests per connection: then it waits for its replies and reconnects, so a load balancer can "
+                 "move it (0: never)")
+      ->capture_default_str();
   app.add_option("--json", o.json_file, "write the report as JSON to this file");
   app.add_flag("-q,--quiet", o.quiet, "no progress line");
   protocol::ExtractFlags flags;
@@ -204,21 +334,18 @@ int main(int argc, char** argv) {
   std::vector<std::unique_ptr<Stream>> streams;
   std::uint32_t server_window = 8;
   for (unsigned c = 0; c < o.connections; ++c) {
-    auto connection = clients::Connection::open(o.host, o.port);
-    if (!connection) return fail(connection.error().message);
-    auto hello = connection->call(protocol::Hello{protocol::kProtocolVersion, "mtlod-load/0.1"}, 0);
-    if (!hello) return fail(hello.error().message);
-    if (const auto* reply = std::get_if<protocol::HelloReply>(&hello->header.reply)) {
-      server_window = reply->limits.max_in_flight;
-    } else {
-      return fail("the server refused the connection (connection limit?)");
-    }
-    streams.push_back(std::make_unique<Stream>());
-    streams.back()->connection = std::move(*connection);
+    auto stream = std::make_unique<Stream>();
+    stream->rng.seed(o.seed * 7919 + c);
+    auto session = clients::open_session(o.host, o.port, "mtlod-load/0.1", o.retry, stream->rng);
+    if (!session) return fail(session.error().message);
+    server_window = session->hello.limits.max_in_flight;
+    stream->instance = session->hello.instance;
+    stream->connection = std::make_shared<clients::Connection>(std::move(session->connection));
+    streams.push_back(std::move(stream));
   }
   std::vector<ModelView> models;
   for (const std::string& name : o.models) {
-    auto info = streams.front()->connection.call(protocol::ModelInfo{name}, 0);
+    auto info = streams.front()->connection->call(protocol::ModelInfo{name}, 0);
     if (!info) return fail(info.error().message);
     const auto* m = std::get_if<protocol::ModelInfoReply>(&info->header.reply);
     if (!m) return fail(fmt::format("model '{}': {}", name, std::get<protocol::ErrorReply>(info->header.reply).message));
@@ -238,19 +365,20 @@ int main(int argc, char** argv) {
   }
 
   Totals totals;
+  std::atomic<bool> finished{false};
+  const Link link{o, totals, finished};
   std::atomic<std::uint64_t> issued{0};  // closed loop: requests taken from --requests
   std::atomic<unsigned> senders_done{0};
   const Clock::time_point start = Clock::now();
   std::vector<std::thread> threads;
   for (unsigned c = 0; c < o.connections; ++c) {
     Stream& stream = *streams[c];
-    threads.emplace_back([&stream, &totals, start] { receive_loop(stream, totals, start); });
+    threads.emplace_back([&stream, &link, start] { receive_loop(stream, link, start); });
     threads.emplace_back([&, c] {
       std::mt19937_64 rng(o.seed * 1000003 + c);
       const ModelView& model = models[c % models.size()];
       std::uniform_real_distribution<double> unit(0.1, 0.9);
       std::uniform_real_distribution<double> pick(0, mix->extract + mix->gaze);
-      std::uint64_t id = 1;
       std::size_t script_index = c;
       bool has_view = false;
       for (std::size_t i = 0;; ++i) {
@@ -262,6 +390,18 @@ int main(int argc, char** argv) {
         } else {
           if (since(start) >= duration_ns) break;
           if (o.max_requests && issued.fetch_add(1) >= o.max_requests) break;
+        }
+        if (o.reconnect_after) {
+          // Recycle the connection once its replies are in, so a load balancer can place it anew.
+          std::unique_lock lock(stream.mutex);
+          if (stream.sent_on_connection >= o.reconnect_after) {
+            const bool idle = stream.changed.wait_until(lock, start + std::chrono::nanoseconds(duration_ns), [&] {
+              return stream.broken || stream.pending.empty();
+            });
+            const std::uint64_t generation = stream.generation;
+            lock.unlock();
+            if (idle && !reconnect(stream, link, generation)) break;
+          }
         }
         {
           // Wait for room in the window; past the end of the test, give up on the rest.
@@ -300,13 +440,21 @@ int main(int argc, char** argv) {
           request = std::move(e);
           has_view = true;
         }
-        const std::uint64_t this_id = id++;
+        std::shared_ptr<clients::Connection> connection;
+        std::uint64_t this_id = 0;
+        std::lock_guard send_lock(stream.send_mutex);
         {
           std::lock_guard lock(stream.mutex);
+          if (stream.broken) break;
           if (!open_loop) intended = since(start);
-          stream.pending.push_back(Pending{this_id, intended});
+          this_id = stream.next_id++;
+          if (const auto* e = std::get_if<protocol::Extract>(&request)) stream.view = *e;
+          stream.pending.push_back(Pending{this_id, intended, request});
+          ++stream.sent_on_connection;
+          connection = stream.connection;
         }
-        if (!stream.connection.send(request, this_id)) break;
+        // A failed send is the receiver's to handle: it reconnects and sends `pending` again.
+        (void)connection->send(request, this_id);
         std::lock_guard lock(totals.mutex);
         ++totals.sent;
       }
@@ -323,7 +471,7 @@ int main(int argc, char** argv) {
     std::size_t n = 0;
     for (auto& s : streams) {
       std::lock_guard lock(s->mutex);
-      if (!s->broken) n += s->pending.size();
+      for (const Pending& p : s->pending) n += p.setup ? 0 : 1;
     }
     return n;
   };
@@ -332,17 +480,27 @@ int main(int argc, char** argv) {
     if (progress) {
       const double t = since(start) / 1e9;
       std::lock_guard lock(totals.mutex);
-      fmt::print(stderr, "\r{:6.1f} s  sent {:>8}  mesh {:>8}  {:>8.1f}/s  p50 {:>7.2f} ms  p99 {:>7.2f} ms  errors {}   ",
+      fmt::print(stderr,
+                 "\r{:6.1f} s  sent {:>8}  mesh {:>8}  {:>8.1f}/s  p50 {:>7.2f} ms  p99 {:>7.2f} ms  errors {}  "
+                 "reconnects {}   ",
                  t, totals.sent, totals.ok, totals.ok / std::max(t, 1e-3), totals.latency_us.value_at_percentile(50) / 1e3,
-                 totals.latency_us.value_at_percentile(99) / 1e3, totals.errors);
+                 totals.latency_us.value_at_percentile(99) / 1e3, totals.errors, totals.reconnects);
     }
     if (senders_done == o.connections && outstanding() == 0) break;
     if (Clock::now() >= drain_deadline) break;
   }
   if (progress) fmt::print(stderr, "\n");
-  std::uint64_t lost = outstanding();
-  for (auto& s : streams) s->connection.interrupt();
+  finished = true;
+  // Senders may still wait on a window or a reconnect: wake them, then end every receive.
+  for (auto& s : streams) s->changed.notify_all();
+  for (auto& s : streams) {
+    std::lock_guard lock(s->mutex);
+    s->broken = true;
+    if (s->connection) s->connection->interrupt();
+  }
+  for (auto& s : streams) s->changed.notify_all();
   for (auto& t : threads) t.join();
+  const std::uint64_t lost = outstanding();
   std::uint64_t unsent = 0;
   for (auto& s : streams) unsent += s->unsent;
 
@@ -371,6 +529,9 @@ int main(int argc, char** argv) {
       {"errors_by_code", r.errors_by_code},
       {"unsent", unsent},
       {"lost", lost},
+      {"reconnects", r.reconnects},
+      {"retried", r.retried},
+      {"gave_up", r.gave_up},
       {"throughput_rps", throughput},
       {"latency_ms",
        {{"p50", ms(h.value_at_percentile(50))},
@@ -395,11 +556,24 @@ int main(int argc, char** argv) {
         {"total_p50", r.server_total_us.value_at_percentile(50)},
         {"total_p99", r.server_total_us.value_at_percentile(99)}}},
   };
+  nlohmann::ordered_json instances = nlohmann::ordered_json::object();
+  for (const auto& [name, i] : r.instances) {
+    instances[name] = {{"ok", i.ok}, {"first_reply_s", i.first_ns / 1e9}, {"last_reply_s", i.last_ns / 1e9}};
+  }
+  report["instances"] = std::move(instances);
   fmt::print("{} loop, {} connection(s), models {}, {:.1f} s{}\n", open_loop ? "open" : "closed", o.connections,
              fmt::join(o.models, ","), elapsed_s, open_loop ? fmt::format(", {:.0f} requests/s offered", o.rate) : "");
   fmt::print("  requests  sent {}  mesh {}  errors {}  superseded {}  unsent {}  lost {}\n", r.sent, r.ok, r.errors,
              r.superseded, unsent, lost);
   for (const auto& [code, n] : r.errors_by_code) fmt::print("    {:<20} {}\n", code, n);
+  if (r.reconnects || r.gave_up) {
+    fmt::print("  reconnects {}, requests sent again {}, streams that gave up {}\n", r.reconnects, r.retried, r.gave_up);
+  }
+  if (r.instances.size() > 1) {
+    for (const auto& [name, i] : r.instances) {
+      fmt::print("    {:<28} {:>8} meshes  {:.1f}..{:.1f} s\n", name, i.ok, i.first_ns / 1e9, i.last_ns / 1e9);
+    }
+  }
   fmt::print("  throughput {:.1f} meshes/s, {:.2f} MB/s, {:.0f} triangles and {:.0f} bytes per mesh\n", throughput,
              r.bytes / std::max(elapsed_s, 1e-9) / 1e6, r.triangles / mean_div, r.bytes / mean_div);
   fmt::print("  latency ms  p50 {:.2f}  p90 {:.2f}  p99 {:.2f}  p99.9 {:.2f}  max {:.2f}  mean {:.2f}\n",

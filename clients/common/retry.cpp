@@ -1,0 +1,88 @@
+// Reconnection with backoff (see retry.hpp).
+#include "clients/common/retry.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <thread>
+
+#include "fmt/format.h"
+
+namespace mtlod::clients {
+
+std::chrono::milliseconds Backoff::delay(unsigned attempt, std::mt19937_64& rng) const {
+  const double base = static_cast<double>(initial.count()) * std::pow(factor, std::min(attempt, 60u));
+  const double capped = std::min(base, static_cast<double>(max.count()));
+  std::uniform_real_distribution<double> shorten(0.0, std::clamp(jitter, 0.0, 1.0));
+  return std::chrono::milliseconds(static_cast<std::int64_t>(std::llround(capped * (1.0 - shorten(rng)))));
+}
+
+Result<Session> open_session(const std::string& host, std::uint16_t port, const std::string& client,
+                             const RetryPolicy& policy, std::mt19937_64& rng, unsigned* tries) {
+  const unsigned attempts = std::max(1u, policy.attempts);
+  std::string last_error;
+  for (unsigned attempt = 0; attempt < attempts; ++attempt) {
+    if (tries) *tries = attempt + 1;
+    if (attempt > 0) std::this_thread::sleep_for(policy.backoff.delay(attempt - 1, rng));
+    auto connection = Connection::open(host, port);
+    if (!connection) {
+      last_error = connection.error().message;
+      continue;
+    }
+    auto reply = connection->call(protocol::Hello{protocol::kProtocolVersion, client}, 0, std::chrono::seconds(10));
+    if (!reply) {
+      last_error = reply.error().message;
+      continue;
+    }
+    if (const auto* hello = std::get_if<protocol::HelloReply>(&reply->header.reply)) {
+      return Session{std::move(*connection), *hello};
+    }
+    if (const auto* error = std::get_if<protocol::ErrorReply>(&reply->header.reply)) {
+      last_error = fmt::format("{}:{} answered hello with {}: {}", host, port, protocol::to_string(error->code), error->message);
+    } else {
+      last_error = fmt::format("{}:{} answered hello with something else", host, port);
+    }
+  }
+  if (attempts == 1) return make_error(ErrorCode::kIoError, last_error);
+  return make_error(ErrorCode::kIoError, fmt::format("{} (after {} attempts)", last_error, attempts));
+}
+
+bool asks_for_retry(const ReplyFrame& frame) {
+  const auto* error = std::get_if<protocol::ErrorReply>(&frame.header.reply);
+  return error && error->code == protocol::ErrorKind::kShuttingDown;
+}
+
+RetryingConnection::RetryingConnection(std::string host, std::uint16_t port, std::string client, RetryPolicy policy,
+                                       std::uint64_t seed)
+    : host_(std::move(host)), port_(port), client_(std::move(client)), policy_(policy), rng_(seed) {}
+
+Result<ReplyFrame> RetryingConnection::call(const protocol::Request& request, std::chrono::milliseconds timeout) {
+  const unsigned attempts = std::max(1u, policy_.attempts);
+  std::string last_error;
+  for (unsigned attempt = 0; attempt < attempts; ++attempt) {
+    if (attempt > 0) {
+      ++retries_;
+      std::this_thread::sleep_for(policy_.backoff.delay(attempt - 1, rng_));
+    }
+    if (!connection_) {
+      // One connection attempt per call attempt: the outer loop does the backing off.
+      RetryPolicy once = policy_;
+      once.attempts = 1;
+      auto session = open_session(host_, port_, client_, once, rng_);
+      if (!session) {
+        last_error = session.error().message;
+        continue;
+      }
+      connection_ = std::move(session->connection);
+      hello_ = std::move(session->hello);
+    }
+    const std::uint64_t id = next_id_++;
+    auto reply = connection_->call(request, id, timeout);
+    if (reply && !asks_for_retry(*reply)) return reply;
+    last_error = reply ? std::get<protocol::ErrorReply>(reply->header.reply).message : reply.error().message;
+    connection_.reset();
+  }
+  return make_error(ErrorCode::kIoError,
+                    fmt::format("{} (after {} attempt{})", last_error, attempts, attempts == 1 ? "" : "s"));
+}
+
+}  // namespace mtlod::clients
