@@ -18,19 +18,22 @@ namespace mtlod::test {
 
 class ServerProcess {
  public:
-  // args: everything after the binary name except --port and --port-file.
-  ServerProcess(const std::vector<std::string>& args, const std::filesystem::path& dir) {
+  // args: everything after the binary name except --port and --port-file. `port` 0: any free one.
+  // The log goes to dir/server.log (appended to, so a restart in the same folder keeps the first
+  // run's log).
+  ServerProcess(const std::vector<std::string>& args, const std::filesystem::path& dir, std::uint16_t port = 0) {
     const auto port_file = dir / "port";
     std::filesystem::remove(port_file);
     log_ = dir / "server.log";
-    std::vector<std::string> argv_strings = {MTLOD_SERVER_BINARY, "--port", "0", "--port-file", port_file.string()};
+    std::vector<std::string> argv_strings = {MTLOD_SERVER_BINARY, "--port", std::to_string(port), "--port-file",
+                                             port_file.string()};
     argv_strings.insert(argv_strings.end(), args.begin(), args.end());
     pid_ = ::fork();
     if (pid_ == 0) {
       std::vector<char*> argv;
       for (auto& s : argv_strings) argv.push_back(s.data());
       argv.push_back(nullptr);
-      const int fd = ::open(log_.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+      const int fd = ::open(log_.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
       if (fd >= 0) {
         ::dup2(fd, 1);
         ::dup2(fd, 2);
@@ -58,6 +61,7 @@ class ServerProcess {
   ~ServerProcess() { stop(SIGTERM); }
 
   std::uint16_t port() const { return port_; }
+  pid_t pid() const { return pid_; }
   // The HTTP port when the server was given --http-port, else 0.
   std::uint16_t http_port() const { return http_port_; }
   bool running() const { return pid_ > 0; }

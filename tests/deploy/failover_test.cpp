@@ -1,0 +1,211 @@
+// The deployment of docker/compose.yaml without Docker: two mtlod-server replicas sharing one model
+// folder behind HAProxy running docker/haproxy.cfg itself, all on loopback ports. mtlod-load runs
+// through HAProxy while one replica is killed (SIGKILL) and restarted; its JSON report must show
+// every request answered (the dropped ones retried, none lost) and traffic back on the restarted
+// replica. Also: /health, and clients that reconnect to a restarted server.
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <memory>
+#include <sstream>
+
+#include "clients/common/connection.hpp"
+#include "core/io/mt_file.hpp"
+#include "core/mesh_gen.hpp"
+#include "core/mt_builder.hpp"
+#include "nlohmann/json.hpp"
+#include "tests/core/test_meshes.hpp"
+#include "tests/deploy/deploy_support.hpp"
+#include "tests/server/server_process.hpp"
+
+namespace mtlod {
+namespace {
+
+using nlohmann::json;
+using namespace std::chrono_literals;
+
+// A generated sphere's MT in dir/models, the folder the replicas share.
+std::filesystem::path write_model(const std::filesystem::path& dir, std::size_t triangles) {
+  core::GenerateOptions o;
+  o.target_triangles = triangles;
+  auto mt = core::build_mt(core::generate_mesh(o));
+  EXPECT_TRUE(mt.ok());
+  std::filesystem::create_directories(dir / "models");
+  EXPECT_TRUE(core::io::write_mt_file(dir / "models" / "sphere.mt", *mt).ok());
+  return dir / "models";
+}
+
+// The instance a replica reports on /health ("" when it does not answer).
+std::string health_instance(std::uint16_t http_port) {
+  const std::string response = test::http_get(http_port, "/health");
+  const auto body = response.find("\r\n\r\n");
+  if (response.rfind("HTTP/1.1 200", 0) != 0 || body == std::string::npos) return "";
+  return json::parse(response.substr(body + 4)).value("instance", "");
+}
+
+// Whether HAProxy's status CSV shows `server` of backend `backend` UP.
+bool haproxy_says_up(std::uint16_t stats_port, const std::string& backend, const std::string& server) {
+  std::istringstream csv(test::http_get(stats_port, "/stats;csv"));
+  for (std::string line; std::getline(csv, line);) {
+    if (line.rfind(backend + "," + server + ",", 0) == 0) return line.find(",UP,") != std::string::npos;
+  }
+  return false;
+}
+
+// Current sessions (the CSV's scur column) HAProxy has open to `server` of `backend`, or -1.
+int haproxy_sessions(std::uint16_t stats_port, const std::string& backend, const std::string& server) {
+  std::istringstream csv(test::http_get(stats_port, "/stats;csv"));
+  for (std::string line; std::getline(csv, line);) {
+    if (line.rfind(backend + "," + server + ",", 0) != 0) continue;
+    std::istringstream fields(line);
+    std::string field;
+    for (int column = 0; std::getline(fields, field, ','); ++column) {
+      if (column == 4) return field.empty() ? -1 : std::stoi(field);  // pxname,svname,qcur,qmax,scur
+    }
+  }
+  return -1;
+}
+
+bool wait_until(const std::function<bool()>& condition, std::chrono::milliseconds timeout) {
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  while (std::chrono::steady_clock::now() < deadline) {
+    if (condition()) return true;
+    std::this_thread::sleep_for(100ms);
+  }
+  return condition();
+}
+
+struct Replica {
+  std::string name;
+  std::uint16_t port, http_port;
+  std::filesystem::path dir;
+  std::unique_ptr<test::ServerProcess> process;
+
+  void start(const std::filesystem::path& models) {
+    process = std::make_unique<test::ServerProcess>(
+        std::vector<std::string>{"--models", models.string(), "--name", name, "--http-port", std::to_string(http_port),
+                                 "--workers", "1", "--log-level", "warn"},
+        dir, port);
+  }
+};
+
+json read_json(const std::filesystem::path& path) {
+  std::ifstream in(path);
+  if (!in) return json::object();
+  return json::parse(in, nullptr, false);
+}
+
+TEST(Failover, LoadThroughHaproxySurvivesAKilledReplicaAndComesBackToItsRestart) {
+  const auto dir = test::scratch_dir("failover");
+  const auto models = write_model(dir, 8000);
+  std::vector<Replica> replicas;
+  for (const char* name : {"replica-1", "replica-2"}) {
+    replicas.push_back(Replica{name, test::free_port(), test::free_port(), dir / name, nullptr});
+    std::filesystem::create_directories(replicas.back().dir);
+    replicas.back().start(models);
+    ASSERT_TRUE(replicas.back().process->running()) << replicas.back().process->log();
+  }
+  const std::uint16_t lb_port = test::free_port(), lb_http_port = test::free_port(), stats_port = test::free_port();
+  const std::map<std::string, std::string> environment = {
+      {"MTLOD_BIND", "127.0.0.1"},
+      {"MTLOD_LB_PORT", std::to_string(lb_port)},
+      {"MTLOD_LB_HTTP_PORT", std::to_string(lb_http_port)},
+      {"MTLOD_LB_STATS_PORT", std::to_string(stats_port)},
+      {"MTLOD_REPLICA_1_HOST", "127.0.0.1"},
+      {"MTLOD_REPLICA_1_PORT", std::to_string(replicas[0].port)},
+      {"MTLOD_REPLICA_1_HTTP_PORT", std::to_string(replicas[0].http_port)},
+      {"MTLOD_REPLICA_2_HOST", "127.0.0.1"},
+      {"MTLOD_REPLICA_2_PORT", std::to_string(replicas[1].port)},
+      {"MTLOD_REPLICA_2_HTTP_PORT", std::to_string(replicas[1].http_port)},
+  };
+  test::Child haproxy({MTLOD_HAPROXY_BINARY, "-db", "-f", MTLOD_SOURCE_DIR "/docker/haproxy.cfg"}, environment,
+                      dir / "haproxy.log");
+  ASSERT_TRUE(wait_until([&] { return haproxy_says_up(stats_port, "replicas", "replica-1") &&
+                                      haproxy_says_up(stats_port, "replicas", "replica-2"); },
+                         30s))
+      << "HAProxy never saw both replicas up\n" << haproxy.log();
+  const std::string first_instance = health_instance(replicas[0].http_port);
+  ASSERT_FALSE(first_instance.empty());
+
+  // Closed loop through HAProxy; connections are recycled every 10 requests so that the balancer
+  // can place them on the restarted replica.
+  const auto report = dir / "load.json";
+  test::Child load({MTLOD_LOAD_BINARY, "--port", std::to_string(lb_port), "--model", "sphere", "--connections", "4",
+                    "--duration", "14", "--budget", "2000", "--reconnect-after", "10", "--attempts", "40", "--quiet",
+                    "--json", report.string()},
+                   {}, dir / "load.log");
+  std::this_thread::sleep_for(3s);
+  ASSERT_TRUE(load.running()) << load.log();
+  // Kill it while it serves: a closed-loop connection always has a request in flight.
+  ASSERT_TRUE(wait_until([&] { return haproxy_sessions(stats_port, "replicas", "replica-1") >= 1; }, 10s))
+      << "no connection reached replica-1\n" << haproxy.log();
+  const int status = replicas[0].process->stop(SIGKILL);
+  EXPECT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL) << status;
+  std::this_thread::sleep_for(1500ms);
+  replicas[0].start(models);
+  ASSERT_TRUE(replicas[0].process->running()) << replicas[0].process->log();
+  const std::string restarted_instance = health_instance(replicas[0].http_port);
+  ASSERT_FALSE(restarted_instance.empty());
+  EXPECT_NE(restarted_instance, first_instance) << "a restart is a new instance";
+  EXPECT_TRUE(wait_until([&] { return haproxy_says_up(stats_port, "replicas", "replica-1"); }, 10s))
+      << haproxy.log();
+
+  ASSERT_EQ(load.wait(90s), 0) << load.log();
+  const json r = read_json(report);
+  ASSERT_TRUE(r.contains("instances")) << r.dump(2) << load.log();
+  // Every request answered: the ones on the killed replica were sent again, none lost.
+  EXPECT_GT(r.at("sent").get<std::uint64_t>(), 0u);
+  EXPECT_EQ(r.at("ok"), r.at("sent")) << r.dump(2);
+  EXPECT_EQ(r.at("errors"), 0) << r.dump(2);
+  EXPECT_EQ(r.at("lost"), 0) << r.dump(2);
+  EXPECT_EQ(r.at("unsent"), 0) << r.dump(2);
+  EXPECT_EQ(r.at("gave_up"), 0) << r.dump(2);
+  EXPECT_GE(r.at("retried").get<std::uint64_t>(), 1u) << "the kill caught requests in flight\n" << r.dump(2);
+  EXPECT_GE(r.at("reconnects").get<std::uint64_t>(), 1u) << r.dump(2);
+  // Both replicas served before the kill, and the restarted one served again afterwards.
+  const json& instances = r.at("instances");
+  ASSERT_TRUE(instances.contains(first_instance)) << instances.dump(2);
+  ASSERT_TRUE(instances.contains(restarted_instance)) << "no traffic came back\n" << instances.dump(2);
+  EXPECT_GT(instances.at(restarted_instance).at("ok").get<std::uint64_t>(), 0u);
+  EXPECT_GT(instances.at(restarted_instance).at("first_reply_s").get<double>(),
+            instances.at(first_instance).at("last_reply_s").get<double>())
+      << "the restarted replica answered after the killed one stopped";
+  std::uint64_t total = 0;
+  bool second = false;
+  for (const auto& [name, counts] : instances.items()) {
+    total += counts.at("ok").get<std::uint64_t>();
+    second = second || name.rfind("replica-2@", 0) == 0;
+  }
+  EXPECT_TRUE(second) << instances.dump(2);
+  EXPECT_EQ(total, r.at("ok").get<std::uint64_t>()) << "every reply is counted on one instance";
+}
+
+TEST(Health, ReportsTheInstanceTheProtocolReports) {
+  const auto dir = test::scratch_dir("health");
+  const auto models = write_model(dir, 2000);
+  const std::uint16_t http_port = test::free_port();
+  test::ServerProcess server({"--models", models.string(), "--name", "probe-me", "--http-port",
+                              std::to_string(http_port), "--log-level", "warn"},
+                             dir);
+  ASSERT_TRUE(server.running()) << server.log();
+  const std::string response = test::http_get(http_port, "/health");
+  ASSERT_EQ(response.rfind("HTTP/1.1 200", 0), 0u) << response;
+  EXPECT_NE(response.find("application/json"), std::string::npos) << response;
+  const json health = json::parse(response.substr(response.find("\r\n\r\n") + 4));
+  EXPECT_EQ(health.at("status"), "ok");
+  EXPECT_EQ(health.at("models"), 1);
+  auto c = clients::Connection::open("127.0.0.1", server.port());
+  ASSERT_TRUE(c.ok());
+  auto hello = c->call(protocol::Hello{protocol::kProtocolVersion, "test"}, 1);
+  ASSERT_TRUE(hello.ok());
+  const std::string instance = std::get<protocol::HelloReply>(hello->header.reply).instance;
+  EXPECT_EQ(health.at("instance"), instance);
+  EXPECT_EQ(instance.rfind("probe-me@", 0), 0u) << instance;
+  EXPECT_EQ(instance.size(), std::string("probe-me@").size() + 8);
+  // The open protocol connection is counted.
+  const std::string again = test::http_get(http_port, "/health");
+  EXPECT_EQ(json::parse(again.substr(again.find("\r\n\r\n") + 4)).at("connections"), 1) << again;
+}
+
+}  // namespace
+}  // namespace mtlod

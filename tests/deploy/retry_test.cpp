@@ -1,0 +1,113 @@
+// Clients that outlive their server: mtlod-client waits for a server that is still starting, and
+// a mtlod-gaze stream reconnects to a restarted server and carries on. Plus the backoff schedule.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+
+#include "clients/common/retry.hpp"
+#include "core/io/mt_file.hpp"
+#include "core/mesh_gen.hpp"
+#include "core/mt_builder.hpp"
+#include "nlohmann/json.hpp"
+#include "tests/core/test_meshes.hpp"
+#include "tests/deploy/deploy_support.hpp"
+#include "tests/server/server_process.hpp"
+
+namespace mtlod {
+namespace {
+
+using namespace std::chrono_literals;
+
+std::filesystem::path write_sphere(const std::filesystem::path& dir) {
+  core::GenerateOptions o;
+  o.target_triangles = 4000;
+  auto mt = core::build_mt(core::generate_mesh(o));
+  EXPECT_TRUE(mt.ok());
+  EXPECT_TRUE(core::io::write_mt_file(dir / "sphere.mt", *mt).ok());
+  return dir / "sphere.mt";
+}
+
+TEST(Backoff, GrowsGeometricallyUpToItsCapWithBoundedJitter) {
+  clients::Backoff b;
+  b.initial = 40ms;
+  b.max = 1000ms;
+  b.factor = 2;
+  b.jitter = 0.25;
+  std::mt19937_64 rng(7);
+  for (unsigned attempt = 0; attempt < 12; ++attempt) {
+    const double full = std::min(40.0 * std::pow(2.0, attempt), 1000.0);
+    for (int k = 0; k < 50; ++k) {
+      const auto d = b.delay(attempt, rng).count();
+      EXPECT_LE(d, std::llround(full)) << attempt;
+      EXPECT_GE(d, std::llround(0.75 * full) - 1) << attempt;
+    }
+  }
+  b.jitter = 0;
+  EXPECT_EQ(b.delay(0, rng).count(), 40);
+  EXPECT_EQ(b.delay(3, rng).count(), 320);
+  EXPECT_EQ(b.delay(30, rng).count(), 1000);
+}
+
+TEST(Retry, OpenSessionGivesUpAfterItsAttemptsWithTheReason) {
+  const std::uint16_t port = test::free_port();  // nothing listens there
+  clients::RetryPolicy policy;
+  policy.attempts = 3;
+  policy.backoff.initial = 10ms;
+  std::mt19937_64 rng(1);
+  unsigned tries = 0;
+  auto session = clients::open_session("127.0.0.1", port, "test", policy, rng, &tries);
+  ASSERT_FALSE(session.ok());
+  EXPECT_EQ(tries, 3u);
+  EXPECT_NE(session.error().message.find("after 3 attempts"), std::string::npos) << session.error().message;
+  EXPECT_NE(session.error().message.find(std::to_string(port)), std::string::npos) << session.error().message;
+}
+
+TEST(Retry, ClientWaitsForAServerThatIsStillStarting) {
+  const auto dir = test::scratch_dir("retry-client");
+  const auto model = write_sphere(dir);
+  const std::uint16_t port = test::free_port();
+  test::Child client({MTLOD_CLIENT_BINARY, "--port", std::to_string(port), "--attempts", "30", "list"}, {},
+                     dir / "client.log");
+  std::this_thread::sleep_for(1500ms);
+  ASSERT_TRUE(client.running()) << "the client is still trying\n" << client.log();
+  test::ServerProcess server({model.string(), "--log-level", "warn"}, dir, port);
+  ASSERT_TRUE(server.running()) << server.log();
+  EXPECT_EQ(client.wait(30s), 0) << client.log();
+  EXPECT_NE(client.log().find("sphere"), std::string::npos) << client.log();
+}
+
+TEST(Retry, GazeStreamReconnectsAfterItsServerIsKilledAndRestarted) {
+  const auto dir = test::scratch_dir("retry-gaze");
+  const auto model = write_sphere(dir);
+  const std::uint16_t port = test::free_port();
+  auto server = std::make_unique<test::ServerProcess>(
+      std::vector<std::string>{model.string(), "--log-level", "warn"}, dir, port);
+  ASSERT_TRUE(server->running()) << server->log();
+  const auto report = dir / "gaze.json";
+  test::Child gaze({MTLOD_GAZE_BINARY, "--port", std::to_string(port), "--model", "sphere", "--hz", "60", "--duration",
+                    "6000", "--attempts", "40", "--budget", "1000", "--quiet", "--json", report.string()},
+                   {}, dir / "gaze.log");
+  std::this_thread::sleep_for(2s);
+  const int status = server->stop(SIGKILL);
+  EXPECT_TRUE(WIFSIGNALED(status)) << status;
+  std::this_thread::sleep_for(500ms);
+  server = std::make_unique<test::ServerProcess>(std::vector<std::string>{model.string(), "--log-level", "warn"}, dir,
+                                                 port);
+  ASSERT_TRUE(server->running()) << server->log();
+  ASSERT_EQ(gaze.wait(60s), 0) << gaze.log();
+  std::ifstream in(report);
+  ASSERT_TRUE(in) << gaze.log();
+  const auto r = nlohmann::json::parse(in);
+  EXPECT_EQ(r.at("samples"), 360) << r.dump(2);
+  EXPECT_GE(r.at("reconnects").get<int>(), 1) << r.dump(2);
+  EXPECT_EQ(r.at("lost"), 0) << r.dump(2);
+  EXPECT_EQ(r.at("errors"), 0) << r.dump(2);
+  EXPECT_EQ(r.at("focus_mismatches"), 0) << r.dump(2);
+  // Meshes kept coming after the restart: every sample, the last one included, is shown by a mesh
+  // (its own or a newer sample's).
+  EXPECT_EQ(r.at("sample_latency_ms").at("count"), r.at("samples")) << r.dump(2);
+}
+
+}  // namespace
+}  // namespace mtlod
