@@ -149,15 +149,27 @@ TriangleIndex::TriangleIndex(std::span<const float> positions, std::span<const s
       hi[c] = std::max<double>(hi[c], positions[3 * std::size_t{v} + c]);
     }
   }
-  // Cubic cells, about two triangles per cell; a flat box gets a thin slab instead of zero volume.
+  // Cubic cells sized to the triangles (twice the square root of the mean area), so a cell on the
+  // surface holds a few triangles whatever the volume around the surface; the cell count is capped
+  // at 8 per triangle (and 1024 per side) by growing the cells.
+  double area = 0.0;
+  for (std::size_t t = 0; t < count; ++t) {
+    double a[3], b[3], c[3];
+    load(positions, triangles[3 * t], a), load(positions, triangles[3 * t + 1], b), load(positions, triangles[3 * t + 2], c);
+    area += triangle_area(a, b, c);
+  }
   const double extent = std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2], 1e-30});
-  double volume = 1.0;
-  for (int c = 0; c < 3; ++c) volume *= std::max(hi[c] - lo[c], 1e-3 * extent);
-  cell_size_ = std::cbrt(volume / std::max<double>(1.0, 0.5 * double(count)));
+  cell_size_ = std::max(2.0 * std::sqrt(area / double(count)), 1e-3 * extent);
+  const auto cells_for = [&](double h) {
+    double n = 1.0;
+    for (int c = 0; c < 3; ++c) n *= std::min(1024.0, std::floor((hi[c] - lo[c]) / h) + 1.0);
+    return n;
+  };
+  while (cells_for(cell_size_) > 8.0 * double(count) + 64.0) cell_size_ *= 1.25;
   std::size_t cells = 1;
   for (int c = 0; c < 3; ++c) {
     origin_[c] = lo[c];
-    dims_[c] = static_cast<std::uint32_t>(std::clamp((hi[c] - lo[c]) / cell_size_ + 1.0, 1.0, 1024.0));
+    dims_[c] = static_cast<std::uint32_t>(std::min(1024.0, std::floor((hi[c] - lo[c]) / cell_size_) + 1.0));
     cells *= dims_[c];
   }
   const auto cell_range = [&](std::size_t t, std::uint32_t first[3], std::uint32_t last[3]) {
@@ -234,6 +246,17 @@ double TriangleIndex::distance(float x, float y, float z) {
         for (int di = -r; di <= r; di += (on_shell || r == 0) ? 1 : 2 * r) {
           const int i = centre[0] + di;
           if (i < 0 || i >= int(dims_[0])) continue;
+          // Skip a cell whose box is farther than the best distance (the outermost cells reach to
+          // infinity: they hold whatever the clamping put there).
+          const int idx[3] = {i, j, k};
+          double gap2 = 0.0;
+          for (int c = 0; c < 3; ++c) {
+            const double lo = idx[c] == 0 ? -INFINITY : origin_[c] + idx[c] * cell_size_;
+            const double hi = idx[c] == int(dims_[c]) - 1 ? INFINITY : origin_[c] + (idx[c] + 1) * cell_size_;
+            const double gap = p[c] < lo ? lo - p[c] : (p[c] > hi ? p[c] - hi : 0.0);
+            gap2 += gap * gap;
+          }
+          if (gap2 > best * best) continue;
           visit_cell(std::uint32_t(i), std::uint32_t(j), std::uint32_t(k), p, best);
         }
       }

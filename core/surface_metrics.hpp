@@ -42,8 +42,8 @@ void sample_surface(std::span<const float> positions, std::span<const std::uint3
 // closest-point regions of Ericson, Real-Time Collision Detection §5.1.5), in double precision.
 double point_triangle_distance(const double p[3], const double a[3], const double b[3], const double c[3]);
 
-// Nearest-triangle queries over a fixed triangle mesh: a uniform grid of cubic cells (about two
-// triangles per cell), each triangle listed in every cell its bounding box overlaps (CSR). A query
+// Nearest-triangle queries over a fixed triangle mesh: a uniform grid of cubic cells (about twice the
+// triangles' mean size, at most 8 cells per triangle), each triangle listed in every cell its bounding box overlaps (CSR). A query
 // visits rings of cells around the query's cell until the ring is farther than the best distance
 // found, so it is exact. Holds copies of nothing but the spans' data pointers: positions and
 // triangles must outlive the index. Queries reuse scratch memory and are not thread-safe.
