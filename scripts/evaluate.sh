@@ -10,7 +10,7 @@ root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 cd "$root"
 build=${MTLOD_EVAL_BUILD:-build/release}
 export CCACHE_BASEDIR="$root" CCACHE_NOHASHDIR=true
-[ -d scripts/node_modules ] || scripts/bootstrap.sh
+scripts/bootstrap.sh
 cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=Release >/dev/null
 cmake --build "$build" --target mtlod-eval -j "${JOBS:-$(nproc)}"
 scripts/prepare-models.sh
