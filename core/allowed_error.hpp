@@ -45,6 +45,8 @@ struct RegionLaw {
   // kFoveal: eccentricity (degrees) at which the minimum angle of resolution doubles; ~2.3° is the
   // usual value for the linear acuity model MAR(e) = MAR0·(1 + e/e2).
   float foveal_e2_deg = 2.3f;
+
+  bool operator==(const RegionLaw&) const = default;
 };
 
 enum class ErrorUnits : std::uint8_t {
@@ -75,6 +77,8 @@ struct AllowedErrorOptions {
   // kFoveal: vertical field of view in degrees used to turn pixels into eccentricity; 0 = from the
   // projection (2·atan(1/P[1][1]), perspective cameras).
   float fovy_deg = 0.0f;
+
+  bool operator==(const AllowedErrorOptions&) const = default;
 };
 
 // Eccentricity in degrees of a point distance_px grid pixels from the focus, for a view whose grid
@@ -117,6 +121,13 @@ class AllowedErrorField {
 
   // Lazy variant: the same value for one vertex, projecting it on demand.
   float vertex_allowed_error(std::uint32_t vertex) const;
+
+  // The focus law's multiplier in a grid cell (1 when focus mode is off). A vertex's allowed error
+  // depends on the focus transform only through this value of its cell, so when the foci move, only
+  // vertices in cells where it changed need their allowed error again.
+  float focus_factor(std::uint32_t cell) const {
+    return options_.use_focus ? lookup(focus_table_, cell_label(inputs_.focus_dt, cell)) : 1.0f;
+  }
 
  private:
   float combine(std::uint32_t silhouette_label, std::uint32_t focus_label, std::uint32_t neglect_label,

@@ -40,10 +40,28 @@ ViewExtractor::ViewExtractor(const Mt& mt, const OccupancyLevels& levels) : mt_(
   radius_ = std::sqrt(r2);
 }
 
-void ViewExtractor::map(const ViewRequest& request) {
+std::size_t ViewSession::memory_bytes() const {
+  auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
+  return bytes(allowed_error_) + bytes(silhouette_dt_) + bytes(neglect_dt_) + bytes(focus_factor_) +
+         bytes(cell_start_) + bytes(cell_vertices_) + bytes(changed_) + bytes(neglect_);
+}
+
+bool ViewExtractor::same_view(const ViewSession& s, const ViewRequest& r) {
+  return s.valid_ && s.camera_.model == r.camera.model && s.camera_.view == r.camera.view &&
+         s.camera_.projection == r.camera.projection && s.grid_.width == r.grid.width &&
+         s.grid_.height == r.grid.height && s.allowed_ == r.allowed && s.neglect_ == r.neglect &&
+         s.has_focus_ == !r.focus.empty() && s.internal_silhouettes_ == r.internal_silhouettes &&
+         s.depth_jump_ == r.depth_jump;
+}
+
+void ViewExtractor::map(const ViewRequest& request, ViewSession* session) {
   assert(request.grid.valid());
   request_ = &request;
+  session_ = session;
   mapping_ = ViewMapping(request.camera, request.grid);
+  incremental_ = session != nullptr && same_view(*session, request) &&
+                 session->allowed_error_.size() == mt_.vertex_count();
+  if (session) session->reused_ = incremental_;
 }
 
 double ViewExtractor::covered_cells() const {
@@ -59,6 +77,10 @@ double ViewExtractor::covered_cells() const {
 }
 
 std::size_t ViewExtractor::occupancy() {
+  if (incremental_) {
+    occupancy_triangles_ = {};  // the silhouette transform is the session's
+    return 0;
+  }
   occupancy_triangles_ = levels_.for_covered_cells(covered_cells()).triangles;
   const std::size_t cells = request_->grid.cell_count();
   occupancy_.resize(cells);
@@ -87,6 +109,20 @@ void ViewExtractor::transform_from_cells(std::span<const std::uint32_t> cells, s
 void ViewExtractor::distance_transforms() {
   const ViewRequest& r = *request_;
   const std::size_t cells = r.grid.cell_count();
+  auto seeded = [&](const std::vector<std::array<float, 2>>& points, std::vector<std::uint16_t>& out) {
+    out.clear();
+    if (points.empty()) return;
+    cells_.clear();
+    for (const auto& p : points) cells_.push_back(focus_cell(r.grid, p[0], p[1]));
+    out.resize(cells);
+    transform_from_cells(cells_, out);
+  };
+  seeded(r.allowed.use_focus ? r.focus : std::vector<std::array<float, 2>>{}, focus_dt_);
+  if (incremental_) {
+    silhouette_ = session_->silhouette_dt_;
+    neglect_ = session_->neglect_dt_;
+    return;
+  }
   if (r.allowed.use_silhouette || (r.labels && r.focus.empty())) {
     silhouette_dt_.resize(cells);
     if (r.internal_silhouettes) {
@@ -99,34 +135,89 @@ void ViewExtractor::distance_transforms() {
   } else {
     silhouette_dt_.clear();
   }
-  auto seeded = [&](const std::vector<std::array<float, 2>>& points, std::vector<std::uint16_t>& out) {
-    out.clear();
-    if (points.empty()) return;
-    cells_.clear();
-    for (const auto& p : points) cells_.push_back(focus_cell(r.grid, p[0], p[1]));
-    out.resize(cells);
-    transform_from_cells(cells_, out);
-  };
-  seeded(r.allowed.use_focus ? r.focus : std::vector<std::array<float, 2>>{}, focus_dt_);
   seeded(r.allowed.use_neglect ? r.neglect : std::vector<std::array<float, 2>>{}, neglect_dt_);
+  silhouette_ = silhouette_dt_;
+  neglect_ = neglect_dt_;
 }
 
 void ViewExtractor::allowed_error() {
   const ViewRequest& r = *request_;
   AllowedErrorOptions options = r.allowed;
   if (options.metric == DistanceMetric::kEuclidean) options.metric = DistanceMetric::kChamfer5711;  // see transform()
-  options.use_silhouette = options.use_silhouette && !silhouette_dt_.empty();
+  options.use_silhouette = options.use_silhouette && !silhouette_.empty();
   options.use_focus = options.use_focus && !focus_dt_.empty();
-  options.use_neglect = options.use_neglect && !neglect_dt_.empty();
-  vertex_allowed_error_.resize(mt_.vertex_count());
-  field_.bind(mapping_, options, {silhouette_dt_, focus_dt_, neglect_dt_, mt_.positions, mt_.normals});
-  field_.compute_all(vertex_allowed_error_);
+  options.use_neglect = options.use_neglect && !neglect_.empty();
+  field_.bind(mapping_, options, {silhouette_, focus_dt_, neglect_, mt_.positions, mt_.normals});
+  if (!incremental_) {
+    std::vector<float>& field = session_ ? session_->allowed_error_ : vertex_allowed_error_;
+    field.resize(mt_.vertex_count());
+    allowed_ = field;
+    field_.compute_all(allowed_);
+    if (session_) remember_view(*session_);
+    return;
+  }
+  // Only the foci moved: a vertex's allowed error changes only where its cell's focus multiplier did.
+  ViewSession& s = *session_;
+  allowed_ = s.allowed_error_;
+  if (s.cell_start_.empty()) sort_vertices_by_cell(s);
+  s.changed_.clear();
+  const std::size_t cells = request_->grid.cell_count();
+  for (std::uint32_t c = 0; c < cells; ++c) {
+    const float factor = field_.focus_factor(c);
+    if (factor == s.focus_factor_[c]) continue;
+    s.focus_factor_[c] = factor;
+    for (std::uint32_t k = s.cell_start_[c]; k < s.cell_start_[c + 1]; ++k) {
+      const std::uint32_t v = s.cell_vertices_[k];
+      allowed_[v] = field_.vertex_allowed_error(v);
+      s.changed_.push_back(v);
+    }
+  }
+}
+
+void ViewExtractor::remember_view(ViewSession& s) const {
+  const ViewRequest& r = *request_;
+  s.valid_ = true;
+  s.camera_ = r.camera;
+  s.grid_ = r.grid;
+  s.allowed_ = r.allowed;
+  s.neglect_ = r.neglect;
+  s.has_focus_ = !r.focus.empty();
+  s.internal_silhouettes_ = r.internal_silhouettes;
+  s.depth_jump_ = r.depth_jump;
+  s.silhouette_dt_.assign(silhouette_.begin(), silhouette_.end());
+  s.neglect_dt_.assign(neglect_.begin(), neglect_.end());
+  const std::size_t cells = r.grid.cell_count();
+  s.focus_factor_.resize(cells);
+  for (std::uint32_t c = 0; c < cells; ++c) s.focus_factor_[c] = field_.focus_factor(c);
+  s.cell_start_.clear();  // sorted again on the view's first reuse
+  s.changed_.clear();
+}
+
+void ViewExtractor::sort_vertices_by_cell(ViewSession& s) {
+  // The cells compute_all saw (map_vertices is bit-identical to the per-vertex mapping).
+  const std::size_t n = mt_.vertex_count(), cells = request_->grid.cell_count();
+  vertex_cells_.resize(n);
+  vertex_clip_w_.resize(n);
+  map_vertices(mapping_, mt_.positions, vertex_cells_, vertex_clip_w_);
+  s.cell_start_.assign(cells + 1, 0);
+  for (const std::uint32_t c : vertex_cells_) {
+    if (c != kNoCell) ++s.cell_start_[c + 1];
+  }
+  for (std::size_t c = 0; c < cells; ++c) s.cell_start_[c + 1] += s.cell_start_[c];
+  s.cell_vertices_.resize(s.cell_start_[cells]);
+  cells_.assign(s.cell_start_.begin(), s.cell_start_.end() - 1);  // next free slot per cell
+  for (std::uint32_t v = 0; v < n; ++v) {
+    const std::uint32_t c = vertex_cells_[v];
+    if (c != kNoCell) s.cell_vertices_[cells_[c]++] = v;
+  }
 }
 
 void ViewExtractor::refine(Refiner& session, CutMesh& out) {
-  const AllowedError allowed = AllowedError::from_vertices(vertex_allowed_error_);
+  const AllowedError allowed = AllowedError::from_vertices(allowed_);
   if (request_->budget) {
     session.refine_budget(allowed, *request_->budget, out);
+  } else if (request_->dynamic && incremental_) {
+    session.update(allowed, session_->changed_, out);  // even after a saccade: cheaper than from the root
   } else if (request_->dynamic) {
     session.update(allowed, out);
   } else {
@@ -134,8 +225,7 @@ void ViewExtractor::refine(Refiner& session, CutMesh& out) {
   }
   if (request_->labels) {
     // Labels of the cut's vertices only: the silhouette distance when it was computed, else the focus's.
-    const std::span<const std::uint16_t> dt = !silhouette_dt_.empty() ? std::span<const std::uint16_t>(silhouette_dt_)
-                                                                       : std::span<const std::uint16_t>(focus_dt_);
+    const std::span<const std::uint16_t> dt = !silhouette_.empty() ? silhouette_ : std::span<const std::uint16_t>(focus_dt_);
     vertex_labels_.resize(mt_.vertex_count());
     for (std::uint32_t v : out.triangles) vertex_labels_[v] = dt.empty() ? 0 : vertex_label(mapping_, mt_.positions, v, dt);
   }
@@ -145,7 +235,7 @@ std::size_t ViewExtractor::memory_bytes() const {
   auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
   return transformer_.memory_bytes() + bytes(occupancy_) + bytes(seeds_image_) + bytes(depth_) + bytes(silhouette_dt_) +
          bytes(focus_dt_) + bytes(neglect_dt_) + bytes(euclidean_) + bytes(cells_) + bytes(vertex_allowed_error_) +
-         bytes(vertex_labels_) + field_.memory_bytes();
+         bytes(vertex_labels_) + bytes(vertex_cells_) + bytes(vertex_clip_w_) + field_.memory_bytes();
 }
 
 }  // namespace mtlod::core

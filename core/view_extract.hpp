@@ -35,6 +35,42 @@ struct ViewRequest {
   bool labels = false;                        // fill vertex labels (silhouette, else focus) for encoding
 };
 
+// What one client session keeps between its requests, so that a request with the same view as the
+// session's previous one — same camera, grid and criteria, only the focus points moved: a gaze —
+// skips the occupancy and the silhouette transform, recomputes the allowed error only for the
+// vertices in cells where the focus law's multiplier changed, and hands exactly those vertices to
+// the refinement. Owned by the session, filled by ViewExtractor; the result is the same as
+// computing every stage again (tests/core/view_extract_test.cpp holds it to that).
+class ViewSession {
+ public:
+  // Whether the last request took the incremental path, and how many vertices it recomputed.
+  bool reused() const { return reused_; }
+  std::size_t changed_vertices() const { return changed_.size(); }
+  // Bytes held: per vertex 8 (the field and the vertices sorted by cell), per cell about 10.
+  std::size_t memory_bytes() const;
+  // Forget everything (another model, say).
+  void reset() { valid_ = false; }
+
+ private:
+  friend class ViewExtractor;
+  bool valid_ = false;
+  bool reused_ = false;
+  Camera camera_;
+  GridSize grid_;
+  AllowedErrorOptions allowed_;
+  std::vector<std::array<float, 2>> neglect_;
+  bool has_focus_ = false;
+  bool internal_silhouettes_ = false;
+  float depth_jump_ = 0.0f;
+  std::vector<float> allowed_error_;           // per vertex, for the session's last request
+  std::vector<std::uint16_t> silhouette_dt_;   // of the view
+  std::vector<std::uint16_t> neglect_dt_;
+  std::vector<float> focus_factor_;            // per cell, for the last request's foci
+  std::vector<std::uint32_t> cell_start_;      // vertices by cell (counting sort), built on first reuse
+  std::vector<std::uint32_t> cell_vertices_;
+  std::vector<std::uint32_t> changed_;         // vertices recomputed by the last request
+};
+
 class ViewExtractor {
  public:
   // levels: the model's precomputed occupancy cuts, shared by every extractor of the model.
@@ -42,14 +78,16 @@ class ViewExtractor {
 
   const Mt& mt() const { return mt_; }
 
-  // Stage 1: binds the request and builds the mapping.
-  void map(const ViewRequest& request);
+  // Stage 1: binds the request and builds the mapping. With a session, the stages below read and
+  // update it, and take the incremental path when the view is the session's previous one.
+  void map(const ViewRequest& request, ViewSession* session = nullptr);
   // Stage 2: rasterises the occupancy from a precomputed coarse cut sized to the grid cells the
-  // model covers (see OccupancyLevels). Returns that cut's triangle count.
+  // model covers (see OccupancyLevels). Returns that cut's triangle count (0: reused the session's).
   std::size_t occupancy();
   // Stage 3: the silhouette, focus and neglect transforms the request uses.
   void distance_transforms();
-  // Stage 4: per-vertex allowed error (and labels when asked).
+  // Stage 4: per-vertex allowed error (and labels when asked): every vertex, or on the incremental
+  // path only those in cells whose focus multiplier changed.
   void allowed_error();
   // Stage 5: refines `session` (dynamic unless a budget is set or `dynamic` is off) and writes the
   // cut to `out`.
@@ -59,9 +97,9 @@ class ViewExtractor {
   // meaningful), the grids, and the occupancy cut, for encoders, tools and debug images.
   std::span<const std::uint32_t> vertex_labels() const { return vertex_labels_; }
   std::span<const std::uint8_t> occupancy_grid() const { return occupancy_; }
-  std::span<const std::uint16_t> silhouette_dt() const { return silhouette_dt_; }
+  std::span<const std::uint16_t> silhouette_dt() const { return silhouette_; }
   std::span<const std::uint16_t> focus_dt() const { return focus_dt_; }
-  std::span<const float> vertex_allowed_error() const { return vertex_allowed_error_; }
+  std::span<const float> vertex_allowed_error() const { return allowed_; }
   const ViewMapping& mapping() const { return mapping_; }
   std::span<const std::uint32_t> occupancy_triangles() const { return occupancy_triangles_; }
 
@@ -73,12 +111,21 @@ class ViewExtractor {
 
  private:
   void transform(std::span<const std::uint8_t> image, std::span<std::uint16_t> out);
+  // Whether the request has the session's view (everything but the focus points).
+  static bool same_view(const ViewSession& session, const ViewRequest& request);
+  void remember_view(ViewSession& session) const;
+  void sort_vertices_by_cell(ViewSession& session);
   void transform_from_cells(std::span<const std::uint32_t> cells, std::span<std::uint16_t> out);
 
   const Mt& mt_;
   std::array<float, 3> centre_{};
   float radius_ = 0.0f;
   const ViewRequest* request_ = nullptr;
+  ViewSession* session_ = nullptr;
+  bool incremental_ = false;
+  // The transforms and field in use: this extractor's buffers or the session's.
+  std::span<const std::uint16_t> silhouette_, neglect_;
+  std::span<float> allowed_;
   ViewMapping mapping_;
   const OccupancyLevels& levels_;
   std::span<const std::uint32_t> occupancy_triangles_;
@@ -90,6 +137,8 @@ class ViewExtractor {
   std::vector<std::uint32_t> euclidean_, cells_;
   std::vector<float> vertex_allowed_error_;
   std::vector<std::uint32_t> vertex_labels_;
+  std::vector<std::uint32_t> vertex_cells_;  // sort_vertices_by_cell scratch
+  std::vector<float> vertex_clip_w_;
 };
 
 }  // namespace mtlod::core

@@ -16,6 +16,7 @@ namespace mtlod::server {
 struct SessionCut::State {
   const Model* model = nullptr;
   std::unique_ptr<core::Refiner> refiner;
+  core::ViewSession view;  // lets a gaze (same view, new foci) reuse the view's stages
 };
 
 SessionCut::SessionCut() = default;
@@ -60,13 +61,14 @@ std::variant<ExtractOutcome, protocol::ProtocolError> Engine::extract(const prot
   if (state.model != model) {
     state.model = model;
     state.refiner = std::make_unique<core::Refiner>(model->mt);
+    state.view.reset();
   }
 
   const core::ViewRequest view = protocol::to_view_request(request, model->mt.has_normals());
   ExtractOutcome outcome;
   protocol::StageTimings& t = outcome.reply.timings;
   auto clock = Clock::now();
-  extractor->map(view);
+  extractor->map(view, &state.view);
   t.map_us = elapsed_us(clock);
   extractor->occupancy();
   t.occupancy_us = elapsed_us(clock);
@@ -99,7 +101,7 @@ std::variant<ExtractOutcome, protocol::ProtocolError> Engine::extract(const prot
   outcome.reply.vertices = encoded->vertices;
   outcome.reply.bytes = encoded->bytes;
   outcome.reply.max_error = worker.cut.max_error;
-  outcome.reply.session_bytes = state.refiner->memory_bytes();
+  outcome.reply.session_bytes = state.refiner->memory_bytes() + state.view.memory_bytes();
   outcome.reply.scratch_bytes = extractor->memory_bytes() + worker.cut.triangles.capacity() * sizeof(std::uint32_t);
   return outcome;
 }

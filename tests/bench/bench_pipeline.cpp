@@ -7,7 +7,9 @@
 #include <chrono>
 #include <cmath>
 #include <filesystem>
+#include <algorithm>
 #include <map>
+#include <random>
 #include <memory>
 
 #include "core/draco_encode.hpp"
@@ -191,5 +193,61 @@ void BM_RefineAfterSmallMove(benchmark::State& state) {
   state.SetItemsProcessed(state.iterations() * static_cast<std::int64_t>(cut.triangle_count()));
 }
 BENCHMARK(BM_RefineAfterSmallMove)->Arg(0)->Arg(1)->ArgName("dynamic")->Unit(benchmark::kMillisecond);
+
+// A gaze stream on the dragon (cut of about 50k triangles): fixations that drift by a fraction of a
+// percent of the screen, and a saccade to a random point one sample in ten. session:0 runs every
+// stage again per gaze (refining the kept cut dynamically); session:1 keeps a core::ViewSession, as
+// the server does per connection: the view's stages are reused and only the vertices whose focus
+// multiplier changed are recomputed and handed to the refinement. Gazes use Draco sequential.
+void BM_GazeStream(benchmark::State& state) {
+  const Model* m = model("dragon");
+  if (!m) return state.SkipWithError("mesh not found");
+  const bool with_session = state.range(0) == 1;
+  protocol::Extract e = request_for(*m, error_for_size(*m, 50'000));
+  core::ViewExtractor x(m->mt, *m->levels);
+  core::ViewSession session;
+  core::Refiner refiner(m->mt);
+  core::CutMesh cut;
+  core::DracoEncoder encoder;
+  core::DracoOptions draco;
+  draco.method = core::DracoMethod::kSequential;
+  std::vector<std::uint8_t> payload;
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> anywhere(0.2, 0.8), drift(-0.003, 0.003), chance(0, 1);
+  double labels_us = 0, refine_us = 0, before_us = 0, encode_us = 0, triangles = 0, changed = 0;
+  for (auto _ : state) {
+    auto& f = e.criteria.focus[0];
+    if (chance(rng) < 0.1) {
+      f.x = anywhere(rng), f.y = anywhere(rng);
+    } else {
+      f.x = std::clamp(f.x + drift(rng), 0.0, 1.0), f.y = std::clamp(f.y + drift(rng), 0.0, 1.0);
+    }
+    const core::ViewRequest v = protocol::to_view_request(e, false);
+    auto start = Clock::now();
+    x.map(v, with_session ? &session : nullptr);
+    x.occupancy(), x.distance_transforms();
+    auto t = Clock::now();
+    x.allowed_error();
+    labels_us += us_since(t);
+    t = Clock::now();
+    x.refine(refiner, cut);
+    refine_us += us_since(t);
+    before_us += us_since(start);
+    t = Clock::now();
+    auto encoded = encoder.encode({m->mt.positions, {}, {}, cut.triangles}, draco, payload);
+    encode_us += us_since(t);
+    if (!encoded) return state.SkipWithError(encoded.error().message.c_str());
+    triangles += static_cast<double>(cut.triangle_count());
+    changed += with_session && session.reused() ? static_cast<double>(session.changed_vertices()) : 0.0;
+  }
+  auto mean = [&](double sum) { return benchmark::Counter(sum, benchmark::Counter::kAvgIterations); };
+  state.counters["labels_us"] = mean(labels_us);
+  state.counters["refine_us"] = mean(refine_us);
+  state.counters["before_encode_us"] = mean(before_us);
+  state.counters["encode_us"] = mean(encode_us);
+  state.counters["triangles"] = mean(triangles);
+  state.counters["changed_vertices"] = mean(changed);
+}
+BENCHMARK(BM_GazeStream)->Arg(0)->Arg(1)->ArgName("session")->Unit(benchmark::kMillisecond)->Iterations(300);
 
 }  // namespace

@@ -8,6 +8,8 @@
 #include <algorithm>
 #include <cmath>
 #include <memory>
+#include <cstring>
+#include <random>
 #include <set>
 
 #include "core/distance_transform.hpp"
@@ -240,6 +242,78 @@ TEST(ViewExtract, OccupancyCutGrowsAsTheModelFillsMoreOfTheGrid) {
     previous = triangles;
   }
   EXPECT_GT(previous, b->levels->levels().front().triangles.size() / 3);
+}
+
+// Sorted triangles (each rotated to start at its smallest id) of a cut: its set, in any order.
+std::vector<std::array<std::uint32_t, 3>> triangle_set(const CutMesh& cut) {
+  std::vector<std::array<std::uint32_t, 3>> out;
+  for (std::size_t t = 0; t < cut.triangle_count(); ++t) {
+    std::array<std::uint32_t, 3> tri{cut.triangles[3 * t], cut.triangles[3 * t + 1], cut.triangles[3 * t + 2]};
+    std::rotate(tri.begin(), std::min_element(tri.begin(), tri.end()), tri.end());
+    out.push_back(tri);
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+// A session's gaze path (same view, foci moved: occupancy and silhouette transform reused, allowed
+// error recomputed only where the focus multiplier changed, the refinement told which vertices
+// changed) must give exactly what a fresh extraction from the root gives, request after request,
+// for every falloff law, in model units and in pixels, with the camera changing now and then.
+TEST(ViewExtract, SessionGazePathEqualsAFreshExtractionEveryTime) {
+  GenerateOptions o;
+  o.target_triangles = 30'000;
+  auto b = build(generate_mesh(o));
+  ASSERT_NE(b, nullptr);
+  const Camera camera = front_camera(b->input, 1.0f);
+  Camera other = camera;
+  other.view = glm::rotate(camera.view, 0.3f, glm::vec3(0, 1, 0));
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> unit(0.1f, 0.9f);
+  for (const FalloffLaw law : {FalloffLaw::kStep, FalloffLaw::kLinear, FalloffLaw::kSmoothstep, FalloffLaw::kFoveal}) {
+    for (const ErrorUnits units : {ErrorUnits::kModel, ErrorUnits::kScreenPixels}) {
+      ViewRequest r;
+      r.camera = camera;
+      r.grid = {128, 128};
+      r.allowed.units = units;
+      r.allowed.error = units == ErrorUnits::kModel ? 0.02f : 1.0f;
+      r.allowed.use_silhouette = true;
+      r.allowed.silhouette = RegionLaw{FalloffLaw::kStep, 2.0f, 0.25f};
+      r.allowed.use_focus = true;
+      r.allowed.focus = RegionLaw{law, 8.0f, 0.1f, 16.0f};
+      ViewExtractor session_extractor(b->mt, *b->levels), fresh_extractor(b->mt, *b->levels);
+      ViewSession session;
+      Refiner kept(b->mt);
+      CutMesh cut, expected;
+      std::size_t reused = 0, recomputed = 0;
+      for (int step = 0; step < 12; ++step) {
+        r.focus = {{unit(rng), unit(rng)}};
+        if (step == 5) r.camera = other;  // a new view: everything again, then gazes on it
+        session_extractor.map(r, &session);
+        session_extractor.occupancy();
+        session_extractor.distance_transforms();
+        session_extractor.allowed_error();
+        session_extractor.refine(kept, cut);
+        EXPECT_EQ(session.reused(), step != 0 && step != 5) << "step " << step;
+        if (session.reused()) ++reused, recomputed += session.changed_vertices();
+
+        Refiner fresh(b->mt);
+        ViewRequest static_request = r;
+        static_request.dynamic = false;
+        run(fresh_extractor, static_request, fresh, expected);
+        const auto a = session_extractor.vertex_allowed_error(), e = fresh_extractor.vertex_allowed_error();
+        ASSERT_EQ(a.size(), e.size());
+        ASSERT_EQ(std::memcmp(a.data(), e.data(), a.size() * sizeof(float)), 0)
+            << "allowed error differs at step " << step << ", law " << int(law);
+        ASSERT_EQ(triangle_set(cut), triangle_set(expected)) << "step " << step << ", law " << int(law);
+      }
+      EXPECT_EQ(reused, 10u);
+      // The step law changes only cells near the old and new foci: far fewer vertices than all.
+      if (law == FalloffLaw::kStep) {
+        EXPECT_LT(recomputed, reused * b->mt.vertex_count() / 4);
+      }
+    }
+  }
 }
 
 }  // namespace

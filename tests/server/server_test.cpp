@@ -128,18 +128,20 @@ TEST_F(ServerTest, ExtractDecodesToTheInProcessCut) {
   // The same request computed here, from the same MT file, with a fresh session cut.
   core::ViewExtractor extractor(g_fixture->mt, *g_fixture->levels);
   core::Refiner refiner(g_fixture->mt);
+  core::ViewSession session;
   core::CutMesh cut;
   const core::ViewRequest view = protocol::to_view_request(request, g_fixture->mt.has_normals());
-  extractor.map(view);
+  extractor.map(view, &session);
   extractor.occupancy();
   extractor.distance_transforms();
   extractor.allowed_error();
   extractor.refine(refiner, cut);
   EXPECT_EQ(mesh->triangles, cut.triangle_count());
   EXPECT_FLOAT_EQ(static_cast<float>(mesh->max_error), cut.max_error);
-  // The memory reported is what the same refinement holds here, and the worker's scratch at least
-  // holds a per-vertex allowed error.
-  EXPECT_EQ(mesh->session_bytes, refiner.memory_bytes());
+  // The memory reported is what the same refinement and view session hold here, and the worker's
+  // scratch at least holds a per-vertex allowed error.
+  EXPECT_EQ(mesh->session_bytes, refiner.memory_bytes() + session.memory_bytes());
+  EXPECT_GE(session.memory_bytes(), g_fixture->mt.vertex_count() * sizeof(float));
   EXPECT_GE(mesh->scratch_bytes, g_fixture->mt.vertex_count() * sizeof(float));
 
   auto decoded = core::decode_draco(reply->payload);
