@@ -160,54 +160,106 @@ class Rasterizer {
   const ViewMapping& mapping_;
 };
 
-}  // namespace
+inline ProjectedCorner project(const ViewMapping& mapping, const float* p, bool with_depth) {
+  ProjectedCorner c{};
+  mapping.clip_xyw(p[0], p[1], p[2], c.cx, c.cy, c.cw);
+  c.cz = with_depth ? mapping.clip_z(p[0], p[1], p[2]) : 0.0f;
+  if (c.cw >= kMinClipW) {
+    // Computed exactly as the vertex mapping does (float), so a vertex's own cell is always marked
+    // by its triangles.
+    const GridPoint g = mapping.to_grid(c.cx, c.cy, c.cw);
+    c.gx = g.x, c.gy = g.y, c.ndc_z = c.cz / c.cw;
+  }
+  return c;
+}
 
-std::size_t rasterize_occupancy(const ViewMapping& mapping, std::span<const float> positions,
-                                std::span<const std::uint32_t> triangles, std::span<std::uint8_t> occupancy,
-                                std::span<float> depth) {
+// The rasterisation loop over triangle_count triangles; corner(t, k) gives corner k of triangle t.
+template <class CornerOf>
+std::size_t rasterize(const ViewMapping& mapping, std::size_t triangle_count, CornerOf&& corner,
+                      std::span<std::uint8_t> occupancy, std::span<float> depth) {
   const GridSize grid = mapping.grid();
-  assert(triangles.size() % 3 == 0 && occupancy.size() == grid.cell_count());
+  assert(occupancy.size() == grid.cell_count());
   assert(depth.empty() || depth.size() == grid.cell_count());
   std::fill(occupancy.begin(), occupancy.end(), std::uint8_t{0});
   std::fill(depth.begin(), depth.end(), std::numeric_limits<float>::infinity());
   Rasterizer rasterizer(grid, occupancy, depth, mapping);
   const double width = grid.width, height = grid.height;
+  const float width_f = static_cast<float>(grid.width), height_f = static_cast<float>(grid.height);
   std::size_t marking = 0;
   const bool with_depth = !depth.empty();
-  for (std::size_t t = 0; t < triangles.size(); t += 3) {
-    std::array<ClipCorner, 3> clip;
-    Corner corners[4];
-    bool all_front = true;
-    for (int k = 0; k < 3; ++k) {
-      const std::uint32_t v = triangles[t + k];
-      assert(3 * std::size_t{v} + 2 < positions.size());
-      const float* p = positions.data() + 3 * std::size_t{v};
-      float cx, cy, cw;
-      mapping.clip_xyw(p[0], p[1], p[2], cx, cy, cw);
-      const float cz = with_depth ? mapping.clip_z(p[0], p[1], p[2]) : 0.0f;
-      clip[k] = {cx, cy, cz, cw};
-      all_front &= cw >= kMinClipW;
-      // In front, the corner's grid point is computed exactly as the vertex mapping does (float), so
-      // a vertex's own cell is always marked by its triangles.
-      if (all_front) {
-        const GridPoint g = mapping.to_grid(cx, cy, cw);
-        corners[k] = {g.x, g.y, cz / cw};
+  for (std::size_t t = 0; t < triangle_count; ++t) {
+    const ProjectedCorner& a = corner(t, 0);
+    const ProjectedCorner& b = corner(t, 1);
+    const ProjectedCorner& c = corner(t, 2);
+    const bool all_front = a.cw >= kMinClipW && b.cw >= kMinClipW && c.cw >= kMinClipW;
+    if (all_front && !with_depth) {
+      // Most triangles of an occupancy cut are about a cell in size: one inside a single cell of
+      // the grid marks just that cell.
+      const float x0 = std::min({a.gx, b.gx, c.gx}), x1 = std::max({a.gx, b.gx, c.gx});
+      const float y0 = std::min({a.gy, b.gy, c.gy}), y1 = std::max({a.gy, b.gy, c.gy});
+      if (x0 >= 0.0f && y0 >= 0.0f && x1 < width_f && y1 < height_f) {
+        const auto i = static_cast<std::uint32_t>(x0), j = static_cast<std::uint32_t>(y0);
+        if (i == static_cast<std::uint32_t>(x1) && j == static_cast<std::uint32_t>(y1)) {
+          occupancy[grid.cell(i, j)] = 1;
+          ++marking;
+          continue;
+        }
       }
     }
+    Corner corners[4];
     int count = 3;
-    if (!all_front) {
+    if (all_front) {
+      corners[0] = {a.gx, a.gy, a.ndc_z};
+      corners[1] = {b.gx, b.gy, b.ndc_z};
+      corners[2] = {c.gx, c.gy, c.ndc_z};
+    } else {
+      const std::array<ClipCorner, 3> clip = {ClipCorner{a.cx, a.cy, a.cz, a.cw}, ClipCorner{b.cx, b.cy, b.cz, b.cw},
+                                              ClipCorner{c.cx, c.cy, c.cz, c.cw}};
       std::array<ClipCorner, 4> front;
       count = clip_to_front(clip, front);
       if (count < 3) continue;  // entirely behind the camera
       // Clipped corners can be far off the grid: double precision.
       for (int k = 0; k < count; ++k) {
-        const ClipCorner& c = front[k];
-        corners[k] = {(c.x / c.w + 1.0) * 0.5 * width, (1.0 - c.y / c.w) * 0.5 * height, c.z / c.w};
+        const ClipCorner& f = front[k];
+        corners[k] = {(f.x / f.w + 1.0) * 0.5 * width, (1.0 - f.y / f.w) * 0.5 * height, f.z / f.w};
       }
     }
     marking += rasterizer.fill(corners, count) ? 1 : 0;
   }
   return marking;
+}
+
+}  // namespace
+
+std::size_t rasterize_occupancy(const ViewMapping& mapping, std::span<const float> positions,
+                                std::span<const std::uint32_t> triangles, std::span<std::uint8_t> occupancy,
+                                std::span<float> depth) {
+  assert(triangles.size() % 3 == 0);
+  const bool with_depth = !depth.empty();
+  ProjectedCorner scratch[3];
+  auto corner = [&](std::size_t t, int k) -> const ProjectedCorner& {
+    const std::uint32_t v = triangles[3 * t + k];
+    assert(3 * std::size_t{v} + 2 < positions.size());
+    scratch[k] = project(mapping, positions.data() + 3 * std::size_t{v}, with_depth);
+    return scratch[k];
+  };
+  return rasterize(mapping, triangles.size() / 3, corner, occupancy, depth);
+}
+
+std::size_t rasterize_occupancy_compact(const ViewMapping& mapping, std::span<const float> positions,
+                                        std::span<const std::uint32_t> triangles, std::span<std::uint8_t> occupancy,
+                                        std::span<float> depth, std::vector<ProjectedCorner>& scratch) {
+  assert(triangles.size() % 3 == 0 && positions.size() % 3 == 0);
+  const bool with_depth = !depth.empty();
+  const std::size_t n = positions.size() / 3;
+  scratch.resize(n);
+  ProjectedCorner* projected = scratch.data();
+  for (std::size_t i = 0; i < n; ++i) projected[i] = project(mapping, positions.data() + 3 * i, with_depth);
+  auto corner = [&](std::size_t t, int k) -> const ProjectedCorner& {
+    assert(triangles[3 * t + k] < n);
+    return projected[triangles[3 * t + k]];
+  };
+  return rasterize(mapping, triangles.size() / 3, corner, occupancy, depth);
 }
 
 std::size_t mark_depth_discontinuities(std::span<const float> depth, GridSize grid, float relative_jump,

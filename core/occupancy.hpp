@@ -7,6 +7,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <span>
+#include <vector>
 
 #include "core/grid.hpp"
 #include "core/view_grid.hpp"
@@ -27,6 +28,21 @@ inline constexpr float kMinClipW = 1e-5f;
 std::size_t rasterize_occupancy(const ViewMapping& mapping, std::span<const float> positions,
                                 std::span<const std::uint32_t> triangles, std::span<std::uint8_t> occupancy,
                                 std::span<float> depth = {});
+
+// A vertex as the rasteriser sees it: clip coordinates (float, as the vertex mapping computes them)
+// and, in front of the camera, its grid point and ndc depth.
+struct ProjectedCorner {
+  float cx, cy, cz, cw;
+  float gx, gy, ndc_z;
+};
+
+// The same result as rasterize_occupancy, but every vertex of `positions` is projected once, into
+// `scratch`, instead of once per triangle using it: for a compact mesh whose vertices are all used
+// (OccupancyLevel stores its cut this way, its positions copied out of the model so that they are
+// read in order rather than gathered from all over it).
+std::size_t rasterize_occupancy_compact(const ViewMapping& mapping, std::span<const float> positions,
+                                        std::span<const std::uint32_t> triangles, std::span<std::uint8_t> occupancy,
+                                        std::span<float> depth, std::vector<ProjectedCorner>& scratch);
 
 // Internal silhouettes (DESIGN.md §3): for every pair of 4-neighbour object cells whose depths differ
 // by more than relative_jump times the nearer one, sets the farther cell of image to 0, so that a

@@ -1,6 +1,8 @@
 // Precomputed coarse cuts for the occupancy stage (see occupancy_levels.hpp).
 #include "core/occupancy_levels.hpp"
 
+#include <unordered_map>
+
 #include "core/refine.hpp"
 
 namespace mtlod::core {
@@ -14,7 +16,15 @@ OccupancyLevels::OccupancyLevels(const Mt& mt) {
   for (std::size_t budget = 2048; budget <= (std::size_t{1} << 18); budget *= 2) {
     refiner.refine_budget(everywhere_exact, budget, cut);
     if (!levels_.empty() && cut.triangle_count() == levels_.back().triangles.size() / 3) break;  // nothing finer
-    levels_.push_back({cut.triangles});
+    OccupancyLevel level{cut.triangles, {}, {}};
+    std::unordered_map<std::uint32_t, std::uint32_t> local;
+    level.local_triangles.reserve(cut.triangles.size());
+    for (const std::uint32_t v : cut.triangles) {
+      const auto [it, added] = local.try_emplace(v, static_cast<std::uint32_t>(level.positions.size() / 3));
+      if (added) level.positions.insert(level.positions.end(), &mt.positions[3 * std::size_t{v}], &mt.positions[3 * std::size_t{v} + 3]);
+      level.local_triangles.push_back(it->second);
+    }
+    levels_.push_back(std::move(level));
   }
 }
 
@@ -27,7 +37,10 @@ const OccupancyLevel& OccupancyLevels::for_covered_cells(double covered_cells) c
 
 std::size_t OccupancyLevels::memory_bytes() const {
   std::size_t bytes = 0;
-  for (const OccupancyLevel& level : levels_) bytes += level.triangles.size() * sizeof(std::uint32_t);
+  for (const OccupancyLevel& level : levels_) {
+    bytes += (level.triangles.size() + level.local_triangles.size()) * sizeof(std::uint32_t) +
+             level.positions.size() * sizeof(float);
+  }
   return bytes;
 }
 

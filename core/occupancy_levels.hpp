@@ -18,6 +18,10 @@ namespace mtlod::core {
 
 struct OccupancyLevel {
   std::vector<std::uint32_t> triangles;  // 3 vertex ids per triangle
+  // The same cut as a compact mesh for rasterize_occupancy_compact: the positions of its vertices
+  // (copied from the model, in first-use order) and its triangles as indices into them.
+  std::vector<float> positions;
+  std::vector<std::uint32_t> local_triangles;
 };
 
 class OccupancyLevels {

@@ -81,12 +81,14 @@ std::size_t ViewExtractor::occupancy() {
     occupancy_triangles_ = {};  // the silhouette transform is the session's
     return 0;
   }
-  occupancy_triangles_ = levels_.for_covered_cells(covered_cells()).triangles;
+  const OccupancyLevel& level = levels_.for_covered_cells(covered_cells());
+  occupancy_triangles_ = level.triangles;
   const std::size_t cells = request_->grid.cell_count();
   occupancy_.resize(cells);
   if (request_->internal_silhouettes) depth_.resize(cells);
-  rasterize_occupancy(mapping_, mt_.positions, occupancy_triangles_, occupancy_,
-                      request_->internal_silhouettes ? std::span<float>(depth_) : std::span<float>());
+  rasterize_occupancy_compact(mapping_, level.positions, level.local_triangles, occupancy_,
+                              request_->internal_silhouettes ? std::span<float>(depth_) : std::span<float>(),
+                              projected_);
   return occupancy_triangles_.size() / 3;
 }
 
@@ -235,7 +237,7 @@ std::size_t ViewExtractor::memory_bytes() const {
   auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
   return transformer_.memory_bytes() + bytes(occupancy_) + bytes(seeds_image_) + bytes(depth_) + bytes(silhouette_dt_) +
          bytes(focus_dt_) + bytes(neglect_dt_) + bytes(euclidean_) + bytes(cells_) + bytes(vertex_allowed_error_) +
-         bytes(vertex_labels_) + bytes(vertex_cells_) + bytes(vertex_clip_w_) + field_.memory_bytes();
+         bytes(vertex_labels_) + bytes(projected_) + bytes(vertex_cells_) + bytes(vertex_clip_w_) + field_.memory_bytes();
 }
 
 }  // namespace mtlod::core

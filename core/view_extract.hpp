@@ -14,6 +14,7 @@
 #include "core/allowed_error.hpp"
 #include "core/distance_transform.hpp"
 #include "core/mt.hpp"
+#include "core/occupancy.hpp"
 #include "core/occupancy_levels.hpp"
 #include "core/refine.hpp"
 #include "core/view_grid.hpp"
@@ -137,6 +138,7 @@ class ViewExtractor {
   std::vector<std::uint32_t> euclidean_, cells_;
   std::vector<float> vertex_allowed_error_;
   std::vector<std::uint32_t> vertex_labels_;
+  std::vector<ProjectedCorner> projected_;    // occupancy scratch
   std::vector<std::uint32_t> vertex_cells_;  // sort_vertices_by_cell scratch
   std::vector<float> vertex_clip_w_;
 };

@@ -4,7 +4,9 @@
 
 #include <gtest/gtest.h>
 
+#include <cstring>
 #include <random>
+#include <unordered_map>
 #include <vector>
 
 #include "core/distance_transform.hpp"
@@ -130,6 +132,55 @@ TEST(Occupancy, TrianglesBehindTheCameraAreClippedAway) {
   EXPECT_NE(occupancy[mapping.grid().cell(0, 15)], 0);
   EXPECT_EQ(occupancy[mapping.grid().cell(8, 11)], 0);
   EXPECT_EQ(occupancy[mapping.grid().cell(8, 0)], 0);
+}
+
+TEST(Occupancy, CompactRasterisationEqualsThePlainOne) {
+  // A perspective camera inside a cloud of triangles of every size, some straddling the eye plane,
+  // with vertices shared between triangles: the compact variant projects each vertex once and must
+  // mark the same cells, count the same triangles and write the same depths, bit for bit.
+  Camera camera;
+  camera.view = glm::lookAt(glm::vec3(0, 0, 0), glm::vec3(0, 0, -1), glm::vec3(0, 1, 0));
+  camera.projection = glm::perspective(glm::radians(70.0f), 1.3f, 0.1f, 100.0f);
+  const ViewMapping mapping(camera, GridSize{97, 64});
+  std::mt19937 rng(8);
+  std::uniform_real_distribution<float> coordinate(-6.0f, 6.0f), depth(-12.0f, 1.0f), nudge(-0.3f, 0.3f);
+  std::vector<float> positions;
+  for (int v = 0; v < 3000; ++v) positions.insert(positions.end(), {coordinate(rng), coordinate(rng), depth(rng)});
+  // Small triangles around random vertices, plus large ones between random vertices.
+  std::vector<std::uint32_t> local, triangles;
+  std::uniform_int_distribution<std::uint32_t> pick(0, 2999);
+  for (int t = 0; t < 4000; ++t) {
+    for (int k = 0; k < 3; ++k) triangles.push_back(pick(rng));
+  }
+  for (int t = 0; t < 2000; ++t) {
+    const std::uint32_t base = pick(rng);
+    const std::uint32_t added = static_cast<std::uint32_t>(positions.size() / 3);
+    for (int k = 0; k < 2; ++k) {
+      positions.insert(positions.end(), {positions[3 * base] + nudge(rng), positions[3 * base + 1] + nudge(rng),
+                                         positions[3 * base + 2] + nudge(rng)});
+    }
+    triangles.insert(triangles.end(), {base, added, added + 1});
+  }
+  // The compact copy: used vertices only, in first-use order, triangles renumbered.
+  std::vector<float> compact;
+  std::unordered_map<std::uint32_t, std::uint32_t> index;
+  for (const std::uint32_t v : triangles) {
+    const auto [it, added] = index.try_emplace(v, static_cast<std::uint32_t>(compact.size() / 3));
+    if (added) compact.insert(compact.end(), &positions[3 * std::size_t{v}], &positions[3 * std::size_t{v} + 3]);
+    local.push_back(it->second);
+  }
+  std::vector<ProjectedCorner> scratch;
+  for (const bool with_depth : {false, true}) {
+    std::vector<std::uint8_t> plain(mapping.grid().cell_count()), indexed(mapping.grid().cell_count(), 9);
+    std::vector<float> plain_depth(with_depth ? plain.size() : 0), indexed_depth(plain_depth.size());
+    const std::size_t a = rasterize_occupancy(mapping, positions, triangles, plain, plain_depth);
+    const std::size_t b = rasterize_occupancy_compact(mapping, compact, local, indexed, indexed_depth, scratch);
+    EXPECT_EQ(a, b);
+    EXPECT_GT(a, 1000u);
+    EXPECT_EQ(plain, indexed);
+    ASSERT_EQ(plain_depth.size(), indexed_depth.size());
+    if (with_depth) EXPECT_EQ(std::memcmp(plain_depth.data(), indexed_depth.data(), plain_depth.size() * sizeof(float)), 0);
+  }
 }
 
 TEST(Occupancy, DepthJumpSeedsTheFartherSide) {
