@@ -216,9 +216,15 @@ class Builder {
   std::vector<Candidate> candidates_;
   std::vector<Candidate> candidate_scratch_;
   // Jade-style assignment of removed original vertices to working faces: a list per face slot.
+  // Each link holds its vertex's position, so walking a list touches one cache line per vertex.
+  struct AssignedVertex {
+    float position[3];
+    std::uint32_t next;
+  };
   std::vector<std::uint32_t> face_head_;
-  std::vector<std::uint32_t> vertex_next_;
+  std::vector<AssignedVertex> assigned_;
   struct Moving {
+    float position[3];
     std::uint32_t vertex;
     std::uint32_t old_face;
   };
@@ -416,12 +422,16 @@ void Builder::collapse(std::uint32_t u, std::uint32_t v) {
 
   // Original vertices that leave with the fan: u itself and those assigned to u's faces.
   moving_.clear();
-  moving_.push_back({u, kNoNode});
+  moving_.push_back({{assigned_[u].position[0], assigned_[u].position[1], assigned_[u].position[2]}, u, kNoNode});
   touched_[u] = touched_[v] = pass_;
   new_faces_.clear();
   for (std::uint32_t i = adjacency_begin_[u]; i < adjacency_end_[u]; ++i) {
     const std::uint32_t f = adjacency_[i];
-    for (std::uint32_t w = face_head_[f]; w != kNoNode; w = vertex_next_[w]) moving_.push_back({w, f});
+    for (std::uint32_t w = face_head_[f]; w != kNoNode;) {
+      const AssignedVertex& link = assigned_[w];
+      moving_.push_back({{link.position[0], link.position[1], link.position[2]}, w, f});
+      w = link.next;
+    }
     face_head_[f] = kNoNode;
     std::uint32_t* t = &working_[3 * std::size_t{f}];
     mt_killed_by_[face_mt_[f]] = tag;
@@ -444,8 +454,9 @@ void Builder::collapse(std::uint32_t u, std::uint32_t v) {
   // exact distance. A vertex stays on its own face (or takes the first face found) when that is
   // already within the running maximum, since a nearer face could not lower the maximum.
   double measured = fan_error;
-  for (const auto& [w, old_face] : moving_) {
-    const float* p = position(w);
+  for (const Moving& m : moving_) {
+    const std::uint32_t w = m.vertex, old_face = m.old_face;
+    const float* p = m.position;
     std::uint32_t best_face = kNoNode;
     double best = std::numeric_limits<double>::infinity();
     auto try_face = [&](std::uint32_t f) {
@@ -458,7 +469,7 @@ void Builder::collapse(std::uint32_t u, std::uint32_t v) {
     for (std::size_t i = 0; i < new_faces_.size() && !(best <= floor2); ++i)
       if (new_faces_[i] != old_face) try_face(new_faces_[i]);
     measured = std::max(measured, std::sqrt(best));
-    vertex_next_[w] = face_head_[best_face];
+    assigned_[w].next = face_head_[best_face];
     face_head_[best_face] = w;
   }
   // Round up so the float bound is never below the computed distance.
@@ -590,7 +601,9 @@ Result<Mt> Builder::run(BuildStats* stats) {
   collapse_error_.reserve(vertex_count_);
   kind_.assign(vertex_count_, kUnused);
   face_head_.assign(face_count_, kNoNode);
-  vertex_next_.assign(vertex_count_, kNoNode);
+  assigned_.resize(vertex_count_);
+  for (std::size_t v = 0; v < vertex_count_; ++v)
+    assigned_[v] = {{mesh_.positions[3 * v], mesh_.positions[3 * v + 1], mesh_.positions[3 * v + 2]}, kNoNode};
   adjacency_begin_.assign(vertex_count_, 0);
   adjacency_end_.assign(vertex_count_, 0);
   vertex_dead_.assign(vertex_count_, 0);
