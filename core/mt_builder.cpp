@@ -32,6 +32,10 @@ enum VertexKind : std::uint8_t { kUnused = 0, kInterior = 1, kBoundary = 2, kCom
 // Fans larger than this are treated as complex: they never occur on scans except at defects.
 constexpr std::uint32_t kMaxFan = 64;
 
+// Concurrent phases split their range into at most kChunks chunks of at least kMinChunk items.
+constexpr std::size_t kChunks = 16;
+constexpr std::size_t kMinChunk = 2048;
+
 struct Quadric {
   float a00 = 0, a01 = 0, a02 = 0, a11 = 0, a12 = 0, a22 = 0;
   float b0 = 0, b1 = 0, b2 = 0, c = 0;
@@ -173,9 +177,30 @@ class Builder {
 
   void init_quadrics();
   void build_adjacency();
-  VertexKind classify(std::uint32_t u, std::uint32_t& boundary_next, std::uint32_t& boundary_prev);
+  // Per-chunk scratch of the concurrent phases.
+  struct Moving {
+    float position[3];
+    std::uint32_t vertex;
+    std::uint32_t old_face;
+  };
+  struct Scratch {
+    std::vector<Moving> moving;
+    std::vector<std::uint32_t> new_faces;
+  };
+  // A collapse chosen for the current pass: its tag (index + 1) and first MT triangle are fixed
+  // before the collapses run, so the result does not depend on which chunk runs when.
+  struct Chosen {
+    std::uint32_t u, v, tag, first_triangle;
+  };
+
+  // Calls body(chunk, begin, end) over [0, count) split into at most kChunks ranges, concurrently
+  // when options_.parallel_for is set.
+  template <class Body>
+  void for_chunks(std::size_t count, const Body& body);
+  VertexKind classify(std::uint32_t u, std::uint32_t& boundary_next, std::uint32_t& boundary_prev) const;
+  void find_partner(std::uint32_t u, const std::uint32_t* boundary_ends);
   bool can_collapse(std::uint32_t u, std::uint32_t v);
-  void collapse(std::uint32_t u, std::uint32_t v);
+  void collapse(const Chosen& chosen, Scratch& scratch);
   Mt assemble() const;
 
   const Mesh& mesh_;
@@ -210,7 +235,6 @@ class Builder {
   std::uint32_t pass_ = 0;
   std::vector<std::uint32_t> link_stamp_;
   std::vector<std::uint32_t> seen_stamp_;
-  std::vector<std::uint32_t> fan_slot_;
   std::vector<Candidate> best_;  // per vertex: cheapest partner found when it was last evaluated
   std::uint32_t stamp_ = 0;
   std::vector<Candidate> candidates_;
@@ -223,13 +247,8 @@ class Builder {
   };
   std::vector<std::uint32_t> face_head_;
   std::vector<AssignedVertex> assigned_;
-  struct Moving {
-    float position[3];
-    std::uint32_t vertex;
-    std::uint32_t old_face;
-  };
-  std::vector<Moving> moving_;
-  std::vector<std::uint32_t> new_faces_;
+  std::vector<Scratch> scratch_;
+  std::vector<Chosen> chosen_;
   std::size_t complex_vertices_ = 0;
 };
 
@@ -318,36 +337,37 @@ void Builder::build_adjacency() {
     for (int k = 0; k < 3; ++k) adjacency_[adjacency_end_[working_[3 * std::size_t{f} + k]]++] = f;
 }
 
-VertexKind Builder::classify(std::uint32_t u, std::uint32_t& boundary_next, std::uint32_t& boundary_prev) {
+VertexKind Builder::classify(std::uint32_t u, std::uint32_t& boundary_next, std::uint32_t& boundary_prev) const {
   const std::uint32_t begin = adjacency_begin_[u], end = adjacency_end_[u];
   const std::uint32_t degree = end - begin;
   if (degree == 0) return kUnused;
   if (degree > kMaxFan) return kComplex;
-  // Stamps replace sets: link_stamp_ marks the a corners (with their face in fan_slot_), seen_stamp_
-  // the b corners, so every test below is O(1) and the whole check O(degree).
-  const std::uint32_t s = ++stamp_;
+  // Corners a (after u) and b (before u) of each face. Fans hold about 6 faces, so scanning these
+  // small arrays beats marking shared per-vertex stamps, and leaves no state shared between chunks.
   std::array<std::uint32_t, kMaxFan> a, b;
+  auto find = [degree](const std::array<std::uint32_t, kMaxFan>& list, std::uint32_t w) {
+    for (std::uint32_t j = 0; j < degree; ++j)
+      if (list[j] == w) return j;
+    return kMaxFan;
+  };
   for (std::uint32_t i = 0; i < degree; ++i) {
     if (!fan_corners(adjacency_[begin + i], u, a[i], b[i]) || a[i] == b[i]) return kComplex;
     // Manifold fan: each edge (u, w) is walked at most once in each direction.
-    if (link_stamp_[a[i]] == s || seen_stamp_[b[i]] == s) return kComplex;
-    link_stamp_[a[i]] = s;
-    fan_slot_[a[i]] = i;
-    seen_stamp_[b[i]] = s;
+    for (std::uint32_t j = 0; j < i; ++j)
+      if (a[j] == a[i] || b[j] == b[i]) return kComplex;
   }
   int starts = 0, ends = 0;
   std::uint32_t start = 0;
   for (std::uint32_t i = 0; i < degree; ++i) {
-    if (seen_stamp_[a[i]] != s) ++starts, start = i;  // edge u→a has no face on its other side
-    if (link_stamp_[b[i]] != s) ++ends;
+    if (find(b, a[i]) == kMaxFan) ++starts, start = i;  // edge u→a has no face on its other side
+    if (find(a, b[i]) == kMaxFan) ++ends;
   }
   if (!((starts == 0 && ends == 0) || (starts == 1 && ends == 1))) return kComplex;
   // One fan, not several glued at u: walking across edges visits every face.
   std::uint32_t current = start, visited = 1;
   for (; visited < degree; ++visited) {
-    if (link_stamp_[b[current]] != s) break;
-    const std::uint32_t next = fan_slot_[b[current]];
-    if (next == start) break;
+    const std::uint32_t next = find(a, b[current]);
+    if (next == kMaxFan || next == start) break;
     current = next;
   }
   if (visited != degree) return kComplex;
@@ -355,6 +375,50 @@ VertexKind Builder::classify(std::uint32_t u, std::uint32_t& boundary_next, std:
   boundary_next = a[start];
   boundary_prev = b[current];  // edge b[last]→u has no face on its other side either
   return kBoundary;
+}
+
+template <class Body>
+void Builder::for_chunks(std::size_t count, const Body& body) {
+  // Small ranges are not worth a hand-off; the chunk count does not depend on the runner.
+  const std::size_t chunks = count < kMinChunk ? 1 : std::min(kChunks, count / kMinChunk);
+  struct Context {
+    const Body* body;
+    std::size_t count, chunks;
+  } context{&body, count, chunks};
+  auto task = [](void* opaque, std::size_t chunk) {
+    const Context& c = *static_cast<const Context*>(opaque);
+    (*c.body)(chunk, c.count * chunk / c.chunks, c.count * (chunk + 1) / c.chunks);
+  };
+  if (chunks == 1 || options_.parallel_for == nullptr) {
+    for (std::size_t chunk = 0; chunk < chunks; ++chunk) task(&context, chunk);
+  } else {
+    options_.parallel_for(options_.parallel_user, chunks, task, &context);
+  }
+}
+
+void Builder::find_partner(std::uint32_t u, const std::uint32_t* boundary_ends) {
+  Candidate& best = best_[u];
+  // The partner's cost Q_u(v) only changes when u's quadric or fan does, i.e. when u was touched;
+  // a cached partner that stopped being collapsible forces a new search too.
+  const bool stale = pass_ == 1 || touched_[u] == pass_ - 1 ||
+                     (best.v != u && kind_[best.v] != kInterior && kind_[best.v] != kBoundary);
+  if (!stale) return;
+  best = Candidate{std::numeric_limits<float>::infinity(), u, u};
+  auto consider = [&](std::uint32_t v) {
+    const float cost = evaluate(quadrics_[u], &unit_positions_[3 * std::size_t{v}]);
+    if (cost < best.cost) best.cost = cost, best.v = v;
+  };
+  if (kind_[u] == kInterior) {
+    for (std::uint32_t i = adjacency_begin_[u]; i < adjacency_end_[u]; ++i) {
+      std::uint32_t a = 0, b = 0;
+      fan_corners(adjacency_[i], u, a, b);
+      if (kind_[a] == kInterior || kind_[a] == kBoundary) consider(a);
+    }
+  } else if (kind_[u] == kBoundary) {
+    // A boundary vertex only slides along its boundary, onto another boundary vertex.
+    for (int e = 0; e < 2; ++e)
+      if (kind_[boundary_ends[2 * u + e]] == kBoundary) consider(boundary_ends[2 * u + e]);
+  }
 }
 
 bool Builder::can_collapse(std::uint32_t u, std::uint32_t v) {
@@ -413,8 +477,12 @@ bool Builder::can_collapse(std::uint32_t u, std::uint32_t v) {
   return survivors > 0;
 }
 
-void Builder::collapse(std::uint32_t u, std::uint32_t v) {
-  const std::uint32_t tag = std::uint32_t(collapse_u_.size()) + 1;
+void Builder::collapse(const Chosen& chosen, Scratch& scratch) {
+  // Only faces of u's fan and vertices assigned to them are written, and the pass's choice keeps
+  // the fans of its collapses disjoint, so collapses of one pass may run concurrently.
+  const std::uint32_t u = chosen.u, v = chosen.v, tag = chosen.tag;
+  std::vector<Moving>& moving_ = scratch.moving;
+  std::vector<std::uint32_t>& new_faces_ = scratch.new_faces;
   // Errors never drop from a node to its children, so the fan's largest error is a floor.
   float fan_error = 0;
   for (std::uint32_t i = adjacency_begin_[u]; i < adjacency_end_[u]; ++i)
@@ -423,8 +491,8 @@ void Builder::collapse(std::uint32_t u, std::uint32_t v) {
   // Original vertices that leave with the fan: u itself and those assigned to u's faces.
   moving_.clear();
   moving_.push_back({{assigned_[u].position[0], assigned_[u].position[1], assigned_[u].position[2]}, u, kNoNode});
-  touched_[u] = touched_[v] = pass_;
   new_faces_.clear();
+  std::uint32_t triangle = chosen.first_triangle;
   for (std::uint32_t i = adjacency_begin_[u]; i < adjacency_end_[u]; ++i) {
     const std::uint32_t f = adjacency_[i];
     for (std::uint32_t w = face_head_[f]; w != kNoNode;) {
@@ -435,19 +503,18 @@ void Builder::collapse(std::uint32_t u, std::uint32_t v) {
     face_head_[f] = kNoNode;
     std::uint32_t* t = &working_[3 * std::size_t{f}];
     mt_killed_by_[face_mt_[f]] = tag;
-    for (int k = 0; k < 3; ++k) touched_[t[k]] = pass_;
     if (t[0] == v || t[1] == v || t[2] == v) {
       face_alive_[f] = 0;
-      --alive_faces_;
       continue;
     }
     for (int k = 0; k < 3; ++k)
       if (t[k] == u) t[k] = v;
     new_faces_.push_back(f);
-    face_mt_[f] = std::uint32_t(mt_made_by_.size());
-    mt_vertices_.insert(mt_vertices_.end(), t, t + 3);
-    mt_made_by_.push_back(tag);
-    mt_killed_by_.push_back(0);
+    face_mt_[f] = triangle;
+    std::copy(t, t + 3, &mt_vertices_[3 * std::size_t{triangle}]);
+    mt_made_by_[triangle] = tag;
+    mt_killed_by_[triangle] = 0;
+    ++triangle;
   }
 
   // Jade-style global error: each moving vertex goes to a new face and the error is the largest
@@ -477,8 +544,8 @@ void Builder::collapse(std::uint32_t u, std::uint32_t v) {
 
   add_quadric(quadrics_[v], quadrics_[u]);
   vertex_dead_[u] = 1;
-  collapse_u_.push_back(u);
-  collapse_error_.push_back(error);
+  collapse_u_[tag - 1] = u;
+  collapse_error_[tag - 1] = error;
 }
 
 Mt Builder::assemble() const {
@@ -619,8 +686,8 @@ Result<Mt> Builder::run(BuildStats* stats) {
   touched_.assign(vertex_count_, 0);
   link_stamp_.assign(vertex_count_, 0);
   seen_stamp_.assign(vertex_count_, 0);
-  fan_slot_.assign(vertex_count_, 0);
   best_.assign(vertex_count_, Candidate{0, 0, 0});
+  scratch_.resize(kChunks);
 
   build_adjacency();
   init_quadrics();
@@ -631,47 +698,35 @@ Result<Mt> Builder::run(BuildStats* stats) {
     ++pass_;
     if (pass_ > 1) build_adjacency();
     // A vertex's kind only changes when its fan does, i.e. when the last pass touched it.
+    for_chunks(alive_vertex_list_.size(), [&](std::size_t, std::size_t begin, std::size_t end) {
+      for (std::size_t i = begin; i < end; ++i) {
+        const std::uint32_t u = alive_vertex_list_[i];
+        if (pass_ == 1 || touched_[u] == pass_ - 1)
+          kind_[u] = classify(u, boundary_ends[2 * u], boundary_ends[2 * u + 1]);
+      }
+    });
+    for_chunks(alive_vertex_list_.size(), [&](std::size_t, std::size_t begin, std::size_t end) {
+      for (std::size_t i = begin; i < end; ++i) find_partner(alive_vertex_list_[i], boundary_ends.data());
+    });
     complex_vertices_ = 0;
-    for (const std::uint32_t u : alive_vertex_list_) {
-      if (pass_ == 1 || touched_[u] == pass_ - 1)
-        kind_[u] = classify(u, boundary_ends[2 * u], boundary_ends[2 * u + 1]);
-      complex_vertices_ += kind_[u] == kComplex;
-    }
     candidates_.clear();
     for (const std::uint32_t u : alive_vertex_list_) {
-      Candidate& best = best_[u];
-      // The partner's cost Q_u(v) only changes when u's quadric or fan does, i.e. when u was
-      // touched; a cached partner that stopped being collapsible forces a new search too.
-      const bool stale = pass_ == 1 || touched_[u] == pass_ - 1 ||
-                         (best.v != u && kind_[best.v] != kInterior && kind_[best.v] != kBoundary);
-      if (stale) {
-        best = Candidate{std::numeric_limits<float>::infinity(), u, u};
-        auto consider = [&](std::uint32_t v) {
-          const float cost = evaluate(quadrics_[u], &unit_positions_[3 * std::size_t{v}]);
-          if (cost < best.cost) best.cost = cost, best.v = v;
-        };
-        if (kind_[u] == kInterior) {
-          for (std::uint32_t i = adjacency_begin_[u]; i < adjacency_end_[u]; ++i) {
-            std::uint32_t a = 0, b = 0;
-            fan_corners(adjacency_[i], u, a, b);
-            if (kind_[a] == kInterior || kind_[a] == kBoundary) consider(a);
-          }
-        } else if (kind_[u] == kBoundary) {
-          // A boundary vertex only slides along its boundary, onto another boundary vertex.
-          for (int e = 0; e < 2; ++e)
-            if (kind_[boundary_ends[2 * u + e]] == kBoundary) consider(boundary_ends[2 * u + e]);
-        }
-      }
-      if (best.v != u) candidates_.push_back(best);
+      complex_vertices_ += kind_[u] == kComplex;
+      if (best_[u].v != u) candidates_.push_back(best_[u]);
     }
     if (candidates_.empty()) break;
     sort_by_cost(candidates_, candidate_scratch_);
 
-    // The quota counts candidates that took part in the order (collapsed, or blocked by an earlier
-    // collapse of this pass); invalid ones are skipped without using it up.
+    // Choose in cost order; the quota counts candidates that took part in the order (chosen, or
+    // blocked by an earlier choice of this pass); invalid ones are skipped without using it up.
+    // A chosen collapse changes u's fan, so its corners are marked touched and no later choice of
+    // the pass reads a face it writes: can_collapse sees the adjacency of the pass's start.
     const std::size_t quota =
         std::max<std::size_t>(1, std::size_t(double(candidates_.size()) * options_.pass_fraction));
-    std::size_t collapses = 0, ordered = 0;
+    std::size_t ordered = 0;
+    std::uint32_t tag = std::uint32_t(collapse_u_.size()) + 1;
+    std::uint32_t triangle = std::uint32_t(mt_made_by_.size());
+    chosen_.clear();
     for (std::size_t i = 0; i < candidates_.size() && ordered < quota; ++i) {
       const Candidate& c = candidates_[i];
       if (touched_[c.u] == pass_ || touched_[c.v] == pass_) {
@@ -679,11 +734,28 @@ Result<Mt> Builder::run(BuildStats* stats) {
         continue;
       }
       if (!can_collapse(c.u, c.v)) continue;
-      collapse(c.u, c.v);
-      ++collapses;
+      chosen_.push_back({c.u, c.v, tag++, triangle});
+      touched_[c.u] = touched_[c.v] = pass_;
+      for (std::uint32_t j = adjacency_begin_[c.u]; j < adjacency_end_[c.u]; ++j) {
+        const std::uint32_t* t = &working_[3 * std::size_t{adjacency_[j]}];
+        for (int k = 0; k < 3; ++k) touched_[t[k]] = pass_;
+        if (t[0] == c.v || t[1] == c.v || t[2] == c.v)
+          --alive_faces_;
+        else
+          ++triangle;
+      }
       ++ordered;
       if (alive_faces_ <= options_.min_triangles) break;
     }
+    const std::size_t collapses = chosen_.size();
+    collapse_u_.resize(tag - 1);
+    collapse_error_.resize(tag - 1);
+    mt_vertices_.resize(3 * std::size_t{triangle});
+    mt_made_by_.resize(triangle);
+    mt_killed_by_.resize(triangle);
+    for_chunks(collapses, [&](std::size_t chunk, std::size_t begin, std::size_t end) {
+      for (std::size_t i = begin; i < end; ++i) collapse(chosen_[i], scratch_[chunk]);
+    });
     if (options_.progress)
       options_.progress(options_.progress_user, 1.0 - double(alive_faces_) / initial_faces);
     if (collapses == 0 || alive_faces_ <= options_.min_triangles) break;
