@@ -166,12 +166,17 @@ class Builder {
   // Corners of face f that follow u, counter-clockwise; false when u is not exactly once in f.
   bool fan_corners(std::uint32_t f, std::uint32_t u, std::uint32_t& a, std::uint32_t& b) const {
     const std::uint32_t* t = &working_[3 * std::size_t{f}];
-    a = b = 0;
     const int hits = (t[0] == u) + (t[1] == u) + (t[2] == u);
-    if (hits != 1) return false;
-    const int i = t[0] == u ? 0 : (t[1] == u ? 1 : 2);
-    a = t[(i + 1) % 3];
-    b = t[(i + 2) % 3];
+    if (hits != 1) {
+      a = b = 0;
+      return false;
+    }
+    if (t[0] == u)
+      a = t[1], b = t[2];
+    else if (t[1] == u)
+      a = t[2], b = t[0];
+    else
+      a = t[0], b = t[1];
     return true;
   }
 
@@ -180,17 +185,19 @@ class Builder {
   // Per-chunk scratch of the concurrent phases.
   struct Moving {
     float position[3];
-    std::uint32_t vertex;
-    std::uint32_t old_face;
+    std::uint32_t old_face;  // index into the new faces of its old face when that survives, else kNoNode
+    std::uint32_t new_face;  // index into the new faces
   };
   struct Scratch {
     std::vector<Moving> moving;
     std::vector<std::uint32_t> new_faces;
+    std::vector<std::uint32_t> new_face_ends;
   };
-  // A collapse chosen for the current pass: its tag (index + 1) and first MT triangle are fixed
-  // before the collapses run, so the result does not depend on which chunk runs when.
+  // A collapse chosen for the current pass: its tag (index + 1), first MT triangle and first
+  // assigned point are fixed before the collapses run, so the result does not depend on which
+  // chunk runs when.
   struct Chosen {
-    std::uint32_t u, v, tag, first_triangle;
+    std::uint32_t u, v, tag, first_triangle, first_point;
   };
 
   // Calls body(chunk, begin, end) over [0, count) split into at most kChunks ranges, concurrently
@@ -239,14 +246,15 @@ class Builder {
   std::uint32_t stamp_ = 0;
   std::vector<Candidate> candidates_;
   std::vector<Candidate> candidate_scratch_;
-  // Jade-style assignment of removed original vertices to working faces: a list per face slot.
-  // Each link holds its vertex's position, so walking a list touches one cache line per vertex.
-  struct AssignedVertex {
-    float position[3];
-    std::uint32_t next;
-  };
-  std::vector<std::uint32_t> face_head_;
-  std::vector<AssignedVertex> assigned_;
+  // Jade-style assignment of removed original vertices to working faces. Only their positions are
+  // needed, kept as one contiguous run per face slot in a pool (x, y, z per point) that each pass
+  // appends to and that is compacted when it grows past a few times the points alive.
+  void compact_assigned_points();
+  std::vector<std::uint32_t> face_first_point_;
+  std::vector<std::uint32_t> face_points_;
+  std::vector<float> points_;
+  std::vector<float> points_scratch_;
+  std::size_t used_vertices_ = 0;
   std::vector<Scratch> scratch_;
   std::vector<Chosen> chosen_;
   std::size_t complex_vertices_ = 0;
@@ -344,31 +352,37 @@ VertexKind Builder::classify(std::uint32_t u, std::uint32_t& boundary_next, std:
   if (degree > kMaxFan) return kComplex;
   // Corners a (after u) and b (before u) of each face. Fans hold about 6 faces, so scanning these
   // small arrays beats marking shared per-vertex stamps, and leaves no state shared between chunks.
-  std::array<std::uint32_t, kMaxFan> a, b;
-  auto find = [degree](const std::array<std::uint32_t, kMaxFan>& list, std::uint32_t w) {
-    for (std::uint32_t j = 0; j < degree; ++j)
-      if (list[j] == w) return j;
-    return kMaxFan;
-  };
+  std::array<std::uint32_t, kMaxFan> a, b, next;
+  std::uint64_t has_previous = 0;  // bit j: some face's b is a[j]
   for (std::uint32_t i = 0; i < degree; ++i) {
     if (!fan_corners(adjacency_[begin + i], u, a[i], b[i]) || a[i] == b[i]) return kComplex;
     // Manifold fan: each edge (u, w) is walked at most once in each direction.
     for (std::uint32_t j = 0; j < i; ++j)
       if (a[j] == a[i] || b[j] == b[i]) return kComplex;
   }
+  // next[i]: the face across edge (u, b[i]), whose a is b[i] (unique, as the a are distinct).
   int starts = 0, ends = 0;
-  std::uint32_t start = 0;
   for (std::uint32_t i = 0; i < degree; ++i) {
-    if (find(b, a[i]) == kMaxFan) ++starts, start = i;  // edge u→a has no face on its other side
-    if (find(a, b[i]) == kMaxFan) ++ends;
+    next[i] = kMaxFan;
+    for (std::uint32_t j = 0; j < degree; ++j)
+      if (a[j] == b[i]) {
+        next[i] = j;
+        break;
+      }
+    if (next[i] == kMaxFan)
+      ++ends;
+    else
+      has_previous |= std::uint64_t{1} << next[i];
   }
+  std::uint32_t start = 0;
+  for (std::uint32_t i = 0; i < degree; ++i)
+    if (!(has_previous >> i & 1)) ++starts, start = i;  // edge u→a has no face on its other side
   if (!((starts == 0 && ends == 0) || (starts == 1 && ends == 1))) return kComplex;
   // One fan, not several glued at u: walking across edges visits every face.
   std::uint32_t current = start, visited = 1;
   for (; visited < degree; ++visited) {
-    const std::uint32_t next = find(a, b[current]);
-    if (next == kMaxFan || next == start) break;
-    current = next;
+    if (next[current] == kMaxFan || next[current] == start) break;
+    current = next[current];
   }
   if (visited != degree) return kComplex;
   if (starts == 0) return kInterior;
@@ -490,20 +504,19 @@ void Builder::collapse(const Chosen& chosen, Scratch& scratch) {
 
   // Original vertices that leave with the fan: u itself and those assigned to u's faces.
   moving_.clear();
-  moving_.push_back({{assigned_[u].position[0], assigned_[u].position[1], assigned_[u].position[2]}, u, kNoNode});
+  moving_.push_back({{position(u)[0], position(u)[1], position(u)[2]}, kNoNode, 0});
   new_faces_.clear();
   std::uint32_t triangle = chosen.first_triangle;
   for (std::uint32_t i = adjacency_begin_[u]; i < adjacency_end_[u]; ++i) {
     const std::uint32_t f = adjacency_[i];
-    for (std::uint32_t w = face_head_[f]; w != kNoNode;) {
-      const AssignedVertex& link = assigned_[w];
-      moving_.push_back({{link.position[0], link.position[1], link.position[2]}, w, f});
-      w = link.next;
-    }
-    face_head_[f] = kNoNode;
     std::uint32_t* t = &working_[3 * std::size_t{f}];
     mt_killed_by_[face_mt_[f]] = tag;
-    if (t[0] == v || t[1] == v || t[2] == v) {
+    const bool survives = !(t[0] == v || t[1] == v || t[2] == v);
+    const std::uint32_t local = survives ? std::uint32_t(new_faces_.size()) : kNoNode;
+    const float* run = &points_[3 * std::size_t{face_first_point_[f]}];
+    for (std::uint32_t k = 0; k < face_points_[f]; ++k, run += 3) moving_.push_back({{run[0], run[1], run[2]}, local, 0});
+    face_points_[f] = 0;
+    if (!survives) {
       face_alive_[f] = 0;
       continue;
     }
@@ -521,24 +534,36 @@ void Builder::collapse(const Chosen& chosen, Scratch& scratch) {
   // exact distance. A vertex stays on its own face (or takes the first face found) when that is
   // already within the running maximum, since a nearer face could not lower the maximum.
   double measured = fan_error;
-  for (const Moving& m : moving_) {
-    const std::uint32_t w = m.vertex, old_face = m.old_face;
+  for (Moving& m : moving_) {
     const float* p = m.position;
     std::uint32_t best_face = kNoNode;
     double best = std::numeric_limits<double>::infinity();
-    auto try_face = [&](std::uint32_t f) {
-      const std::uint32_t* t = &working_[3 * std::size_t{f}];
+    auto try_face = [&](std::uint32_t i) {
+      const std::uint32_t* t = &working_[3 * std::size_t{new_faces_[i]}];
       const double d2 = point_triangle_distance_squared(p, position(t[0]), position(t[1]), position(t[2]));
-      if (d2 < best) best = d2, best_face = f;
+      if (d2 < best) best = d2, best_face = i;
     };
     const double floor2 = measured * measured;
-    if (old_face != kNoNode && face_alive_[old_face]) try_face(old_face);
-    for (std::size_t i = 0; i < new_faces_.size() && !(best <= floor2); ++i)
-      if (new_faces_[i] != old_face) try_face(new_faces_[i]);
+    if (m.old_face != kNoNode) try_face(m.old_face);
+    for (std::uint32_t i = 0; i < new_faces_.size() && !(best <= floor2); ++i)
+      if (i != m.old_face) try_face(i);
     measured = std::max(measured, std::sqrt(best));
-    assigned_[w].next = face_head_[best_face];
-    face_head_[best_face] = w;
+    m.new_face = best_face;
   }
+  // Each new face's run, in the chosen block of the pool: reversed order of arrival (the order
+  // the linked lists of earlier versions gave, so their MTs are reproduced exactly).
+  std::vector<std::uint32_t>& ends = scratch.new_face_ends;
+  ends.assign(new_faces_.size(), 0);
+  for (const Moving& m : moving_) ++ends[m.new_face];
+  std::uint32_t next_point = chosen.first_point;
+  for (std::size_t i = 0; i < new_faces_.size(); ++i) {
+    face_first_point_[new_faces_[i]] = next_point;
+    face_points_[new_faces_[i]] = ends[i];
+    next_point += ends[i];
+    ends[i] = next_point;
+  }
+  for (const Moving& m : moving_)
+    std::copy(m.position, m.position + 3, &points_[3 * std::size_t{--ends[m.new_face]}]);
   // Round up so the float bound is never below the computed distance.
   const float error = std::nextafter(float(measured), std::numeric_limits<float>::max());
 
@@ -546,6 +571,17 @@ void Builder::collapse(const Chosen& chosen, Scratch& scratch) {
   vertex_dead_[u] = 1;
   collapse_u_[tag - 1] = u;
   collapse_error_[tag - 1] = error;
+}
+
+void Builder::compact_assigned_points() {
+  points_scratch_.clear();
+  for (std::size_t f = 0; f < face_count_; ++f) {
+    if (face_points_[f] == 0) continue;
+    const auto run = points_.begin() + 3 * std::ptrdiff_t{face_first_point_[f]};
+    face_first_point_[f] = std::uint32_t(points_scratch_.size() / 3);
+    points_scratch_.insert(points_scratch_.end(), run, run + 3 * std::ptrdiff_t{face_points_[f]});
+  }
+  points_.swap(points_scratch_);
 }
 
 Mt Builder::assemble() const {
@@ -667,10 +703,8 @@ Result<Mt> Builder::run(BuildStats* stats) {
   collapse_u_.reserve(vertex_count_);
   collapse_error_.reserve(vertex_count_);
   kind_.assign(vertex_count_, kUnused);
-  face_head_.assign(face_count_, kNoNode);
-  assigned_.resize(vertex_count_);
-  for (std::size_t v = 0; v < vertex_count_; ++v)
-    assigned_[v] = {{mesh_.positions[3 * v], mesh_.positions[3 * v + 1], mesh_.positions[3 * v + 2]}, kNoNode};
+  face_first_point_.assign(face_count_, 0);
+  face_points_.assign(face_count_, 0);
   adjacency_begin_.assign(vertex_count_, 0);
   adjacency_end_.assign(vertex_count_, 0);
   vertex_dead_.assign(vertex_count_, 0);
@@ -682,6 +716,7 @@ Result<Mt> Builder::run(BuildStats* stats) {
     for (const std::uint32_t v : mesh_.triangles) used[v] = 1;
     for (std::uint32_t v = 0; v < vertex_count_; ++v)
       if (used[v]) alive_vertex_list_.push_back(v);
+    used_vertices_ = alive_vertex_list_.size();
   }
   touched_.assign(vertex_count_, 0);
   link_stamp_.assign(vertex_count_, 0);
@@ -726,6 +761,10 @@ Result<Mt> Builder::run(BuildStats* stats) {
     std::size_t ordered = 0;
     std::uint32_t tag = std::uint32_t(collapse_u_.size()) + 1;
     std::uint32_t triangle = std::uint32_t(mt_made_by_.size());
+    // Each pass moves every assigned point at most once; room for that keeps the pool's indices
+    // valid while chunks append to their chosen blocks.
+    if (points_.size() / 3 + used_vertices_ > 3 * used_vertices_) compact_assigned_points();
+    std::uint32_t point = std::uint32_t(points_.size() / 3);
     chosen_.clear();
     for (std::size_t i = 0; i < candidates_.size() && ordered < quota; ++i) {
       const Candidate& c = candidates_[i];
@@ -734,9 +773,11 @@ Result<Mt> Builder::run(BuildStats* stats) {
         continue;
       }
       if (!can_collapse(c.u, c.v)) continue;
-      chosen_.push_back({c.u, c.v, tag++, triangle});
+      chosen_.push_back({c.u, c.v, tag++, triangle, point});
       touched_[c.u] = touched_[c.v] = pass_;
+      ++point;  // u joins the points assigned to faces
       for (std::uint32_t j = adjacency_begin_[c.u]; j < adjacency_end_[c.u]; ++j) {
+        point += face_points_[adjacency_[j]];
         const std::uint32_t* t = &working_[3 * std::size_t{adjacency_[j]}];
         for (int k = 0; k < 3; ++k) touched_[t[k]] = pass_;
         if (t[0] == c.v || t[1] == c.v || t[2] == c.v)
@@ -753,6 +794,7 @@ Result<Mt> Builder::run(BuildStats* stats) {
     mt_vertices_.resize(3 * std::size_t{triangle});
     mt_made_by_.resize(triangle);
     mt_killed_by_.resize(triangle);
+    points_.resize(3 * std::size_t{point});
     for_chunks(collapses, [&](std::size_t chunk, std::size_t begin, std::size_t end) {
       for (std::size_t i = begin; i < end; ++i) collapse(chosen_[i], scratch_[chunk]);
     });
