@@ -159,26 +159,6 @@ class Builder {
 
  private:
   const float* position(std::uint32_t v) const { return &mesh_.positions[3 * std::size_t{v}]; }
-  float mt_error(std::uint32_t t) const {
-    const std::uint32_t c = mt_made_by_[t];
-    return c == 0 ? 0.0f : collapse_error_[c - 1];
-  }
-  // Corners of face f that follow u, counter-clockwise; false when u is not exactly once in f.
-  bool fan_corners(std::uint32_t f, std::uint32_t u, std::uint32_t& a, std::uint32_t& b) const {
-    const std::uint32_t* t = &working_[3 * std::size_t{f}];
-    const int hits = (t[0] == u) + (t[1] == u) + (t[2] == u);
-    if (hits != 1) {
-      a = b = 0;
-      return false;
-    }
-    if (t[0] == u)
-      a = t[1], b = t[2];
-    else if (t[1] == u)
-      a = t[2], b = t[0];
-    else
-      a = t[0], b = t[1];
-    return true;
-  }
 
   void init_quadrics();
   void build_adjacency();
@@ -221,6 +201,7 @@ class Builder {
   std::vector<std::uint32_t> working_;  // 3 vertex ids per face slot
   std::vector<std::uint8_t> face_alive_;
   std::vector<std::uint32_t> face_mt_;  // MT triangle currently in each face slot
+  std::vector<float> face_error_;       // its error: that of the collapse that made it, 0 for input
 
   // MT triangles in order of appearance: vertices, and the collapses (index + 1, 0 = none) that
   // made and removed them during simplification.
@@ -230,10 +211,16 @@ class Builder {
   std::vector<std::uint32_t> collapse_u_;
   std::vector<float> collapse_error_;
 
-  // Vertex → faces over the alive faces, rebuilt each pass; valid for alive vertices only.
+  // Vertex → faces over the alive faces, rebuilt each pass; valid for alive vertices only. Each
+  // entry holds the face's other two corners, so fan walks never read the faces themselves.
+  struct Corner {
+    std::uint32_t face;
+    std::uint32_t next;  // corner after the vertex, counter-clockwise
+    std::uint32_t prev;  // corner before it
+  };
   std::vector<std::uint32_t> adjacency_begin_;
   std::vector<std::uint32_t> adjacency_end_;
-  std::vector<std::uint32_t> adjacency_;
+  std::vector<Corner> adjacency_;
   std::vector<std::uint32_t> alive_face_list_;
   std::vector<std::uint32_t> alive_vertex_list_;  // used by an alive face (may lag one pass)
   std::vector<std::uint8_t> vertex_dead_;
@@ -297,10 +284,9 @@ void Builder::init_quadrics() {
       const std::uint32_t a = t[k], b = t[(k + 1) % 3];
       bool shared = false;
       for (std::uint32_t i = adjacency_begin_[a]; i < adjacency_end_[a] && !shared; ++i) {
-        const std::uint32_t g = adjacency_[i];
-        if (g == f) continue;
-        const std::uint32_t* s = &working_[3 * std::size_t{g}];
-        shared = s[0] == b || s[1] == b || s[2] == b;
+        const Corner& g = adjacency_[i];
+        if (g.face == f) continue;
+        shared = b == a || g.next == b || g.prev == b;
       }
       if (shared) continue;
       const float* pa = &unit_positions_[3 * std::size_t{a}];
@@ -341,8 +327,12 @@ void Builder::build_adjacency() {
     adjacency_end_[v] = adjacency_begin_[v];
   }
   adjacency_.resize(total);
-  for (const std::uint32_t f : alive_face_list_)
-    for (int k = 0; k < 3; ++k) adjacency_[adjacency_end_[working_[3 * std::size_t{f} + k]]++] = f;
+  for (const std::uint32_t f : alive_face_list_) {
+    const std::uint32_t* t = &working_[3 * std::size_t{f}];
+    adjacency_[adjacency_end_[t[0]]++] = {f, t[1], t[2]};
+    adjacency_[adjacency_end_[t[1]]++] = {f, t[2], t[0]};
+    adjacency_[adjacency_end_[t[2]]++] = {f, t[0], t[1]};
+  }
 }
 
 VertexKind Builder::classify(std::uint32_t u, std::uint32_t& boundary_next, std::uint32_t& boundary_prev) const {
@@ -355,7 +345,10 @@ VertexKind Builder::classify(std::uint32_t u, std::uint32_t& boundary_next, std:
   std::array<std::uint32_t, kMaxFan> a, b, next;
   std::uint64_t has_previous = 0;  // bit j: some face's b is a[j]
   for (std::uint32_t i = 0; i < degree; ++i) {
-    if (!fan_corners(adjacency_[begin + i], u, a[i], b[i]) || a[i] == b[i]) return kComplex;
+    a[i] = adjacency_[begin + i].next;
+    b[i] = adjacency_[begin + i].prev;
+    // u exactly once in the face, and a face, not a segment.
+    if (a[i] == u || b[i] == u || a[i] == b[i]) return kComplex;
     // Manifold fan: each edge (u, w) is walked at most once in each direction.
     for (std::uint32_t j = 0; j < i; ++j)
       if (a[j] == a[i] || b[j] == b[i]) return kComplex;
@@ -424,8 +417,7 @@ void Builder::find_partner(std::uint32_t u, const std::uint32_t* boundary_ends) 
   };
   if (kind_[u] == kInterior) {
     for (std::uint32_t i = adjacency_begin_[u]; i < adjacency_end_[u]; ++i) {
-      std::uint32_t a = 0, b = 0;
-      fan_corners(adjacency_[i], u, a, b);
+      const std::uint32_t a = adjacency_[i].next;
       if (kind_[a] == kInterior || kind_[a] == kBoundary) consider(a);
     }
   } else if (kind_[u] == kBoundary) {
@@ -438,15 +430,13 @@ void Builder::find_partner(std::uint32_t u, const std::uint32_t* boundary_ends) 
 bool Builder::can_collapse(std::uint32_t u, std::uint32_t v) {
   stamp_ += 1;
   const std::uint32_t link = stamp_;
-  for (std::uint32_t i = adjacency_begin_[v]; i < adjacency_end_[v]; ++i) {
-    const std::uint32_t* t = &working_[3 * std::size_t{adjacency_[i]}];
-    for (int k = 0; k < 3; ++k) link_stamp_[t[k]] = link;
-  }
+  link_stamp_[v] = link;
+  for (std::uint32_t i = adjacency_begin_[v]; i < adjacency_end_[v]; ++i)
+    link_stamp_[adjacency_[i].next] = link_stamp_[adjacency_[i].prev] = link;
   std::uint32_t opposite[2] = {0, 0};
   int opposites = 0;
   for (std::uint32_t i = adjacency_begin_[u]; i < adjacency_end_[u]; ++i) {
-    std::uint32_t a = 0, b = 0;
-    fan_corners(adjacency_[i], u, a, b);
+    const std::uint32_t a = adjacency_[i].next, b = adjacency_[i].prev;
     if (a == v || b == v) {
       if (opposites == 2) return false;
       opposite[opposites++] = a == v ? b : a;
@@ -457,8 +447,7 @@ bool Builder::can_collapse(std::uint32_t u, std::uint32_t v) {
   const float* pu = position(u);
   const float* pv = position(v);
   for (std::uint32_t i = adjacency_begin_[u]; i < adjacency_end_[u]; ++i) {
-    std::uint32_t a = 0, b = 0;
-    fan_corners(adjacency_[i], u, a, b);
+    const std::uint32_t a = adjacency_[i].next, b = adjacency_[i].prev;
     if (a == v || b == v) continue;
     for (const std::uint32_t w : {a, b}) {
       if (link_stamp_[w] != link || seen_stamp_[w] == link) continue;
@@ -480,9 +469,9 @@ bool Builder::can_collapse(std::uint32_t u, std::uint32_t v) {
     // The new face (v, a, b) must not repeat a face v already has (a tetrahedron folding flat).
     if (link_stamp_[a] == link && link_stamp_[b] == link) {
       for (std::uint32_t j = adjacency_begin_[v]; j < adjacency_end_[v]; ++j) {
-        const std::uint32_t* t = &working_[3 * std::size_t{adjacency_[j]}];
-        const bool has_a = t[0] == a || t[1] == a || t[2] == a;
-        const bool has_b = t[0] == b || t[1] == b || t[2] == b;
+        const Corner& t = adjacency_[j];  // the face (v, next, prev)
+        const bool has_a = v == a || t.next == a || t.prev == a;
+        const bool has_b = v == b || t.next == b || t.prev == b;
         if (has_a && has_b) return false;
       }
     }
@@ -499,18 +488,16 @@ void Builder::collapse(const Chosen& chosen, Scratch& scratch) {
   std::vector<std::uint32_t>& new_faces_ = scratch.new_faces;
   // Errors never drop from a node to its children, so the fan's largest error is a floor.
   float fan_error = 0;
-  for (std::uint32_t i = adjacency_begin_[u]; i < adjacency_end_[u]; ++i)
-    fan_error = std::max(fan_error, mt_error(face_mt_[adjacency_[i]]));
-
   // Original vertices that leave with the fan: u itself and those assigned to u's faces.
   moving_.clear();
   moving_.push_back({{position(u)[0], position(u)[1], position(u)[2]}, kNoNode, 0});
   new_faces_.clear();
   std::uint32_t triangle = chosen.first_triangle;
   for (std::uint32_t i = adjacency_begin_[u]; i < adjacency_end_[u]; ++i) {
-    const std::uint32_t f = adjacency_[i];
+    const std::uint32_t f = adjacency_[i].face;
     std::uint32_t* t = &working_[3 * std::size_t{f}];
     mt_killed_by_[face_mt_[f]] = tag;
+    fan_error = std::max(fan_error, face_error_[f]);
     const bool survives = !(t[0] == v || t[1] == v || t[2] == v);
     const std::uint32_t local = survives ? std::uint32_t(new_faces_.size()) : kNoNode;
     const float* run = &points_[3 * std::size_t{face_first_point_[f]}];
@@ -567,6 +554,7 @@ void Builder::collapse(const Chosen& chosen, Scratch& scratch) {
   // Round up so the float bound is never below the computed distance.
   const float error = std::nextafter(float(measured), std::numeric_limits<float>::max());
 
+  for (const std::uint32_t f : new_faces_) face_error_[f] = error;
   add_quadric(quadrics_[v], quadrics_[u]);
   vertex_dead_[u] = 1;
   collapse_u_[tag - 1] = u;
@@ -693,6 +681,7 @@ Result<Mt> Builder::run(BuildStats* stats) {
   face_alive_.assign(face_count_, 1);
   alive_faces_ = face_count_;
   face_mt_.resize(face_count_);
+  face_error_.assign(face_count_, 0.0f);
   mt_made_by_.reserve(3 * face_count_);
   mt_killed_by_.reserve(3 * face_count_);
   mt_vertices_.reserve(9 * face_count_);
@@ -773,14 +762,13 @@ Result<Mt> Builder::run(BuildStats* stats) {
         continue;
       }
       if (!can_collapse(c.u, c.v)) continue;
-      chosen_.push_back({c.u, c.v, tag++, triangle, point});
+      chosen_.push_back({c.u, c.v, tag++, triangle, 1});  // u joins the points assigned to faces
       touched_[c.u] = touched_[c.v] = pass_;
-      ++point;  // u joins the points assigned to faces
       for (std::uint32_t j = adjacency_begin_[c.u]; j < adjacency_end_[c.u]; ++j) {
-        point += face_points_[adjacency_[j]];
-        const std::uint32_t* t = &working_[3 * std::size_t{adjacency_[j]}];
-        for (int k = 0; k < 3; ++k) touched_[t[k]] = pass_;
-        if (t[0] == c.v || t[1] == c.v || t[2] == c.v)
+        const Corner& t = adjacency_[j];  // the face (u, next, prev)
+        chosen_.back().first_point += face_points_[t.face];
+        touched_[t.next] = touched_[t.prev] = pass_;
+        if (t.next == c.v || t.prev == c.v)
           --alive_faces_;
         else
           ++triangle;
@@ -789,6 +777,14 @@ Result<Mt> Builder::run(BuildStats* stats) {
       if (alive_faces_ <= options_.min_triangles) break;
     }
     const std::size_t collapses = chosen_.size();
+    // Run the collapses in vertex order: neighbouring collapses then share cache lines, and the
+    // pool's blocks follow the mesh. Tags and triangles keep the cost order.
+    std::sort(chosen_.begin(), chosen_.end(), [](const Chosen& x, const Chosen& y) { return x.u < y.u; });
+    for (Chosen& c : chosen_) {
+      const std::uint32_t count = c.first_point;
+      c.first_point = point;
+      point += count;
+    }
     collapse_u_.resize(tag - 1);
     collapse_error_.resize(tag - 1);
     mt_vertices_.resize(3 * std::size_t{triangle});
