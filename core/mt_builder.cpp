@@ -35,6 +35,8 @@ constexpr std::uint32_t kMaxFan = 64;
 // Concurrent phases split their range into at most kChunks chunks of at least kMinChunk items.
 constexpr std::size_t kChunks = 16;
 constexpr std::size_t kMinChunk = 2048;
+// How far ahead loops over scattered vertices prefetch.
+constexpr std::size_t kPrefetchAhead = 8;
 
 struct Quadric {
   float a00 = 0, a01 = 0, a02 = 0, a11 = 0, a12 = 0, a22 = 0;
@@ -188,6 +190,20 @@ class Builder {
   void find_partner(std::uint32_t u, const std::uint32_t* boundary_ends);
   bool can_collapse(std::uint32_t u, std::uint32_t v);
   void collapse(const Chosen& chosen, Scratch& scratch);
+  void prefetch_fan(std::uint32_t u) const {
+    for (std::uint32_t i = adjacency_begin_[u]; i < adjacency_end_[u]; ++i) {
+      const std::uint32_t f = adjacency_[i].face;
+      __builtin_prefetch(&working_[3 * std::size_t{f}]);
+      __builtin_prefetch(&face_mt_[f]);
+      __builtin_prefetch(&face_points_[f]);
+      __builtin_prefetch(&face_first_point_[f]);
+    }
+  }
+  void prefetch_collapse(const Chosen& chosen) const {
+    __builtin_prefetch(&quadrics_[chosen.u]);
+    __builtin_prefetch(&quadrics_[chosen.v]);
+    __builtin_prefetch(&adjacency_[adjacency_begin_[chosen.u]]);
+  }
   Mt assemble() const;
 
   const Mesh& mesh_;
@@ -756,6 +772,13 @@ Result<Mt> Builder::run(BuildStats* stats) {
     std::uint32_t point = std::uint32_t(points_.size() / 3);
     chosen_.clear();
     for (std::size_t i = 0; i < candidates_.size() && ordered < quota; ++i) {
+      if (i + kPrefetchAhead < candidates_.size()) {
+        const Candidate& ahead = candidates_[i + kPrefetchAhead];
+        __builtin_prefetch(&touched_[ahead.u]);
+        __builtin_prefetch(&touched_[ahead.v]);
+        __builtin_prefetch(&adjacency_begin_[ahead.u]);
+        __builtin_prefetch(&adjacency_begin_[ahead.v]);
+      }
       const Candidate& c = candidates_[i];
       if (touched_[c.u] == pass_ || touched_[c.v] == pass_) {
         ++ordered;
@@ -792,7 +815,12 @@ Result<Mt> Builder::run(BuildStats* stats) {
     mt_killed_by_.resize(triangle);
     points_.resize(3 * std::size_t{point});
     for_chunks(collapses, [&](std::size_t chunk, std::size_t begin, std::size_t end) {
-      for (std::size_t i = begin; i < end; ++i) collapse(chosen_[i], scratch_[chunk]);
+      for (std::size_t i = begin; i < end; ++i) {
+        // The collapses' data is scattered: ask for the next ones' early.
+        if (i + 2 * kPrefetchAhead < end) prefetch_collapse(chosen_[i + 2 * kPrefetchAhead]);
+        if (i + kPrefetchAhead < end) prefetch_fan(chosen_[i + kPrefetchAhead].u);
+        collapse(chosen_[i], scratch_[chunk]);
+      }
     });
     if (options_.progress)
       options_.progress(options_.progress_user, 1.0 - double(alive_faces_) / initial_faces);
