@@ -199,6 +199,13 @@ class Builder {
       __builtin_prefetch(&face_first_point_[f]);
     }
   }
+  void prefetch_fan_data(std::uint32_t u) {
+    for (std::uint32_t i = adjacency_begin_[u]; i < adjacency_end_[u]; ++i) {
+      const std::uint32_t f = adjacency_[i].face;
+      __builtin_prefetch(&mt_killed_by_[face_mt_[f]], 1);
+      if (face_points_[f] > 0) __builtin_prefetch(&points_[3 * std::size_t{face_first_point_[f]}]);
+    }
+  }
   void prefetch_collapse(const Chosen& chosen) const {
     __builtin_prefetch(&quadrics_[chosen.u]);
     __builtin_prefetch(&quadrics_[chosen.v]);
@@ -817,8 +824,10 @@ Result<Mt> Builder::run(BuildStats* stats) {
     for_chunks(collapses, [&](std::size_t chunk, std::size_t begin, std::size_t end) {
       for (std::size_t i = begin; i < end; ++i) {
         // The collapses' data is scattered: ask for the next ones' early.
-        if (i + 2 * kPrefetchAhead < end) prefetch_collapse(chosen_[i + 2 * kPrefetchAhead]);
-        if (i + kPrefetchAhead < end) prefetch_fan(chosen_[i + kPrefetchAhead].u);
+        // In stages, each reading what the one before fetched.
+        if (i + 3 * kPrefetchAhead < end) prefetch_collapse(chosen_[i + 3 * kPrefetchAhead]);
+        if (i + 2 * kPrefetchAhead < end) prefetch_fan(chosen_[i + 2 * kPrefetchAhead].u);
+        if (i + kPrefetchAhead < end) prefetch_fan_data(chosen_[i + kPrefetchAhead].u);
         collapse(chosen_[i], scratch_[chunk]);
       }
     });
