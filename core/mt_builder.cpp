@@ -186,6 +186,9 @@ class Builder {
   // when options_.parallel_for is set.
   template <class Body>
   void for_chunks(std::size_t count, const Body& body);
+  // Calls body(i) for i in [0, count), concurrently when options_.parallel_for is set.
+  template <class Body>
+  void for_ranges(std::size_t count, const Body& body);
   VertexKind classify(std::uint32_t u, std::uint32_t& boundary_next, std::uint32_t& boundary_prev) const;
   void find_partner(std::uint32_t u, const std::uint32_t* boundary_ends);
   bool can_collapse(std::uint32_t u, std::uint32_t v);
@@ -341,8 +344,22 @@ void Builder::build_adjacency() {
   alive_vertex_list_.resize(kept);
 
   for (const std::uint32_t v : alive_vertex_list_) adjacency_end_[v] = 0;
-  for (const std::uint32_t f : alive_face_list_)
-    for (int k = 0; k < 3; ++k) ++adjacency_end_[working_[3 * std::size_t{f} + k]];
+  // Each range of vertex ids reads every face and writes only its own vertices' counts and lists
+  // (in face order either way), so the ranges may run concurrently. Reading the faces once per
+  // range only pays for few ranges.
+  constexpr std::uint32_t kRanges = 2;
+  const std::uint32_t range_size = std::uint32_t(vertex_count_ / kRanges + 1);
+  auto each_corner = [&](std::size_t range, auto&& body) {
+    const std::uint32_t lo = std::uint32_t(range) * range_size, hi = lo + range_size;
+    for (const std::uint32_t f : alive_face_list_) {
+      const std::uint32_t* t = &working_[3 * std::size_t{f}];
+      for (int k = 0; k < 3; ++k)
+        if (t[k] >= lo && t[k] < hi) body(f, t, k);
+    }
+  };
+  for_ranges(kRanges, [&](std::size_t range) {
+    each_corner(range, [&](std::uint32_t, const std::uint32_t* t, int k) { ++adjacency_end_[t[k]]; });
+  });
   std::uint32_t total = 0;
   for (const std::uint32_t v : alive_vertex_list_) {
     adjacency_begin_[v] = total;
@@ -350,12 +367,11 @@ void Builder::build_adjacency() {
     adjacency_end_[v] = adjacency_begin_[v];
   }
   adjacency_.resize(total);
-  for (const std::uint32_t f : alive_face_list_) {
-    const std::uint32_t* t = &working_[3 * std::size_t{f}];
-    adjacency_[adjacency_end_[t[0]]++] = {f, t[1], t[2]};
-    adjacency_[adjacency_end_[t[1]]++] = {f, t[2], t[0]};
-    adjacency_[adjacency_end_[t[2]]++] = {f, t[0], t[1]};
-  }
+  for_ranges(kRanges, [&](std::size_t range) {
+    each_corner(range, [&](std::uint32_t f, const std::uint32_t* t, int k) {
+      adjacency_[adjacency_end_[t[k]]++] = {f, t[(k + 1) % 3], t[(k + 2) % 3]};
+    });
+  });
 }
 
 VertexKind Builder::classify(std::uint32_t u, std::uint32_t& boundary_next, std::uint32_t& boundary_prev) const {
@@ -405,6 +421,16 @@ VertexKind Builder::classify(std::uint32_t u, std::uint32_t& boundary_next, std:
   boundary_next = a[start];
   boundary_prev = b[current];  // edge b[last]→u has no face on its other side either
   return kBoundary;
+}
+
+template <class Body>
+void Builder::for_ranges(std::size_t count, const Body& body) {
+  auto task = [](void* opaque, std::size_t i) { (*static_cast<const Body*>(opaque))(i); };
+  if (options_.parallel_for == nullptr || alive_face_list_.size() < kMinChunk) {
+    for (std::size_t i = 0; i < count; ++i) task(const_cast<Body*>(&body), i);
+  } else {
+    options_.parallel_for(options_.parallel_user, count, task, const_cast<Body*>(&body));
+  }
 }
 
 template <class Body>
