@@ -17,6 +17,7 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <cassert>
 #include <cmath>
 #include <cstring>
@@ -37,6 +38,8 @@ constexpr std::size_t kChunks = 16;
 constexpr std::size_t kMinChunk = 2048;
 // How far ahead loops over scattered vertices prefetch.
 constexpr std::size_t kPrefetchAhead = 8;
+// How far ahead of the chooser the guesser starts when it falls behind.
+constexpr std::size_t kGuessLead = 16;
 
 struct Quadric {
   float a00 = 0, a01 = 0, a02 = 0, a11 = 0, a12 = 0, a22 = 0;
@@ -191,7 +194,14 @@ class Builder {
   void for_ranges(std::size_t count, const Body& body);
   VertexKind classify(std::uint32_t u, std::uint32_t& boundary_next, std::uint32_t& boundary_prev) const;
   void find_partner(std::uint32_t u, const std::uint32_t* boundary_ends);
-  bool can_collapse(std::uint32_t u, std::uint32_t v);
+  // Scratch marks of can_collapse, one set per thread that calls it.
+  struct Stamps {
+    std::vector<std::uint32_t> link;
+    std::vector<std::uint32_t> seen;
+    std::uint32_t stamp = 0;
+  };
+  bool can_collapse(std::uint32_t u, std::uint32_t v, Stamps& stamps) const;
+  void choose_collapses(std::size_t quota);
   void collapse(const Chosen& chosen, Scratch& scratch);
   void prefetch_fan(std::uint32_t u) const {
     for (std::uint32_t i = adjacency_begin_[u]; i < adjacency_end_[u]; ++i) {
@@ -253,10 +263,10 @@ class Builder {
   std::vector<std::uint8_t> kind_;
   std::vector<std::uint32_t> touched_;  // pass number that last changed a vertex's fan
   std::uint32_t pass_ = 0;
-  std::vector<std::uint32_t> link_stamp_;
-  std::vector<std::uint32_t> seen_stamp_;
+  Stamps chooser_stamps_, guesser_stamps_;
+  std::vector<std::uint8_t> verdicts_;
+  std::uint32_t chosen_triangles_end_ = 0;  // MT triangle count once the chosen collapses have run  // per candidate: 0 not known yet, 1 can collapse, 2 cannot
   std::vector<Candidate> best_;  // per vertex: cheapest partner found when it was last evaluated
-  std::uint32_t stamp_ = 0;
   std::vector<Candidate> candidates_;
   std::vector<Candidate> candidate_scratch_;
   // Jade-style assignment of removed original vertices to working faces. Only their positions are
@@ -476,9 +486,10 @@ void Builder::find_partner(std::uint32_t u, const std::uint32_t* boundary_ends) 
   }
 }
 
-bool Builder::can_collapse(std::uint32_t u, std::uint32_t v) {
-  stamp_ += 1;
-  const std::uint32_t link = stamp_;
+bool Builder::can_collapse(std::uint32_t u, std::uint32_t v, Stamps& stamps) const {
+  std::vector<std::uint32_t>& link_stamp_ = stamps.link;
+  std::vector<std::uint32_t>& seen_stamp_ = stamps.seen;
+  const std::uint32_t link = ++stamps.stamp;
   link_stamp_[v] = link;
   for (std::uint32_t i = adjacency_begin_[v]; i < adjacency_end_[v]; ++i)
     link_stamp_[adjacency_[i].next] = link_stamp_[adjacency_[i].prev] = link;
@@ -527,6 +538,81 @@ bool Builder::can_collapse(std::uint32_t u, std::uint32_t v) {
   }
   // A collapse that leaves no face would make a node that removes nothing (detached from the DAG).
   return survivors > 0;
+}
+
+void Builder::choose_collapses(std::size_t quota) {
+  // The chooser walks the candidates in cost order. can_collapse only reads the pass's starting
+  // adjacency, so its answer for a candidate never depends on the choices before it: a guesser
+  // (when a second thread runs it) answers candidates just ahead of the chooser, skipping those
+  // already blocked, and the chooser asks can_collapse itself only where no answer is there yet.
+  // The choice is therefore the same whether the guesser runs, lags or never starts.
+  verdicts_.assign(candidates_.size(), 0);
+  std::atomic<std::size_t> chooser_at{0};
+  std::atomic<bool> chooser_done{false};
+  auto is_touched = [this](std::uint32_t x) {
+    return std::atomic_ref<std::uint32_t>(touched_[x]).load(std::memory_order_relaxed) == pass_;
+  };
+  auto touch = [this](std::uint32_t x) {
+    std::atomic_ref<std::uint32_t>(touched_[x]).store(pass_, std::memory_order_relaxed);
+  };
+  auto choose = [&] {
+    std::size_t ordered = 0;
+    std::uint32_t tag = std::uint32_t(collapse_u_.size()) + 1;
+    std::uint32_t triangle = std::uint32_t(mt_made_by_.size());
+    chosen_.clear();
+    for (std::size_t i = 0; i < candidates_.size() && ordered < quota; ++i) {
+      chooser_at.store(i, std::memory_order_relaxed);
+      if (i + kPrefetchAhead < candidates_.size()) {
+        const Candidate& ahead = candidates_[i + kPrefetchAhead];
+        __builtin_prefetch(&touched_[ahead.u]);
+        __builtin_prefetch(&touched_[ahead.v]);
+        __builtin_prefetch(&adjacency_begin_[ahead.u]);
+        __builtin_prefetch(&adjacency_begin_[ahead.v]);
+      }
+      const Candidate& c = candidates_[i];
+      if (is_touched(c.u) || is_touched(c.v)) {
+        ++ordered;
+        continue;
+      }
+      const std::uint8_t verdict = std::atomic_ref<std::uint8_t>(verdicts_[i]).load(std::memory_order_relaxed);
+      if (verdict == 2 || (verdict == 0 && !can_collapse(c.u, c.v, chooser_stamps_))) continue;
+      chosen_.push_back({c.u, c.v, tag++, triangle, 1});  // u joins the points assigned to faces
+      touch(c.u);
+      touch(c.v);
+      for (std::uint32_t j = adjacency_begin_[c.u]; j < adjacency_end_[c.u]; ++j) {
+        const Corner& t = adjacency_[j];  // the face (u, next, prev)
+        chosen_.back().first_point += face_points_[t.face];
+        touch(t.next);
+        touch(t.prev);
+        if (t.next == c.v || t.prev == c.v)
+          --alive_faces_;
+        else
+          ++triangle;
+      }
+      ++ordered;
+      if (alive_faces_ <= options_.min_triangles) break;
+    }
+    chosen_triangles_end_ = triangle;
+    chooser_done.store(true, std::memory_order_relaxed);
+  };
+  auto guess = [&] {
+    // Stays a little ahead of the chooser; alone (run before or after it) it does little or nothing.
+    const std::size_t end = std::min(candidates_.size(), 2 * quota);
+    for (std::size_t i = 0; i < end && !chooser_done.load(std::memory_order_relaxed); ++i) {
+      const std::size_t at = chooser_at.load(std::memory_order_relaxed);
+      if (i <= at) i = at + kGuessLead;
+      if (i >= end) break;
+      const Candidate& c = candidates_[i];
+      if (is_touched(c.u) || is_touched(c.v)) continue;
+      const std::uint8_t verdict = can_collapse(c.u, c.v, guesser_stamps_) ? 1 : 2;
+      std::atomic_ref<std::uint8_t>(verdicts_[i]).store(verdict, std::memory_order_relaxed);
+    }
+  };
+  if (options_.parallel_for == nullptr || candidates_.size() < kMinChunk) {
+    choose();
+    return;
+  }
+  for_ranges(2, [&](std::size_t task) { task == 0 ? choose() : guess(); });
 }
 
 void Builder::collapse(const Chosen& chosen, Scratch& scratch) {
@@ -757,8 +843,10 @@ Result<Mt> Builder::run(BuildStats* stats) {
     used_vertices_ = alive_vertex_list_.size();
   }
   touched_.assign(vertex_count_, 0);
-  link_stamp_.assign(vertex_count_, 0);
-  seen_stamp_.assign(vertex_count_, 0);
+  for (Stamps* stamps : {&chooser_stamps_, &guesser_stamps_}) {
+    stamps->link.assign(vertex_count_, 0);
+    stamps->seen.assign(vertex_count_, 0);
+  }
   best_.assign(vertex_count_, Candidate{0, 0, 0});
   scratch_.resize(kChunks);
 
@@ -796,42 +884,13 @@ Result<Mt> Builder::run(BuildStats* stats) {
     // the pass reads a face it writes: can_collapse sees the adjacency of the pass's start.
     const std::size_t quota =
         std::max<std::size_t>(1, std::size_t(double(candidates_.size()) * options_.pass_fraction));
-    std::size_t ordered = 0;
-    std::uint32_t tag = std::uint32_t(collapse_u_.size()) + 1;
-    std::uint32_t triangle = std::uint32_t(mt_made_by_.size());
     // Each pass moves every assigned point at most once; room for that keeps the pool's indices
     // valid while chunks append to their chosen blocks.
     if (points_.size() / 3 + used_vertices_ > 3 * used_vertices_) compact_assigned_points();
     std::uint32_t point = std::uint32_t(points_.size() / 3);
-    chosen_.clear();
-    for (std::size_t i = 0; i < candidates_.size() && ordered < quota; ++i) {
-      if (i + kPrefetchAhead < candidates_.size()) {
-        const Candidate& ahead = candidates_[i + kPrefetchAhead];
-        __builtin_prefetch(&touched_[ahead.u]);
-        __builtin_prefetch(&touched_[ahead.v]);
-        __builtin_prefetch(&adjacency_begin_[ahead.u]);
-        __builtin_prefetch(&adjacency_begin_[ahead.v]);
-      }
-      const Candidate& c = candidates_[i];
-      if (touched_[c.u] == pass_ || touched_[c.v] == pass_) {
-        ++ordered;
-        continue;
-      }
-      if (!can_collapse(c.u, c.v)) continue;
-      chosen_.push_back({c.u, c.v, tag++, triangle, 1});  // u joins the points assigned to faces
-      touched_[c.u] = touched_[c.v] = pass_;
-      for (std::uint32_t j = adjacency_begin_[c.u]; j < adjacency_end_[c.u]; ++j) {
-        const Corner& t = adjacency_[j];  // the face (u, next, prev)
-        chosen_.back().first_point += face_points_[t.face];
-        touched_[t.next] = touched_[t.prev] = pass_;
-        if (t.next == c.v || t.prev == c.v)
-          --alive_faces_;
-        else
-          ++triangle;
-      }
-      ++ordered;
-      if (alive_faces_ <= options_.min_triangles) break;
-    }
+    choose_collapses(quota);
+    const std::uint32_t tag = std::uint32_t(collapse_u_.size() + chosen_.size()) + 1;
+    const std::uint32_t triangle = chosen_triangles_end_;
     const std::size_t collapses = chosen_.size();
     // Run the collapses in vertex order: neighbouring collapses then share cache lines, and the
     // pool's blocks follow the mesh. Tags and triangles keep the cost order.
