@@ -3,9 +3,12 @@
 // one MT node.
 //
 // Per pass: rebuild vertex→face adjacency (CSR), classify every vertex (interior / boundary /
-// complex), give each collapsible vertex u its cheapest partner v, sort, and apply collapses in cost
-// order while neither end has been touched by an earlier collapse of the same pass, so the adjacency
-// read at the start of the pass stays exact for every collapse that is tried.
+// complex), give each collapsible vertex u its cheapest partner v, sort, and choose collapses in
+// cost order while neither end has been touched by an earlier choice of the same pass, so the
+// adjacency read at the start of the pass stays exact for every collapse that is tried. The chosen
+// collapses change disjoint fans and then run in any order. With BuildOptions::parallel_for these
+// steps run on several threads; every shared position (collapse tags, MT triangles, pool blocks) is
+// fixed before, so the MT is the same byte for byte.
 //
 // Global error (the Jade method's): every original vertex removed so far is assigned to one working
 // face. A collapse hands u and the vertices of u's faces to faces of the new fan, and its error is
@@ -182,7 +185,8 @@ class Builder {
   // assigned point are fixed before the collapses run, so the result does not depend on which
   // chunk runs when.
   struct Chosen {
-    std::uint32_t u, v, tag, first_triangle, first_point;
+    std::uint32_t u, v, tag, first_triangle;
+    std::uint32_t first_point;  // while choosing: the number of points the collapse moves
   };
 
   // Calls body(chunk, begin, end) over [0, count) split into at most kChunks ranges, concurrently
@@ -908,8 +912,8 @@ Result<Mt> Builder::run(BuildStats* stats) {
     points_.resize(3 * std::size_t{point});
     for_chunks(collapses, [&](std::size_t chunk, std::size_t begin, std::size_t end) {
       for (std::size_t i = begin; i < end; ++i) {
-        // The collapses' data is scattered: ask for the next ones' early.
-        // In stages, each reading what the one before fetched.
+        // The collapses' data is scattered: ask for the next ones' early, in stages that each
+        // read what the stage before fetched.
         if (i + 3 * kPrefetchAhead < end) prefetch_collapse(chosen_[i + 3 * kPrefetchAhead]);
         if (i + 2 * kPrefetchAhead < end) prefetch_fan(chosen_[i + 2 * kPrefetchAhead].u);
         if (i + kPrefetchAhead < end) prefetch_fan_data(chosen_[i + kPrefetchAhead].u);
