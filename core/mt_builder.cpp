@@ -3,9 +3,12 @@
 // one MT node.
 //
 // Per pass: rebuild vertex→face adjacency (CSR), classify every vertex (interior / boundary /
-// complex), give each collapsible vertex u its cheapest partner v, sort, and apply collapses in cost
-// order while neither end has been touched by an earlier collapse of the same pass, so the adjacency
-// read at the start of the pass stays exact for every collapse that is tried.
+// complex), give each collapsible vertex u its cheapest partner v, sort, and choose collapses in
+// cost order while neither end has been touched by an earlier choice of the same pass, so the
+// adjacency read at the start of the pass stays exact for every collapse that is tried. The chosen
+// collapses change disjoint fans and then run in any order. With BuildOptions::parallel_for these
+// steps run on several threads; every shared position (collapse tags, MT triangles, pool blocks) is
+// fixed before, so the MT is the same byte for byte.
 //
 // Global error (the Jade method's): every original vertex removed so far is assigned to one working
 // face. A collapse hands u and the vertices of u's faces to faces of the new fan, and its error is
@@ -17,6 +20,7 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <cassert>
 #include <cmath>
 #include <cstring>
@@ -31,6 +35,14 @@ enum VertexKind : std::uint8_t { kUnused = 0, kInterior = 1, kBoundary = 2, kCom
 
 // Fans larger than this are treated as complex: they never occur on scans except at defects.
 constexpr std::uint32_t kMaxFan = 64;
+
+// Concurrent phases split their range into at most kChunks chunks of at least kMinChunk items.
+constexpr std::size_t kChunks = 16;
+constexpr std::size_t kMinChunk = 2048;
+// How far ahead loops over scattered vertices prefetch.
+constexpr std::size_t kPrefetchAhead = 8;
+// How far ahead of the chooser the guesser starts when it falls behind.
+constexpr std::size_t kGuessLead = 16;
 
 struct Quadric {
   float a00 = 0, a01 = 0, a02 = 0, a11 = 0, a12 = 0, a22 = 0;
@@ -155,27 +167,67 @@ class Builder {
 
  private:
   const float* position(std::uint32_t v) const { return &mesh_.positions[3 * std::size_t{v}]; }
-  float mt_error(std::uint32_t t) const {
-    const std::uint32_t c = mt_made_by_[t];
-    return c == 0 ? 0.0f : collapse_error_[c - 1];
-  }
-  // Corners of face f that follow u, counter-clockwise; false when u is not exactly once in f.
-  bool fan_corners(std::uint32_t f, std::uint32_t u, std::uint32_t& a, std::uint32_t& b) const {
-    const std::uint32_t* t = &working_[3 * std::size_t{f}];
-    a = b = 0;
-    const int hits = (t[0] == u) + (t[1] == u) + (t[2] == u);
-    if (hits != 1) return false;
-    const int i = t[0] == u ? 0 : (t[1] == u ? 1 : 2);
-    a = t[(i + 1) % 3];
-    b = t[(i + 2) % 3];
-    return true;
-  }
 
   void init_quadrics();
   void build_adjacency();
-  VertexKind classify(std::uint32_t u, std::uint32_t& boundary_next, std::uint32_t& boundary_prev);
-  bool can_collapse(std::uint32_t u, std::uint32_t v);
-  void collapse(std::uint32_t u, std::uint32_t v);
+  // Per-chunk scratch of the concurrent phases.
+  struct Moving {
+    float position[3];
+    std::uint32_t old_face;  // index into the new faces of its old face when that survives, else kNoNode
+    std::uint32_t new_face;  // index into the new faces
+  };
+  struct Scratch {
+    std::vector<Moving> moving;
+    std::vector<std::uint32_t> new_faces;
+    std::vector<std::uint32_t> new_face_ends;
+  };
+  // A collapse chosen for the current pass: its tag (index + 1), first MT triangle and first
+  // assigned point are fixed before the collapses run, so the result does not depend on which
+  // chunk runs when.
+  struct Chosen {
+    std::uint32_t u, v, tag, first_triangle;
+    std::uint32_t first_point;  // while choosing: the number of points the collapse moves
+  };
+
+  // Calls body(chunk, begin, end) over [0, count) split into at most kChunks ranges, concurrently
+  // when options_.parallel_for is set.
+  template <class Body>
+  void for_chunks(std::size_t count, const Body& body);
+  // Calls body(i) for i in [0, count), concurrently when options_.parallel_for is set.
+  template <class Body>
+  void for_ranges(std::size_t count, const Body& body);
+  VertexKind classify(std::uint32_t u, std::uint32_t& boundary_next, std::uint32_t& boundary_prev) const;
+  void find_partner(std::uint32_t u, const std::uint32_t* boundary_ends);
+  // Scratch marks of can_collapse, one set per thread that calls it.
+  struct Stamps {
+    std::vector<std::uint32_t> link;
+    std::vector<std::uint32_t> seen;
+    std::uint32_t stamp = 0;
+  };
+  bool can_collapse(std::uint32_t u, std::uint32_t v, Stamps& stamps) const;
+  void choose_collapses(std::size_t quota);
+  void collapse(const Chosen& chosen, Scratch& scratch);
+  void prefetch_fan(std::uint32_t u) const {
+    for (std::uint32_t i = adjacency_begin_[u]; i < adjacency_end_[u]; ++i) {
+      const std::uint32_t f = adjacency_[i].face;
+      __builtin_prefetch(&working_[3 * std::size_t{f}]);
+      __builtin_prefetch(&face_mt_[f]);
+      __builtin_prefetch(&face_points_[f]);
+      __builtin_prefetch(&face_first_point_[f]);
+    }
+  }
+  void prefetch_fan_data(std::uint32_t u) {
+    for (std::uint32_t i = adjacency_begin_[u]; i < adjacency_end_[u]; ++i) {
+      const std::uint32_t f = adjacency_[i].face;
+      __builtin_prefetch(&mt_killed_by_[face_mt_[f]], 1);
+      if (face_points_[f] > 0) __builtin_prefetch(&points_[3 * std::size_t{face_first_point_[f]}]);
+    }
+  }
+  void prefetch_collapse(const Chosen& chosen) const {
+    __builtin_prefetch(&quadrics_[chosen.u]);
+    __builtin_prefetch(&quadrics_[chosen.v]);
+    __builtin_prefetch(&adjacency_[adjacency_begin_[chosen.u]]);
+  }
   Mt assemble() const;
 
   const Mesh& mesh_;
@@ -189,6 +241,7 @@ class Builder {
   std::vector<std::uint32_t> working_;  // 3 vertex ids per face slot
   std::vector<std::uint8_t> face_alive_;
   std::vector<std::uint32_t> face_mt_;  // MT triangle currently in each face slot
+  std::vector<float> face_error_;       // its error: that of the collapse that made it, 0 for input
 
   // MT triangles in order of appearance: vertices, and the collapses (index + 1, 0 = none) that
   // made and removed them during simplification.
@@ -198,32 +251,39 @@ class Builder {
   std::vector<std::uint32_t> collapse_u_;
   std::vector<float> collapse_error_;
 
-  // Vertex → faces over the alive faces, rebuilt each pass; valid for alive vertices only.
+  // Vertex → faces over the alive faces, rebuilt each pass; valid for alive vertices only. Each
+  // entry holds the face's other two corners, so fan walks never read the faces themselves.
+  struct Corner {
+    std::uint32_t face;
+    std::uint32_t next;  // corner after the vertex, counter-clockwise
+    std::uint32_t prev;  // corner before it
+  };
   std::vector<std::uint32_t> adjacency_begin_;
   std::vector<std::uint32_t> adjacency_end_;
-  std::vector<std::uint32_t> adjacency_;
+  std::vector<Corner> adjacency_;
   std::vector<std::uint32_t> alive_face_list_;
   std::vector<std::uint32_t> alive_vertex_list_;  // used by an alive face (may lag one pass)
   std::vector<std::uint8_t> vertex_dead_;
   std::vector<std::uint8_t> kind_;
   std::vector<std::uint32_t> touched_;  // pass number that last changed a vertex's fan
   std::uint32_t pass_ = 0;
-  std::vector<std::uint32_t> link_stamp_;
-  std::vector<std::uint32_t> seen_stamp_;
-  std::vector<std::uint32_t> fan_slot_;
+  Stamps chooser_stamps_, guesser_stamps_;
+  std::vector<std::uint8_t> verdicts_;
+  std::uint32_t chosen_triangles_end_ = 0;  // MT triangle count once the chosen collapses have run  // per candidate: 0 not known yet, 1 can collapse, 2 cannot
   std::vector<Candidate> best_;  // per vertex: cheapest partner found when it was last evaluated
-  std::uint32_t stamp_ = 0;
   std::vector<Candidate> candidates_;
   std::vector<Candidate> candidate_scratch_;
-  // Jade-style assignment of removed original vertices to working faces: a list per face slot.
-  std::vector<std::uint32_t> face_head_;
-  std::vector<std::uint32_t> vertex_next_;
-  struct Moving {
-    std::uint32_t vertex;
-    std::uint32_t old_face;
-  };
-  std::vector<Moving> moving_;
-  std::vector<std::uint32_t> new_faces_;
+  // Jade-style assignment of removed original vertices to working faces. Only their positions are
+  // needed, kept as one contiguous run per face slot in a pool (x, y, z per point) that each pass
+  // appends to and that is compacted when it grows past a few times the points alive.
+  void compact_assigned_points();
+  std::vector<std::uint32_t> face_first_point_;
+  std::vector<std::uint32_t> face_points_;
+  std::vector<float> points_;
+  std::vector<float> points_scratch_;
+  std::size_t used_vertices_ = 0;
+  std::vector<Scratch> scratch_;
+  std::vector<Chosen> chosen_;
   std::size_t complex_vertices_ = 0;
 };
 
@@ -264,10 +324,9 @@ void Builder::init_quadrics() {
       const std::uint32_t a = t[k], b = t[(k + 1) % 3];
       bool shared = false;
       for (std::uint32_t i = adjacency_begin_[a]; i < adjacency_end_[a] && !shared; ++i) {
-        const std::uint32_t g = adjacency_[i];
-        if (g == f) continue;
-        const std::uint32_t* s = &working_[3 * std::size_t{g}];
-        shared = s[0] == b || s[1] == b || s[2] == b;
+        const Corner& g = adjacency_[i];
+        if (g.face == f) continue;
+        shared = b == a || g.next == b || g.prev == b;
       }
       if (shared) continue;
       const float* pa = &unit_positions_[3 * std::size_t{a}];
@@ -299,8 +358,22 @@ void Builder::build_adjacency() {
   alive_vertex_list_.resize(kept);
 
   for (const std::uint32_t v : alive_vertex_list_) adjacency_end_[v] = 0;
-  for (const std::uint32_t f : alive_face_list_)
-    for (int k = 0; k < 3; ++k) ++adjacency_end_[working_[3 * std::size_t{f} + k]];
+  // Each range of vertex ids reads every face and writes only its own vertices' counts and lists
+  // (in face order either way), so the ranges may run concurrently. Reading the faces once per
+  // range only pays for few ranges.
+  constexpr std::uint32_t kRanges = 2;
+  const std::uint32_t range_size = std::uint32_t(vertex_count_ / kRanges + 1);
+  auto each_corner = [&](std::size_t range, auto&& body) {
+    const std::uint32_t lo = std::uint32_t(range) * range_size, hi = lo + range_size;
+    for (const std::uint32_t f : alive_face_list_) {
+      const std::uint32_t* t = &working_[3 * std::size_t{f}];
+      for (int k = 0; k < 3; ++k)
+        if (t[k] >= lo && t[k] < hi) body(f, t, k);
+    }
+  };
+  for_ranges(kRanges, [&](std::size_t range) {
+    each_corner(range, [&](std::uint32_t, const std::uint32_t* t, int k) { ++adjacency_end_[t[k]]; });
+  });
   std::uint32_t total = 0;
   for (const std::uint32_t v : alive_vertex_list_) {
     adjacency_begin_[v] = total;
@@ -308,41 +381,54 @@ void Builder::build_adjacency() {
     adjacency_end_[v] = adjacency_begin_[v];
   }
   adjacency_.resize(total);
-  for (const std::uint32_t f : alive_face_list_)
-    for (int k = 0; k < 3; ++k) adjacency_[adjacency_end_[working_[3 * std::size_t{f} + k]]++] = f;
+  for_ranges(kRanges, [&](std::size_t range) {
+    each_corner(range, [&](std::uint32_t f, const std::uint32_t* t, int k) {
+      adjacency_[adjacency_end_[t[k]]++] = {f, t[(k + 1) % 3], t[(k + 2) % 3]};
+    });
+  });
 }
 
-VertexKind Builder::classify(std::uint32_t u, std::uint32_t& boundary_next, std::uint32_t& boundary_prev) {
+VertexKind Builder::classify(std::uint32_t u, std::uint32_t& boundary_next, std::uint32_t& boundary_prev) const {
   const std::uint32_t begin = adjacency_begin_[u], end = adjacency_end_[u];
   const std::uint32_t degree = end - begin;
   if (degree == 0) return kUnused;
   if (degree > kMaxFan) return kComplex;
-  // Stamps replace sets: link_stamp_ marks the a corners (with their face in fan_slot_), seen_stamp_
-  // the b corners, so every test below is O(1) and the whole check O(degree).
-  const std::uint32_t s = ++stamp_;
-  std::array<std::uint32_t, kMaxFan> a, b;
+  // Corners a (after u) and b (before u) of each face. Fans hold about 6 faces, so scanning these
+  // small arrays beats marking shared per-vertex stamps, and leaves no state shared between chunks.
+  std::array<std::uint32_t, kMaxFan> a, b, next;
+  std::uint64_t has_previous = 0;  // bit j: some face's b is a[j]
   for (std::uint32_t i = 0; i < degree; ++i) {
-    if (!fan_corners(adjacency_[begin + i], u, a[i], b[i]) || a[i] == b[i]) return kComplex;
+    a[i] = adjacency_[begin + i].next;
+    b[i] = adjacency_[begin + i].prev;
+    // u exactly once in the face, and a face, not a segment.
+    if (a[i] == u || b[i] == u || a[i] == b[i]) return kComplex;
     // Manifold fan: each edge (u, w) is walked at most once in each direction.
-    if (link_stamp_[a[i]] == s || seen_stamp_[b[i]] == s) return kComplex;
-    link_stamp_[a[i]] = s;
-    fan_slot_[a[i]] = i;
-    seen_stamp_[b[i]] = s;
+    for (std::uint32_t j = 0; j < i; ++j)
+      if (a[j] == a[i] || b[j] == b[i]) return kComplex;
   }
+  // next[i]: the face across edge (u, b[i]), whose a is b[i] (unique, as the a are distinct).
   int starts = 0, ends = 0;
-  std::uint32_t start = 0;
   for (std::uint32_t i = 0; i < degree; ++i) {
-    if (seen_stamp_[a[i]] != s) ++starts, start = i;  // edge u→a has no face on its other side
-    if (link_stamp_[b[i]] != s) ++ends;
+    next[i] = kMaxFan;
+    for (std::uint32_t j = 0; j < degree; ++j)
+      if (a[j] == b[i]) {
+        next[i] = j;
+        break;
+      }
+    if (next[i] == kMaxFan)
+      ++ends;
+    else
+      has_previous |= std::uint64_t{1} << next[i];
   }
+  std::uint32_t start = 0;
+  for (std::uint32_t i = 0; i < degree; ++i)
+    if (!(has_previous >> i & 1)) ++starts, start = i;  // edge u→a has no face on its other side
   if (!((starts == 0 && ends == 0) || (starts == 1 && ends == 1))) return kComplex;
   // One fan, not several glued at u: walking across edges visits every face.
   std::uint32_t current = start, visited = 1;
   for (; visited < degree; ++visited) {
-    if (link_stamp_[b[current]] != s) break;
-    const std::uint32_t next = fan_slot_[b[current]];
-    if (next == start) break;
-    current = next;
+    if (next[current] == kMaxFan || next[current] == start) break;
+    current = next[current];
   }
   if (visited != degree) return kComplex;
   if (starts == 0) return kInterior;
@@ -351,18 +437,70 @@ VertexKind Builder::classify(std::uint32_t u, std::uint32_t& boundary_next, std:
   return kBoundary;
 }
 
-bool Builder::can_collapse(std::uint32_t u, std::uint32_t v) {
-  stamp_ += 1;
-  const std::uint32_t link = stamp_;
-  for (std::uint32_t i = adjacency_begin_[v]; i < adjacency_end_[v]; ++i) {
-    const std::uint32_t* t = &working_[3 * std::size_t{adjacency_[i]}];
-    for (int k = 0; k < 3; ++k) link_stamp_[t[k]] = link;
+template <class Body>
+void Builder::for_ranges(std::size_t count, const Body& body) {
+  auto task = [](void* opaque, std::size_t i) { (*static_cast<const Body*>(opaque))(i); };
+  if (options_.parallel_for == nullptr || alive_face_list_.size() < kMinChunk) {
+    for (std::size_t i = 0; i < count; ++i) task(const_cast<Body*>(&body), i);
+  } else {
+    options_.parallel_for(options_.parallel_user, count, task, const_cast<Body*>(&body));
   }
+}
+
+template <class Body>
+void Builder::for_chunks(std::size_t count, const Body& body) {
+  // Small ranges are not worth a hand-off; the chunk count does not depend on the runner.
+  const std::size_t chunks = count < kMinChunk ? 1 : std::min(kChunks, count / kMinChunk);
+  struct Context {
+    const Body* body;
+    std::size_t count, chunks;
+  } context{&body, count, chunks};
+  auto task = [](void* opaque, std::size_t chunk) {
+    const Context& c = *static_cast<const Context*>(opaque);
+    (*c.body)(chunk, c.count * chunk / c.chunks, c.count * (chunk + 1) / c.chunks);
+  };
+  if (chunks == 1 || options_.parallel_for == nullptr) {
+    for (std::size_t chunk = 0; chunk < chunks; ++chunk) task(&context, chunk);
+  } else {
+    options_.parallel_for(options_.parallel_user, chunks, task, &context);
+  }
+}
+
+void Builder::find_partner(std::uint32_t u, const std::uint32_t* boundary_ends) {
+  Candidate& best = best_[u];
+  // The partner's cost Q_u(v) only changes when u's quadric or fan does, i.e. when u was touched;
+  // a cached partner that stopped being collapsible forces a new search too.
+  const bool stale = pass_ == 1 || touched_[u] == pass_ - 1 ||
+                     (best.v != u && kind_[best.v] != kInterior && kind_[best.v] != kBoundary);
+  if (!stale) return;
+  best = Candidate{std::numeric_limits<float>::infinity(), u, u};
+  auto consider = [&](std::uint32_t v) {
+    const float cost = evaluate(quadrics_[u], &unit_positions_[3 * std::size_t{v}]);
+    if (cost < best.cost) best.cost = cost, best.v = v;
+  };
+  if (kind_[u] == kInterior) {
+    for (std::uint32_t i = adjacency_begin_[u]; i < adjacency_end_[u]; ++i) {
+      const std::uint32_t a = adjacency_[i].next;
+      if (kind_[a] == kInterior || kind_[a] == kBoundary) consider(a);
+    }
+  } else if (kind_[u] == kBoundary) {
+    // A boundary vertex only slides along its boundary, onto another boundary vertex.
+    for (int e = 0; e < 2; ++e)
+      if (kind_[boundary_ends[2 * u + e]] == kBoundary) consider(boundary_ends[2 * u + e]);
+  }
+}
+
+bool Builder::can_collapse(std::uint32_t u, std::uint32_t v, Stamps& stamps) const {
+  std::vector<std::uint32_t>& link_stamp_ = stamps.link;
+  std::vector<std::uint32_t>& seen_stamp_ = stamps.seen;
+  const std::uint32_t link = ++stamps.stamp;
+  link_stamp_[v] = link;
+  for (std::uint32_t i = adjacency_begin_[v]; i < adjacency_end_[v]; ++i)
+    link_stamp_[adjacency_[i].next] = link_stamp_[adjacency_[i].prev] = link;
   std::uint32_t opposite[2] = {0, 0};
   int opposites = 0;
   for (std::uint32_t i = adjacency_begin_[u]; i < adjacency_end_[u]; ++i) {
-    std::uint32_t a = 0, b = 0;
-    fan_corners(adjacency_[i], u, a, b);
+    const std::uint32_t a = adjacency_[i].next, b = adjacency_[i].prev;
     if (a == v || b == v) {
       if (opposites == 2) return false;
       opposite[opposites++] = a == v ? b : a;
@@ -373,8 +511,7 @@ bool Builder::can_collapse(std::uint32_t u, std::uint32_t v) {
   const float* pu = position(u);
   const float* pv = position(v);
   for (std::uint32_t i = adjacency_begin_[u]; i < adjacency_end_[u]; ++i) {
-    std::uint32_t a = 0, b = 0;
-    fan_corners(adjacency_[i], u, a, b);
+    const std::uint32_t a = adjacency_[i].next, b = adjacency_[i].prev;
     if (a == v || b == v) continue;
     for (const std::uint32_t w : {a, b}) {
       if (link_stamp_[w] != link || seen_stamp_[w] == link) continue;
@@ -396,9 +533,9 @@ bool Builder::can_collapse(std::uint32_t u, std::uint32_t v) {
     // The new face (v, a, b) must not repeat a face v already has (a tetrahedron folding flat).
     if (link_stamp_[a] == link && link_stamp_[b] == link) {
       for (std::uint32_t j = adjacency_begin_[v]; j < adjacency_end_[v]; ++j) {
-        const std::uint32_t* t = &working_[3 * std::size_t{adjacency_[j]}];
-        const bool has_a = t[0] == a || t[1] == a || t[2] == a;
-        const bool has_b = t[0] == b || t[1] == b || t[2] == b;
+        const Corner& t = adjacency_[j];  // the face (v, next, prev)
+        const bool has_a = v == a || t.next == a || t.prev == a;
+        const bool has_b = v == b || t.next == b || t.prev == b;
         if (has_a && has_b) return false;
       }
     }
@@ -407,67 +544,171 @@ bool Builder::can_collapse(std::uint32_t u, std::uint32_t v) {
   return survivors > 0;
 }
 
-void Builder::collapse(std::uint32_t u, std::uint32_t v) {
-  const std::uint32_t tag = std::uint32_t(collapse_u_.size()) + 1;
+void Builder::choose_collapses(std::size_t quota) {
+  // The chooser walks the candidates in cost order. can_collapse only reads the pass's starting
+  // adjacency, so its answer for a candidate never depends on the choices before it: a guesser
+  // (when a second thread runs it) answers candidates just ahead of the chooser, skipping those
+  // already blocked, and the chooser asks can_collapse itself only where no answer is there yet.
+  // The choice is therefore the same whether the guesser runs, lags or never starts.
+  verdicts_.assign(candidates_.size(), 0);
+  std::atomic<std::size_t> chooser_at{0};
+  std::atomic<bool> chooser_done{false};
+  auto is_touched = [this](std::uint32_t x) {
+    return std::atomic_ref<std::uint32_t>(touched_[x]).load(std::memory_order_relaxed) == pass_;
+  };
+  auto touch = [this](std::uint32_t x) {
+    std::atomic_ref<std::uint32_t>(touched_[x]).store(pass_, std::memory_order_relaxed);
+  };
+  auto choose = [&] {
+    std::size_t ordered = 0;
+    std::uint32_t tag = std::uint32_t(collapse_u_.size()) + 1;
+    std::uint32_t triangle = std::uint32_t(mt_made_by_.size());
+    chosen_.clear();
+    for (std::size_t i = 0; i < candidates_.size() && ordered < quota; ++i) {
+      chooser_at.store(i, std::memory_order_relaxed);
+      if (i + kPrefetchAhead < candidates_.size()) {
+        const Candidate& ahead = candidates_[i + kPrefetchAhead];
+        __builtin_prefetch(&touched_[ahead.u]);
+        __builtin_prefetch(&touched_[ahead.v]);
+        __builtin_prefetch(&adjacency_begin_[ahead.u]);
+        __builtin_prefetch(&adjacency_begin_[ahead.v]);
+      }
+      const Candidate& c = candidates_[i];
+      if (is_touched(c.u) || is_touched(c.v)) {
+        ++ordered;
+        continue;
+      }
+      const std::uint8_t verdict = std::atomic_ref<std::uint8_t>(verdicts_[i]).load(std::memory_order_relaxed);
+      if (verdict == 2 || (verdict == 0 && !can_collapse(c.u, c.v, chooser_stamps_))) continue;
+      chosen_.push_back({c.u, c.v, tag++, triangle, 1});  // u joins the points assigned to faces
+      touch(c.u);
+      touch(c.v);
+      for (std::uint32_t j = adjacency_begin_[c.u]; j < adjacency_end_[c.u]; ++j) {
+        const Corner& t = adjacency_[j];  // the face (u, next, prev)
+        chosen_.back().first_point += face_points_[t.face];
+        touch(t.next);
+        touch(t.prev);
+        if (t.next == c.v || t.prev == c.v)
+          --alive_faces_;
+        else
+          ++triangle;
+      }
+      ++ordered;
+      if (alive_faces_ <= options_.min_triangles) break;
+    }
+    chosen_triangles_end_ = triangle;
+    chooser_done.store(true, std::memory_order_relaxed);
+  };
+  auto guess = [&] {
+    // Stays a little ahead of the chooser; alone (run before or after it) it does little or nothing.
+    const std::size_t end = std::min(candidates_.size(), 2 * quota);
+    for (std::size_t i = 0; i < end && !chooser_done.load(std::memory_order_relaxed); ++i) {
+      const std::size_t at = chooser_at.load(std::memory_order_relaxed);
+      if (i <= at) i = at + kGuessLead;
+      if (i >= end) break;
+      const Candidate& c = candidates_[i];
+      if (is_touched(c.u) || is_touched(c.v)) continue;
+      const std::uint8_t verdict = can_collapse(c.u, c.v, guesser_stamps_) ? 1 : 2;
+      std::atomic_ref<std::uint8_t>(verdicts_[i]).store(verdict, std::memory_order_relaxed);
+    }
+  };
+  if (options_.parallel_for == nullptr || candidates_.size() < kMinChunk) {
+    choose();
+    return;
+  }
+  for_ranges(2, [&](std::size_t task) { task == 0 ? choose() : guess(); });
+}
+
+void Builder::collapse(const Chosen& chosen, Scratch& scratch) {
+  // Only faces of u's fan and vertices assigned to them are written, and the pass's choice keeps
+  // the fans of its collapses disjoint, so collapses of one pass may run concurrently.
+  const std::uint32_t u = chosen.u, v = chosen.v, tag = chosen.tag;
+  std::vector<Moving>& moving_ = scratch.moving;
+  std::vector<std::uint32_t>& new_faces_ = scratch.new_faces;
   // Errors never drop from a node to its children, so the fan's largest error is a floor.
   float fan_error = 0;
-  for (std::uint32_t i = adjacency_begin_[u]; i < adjacency_end_[u]; ++i)
-    fan_error = std::max(fan_error, mt_error(face_mt_[adjacency_[i]]));
-
   // Original vertices that leave with the fan: u itself and those assigned to u's faces.
   moving_.clear();
-  moving_.push_back({u, kNoNode});
-  touched_[u] = touched_[v] = pass_;
+  moving_.push_back({{position(u)[0], position(u)[1], position(u)[2]}, kNoNode, 0});
   new_faces_.clear();
+  std::uint32_t triangle = chosen.first_triangle;
   for (std::uint32_t i = adjacency_begin_[u]; i < adjacency_end_[u]; ++i) {
-    const std::uint32_t f = adjacency_[i];
-    for (std::uint32_t w = face_head_[f]; w != kNoNode; w = vertex_next_[w]) moving_.push_back({w, f});
-    face_head_[f] = kNoNode;
+    const std::uint32_t f = adjacency_[i].face;
     std::uint32_t* t = &working_[3 * std::size_t{f}];
     mt_killed_by_[face_mt_[f]] = tag;
-    for (int k = 0; k < 3; ++k) touched_[t[k]] = pass_;
-    if (t[0] == v || t[1] == v || t[2] == v) {
+    fan_error = std::max(fan_error, face_error_[f]);
+    const bool survives = !(t[0] == v || t[1] == v || t[2] == v);
+    const std::uint32_t local = survives ? std::uint32_t(new_faces_.size()) : kNoNode;
+    const float* run = &points_[3 * std::size_t{face_first_point_[f]}];
+    for (std::uint32_t k = 0; k < face_points_[f]; ++k, run += 3) moving_.push_back({{run[0], run[1], run[2]}, local, 0});
+    face_points_[f] = 0;
+    if (!survives) {
       face_alive_[f] = 0;
-      --alive_faces_;
       continue;
     }
     for (int k = 0; k < 3; ++k)
       if (t[k] == u) t[k] = v;
     new_faces_.push_back(f);
-    face_mt_[f] = std::uint32_t(mt_made_by_.size());
-    mt_vertices_.insert(mt_vertices_.end(), t, t + 3);
-    mt_made_by_.push_back(tag);
-    mt_killed_by_.push_back(0);
+    face_mt_[f] = triangle;
+    std::copy(t, t + 3, &mt_vertices_[3 * std::size_t{triangle}]);
+    mt_made_by_[triangle] = tag;
+    mt_killed_by_[triangle] = 0;
+    ++triangle;
   }
 
   // Jade-style global error: each moving vertex goes to a new face and the error is the largest
   // exact distance. A vertex stays on its own face (or takes the first face found) when that is
   // already within the running maximum, since a nearer face could not lower the maximum.
   double measured = fan_error;
-  for (const auto& [w, old_face] : moving_) {
-    const float* p = position(w);
+  for (Moving& m : moving_) {
+    const float* p = m.position;
     std::uint32_t best_face = kNoNode;
     double best = std::numeric_limits<double>::infinity();
-    auto try_face = [&](std::uint32_t f) {
-      const std::uint32_t* t = &working_[3 * std::size_t{f}];
+    auto try_face = [&](std::uint32_t i) {
+      const std::uint32_t* t = &working_[3 * std::size_t{new_faces_[i]}];
       const double d2 = point_triangle_distance_squared(p, position(t[0]), position(t[1]), position(t[2]));
-      if (d2 < best) best = d2, best_face = f;
+      if (d2 < best) best = d2, best_face = i;
     };
     const double floor2 = measured * measured;
-    if (old_face != kNoNode && face_alive_[old_face]) try_face(old_face);
-    for (std::size_t i = 0; i < new_faces_.size() && !(best <= floor2); ++i)
-      if (new_faces_[i] != old_face) try_face(new_faces_[i]);
+    if (m.old_face != kNoNode) try_face(m.old_face);
+    for (std::uint32_t i = 0; i < new_faces_.size() && !(best <= floor2); ++i)
+      if (i != m.old_face) try_face(i);
     measured = std::max(measured, std::sqrt(best));
-    vertex_next_[w] = face_head_[best_face];
-    face_head_[best_face] = w;
+    m.new_face = best_face;
   }
+  // Each new face's run, in the chosen block of the pool: reversed order of arrival (the order
+  // the linked lists of earlier versions gave, so their MTs are reproduced exactly).
+  std::vector<std::uint32_t>& ends = scratch.new_face_ends;
+  ends.assign(new_faces_.size(), 0);
+  for (const Moving& m : moving_) ++ends[m.new_face];
+  std::uint32_t next_point = chosen.first_point;
+  for (std::size_t i = 0; i < new_faces_.size(); ++i) {
+    face_first_point_[new_faces_[i]] = next_point;
+    face_points_[new_faces_[i]] = ends[i];
+    next_point += ends[i];
+    ends[i] = next_point;
+  }
+  for (const Moving& m : moving_)
+    std::copy(m.position, m.position + 3, &points_[3 * std::size_t{--ends[m.new_face]}]);
   // Round up so the float bound is never below the computed distance.
   const float error = std::nextafter(float(measured), std::numeric_limits<float>::max());
 
+  for (const std::uint32_t f : new_faces_) face_error_[f] = error;
   add_quadric(quadrics_[v], quadrics_[u]);
   vertex_dead_[u] = 1;
-  collapse_u_.push_back(u);
-  collapse_error_.push_back(error);
+  collapse_u_[tag - 1] = u;
+  collapse_error_[tag - 1] = error;
+}
+
+void Builder::compact_assigned_points() {
+  points_scratch_.clear();
+  for (std::size_t f = 0; f < face_count_; ++f) {
+    if (face_points_[f] == 0) continue;
+    const auto run = points_.begin() + 3 * std::ptrdiff_t{face_first_point_[f]};
+    face_first_point_[f] = std::uint32_t(points_scratch_.size() / 3);
+    points_scratch_.insert(points_scratch_.end(), run, run + 3 * std::ptrdiff_t{face_points_[f]});
+  }
+  points_.swap(points_scratch_);
 }
 
 Mt Builder::assemble() const {
@@ -579,6 +820,7 @@ Result<Mt> Builder::run(BuildStats* stats) {
   face_alive_.assign(face_count_, 1);
   alive_faces_ = face_count_;
   face_mt_.resize(face_count_);
+  face_error_.assign(face_count_, 0.0f);
   mt_made_by_.reserve(3 * face_count_);
   mt_killed_by_.reserve(3 * face_count_);
   mt_vertices_.reserve(9 * face_count_);
@@ -589,8 +831,8 @@ Result<Mt> Builder::run(BuildStats* stats) {
   collapse_u_.reserve(vertex_count_);
   collapse_error_.reserve(vertex_count_);
   kind_.assign(vertex_count_, kUnused);
-  face_head_.assign(face_count_, kNoNode);
-  vertex_next_.assign(vertex_count_, kNoNode);
+  face_first_point_.assign(face_count_, 0);
+  face_points_.assign(face_count_, 0);
   adjacency_begin_.assign(vertex_count_, 0);
   adjacency_end_.assign(vertex_count_, 0);
   vertex_dead_.assign(vertex_count_, 0);
@@ -602,12 +844,15 @@ Result<Mt> Builder::run(BuildStats* stats) {
     for (const std::uint32_t v : mesh_.triangles) used[v] = 1;
     for (std::uint32_t v = 0; v < vertex_count_; ++v)
       if (used[v]) alive_vertex_list_.push_back(v);
+    used_vertices_ = alive_vertex_list_.size();
   }
   touched_.assign(vertex_count_, 0);
-  link_stamp_.assign(vertex_count_, 0);
-  seen_stamp_.assign(vertex_count_, 0);
-  fan_slot_.assign(vertex_count_, 0);
+  for (Stamps* stamps : {&chooser_stamps_, &guesser_stamps_}) {
+    stamps->link.assign(vertex_count_, 0);
+    stamps->seen.assign(vertex_count_, 0);
+  }
   best_.assign(vertex_count_, Candidate{0, 0, 0});
+  scratch_.resize(kChunks);
 
   build_adjacency();
   init_quadrics();
@@ -618,59 +863,63 @@ Result<Mt> Builder::run(BuildStats* stats) {
     ++pass_;
     if (pass_ > 1) build_adjacency();
     // A vertex's kind only changes when its fan does, i.e. when the last pass touched it.
+    for_chunks(alive_vertex_list_.size(), [&](std::size_t, std::size_t begin, std::size_t end) {
+      for (std::size_t i = begin; i < end; ++i) {
+        const std::uint32_t u = alive_vertex_list_[i];
+        if (pass_ == 1 || touched_[u] == pass_ - 1)
+          kind_[u] = classify(u, boundary_ends[2 * u], boundary_ends[2 * u + 1]);
+      }
+    });
+    for_chunks(alive_vertex_list_.size(), [&](std::size_t, std::size_t begin, std::size_t end) {
+      for (std::size_t i = begin; i < end; ++i) find_partner(alive_vertex_list_[i], boundary_ends.data());
+    });
     complex_vertices_ = 0;
-    for (const std::uint32_t u : alive_vertex_list_) {
-      if (pass_ == 1 || touched_[u] == pass_ - 1)
-        kind_[u] = classify(u, boundary_ends[2 * u], boundary_ends[2 * u + 1]);
-      complex_vertices_ += kind_[u] == kComplex;
-    }
     candidates_.clear();
     for (const std::uint32_t u : alive_vertex_list_) {
-      Candidate& best = best_[u];
-      // The partner's cost Q_u(v) only changes when u's quadric or fan does, i.e. when u was
-      // touched; a cached partner that stopped being collapsible forces a new search too.
-      const bool stale = pass_ == 1 || touched_[u] == pass_ - 1 ||
-                         (best.v != u && kind_[best.v] != kInterior && kind_[best.v] != kBoundary);
-      if (stale) {
-        best = Candidate{std::numeric_limits<float>::infinity(), u, u};
-        auto consider = [&](std::uint32_t v) {
-          const float cost = evaluate(quadrics_[u], &unit_positions_[3 * std::size_t{v}]);
-          if (cost < best.cost) best.cost = cost, best.v = v;
-        };
-        if (kind_[u] == kInterior) {
-          for (std::uint32_t i = adjacency_begin_[u]; i < adjacency_end_[u]; ++i) {
-            std::uint32_t a = 0, b = 0;
-            fan_corners(adjacency_[i], u, a, b);
-            if (kind_[a] == kInterior || kind_[a] == kBoundary) consider(a);
-          }
-        } else if (kind_[u] == kBoundary) {
-          // A boundary vertex only slides along its boundary, onto another boundary vertex.
-          for (int e = 0; e < 2; ++e)
-            if (kind_[boundary_ends[2 * u + e]] == kBoundary) consider(boundary_ends[2 * u + e]);
-        }
-      }
-      if (best.v != u) candidates_.push_back(best);
+      complex_vertices_ += kind_[u] == kComplex;
+      if (best_[u].v != u) candidates_.push_back(best_[u]);
     }
     if (candidates_.empty()) break;
     sort_by_cost(candidates_, candidate_scratch_);
 
-    // The quota counts candidates that took part in the order (collapsed, or blocked by an earlier
-    // collapse of this pass); invalid ones are skipped without using it up.
+    // Choose in cost order; the quota counts candidates that took part in the order (chosen, or
+    // blocked by an earlier choice of this pass); invalid ones are skipped without using it up.
+    // A chosen collapse changes u's fan, so its corners are marked touched and no later choice of
+    // the pass reads a face it writes: can_collapse sees the adjacency of the pass's start.
     const std::size_t quota =
         std::max<std::size_t>(1, std::size_t(double(candidates_.size()) * options_.pass_fraction));
-    std::size_t collapses = 0, ordered = 0;
-    for (std::size_t i = 0; i < candidates_.size() && ordered < quota; ++i) {
-      const Candidate& c = candidates_[i];
-      if (touched_[c.u] == pass_ || touched_[c.v] == pass_) {
-        ++ordered;
-        continue;
-      }
-      if (!can_collapse(c.u, c.v)) continue;
-      collapse(c.u, c.v);
-      ++collapses;
-      ++ordered;
-      if (alive_faces_ <= options_.min_triangles) break;
+    // Each pass moves every assigned point at most once; room for that keeps the pool's indices
+    // valid while chunks append to their chosen blocks.
+    if (points_.size() / 3 + used_vertices_ > 3 * used_vertices_) compact_assigned_points();
+    std::uint32_t point = std::uint32_t(points_.size() / 3);
+    choose_collapses(quota);
+    const std::uint32_t tag = std::uint32_t(collapse_u_.size() + chosen_.size()) + 1;
+    const std::uint32_t triangle = chosen_triangles_end_;
+    const std::size_t collapses = chosen_.size();
+    // Run the collapses in vertex order: neighbouring collapses then share cache lines, and the
+    // pool's blocks follow the mesh. Tags and triangles keep the cost order.
+    std::sort(chosen_.begin(), chosen_.end(), [](const Chosen& x, const Chosen& y) { return x.u < y.u; });
+    for (Chosen& c : chosen_) {
+      const std::uint32_t count = c.first_point;
+      c.first_point = point;
+      point += count;
     }
+    collapse_u_.resize(tag - 1);
+    collapse_error_.resize(tag - 1);
+    mt_vertices_.resize(3 * std::size_t{triangle});
+    mt_made_by_.resize(triangle);
+    mt_killed_by_.resize(triangle);
+    points_.resize(3 * std::size_t{point});
+    for_chunks(collapses, [&](std::size_t chunk, std::size_t begin, std::size_t end) {
+      for (std::size_t i = begin; i < end; ++i) {
+        // The collapses' data is scattered: ask for the next ones' early, in stages that each
+        // read what the stage before fetched.
+        if (i + 3 * kPrefetchAhead < end) prefetch_collapse(chosen_[i + 3 * kPrefetchAhead]);
+        if (i + 2 * kPrefetchAhead < end) prefetch_fan(chosen_[i + 2 * kPrefetchAhead].u);
+        if (i + kPrefetchAhead < end) prefetch_fan_data(chosen_[i + kPrefetchAhead].u);
+        collapse(chosen_[i], scratch_[chunk]);
+      }
+    });
     if (options_.progress)
       options_.progress(options_.progress_user, 1.0 - double(alive_faces_) / initial_faces);
     if (collapses == 0 || alive_faces_ <= options_.min_triangles) break;

@@ -16,6 +16,11 @@ namespace mtlod::core {
 // tool draws the bar.
 using BuildProgressFn = void (*)(void* user, double fraction);
 
+// Calls task(context, i) for every i in [0, count), possibly concurrently, and returns when all
+// calls have finished. core starts no threads: a caller with cores to spare passes its own runner.
+using ParallelForFn = void (*)(void* user, std::size_t count, void (*task)(void* context, std::size_t i),
+                               void* context);
+
 struct BuildOptions {
   // Share of each pass's candidate collapses (cheapest first) that is attempted before the next
   // pass re-sorts. Smaller follows the quadric order more closely but takes more passes.
@@ -28,6 +33,10 @@ struct BuildOptions {
   std::size_t min_triangles = 0;
   BuildProgressFn progress = nullptr;
   void* progress_user = nullptr;
+  // Runs the independent work of each pass (vertex classification, partner search, the collapses
+  // chosen for the pass) in chunks; null runs them in turn. The MT is the same either way.
+  ParallelForFn parallel_for = nullptr;
+  void* parallel_user = nullptr;
 };
 
 struct BuildStats {

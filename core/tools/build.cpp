@@ -10,6 +10,7 @@
 #include "core/io/mesh_io.hpp"
 #include "core/io/mt_file.hpp"
 #include "core/mt_builder.hpp"
+#include "core/tools/parallel_for.hpp"
 #include "fmt/format.h"
 
 namespace {
@@ -43,6 +44,8 @@ int main(int argc, char** argv) {
   app.add_option("--pass-fraction", options.pass_fraction,
                  "share of the cheapest collapses tried per pass (smaller: closer to greedy order, slower)")
       ->check(CLI::Range(0.01f, 1.0f));
+  bool serial = false;
+  app.add_flag("--serial", serial, "build on one thread (the MT is the same)");
   app.add_flag("--raw", raw,
                "no clean-up of the input (keep unused vertices, degenerate and duplicate triangles)");
   CLI11_PARSE(app, argc, argv);
@@ -64,6 +67,7 @@ int main(int argc, char** argv) {
     options.progress = draw_bar;
     options.progress_user = &bar;
   }
+  if (!serial) options.parallel_for = mtlod::tools::thread_parallel_for;
   BuildStats stats;
   const auto start = std::chrono::steady_clock::now();
   auto mt = build_mt(mesh, options, &stats);
