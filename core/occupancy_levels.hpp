@@ -16,12 +16,15 @@
 
 namespace mtlod::core {
 
+// One coarse cut as a compact mesh for rasterize_occupancy_compact: the positions of its vertices
+// (copied from the model, in first-use order, so a request reads them in order instead of gathering
+// them from all over the model), its triangles as indices into them, and their model vertex ids.
 struct OccupancyLevel {
-  std::vector<std::uint32_t> triangles;  // 3 vertex ids per triangle
-  // The same cut as a compact mesh for rasterize_occupancy_compact: the positions of its vertices
-  // (copied from the model, in first-use order) and its triangles as indices into them.
   std::vector<float> positions;
-  std::vector<std::uint32_t> local_triangles;
+  std::vector<std::uint32_t> triangles;  // 3 indices into positions per triangle
+  std::vector<std::uint32_t> model_ids;  // per vertex: its id in the model
+
+  std::size_t triangle_count() const { return triangles.size() / 3; }
 };
 
 class OccupancyLevels {

@@ -78,18 +78,18 @@ double ViewExtractor::covered_cells() const {
 
 std::size_t ViewExtractor::occupancy() {
   if (incremental_) {
-    occupancy_triangles_ = {};  // the silhouette transform is the session's
+    occupancy_level_ = nullptr;  // the silhouette transform is the session's
     return 0;
   }
   const OccupancyLevel& level = levels_.for_covered_cells(covered_cells());
-  occupancy_triangles_ = level.triangles;
+  occupancy_level_ = &level;
   const std::size_t cells = request_->grid.cell_count();
   occupancy_.resize(cells);
   if (request_->internal_silhouettes) depth_.resize(cells);
-  rasterize_occupancy_compact(mapping_, level.positions, level.local_triangles, occupancy_,
+  rasterize_occupancy_compact(mapping_, level.positions, level.triangles, occupancy_,
                               request_->internal_silhouettes ? std::span<float>(depth_) : std::span<float>(),
                               projected_);
-  return occupancy_triangles_.size() / 3;
+  return level.triangle_count();
 }
 
 void ViewExtractor::transform(std::span<const std::uint8_t> image, std::span<std::uint16_t> out) {

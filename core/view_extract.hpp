@@ -102,7 +102,8 @@ class ViewExtractor {
   std::span<const std::uint16_t> focus_dt() const { return focus_dt_; }
   std::span<const float> vertex_allowed_error() const { return allowed_; }
   const ViewMapping& mapping() const { return mapping_; }
-  std::span<const std::uint32_t> occupancy_triangles() const { return occupancy_triangles_; }
+  // The coarse cut the last occupancy() rasterised (null when it reused the session's view).
+  const OccupancyLevel* occupancy_level() const { return occupancy_level_; }
 
   // Grid cells covered by the model's bounding sphere (at most the whole grid).
   double covered_cells() const;
@@ -129,7 +130,7 @@ class ViewExtractor {
   std::span<float> allowed_;
   ViewMapping mapping_;
   const OccupancyLevels& levels_;
-  std::span<const std::uint32_t> occupancy_triangles_;
+  const OccupancyLevel* occupancy_level_ = nullptr;
   DistanceTransformer transformer_;
   AllowedErrorField field_;
   std::vector<std::uint8_t> occupancy_, seeds_image_;

@@ -194,7 +194,7 @@ int main(int argc, char** argv) {
   fmt::print(
       "{}: {} triangles, {} of {} nodes, max error {:.6g}{}\n  loaded in {:.3f} s, {} in {:.3f} ms; wrote {}\n",
       options.model, cut.triangle_count(), cut.node_count, mt->node_count(), cut.max_error,
-      view ? fmt::format(", occupancy from {} triangles", extractor->occupancy_triangles().size() / 3) : "", load_s,
+      view ? fmt::format(", occupancy from {} triangles", extractor->occupancy_level() ? extractor->occupancy_level()->triangle_count() : 0) : "", load_s,
       view ? "extracted (map, occupancy, distance transforms, allowed error, refinement)" : "refined", refine_s * 1e3,
       options.output);
   return 0;

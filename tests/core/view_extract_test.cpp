@@ -221,29 +221,6 @@ TEST(ViewExtract, EuclideanLabelsAreExactDistancesInFifthsOfAPixel) {
   }
 }
 
-TEST(ViewExtract, OccupancyCutGrowsAsTheModelFillsMoreOfTheGrid) {
-  GenerateOptions o;
-  o.target_triangles = 200'000;
-  auto b = build(generate_mesh(o));
-  ASSERT_NE(b, nullptr);
-  ASSERT_GE(b->levels->levels().size(), 3u);
-  ViewExtractor x(b->mt, *b->levels);
-  std::size_t previous = 0;
-  for (std::uint32_t side : {16u, 64u, 256u, 1024u}) {
-    ViewRequest r;
-    r.camera = front_camera(b->input, 1.0f);
-    r.grid = {side, side};
-    x.map(r);
-    const std::size_t triangles = x.occupancy();
-    // At least one triangle per four covered cells, from the precomputed levels.
-    EXPECT_GE(triangles, previous) << side;
-    EXPECT_GE(static_cast<double>(triangles), std::min(0.25 * x.covered_cells(),
-                                                      static_cast<double>(b->levels->levels().back().triangles.size() / 3)));
-    previous = triangles;
-  }
-  EXPECT_GT(previous, b->levels->levels().front().triangles.size() / 3);
-}
-
 // Sorted triangles (each rotated to start at its smallest id) of a cut: its set, in any order.
 std::vector<std::array<std::uint32_t, 3>> triangle_set(const CutMesh& cut) {
   std::vector<std::array<std::uint32_t, 3>> out;
@@ -255,6 +232,43 @@ std::vector<std::array<std::uint32_t, 3>> triangle_set(const CutMesh& cut) {
   std::sort(out.begin(), out.end());
   return out;
 }
+
+TEST(ViewExtract, OccupancyCutGrowsAsTheModelFillsMoreOfTheGrid) {
+  GenerateOptions o;
+  o.target_triangles = 200'000;
+  auto b = build(generate_mesh(o));
+  ASSERT_NE(b, nullptr);
+  ASSERT_GE(b->levels->levels().size(), 3u);
+  // Each level's compact mesh is a cut of the model: its positions are the model's at its ids, and
+  // mapped back to model ids its triangles are the budgeted cut of that size.
+  for (const OccupancyLevel& level : b->levels->levels()) {
+    ASSERT_EQ(level.positions.size(), 3 * level.model_ids.size());
+    for (std::size_t i = 0; i < level.model_ids.size(); ++i) {
+      for (int c = 0; c < 3; ++c) ASSERT_EQ(level.positions[3 * i + c], b->mt.positions[3 * level.model_ids[i] + c]);
+    }
+    CutMesh cut;
+    refine_budget(b->mt, AllowedError::everywhere(0.0f), level.triangle_count(), cut);
+    CutMesh compact;
+    for (const std::uint32_t local : level.triangles) compact.triangles.push_back(level.model_ids.at(local));
+    EXPECT_EQ(triangle_set(compact), triangle_set(cut));
+  }
+  ViewExtractor x(b->mt, *b->levels);
+  std::size_t previous = 0;
+  for (std::uint32_t side : {16u, 64u, 256u, 1024u}) {
+    ViewRequest r;
+    r.camera = front_camera(b->input, 1.0f);
+    r.grid = {side, side};
+    x.map(r);
+    const std::size_t triangles = x.occupancy();
+    // At least one triangle per four covered cells, from the precomputed levels.
+    EXPECT_GE(triangles, previous) << side;
+    EXPECT_GE(static_cast<double>(triangles), std::min(0.25 * x.covered_cells(),
+                                                      static_cast<double>(b->levels->levels().back().triangle_count())));
+    previous = triangles;
+  }
+  EXPECT_GT(previous, b->levels->levels().front().triangle_count());
+}
+
 
 // A session's gaze path (same view, foci moved: occupancy and silhouette transform reused, allowed
 // error recomputed only where the focus multiplier changed, the refinement told which vertices
