@@ -23,7 +23,7 @@ namespace mtlod::server {
 //   /              → <root>/clients/web/index.html
 //   /<name>        → <root>/clients/web/<name>
 //   /three/<path>  → <root>/scripts/node_modules/three/<path>, only under build/ and examples/jsm/
-//   /health        → 200 "ok"
+//   /health        → 200, JSON: status, instance, models, connections
 //   /ws            → WebSocket upgrade
 struct WebConfig {
   std::filesystem::path root;  // the repository root (or an install with the same two folders)

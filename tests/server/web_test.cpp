@@ -152,6 +152,10 @@ TEST_F(WebTest, WebSocketUpgradeOnlyAtWs) {
   EXPECT_NE(head.find("s3pPLMBiTxaQ9kYGzzhZRbK+xOo="), std::string::npos) << head;
   // With --max-connections 1 that WebSocket is the one connection: another upgrade is refused.
   EXPECT_EQ(http_request(server_->http_port(), "GET /ws" + upgrade).status, 503);
+  // A query after /ws is the same endpoint (load balancers route on ?model=): refused by the limit
+  // too, not as an unknown path; /wsx is another path.
+  EXPECT_EQ(http_request(server_->http_port(), "GET /ws?model=bunny" + upgrade).status, 503);
+  EXPECT_EQ(http_request(server_->http_port(), "GET /wsx?model=bunny" + upgrade).status, 404);
   ::close(fd);
 }
 
