@@ -82,15 +82,25 @@ void AllowedErrorField::tabulate(const RegionLaw& law, DistanceMetric metric, fl
     table[raw] = law_factor(law, distance_px(raw, metric), tan_per_px);
 }
 
-float AllowedErrorField::combine(std::uint32_t silhouette_label, std::uint32_t focus_label,
-                                 std::uint32_t neglect_label, bool has_cell, float clip_w,
-                                 std::uint32_t vertex) const {
+float AllowedErrorField::label_multiplier(std::uint32_t silhouette_label, std::uint32_t focus_label,
+                                          std::uint32_t neglect_label) const {
   const AllowedErrorOptions& o = options_;
   float m = 1.0f;
   // Silhouette and focus: the stricter (smaller) multiplier wins.
   if (o.use_silhouette) m = std::min(m, lookup(silhouette_table_, silhouette_label));
   if (o.use_focus) m = std::min(m, lookup(focus_table_, focus_label));
   if (o.use_neglect) m *= lookup(neglect_table_, neglect_label);
+  return m;
+}
+
+float AllowedErrorField::combine(std::uint32_t silhouette_label, std::uint32_t focus_label,
+                                 std::uint32_t neglect_label, bool has_cell, float clip_w,
+                                 std::uint32_t vertex) const {
+  return finish(label_multiplier(silhouette_label, focus_label, neglect_label), has_cell, clip_w, vertex);
+}
+
+float AllowedErrorField::finish(float m, bool has_cell, float clip_w, std::uint32_t vertex) const {
+  const AllowedErrorOptions& o = options_;
   if (!has_cell) m *= o.outside_view_factor;
   if (o.back_face_factor != 1.0f && !inputs_.normals.empty()) {
     const float* p = inputs_.positions.data() + 3 * std::size_t{vertex};
@@ -117,6 +127,30 @@ void AllowedErrorField::compute_all(std::span<float> vertex_allowed_error) {
   cells_.resize(kBlock);
   clip_w_.resize(kBlock);
   const bool sil = options_.use_silhouette, focus = options_.use_focus, neglect = options_.use_neglect;
+  // With fewer cells than vertices, the label part of the multiplier is tabulated per cell first:
+  // the same operations in the same order as combine(), so the values are bit for bit the same.
+  const std::size_t cells = mapping_->grid().cell_count();
+  if (cells <= n) {
+    cell_multiplier_.resize(cells);
+    for (std::uint32_t c = 0; c < cells; ++c) {
+      cell_multiplier_[c] = label_multiplier(sil ? cell_label(inputs_.silhouette_dt, c) : kLabelNoCell,
+                                             focus ? cell_label(inputs_.focus_dt, c) : kLabelNoCell,
+                                             neglect ? cell_label(inputs_.neglect_dt, c) : kLabelNoCell);
+    }
+    const float no_cell = label_multiplier(kLabelNoCell, kLabelNoCell, kLabelNoCell);
+    for (std::size_t first = 0; first < n; first += kBlock) {
+      const std::size_t count = std::min(kBlock, n - first);
+      map_vertices(*mapping_, inputs_.positions.subspan(3 * first, 3 * count), std::span(cells_).first(count),
+                   std::span(clip_w_).first(count));
+      for (std::size_t k = 0; k < count; ++k) {
+        const std::uint32_t cell = cells_[k];
+        const bool has_cell = cell != kNoCell;
+        vertex_allowed_error[first + k] = finish(has_cell ? cell_multiplier_[cell] : no_cell, has_cell, clip_w_[k],
+                                                 static_cast<std::uint32_t>(first + k));
+      }
+    }
+    return;
+  }
   for (std::size_t first = 0; first < n; first += kBlock) {
     const std::size_t count = std::min(kBlock, n - first);
     map_vertices(*mapping_, inputs_.positions.subspan(3 * first, 3 * count), std::span(cells_).first(count),

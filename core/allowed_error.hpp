@@ -114,7 +114,8 @@ class AllowedErrorField {
 
   // Bytes of scratch memory held.
   std::size_t memory_bytes() const {
-    return (silhouette_table_.capacity() + focus_table_.capacity() + neglect_table_.capacity() + clip_w_.capacity()) *
+    return (silhouette_table_.capacity() + focus_table_.capacity() + neglect_table_.capacity() + clip_w_.capacity() +
+            cell_multiplier_.capacity()) *
                sizeof(float) +
            cells_.capacity() * sizeof(std::uint32_t);
   }
@@ -132,6 +133,10 @@ class AllowedErrorField {
  private:
   float combine(std::uint32_t silhouette_label, std::uint32_t focus_label, std::uint32_t neglect_label,
                 bool has_cell, float clip_w, std::uint32_t vertex) const;
+  // combine() in two parts: the multiplier of the labels (a function of the cell alone), then the
+  // per-vertex factors and units.
+  float label_multiplier(std::uint32_t silhouette_label, std::uint32_t focus_label, std::uint32_t neglect_label) const;
+  float finish(float label_multiplier, bool has_cell, float clip_w, std::uint32_t vertex) const;
   // Multiplier of a law at every raw label value present in its grid, so that no vertex pays for
   // the law itself (the foveal law's atan costs more than the rest of a vertex).
   static void tabulate(const RegionLaw& law, DistanceMetric metric, float tan_per_px,
@@ -148,6 +153,7 @@ class AllowedErrorField {
   float viewport_height_px_ = 0.0f;
   std::vector<float> silhouette_table_, focus_table_, neglect_table_;
   std::vector<std::uint32_t> cells_;  // full variant scratch
+  std::vector<float> cell_multiplier_;
   std::vector<float> clip_w_;
 };
 
