@@ -128,40 +128,28 @@ void AllowedErrorField::compute_all(std::span<float> vertex_allowed_error) {
   clip_w_.resize(kBlock);
   const bool sil = options_.use_silhouette, focus = options_.use_focus, neglect = options_.use_neglect;
   // With fewer cells than vertices, the label part of the multiplier is tabulated per cell first:
-  // the same operations in the same order as combine(), so the values are bit for bit the same.
+  // finish(label_multiplier(...)) is combine() itself, so the values are bit for bit the same.
   const std::size_t cells = mapping_->grid().cell_count();
-  if (cells <= n) {
+  const bool per_cell = cells <= n;
+  auto labels_of = [&](std::uint32_t cell) {
+    return label_multiplier(sil ? cell_label(inputs_.silhouette_dt, cell) : kLabelNoCell,
+                            focus ? cell_label(inputs_.focus_dt, cell) : kLabelNoCell,
+                            neglect ? cell_label(inputs_.neglect_dt, cell) : kLabelNoCell);
+  };
+  if (per_cell) {
     cell_multiplier_.resize(cells);
-    for (std::uint32_t c = 0; c < cells; ++c) {
-      cell_multiplier_[c] = label_multiplier(sil ? cell_label(inputs_.silhouette_dt, c) : kLabelNoCell,
-                                             focus ? cell_label(inputs_.focus_dt, c) : kLabelNoCell,
-                                             neglect ? cell_label(inputs_.neglect_dt, c) : kLabelNoCell);
-    }
-    const float no_cell = label_multiplier(kLabelNoCell, kLabelNoCell, kLabelNoCell);
-    for (std::size_t first = 0; first < n; first += kBlock) {
-      const std::size_t count = std::min(kBlock, n - first);
-      map_vertices(*mapping_, inputs_.positions.subspan(3 * first, 3 * count), std::span(cells_).first(count),
-                   std::span(clip_w_).first(count));
-      for (std::size_t k = 0; k < count; ++k) {
-        const std::uint32_t cell = cells_[k];
-        const bool has_cell = cell != kNoCell;
-        vertex_allowed_error[first + k] = finish(has_cell ? cell_multiplier_[cell] : no_cell, has_cell, clip_w_[k],
-                                                 static_cast<std::uint32_t>(first + k));
-      }
-    }
-    return;
+    for (std::uint32_t c = 0; c < cells; ++c) cell_multiplier_[c] = labels_of(c);
   }
+  const float no_cell = labels_of(kNoCell);
   for (std::size_t first = 0; first < n; first += kBlock) {
     const std::size_t count = std::min(kBlock, n - first);
     map_vertices(*mapping_, inputs_.positions.subspan(3 * first, 3 * count), std::span(cells_).first(count),
                  std::span(clip_w_).first(count));
     for (std::size_t k = 0; k < count; ++k) {
       const std::uint32_t cell = cells_[k];
-      vertex_allowed_error[first + k] =
-          combine(sil ? cell_label(inputs_.silhouette_dt, cell) : kLabelNoCell,
-                  focus ? cell_label(inputs_.focus_dt, cell) : kLabelNoCell,
-                  neglect ? cell_label(inputs_.neglect_dt, cell) : kLabelNoCell, cell != kNoCell, clip_w_[k],
-                  static_cast<std::uint32_t>(first + k));
+      const bool has_cell = cell != kNoCell;
+      const float m = !has_cell ? no_cell : per_cell ? cell_multiplier_[cell] : labels_of(cell);
+      vertex_allowed_error[first + k] = finish(m, has_cell, clip_w_[k], static_cast<std::uint32_t>(first + k));
     }
   }
 }

@@ -17,11 +17,14 @@ std::chrono::milliseconds Backoff::delay(unsigned attempt, std::mt19937_64& rng)
 }
 
 Result<Session> open_session(const std::string& host, std::uint16_t port, const std::string& client,
-                             const RetryPolicy& policy, std::mt19937_64& rng, unsigned* tries) {
+                             const RetryPolicy& policy, std::mt19937_64& rng, unsigned* tries,
+                             const std::atomic<bool>* give_up) {
   const unsigned attempts = std::max(1u, policy.attempts);
-  std::string last_error;
-  for (unsigned attempt = 0; attempt < attempts; ++attempt) {
-    if (tries) *tries = attempt + 1;
+  std::string last_error = "given up before connecting";
+  unsigned made = 0;
+  for (unsigned attempt = 0; attempt < attempts && !(give_up && *give_up); ++attempt) {
+    made = attempt + 1;
+    if (tries) *tries = made;
     if (attempt > 0) std::this_thread::sleep_for(policy.backoff.delay(attempt - 1, rng));
     auto connection = Connection::open(host, port);
     if (!connection) {
@@ -42,8 +45,8 @@ Result<Session> open_session(const std::string& host, std::uint16_t port, const 
       last_error = fmt::format("{}:{} answered hello with something else", host, port);
     }
   }
-  if (attempts == 1) return make_error(ErrorCode::kIoError, last_error);
-  return make_error(ErrorCode::kIoError, fmt::format("{} (after {} attempts)", last_error, attempts));
+  if (made <= 1) return make_error(ErrorCode::kIoError, last_error);
+  return make_error(ErrorCode::kIoError, fmt::format("{} (after {} attempts)", last_error, made));
 }
 
 bool asks_for_retry(const ReplyFrame& frame) {

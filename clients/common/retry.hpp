@@ -3,6 +3,7 @@
 // new connection, and which replies ask for a request to be sent again.
 #pragma once
 
+#include <atomic>
 #include <chrono>
 #include <cstdint>
 #include <optional>
@@ -40,10 +41,12 @@ struct Session {
 
 // Connects and says hello as `client`. A failed connect, a dropped connection or an error reply to
 // hello (a server at its connection limit answers one) counts as a failed attempt; after each, it
-// waits policy.backoff and tries again, up to policy.attempts attempts. `tries`, when given,
-// receives the number of attempts made. Errors: the last attempt's, with the count.
+// waits policy.backoff and tries again, up to policy.attempts attempts, and none once `give_up`
+// (when given) is set. `tries`, when given, receives the number of attempts made. Errors: the last
+// attempt's, with the count.
 Result<Session> open_session(const std::string& host, std::uint16_t port, const std::string& client,
-                             const RetryPolicy& policy, std::mt19937_64& rng, unsigned* tries = nullptr);
+                             const RetryPolicy& policy, std::mt19937_64& rng, unsigned* tries = nullptr,
+                             const std::atomic<bool>* give_up = nullptr);
 
 // True for a reply that asks the client to send its request again on a new connection: the server
 // is draining (`shutting_down`) and will close this one.

@@ -82,16 +82,8 @@ bool reconnect(Stream& stream, const Link& link, std::uint64_t failed) {
     if (stream.generation != failed || stream.broken) return !stream.broken;
     stream.reconnecting = true;
   }
-  std::optional<clients::Session> session;
-  for (unsigned attempt = 0; attempt < std::max(1u, link.retry.attempts) && !link.finished; ++attempt) {
-    if (attempt > 0) std::this_thread::sleep_for(link.retry.backoff.delay(attempt - 1, stream.rng));
-    clients::RetryPolicy once = link.retry;
-    once.attempts = 1;
-    if (auto opened = clients::open_session(link.host, link.port, "mtlod-gaze/0.1", once, stream.rng)) {
-      session = std::move(*opened);
-      break;
-    }
-  }
+  auto session =
+      clients::open_session(link.host, link.port, "mtlod-gaze/0.1", link.retry, stream.rng, nullptr, &link.finished);
   auto connection = session ? std::make_shared<clients::Connection>(std::move(session->connection)) : nullptr;
   std::size_t sent = 0, answered = 0;
   {

@@ -135,18 +135,8 @@ bool reconnect(Stream& stream, const Link& link, std::uint64_t failed) {
     old = stream.connection;
   }
   if (old) old->interrupt();
-  const clients::RetryPolicy& policy = link.options.retry;
-  std::optional<clients::Session> session;
-  for (unsigned attempt = 0; attempt < std::max(1u, policy.attempts) && !link.finished; ++attempt) {
-    if (attempt > 0) std::this_thread::sleep_for(policy.backoff.delay(attempt - 1, stream.rng));
-    clients::RetryPolicy once = policy;
-    once.attempts = 1;
-    auto opened = clients::open_session(link.options.host, link.options.port, "mtlod-load/0.1", once, stream.rng);
-    if (opened) {
-      session = std::move(*opened);
-      break;
-    }
-  }
+  auto session = clients::open_session(link.options.host, link.options.port, "mtlod-load/0.1", link.options.retry,
+                                       stream.rng, nullptr, &link.finished);
   std::vector<Pending> resend;
   auto connection = session ? std::make_shared<clients::Connection>(std::move(session->connection)) : nullptr;
   {
@@ -491,8 +481,7 @@ int main(int argc, char** argv) {
   }
   if (progress) fmt::print(stderr, "\n");
   finished = true;
-  // Senders may still wait on a window or a reconnect: wake them, then end every receive.
-  for (auto& s : streams) s->changed.notify_all();
+  // Senders may still wait on a window or a reconnect: end every receive, then wake them.
   for (auto& s : streams) {
     std::lock_guard lock(s->mutex);
     s->broken = true;

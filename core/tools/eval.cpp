@@ -106,6 +106,18 @@ Result<Mesh> load(const fs::path& path) {
 // ---------------------------------------------------------------------------------------------
 // compare and silhouette subcommands
 
+// Two silhouette masks as one RGB image: pixels in both grey, only in `a` blue, only in `b` red.
+void xor_image(std::span<const std::uint8_t> a, std::span<const std::uint8_t> b, std::vector<std::uint8_t>& rgb) {
+  rgb.resize(3 * a.size());
+  for (std::size_t c = 0; c < a.size(); ++c) {
+    const std::array<std::uint8_t, 3> colour = a[c] && b[c] ? std::array<std::uint8_t, 3>{175, 175, 175}
+                                               : b[c]       ? std::array<std::uint8_t, 3>{220, 30, 30}
+                                               : a[c]       ? std::array<std::uint8_t, 3>{30, 60, 220}
+                                                            : std::array<std::uint8_t, 3>{255, 255, 255};
+    std::copy(colour.begin(), colour.end(), &rgb[3 * c]);
+  }
+}
+
 int run_compare(const std::string& a_path, const std::string& b_path, std::size_t samples) {
   auto a = load(a_path);
   if (!a) return fmt::print(stderr, "mtlod-eval: {}\n", a.error().message), 1;
@@ -164,15 +176,8 @@ int run_silhouette(const std::string& a_path, const std::string& b_path, const C
              f.size, f.size, e.pixels_a, e.pixels_b, e.xor_pixels, e.mean_px(), e.max_px(), e.a_to_b.mean_px,
              e.a_to_b.max_px, e.b_to_a.mean_px, e.b_to_a.max_px);
   if (!png.empty()) {
-    // A grey, B-only red, A-only blue.
-    std::vector<std::uint8_t> rgb(3 * grid.cell_count(), 255);
-    for (std::size_t c = 0; c < grid.cell_count(); ++c) {
-      const std::array<std::uint8_t, 3> colour = mask_a[c] && mask_b[c] ? std::array<std::uint8_t, 3>{170, 170, 170}
-                                                 : mask_b[c]             ? std::array<std::uint8_t, 3>{220, 30, 30}
-                                                 : mask_a[c]             ? std::array<std::uint8_t, 3>{30, 60, 220}
-                                                                         : std::array<std::uint8_t, 3>{255, 255, 255};
-      std::copy(colour.begin(), colour.end(), &rgb[3 * c]);
-    }
+    std::vector<std::uint8_t> rgb;
+    xor_image(mask_a, mask_b, rgb);
     if (auto s = io::write_png_rgb(png, rgb, grid); !s) return fmt::print(stderr, "mtlod-eval: {}\n", s.error().message), 1;
   }
   return 0;
@@ -313,16 +318,10 @@ Status write_figures(const fs::path& dir, const std::string& name, std::size_t b
     figures.push_back(file);
   }
   // Silhouette XOR: shared pixels grey, only the original blue, only the cut red.
-  std::vector<std::uint8_t> mask(image.grid().cell_count()), rgb(3 * mask.size());
+  std::vector<std::uint8_t> mask(image.grid().cell_count()), rgb;
   for (const int m : {kUniform, kSilhouette}) {
     rasterize_silhouette(image, mt.positions, cuts[m], mask);
-    for (std::size_t c = 0; c < mask.size(); ++c) {
-      const std::array<std::uint8_t, 3> colour = ref_mask[c] && mask[c] ? std::array<std::uint8_t, 3>{175, 175, 175}
-                                                 : mask[c]               ? std::array<std::uint8_t, 3>{220, 30, 30}
-                                                 : ref_mask[c]           ? std::array<std::uint8_t, 3>{30, 60, 220}
-                                                                         : std::array<std::uint8_t, 3>{255, 255, 255};
-      std::copy(colour.begin(), colour.end(), &rgb[3 * c]);
-    }
+    xor_image(ref_mask, mask, rgb);
     const std::string file = fmt::format("{}-xor-{}.png", stem, kMethodFiles[m]);
     MTLOD_TRY(auto ok, io::write_png_rgb(dir / file, rgb, image.grid()));
     (void)ok;

@@ -7,26 +7,14 @@
 
 #include <vector>
 
-#include <glm/ext/matrix_clip_space.hpp>
-#include <glm/ext/matrix_transform.hpp>
-
 #include "core/view_grid.hpp"
+#include "tests/core/test_scenes.hpp"
 
 namespace mtlod::core {
 namespace {
 
-ViewMapping ortho_mapping(std::uint32_t size) {
-  Camera camera;
-  camera.view = glm::lookAt(glm::vec3(0, 0, 5), glm::vec3(0), glm::vec3(0, 1, 0));
-  camera.projection = glm::ortho(-1.0f, 1.0f, -1.0f, 1.0f, 0.1f, 10.0f);
-  return ViewMapping(camera, {size, size});
-}
-
-void add_square(std::vector<float>& p, std::vector<std::uint32_t>& t, float x0, float y0, float x1, float y1, float z) {
-  const std::uint32_t base = std::uint32_t(p.size() / 3);
-  p.insert(p.end(), {x0, y0, z, x1, y0, z, x1, y1, z, x0, y1, z});
-  t.insert(t.end(), {base, base + 1, base + 2, base, base + 2, base + 3});
-}
+using test::add_rectangle;
+using test::ortho_camera;
 
 std::array<std::uint8_t, 3> pixel(const std::vector<std::uint8_t>& rgb, int size, int i, int j) {
   const std::size_t c = 3 * (std::size_t(j) * size + i);
@@ -34,10 +22,10 @@ std::array<std::uint8_t, 3> pixel(const std::vector<std::uint8_t>& rgb, int size
 }
 
 TEST(Render, SquareCoversKnownPixelsWithItsColour) {
-  const ViewMapping mapping = ortho_mapping(100);
+  const ViewMapping mapping = ortho_camera(1.0f, 100);
   std::vector<float> p;
   std::vector<std::uint32_t> t;
-  add_square(p, t, -0.5f, -0.5f, 0.5f, 0.5f, 0.0f);  // grid [25, 75]²: 50 × 50 pixel centres
+  add_rectangle(p, t, -0.5f, -0.5f, 0.5f, 0.5f, 0.0f);  // grid [25, 75]²: 50 × 50 pixel centres
   std::vector<std::uint8_t> rgb(3 * 100 * 100);
   RenderOptions options;
   options.shading = false;
@@ -54,11 +42,11 @@ TEST(Render, SquareCoversKnownPixelsWithItsColour) {
 }
 
 TEST(Render, NearerSurfaceWinsInEitherOrder) {
-  const ViewMapping mapping = ortho_mapping(64);
+  const ViewMapping mapping = ortho_camera(1.0f, 64);
   std::vector<float> p;
   std::vector<std::uint32_t> t;
-  add_square(p, t, -0.8f, -0.8f, 0.4f, 0.4f, 0.0f);  // far (z = 0, camera at z = 5)
-  add_square(p, t, -0.4f, -0.4f, 0.8f, 0.8f, 1.0f);  // near, overlapping the centre
+  add_rectangle(p, t, -0.8f, -0.8f, 0.4f, 0.4f, 0.0f);  // far (z = 0, camera at z = 5)
+  add_rectangle(p, t, -0.4f, -0.4f, 0.8f, 0.8f, 1.0f);  // near, overlapping the centre
   const std::vector<std::uint8_t> colours = {255, 0, 0, 255, 0, 0, 0, 0, 255, 0, 0, 255};  // far red, near blue
   RenderOptions options;
   options.shading = false;
@@ -77,10 +65,10 @@ TEST(Render, NearerSurfaceWinsInEitherOrder) {
 }
 
 TEST(Render, WireframeMarksTheDiagonal) {
-  const ViewMapping mapping = ortho_mapping(100);
+  const ViewMapping mapping = ortho_camera(1.0f, 100);
   std::vector<float> p;
   std::vector<std::uint32_t> t;
-  add_square(p, t, -0.5f, -0.5f, 0.5f, 0.5f, 0.0f);
+  add_rectangle(p, t, -0.5f, -0.5f, 0.5f, 0.5f, 0.0f);
   RenderOptions options;
   options.shading = false;
   options.wireframe = true;

@@ -9,35 +9,21 @@
 #include <limits>
 #include <vector>
 
-#include <glm/ext/matrix_clip_space.hpp>
-#include <glm/ext/matrix_transform.hpp>
-
 #include "core/view_grid.hpp"
+#include "tests/core/test_scenes.hpp"
 
 namespace mtlod::core {
 namespace {
 
-// Orthographic camera looking down −z at [−1, 1]²: x = −1 is the grid's left edge, y = 1 its top.
-ViewMapping ortho_mapping(std::uint32_t size) {
-  Camera camera;
-  camera.view = glm::lookAt(glm::vec3(0, 0, 5), glm::vec3(0), glm::vec3(0, 1, 0));
-  camera.projection = glm::ortho(-1.0f, 1.0f, -1.0f, 1.0f, 0.1f, 10.0f);
-  return ViewMapping(camera, {size, size});
-}
-
-// Axis-aligned square [x0, x1] × [y0, y1] at z = 0, two triangles (counter-clockwise seen from +z).
-void add_square(std::vector<float>& p, std::vector<std::uint32_t>& t, float x0, float y0, float x1, float y1) {
-  const std::uint32_t base = std::uint32_t(p.size() / 3);
-  p.insert(p.end(), {x0, y0, 0, x1, y0, 0, x1, y1, 0, x0, y1, 0});
-  t.insert(t.end(), {base, base + 1, base + 2, base, base + 2, base + 3});
-}
+using test::add_rectangle;
+using test::ortho_camera;
 
 TEST(SilhouetteMask, SquareCoversKnownPixels) {
-  const ViewMapping mapping = ortho_mapping(100);
+  const ViewMapping mapping = ortho_camera(1.0f, 100);
   std::vector<float> p;
   std::vector<std::uint32_t> t;
   // x ∈ [−0.5, 0.5] maps to grid x ∈ [25, 75]: pixel centres 25.5 … 74.5, 50 columns; same for rows.
-  add_square(p, t, -0.5f, -0.5f, 0.5f, 0.5f);
+  add_rectangle(p, t, -0.5f, -0.5f, 0.5f, 0.5f, 0.0f);
   std::vector<std::uint8_t> mask(100 * 100);
   EXPECT_EQ(rasterize_silhouette(mapping, p, t, mask), 2500u);
   EXPECT_EQ(mask[50 * 100 + 25], 1);
@@ -47,12 +33,12 @@ TEST(SilhouetteMask, SquareCoversKnownPixels) {
 }
 
 TEST(SilhouetteMask, ShiftedSquareHasKnownXorAndContourDistance) {
-  const ViewMapping mapping = ortho_mapping(100);
+  const ViewMapping mapping = ortho_camera(1.0f, 100);
   std::vector<float> pa, pb;
   std::vector<std::uint32_t> ta, tb;
-  add_square(pa, ta, -0.5f, -0.5f, 0.5f, 0.5f);
+  add_rectangle(pa, ta, -0.5f, -0.5f, 0.5f, 0.5f, 0.0f);
   // Shifted right by 0.1 = 5 pixels: the two masks differ in a 5×50 strip on either side.
-  add_square(pb, tb, -0.4f, -0.5f, 0.6f, 0.5f);
+  add_rectangle(pb, tb, -0.4f, -0.5f, 0.6f, 0.5f, 0.0f);
   std::vector<std::uint8_t> a(100 * 100), b(100 * 100);
   rasterize_silhouette(mapping, pa, ta, a);
   rasterize_silhouette(mapping, pb, tb, b);
@@ -82,10 +68,10 @@ TEST(SilhouetteMask, ShiftedSquareHasKnownXorAndContourDistance) {
 }
 
 TEST(SilhouetteMask, IdenticalMasksHaveZeroError) {
-  const ViewMapping mapping = ortho_mapping(64);
+  const ViewMapping mapping = ortho_camera(1.0f, 64);
   std::vector<float> p;
   std::vector<std::uint32_t> t;
-  add_square(p, t, -0.7f, -0.3f, 0.2f, 0.9f);
+  add_rectangle(p, t, -0.7f, -0.3f, 0.2f, 0.9f, 0.0f);
   std::vector<std::uint8_t> a(64 * 64);
   rasterize_silhouette(mapping, p, t, a);
   const SilhouetteError e = compare_silhouettes(a, a, {64, 64});
@@ -112,11 +98,11 @@ TEST(SilhouetteMask, EmptyAgainstNonEmptyIsInfinitelyFar) {
 }
 
 TEST(FocusRegion, TrianglesWithinRadiusOfAPoint) {
-  const ViewMapping mapping = ortho_mapping(100);
+  const ViewMapping mapping = ortho_camera(1.0f, 100);
   std::vector<float> p;
   std::vector<std::uint32_t> t;
-  add_square(p, t, -0.1f, -0.1f, 0.1f, 0.1f);  // grid [45, 55]², covering the centre
-  add_square(p, t, 0.5f, -0.1f, 0.7f, 0.1f);   // grid x ∈ [75, 85]: 25 px right of the centre
+  add_rectangle(p, t, -0.1f, -0.1f, 0.1f, 0.1f, 0.0f);  // grid [45, 55]², covering the centre
+  add_rectangle(p, t, 0.5f, -0.1f, 0.7f, 0.1f, 0.0f);   // grid x ∈ [75, 85]: 25 px right of the centre
   std::vector<std::uint8_t> region(4);
   // Radius 20 px around the centre (50, 50): only the first square.
   EXPECT_EQ(triangles_near_point(mapping, p, t, 50.0f, 50.0f, 20.0f, region), 2u);

@@ -20,12 +20,20 @@ struct Scene {
   std::size_t vertex_count() const { return positions.size() / 3; }
 };
 
-// Rectangle [x0, x1] × [y0, y1] in the plane z, facing +z: two triangles, four vertices.
+// Appends the rectangle [x0, x1] × [y0, y1] in the plane z, facing +z (counter-clockwise seen from
+// +z): four vertices, two triangles.
+inline void add_rectangle(std::vector<float>& positions, std::vector<std::uint32_t>& triangles, float x0, float y0,
+                          float x1, float y1, float z) {
+  const auto base = static_cast<std::uint32_t>(positions.size() / 3);
+  positions.insert(positions.end(), {x0, y0, z, x1, y0, z, x1, y1, z, x0, y1, z});
+  triangles.insert(triangles.end(), {base, base + 1, base + 2, base, base + 2, base + 3});
+}
+
+// The same rectangle as a scene of its own, with normals.
 inline Scene rectangle(float x0, float y0, float x1, float y1, float z) {
   Scene s;
-  s.positions = {x0, y0, z, x1, y0, z, x1, y1, z, x0, y1, z};
+  add_rectangle(s.positions, s.triangles, x0, y0, x1, y1, z);
   s.normals = {0, 0, 1, 0, 0, 1, 0, 0, 1, 0, 0, 1};
-  s.triangles = {0, 1, 2, 0, 2, 3};
   return s;
 }
 

@@ -1,8 +1,7 @@
-// Helpers for the deployment tests: free loopback ports, a child process with its own environment
-// (HAProxy, the client tools), a plain HTTP GET, and a small MT for the replicas to serve.
+// Helpers for the deployment tests: free loopback ports and a child process with its own environment
+// (HAProxy, the client tools). HTTP requests go through tests/server/http_client.hpp.
 #pragma once
 
-#include <fcntl.h>
 #include <netinet/in.h>
 #include <signal.h>
 #include <sys/socket.h>
@@ -17,6 +16,8 @@
 #include <string>
 #include <thread>
 #include <vector>
+
+#include "tests/server/server_process.hpp"
 
 namespace mtlod::test {
 
@@ -33,51 +34,13 @@ inline std::uint16_t free_port() {
   return ntohs(address.sin_port);
 }
 
-// GET http://127.0.0.1:port/path with Connection: close; returns the whole response (status line,
-// headers, body), or "" when nothing answers.
-inline std::string http_get(std::uint16_t port, const std::string& path) {
-  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
-  sockaddr_in address{};
-  address.sin_family = AF_INET;
-  address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  address.sin_port = htons(port);
-  std::string response;
-  if (::connect(fd, reinterpret_cast<sockaddr*>(&address), sizeof address) == 0) {
-    timeval timeout{5, 0};
-    ::setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &timeout, sizeof timeout);
-    const std::string request = "GET " + path + " HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n";
-    if (::send(fd, request.data(), request.size(), MSG_NOSIGNAL) == static_cast<ssize_t>(request.size())) {
-      char buffer[4096];
-      for (ssize_t n; (n = ::recv(fd, buffer, sizeof buffer, 0)) > 0;) response.append(buffer, static_cast<std::size_t>(n));
-    }
-  }
-  ::close(fd);
-  return response;
-}
-
 // A child process: argv, extra environment, output to a log file. Killed (SIGKILL) when destroyed
 // unless it has exited.
 class Child {
  public:
   Child(const std::vector<std::string>& args, const std::map<std::string, std::string>& environment,
         const std::filesystem::path& log)
-      : log_(log) {
-    pid_ = ::fork();
-    if (pid_ == 0) {
-      for (const auto& [name, value] : environment) ::setenv(name.c_str(), value.c_str(), 1);
-      std::vector<std::string> copy = args;
-      std::vector<char*> argv;
-      for (auto& s : copy) argv.push_back(s.data());
-      argv.push_back(nullptr);
-      const int fd = ::open(log.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
-      if (fd >= 0) {
-        ::dup2(fd, 1);
-        ::dup2(fd, 2);
-      }
-      ::execv(argv[0], argv.data());
-      ::_exit(127);
-    }
-  }
+      : pid_(spawn(args, environment, log)), log_(log) {}
   Child(const Child&) = delete;
   Child& operator=(const Child&) = delete;
   ~Child() {

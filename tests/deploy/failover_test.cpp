@@ -16,6 +16,7 @@
 #include "nlohmann/json.hpp"
 #include "tests/core/test_meshes.hpp"
 #include "tests/deploy/deploy_support.hpp"
+#include "tests/server/http_client.hpp"
 #include "tests/server/server_process.hpp"
 
 namespace mtlod {
@@ -37,15 +38,14 @@ std::filesystem::path write_model(const std::filesystem::path& dir, std::size_t 
 
 // The instance a replica reports on /health ("" when it does not answer).
 std::string health_instance(std::uint16_t http_port) {
-  const std::string response = test::http_get(http_port, "/health");
-  const auto body = response.find("\r\n\r\n");
-  if (response.rfind("HTTP/1.1 200", 0) != 0 || body == std::string::npos) return "";
-  return json::parse(response.substr(body + 4)).value("instance", "");
+  const test::HttpReply reply = test::http_get(http_port, "/health");
+  if (reply.status != 200) return "";
+  return json::parse(reply.body).value("instance", "");
 }
 
 // Whether HAProxy's status CSV shows `server` of backend `backend` UP.
 bool haproxy_says_up(std::uint16_t stats_port, const std::string& backend, const std::string& server) {
-  std::istringstream csv(test::http_get(stats_port, "/stats;csv"));
+  std::istringstream csv(test::http_get(stats_port, "/stats;csv").body);
   for (std::string line; std::getline(csv, line);) {
     if (line.rfind(backend + "," + server + ",", 0) == 0) return line.find(",UP,") != std::string::npos;
   }
@@ -54,7 +54,7 @@ bool haproxy_says_up(std::uint16_t stats_port, const std::string& backend, const
 
 // Current sessions (the CSV's scur column) HAProxy has open to `server` of `backend`, or -1.
 int haproxy_sessions(std::uint16_t stats_port, const std::string& backend, const std::string& server) {
-  std::istringstream csv(test::http_get(stats_port, "/stats;csv"));
+  std::istringstream csv(test::http_get(stats_port, "/stats;csv").body);
   for (std::string line; std::getline(csv, line);) {
     if (line.rfind(backend + "," + server + ",", 0) != 0) continue;
     std::istringstream fields(line);
@@ -188,10 +188,10 @@ TEST(Health, ReportsTheInstanceTheProtocolReports) {
                               std::to_string(http_port), "--log-level", "warn"},
                              dir);
   ASSERT_TRUE(server.running()) << server.log();
-  const std::string response = test::http_get(http_port, "/health");
-  ASSERT_EQ(response.rfind("HTTP/1.1 200", 0), 0u) << response;
-  EXPECT_NE(response.find("application/json"), std::string::npos) << response;
-  const json health = json::parse(response.substr(response.find("\r\n\r\n") + 4));
+  const test::HttpReply response = test::http_get(http_port, "/health");
+  ASSERT_EQ(response.status, 200) << response.head;
+  EXPECT_NE(response.head.find("application/json"), std::string::npos) << response.head;
+  const json health = json::parse(response.body);
   EXPECT_EQ(health.at("status"), "ok");
   EXPECT_EQ(health.at("models"), 1);
   auto c = clients::Connection::open("127.0.0.1", server.port());
@@ -203,8 +203,8 @@ TEST(Health, ReportsTheInstanceTheProtocolReports) {
   EXPECT_EQ(instance.rfind("probe-me@", 0), 0u) << instance;
   EXPECT_EQ(instance.size(), std::string("probe-me@").size() + 8);
   // The open protocol connection is counted.
-  const std::string again = test::http_get(http_port, "/health");
-  EXPECT_EQ(json::parse(again.substr(again.find("\r\n\r\n") + 4)).at("connections"), 1) << again;
+  const test::HttpReply again = test::http_get(http_port, "/health");
+  EXPECT_EQ(json::parse(again.body).at("connections"), 1) << again.body;
 }
 
 }  // namespace

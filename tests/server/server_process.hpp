@@ -10,11 +10,34 @@
 #include <chrono>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <string>
 #include <thread>
 #include <vector>
 
 namespace mtlod::test {
+
+// Starts args[0] with args as its argv and `environment` added to its own, its stdout and stderr
+// appended to `log`. Returns the child's pid.
+inline pid_t spawn(const std::vector<std::string>& args, const std::map<std::string, std::string>& environment,
+                   const std::filesystem::path& log) {
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    for (const auto& [name, value] : environment) ::setenv(name.c_str(), value.c_str(), 1);
+    std::vector<std::string> copy = args;
+    std::vector<char*> argv;
+    for (auto& s : copy) argv.push_back(s.data());
+    argv.push_back(nullptr);
+    const int fd = ::open(log.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
+    if (fd >= 0) {
+      ::dup2(fd, 1);
+      ::dup2(fd, 2);
+    }
+    ::execv(argv[0], argv.data());
+    ::_exit(127);
+  }
+  return pid;
+}
 
 class ServerProcess {
  public:
@@ -28,19 +51,7 @@ class ServerProcess {
     std::vector<std::string> argv_strings = {MTLOD_SERVER_BINARY, "--port", std::to_string(port), "--port-file",
                                              port_file.string()};
     argv_strings.insert(argv_strings.end(), args.begin(), args.end());
-    pid_ = ::fork();
-    if (pid_ == 0) {
-      std::vector<char*> argv;
-      for (auto& s : argv_strings) argv.push_back(s.data());
-      argv.push_back(nullptr);
-      const int fd = ::open(log_.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
-      if (fd >= 0) {
-        ::dup2(fd, 1);
-        ::dup2(fd, 2);
-      }
-      ::execv(argv[0], argv.data());
-      ::_exit(127);
-    }
+    pid_ = spawn(argv_strings, {}, log_);
     // Model loading may take a while under sanitizers: wait up to a minute for the port.
     for (int i = 0; i < 600 && port_ == 0; ++i) {
       std::ifstream in(port_file);

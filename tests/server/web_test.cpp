@@ -11,47 +11,15 @@
 #include <fstream>
 
 #include "tests/core/test_meshes.hpp"
+#include "tests/server/http_client.hpp"
 #include "tests/server/server_process.hpp"
 
 namespace mtlod {
 namespace {
 
-struct HttpReply {
-  int status = 0;
-  std::string head;  // status line and headers
-  std::string body;
-};
-
-// One HTTP/1.1 request on a fresh connection (Connection: close), read to the end.
-HttpReply http_request(std::uint16_t port, const std::string& request) {
-  HttpReply reply;
-  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
-  sockaddr_in address{};
-  address.sin_family = AF_INET;
-  address.sin_port = htons(port);
-  address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  if (::connect(fd, reinterpret_cast<sockaddr*>(&address), sizeof address) != 0) {
-    ::close(fd);
-    return reply;
-  }
-  timeval timeout{10, 0};
-  ::setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &timeout, sizeof timeout);
-  (void)::send(fd, request.data(), request.size(), MSG_NOSIGNAL);
-  std::string all;
-  char buffer[65536];
-  for (ssize_t n; (n = ::recv(fd, buffer, sizeof buffer, 0)) > 0;) all.append(buffer, static_cast<std::size_t>(n));
-  ::close(fd);
-  const auto end = all.find("\r\n\r\n");
-  if (end == std::string::npos || all.size() < 12) return reply;
-  reply.head = all.substr(0, end);
-  reply.body = all.substr(end + 4);
-  reply.status = std::stoi(all.substr(9, 3));
-  return reply;
-}
-
-HttpReply get(std::uint16_t port, const std::string& target) {
-  return http_request(port, "GET " + target + " HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n");
-}
+using test::HttpReply;
+using test::http_get;
+using test::http_request;
 
 std::string file_text(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
@@ -84,18 +52,18 @@ test::ServerProcess* WebTest::server_ = nullptr;
 
 TEST_F(WebTest, ServesTheViewerAndThreeJsFromTheSourceTree) {
   const std::string root = MTLOD_SOURCE_DIR;
-  const HttpReply index = get(server_->http_port(), "/");
+  const HttpReply index = http_get(server_->http_port(), "/");
   EXPECT_EQ(index.status, 200);
   EXPECT_NE(index.head.find("Content-Type: text/html"), std::string::npos) << index.head;
   EXPECT_EQ(index.body, file_text(root + "/clients/web/index.html"));
 
-  const HttpReply viewer = get(server_->http_port(), "/viewer.js?v=2");  // a query string is ignored
+  const HttpReply viewer = http_get(server_->http_port(), "/viewer.js?v=2");  // a query string is ignored
   EXPECT_EQ(viewer.status, 200);
   EXPECT_NE(viewer.head.find("Content-Type: text/javascript"), std::string::npos) << viewer.head;
   EXPECT_EQ(viewer.body, file_text(root + "/clients/web/viewer.js"));
 
   const std::string wasm = "/three/examples/jsm/libs/draco/draco_decoder.wasm";
-  const HttpReply decoder = get(server_->http_port(), wasm);
+  const HttpReply decoder = http_get(server_->http_port(), wasm);
   if (std::filesystem::exists(root + "/scripts/node_modules" + wasm)) {
     EXPECT_EQ(decoder.status, 200);
     // WebAssembly.instantiateStreaming refuses any other type.
@@ -105,7 +73,7 @@ TEST_F(WebTest, ServesTheViewerAndThreeJsFromTheSourceTree) {
 }
 
 TEST_F(WebTest, HealthAnswersOkWithTheInstance) {
-  const HttpReply health = get(server_->http_port(), "/health");
+  const HttpReply health = http_get(server_->http_port(), "/health");
   EXPECT_EQ(health.status, 200);
   EXPECT_EQ(health.body.rfind(R"({"status": "ok", "instance": ")", 0), 0u) << health.body;
 }
@@ -115,7 +83,7 @@ TEST_F(WebTest, NothingOutsideTheTwoFoldersIsServed) {
   for (const char* target : {"/../README.md", "/..%2fREADME.md", "/three/package.json", "/three/../../README.md",
                              "/three/examples/../package.json", "//etc/passwd", "/%2e%2e/README.md", "/no-such-file.js",
                              "/three/build", "relative.html"}) {
-    EXPECT_EQ(get(server_->http_port(), target).status, 404) << target;
+    EXPECT_EQ(http_get(server_->http_port(), target).status, 404) << target;
   }
 }
 
