@@ -463,6 +463,18 @@ void Refiner::move_cut(const AllowedError& allowed, bool all_changed, CutMesh& o
   }
   cut_.resize(kept);
 
+  // Moving costs several times as much per node as refining from the root (each node's triangles
+  // go in and out of the indexed mesh), and a large drop is usually followed by as large an
+  // addition (a focus that jumped): then a static refinement is cheaper and gives the same cut.
+  if (dropped_.size() > kept / kRestartDivisor) {
+    for (const std::uint32_t n : dropped_) in_cut_[n] = kOut;
+    const bool known = field_known_;
+    refine_forced(allowed, out);
+    field_known_ = known;  // the kept copy of the field is already this one
+    ++restarts_;
+    return;
+  }
+
   // 2. Undo the dropped nodes, children first: their triangles leave the mesh, the ones they had
   // removed come back and must be tested.
   seeds_.clear();

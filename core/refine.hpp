@@ -70,6 +70,11 @@ class Refiner {
   // Nodes of the kept cut, in the order they were added (parents before children).
   std::span<const std::uint32_t> cut_nodes() const { return cut_; }
 
+  // Updates that found it cheaper to refine from the root than to move the kept cut (a drop of more
+  // than 1/kRestartDivisor of the cut's nodes); their result is the same.
+  std::size_t restarts() const { return restarts_; }
+  static constexpr std::size_t kRestartDivisor = 8;
+
   // Bytes this refiner holds (buffer capacities): the memory a session's cut costs.
   std::size_t memory_bytes() const;
 
@@ -128,6 +133,7 @@ class Refiner {
   bool previous_is_uniform_ = true;
   bool field_known_ = false;    // previous_* describe the field of the kept cut
   bool dynamic_ready_ = false;  // cut_ is the minimal cut of the previous field
+  std::size_t restarts_ = 0;
   // The kept cut's mesh, maintained by update: triangle ids, their corners, and their slots.
   bool mesh_valid_ = false;
   std::vector<std::uint32_t> mesh_triangles_;

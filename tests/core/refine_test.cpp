@@ -357,6 +357,9 @@ void expect_dynamic_matches_static(const MtCase* c, std::uint32_t seed, int step
     ASSERT_EQ(moving.max_error, reference.max_error);
     ASSERT_EQ(moving.node_count, reference.node_count);
   }
+  // Both ways of updating ran: moving the kept cut, and restarting from the root after a large drop.
+  EXPECT_GT(dynamic.restarts(), 0u);
+  EXPECT_LT(dynamic.restarts(), static_cast<std::size_t>(steps) / 2);
 }
 
 TEST(Refine, DynamicEqualsStaticAfterRandomSequences) {
