@@ -24,10 +24,11 @@ struct DracoOptions {
   int normal_bits = 10;        // quantization of normals, 1..30
   bool normals = false;        // encode the original vertices' normals (needs them in the input)
   bool labels = false;         // encode per-vertex labels as a generic uint16 attribute "label"
+  bool entropy_coding = true;  // false: attribute values stored as raw quantized integers (faster, larger)
 };
 
 // What a cut looks like to the encoder: the model's vertex arrays and the cut's triangles, whose
-// ids index those arrays. Only vertices the triangles use are encoded, in first-use order.
+// ids index those arrays. Only vertices the triangles use are encoded, in model vertex order.
 struct DracoInput {
   std::span<const float> positions;           // x, y, z per model vertex
   std::span<const float> normals;             // empty, or x, y, z per model vertex
@@ -41,7 +42,7 @@ struct DracoStats {
   std::size_t bytes = 0;      // size of the payload
 };
 
-// Reusable encoder: keeps its remapping table between calls, sized to the largest model seen.
+// Reusable encoder: keeps its renumbering tables between calls, sized to the largest model seen.
 class DracoEncoder {
  public:
   // Encodes into `out` (cleared first). Fails with kInvalidArgument when options are out of range
@@ -49,7 +50,8 @@ class DracoEncoder {
   Result<DracoStats> encode(const DracoInput& input, const DracoOptions& options, std::vector<std::uint8_t>& out);
 
  private:
-  std::vector<std::uint32_t> remap_;       // model vertex id -> encoded id, kUnused when not in the cut
+  std::vector<std::uint64_t> used_bits_;   // one bit per model vertex: used by the cut
+  std::vector<std::uint32_t> rank_;        // per 64-bit word: used vertices in the words before it
   std::vector<std::uint32_t> used_;        // encoded id -> model vertex id
   std::vector<float> scratch_;             // compacted attribute values
 };

@@ -80,6 +80,8 @@ void add_extract_flags(CLI::App& app, ExtractFlags& f) {
   app.add_option("--draco", f.draco_method,
                  "Draco method: edgebreaker or sequential (default: edgebreaker for extract, sequential for gaze)");
   app.add_option("--draco-speed", f.draco_speed, "Draco speed 0 (smallest) .. 10 (fastest)")->capture_default_str();
+  app.add_option("--draco-entropy", f.draco_entropy,
+                 "entropy-code Draco's attribute values: true or false (default: true for extract, false for gaze)");
   app.add_option("--position-bits", f.position_bits, "Draco position quantization bits")->capture_default_str();
   app.add_flag("--normals", f.normals, "send vertex normals");
   app.add_flag("--labels", f.labels, "send per-vertex distance labels");
@@ -123,6 +125,7 @@ Result<Extract> make_extract(const ExtractFlags& f, const std::string& model, co
   e.labels = f.labels;
   e.draco.speed = f.draco_speed;
   e.draco.position_bits = f.position_bits;
+  e.draco.entropy_coding = f.draco_entropy;
   e.criteria.internal_silhouettes = f.internal_silhouettes;
   e.criteria.frustum_factor = f.frustum_factor;
   e.criteria.backface_factor = f.backface_factor;

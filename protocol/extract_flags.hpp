@@ -32,6 +32,7 @@ struct ExtractFlags {
   double frustum_factor = 8, backface_factor = 1;
   std::string draco_method;  // empty: the server's default for the request type
   int draco_speed = 10, position_bits = 14;
+  std::optional<bool> draco_entropy;  // unset: the server's default for the request type
   bool normals = false, labels = false;
 };
 

@@ -279,6 +279,7 @@ Extract read_extract(ObjectReader& r, const Limits& limits) {
     e.draco.speed = static_cast<int>(dr.integer("speed", e.draco.speed, 0, 10));
     e.draco.position_bits = static_cast<int>(dr.integer("position_bits", e.draco.position_bits, 1, 30));
     e.draco.normal_bits = static_cast<int>(dr.integer("normal_bits", e.draco.normal_bits, 1, 30));
+    if (dr.has("entropy_coding")) e.draco.entropy_coding = dr.boolean("entropy_coding", true);
     dr.finish();
   }
   return e;
@@ -404,6 +405,7 @@ json extract_json(const Extract& e) {
   j["attributes"] = {{"normals", e.normals}, {"labels", e.labels}};
   j["draco"] = {{"speed", e.draco.speed}, {"position_bits", e.draco.position_bits}, {"normal_bits", e.draco.normal_bits}};
   if (e.draco.method) j["draco"]["method"] = enum_name(kDracoMethodNames, *e.draco.method);
+  if (e.draco.entropy_coding) j["draco"]["entropy_coding"] = *e.draco.entropy_coding;
   return j;
 }
 

@@ -87,6 +87,7 @@ std::variant<ExtractOutcome, protocol::ProtocolError> Engine::extract(const prot
   draco.speed = request.draco.speed;
   draco.position_bits = request.draco.position_bits;
   draco.normal_bits = request.draco.normal_bits;
+  draco.entropy_coding = request.draco.entropy_coding.value_or(!gaze);
   draco.normals = request.normals;
   draco.labels = request.labels;
   const core::DracoInput input{model->mt.positions, model->mt.normals,

@@ -107,7 +107,8 @@ double us_since(Clock::time_point& t) {
   return us;
 }
 
-// Args: model (0 bunny, 1 dragon), target triangles, Draco mode (0, 5, 10 = edgebreaker speed; -1 sequential).
+// Args: model (0 bunny, 1 dragon), target triangles, Draco mode (0, 5, 10 = edgebreaker speed; -1 sequential;
+// -2 sequential with raw attribute values).
 void BM_Request(benchmark::State& state) {
   const Model* m = model(state.range(0) == 0 ? "bunny" : "dragon");
   if (!m) return state.SkipWithError("mesh not found");
@@ -118,6 +119,7 @@ void BM_Request(benchmark::State& state) {
   core::DracoOptions draco;
   draco.method = state.range(2) < 0 ? core::DracoMethod::kSequential : core::DracoMethod::kEdgebreaker;
   draco.speed = state.range(2) < 0 ? 10 : static_cast<int>(state.range(2));
+  draco.entropy_coding = state.range(2) != -2;
   core::ViewExtractor extractor(m->mt, *m->levels);
   core::Refiner refiner(m->mt);
   core::CutMesh cut;
@@ -158,7 +160,7 @@ void BM_Request(benchmark::State& state) {
 void request_args(benchmark::internal::Benchmark* b) {
   for (int draco : {-1, 0, 5, 10}) b->Args({0, 3674, draco});  // the bunny whole: it has 3,674 triangles
   for (int size : {10'000, 50'000, 200'000}) {
-    for (int draco : {-1, 0, 5, 10}) b->Args({1, size, draco});
+    for (int draco : {-2, -1, 0, 5, 10}) b->Args({1, size, draco});
   }
   b->ArgNames({"model", "triangles", "draco"})->Unit(benchmark::kMillisecond);
 }
@@ -199,12 +201,23 @@ BENCHMARK(BM_RefineAfterSmallMove)->Arg(0)->Arg(1)->ArgName("dynamic")->Unit(ben
 // percent of the screen, and a saccade to a random point one sample in ten. session:0 runs every
 // stage again per gaze (refining the kept cut dynamically); session:1 keeps a core::ViewSession, as
 // the server does per connection: the view's stages are reused and only the vertices whose focus
-// multiplier changed are recomputed and handed to the refinement. Gazes use Draco sequential.
+// multiplier changed are recomputed and handed to the refinement. Gazes use Draco sequential;
+// raw:1 stores attribute values without Draco's entropy coding, as the server's gaze replies do.
+// gaze_criteria:1 uses mtlod-gaze's criteria (0.5 px, silhouette 2,0.25, full detail within 20 px
+// of the gaze) instead of this file's request_for: cuts of 45–95k triangles whose fine region
+// moves with every gaze.
 void BM_GazeStream(benchmark::State& state) {
   const Model* m = model("dragon");
   if (!m) return state.SkipWithError("mesh not found");
   const bool with_session = state.range(0) == 1;
   protocol::Extract e = request_for(*m, error_for_size(*m, 50'000));
+  if (state.range(2) == 1) {
+    // mtlod-gaze's default criteria (README, "Gaze"): full resolution within 20 px of the gaze.
+    e.error = 0.5;
+    e.criteria.silhouette = protocol::Silhouette{2, 0.25};
+    e.criteria.focus = {protocol::Focus{0.5, 0.5, 20, 0.1}};
+  }
+  std::vector<double> gaze_us;
   core::ViewExtractor x(m->mt, *m->levels);
   core::ViewSession session;
   core::Refiner refiner(m->mt);
@@ -212,10 +225,11 @@ void BM_GazeStream(benchmark::State& state) {
   core::DracoEncoder encoder;
   core::DracoOptions draco;
   draco.method = core::DracoMethod::kSequential;
+  draco.entropy_coding = state.range(1) == 0;
   std::vector<std::uint8_t> payload;
   std::mt19937 rng(5);
   std::uniform_real_distribution<double> anywhere(0.2, 0.8), drift(-0.003, 0.003), chance(0, 1);
-  double labels_us = 0, refine_us = 0, before_us = 0, encode_us = 0, triangles = 0, changed = 0;
+  double labels_us = 0, refine_us = 0, before_us = 0, encode_us = 0, triangles = 0, changed = 0, bytes = 0;
   for (auto _ : state) {
     auto& f = e.criteria.focus[0];
     if (chance(rng) < 0.1) {
@@ -233,12 +247,14 @@ void BM_GazeStream(benchmark::State& state) {
     t = Clock::now();
     x.refine(refiner, cut);
     refine_us += us_since(t);
+    gaze_us.push_back(std::chrono::duration<double, std::micro>(Clock::now() - start).count());
     before_us += us_since(start);
     t = Clock::now();
     auto encoded = encoder.encode({m->mt.positions, {}, {}, cut.triangles}, draco, payload);
     encode_us += us_since(t);
     if (!encoded) return state.SkipWithError(encoded.error().message.c_str());
     triangles += static_cast<double>(cut.triangle_count());
+    bytes += static_cast<double>(payload.size());
     changed += with_session && session.reused() ? static_cast<double>(session.changed_vertices()) : 0.0;
   }
   auto mean = [&](double sum) { return benchmark::Counter(sum, benchmark::Counter::kAvgIterations); };
@@ -248,7 +264,12 @@ void BM_GazeStream(benchmark::State& state) {
   state.counters["encode_us"] = mean(encode_us);
   state.counters["triangles"] = mean(triangles);
   state.counters["changed_vertices"] = mean(changed);
+  state.counters["bits_per_tri"] = 8.0 * bytes / std::max(1.0, triangles);
+  std::sort(gaze_us.begin(), gaze_us.end());
+  state.counters["before_encode_p90_us"] = gaze_us[gaze_us.size() * 9 / 10];
+  state.counters["before_encode_max_us"] = gaze_us.back();
+  state.counters["refine_restarts"] = static_cast<double>(refiner.restarts());
 }
-BENCHMARK(BM_GazeStream)->Arg(0)->Arg(1)->ArgName("session")->Unit(benchmark::kMillisecond)->Iterations(300);
+BENCHMARK(BM_GazeStream)->ArgsProduct({{0, 1}, {0, 1}, {0, 1}})->ArgNames({"session", "raw", "gaze_criteria"})->Unit(benchmark::kMillisecond)->Iterations(300);
 
 }  // namespace

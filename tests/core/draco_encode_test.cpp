@@ -54,12 +54,29 @@ TEST(DracoEncoder, DecodesToTheSameTrianglesForEveryMethodAndSpeed) {
   const Mesh m = sphere(8'000);
   for (DracoMethod method : {DracoMethod::kEdgebreaker, DracoMethod::kSequential}) {
     for (int speed : {0, 5, 10}) {
-      SCOPED_TRACE(testing::Message() << "method " << int(method) << " speed " << speed);
-      DracoOptions options;
-      options.method = method;
-      options.speed = speed;
-      expect_round_trip(m, m.triangles, options);
+      for (bool entropy : {true, false}) {
+        SCOPED_TRACE(testing::Message() << "method " << int(method) << " speed " << speed << " entropy " << entropy);
+        DracoOptions options;
+        options.method = method;
+        options.speed = speed;
+        options.entropy_coding = entropy;
+        expect_round_trip(m, m.triangles, options);
+      }
     }
+  }
+}
+
+TEST(DracoEncoder, RawAttributeValuesTradeBytesForSpeed) {
+  // Without entropy coding the quantized positions are stored as they are: the payload must grow.
+  const Mesh m = sphere(8'000);
+  for (DracoMethod method : {DracoMethod::kEdgebreaker, DracoMethod::kSequential}) {
+    DracoOptions coded, raw;
+    coded.method = raw.method = method;
+    raw.entropy_coding = false;
+    std::vector<std::uint8_t> coded_bytes, raw_bytes;
+    ASSERT_TRUE(DracoEncoder().encode({m.positions, {}, {}, m.triangles}, coded, coded_bytes).ok());
+    ASSERT_TRUE(DracoEncoder().encode({m.positions, {}, {}, m.triangles}, raw, raw_bytes).ok());
+    EXPECT_GT(raw_bytes.size(), coded_bytes.size()) << "method " << int(method);
   }
 }
 
@@ -90,7 +107,9 @@ TEST(DracoEncoder, ReusedEncoderGivesTheSameBytesAsAFreshOne) {
   EXPECT_EQ(second, fresh);
 }
 
-TEST(DracoEncoder, NormalsAndLabelsSurviveTheRoundTrip) {
+class DracoAttributes : public testing::TestWithParam<bool> {};
+
+TEST_P(DracoAttributes, NormalsAndLabelsSurviveTheRoundTrip) {
   const Mesh m = sphere(2'000);
   std::vector<std::uint32_t> labels(m.vertex_count());
   for (std::size_t v = 0; v < labels.size(); ++v) labels[v] = static_cast<std::uint32_t>(v * 7 % 70'000);
@@ -98,6 +117,7 @@ TEST(DracoEncoder, NormalsAndLabelsSurviveTheRoundTrip) {
   options.normals = true;
   options.labels = true;
   options.method = DracoMethod::kSequential;
+  options.entropy_coding = GetParam();
   std::vector<std::uint8_t> bytes;
   ASSERT_TRUE(DracoEncoder().encode({m.positions, m.normals, labels, m.triangles}, options, bytes).ok());
   auto decoded = decode_draco(bytes);
@@ -114,6 +134,7 @@ TEST(DracoEncoder, NormalsAndLabelsSurviveTheRoundTrip) {
     EXPECT_EQ(decoded->labels[i], std::min<std::uint32_t>(labels[v], 65535));  // labels over 65535 saturate
   }
 }
+INSTANTIATE_TEST_SUITE_P(EntropyCoding, DracoAttributes, testing::Bool());
 
 TEST(DracoEncoder, RejectsBadOptionsAndMissingAttributes) {
   const Mesh m = test::tetrahedron();
@@ -128,11 +149,17 @@ TEST(DracoEncoder, RejectsBadOptionsAndMissingAttributes) {
   EXPECT_FALSE(encoder.encode({m.positions, {}, {}, {}}, {}, bytes).ok());
 }
 
-TEST(DracoEncoder, GooglesDracoDecoderReadsThePayload) {
+// Edgebreaker with entropy coding (the extract default) and sequential with raw values (the gaze
+// default).
+class GooglesDecoder : public testing::TestWithParam<bool> {};
+
+TEST_P(GooglesDecoder, ReadsThePayload) {
   const Mesh m = sphere(5'000);
   std::vector<std::uint8_t> bytes;
-  ASSERT_TRUE(DracoEncoder().encode({m.positions, {}, {}, m.triangles}, {}, bytes).ok());
-  const auto dir = test::scratch_dir("draco-cli");
+  DracoOptions options;
+  if (!GetParam()) options.method = DracoMethod::kSequential, options.entropy_coding = false;
+  ASSERT_TRUE(DracoEncoder().encode({m.positions, {}, {}, m.triangles}, options, bytes).ok());
+  const auto dir = test::scratch_dir(GetParam() ? "draco-cli-coded" : "draco-cli-raw");
   std::ofstream(dir / "cut.drc", std::ios::binary).write(reinterpret_cast<const char*>(bytes.data()), bytes.size());
   const std::string command = "draco_decoder -i " + (dir / "cut.drc").string() + " -o " + (dir / "cut.ply").string() +
                               " > " + (dir / "log.txt").string() + " 2>&1";
@@ -144,6 +171,7 @@ TEST(DracoEncoder, GooglesDracoDecoderReadsThePayload) {
   EXPECT_EQ(loaded->mesh.triangle_count(), m.triangle_count());
   EXPECT_EQ(loaded->mesh.vertex_count(), m.vertex_count());
 }
+INSTANTIATE_TEST_SUITE_P(EntropyCoding, GooglesDecoder, testing::Bool());
 
 }  // namespace
 }  // namespace mtlod::core

@@ -34,7 +34,7 @@ Extract sample_extract() {
   e.budget = 50'000;
   e.normals = true;
   e.labels = true;
-  e.draco = {DracoMethod::kSequential, 3, 12, 8};
+  e.draco = {DracoMethod::kSequential, 3, 12, 8, false};
   return e;
 }
 
@@ -69,6 +69,7 @@ TEST(ParseRequest, ReadsBackEveryFieldAClientWrote) {
   EXPECT_EQ(got.draco.method, DracoMethod::kSequential);
   EXPECT_EQ(got.draco.speed, 3);
   EXPECT_EQ(got.draco.position_bits, 12);
+  EXPECT_EQ(got.draco.entropy_coding, false);
 }
 
 TEST(ParseRequest, EveryOtherRequestTypeRoundTrips) {
@@ -99,6 +100,7 @@ TEST(ParseRequest, DefaultsFillWhatAMinimalExtractLeavesOut) {
   EXPECT_FALSE(e.criteria.silhouette);
   EXPECT_FALSE(e.budget);
   EXPECT_FALSE(e.draco.method);
+  EXPECT_FALSE(e.draco.entropy_coding);
 }
 
 TEST(ParseRequest, LimitsComeFromTheServerConfiguration) {
