@@ -126,7 +126,11 @@ Result<DracoStats> DracoEncoder::encode(const DracoInput& input, const DracoOpti
   encoder.SetSpeedOptions(options.speed, options.speed);
   if (options.position_bits > 0) encoder.SetAttributeQuantization(draco::GeometryAttribute::POSITION, options.position_bits);
   if (options.normals) encoder.SetAttributeQuantization(draco::GeometryAttribute::NORMAL, options.normal_bits);
-  if (!options.entropy_coding) encoder.options().SetGlobalBool("use_built_in_attribute_compression", false);
+  if (!options.entropy_coding) {
+    encoder.options().SetGlobalBool("use_built_in_attribute_compression", false);
+    // Stored raw, a 14-bit coordinate takes two bytes whether or not it is predicted first.
+    encoder.SetAttributePredictionScheme(draco::GeometryAttribute::POSITION, draco::PREDICTION_NONE);
+  }
   encoder.SetEncodingMethod(options.method == DracoMethod::kSequential ? draco::MESH_SEQUENTIAL_ENCODING
                                                                        : draco::MESH_EDGEBREAKER_ENCODING);
   draco::EncoderBuffer buffer;

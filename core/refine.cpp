@@ -19,15 +19,14 @@
 namespace mtlod::core {
 namespace {
 
-enum : std::uint8_t { kOut = 0, kIn = 1, kAdding = 2, kDropped = 3 };
+// kNew: in the cut, added by the current update (only while its mesh is patched).
+enum : std::uint8_t { kOut = 0, kIn = 1, kAdding = 2, kDropped = 3, kNew = 4 };
 
 }  // namespace
 
 Refiner::Refiner(const Mt& mt)
     : mt_(mt),
-      in_cut_(mt.node_count(), kOut),
-      witness_triangle_(mt.node_count(), kNoNode),
-      witness_creator_(mt.node_count(), kNoNode) {
+      in_cut_(mt.node_count(), kOut) {
   assert(mt.node_count() > 0);
 }
 
@@ -69,15 +68,20 @@ Refiner::HeapEntry Refiner::heap_entry(std::uint32_t t, std::uint32_t creator,
 void Refiner::reset_to_root() {
   for (const std::uint32_t n : cut_) in_cut_[n] = kOut;
   cut_.clear();
+  witnesses_.clear();
   in_cut_[0] = kIn;
   cut_.push_back(0);
+  witnesses_.push_back({kNoNode, kNoNode, {kNoNode, kNoNode, kNoNode}});  // the root needs none
 }
 
 void Refiner::add_node(std::uint32_t x, std::uint32_t witness_triangle, std::uint32_t witness_creator) {
   in_cut_[x] = kIn;
   cut_.push_back(x);
-  witness_triangle_[x] = witness_triangle;
-  witness_creator_[x] = witness_creator;
+  // The witness's corners were just read to find it failing: cheap to keep now.
+  witnesses_.push_back({witness_triangle, witness_creator,
+                        {mt_.first_corner(TriangleId{witness_triangle}, NodeId{witness_creator}),
+                         mt_.triangle_corners[2 * std::size_t{witness_triangle}],
+                         mt_.triangle_corners[2 * std::size_t{witness_triangle} + 1]}});
   if (!mesh_valid_) return;
   // x's parents are all in the cut: what it removes is in the mesh, what it creates is not yet.
   for (std::uint32_t j = mt_.node_parent_offsets[x]; j < mt_.node_parent_offsets[x + 1]; ++j) {
@@ -196,6 +200,7 @@ void Refiner::refine_prefix(std::uint32_t end, CutMesh& out) {
   const float* errors = mt_.node_error.data();
   for (const std::uint32_t n : cut_) in_cut_[n] = kOut;
   cut_.resize(end);
+  witnesses_.clear();  // none recorded (see below)
   for (std::uint32_t n = 0; n < end; ++n) cut_[n] = n;
   std::fill(in_cut_.begin(), in_cut_.begin() + end, kIn);
   // No witnesses were recorded: the next update starts with a forced refinement.
@@ -342,6 +347,7 @@ void Refiner::mesh_add(std::uint32_t t, std::uint32_t creator) {
   mesh_corners_.push_back(mt_.first_corner(TriangleId{t}, NodeId{creator}));
   mesh_corners_.push_back(mt_.triangle_corners[2 * std::size_t{t}]);
   mesh_corners_.push_back(mt_.triangle_corners[2 * std::size_t{t} + 1]);
+  mesh_errors_.push_back(mt_.triangle_error(t));
 }
 
 void Refiner::mesh_remove(std::uint32_t t) {
@@ -353,16 +359,19 @@ void Refiner::mesh_remove(std::uint32_t t) {
     const std::uint32_t moved = mesh_triangles_[last];
     mesh_triangles_[slot] = moved;
     std::copy_n(&mesh_corners_[3 * std::size_t{last}], 3, &mesh_corners_[3 * std::size_t{slot}]);
+    mesh_errors_[slot] = mesh_errors_[last];
     slots_.assign(moved, slot);
   }
   slots_.erase(t);
   mesh_triangles_.pop_back();
+  mesh_errors_.pop_back();
   mesh_corners_.resize(3 * std::size_t{last});
 }
 
 void Refiner::index_mesh() {
   mesh_triangles_.clear();
   mesh_corners_.clear();
+  mesh_errors_.clear();
   std::size_t count = 0;
   for (const std::uint32_t n : cut_) count += mt_.node_triangle_offsets[n + 1] - mt_.node_triangle_offsets[n];
   slots_.reset(count);
@@ -443,18 +452,16 @@ void Refiner::move_cut(const AllowedError& allowed, bool all_changed, CutMesh& o
   dropped_.clear();
   for (std::size_t i = 1; i < cut_.size(); ++i) {
     const std::uint32_t n = cut_[i];
-    const std::uint32_t c = witness_creator_[n];
-    const std::uint32_t t = witness_triangle_[n];
-    bool keep = in_cut_[c] == kIn;
-    if (keep && (changed(mt_.first_corner(TriangleId{t}, NodeId{c})) ||
-                 changed(mt_.triangle_corners[2 * std::size_t{t}]) ||
-                 changed(mt_.triangle_corners[2 * std::size_t{t} + 1])))
-      keep = fails(t, c, allowed);
+    const Witness w = witnesses_[i];
+    bool keep = in_cut_[w.creator] == kIn;
+    if (keep && (changed(w.corners[0]) || changed(w.corners[1]) || changed(w.corners[2])))
+      keep = fails_at(mt_.triangle_remover[w.triangle], w.corners, allowed);
     // Parents can only be missing once something was dropped.
     if (keep && !dropped_.empty())
       for (std::uint32_t j = parent_offsets[n]; j < parent_offsets[n + 1] && keep; ++j)
         keep = in_cut_[parents[j]] == kIn;
     if (keep) {
+      witnesses_[kept] = w;
       cut_[kept++] = n;
     } else {
       in_cut_[n] = kDropped;
@@ -462,6 +469,7 @@ void Refiner::move_cut(const AllowedError& allowed, bool all_changed, CutMesh& o
     }
   }
   cut_.resize(kept);
+  witnesses_.resize(kept);
 
   // Moving costs several times as much per node as refining from the root (each node's triangles
   // go in and out of the indexed mesh), and a large drop is usually followed by as large an
@@ -475,15 +483,19 @@ void Refiner::move_cut(const AllowedError& allowed, bool all_changed, CutMesh& o
     return;
   }
 
-  // 2. Undo the dropped nodes, children first: their triangles leave the mesh, the ones they had
-  // removed come back and must be tested.
+  // 2. Undo the dropped nodes, all at once: what they created and no node of the old cut removed
+  // leaves the mesh; what they had removed from kept nodes comes back and must be tested.
+  // (Undoing them one by one would also add and remove again what a dropped node removed from
+  // another dropped node.)
   seeds_.clear();
-  for (std::size_t i = dropped_.size(); i-- > 0;) {
-    const std::uint32_t x = dropped_[i];
-    for (std::uint32_t t = mt_.node_triangle_offsets[x]; t < mt_.node_triangle_offsets[x + 1]; ++t)
-      mesh_remove(t);
+  for (const std::uint32_t x : dropped_) {
+    for (std::uint32_t t = mt_.node_triangle_offsets[x]; t < mt_.node_triangle_offsets[x + 1]; ++t) {
+      const std::uint32_t r = mt_.triangle_remover[t];
+      if (r == kNoNode || in_cut_[r] == kOut) mesh_remove(t);
+    }
     for (std::uint32_t j = parent_offsets[x]; j < parent_offsets[x + 1]; ++j) {
       const std::uint32_t p = parents[j];
+      if (in_cut_[p] != kIn) continue;
       for (std::uint32_t t = mt_.node_triangle_offsets[p]; t < mt_.node_triangle_offsets[p + 1]; ++t)
         if (mt_.triangle_remover[t] == x) {
           mesh_add(t, p);
@@ -511,6 +523,8 @@ void Refiner::move_cut(const AllowedError& allowed, bool all_changed, CutMesh& o
       seeds_[failing++] = t;
   }
   seeds_.resize(failing);
+  // Nodes added from here on leave the mesh alone (add_node skips it); step 5 patches it once.
+  mesh_valid_ = false;
   for (const std::uint32_t t : seeds_) {
     const std::uint32_t r = mt_.triangle_remover[t];
     if (in_cut_[r] == kIn) continue;  // refined meanwhile through another triangle
@@ -521,9 +535,32 @@ void Refiner::move_cut(const AllowedError& allowed, bool all_changed, CutMesh& o
   for (const std::uint32_t n : dropped_)
     if (in_cut_[n] == kDropped) in_cut_[n] = kOut;
 
+  // 5. The added nodes' mesh edit: what they remove from nodes that were there before leaves it,
+  // what they create and no node of the cut removes joins it. A triangle both created and removed
+  // by added nodes never enters.
+  for (std::size_t i = kept; i < cut_.size(); ++i) in_cut_[cut_[i]] = kNew;
+  for (std::size_t i = kept; i < cut_.size(); ++i) {
+    const std::uint32_t x = cut_[i];
+    for (std::uint32_t j = parent_offsets[x]; j < parent_offsets[x + 1]; ++j) {
+      const std::uint32_t p = parents[j];
+      if (in_cut_[p] != kIn) continue;
+      for (std::uint32_t t = mt_.node_triangle_offsets[p]; t < mt_.node_triangle_offsets[p + 1]; ++t)
+        if (mt_.triangle_remover[t] == x) mesh_remove(t);
+    }
+  }
+  for (std::size_t i = kept; i < cut_.size(); ++i) {
+    const std::uint32_t x = cut_[i];
+    for (std::uint32_t t = mt_.node_triangle_offsets[x]; t < mt_.node_triangle_offsets[x + 1]; ++t) {
+      const std::uint32_t r = mt_.triangle_remover[t];
+      if (r == kNoNode || (in_cut_[r] != kIn && in_cut_[r] != kNew)) mesh_add(t, x);
+    }
+  }
+  for (std::size_t i = kept; i < cut_.size(); ++i) in_cut_[cut_[i]] = kIn;
+  mesh_valid_ = true;
+
   out.triangles.assign(mesh_corners_.begin(), mesh_corners_.end());
   float max_error = 0.0f;
-  for (const std::uint32_t t : mesh_triangles_) max_error = std::max(max_error, mt_.triangle_error(t));
+  for (const float e : mesh_errors_) max_error = std::max(max_error, e);
   out.max_error = max_error;
   out.node_count = cut_.size();
   out.within_budget = true;
@@ -599,6 +636,7 @@ void Refiner::refine_budget(const AllowedError& allowed, std::size_t max_triangl
     if (count + added - removed > max_triangles) {
       for (std::size_t i = first_new; i < cut_.size(); ++i) in_cut_[cut_[i]] = kOut;
       cut_.resize(first_new);
+      witnesses_.resize(first_new);
       break;
     }
     count = count + added - removed;
@@ -620,7 +658,7 @@ void refine_budget(const Mt& mt, const AllowedError& allowed, std::size_t max_tr
 
 std::size_t Refiner::memory_bytes() const {
   auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
-  return bytes(in_cut_) + bytes(cut_) + bytes(witness_triangle_) + bytes(witness_creator_) + bytes(stack_) +
+  return bytes(in_cut_) + bytes(cut_) + bytes(witnesses_) + bytes(mesh_errors_) + bytes(stack_) +
          bytes(previous_field_) + bytes(mesh_triangles_) + bytes(mesh_corners_) + slots_.memory_bytes() +
          bytes(changed_bits_) + bytes(dropped_) + bytes(seeds_) + bytes(passing_) + bytes(heap_);
 }

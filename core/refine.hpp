@@ -73,7 +73,7 @@ class Refiner {
   // Updates that found it cheaper to refine from the root than to move the kept cut (a drop of more
   // than 1/kRestartDivisor of the cut's nodes); their result is the same.
   std::size_t restarts() const { return restarts_; }
-  static constexpr std::size_t kRestartDivisor = 8;
+  static constexpr std::size_t kRestartDivisor = 4;
 
   // Bytes this refiner holds (buffer capacities): the memory a session's cut costs.
   std::size_t memory_bytes() const;
@@ -125,8 +125,12 @@ class Refiner {
   const Mt& mt_;
   std::vector<std::uint8_t> in_cut_;             // per node: 0 out, 1 in, 2 being added, 3 dropped
   std::vector<std::uint32_t> cut_;               // nodes in the cut, in the order added
-  std::vector<std::uint32_t> witness_triangle_;  // per node: the failing triangle that forced it
-  std::vector<std::uint32_t> witness_creator_;   // per node: that triangle's creator
+  // Per entry of cut_ (same index): the failing triangle that forced the node, its creator and its
+  // three corners, so moving the cut reads them in one sequential pass.
+  struct Witness {
+    std::uint32_t triangle, creator, corners[3];
+  };
+  std::vector<Witness> witnesses_;
   std::vector<std::uint32_t> stack_;             // DFS over missing ancestors: node, next parent index
   std::vector<float> previous_field_;            // allowed error of the last update, per vertex
   float previous_uniform_ = 0.0f;
@@ -138,6 +142,7 @@ class Refiner {
   bool mesh_valid_ = false;
   std::vector<std::uint32_t> mesh_triangles_;
   std::vector<std::uint32_t> mesh_corners_;
+  std::vector<float> mesh_errors_;  // error of each mesh triangle, for the cut's max error
   SlotTable slots_;
   std::vector<std::uint64_t> changed_bits_;  // per vertex, during update
   std::vector<std::uint32_t> dropped_;       // nodes dropped during one update
