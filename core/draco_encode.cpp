@@ -13,8 +13,6 @@
 #include <bit>
 #include <cassert>
 #include <cstring>
-#include <chrono>
-#include <cstdio>
 
 #include "fmt/format.h"
 
@@ -77,7 +75,6 @@ Result<DracoStats> DracoEncoder::encode(const DracoInput& input, const DracoOpti
     return make_error(ErrorCode::kInvalidArgument, "the cut has no triangles to encode");
   }
 
-  auto T0 = std::chrono::steady_clock::now();
   // Renumber the used vertices: mark, rank, list.
   const std::size_t words = (model_vertices + 63) / 64;
   used_bits_.assign(words, 0);
@@ -97,15 +94,19 @@ Result<DracoStats> DracoEncoder::encode(const DracoInput& input, const DracoOpti
   }
   const std::size_t n = used_.size();
 
-  auto T1 = std::chrono::steady_clock::now();
   draco::Mesh mesh;
   mesh.set_num_points(static_cast<std::uint32_t>(n));
   add_faces(mesh, input.triangles, used_bits_.data(), rank_.data());
   const std::size_t triangle_count = mesh.num_faces();
-  auto T15 = std::chrono::steady_clock::now();
   auto gather3 = [&](std::span<const float> values) {
+    // The used vertices are sparse in the model's arrays (one in 17 for a 50k-triangle dragon cut):
+    // each read misses the cache unless it is asked for well ahead.
+    constexpr std::size_t kAhead = 16;
     scratch_.resize(3 * n);
-    for (std::size_t i = 0; i < n; ++i) std::memcpy(&scratch_[3 * i], &values[3 * std::size_t{used_[i]}], 12);
+    for (std::size_t i = 0; i < n; ++i) {
+      if (i + kAhead < n) __builtin_prefetch(&values[3 * std::size_t{used_[i + kAhead]}]);
+      std::memcpy(&scratch_[3 * i], &values[3 * std::size_t{used_[i]}], 12);
+    }
     return scratch_.data();
   };
   add_attribute(mesh, draco::GeometryAttribute::POSITION, 3, draco::DT_FLOAT32, 4, gather3(input.positions));
@@ -121,7 +122,6 @@ Result<DracoStats> DracoEncoder::encode(const DracoInput& input, const DracoOpti
     mesh.AddAttributeMetadata(id, std::move(metadata));
   }
 
-  auto T2 = std::chrono::steady_clock::now();
   draco::Encoder encoder;
   encoder.SetSpeedOptions(options.speed, options.speed);
   if (options.position_bits > 0) encoder.SetAttributeQuantization(draco::GeometryAttribute::POSITION, options.position_bits);
@@ -138,8 +138,6 @@ Result<DracoStats> DracoEncoder::encode(const DracoInput& input, const DracoOpti
   if (!status.ok()) {
     return make_error(ErrorCode::kInternal, fmt::format("draco refused the mesh: {}", status.error_msg_string()));
   }
-  auto T3 = std::chrono::steady_clock::now();
-  static double a=0,b=0,c=0,d=0; d+=std::chrono::duration<double,std::micro>(T15-T1).count(); static int k=0; a+=std::chrono::duration<double,std::micro>(T1-T0).count(); b+=std::chrono::duration<double,std::micro>(T2-T1).count(); c+=std::chrono::duration<double,std::micro>(T3-T2).count(); if(++k%300==0) std::fprintf(stderr,"remap %.0f faces %.0f mesh %.0f encode %.0f us\n",a/k,d/k,b/k,c/k);
   out.assign(buffer.data(), buffer.data() + buffer.size());
   return DracoStats{n, triangle_count, out.size()};
 }
