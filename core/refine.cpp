@@ -144,7 +144,9 @@ void Refiner::emit(CutMesh& out) const {
   for (const std::uint32_t n : cut_)
     created += mt_.node_triangle_offsets[n + 1] - mt_.node_triangle_offsets[n];
   out.triangles.resize(3 * created);
+  out.ids.resize(created);
   std::uint32_t* write = out.triangles.data();
+  std::uint32_t* id = out.ids.data();
   const std::uint32_t* remover = mt_.triangle_remover.data();
   const std::uint32_t* corners = mt_.triangle_corners.data();
   const std::uint8_t* in_cut = in_cut_.data();
@@ -162,9 +164,11 @@ void Refiner::emit(CutMesh& out) const {
       write[1] = corners[2 * std::size_t{t}];
       write[2] = corners[2 * std::size_t{t} + 1];
       write += 3;
+      *id++ = t;
     }
   }
   out.triangles.resize(std::size_t(write - out.triangles.data()));
+  out.ids.resize(std::size_t(id - out.ids.data()));
   out.node_count = cut_.size();
   out.max_error = max_error;
 }
@@ -208,7 +212,9 @@ void Refiner::refine_prefix(std::uint32_t end, CutMesh& out) {
 
   const std::uint32_t triangle_end = mt_.node_triangle_offsets[end];
   out.triangles.resize(3 * std::size_t{triangle_end});
+  out.ids.resize(triangle_end);
   std::uint32_t* write = out.triangles.data();
+  std::uint32_t* id = out.ids.data();
   const std::uint32_t* remover = mt_.triangle_remover.data();
   const std::uint32_t* corners = mt_.triangle_corners.data();
   float max_error = 0.0f;
@@ -224,9 +230,11 @@ void Refiner::refine_prefix(std::uint32_t end, CutMesh& out) {
       write[1] = corners[2 * std::size_t{t}];
       write[2] = corners[2 * std::size_t{t} + 1];
       write += 3;
+      *id++ = t;
     }
   }
   out.triangles.resize(std::size_t(write - out.triangles.data()));
+  out.ids.resize(std::size_t(id - out.ids.data()));
   out.node_count = end;
   out.max_error = max_error;
   out.within_budget = true;
@@ -254,7 +262,9 @@ void Refiner::refine_forced(const AllowedError& allowed, CutMesh& out) {
     }
   }
   out.triangles.resize(3 * (passing_.size() / 2));
+  out.ids.resize(passing_.size() / 2);
   std::uint32_t* write = out.triangles.data();
+  std::uint32_t* id = out.ids.data();
   float max_error = 0.0f;
   for (std::size_t i = 0; i < passing_.size(); i += 2) {
     const std::uint32_t t = passing_[i], n = passing_[i + 1];
@@ -263,12 +273,14 @@ void Refiner::refine_forced(const AllowedError& allowed, CutMesh& out) {
       if (in_cut_[r] == kIn) continue;  // refined after it passed
       max_error = std::max(max_error, mt_.node_error[r]);
     }
+    *id++ = t;
     write[0] = mt_.first_corner(TriangleId{t}, NodeId{n});
     write[1] = mt_.triangle_corners[2 * std::size_t{t}];
     write[2] = mt_.triangle_corners[2 * std::size_t{t} + 1];
     write += 3;
   }
   out.triangles.resize(std::size_t(write - out.triangles.data()));
+  out.ids.resize(std::size_t(id - out.ids.data()));
   out.node_count = cut_.size();
   out.max_error = max_error;
   out.within_budget = true;
@@ -471,10 +483,12 @@ void Refiner::move_cut(const AllowedError& allowed, bool all_changed, CutMesh& o
   cut_.resize(kept);
   witnesses_.resize(kept);
 
-  // Moving costs several times as much per node as refining from the root (each node's triangles
-  // go in and out of the indexed mesh), and a large drop is usually followed by as large an
-  // addition (a focus that jumped): then a static refinement is cheaper and gives the same cut.
-  if (dropped_.size() > kept / kRestartDivisor) {
+  // Moving costs more per node than refining from the root (triangles go in and out of the indexed
+  // mesh), and a large drop is usually followed by as large an addition (a new view): when more
+  // nodes drop than stay, a static refinement is cheaper and gives the same cut. (Measured with
+  // mtlod-gaze on the dragon: restarting at a quarter dropped cost more than never restarting;
+  // restarting past half is as good as never for gazes and bounds the cost of a new view.)
+  if (dropped_.size() > kept) {
     for (const std::uint32_t n : dropped_) in_cut_[n] = kOut;
     const bool known = field_known_;
     refine_forced(allowed, out);
@@ -559,6 +573,7 @@ void Refiner::move_cut(const AllowedError& allowed, bool all_changed, CutMesh& o
   mesh_valid_ = true;
 
   out.triangles.assign(mesh_corners_.begin(), mesh_corners_.end());
+  out.ids.assign(mesh_triangles_.begin(), mesh_triangles_.end());
   float max_error = 0.0f;
   for (const float e : mesh_errors_) max_error = std::max(max_error, e);
   out.max_error = max_error;

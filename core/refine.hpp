@@ -33,6 +33,8 @@ struct AllowedError {
 // A cut's mesh, ready for an encoder. Caller-owned and reused between calls.
 struct CutMesh {
   std::vector<std::uint32_t> triangles;  // 3 vertex ids per triangle (CCW), ids into mt.positions; any order
+  std::vector<std::uint32_t> ids;        // the MT triangle id of each triangle (same order): stable names
+                                         // a client can keep between cuts (see core/cut_delta.hpp)
   std::size_t node_count = 0;            // nodes in the cut, root included
   float max_error = 0.0f;                // largest error(t) over the cut's triangles, model units
   bool within_budget = true;             // false only when a budget is below the root's size
@@ -70,10 +72,9 @@ class Refiner {
   // Nodes of the kept cut, in the order they were added (parents before children).
   std::span<const std::uint32_t> cut_nodes() const { return cut_; }
 
-  // Updates that found it cheaper to refine from the root than to move the kept cut (a drop of more
-  // than 1/kRestartDivisor of the cut's nodes); their result is the same.
+  // Updates that found it cheaper to refine from the root than to move the kept cut (more of the
+  // cut's nodes dropped than kept); their result is the same.
   std::size_t restarts() const { return restarts_; }
-  static constexpr std::size_t kRestartDivisor = 4;
 
   // Bytes this refiner holds (buffer capacities): the memory a session's cut costs.
   std::size_t memory_bytes() const;

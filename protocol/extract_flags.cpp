@@ -85,6 +85,7 @@ void add_extract_flags(CLI::App& app, ExtractFlags& f) {
   app.add_option("--position-bits", f.position_bits, "Draco position quantization bits")->capture_default_str();
   app.add_flag("--normals", f.normals, "send vertex normals");
   app.add_flag("--labels", f.labels, "send per-vertex distance labels");
+  app.add_flag("--delta", f.delta, "replies carry what changed since the previous mesh (by triangle id; sequential Draco)");
 }
 
 Result<Extract> make_extract(const ExtractFlags& f, const std::string& model, const std::array<double, 3>& bounds_min,
@@ -126,6 +127,7 @@ Result<Extract> make_extract(const ExtractFlags& f, const std::string& model, co
   e.draco.speed = f.draco_speed;
   e.draco.position_bits = f.position_bits;
   e.draco.entropy_coding = f.draco_entropy;
+  e.delta = f.delta;
   e.criteria.internal_silhouettes = f.internal_silhouettes;
   e.criteria.frustum_factor = f.frustum_factor;
   e.criteria.backface_factor = f.backface_factor;

@@ -34,6 +34,7 @@ struct ExtractFlags {
   int draco_speed = 10, position_bits = 14;
   std::optional<bool> draco_entropy;  // unset: the server's default for the request type
   bool normals = false, labels = false;
+  bool delta = false;  // replies carry changes since the previous mesh (sequential Draco)
 };
 
 // Parses comma-separated numbers ("0.5, 0.25,20"; spaces around each allowed) into `out`. False

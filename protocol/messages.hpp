@@ -112,6 +112,10 @@ struct Extract {
   bool normals = false;
   bool labels = false;
   DracoSettings draco;
+  // Replies (this one and the gazes that follow) carry what changed since the connection's previous
+  // mesh, by MT triangle id, instead of the whole cut (PROTOCOL.md, "Delta replies"). Needs the
+  // sequential coder, which keeps the order of faces.
+  bool delta = false;
 };
 // A new focus for the connection's latest extract: the newest gaze replaces a queued one.
 struct Gaze {

@@ -273,6 +273,7 @@ Extract read_extract(ObjectReader& r, const Limits& limits) {
     e.labels = ar.boolean("labels", false);
     ar.finish();
   }
+  e.delta = r.boolean("delta", false);
   if (const json* d = r.find("draco")) {
     ObjectReader dr(*d, "draco");
     if (dr.has("method")) e.draco.method = static_cast<DracoMethod>(dr.choice("method", kDracoMethodNames, 0));
@@ -281,6 +282,12 @@ Extract read_extract(ObjectReader& r, const Limits& limits) {
     e.draco.normal_bits = static_cast<int>(dr.integer("normal_bits", e.draco.normal_bits, 1, 30));
     if (dr.has("entropy_coding")) e.draco.entropy_coding = dr.boolean("entropy_coding", true);
     dr.finish();
+  }
+  if (e.delta && e.draco.method == DracoMethod::kEdgebreaker) {
+    fail(ErrorKind::kBadRequest, "'delta' needs draco.method 'sequential': edgebreaker reorders the faces");
+  }
+  if (e.delta && e.labels) {
+    fail(ErrorKind::kBadRequest, "'delta' cannot carry attributes.labels: the labels of kept triangles would go stale");
   }
   return e;
 }
@@ -403,6 +410,7 @@ json extract_json(const Extract& e) {
   j["criteria"] = c;
   if (e.budget) j["budget"] = *e.budget;
   j["attributes"] = {{"normals", e.normals}, {"labels", e.labels}};
+  if (e.delta) j["delta"] = true;
   j["draco"] = {{"speed", e.draco.speed}, {"position_bits", e.draco.position_bits}, {"normal_bits", e.draco.normal_bits}};
   if (e.draco.method) j["draco"]["method"] = enum_name(kDracoMethodNames, *e.draco.method);
   if (e.draco.entropy_coding) j["draco"]["entropy_coding"] = *e.draco.entropy_coding;

@@ -104,6 +104,12 @@ std::string to_json(const Reply& reply, std::optional<std::uint64_t> id) {
                     {"superseded", r.superseded}, {"timings_us", timings_json(r.timings)},
                     {"memory", {{"session_bytes", r.session_bytes}, {"scratch_bytes", r.scratch_bytes}}}};
           if (r.focus) m["focus"] = *r.focus;
+          if (r.delta) {
+            m["delta"] = {{"reset", r.delta->reset},
+                          {"draco_bytes", r.delta->draco_bytes},
+                          {"added", r.delta->added},
+                          {"removed", r.delta->removed}};
+          }
           return m;
         } else if constexpr (std::is_same_v<T, ErrorReply>) {
           return {{"code", to_string(r.code)}, {"message", r.message}};
@@ -158,6 +164,11 @@ Result<ParsedReply> parse_reply(std::string_view text) {
       r.session_bytes = memory.value("session_bytes", std::uint64_t{0});
       r.scratch_bytes = memory.value("scratch_bytes", std::uint64_t{0});
       if (j.contains("focus")) r.focus = j["focus"].get<std::array<double, 2>>();
+      if (j.contains("delta")) {
+        const json& d = j["delta"];
+        r.delta = MeshDelta{d.value("reset", false), d.value("draco_bytes", std::uint64_t{0}),
+                            d.value("added", std::uint64_t{0}), d.value("removed", std::uint64_t{0})};
+      }
       r.timings = timings_from(j.value("timings_us", json::object()));
       out.reply = std::move(r);
     } else if (type == "error") {
@@ -179,6 +190,47 @@ Result<ParsedReply> parse_reply(std::string_view text) {
     return out;
   } catch (const json::exception& e) {
     return make_error(ErrorCode::kCorrupt, fmt::format("reply does not parse: {}", e.what()));
+  }
+}
+
+Result<DeltaPayload> split_delta_payload(const MeshDelta& delta, std::span<const std::uint8_t> payload) {
+  // Counts come from the network: check them against the payload before any multiplication.
+  const std::uint64_t size = payload.size();
+  if (delta.draco_bytes > size || delta.added > size / 4 || delta.removed > size / 4 ||
+      delta.draco_bytes + 4 * (delta.added + delta.removed) != size) {
+    return make_error(ErrorCode::kInvalidArgument,
+                      fmt::format("delta payload of {} bytes does not hold {} Draco bytes, {} added and {} removed ids",
+                                  size, delta.draco_bytes, delta.added, delta.removed));
+  }
+  if ((delta.added == 0) != (delta.draco_bytes == 0)) {
+    return make_error(ErrorCode::kInvalidArgument,
+                      fmt::format("delta with {} added ids has {} Draco bytes", delta.added, delta.draco_bytes));
+  }
+  DeltaPayload out;
+  out.draco = payload.first(static_cast<std::size_t>(delta.draco_bytes));
+  auto read_ids = [&](std::size_t offset, std::uint64_t count, std::vector<std::uint32_t>& ids) {
+    ids.resize(static_cast<std::size_t>(count));
+    for (std::size_t i = 0; i < ids.size(); ++i) {
+      const std::uint8_t* b = payload.data() + offset + 4 * i;
+      ids[i] = std::uint32_t{b[0]} | std::uint32_t{b[1]} << 8 | std::uint32_t{b[2]} << 16 | std::uint32_t{b[3]} << 24;
+    }
+  };
+  read_ids(static_cast<std::size_t>(delta.draco_bytes), delta.added, out.added_ids);
+  read_ids(static_cast<std::size_t>(delta.draco_bytes + 4 * delta.added), delta.removed, out.removed_ids);
+  return out;
+}
+
+void append_delta_ids(std::span<const std::uint32_t> added_ids, std::span<const std::uint32_t> removed_ids,
+                      std::vector<std::uint8_t>& payload) {
+  std::size_t at = payload.size();
+  payload.resize(at + 4 * (added_ids.size() + removed_ids.size()));
+  for (const auto ids : {added_ids, removed_ids}) {
+    for (const std::uint32_t id : ids) {
+      payload[at++] = static_cast<std::uint8_t>(id);
+      payload[at++] = static_cast<std::uint8_t>(id >> 8);
+      payload[at++] = static_cast<std::uint8_t>(id >> 16);
+      payload[at++] = static_cast<std::uint8_t>(id >> 24);
+    }
   }
 }
 

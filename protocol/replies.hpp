@@ -6,6 +6,7 @@
 #include <array>
 #include <cstdint>
 #include <optional>
+#include <span>
 #include <string>
 #include <string_view>
 #include <utility>
@@ -62,6 +63,27 @@ struct StageTimings {
   std::uint64_t total_us = 0;      // from frame received to reply ready
 };
 
+// A delta reply (PROTOCOL.md, "Delta replies"): the payload holds the Draco mesh of the triangles
+// new to the client (draco_bytes), then their MT triangle ids in the Draco mesh's face order, then
+// the ids the client drops: 32-bit little-endian each.
+struct MeshDelta {
+  bool reset = false;  // the client clears its mesh first (the first delta, or another model)
+  std::uint64_t draco_bytes = 0;
+  std::uint64_t added = 0;
+  std::uint64_t removed = 0;
+};
+
+// A delta payload cut into its parts. Fails when the sizes do not add up to the payload's.
+struct DeltaPayload {
+  std::span<const std::uint8_t> draco;  // empty when nothing was added
+  std::vector<std::uint32_t> added_ids;
+  std::vector<std::uint32_t> removed_ids;
+};
+Result<DeltaPayload> split_delta_payload(const MeshDelta& delta, std::span<const std::uint8_t> payload);
+// The server's side: appends the ids to a payload holding the Draco bytes.
+void append_delta_ids(std::span<const std::uint32_t> added_ids, std::span<const std::uint32_t> removed_ids,
+                      std::vector<std::uint8_t>& payload);
+
 // Header of an extract or gaze result; the Draco bytes follow as the frame's payload.
 struct MeshReply {
   std::string model;
@@ -74,6 +96,7 @@ struct MeshReply {
   std::uint64_t session_bytes = 0;  // memory the connection's cut holds on the server
   std::uint64_t scratch_bytes = 0;  // memory the worker that ran it holds for this model
   StageTimings timings;
+  std::optional<MeshDelta> delta;   // set when the extract asked for delta replies
 };
 
 struct ErrorReply {

@@ -6,6 +6,7 @@
 #include <chrono>
 #include <unordered_map>
 
+#include "core/cut_delta.hpp"
 #include "core/draco_encode.hpp"
 #include "core/view_extract.hpp"
 #include "fmt/format.h"
@@ -17,6 +18,7 @@ struct SessionCut::State {
   const Model* model = nullptr;
   std::unique_ptr<core::Refiner> refiner;
   core::ViewSession view;  // lets a gaze (same view, new foci) reuse the view's stages
+  core::CutDelta sent;     // the client's mesh, when it asked for delta replies
 };
 
 SessionCut::SessionCut() = default;
@@ -51,6 +53,7 @@ std::variant<ExtractOutcome, protocol::ProtocolError> Engine::extract(const prot
     std::unordered_map<const Model*, std::unique_ptr<core::ViewExtractor>> extractors;
     core::DracoEncoder encoder;
     core::CutMesh cut;
+    std::vector<std::uint32_t> added, removed, added_ids, added_triangles;  // delta replies
   };
   thread_local Worker worker;
   auto& extractor = worker.extractors[model];
@@ -62,6 +65,7 @@ std::variant<ExtractOutcome, protocol::ProtocolError> Engine::extract(const prot
     state.model = model;
     state.refiner = std::make_unique<core::Refiner>(model->mt);
     state.view.reset();
+    state.sent.reset();
   }
 
   const core::ViewRequest view = protocol::to_view_request(request, model->mt.has_normals());
@@ -80,8 +84,9 @@ std::variant<ExtractOutcome, protocol::ProtocolError> Engine::extract(const prot
   t.refine_us = elapsed_us(clock);
 
   core::DracoOptions draco;
-  const protocol::DracoMethod method =
-      request.draco.method.value_or(gaze ? protocol::DracoMethod::kSequential : protocol::DracoMethod::kEdgebreaker);
+  const protocol::DracoMethod method = request.delta ? protocol::DracoMethod::kSequential
+                                                    : request.draco.method.value_or(gaze ? protocol::DracoMethod::kSequential
+                                                                                         : protocol::DracoMethod::kEdgebreaker);
   draco.method = method == protocol::DracoMethod::kEdgebreaker ? core::DracoMethod::kEdgebreaker
                                                                : core::DracoMethod::kSequential;
   draco.speed = request.draco.speed;
@@ -90,19 +95,47 @@ std::variant<ExtractOutcome, protocol::ProtocolError> Engine::extract(const prot
   draco.entropy_coding = request.draco.entropy_coding.value_or(!gaze);
   draco.normals = request.normals;
   draco.labels = request.labels;
-  const core::DracoInput input{model->mt.positions, model->mt.normals,
-                               request.labels ? extractor->vertex_labels() : std::span<const std::uint32_t>(),
-                               worker.cut.triangles};
-  auto encoded = worker.encoder.encode(input, draco, outcome.payload);
+  std::span<const std::uint32_t> triangles = worker.cut.triangles;
+  if (request.delta) {
+    // Only what the client does not have: the new triangles, in cut order, named by their ids.
+    const bool reset = state.sent.update(worker.cut.ids, model->mt.triangle_count(), worker.added, worker.removed);
+    worker.added_triangles.clear();
+    worker.added_ids.clear();
+    for (const std::uint32_t i : worker.added) {
+      worker.added_triangles.insert(worker.added_triangles.end(), &worker.cut.triangles[3 * std::size_t{i}],
+                                    &worker.cut.triangles[3 * std::size_t{i}] + 3);
+      worker.added_ids.push_back(worker.cut.ids[i]);
+    }
+    triangles = worker.added_triangles;
+    outcome.reply.delta = protocol::MeshDelta{reset, 0, worker.added_ids.size(), worker.removed.size()};
+  } else {
+    state.sent.reset();  // the client replaces its mesh with this one
+  }
+  std::uint64_t vertices = 0;
+  outcome.payload.clear();
+  if (!triangles.empty() || !request.delta) {  // a full reply always goes through the encoder's checks
+    const core::DracoInput input{model->mt.positions, model->mt.normals,
+                                 request.labels ? extractor->vertex_labels() : std::span<const std::uint32_t>(),
+                                 triangles};
+    auto encoded = worker.encoder.encode(input, draco, outcome.payload);
+    if (!encoded) {
+      state.sent.reset();  // this change never reaches the client: the next delta starts afresh
+      return protocol::ProtocolError{protocol::ErrorKind::kInternal, encoded.error().message};
+    }
+    vertices = encoded->vertices;
+  }
+  if (outcome.reply.delta) {
+    outcome.reply.delta->draco_bytes = outcome.payload.size();
+    protocol::append_delta_ids(worker.added_ids, worker.removed, outcome.payload);
+  }
   t.encode_us = elapsed_us(clock);
-  if (!encoded) return protocol::ProtocolError{protocol::ErrorKind::kInternal, encoded.error().message};
 
   outcome.reply.model = model->name;
-  outcome.reply.triangles = encoded->triangles;
-  outcome.reply.vertices = encoded->vertices;
-  outcome.reply.bytes = encoded->bytes;
+  outcome.reply.triangles = worker.cut.triangle_count();
+  outcome.reply.vertices = vertices;
+  outcome.reply.bytes = outcome.payload.size();
   outcome.reply.max_error = worker.cut.max_error;
-  outcome.reply.session_bytes = state.refiner->memory_bytes() + state.view.memory_bytes();
+  outcome.reply.session_bytes = state.refiner->memory_bytes() + state.view.memory_bytes() + state.sent.memory_bytes();
   outcome.reply.scratch_bytes = extractor->memory_bytes() + worker.cut.triangles.capacity() * sizeof(std::uint32_t);
   return outcome;
 }

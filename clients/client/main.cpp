@@ -116,13 +116,22 @@ int main(int argc, char** argv) {
   fmt::print("served by {}{}\n", c.hello().instance,
              c.retries() ? fmt::format(" after {} retr{}", c.retries(), c.retries() == 1 ? "y" : "ies") : "");
   if (!output.empty()) {
+    // A delta reply (--delta) starts from an empty mesh here: its Draco part is the whole cut.
+    std::span<const std::uint8_t> draco = reply->payload;
+    if (mesh.delta) {
+      auto parts = protocol::split_delta_payload(*mesh.delta, reply->payload);
+      if (!parts) return fail(parts.error().message);
+      draco = parts->draco;
+      fmt::print("delta: {} triangles added, {} removed (ids follow the Draco bytes in the payload)\n",
+                 mesh.delta->added, mesh.delta->removed);
+    }
     const std::string ext = std::filesystem::path(output).extension().string();
     if (ext == ".drc") {
       std::ofstream out(output, std::ios::binary);
-      out.write(reinterpret_cast<const char*>(reply->payload.data()), static_cast<std::streamsize>(reply->payload.size()));
+      out.write(reinterpret_cast<const char*>(draco.data()), static_cast<std::streamsize>(draco.size()));
       if (!out) return fail(fmt::format("{}: write failed", output));
     } else {
-      auto decoded = core::decode_draco(reply->payload);
+      auto decoded = core::decode_draco(draco);
       if (!decoded) return fail(decoded.error().message);
       if (auto saved = core::io::save_mesh(output, decoded->mesh); !saved) return fail(saved.error().message);
     }

@@ -18,6 +18,7 @@
 #include <thread>
 
 #include "CLI/CLI.hpp"
+#include "clients/common/delta_mesh.hpp"
 #include "clients/common/retry.hpp"
 #include "clients/gaze/trace.hpp"
 #include "clients/load/histogram.hpp"
@@ -47,6 +48,7 @@ struct Totals {
   std::uint64_t bytes = 0, triangles = 0, server_total_us = 0;
   std::map<std::string, std::uint64_t> errors_by_code;
   std::uint64_t reconnects = 0, resent = 0;
+  std::uint64_t delta_errors = 0;  // delta replies that did not apply cleanly to the kept mesh
 };
 
 struct Stream {
@@ -63,6 +65,7 @@ struct Stream {
   std::size_t reflected = 0;  // samples [0, reflected) have a mesh showing them or a newer sample
   bool broken = false;
   std::mt19937_64 rng;  // backoff jitter
+  clients::DeltaMesh mesh;  // with --delta: the mesh the replies build (receive thread only)
 };
 
 struct Link {
@@ -134,6 +137,13 @@ void receive_loop(Stream& stream, const Link& link, Clock::time_point start) {
     if (!frame || clients::asks_for_retry(*frame)) {
       if (link.finished || !reconnect(stream, link, generation)) break;
       continue;
+    }
+    if (const auto* mesh = std::get_if<protocol::MeshReply>(&frame->header.reply); mesh && mesh->delta) {
+      // Every delta in arrival order, the view's re-extract after a reconnect (id 0) included.
+      if (auto applied = stream.mesh.apply(*mesh, frame->payload); !applied) {
+        std::lock_guard lock(totals.mutex);
+        if (totals.delta_errors++ == 0) fmt::print(stderr, "mtlod-gaze: {}\n", applied.error().message);
+      }
     }
     const std::uint64_t id = frame->header.id.value_or(0);
     if (id == 0 || id > stream.trace.size()) continue;
@@ -277,6 +287,9 @@ int main(int argc, char** argv) {
     auto first = connection->call(*request, 0, std::chrono::seconds(120));
     if (!first) return fail(first.error().message);
     if (const auto* e = std::get_if<protocol::ErrorReply>(&first->header.reply)) return fail("extract: " + e->message);
+    if (const auto* mesh = std::get_if<protocol::MeshReply>(&first->header.reply); mesh && mesh->delta) {
+      if (auto applied = stream->mesh.apply(*mesh, first->payload); !applied) return fail(applied.error().message);
+    }
     stream->view = std::move(*request);
     stream->connection = std::move(connection);
     streams.push_back(std::move(stream));
@@ -365,6 +378,8 @@ int main(int argc, char** argv) {
       {"reconnects", r.reconnects},
       {"resent", r.resent},
       {"focus_mismatches", r.focus_mismatches},
+      {"delta", flags.delta},
+      {"delta_errors", r.delta_errors},
       {"throughput_rps", r.meshes / std::max(elapsed_s, 1e-9)},
       {"latency_ms", percentiles_ms(r.mesh_latency_us)},
       {"sample_latency_ms", percentiles_ms(r.sample_latency_us)},
@@ -381,8 +396,9 @@ int main(int argc, char** argv) {
   const auto& q = r.sample_latency_us;
   fmt::print("  every sample until a mesh shows it or a newer one, ms  p50 {:.2f}  p99 {:.2f}  max {:.2f}\n",
              q.value_at_percentile(50) / 1e3, q.value_at_percentile(99) / 1e3, q.max() / 1e3);
-  fmt::print("  {:.0f} triangles per mesh, server total {:.0f} µs mean, focus mismatches {}\n", r.triangles / per_mesh,
-             r.server_total_us / per_mesh, r.focus_mismatches);
+  fmt::print("  {:.0f} triangles per mesh, {:.0f} bytes per mesh, server total {:.0f} µs mean, focus mismatches {}{}\n",
+             r.triangles / per_mesh, static_cast<double>(r.bytes) / per_mesh, r.server_total_us / per_mesh,
+             r.focus_mismatches, flags.delta ? fmt::format(", delta errors {}", r.delta_errors) : std::string());
   if (!json_file.empty()) {
     std::ofstream out(json_file);
     out << report.dump(2) << "\n";

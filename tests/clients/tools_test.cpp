@@ -159,5 +159,25 @@ TEST_F(ToolsTest, GazeReplayMeasuresEverySample) {
   EXPECT_EQ(counters["extractions"], r.at("meshes").get<double>() + 2);
 }
 
+TEST_F(ToolsTest, GazeReplayWithDeltasKeepsTheServersCutInFewerBytes) {
+  // With --delta each stream rebuilds its mesh from the changes; every reply must leave it with the
+  // server's triangle count (delta_errors counts any mismatch), in fewer bytes than whole meshes.
+  const std::string trace = std::string(MTLOD_SOURCE_DIR) + "/clients/gaze/example-trace.csv";
+  const std::string common = "--model bunny --streams 2 --error-px 1 --silhouette 2,0.5 --trace " + trace;
+  const json whole = run(MTLOD_GAZE_BINARY, common);
+  const json delta = run(MTLOD_GAZE_BINARY, common + " --delta");
+  ASSERT_TRUE(delta.contains("delta_errors")) << delta.dump(2);
+  EXPECT_EQ(delta.at("delta"), true);
+  EXPECT_EQ(delta.at("delta_errors"), 0);
+  EXPECT_EQ(delta.at("errors"), 0);
+  EXPECT_EQ(delta.at("lost"), 0);
+  EXPECT_GT(delta.at("meshes").get<std::uint64_t>(), 0u);
+  EXPECT_EQ(delta.at("meshes").get<std::uint64_t>() + delta.at("superseded").get<std::uint64_t>(),
+            delta.at("samples").get<std::uint64_t>());
+  const double whole_per_mesh = whole.at("bytes").get<double>() / whole.at("meshes").get<double>();
+  const double delta_per_mesh = delta.at("bytes").get<double>() / delta.at("meshes").get<double>();
+  EXPECT_LT(delta_per_mesh, whole_per_mesh);
+}
+
 }  // namespace
 }  // namespace mtlod

@@ -9,8 +9,10 @@
 #include <cmath>
 #include <limits>
 #include <random>
+#include <set>
 #include <vector>
 
+#include "core/cut_delta.hpp"
 #include "tests/core/cut_validator.hpp"
 #include "tests/core/mt_fixtures.hpp"
 
@@ -307,6 +309,16 @@ TEST(Refine, BudgetRefinesTheWorstRatioFirst) {
   }
 }
 
+// CutMesh::ids names each triangle: the MT triangle with that id has exactly those corners.
+void expect_ids_name_triangles(const Mt& mt, const CutMesh& cut) {
+  ASSERT_EQ(cut.ids.size(), cut.triangle_count());
+  for (std::size_t i = 0; i < cut.ids.size(); ++i) {
+    std::uint32_t corners[3];
+    mt.triangle_vertices(cut.ids[i], corners);
+    ASSERT_TRUE(std::equal(corners, corners + 3, &cut.triangles[3 * i])) << "triangle " << i << " id " << cut.ids[i];
+  }
+}
+
 // Dynamic refinement after random sequences of fields equals static refinement of the last field.
 void expect_dynamic_matches_static(const MtCase* c, std::uint32_t seed, int steps) {
   std::mt19937 rng(seed);
@@ -337,11 +349,12 @@ void expect_dynamic_matches_static(const MtCase* c, std::uint32_t seed, int step
     const AllowedError allowed =
         uniform >= 0 ? AllowedError::everywhere(uniform) : AllowedError::from_vertices(field);
     if (kind == 5) {
-      CutMesh ignored;  // interleaved budgeted and static calls reset the kept cut
+      CutMesh other;  // interleaved budgeted and static calls reset the kept cut
       if (std::uniform_int_distribution<int>(0, 1)(rng))
-        dynamic.refine_budget(allowed, 500, ignored);
+        dynamic.refine_budget(allowed, 500, other);
       else
-        dynamic.refine(allowed, ignored);
+        dynamic.refine(allowed, other);
+      expect_ids_name_triangles(c->mt, other);
     }
     if (kind == 4) {
       dynamic.update(allowed, changed, moving);
@@ -356,6 +369,8 @@ void expect_dynamic_matches_static(const MtCase* c, std::uint32_t seed, int step
     ASSERT_EQ(sorted_nodes(dynamic), sorted_nodes(fixed)) << "step " << step;
     ASSERT_EQ(moving.max_error, reference.max_error);
     ASSERT_EQ(moving.node_count, reference.node_count);
+    expect_ids_name_triangles(c->mt, moving);
+    expect_ids_name_triangles(c->mt, reference);
   }
   // Both ways of updating ran: moving the kept cut, and restarting from the root after a large drop.
   EXPECT_GT(dynamic.restarts(), 0u);
@@ -372,6 +387,35 @@ TEST(Refine, DynamicEqualsStaticAfterRandomSequences) {
   }
   expect_dynamic_matches_static(test::shape_case(Shape::kTerrain, 3'000), 23, 60);
   expect_dynamic_matches_static(test::shape_case(Shape::kSphere, 8'000), 29, 60);
+}
+
+TEST(CutDelta, AppliedChangesRebuildEveryCutOfASequence) {
+  // A client that applies each delta to a set of ids holds exactly the latest cut's ids.
+  const MtCase* c = test::shape_case(Shape::kSphere, 8'000);
+  std::mt19937 rng(31);
+  const float top = max_node_error(c->mt);
+  Refiner refiner(c->mt);
+  CutMesh cut;
+  CutDelta delta;
+  std::set<std::uint32_t> client;
+  std::vector<std::uint32_t> added, removed;
+  std::size_t partial = 0;
+  for (int step = 0; step < 30; ++step) {
+    if (step == 20) delta.reset();  // the client starts over
+    refiner.update(AllowedError::from_vertices(focus_field(c->mesh, rng, top * 1e-3f, top * 0.3f)), cut);
+    const bool from_empty = delta.update(cut.ids, c->mt.triangle_count(), added, removed);
+    EXPECT_EQ(from_empty, step == 0 || step == 20) << step;
+    if (from_empty) client.clear();
+    for (const std::uint32_t id : removed) ASSERT_EQ(client.erase(id), 1u) << "removed twice or never added: " << id;
+    for (const std::uint32_t i : added) ASSERT_TRUE(client.insert(cut.ids[i]).second) << "added twice: " << cut.ids[i];
+    ASSERT_EQ(client, std::set<std::uint32_t>(cut.ids.begin(), cut.ids.end())) << step;
+    partial += !from_empty && added.size() < cut.ids.size();
+  }
+  EXPECT_GT(partial, 0u);  // deltas were smaller than the cut
+  // Another model (a different triangle count) starts from empty as well.
+  EXPECT_TRUE(delta.update(std::vector<std::uint32_t>{0, 1}, 2, added, removed));
+  EXPECT_EQ(added.size(), 2u);
+  EXPECT_TRUE(removed.empty());
 }
 
 TEST(Refine, DynamicAfterSmallMovesOfTheFocusEqualsStatic) {

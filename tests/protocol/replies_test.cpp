@@ -34,6 +34,38 @@ TEST(Replies, MeshReplyRoundTripsWithTimingsAndFocus) {
   EXPECT_EQ(r.timings.total_us, 28u);
 }
 
+TEST(Replies, DeltaHeaderAndPayloadRoundTrip) {
+  MeshReply m;
+  m.triangles = 9;
+  m.delta = MeshDelta{true, 0, 3, 2};
+  const std::vector<std::uint32_t> added{7, 0xDEADBEEF, 42}, removed{1, 65'536};
+  std::vector<std::uint8_t> payload{1, 2, 3, 4, 5};  // stands for the Draco bytes
+  m.delta->draco_bytes = payload.size();
+  append_delta_ids(added, removed, payload);
+  auto parsed = parse_reply(to_json(m, 1));
+  ASSERT_TRUE(parsed.ok()) << parsed.error().message;
+  const auto& r = std::get<MeshReply>(parsed->reply);
+  ASSERT_TRUE(r.delta);
+  EXPECT_TRUE(r.delta->reset);
+  auto parts = split_delta_payload(*r.delta, payload);
+  ASSERT_TRUE(parts.ok()) << parts.error().message;
+  EXPECT_EQ(std::vector<std::uint8_t>(parts->draco.begin(), parts->draco.end()), (std::vector<std::uint8_t>{1, 2, 3, 4, 5}));
+  EXPECT_EQ(parts->added_ids, added);
+  EXPECT_EQ(parts->removed_ids, removed);
+  EXPECT_FALSE(std::get<MeshReply>(parse_reply(to_json(MeshReply{}, 1))->reply).delta);
+}
+
+TEST(Replies, DeltaPayloadWhoseSizesDoNotAddUpIsRejected) {
+  std::vector<std::uint8_t> payload(5 + 4 * 5);
+  EXPECT_TRUE(split_delta_payload({false, 5, 3, 2}, payload).ok());
+  EXPECT_FALSE(split_delta_payload({false, 5, 3, 3}, payload).ok());                  // one id short
+  EXPECT_FALSE(split_delta_payload({false, 6, 3, 2}, payload).ok());                  // one byte short
+  EXPECT_FALSE(split_delta_payload({false, 0, 0, 0}, payload).ok());                  // bytes left over
+  EXPECT_FALSE(split_delta_payload({false, 5, UINT64_MAX / 2, 2}, payload).ok());     // would overflow
+  EXPECT_FALSE(split_delta_payload({false, 25, 0, 0}, payload).ok());                 // Draco bytes, no ids
+  EXPECT_TRUE(split_delta_payload({false, 0, 0, 0}, {}).ok());                        // nothing changed
+}
+
 TEST(Replies, EveryReplyTypeKeepsItsType) {
   Limits limits;
   limits.max_grid = 1024;

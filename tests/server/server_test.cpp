@@ -5,9 +5,13 @@
 #include <atomic>
 #include <cstdlib>
 #include <fstream>
+#include <map>
+#include <numeric>
+#include <random>
 #include <thread>
 
 #include "clients/common/connection.hpp"
+#include "clients/common/delta_mesh.hpp"
 #include "core/draco_decode.hpp"
 #include "core/io/mesh_io.hpp"
 #include "core/io/mt_file.hpp"
@@ -170,6 +174,77 @@ TEST_F(ServerTest, GooglesDracoDecoderReadsAServerPayload) {
   auto loaded = core::io::load_mesh(ply, {.clean = false});
   ASSERT_TRUE(loaded.ok()) << loaded.error().message;
   EXPECT_EQ(loaded->mesh.triangle_count(), as_mesh(*reply)->triangles);
+}
+
+TEST_F(ServerTest, DeltaRepliesRebuildTheCutAFreshConnectionGets) {
+  // One connection asks for deltas and moves its gaze (small steps and jumps); after every reply,
+  // the mesh it keeps holds the same triangles, id for id and corner for corner, as the whole cut a
+  // new connection gets for the same focus.
+  protocol::Extract request = extract_request(0.3, 0.4);
+  request.delta = true;
+  Connection c = connect();
+  clients::DeltaMesh kept;
+  auto first = c.call(request, 1);
+  ASSERT_TRUE(first.ok()) << first.error().message;
+  ASSERT_NE(as_mesh(*first), nullptr) << first->json;
+  ASSERT_TRUE(as_mesh(*first)->delta && as_mesh(*first)->delta->reset) << first->json;
+  ASSERT_TRUE(kept.apply(*as_mesh(*first), first->payload).ok());
+  // Each payload is quantized over its own vertices, all within the model's extent.
+  std::vector<std::uint32_t> every_vertex(g_fixture->mt.vertex_count());
+  std::iota(every_vertex.begin(), every_vertex.end(), 0u);
+  const float tolerance = 2 * test::draco_tolerance(test::used_extent(g_fixture->mt.positions, every_vertex), 14);
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> anywhere(0.15, 0.85), step(-0.02, 0.02);
+  double x = 0.3, y = 0.4;
+  std::size_t partial = 0;
+  bool decoder_checked = false;
+  for (std::uint64_t id = 2; id < 16; ++id) {
+    if (id % 4 == 0) {
+      x = anywhere(rng), y = anywhere(rng);
+    } else {
+      x = std::clamp(x + step(rng), 0.0, 1.0), y = std::clamp(y + step(rng), 0.0, 1.0);
+    }
+    auto reply = c.call(protocol::Gaze{x, y, std::nullopt, std::nullopt}, id);
+    ASSERT_TRUE(reply.ok()) << reply.error().message;
+    const auto* mesh = as_mesh(*reply);
+    ASSERT_NE(mesh, nullptr) << reply->json;
+    ASSERT_TRUE(mesh->delta && !mesh->delta->reset) << reply->json;
+    ASSERT_TRUE(kept.apply(*mesh, reply->payload).ok()) << "gaze " << id;
+    partial += mesh->delta->added < mesh->triangles;
+    if (!decoder_checked && mesh->delta->added > 0) {
+      // The Draco part of a delta is a Draco mesh of its own, for Google's decoder too.
+      auto parts = protocol::split_delta_payload(*mesh->delta, reply->payload);
+      ASSERT_TRUE(parts.ok());
+      const auto drc = g_fixture->dir / "delta.drc", ply = g_fixture->dir / "delta.ply";
+      std::ofstream(drc, std::ios::binary)
+          .write(reinterpret_cast<const char*>(parts->draco.data()), static_cast<std::streamsize>(parts->draco.size()));
+      const std::string command = "draco_decoder -i " + drc.string() + " -o " + ply.string() + " > /dev/null 2>&1";
+      ASSERT_EQ(std::system(command.c_str()), 0) << "draco_decoder failed on a delta's Draco bytes";
+      auto loaded = core::io::load_mesh(ply, {.clean = false});
+      ASSERT_TRUE(loaded.ok()) << loaded.error().message;
+      EXPECT_EQ(loaded->mesh.triangle_count(), mesh->delta->added);
+      decoder_checked = true;
+    }
+
+    protocol::Extract fresh = request;
+    fresh.criteria.focus[0].x = x, fresh.criteria.focus[0].y = y;
+    Connection other = connect();
+    auto whole = other.call(fresh, 1);
+    ASSERT_TRUE(whole.ok()) << whole.error().message;
+    ASSERT_NE(as_mesh(*whole), nullptr) << whole->json;
+    clients::DeltaMesh reference;
+    ASSERT_TRUE(reference.apply(*as_mesh(*whole), whole->payload).ok());
+    ASSERT_EQ(kept.triangle_count(), reference.triangle_count()) << "gaze " << id;
+    std::map<std::uint32_t, std::size_t> slot;
+    for (std::size_t i = 0; i < reference.ids().size(); ++i) slot[reference.ids()[i]] = i;
+    for (std::size_t i = 0; i < kept.ids().size(); ++i) {
+      const auto it = slot.find(kept.ids()[i]);
+      ASSERT_NE(it, slot.end()) << "gaze " << id << ": triangle " << kept.ids()[i] << " is not in the cut";
+      for (int k = 0; k < 9; ++k) ASSERT_NEAR(kept.corners(i)[k], reference.corners(it->second)[k], tolerance);
+    }
+  }
+  EXPECT_GT(partial, 0u);  // most gazes sent less than the whole cut
+  EXPECT_TRUE(decoder_checked);
 }
 
 TEST_F(ServerTest, ThirtyTwoConcurrentClientsMixingExtractAndGaze) {

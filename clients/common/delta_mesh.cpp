@@ -1,0 +1,61 @@
+// Applying delta replies (see delta_mesh.hpp).
+#include "clients/common/delta_mesh.hpp"
+
+#include <algorithm>
+
+#include "core/draco_decode.hpp"
+#include "fmt/format.h"
+
+namespace mtlod::clients {
+
+Status DeltaMesh::apply(const protocol::MeshReply& reply, std::span<const std::uint8_t> payload) {
+  if (!reply.delta) return make_error(ErrorCode::kInvalidArgument, "the reply is not a delta (ask with \"delta\": true)");
+  MTLOD_TRY(const protocol::DeltaPayload parts, protocol::split_delta_payload(*reply.delta, payload));
+  if (reply.delta->reset) {
+    ids_.clear();
+    corners_.clear();
+    slot_.clear();
+  }
+  for (const std::uint32_t id : parts.removed_ids) {
+    const auto it = slot_.find(id);
+    if (it == slot_.end()) {
+      return make_error(ErrorCode::kCorrupt, fmt::format("the delta removes triangle {}, which the mesh does not hold", id));
+    }
+    // Swap with the last slot so the arrays stay dense.
+    const std::uint32_t slot = it->second, last = static_cast<std::uint32_t>(ids_.size() - 1);
+    slot_.erase(it);
+    if (slot != last) {
+      ids_[slot] = ids_[last];
+      std::copy_n(&corners_[9 * std::size_t{last}], 9, &corners_[9 * std::size_t{slot}]);
+      slot_[ids_[slot]] = slot;
+    }
+    ids_.pop_back();
+    corners_.resize(9 * std::size_t{last});
+  }
+  if (!parts.added_ids.empty()) {
+    MTLOD_TRY(const core::DecodedMesh decoded, core::decode_draco(parts.draco));
+    const core::Mesh& m = decoded.mesh;
+    if (m.triangle_count() != parts.added_ids.size()) {
+      return make_error(ErrorCode::kCorrupt, fmt::format("the delta's Draco mesh has {} triangles for {} added ids",
+                                                         m.triangle_count(), parts.added_ids.size()));
+    }
+    for (std::size_t f = 0; f < parts.added_ids.size(); ++f) {
+      const std::uint32_t id = parts.added_ids[f];
+      if (!slot_.emplace(id, static_cast<std::uint32_t>(ids_.size())).second) {
+        return make_error(ErrorCode::kCorrupt, fmt::format("the delta adds triangle {}, which the mesh already holds", id));
+      }
+      ids_.push_back(id);
+      for (int k = 0; k < 3; ++k) {
+        const float* p = &m.positions[3 * std::size_t{m.triangles[3 * f + k]}];
+        corners_.insert(corners_.end(), p, p + 3);
+      }
+    }
+  }
+  if (ids_.size() != reply.triangles) {
+    return make_error(ErrorCode::kCorrupt, fmt::format("the mesh holds {} triangles after the delta, the server's cut {}",
+                                                       ids_.size(), reply.triangles));
+  }
+  return Ok{};
+}
+
+}  // namespace mtlod::clients
