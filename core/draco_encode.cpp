@@ -124,7 +124,12 @@ Result<DracoStats> DracoEncoder::encode(const DracoInput& input, const DracoOpti
 
   draco::Encoder encoder;
   encoder.SetSpeedOptions(options.speed, options.speed);
-  if (options.position_bits > 0) encoder.SetAttributeQuantization(draco::GeometryAttribute::POSITION, options.position_bits);
+  if (options.position_bits > 0 && options.position_grid && options.position_grid->range > 0) {
+    encoder.SetAttributeExplicitQuantization(draco::GeometryAttribute::POSITION, options.position_bits, 3,
+                                             options.position_grid->origin.data(), options.position_grid->range);
+  } else if (options.position_bits > 0) {
+    encoder.SetAttributeQuantization(draco::GeometryAttribute::POSITION, options.position_bits);
+  }
   if (options.normals) encoder.SetAttributeQuantization(draco::GeometryAttribute::NORMAL, options.normal_bits);
   if (!options.entropy_coding) {
     encoder.options().SetGlobalBool("use_built_in_attribute_compression", false);

@@ -3,8 +3,10 @@
 // headers stay inside draco_encode.cpp; callers see byte vectors only.
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -25,6 +27,14 @@ struct DracoOptions {
   bool normals = false;        // encode the original vertices' normals (needs them in the input)
   bool labels = false;         // encode per-vertex labels as a generic uint16 attribute "label"
   bool entropy_coding = true;  // false: attribute values stored as raw quantized integers (faster, larger)
+  // Quantize positions on this fixed grid (the model's bounding box: origin and largest side)
+  // instead of the encoded vertices' own box, so that a vertex decodes to the same floats in every
+  // payload: meshes assembled from several payloads (delta replies) then have no cracks.
+  struct Grid {
+    std::array<float, 3> origin{};
+    float range = 0;
+  };
+  std::optional<Grid> position_grid;
 };
 
 // What a cut looks like to the encoder: the model's vertex arrays and the cut's triangles, whose

@@ -3,6 +3,7 @@
 // lock is taken per request and buffers are reused.
 #include "server/engine.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <unordered_map>
 
@@ -93,6 +94,14 @@ std::variant<ExtractOutcome, protocol::ProtocolError> Engine::extract(const prot
   draco.position_bits = request.draco.position_bits;
   draco.normal_bits = request.draco.normal_bits;
   draco.entropy_coding = request.draco.entropy_coding.value_or(!gaze);
+  if (request.delta) {
+    // One grid for every payload of the model: a vertex kept from an earlier delta and the same
+    // vertex in a new one decode to the same floats.
+    core::DracoOptions::Grid grid;
+    grid.origin = model->bounds_min;
+    for (int c = 0; c < 3; ++c) grid.range = std::max(grid.range, model->bounds_max[c] - model->bounds_min[c]);
+    draco.position_grid = grid;
+  }
   draco.normals = request.normals;
   draco.labels = request.labels;
   std::span<const std::uint32_t> triangles = worker.cut.triangles;

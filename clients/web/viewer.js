@@ -41,6 +41,7 @@ const state = {
   lastReply: null,      // JSON of the last mesh reply
   lastReplyHadLabels: false,  // its Draco data carried the `label` attribute
   displayedTriangles: 0,
+  deltaReplies: 0,      // mesh replies applied as deltas to the kept mesh
   focus: [0.5, 0.5],
   errors: [],
 };
@@ -52,6 +53,7 @@ const waiting = new Map();   // id → {resolve, sentAt}
 let inFlight = false;        // one extraction at a time from this page: the next waits for the reply
 let wantExtract = false;
 let wantGaze = null;
+let deltaBroken = false;
 
 function setStatus(text, error = false) {
   $('status').textContent = text;
@@ -110,6 +112,9 @@ function extractRequest() {
     criteria,
     attributes: { labels: $('labels').checked },
   };
+  // Delta replies send only what changed, named by triangle id; labels would go stale on kept triangles.
+  // After a delta that did not apply, one whole mesh puts the kept mesh right again.
+  if ($('delta').checked && !$('labels').checked && !deltaBroken) request.delta = true;
   const budget = Number($('budget').value);
   if (budget > 0) request.budget = budget;
   return request;
@@ -152,24 +157,98 @@ function colourByLabel(geometry) {
   return true;
 }
 
+// The mesh kept across delta replies (PROTOCOL.md, "Delta replies"): 9 floats per triangle, keyed
+// by the triangle's id in the model's Multi-Tessellation; removal swaps in the last triangle.
+const kept = { ids: [], slot: new Map(), positions: new Float32Array(9 * 1024) };
+
+function keptRemove(id) {
+  const slot = kept.slot.get(id);
+  if (slot === undefined) throw new Error(`the delta removes triangle ${id}, which the mesh does not hold`);
+  const last = kept.ids.length - 1;
+  kept.slot.delete(id);
+  if (slot !== last) {
+    kept.ids[slot] = kept.ids[last];
+    kept.positions.copyWithin(9 * slot, 9 * last, 9 * last + 9);
+    kept.slot.set(kept.ids[slot], slot);
+  }
+  kept.ids.pop();
+}
+
+function keptAdd(id, corners) {
+  if (kept.slot.has(id)) throw new Error(`the delta adds triangle ${id}, which the mesh already holds`);
+  const slot = kept.ids.length;
+  if (9 * (slot + 1) > kept.positions.length) {
+    const grown = new Float32Array(2 * kept.positions.length);
+    grown.set(kept.positions);
+    kept.positions = grown;
+  }
+  kept.positions.set(corners, 9 * slot);
+  kept.ids.push(id);
+  kept.slot.set(id, slot);
+}
+
+// Applies a delta reply to the kept mesh and returns a geometry showing it.
+async function applyDelta(delta, payload) {
+  if (delta.reset) {
+    kept.ids.length = 0;
+    kept.slot.clear();
+  }
+  // A reply without payload (nothing changed) comes as a text message: payload is null.
+  const ids = new DataView(payload ?? new ArrayBuffer(0), delta.draco_bytes);
+  for (let i = 0; i < delta.removed; ++i) keptRemove(ids.getUint32(4 * (delta.added + i), true));
+  if (delta.added > 0) {
+    // The decoder takes its buffer away (it is transferred to a worker): hand it a copy.
+    const added = await new Promise((resolve, reject) => draco.parse(payload.slice(0, delta.draco_bytes), resolve, reject));
+    const index = added.index.array, position = added.getAttribute('position');
+    const corners = new Float32Array(9);
+    for (let f = 0; f < delta.added; ++f) {
+      for (let k = 0; k < 3; ++k) {
+        const v = index[3 * f + k];
+        corners.set([position.getX(v), position.getY(v), position.getZ(v)], 3 * k);
+      }
+      keptAdd(ids.getUint32(4 * f, true), corners);
+    }
+    added.dispose();
+  }
+  const geometry = new THREE.BufferGeometry();
+  geometry.setAttribute('position', new THREE.BufferAttribute(kept.positions.slice(0, 9 * kept.ids.length), 3));
+  return geometry;
+}
+
 async function showReply({ json, payload, latencyMs }) {
   if (json.type === 'error') {
     if (json.code !== 'superseded') setStatus(`${json.code}: ${json.message}`, true);
     return;
   }
   if (json.type !== 'mesh') return;
-  const geometry = await new Promise((resolve, reject) => draco.parse(payload, resolve, reject));
+  let geometry;
+  if (json.delta) {
+    try {
+      geometry = await applyDelta(json.delta, payload);
+      if (kept.ids.length !== json.triangles) {
+        throw new Error(`the kept mesh has ${kept.ids.length} triangles, the server's cut ${json.triangles}`);
+      }
+    } catch (error) {
+      deltaBroken = true;
+      requestExtract();
+      return setStatus(String(error.message ?? error), true);
+    }
+    state.deltaReplies += 1;
+  } else {
+    deltaBroken = false;
+    geometry = await new Promise((resolve, reject) => draco.parse(payload, resolve, reject));
+  }
   const labelled = $('labels').checked && colourByLabel(geometry);
   mesh.geometry.dispose();
   mesh.geometry = geometry;
   mesh.material = labelled ? labelMaterial : material;
   mesh.material.wireframe = $('wireframe').checked;
-  state.displayedTriangles = geometry.index ? geometry.index.count / 3 : 0;
+  state.displayedTriangles = geometry.index ? geometry.index.count / 3 : geometry.getAttribute('position').count / 3;
   state.lastReply = json;
   state.lastReplyHadLabels = geometry.getAttribute('label') !== undefined;
   state.meshes += 1;
   $('triangles').textContent = String(state.displayedTriangles);
-  $('vertices').textContent = String(geometry.getAttribute('position').count);
+  $('vertices').textContent = json.delta ? `${json.vertices} new` : String(geometry.getAttribute('position').count);
   $('bytes').textContent = String(json.bytes);
   $('latency').textContent = latencyMs.toFixed(1);
   $('server-ms').textContent = (json.timings_us.total / 1000).toFixed(1);
@@ -229,7 +308,7 @@ renderer.domElement.addEventListener('pointermove', (event) => {
   pump();
 });
 for (const id of ['error', 'budget', 'silhouette', 'silhouette-distance', 'silhouette-factor', 'focus', 'focus-distance',
-                  'focus-factor', 'labels']) {
+                  'focus-factor', 'labels', 'delta']) {
   $(id).addEventListener('change', requestExtract);
 }
 $('wireframe').addEventListener('change', () => { mesh.material.wireframe = $('wireframe').checked; });

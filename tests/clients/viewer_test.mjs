@@ -79,7 +79,12 @@ try {
   const gazesSent = [];
   page.on('websocket', (ws) => {
     ws.on('framereceived', ({ payload }) => {
-      if (typeof payload === 'string') return;  // JSON-only replies (hello, models, errors)
+      if (typeof payload === 'string') {
+        // JSON-only replies: hello, models, errors, and a delta that changed nothing.
+        const json = JSON.parse(payload);
+        if (json.type === 'mesh') meshReplies.push({ json, dracoBytes: 0 });
+        return;
+      }
       const jsonBytes = payload.readUInt32LE(0), payloadBytes = payload.readUInt32LE(4);
       const json = JSON.parse(payload.subarray(8, 8 + jsonBytes).toString('utf8'));
       if (json.type === 'mesh') meshReplies.push({ json, dracoBytes: payloadBytes });
@@ -100,6 +105,8 @@ try {
   check(firstReply && Number(first.shown) === firstReply.json.triangles && firstReply.json.triangles > 0,
         `displayed triangles ${first.shown} = the server's reply ${firstReply?.json.triangles}`);
   check(first.errors.length === 0, `no error shown (${first.errors.join('; ')})`);
+  check(meshReplies.length > 0 && meshReplies[0].json.delta && meshReplies[0].json.delta.reset,
+        `delta updates are on by default: the first mesh starts the kept mesh (${JSON.stringify(meshReplies[0]?.json.delta)})`);
 
   // The mouse is the focus: a gaze goes out and a mesh reflecting it comes back.
   const target = [0.6, 0.45];  // clear of the control panel at the top left
@@ -120,12 +127,20 @@ try {
   check(secondReply && Number(second.shown) === secondReply.json.triangles,
         `displayed triangles ${second.shown} = the reply's ${secondReply?.json.triangles}`);
   check(second.focus === `${target[0].toFixed(3)}, ${target[1].toFixed(3)}`, `the overlay shows the focus (${second.focus})`);
+  check(secondReply && secondReply.json.delta && !secondReply.json.delta.reset &&
+        secondReply.json.delta.added < secondReply.json.triangles,
+        `the gaze's mesh came as a change to the kept one (${JSON.stringify(secondReply?.json.delta)}), and the page shows the server's count`);
+
+  // The mesh kept from deltas, as shown.
+  await page.screenshot({ path: path.join(args.out, 'viewer-delta.png') });
 
   // Colouring by distance label: the page asks for labels and decodes the generic attribute.
   await page.check('#labels');
   await page.waitForFunction((id) => window.mtlod.lastReply.id > id, second.id, { timeout: 30_000 });
   const labelled = await page.evaluate(() => window.mtlod.lastReplyHadLabels);
   check(labelled === true, 'with labels on, the decoded mesh carries the label attribute');
+  const whole = await page.evaluate(() => window.mtlod.lastReply.delta === undefined);
+  check(whole, 'with labels on, whole meshes replace the kept one (labels would go stale in deltas)');
 
   const screenshot = path.join(args.out, 'viewer.png');
   await page.screenshot({ path: screenshot });
