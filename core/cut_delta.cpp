@@ -2,7 +2,6 @@
 // triangles (about 210 KB each for the 871k dragon) keep every step O(cut), with no sorting.
 #include "core/cut_delta.hpp"
 
-#include <algorithm>
 #include <cassert>
 
 namespace mtlod::core {

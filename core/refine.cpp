@@ -514,35 +514,25 @@ void Refiner::move_cut(const AllowedError& allowed, bool all_changed, CutMesh& o
         if (mt_.triangle_remover[t] == x) {
           mesh_add(t, p);
           seeds_.push_back(t);
+          seeds_.push_back(p);
         }
     }
   }
 
-  // 3. Test what may fail now: uncovered triangles still in the mesh, and mesh triangles with a
-  // changed corner. Every other mesh triangle passed before and still does. Candidates are
-  // collected first because forcing edits the mesh arrays.
-  std::size_t uncovered = 0;
-  for (const std::uint32_t t : seeds_)
-    if (slots_.find(t) != kNoNode) seeds_[uncovered++] = t;
-  seeds_.resize(uncovered);
+  // 3. Force the removers of what fails now: the uncovered triangles, and mesh triangles with a
+  // changed corner; every other mesh triangle passed before and still does. Nodes added from here
+  // on leave the mesh alone (add_node skips it; step 5 patches it once), so it is read in place.
+  mesh_valid_ = false;
+  for (std::size_t i = 0; i < seeds_.size(); i += 2) {
+    const std::uint32_t t = seeds_[i], r = mt_.triangle_remover[t];
+    if (in_cut_[r] != kIn && fails(t, seeds_[i + 1], allowed)) force(r, t, seeds_[i + 1]);
+  }
   for (std::size_t i = 0; i < mesh_triangles_.size(); ++i) {
     const std::uint32_t* corners = &mesh_corners_[3 * i];
-    if (changed(corners[0]) || changed(corners[1]) || changed(corners[2]))
-      seeds_.push_back(mesh_triangles_[i]);
-  }
-  std::size_t failing = 0;
-  for (const std::uint32_t t : seeds_) {
-    const std::uint32_t slot = slots_.find(t);
-    if (slot != kNoNode && fails_at(mt_.triangle_remover[t], &mesh_corners_[3 * std::size_t{slot}], allowed))
-      seeds_[failing++] = t;
-  }
-  seeds_.resize(failing);
-  // Nodes added from here on leave the mesh alone (add_node skips it); step 5 patches it once.
-  mesh_valid_ = false;
-  for (const std::uint32_t t : seeds_) {
-    const std::uint32_t r = mt_.triangle_remover[t];
-    if (in_cut_[r] == kIn) continue;  // refined meanwhile through another triangle
-    force(r, t, mt_.triangle_creator(t));
+    if (!changed(corners[0]) && !changed(corners[1]) && !changed(corners[2])) continue;
+    const std::uint32_t t = mesh_triangles_[i], r = mt_.triangle_remover[t];
+    // Refined meanwhile through another triangle, or an input triangle (fails_at is false then).
+    if (r != kNoNode && in_cut_[r] != kIn && fails_at(r, corners, allowed)) force(r, t, mt_.triangle_creator(t));
   }
   // 4. Nodes added in step 3 (and theirs, in turn) are examined in full.
   close_over(allowed, kept);

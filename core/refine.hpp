@@ -147,7 +147,7 @@ class Refiner {
   SlotTable slots_;
   std::vector<std::uint64_t> changed_bits_;  // per vertex, during update
   std::vector<std::uint32_t> dropped_;       // nodes dropped during one update
-  std::vector<std::uint32_t> seeds_;         // triangles to test during one update
+  std::vector<std::uint32_t> seeds_;         // uncovered triangle, creator pairs of one update
   std::vector<std::uint32_t> passing_;       // triangle, creator pairs seen passing (refine_forced)
   struct HeapEntry {
     std::uint32_t tier;  // 1: allowed ≤ 0, ranked by error; 0: ranked by error / allowed

@@ -85,9 +85,9 @@ std::variant<ExtractOutcome, protocol::ProtocolError> Engine::extract(const prot
   t.refine_us = elapsed_us(clock);
 
   core::DracoOptions draco;
-  const protocol::DracoMethod method = request.delta ? protocol::DracoMethod::kSequential
-                                                    : request.draco.method.value_or(gaze ? protocol::DracoMethod::kSequential
-                                                                                         : protocol::DracoMethod::kEdgebreaker);
+  // Deltas are sequential (the parser refuses them with an explicit edgebreaker).
+  const protocol::DracoMethod method = request.draco.method.value_or(
+      gaze || request.delta ? protocol::DracoMethod::kSequential : protocol::DracoMethod::kEdgebreaker);
   draco.method = method == protocol::DracoMethod::kEdgebreaker ? core::DracoMethod::kEdgebreaker
                                                                : core::DracoMethod::kSequential;
   draco.speed = request.draco.speed;

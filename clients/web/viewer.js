@@ -41,7 +41,6 @@ const state = {
   lastReply: null,      // JSON of the last mesh reply
   lastReplyHadLabels: false,  // its Draco data carried the `label` attribute
   displayedTriangles: 0,
-  deltaReplies: 0,      // mesh replies applied as deltas to the kept mesh
   focus: [0.5, 0.5],
   errors: [],
 };
@@ -233,7 +232,6 @@ async function showReply({ json, payload, latencyMs }) {
       requestExtract();
       return setStatus(String(error.message ?? error), true);
     }
-    state.deltaReplies += 1;
   } else {
     deltaBroken = false;
     geometry = await new Promise((resolve, reject) => draco.parse(payload, resolve, reject));

@@ -7,14 +7,12 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <cstdlib>
-#include <fstream>
 #include <map>
 #include <unordered_map>
 
 #include "core/draco_decode.hpp"
-#include "core/io/mesh_io.hpp"
 #include "core/mesh_gen.hpp"
+#include "tests/core/googles_draco_decoder.hpp"
 #include "tests/core/mesh_compare.hpp"
 #include "tests/core/test_meshes.hpp"
 
@@ -207,17 +205,10 @@ TEST_P(GooglesDecoder, ReadsThePayload) {
   DracoOptions options;
   if (!GetParam()) options.method = DracoMethod::kSequential, options.entropy_coding = false;
   ASSERT_TRUE(DracoEncoder().encode({m.positions, {}, {}, m.triangles}, options, bytes).ok());
-  const auto dir = test::scratch_dir(GetParam() ? "draco-cli-coded" : "draco-cli-raw");
-  std::ofstream(dir / "cut.drc", std::ios::binary).write(reinterpret_cast<const char*>(bytes.data()), bytes.size());
-  const std::string command = "draco_decoder -i " + (dir / "cut.drc").string() + " -o " + (dir / "cut.ply").string() +
-                              " > " + (dir / "log.txt").string() + " 2>&1";
-  ASSERT_EQ(std::system(command.c_str()), 0) << "draco_decoder (Debian package draco) failed or is missing";
-  io::LoadOptions raw;
-  raw.clean = false;
-  auto loaded = io::load_mesh(dir / "cut.ply", raw);
+  auto loaded = test::googles_draco_decode(bytes, test::scratch_dir("draco-cli"), GetParam() ? "coded" : "raw");
   ASSERT_TRUE(loaded.ok()) << loaded.error().message;
-  EXPECT_EQ(loaded->mesh.triangle_count(), m.triangle_count());
-  EXPECT_EQ(loaded->mesh.vertex_count(), m.vertex_count());
+  EXPECT_EQ(loaded->triangle_count(), m.triangle_count());
+  EXPECT_EQ(loaded->vertex_count(), m.vertex_count());
 }
 INSTANTIATE_TEST_SUITE_P(EntropyCoding, GooglesDecoder, testing::Bool());
 

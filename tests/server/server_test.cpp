@@ -3,8 +3,6 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
-#include <cstdlib>
-#include <fstream>
 #include <map>
 #include <random>
 #include <thread>
@@ -22,6 +20,7 @@
 #include "protocol/frame.hpp"
 #include "protocol/parse.hpp"
 #include "protocol/view_request.hpp"
+#include "tests/core/googles_draco_decoder.hpp"
 #include "tests/core/mesh_compare.hpp"
 #include "tests/core/test_meshes.hpp"
 #include "tests/protocol/protocol_cases.hpp"
@@ -165,14 +164,9 @@ TEST_F(ServerTest, GooglesDracoDecoderReadsAServerPayload) {
   auto reply = c.call(request, 1);
   ASSERT_TRUE(reply.ok()) << reply.error().message;
   ASSERT_NE(as_mesh(*reply), nullptr) << reply->json;
-  const auto drc = g_fixture->dir / "reply.drc", ply = g_fixture->dir / "reply.ply";
-  std::ofstream(drc, std::ios::binary)
-      .write(reinterpret_cast<const char*>(reply->payload.data()), static_cast<std::streamsize>(reply->payload.size()));
-  const std::string command = "draco_decoder -i " + drc.string() + " -o " + ply.string() + " > /dev/null 2>&1";
-  ASSERT_EQ(std::system(command.c_str()), 0) << "draco_decoder (Debian package draco) failed or is missing";
-  auto loaded = core::io::load_mesh(ply, {.clean = false});
+  auto loaded = test::googles_draco_decode(reply->payload, g_fixture->dir, "reply");
   ASSERT_TRUE(loaded.ok()) << loaded.error().message;
-  EXPECT_EQ(loaded->mesh.triangle_count(), as_mesh(*reply)->triangles);
+  EXPECT_EQ(loaded->triangle_count(), as_mesh(*reply)->triangles);
 }
 
 TEST_F(ServerTest, DeltaRepliesRebuildTheCutAFreshConnectionGets) {
@@ -210,14 +204,9 @@ TEST_F(ServerTest, DeltaRepliesRebuildTheCutAFreshConnectionGets) {
       // The Draco part of a delta is a Draco mesh of its own, for Google's decoder too.
       auto parts = protocol::split_delta_payload(*mesh->delta, reply->payload);
       ASSERT_TRUE(parts.ok());
-      const auto drc = g_fixture->dir / "delta.drc", ply = g_fixture->dir / "delta.ply";
-      std::ofstream(drc, std::ios::binary)
-          .write(reinterpret_cast<const char*>(parts->draco.data()), static_cast<std::streamsize>(parts->draco.size()));
-      const std::string command = "draco_decoder -i " + drc.string() + " -o " + ply.string() + " > /dev/null 2>&1";
-      ASSERT_EQ(std::system(command.c_str()), 0) << "draco_decoder failed on a delta's Draco bytes";
-      auto loaded = core::io::load_mesh(ply, {.clean = false});
+      auto loaded = test::googles_draco_decode(parts->draco, g_fixture->dir, "delta");
       ASSERT_TRUE(loaded.ok()) << loaded.error().message;
-      EXPECT_EQ(loaded->mesh.triangle_count(), mesh->delta->added);
+      EXPECT_EQ(loaded->triangle_count(), mesh->delta->added);
       decoder_checked = true;
     }
 
