@@ -26,6 +26,7 @@
 #include <cstring>
 #include <limits>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace mtlod::core {
@@ -43,6 +44,26 @@ constexpr std::size_t kMinChunk = 2048;
 constexpr std::size_t kPrefetchAhead = 8;
 // How far ahead of the chooser the guesser starts when it falls behind.
 constexpr std::size_t kGuessLead = 16;
+
+// An allocator whose resize leaves new elements uninitialised (default-initialised), for arrays
+// whose new slots are all written right after growing.
+template <class T>
+struct DefaultInitAllocator : std::allocator<T> {
+  template <class U>
+  struct rebind {
+    using other = DefaultInitAllocator<U>;
+  };
+  template <class U>
+  void construct(U* p) noexcept {
+    ::new (static_cast<void*>(p)) U;
+  }
+  template <class U, class... Args>
+  void construct(U* p, Args&&... args) {
+    ::new (static_cast<void*>(p)) U(std::forward<Args>(args)...);
+  }
+};
+template <class T>
+using GrowOnlyVector = std::vector<T, DefaultInitAllocator<T>>;
 
 struct Quadric {
   float a00 = 0, a01 = 0, a02 = 0, a11 = 0, a12 = 0, a22 = 0;
@@ -169,6 +190,11 @@ class Builder {
   const float* position(std::uint32_t v) const { return &mesh_.positions[3 * std::size_t{v}]; }
 
   void init_quadrics();
+  Quadric gather_quadric(std::uint32_t u) const;
+  struct Plane {
+    float nx, ny, nz, d, w;
+  };
+  std::vector<Plane> face_planes_;  // while the quadrics are built: each face's plane and weight
   void build_adjacency();
   // Per-chunk scratch of the concurrent phases.
   struct Moving {
@@ -206,6 +232,9 @@ class Builder {
   };
   bool can_collapse(std::uint32_t u, std::uint32_t v, Stamps& stamps) const;
   void choose_collapses(std::size_t quota);
+  // Orders chosen_ by split vertex u (all distinct) with one scan of the ascending alive vertex
+  // list instead of a comparison sort.
+  void sort_chosen_by_vertex();
   void collapse(const Chosen& chosen, Scratch& scratch);
   void prefetch_fan(std::uint32_t u) const {
     for (std::uint32_t i = adjacency_begin_[u]; i < adjacency_end_[u]; ++i) {
@@ -228,7 +257,7 @@ class Builder {
     __builtin_prefetch(&quadrics_[chosen.v]);
     __builtin_prefetch(&adjacency_[adjacency_begin_[chosen.u]]);
   }
-  Mt assemble() const;
+  Mt assemble();
 
   const Mesh& mesh_;
   BuildOptions options_;
@@ -245,9 +274,10 @@ class Builder {
 
   // MT triangles in order of appearance: vertices, and the collapses (index + 1, 0 = none) that
   // made and removed them during simplification.
-  std::vector<std::uint32_t> mt_vertices_;
-  std::vector<std::uint32_t> mt_made_by_;
-  std::vector<std::uint32_t> mt_killed_by_;
+  // Grown once per pass for the chosen collapses, which write every new slot: no zero fill first.
+  GrowOnlyVector<std::uint32_t> mt_vertices_;
+  GrowOnlyVector<std::uint32_t> mt_made_by_;
+  GrowOnlyVector<std::uint32_t> mt_killed_by_;
   std::vector<std::uint32_t> collapse_u_;
   std::vector<float> collapse_error_;
 
@@ -279,13 +309,28 @@ class Builder {
   void compact_assigned_points();
   std::vector<std::uint32_t> face_first_point_;
   std::vector<std::uint32_t> face_points_;
-  std::vector<float> points_;
-  std::vector<float> points_scratch_;
+  GrowOnlyVector<float> points_;
+  GrowOnlyVector<float> points_scratch_;
   std::size_t used_vertices_ = 0;
   std::vector<Scratch> scratch_;
   std::vector<Chosen> chosen_;
+  std::vector<Chosen> chosen_scratch_;
+  std::vector<std::uint32_t> chosen_slot_;  // per vertex: 1 + its index in chosen_, or 0
   std::size_t complex_vertices_ = 0;
 };
+
+void Builder::sort_chosen_by_vertex() {
+  if (chosen_slot_.size() != vertex_count_) chosen_slot_.assign(vertex_count_, 0);
+  for (std::size_t i = 0; i < chosen_.size(); ++i) chosen_slot_[chosen_[i].u] = std::uint32_t(i + 1);
+  chosen_scratch_.clear();
+  for (const std::uint32_t u : alive_vertex_list_) {
+    if (chosen_slot_[u] == 0) continue;
+    chosen_scratch_.push_back(chosen_[chosen_slot_[u] - 1]);
+    chosen_slot_[u] = 0;
+  }
+  assert(chosen_scratch_.size() == chosen_.size());
+  chosen_.swap(chosen_scratch_);
+}
 
 void Builder::init_quadrics() {
   float lo[3] = {std::numeric_limits<float>::max(), std::numeric_limits<float>::max(),
@@ -304,46 +349,78 @@ void Builder::init_quadrics() {
   for (std::size_t v = 0; v < vertex_count_; ++v)
     for (int k = 0; k < 3; ++k) unit_positions_[3 * v + k] = (mesh_.positions[3 * v + k] - lo[k]) * scale;
 
-  quadrics_.assign(vertex_count_, Quadric{});
-  for (std::size_t f = 0; f < face_count_; ++f) {
-    const std::uint32_t* t = &working_[3 * f];
-    const float* p0 = &unit_positions_[3 * std::size_t{t[0]}];
-    const Vec3 n = cross(sub(&unit_positions_[3 * std::size_t{t[1]}], p0),
-                         sub(&unit_positions_[3 * std::size_t{t[2]}], p0));
-    const double length = std::sqrt(dot(n, n));
-    if (length == 0) continue;
-    const float nx = float(n.x / length), ny = float(n.y / length), nz = float(n.z / length);
-    const float d = -(nx * p0[0] + ny * p0[1] + nz * p0[2]);
-    for (int k = 0; k < 3; ++k) add_plane(quadrics_[t[k]], nx, ny, nz, d, float(length * 0.5));
-  }
-
-  // Boundary edges: a plane through the edge, perpendicular to its face, holds the outline.
-  for (std::size_t f = 0; f < face_count_; ++f) {
-    const std::uint32_t* t = &working_[3 * f];
-    for (int k = 0; k < 3; ++k) {
-      const std::uint32_t a = t[k], b = t[(k + 1) % 3];
-      bool shared = false;
-      for (std::uint32_t i = adjacency_begin_[a]; i < adjacency_end_[a] && !shared; ++i) {
-        const Corner& g = adjacency_[i];
-        if (g.face == f) continue;
-        shared = b == a || g.next == b || g.prev == b;
-      }
-      if (shared) continue;
-      const float* pa = &unit_positions_[3 * std::size_t{a}];
+  // Face planes first, one per face (faces run concurrently); then each vertex sums its own from
+  // its fan (vertices run concurrently). Fans list their faces in face order, and each vertex adds
+  // its face planes and then its boundary planes in that order, exactly as one pass over the faces
+  // scattering to their corners would.
+  face_planes_.resize(face_count_);
+  for_chunks(face_count_, [&](std::size_t, std::size_t begin, std::size_t end) {
+    for (std::size_t f = begin; f < end; ++f) {
+      const std::uint32_t* t = &working_[3 * f];
       const float* p0 = &unit_positions_[3 * std::size_t{t[0]}];
-      const Vec3 e = sub(&unit_positions_[3 * std::size_t{b}], pa);
       const Vec3 n = cross(sub(&unit_positions_[3 * std::size_t{t[1]}], p0),
                            sub(&unit_positions_[3 * std::size_t{t[2]}], p0));
+      const double length = std::sqrt(dot(n, n));
+      if (length == 0) {
+        face_planes_[f] = {0, 0, 0, 0, 0};  // no area, no plane (weight 0 marks it)
+        continue;
+      }
+      const float nx = float(n.x / length), ny = float(n.y / length), nz = float(n.z / length);
+      face_planes_[f] = {nx, ny, nz, -(nx * p0[0] + ny * p0[1] + nz * p0[2]), float(length * 0.5)};
+    }
+  });
+  quadrics_.assign(vertex_count_, Quadric{});
+  for_chunks(alive_vertex_list_.size(), [&](std::size_t, std::size_t begin, std::size_t end) {
+    for (std::size_t i = begin; i < end; ++i) quadrics_[alive_vertex_list_[i]] = gather_quadric(alive_vertex_list_[i]);
+  });
+  std::vector<Plane>().swap(face_planes_);
+}
+
+Quadric Builder::gather_quadric(std::uint32_t u) const {
+  Quadric q;
+  const std::uint32_t begin = adjacency_begin_[u], end = adjacency_end_[u];
+  // A face that holds u twice is listed twice in a row; it has no area, so it adds no face plane,
+  // and its boundary edges are visited once through its first listing.
+  auto first_listing = [&](std::uint32_t i) { return i == begin || adjacency_[i].face != adjacency_[i - 1].face; };
+  auto position = [&](std::uint32_t v) { return &unit_positions_[3 * std::size_t{v}]; };
+  for (std::uint32_t i = begin; i < end; ++i) {
+    if (!first_listing(i)) continue;
+    const Plane& p = face_planes_[adjacency_[i].face];
+    if (p.w != 0) add_plane(q, p.nx, p.ny, p.nz, p.d, p.w);
+  }
+  // Boundary edges: a plane through the edge, perpendicular to its face, holds the outline. An edge
+  // (a, b) of face f is a boundary when no other face holds both a and b, which u's own fan tells
+  // when u is one of them. (An edge with a = b adds nothing: its plane has no direction.)
+  auto shared = [&](std::uint32_t f, std::uint32_t other) {
+    for (std::uint32_t j = begin; j < end; ++j) {
+      const Corner& g = adjacency_[j];
+      if (g.face != f && (g.next == other || g.prev == other)) return true;
+    }
+    return false;
+  };
+  for (std::uint32_t i = begin; i < end; ++i) {
+    if (!first_listing(i)) continue;
+    const Corner& c = adjacency_[i];
+    // Usual case: u once in the face, and both its edges shared.
+    if (c.next != u && c.prev != u && shared(c.face, c.next) && shared(c.face, c.prev)) continue;
+    const std::uint32_t* t = &working_[3 * std::size_t{c.face}];
+    for (int k = 0; k < 3; ++k) {
+      const std::uint32_t a = t[k], b = t[(k + 1) % 3];
+      if ((a != u && b != u) || a == b || shared(c.face, a == u ? b : a)) continue;
+      const float* pa = position(a);
+      const float* p0 = position(t[0]);
+      const Vec3 e = sub(position(b), pa);
+      const Vec3 n = cross(sub(position(t[1]), p0), sub(position(t[2]), p0));
       Vec3 m = cross(e, n);
       const double length = std::sqrt(dot(m, m));
       if (length == 0) continue;
       m = {m.x / length, m.y / length, m.z / length};
       const float d = float(-(m.x * pa[0] + m.y * pa[1] + m.z * pa[2]));
       const float w = float(dot(e, e)) * options_.boundary_weight;
-      add_plane(quadrics_[a], float(m.x), float(m.y), float(m.z), d, w);
-      add_plane(quadrics_[b], float(m.x), float(m.y), float(m.z), d, w);
+      add_plane(q, float(m.x), float(m.y), float(m.z), d, w);
     }
   }
+  return q;
 }
 
 void Builder::build_adjacency() {
@@ -711,7 +788,7 @@ void Builder::compact_assigned_points() {
   points_.swap(points_scratch_);
 }
 
-Mt Builder::assemble() const {
+Mt Builder::assemble() {
   Mt mt;
   mt.positions = mesh_.positions;
   mt.normals = mesh_.normals;
@@ -723,15 +800,37 @@ Mt Builder::assemble() const {
   // Nodes by decreasing error, ties by reverse collapse order. This is a topological order (a
   // parent's error is at least its child's, and on a tie the parent collapsed later), and it makes
   // the static cut for a uniform threshold e a prefix: the root and every node with error > e. Cuts
-  // then walk the arrays front to back instead of jumping around.
-  std::vector<std::uint32_t> order(k);
+  // then walk the arrays front to back instead of jumping around. A stable radix sort on the
+  // error's bits (errors are never negative, so their bits order like them) of the collapses listed
+  // coarsest first gives exactly that order.
+  std::vector<std::uint32_t> order(k), order_scratch(k);
   for (std::uint32_t c = 0; c < k; ++c) order[c] = k - 1 - c;  // coarsest collapse first
-  std::stable_sort(order.begin(), order.end(),
-                   [&](std::uint32_t x, std::uint32_t y) { return collapse_error_[x] > collapse_error_[y]; });
+  auto descending_key = [&](std::uint32_t c) {
+    const float e = collapse_error_[c];
+    std::uint32_t bits = 0;
+    if (e > 0) std::memcpy(&bits, &e, sizeof bits);
+    return ~bits;
+  };
+  for (int shift = 0; shift < 32; shift += 11) {
+    std::uint32_t counts[1u << 11] = {};
+    for (const std::uint32_t c : order) ++counts[(descending_key(c) >> shift) & 0x7FF];
+    std::uint32_t sum = 0;
+    for (std::uint32_t& n : counts) sum += std::exchange(n, sum);
+    for (const std::uint32_t c : order) order_scratch[counts[(descending_key(c) >> shift) & 0x7FF]++] = c;
+    order.swap(order_scratch);
+  }
   std::vector<std::uint32_t> node_of(k);
   for (std::uint32_t i = 0; i < k; ++i) node_of[order[i]] = i + 1;
-  auto creator = [&](std::size_t t) { return mt_killed_by_[t] == 0 ? 0u : node_of[mt_killed_by_[t] - 1]; };
-  auto remover = [&](std::size_t t) { return mt_made_by_[t] == 0 ? kNoNode : node_of[mt_made_by_[t] - 1]; };
+  // Creator and remover node of every triangle, looked up once.
+  std::vector<std::uint32_t> creators(mt_count), removers(mt_count);
+  for_chunks(mt_count, [&](std::size_t, std::size_t begin, std::size_t end) {
+    for (std::size_t t = begin; t < end; ++t) {
+      creators[t] = mt_killed_by_[t] == 0 ? 0u : node_of[mt_killed_by_[t] - 1];
+      removers[t] = mt_made_by_[t] == 0 ? kNoNode : node_of[mt_made_by_[t] - 1];
+    }
+  });
+  auto creator = [&](std::size_t t) { return creators[t]; };
+  auto remover = [&](std::size_t t) { return removers[t]; };
 
   mt.node_vertex.resize(node_count);
   mt.node_error.resize(node_count);
@@ -754,42 +853,58 @@ Mt Builder::assemble() const {
   mt.triangle_corners.resize(2 * mt_count);
   mt.root_first_corner.resize(root_count);
   mt.triangle_remover.resize(mt_count);
-  for (std::size_t t = 0; t < mt_count; ++t) {
-    const std::uint32_t n = creator(t), id = new_id[t];
-    const std::uint32_t* tv = &mt_vertices_[3 * t];
-    int first = 0;
-    if (n == 0) {
-      mt.root_first_corner[id] = tv[0];
-    } else {
-      // Every triangle of node n surrounded its split vertex before the collapse.
-      first = tv[0] == mt.node_vertex[n] ? 0 : (tv[1] == mt.node_vertex[n] ? 1 : 2);
-      assert(tv[first] == mt.node_vertex[n]);
+  // Each triangle writes its own slots: triangles run concurrently.
+  for_chunks(mt_count, [&](std::size_t, std::size_t begin, std::size_t end) {
+    for (std::size_t t = begin; t < end; ++t) {
+      const std::uint32_t n = creator(t), id = new_id[t];
+      const std::uint32_t* tv = &mt_vertices_[3 * t];
+      int first = 0;
+      if (n == 0) {
+        mt.root_first_corner[id] = tv[0];
+      } else {
+        // Every triangle of node n surrounded its split vertex before the collapse.
+        first = tv[0] == mt.node_vertex[n] ? 0 : (tv[1] == mt.node_vertex[n] ? 1 : 2);
+        assert(tv[first] == mt.node_vertex[n]);
+      }
+      mt.triangle_corners[2 * std::size_t{id}] = tv[(first + 1) % 3];
+      mt.triangle_corners[2 * std::size_t{id} + 1] = tv[(first + 2) % 3];
+      mt.triangle_remover[id] = remover(t);
     }
-    mt.triangle_corners[2 * std::size_t{id}] = tv[(first + 1) % 3];
-    mt.triangle_corners[2 * std::size_t{id} + 1] = tv[(first + 2) % 3];
-    mt.triangle_remover[id] = remover(t);
-  }
+  });
 
-  // Parents: distinct creators of each node's removed triangles, sorted.
+  // Parents: distinct creators of each node's removed triangles, sorted. The triangles a collapse
+  // made are one run, and the runs follow collapse order (after the input's triangles), so each
+  // node's list comes from one run; runs are independent.
+  std::vector<std::uint32_t> run_begin(std::size_t{k} + 1, std::uint32_t(mt_count));
+  for (std::size_t t = mt_count; t-- > 0;)
+    if (mt_made_by_[t] != 0) run_begin[mt_made_by_[t] - 1] = std::uint32_t(t);
+  for (std::uint32_t c = k; c-- > 0;) run_begin[c] = std::min(run_begin[c], run_begin[c + 1]);
+  std::vector<std::uint32_t> parents(mt_count - (k == 0 ? mt_count : run_begin[0]));
+  const std::uint32_t parents_base = k == 0 ? 0 : run_begin[0];
+  std::vector<std::uint32_t> parent_count(node_count, 0);
+  for_chunks(k, [&](std::size_t, std::size_t first, std::size_t last) {
+    for (std::size_t c = first; c < last; ++c) {
+      // Sorted distinct creators, written at the start of the run's own slice of parents.
+      std::uint32_t* out = &parents[run_begin[c] - parents_base];
+      std::uint32_t* const start = out;
+      for (std::uint32_t t = run_begin[c]; t < run_begin[c + 1]; ++t) {
+        assert(mt_made_by_[t] == c + 1);
+        *out++ = creator(t);
+      }
+      std::sort(start, out);
+      parent_count[node_of[c]] = std::uint32_t(std::unique(start, out) - start);
+    }
+  });
   mt.node_parent_offsets.assign(node_count + 1, 0);
-  for (std::size_t t = 0; t < mt_count; ++t)
-    if (remover(t) != kNoNode) ++mt.node_parent_offsets[remover(t) + 1];
-  for (std::size_t n = 0; n < node_count; ++n) mt.node_parent_offsets[n + 1] += mt.node_parent_offsets[n];
-  std::vector<std::uint32_t> parents(mt.node_parent_offsets[node_count]);
-  std::copy(mt.node_parent_offsets.begin(), mt.node_parent_offsets.end() - 1, next.begin());
-  for (std::size_t t = 0; t < mt_count; ++t)
-    if (remover(t) != kNoNode) parents[next[remover(t)]++] = creator(t);
-  mt.node_parents.reserve(parents.size());
-  std::uint32_t begin = 0;
-  for (std::size_t n = 0; n < node_count; ++n) {
-    const std::uint32_t end = mt.node_parent_offsets[n + 1];
-    std::sort(parents.begin() + begin, parents.begin() + end);
-    mt.node_parent_offsets[n] = std::uint32_t(mt.node_parents.size());
-    for (std::uint32_t i = begin; i < end; ++i)
-      if (i == begin || parents[i] != parents[i - 1]) mt.node_parents.push_back(parents[i]);
-    begin = end;
-  }
-  mt.node_parent_offsets[node_count] = std::uint32_t(mt.node_parents.size());
+  for (std::size_t n = 0; n < node_count; ++n)
+    mt.node_parent_offsets[n + 1] = mt.node_parent_offsets[n] + parent_count[n];
+  mt.node_parents.resize(mt.node_parent_offsets[node_count]);
+  for_chunks(k, [&](std::size_t, std::size_t first, std::size_t last) {
+    for (std::size_t c = first; c < last; ++c) {
+      const std::uint32_t n = node_of[c];
+      std::copy_n(&parents[run_begin[c] - parents_base], parent_count[n], &mt.node_parents[mt.node_parent_offsets[n]]);
+    }
+  });
   return mt;
 }
 
@@ -825,7 +940,7 @@ Result<Mt> Builder::run(BuildStats* stats) {
   mt_killed_by_.reserve(3 * face_count_);
   mt_vertices_.reserve(9 * face_count_);
   for (std::size_t f = 0; f < face_count_; ++f) face_mt_[f] = std::uint32_t(f);
-  mt_vertices_ = mesh_.triangles;
+  mt_vertices_.assign(mesh_.triangles.begin(), mesh_.triangles.end());
   mt_made_by_.assign(face_count_, 0);
   mt_killed_by_.assign(face_count_, 0);
   collapse_u_.reserve(vertex_count_);
@@ -898,7 +1013,7 @@ Result<Mt> Builder::run(BuildStats* stats) {
     const std::size_t collapses = chosen_.size();
     // Run the collapses in vertex order: neighbouring collapses then share cache lines, and the
     // pool's blocks follow the mesh. Tags and triangles keep the cost order.
-    std::sort(chosen_.begin(), chosen_.end(), [](const Chosen& x, const Chosen& y) { return x.u < y.u; });
+    sort_chosen_by_vertex();
     for (Chosen& c : chosen_) {
       const std::uint32_t count = c.first_point;
       c.first_point = point;
