@@ -290,6 +290,7 @@ class Builder {
   };
   std::vector<std::uint32_t> adjacency_begin_;
   std::vector<std::uint32_t> adjacency_end_;
+  std::vector<std::uint32_t> second_half_;  // build_adjacency's counts and cursors of its second half
   std::vector<Corner> adjacency_;
   std::vector<std::uint32_t> alive_face_list_;
   std::vector<std::uint32_t> alive_vertex_list_;  // used by an alive face (may lag one pass)
@@ -434,35 +435,40 @@ void Builder::build_adjacency() {
     if (!vertex_dead_[v]) alive_vertex_list_[kept++] = v;
   alive_vertex_list_.resize(kept);
 
-  for (const std::uint32_t v : alive_vertex_list_) adjacency_end_[v] = 0;
-  // Each range of vertex ids reads every face and writes only its own vertices' counts and lists
-  // (in face order either way), so the ranges may run concurrently. Reading the faces once per
-  // range only pays for few ranges.
-  constexpr std::uint32_t kRanges = 2;
-  const std::uint32_t range_size = std::uint32_t(vertex_count_ / kRanges + 1);
-  auto each_corner = [&](std::size_t range, auto&& body) {
-    const std::uint32_t lo = std::uint32_t(range) * range_size, hi = lo + range_size;
-    for (const std::uint32_t f : alive_face_list_) {
+  // Two halves of the face list are counted and placed concurrently, each with its own counts
+  // (adjacency_end_ and second_half_), so every vertex lists its faces in face order: the first
+  // half's, then the second's.
+  for (const std::uint32_t v : alive_vertex_list_) adjacency_end_[v] = 0, second_half_[v] = 0;
+  const std::size_t faces = alive_face_list_.size();
+  auto each_corner = [&](std::size_t half, auto&& body) {
+    for (std::size_t i = faces * half / 2; i < faces * (half + 1) / 2; ++i) {
+      const std::uint32_t f = alive_face_list_[i];
       const std::uint32_t* t = &working_[3 * std::size_t{f}];
-      for (int k = 0; k < 3; ++k)
-        if (t[k] >= lo && t[k] < hi) body(f, t, k);
+      for (int k = 0; k < 3; ++k) body(f, t, k);
     }
   };
-  for_ranges(kRanges, [&](std::size_t range) {
-    each_corner(range, [&](std::uint32_t, const std::uint32_t* t, int k) { ++adjacency_end_[t[k]]; });
+  auto counts = [&](std::size_t half) { return half == 0 ? adjacency_end_.data() : second_half_.data(); };
+  for_ranges(2, [&](std::size_t half) {
+    std::uint32_t* count = counts(half);
+    each_corner(half, [&](std::uint32_t, const std::uint32_t* t, int k) { ++count[t[k]]; });
   });
   std::uint32_t total = 0;
   for (const std::uint32_t v : alive_vertex_list_) {
     adjacency_begin_[v] = total;
-    total += adjacency_end_[v];
-    adjacency_end_[v] = adjacency_begin_[v];
+    const std::uint32_t first = adjacency_end_[v], second = second_half_[v];
+    adjacency_end_[v] = total;           // where the first half's faces go
+    second_half_[v] = total + first;     // where the second half's go
+    total += first + second;
   }
   adjacency_.resize(total);
-  for_ranges(kRanges, [&](std::size_t range) {
-    each_corner(range, [&](std::uint32_t f, const std::uint32_t* t, int k) {
-      adjacency_[adjacency_end_[t[k]]++] = {f, t[(k + 1) % 3], t[(k + 2) % 3]};
+  for_ranges(2, [&](std::size_t half) {
+    std::uint32_t* cursor = counts(half);
+    each_corner(half, [&](std::uint32_t f, const std::uint32_t* t, int k) {
+      adjacency_[cursor[t[k]]++] = {f, t[(k + 1) % 3], t[(k + 2) % 3]};
     });
   });
+  // The second half's cursors stopped at the end of each list.
+  for (const std::uint32_t v : alive_vertex_list_) adjacency_end_[v] = second_half_[v];
 }
 
 VertexKind Builder::classify(std::uint32_t u, std::uint32_t& boundary_next, std::uint32_t& boundary_prev) const {
@@ -950,6 +956,7 @@ Result<Mt> Builder::run(BuildStats* stats) {
   face_points_.assign(face_count_, 0);
   adjacency_begin_.assign(vertex_count_, 0);
   adjacency_end_.assign(vertex_count_, 0);
+  second_half_.assign(vertex_count_, 0);
   vertex_dead_.assign(vertex_count_, 0);
   alive_face_list_.resize(face_count_);
   for (std::size_t f = 0; f < face_count_; ++f) alive_face_list_[f] = std::uint32_t(f);
