@@ -73,13 +73,25 @@ void AllowedErrorField::bind(const ViewMapping& mapping, const AllowedErrorOptio
 }
 
 void AllowedErrorField::tabulate(const RegionLaw& law, DistanceMetric metric, float tan_per_px,
-                                 std::span<const std::uint16_t> dt, std::vector<float>& table) {
-  std::uint16_t largest = 0;
+                                 std::span<const std::uint16_t> dt, LawTable& table) {
+  // The largest label, unreached cells counting as 0. Real labels are below kChamferUnreached =
+  // 0x7FFF, so raw + 1 as a signed 16-bit value is positive for them and wraps to -0x8000 for an
+  // unreached cell: a plain signed maximum (one SSE2 instruction per 8 cells once vectorised).
+  static_assert(kChamferUnreached == 0x7FFF);
+  std::int16_t largest_plus_one = 0;
   for (const std::uint16_t raw : dt)
-    largest = std::max(largest, raw == kChamferUnreached ? std::uint16_t{0} : raw);
-  table.resize(std::size_t{largest} + 1);
-  for (std::uint32_t raw = 0; raw <= largest; ++raw)
-    table[raw] = law_factor(law, distance_px(raw, metric), tan_per_px);
+    largest_plus_one = std::max(largest_plus_one, static_cast<std::int16_t>(static_cast<std::uint16_t>(raw + 1)));
+  const std::uint16_t largest = largest_plus_one == 0 ? 0 : std::uint16_t(largest_plus_one - 1);
+  const bool same_law = table.valid && table.metric == metric && table.tan_per_px == tan_per_px &&
+                        table.law.law == law.law && table.law.distance_px == law.distance_px &&
+                        table.law.factor == law.factor && table.law.falloff_px == law.falloff_px &&
+                        table.law.foveal_e2_deg == law.foveal_e2_deg;
+  if (!same_law) {
+    table.values.clear();
+    table.valid = true, table.law = law, table.metric = metric, table.tan_per_px = tan_per_px;
+  }
+  for (std::uint32_t raw = std::uint32_t(table.values.size()); raw <= largest; ++raw)
+    table.values.push_back(law_factor(law, distance_px(raw, metric), tan_per_px));
 }
 
 float AllowedErrorField::label_multiplier(std::uint32_t silhouette_label, std::uint32_t focus_label,

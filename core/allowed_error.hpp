@@ -114,7 +114,8 @@ class AllowedErrorField {
 
   // Bytes of scratch memory held.
   std::size_t memory_bytes() const {
-    return (silhouette_table_.capacity() + focus_table_.capacity() + neglect_table_.capacity() + clip_w_.capacity() +
+    return (silhouette_table_.values.capacity() + focus_table_.values.capacity() + neglect_table_.values.capacity() +
+            clip_w_.capacity() +
             cell_multiplier_.capacity()) *
                sizeof(float) +
            cells_.capacity() * sizeof(std::uint32_t);
@@ -138,11 +139,22 @@ class AllowedErrorField {
   float label_multiplier(std::uint32_t silhouette_label, std::uint32_t focus_label, std::uint32_t neglect_label) const;
   float finish(float label_multiplier, bool has_cell, float clip_w, std::uint32_t vertex) const;
   // Multiplier of a law at every raw label value present in its grid, so that no vertex pays for
-  // the law itself (the foveal law's atan costs more than the rest of a vertex).
+  // the law itself (the foveal law's atan costs more than the rest of a vertex). A table keeps the
+  // law it was made for: the next request with the same law (every gaze of a stream) only extends
+  // it when its grid holds larger labels.
+  struct LawTable {
+    std::vector<float> values;
+    bool valid = false;
+    RegionLaw law{};
+    DistanceMetric metric{};
+    float tan_per_px = 0.0f;
+  };
   static void tabulate(const RegionLaw& law, DistanceMetric metric, float tan_per_px,
-                       std::span<const std::uint16_t> dt, std::vector<float>& table);
-  static float lookup(const std::vector<float>& table, std::uint32_t label) {
-    return label < table.size() ? table[label] : 1.0f;  // labels past the grid's largest: unlabeled
+                       std::span<const std::uint16_t> dt, LawTable& table);
+  static float lookup(const LawTable& table, std::uint32_t label) {
+    // Labels past the largest tabulated: unlabeled. (A table kept from an earlier request may reach
+    // further than this grid's largest label; its values are the law's all the same.)
+    return label < table.values.size() ? table.values[label] : 1.0f;
   }
 
   const ViewMapping* mapping_ = nullptr;
@@ -151,7 +163,7 @@ class AllowedErrorField {
   float tan_per_px_ = 0.0f;
   float pixel_bound_per_clip_w_ = 0.0f;
   float viewport_height_px_ = 0.0f;
-  std::vector<float> silhouette_table_, focus_table_, neglect_table_;
+  LawTable silhouette_table_, focus_table_, neglect_table_;
   std::vector<std::uint32_t> cells_;  // full variant scratch
   std::vector<float> cell_multiplier_;
   std::vector<float> clip_w_;

@@ -182,6 +182,62 @@ TEST(AllowedError, LazyVertexEqualsFullArray) {
   EXPECT_GT(distinct, full.size() / 4);  // the laws actually vary over the sphere
 }
 
+TEST(AllowedError, AFieldReusedOverLawsAndFociEqualsAFreshOneEveryTime) {
+  // A field keeps its law tables between requests (gazes reuse them); whatever came before, its
+  // values equal those of a field bound for the first time: same law with foci nearer and farther
+  // (larger labels extend the table), then other laws, metrics and fields of view.
+  const test::Scene sphere = test::uv_sphere(1.0f, 24, 48);
+  Camera camera;
+  camera.view = glm::lookAt(glm::vec3(0.4f, 0.3f, 3.0f), glm::vec3(0, 0, 0), glm::vec3(0, 1, 0));
+  camera.projection = glm::perspective(glm::radians(50.0f), 1.0f, 0.1f, 10.0f);
+  const ViewMapping mapping(camera, GridSize{96, 96});
+  const GridSize grid = mapping.grid();
+  std::vector<std::uint8_t> occupancy(grid.cell_count());
+  rasterize_occupancy(mapping, sphere.positions, sphere.triangles, occupancy);
+  DistanceTransformer transformer;
+  std::vector<std::uint16_t> silhouette(grid.cell_count()), focus(grid.cell_count());
+  transformer.chamfer(DistanceMetric::kChamfer5711, occupancy, grid, silhouette);
+  struct Step {
+    float x, y;
+    RegionLaw focus_law;
+    DistanceMetric metric;
+    float fovy_deg;
+  };
+  const RegionLaw foveal{FalloffLaw::kFoveal, 0.0f, 0.1f, 0.0f, 2.3f};
+  const RegionLaw linear{FalloffLaw::kLinear, 4.0f, 0.2f, 12.0f, 2.3f};
+  const std::vector<Step> steps = {
+      {0.5f, 0.5f, foveal, DistanceMetric::kChamfer5711, 0.0f},   // centre: small labels
+      {0.02f, 0.03f, foveal, DistanceMetric::kChamfer5711, 0.0f}, // corner: larger labels, table grows
+      {0.45f, 0.5f, foveal, DistanceMetric::kChamfer5711, 0.0f},  // back: the longer table stays
+      {0.45f, 0.5f, linear, DistanceMetric::kChamfer5711, 0.0f},  // another law
+      {0.45f, 0.5f, linear, DistanceMetric::kChamfer34, 0.0f},    // another metric (same labels)
+      {0.45f, 0.5f, foveal, DistanceMetric::kChamfer34, 70.0f},   // another field of view
+  };
+  AllowedErrorField reused;
+  std::vector<float> kept(sphere.vertex_count()), fresh_values(sphere.vertex_count());
+  for (std::size_t i = 0; i < steps.size(); ++i) {
+    const Step& step = steps[i];
+    const std::vector<std::uint32_t> foci = {focus_cell(grid, step.x, step.y)};
+    transformer.chamfer_from_cells(step.metric, foci, grid, focus);
+    AllowedErrorOptions options;
+    options.error = 1.5f;
+    options.units = ErrorUnits::kScreenPixels;
+    options.metric = step.metric;
+    options.fovy_deg = step.fovy_deg;
+    options.use_silhouette = true;
+    options.use_focus = true;
+    options.focus = step.focus_law;
+    const AllowedErrorInputs inputs{silhouette, focus, {}, sphere.positions, {}};
+    reused.bind(mapping, options, inputs);
+    reused.compute_all(kept);
+    AllowedErrorField fresh;
+    fresh.bind(mapping, options, inputs);
+    fresh.compute_all(fresh_values);
+    ASSERT_EQ(kept, fresh_values) << "step " << i;
+    for (std::uint32_t c = 0; c < grid.cell_count(); c += 7) ASSERT_EQ(reused.focus_factor(c), fresh.focus_factor(c));
+  }
+}
+
 TEST(AllowedError, TriangleMinimumEqualsLawOfTriangleLabel) {
   // The contract with the refiner: min over a triangle's vertices of the per-vertex allowed error is
   // the papers' e·f if label(t) ≤ d else e, with label(t) the minimum vertex label (step law,
