@@ -2,6 +2,8 @@
 // triangles (about 210 KB each for the 871k dragon) keep every step O(cut), with no sorting.
 #include "core/cut_delta.hpp"
 
+#include <algorithm>
+
 #include <cassert>
 
 namespace mtlod::core {
@@ -25,6 +27,8 @@ bool CutDelta::update(std::span<const std::uint32_t> ids, std::size_t triangle_c
   const bool from_empty = empty_;
   added.clear();
   removed.clear();
+  // The same cut in the same order (a gaze that moved no allowed error): nothing to diff.
+  if (!empty_ && ids.size() == sent_.size() && std::equal(ids.begin(), ids.end(), sent_.begin())) return false;
   for (std::uint32_t i = 0; i < ids.size(); ++i) {
     assert(ids[i] < triangle_count && !test(next_bits_, ids[i]));
     set(next_bits_, ids[i]);

@@ -435,6 +435,11 @@ void Refiner::update(const AllowedError& allowed, std::span<const std::uint32_t>
   assert(allowed.per_vertex.empty() || allowed.per_vertex.size() == mt_.vertex_count());
   if (!dynamic_ready_) return refine_forced(allowed, out);
   const bool all_changed = !field_known_ || allowed.per_vertex.empty() || previous_is_uniform_;
+  if (!all_changed && changed_vertices.empty() && mesh_valid_) {
+    // The same field: the kept cut is its minimal cut already (a gaze within the same cells).
+    ++unchanged_;
+    return copy_mesh(out);
+  }
   if (!all_changed) {
     changed_bits_.resize((mt_.vertex_count() + 63) / 64);
     for (const std::uint32_t v : changed_vertices) {
@@ -561,7 +566,10 @@ void Refiner::move_cut(const AllowedError& allowed, bool all_changed, CutMesh& o
   }
   for (std::size_t i = kept; i < cut_.size(); ++i) in_cut_[cut_[i]] = kIn;
   mesh_valid_ = true;
+  copy_mesh(out);
+}
 
+void Refiner::copy_mesh(CutMesh& out) const {
   out.triangles.assign(mesh_corners_.begin(), mesh_corners_.end());
   out.ids.assign(mesh_triangles_.begin(), mesh_triangles_.end());
   float max_error = 0.0f;

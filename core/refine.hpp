@@ -75,6 +75,9 @@ class Refiner {
   // Updates that found it cheaper to refine from the root than to move the kept cut (more of the
   // cut's nodes dropped than kept); their result is the same.
   std::size_t restarts() const { return restarts_; }
+  // Updates given an empty list of changed vertices after a cut this refiner moved before: the
+  // kept mesh is returned as it is.
+  std::size_t unchanged_updates() const { return unchanged_; }
 
   // Bytes this refiner holds (buffer capacities): the memory a session's cut costs.
   std::size_t memory_bytes() const;
@@ -116,6 +119,8 @@ class Refiner {
   void examine(std::uint32_t n, const AllowedError& allowed);
   void close_over(const AllowedError& allowed, std::size_t first);
   void emit(CutMesh& out) const;
+  // The kept mesh (maintained by move_cut) into out.
+  void copy_mesh(CutMesh& out) const;
   void remember_field(const AllowedError& allowed);
   void index_mesh();
   void mesh_add(std::uint32_t t, std::uint32_t creator);
@@ -139,6 +144,7 @@ class Refiner {
   bool field_known_ = false;    // previous_* describe the field of the kept cut
   bool dynamic_ready_ = false;  // cut_ is the minimal cut of the previous field
   std::size_t restarts_ = 0;
+  std::size_t unchanged_ = 0;
   // The kept cut's mesh, maintained by update: triangle ids, their corners, and their slots.
   bool mesh_valid_ = false;
   std::vector<std::uint32_t> mesh_triangles_;

@@ -359,7 +359,13 @@ void expect_dynamic_matches_static(const MtCase* c, std::uint32_t seed, int step
     if (kind == 4) {
       dynamic.update(allowed, changed, moving);
     } else if (kind == 6) {
+      const std::size_t unchanged = dynamic.unchanged_updates();
+      const std::vector<std::uint32_t> before = moving.ids;
       dynamic.update(allowed, std::span<const std::uint32_t>(), moving);  // nothing changed
+      // Returned as kept: the same triangles in the same order (a delta of nothing).
+      if (dynamic.unchanged_updates() > unchanged) {
+        ASSERT_EQ(moving.ids, before) << "step " << step;
+      }
     } else {
       dynamic.update(allowed, moving);
     }
@@ -375,6 +381,7 @@ void expect_dynamic_matches_static(const MtCase* c, std::uint32_t seed, int step
   // Both ways of updating ran: moving the kept cut, and restarting from the root after a large drop.
   EXPECT_GT(dynamic.restarts(), 0u);
   EXPECT_LT(dynamic.restarts(), static_cast<std::size_t>(steps) / 2);
+  EXPECT_GT(dynamic.unchanged_updates(), 0u);  // and returning the kept cut when nothing changed
 }
 
 TEST(Refine, DynamicEqualsStaticAfterRandomSequences) {
@@ -412,6 +419,18 @@ TEST(CutDelta, AppliedChangesRebuildEveryCutOfASequence) {
     partial += !from_empty && added.size() < cut.ids.size();
   }
   EXPECT_GT(partial, 0u);  // deltas were smaller than the cut
+  // The same cut again changes nothing, in the same order or another; after a reset it goes whole.
+  const std::size_t n = c->mt.triangle_count();
+  EXPECT_FALSE(delta.update(cut.ids, n, added, removed));
+  EXPECT_TRUE(added.empty() && removed.empty());
+  std::vector<std::uint32_t> shuffled = cut.ids;
+  std::shuffle(shuffled.begin(), shuffled.end(), rng);
+  EXPECT_FALSE(delta.update(shuffled, n, added, removed));
+  EXPECT_TRUE(added.empty() && removed.empty());
+  delta.reset();
+  EXPECT_TRUE(delta.update(shuffled, n, added, removed));
+  EXPECT_EQ(added.size(), shuffled.size());
+  EXPECT_TRUE(removed.empty());
   // Another model (a different triangle count) starts from empty as well.
   EXPECT_TRUE(delta.update(std::vector<std::uint32_t>{0, 1}, 2, added, removed));
   EXPECT_EQ(added.size(), 2u);

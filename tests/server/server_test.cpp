@@ -187,8 +187,11 @@ TEST_F(ServerTest, DeltaRepliesRebuildTheCutAFreshConnectionGets) {
   double x = 0.3, y = 0.4;
   std::size_t partial = 0;
   bool decoder_checked = false;
+  std::size_t repeats = 0;
   for (std::uint64_t id = 2; id < 16; ++id) {
-    if (id % 4 == 0) {
+    if (id % 5 == 0) {
+      // The same point again: nothing to add or drop.
+    } else if (id % 4 == 0) {
       x = anywhere(rng), y = anywhere(rng);
     } else {
       x = std::clamp(x + step(rng), 0.0, 1.0), y = std::clamp(y + step(rng), 0.0, 1.0);
@@ -200,6 +203,11 @@ TEST_F(ServerTest, DeltaRepliesRebuildTheCutAFreshConnectionGets) {
     ASSERT_TRUE(mesh->delta && !mesh->delta->reset) << reply->json;
     ASSERT_TRUE(kept.apply(*mesh, reply->payload).ok()) << "gaze " << id;
     partial += mesh->delta->added < mesh->triangles;
+    if (id % 5 == 0) {
+      EXPECT_EQ(mesh->delta->added, 0u) << "gaze " << id;
+      EXPECT_EQ(mesh->delta->removed, 0u) << "gaze " << id;
+      ++repeats;
+    }
     if (!decoder_checked && mesh->delta->added > 0) {
       // The Draco part of a delta is a Draco mesh of its own, for Google's decoder too.
       auto parts = protocol::split_delta_payload(*mesh->delta, reply->payload);
@@ -229,6 +237,7 @@ TEST_F(ServerTest, DeltaRepliesRebuildTheCutAFreshConnectionGets) {
     }
   }
   EXPECT_GT(partial, 0u);  // most gazes sent less than the whole cut
+  EXPECT_EQ(repeats, 3u);
   EXPECT_TRUE(decoder_checked);
 }
 
