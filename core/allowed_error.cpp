@@ -105,12 +105,6 @@ float AllowedErrorField::label_multiplier(std::uint32_t silhouette_label, std::u
   return m;
 }
 
-float AllowedErrorField::combine(std::uint32_t silhouette_label, std::uint32_t focus_label,
-                                 std::uint32_t neglect_label, bool has_cell, float clip_w,
-                                 std::uint32_t vertex) const {
-  return finish(label_multiplier(silhouette_label, focus_label, neglect_label), has_cell, clip_w, vertex);
-}
-
 float AllowedErrorField::finish(float m, bool has_cell, float clip_w, std::uint32_t vertex) const {
   const AllowedErrorOptions& o = options_;
   if (!has_cell) m *= o.outside_view_factor;
@@ -138,21 +132,15 @@ void AllowedErrorField::compute_all(std::span<float> vertex_allowed_error) {
   constexpr std::size_t kBlock = 1024;
   cells_.resize(kBlock);
   clip_w_.resize(kBlock);
-  const bool sil = options_.use_silhouette, focus = options_.use_focus, neglect = options_.use_neglect;
-  // With fewer cells than vertices, the label part of the multiplier is tabulated per cell first:
-  // finish(label_multiplier(...)) is combine() itself, so the values are bit for bit the same.
+  // With fewer cells than vertices, the label part of the multiplier is tabulated per cell first
+  // (cell_multiplier, as vertex_allowed_error uses it), so the values are bit for bit the same.
   const std::size_t cells = mapping_->grid().cell_count();
   const bool per_cell = cells <= n;
-  auto labels_of = [&](std::uint32_t cell) {
-    return label_multiplier(sil ? cell_label(inputs_.silhouette_dt, cell) : kLabelNoCell,
-                            focus ? cell_label(inputs_.focus_dt, cell) : kLabelNoCell,
-                            neglect ? cell_label(inputs_.neglect_dt, cell) : kLabelNoCell);
-  };
   if (per_cell) {
     cell_multiplier_.resize(cells);
-    for (std::uint32_t c = 0; c < cells; ++c) cell_multiplier_[c] = labels_of(c);
+    for (std::uint32_t c = 0; c < cells; ++c) cell_multiplier_[c] = cell_multiplier(c);
   }
-  const float no_cell = labels_of(kNoCell);
+  const float no_cell = cell_multiplier(kNoCell);
   for (std::size_t first = 0; first < n; first += kBlock) {
     const std::size_t count = std::min(kBlock, n - first);
     map_vertices(*mapping_, inputs_.positions.subspan(3 * first, 3 * count), std::span(cells_).first(count),
@@ -160,10 +148,16 @@ void AllowedErrorField::compute_all(std::span<float> vertex_allowed_error) {
     for (std::size_t k = 0; k < count; ++k) {
       const std::uint32_t cell = cells_[k];
       const bool has_cell = cell != kNoCell;
-      const float m = !has_cell ? no_cell : per_cell ? cell_multiplier_[cell] : labels_of(cell);
+      const float m = !has_cell ? no_cell : per_cell ? cell_multiplier_[cell] : cell_multiplier(cell);
       vertex_allowed_error[first + k] = finish(m, has_cell, clip_w_[k], static_cast<std::uint32_t>(first + k));
     }
   }
+}
+
+float AllowedErrorField::cell_multiplier(std::uint32_t cell) const {
+  return label_multiplier(options_.use_silhouette ? cell_label(inputs_.silhouette_dt, cell) : kLabelNoCell,
+                          options_.use_focus ? cell_label(inputs_.focus_dt, cell) : kLabelNoCell,
+                          options_.use_neglect ? cell_label(inputs_.neglect_dt, cell) : kLabelNoCell);
 }
 
 float AllowedErrorField::vertex_allowed_error(std::uint32_t vertex) const {
@@ -171,10 +165,7 @@ float AllowedErrorField::vertex_allowed_error(std::uint32_t vertex) const {
   const float* p = inputs_.positions.data() + 3 * std::size_t{vertex};
   float clip_w = 0.0f;
   const std::uint32_t cell = mapping_->map_point(p[0], p[1], p[2], &clip_w);
-  return combine(options_.use_silhouette ? cell_label(inputs_.silhouette_dt, cell) : kLabelNoCell,
-                 options_.use_focus ? cell_label(inputs_.focus_dt, cell) : kLabelNoCell,
-                 options_.use_neglect ? cell_label(inputs_.neglect_dt, cell) : kLabelNoCell, cell != kNoCell,
-                 clip_w, vertex);
+  return finish(cell_multiplier(cell), cell != kNoCell, clip_w, vertex);
 }
 
 void compute_vertex_allowed_error(const ViewMapping& mapping, const AllowedErrorOptions& options,

@@ -123,6 +123,13 @@ class AllowedErrorField {
 
   // Lazy variant: the same value for one vertex, projecting it on demand.
   float vertex_allowed_error(std::uint32_t vertex) const;
+  // The same value for a vertex already known to lie in a grid cell with this clip-space w (as
+  // map_point or map_vertices give them), with multiplier = cell_multiplier(cell).
+  float vertex_allowed_error_in_cell(float multiplier, float clip_w, std::uint32_t vertex) const {
+    return finish(multiplier, true, clip_w, vertex);
+  }
+  // The part of the multiplier the cell's labels give (every law combined), for a grid cell.
+  float cell_multiplier(std::uint32_t cell) const;
 
   // The focus law's multiplier in a grid cell (1 when focus mode is off). A vertex's allowed error
   // depends on the focus transform only through this value of its cell, so when the foci move, only
@@ -132,9 +139,7 @@ class AllowedErrorField {
   }
 
  private:
-  float combine(std::uint32_t silhouette_label, std::uint32_t focus_label, std::uint32_t neglect_label,
-                bool has_cell, float clip_w, std::uint32_t vertex) const;
-  // combine() in two parts: the multiplier of the labels (a function of the cell alone), then the
+  // A vertex's value in two parts: the multiplier of its cell's labels (cell_multiplier), then the
   // per-vertex factors and units.
   float label_multiplier(std::uint32_t silhouette_label, std::uint32_t focus_label, std::uint32_t neglect_label) const;
   float finish(float label_multiplier, bool has_cell, float clip_w, std::uint32_t vertex) const;

@@ -43,7 +43,7 @@ ViewExtractor::ViewExtractor(const Mt& mt, const OccupancyLevels& levels) : mt_(
 std::size_t ViewSession::memory_bytes() const {
   auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
   return bytes(allowed_error_) + bytes(silhouette_dt_) + bytes(neglect_dt_) + bytes(focus_factor_) +
-         bytes(cell_start_) + bytes(cell_vertices_) + bytes(changed_) + bytes(neglect_);
+         bytes(cell_start_) + bytes(cell_vertices_) + bytes(cell_vertex_clip_w_) + bytes(changed_) + bytes(neglect_);
 }
 
 bool ViewExtractor::same_view(const ViewSession& s, const ViewRequest& r) {
@@ -168,9 +168,13 @@ void ViewExtractor::allowed_error() {
     const float factor = field_.focus_factor(c);
     if (factor == s.focus_factor_[c]) continue;
     s.focus_factor_[c] = factor;
+    // The cell's labels give one multiplier for all its vertices, and each vertex's depth was kept
+    // when they were sorted by cell: no vertex is projected again (same values as
+    // field_.vertex_allowed_error(v), which maps the vertex to this cell and depth).
+    const float multiplier = field_.cell_multiplier(c);
     for (std::uint32_t k = s.cell_start_[c]; k < s.cell_start_[c + 1]; ++k) {
       const std::uint32_t v = s.cell_vertices_[k];
-      allowed_[v] = field_.vertex_allowed_error(v);
+      allowed_[v] = field_.vertex_allowed_error_in_cell(multiplier, s.cell_vertex_clip_w_[k], v);
       s.changed_.push_back(v);
     }
   }
@@ -208,9 +212,12 @@ void ViewExtractor::sort_vertices_by_cell(ViewSession& s) {
   for (std::size_t c = 0; c < cells; ++c) s.cell_start_[c + 1] += s.cell_start_[c];
   s.cell_vertices_.resize(s.cell_start_[cells]);
   cells_.assign(s.cell_start_.begin(), s.cell_start_.end() - 1);  // next free slot per cell
+  s.cell_vertex_clip_w_.resize(s.cell_vertices_.size());
   for (std::uint32_t v = 0; v < n; ++v) {
     const std::uint32_t c = vertex_cells_[v];
-    if (c != kNoCell) s.cell_vertices_[cells_[c]++] = v;
+    if (c == kNoCell) continue;
+    s.cell_vertex_clip_w_[cells_[c]] = vertex_clip_w_[v];
+    s.cell_vertices_[cells_[c]++] = v;
   }
 }
 

@@ -47,7 +47,8 @@ class ViewSession {
   // Whether the last request took the incremental path, and how many vertices it recomputed.
   bool reused() const { return reused_; }
   std::size_t changed_vertices() const { return changed_.size(); }
-  // Bytes held: per vertex 8 (the field and the vertices sorted by cell), per cell about 10.
+  // Bytes held: per vertex 12 (the field, the vertices sorted by cell and their depths), per cell
+  // about 10.
   std::size_t memory_bytes() const;
   // Forget everything (another model, say).
   void reset() { valid_ = false; }
@@ -69,6 +70,7 @@ class ViewSession {
   std::vector<float> focus_factor_;            // per cell, for the last request's foci
   std::vector<std::uint32_t> cell_start_;      // vertices by cell (counting sort), built on first reuse
   std::vector<std::uint32_t> cell_vertices_;
+  std::vector<float> cell_vertex_clip_w_;      // clip-space w of each entry of cell_vertices_
   std::vector<std::uint32_t> changed_;         // vertices recomputed by the last request
 };
 
