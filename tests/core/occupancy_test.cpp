@@ -179,7 +179,9 @@ TEST(Occupancy, CompactRasterisationEqualsThePlainOne) {
     EXPECT_GT(a, 1000u);
     EXPECT_EQ(plain, indexed);
     ASSERT_EQ(plain_depth.size(), indexed_depth.size());
-    if (with_depth) EXPECT_EQ(std::memcmp(plain_depth.data(), indexed_depth.data(), plain_depth.size() * sizeof(float)), 0);
+    if (with_depth) {
+      EXPECT_EQ(std::memcmp(plain_depth.data(), indexed_depth.data(), plain_depth.size() * sizeof(float)), 0);
+    }
   }
 }
 

@@ -25,8 +25,10 @@ struct Scene {
 inline void add_rectangle(std::vector<float>& positions, std::vector<std::uint32_t>& triangles, float x0, float y0,
                           float x1, float y1, float z) {
   const auto base = static_cast<std::uint32_t>(positions.size() / 3);
-  positions.insert(positions.end(), {x0, y0, z, x1, y0, z, x1, y1, z, x0, y1, z});
-  triangles.insert(triangles.end(), {base, base + 1, base + 2, base, base + 2, base + 3});
+  // One corner at a time: GCC 12 warns (wrongly) that inserting a list into an empty vector
+  // overflows it.
+  for (const float corner : {x0, y0, z, x1, y0, z, x1, y1, z, x0, y1, z}) positions.push_back(corner);
+  for (const std::uint32_t id : {base, base + 1, base + 2, base, base + 2, base + 3}) triangles.push_back(id);
 }
 
 // The same rectangle as a scene of its own, with normals.
