@@ -296,60 +296,49 @@ void Refiner::SlotTable::reset(std::size_t expected) {
   std::size_t capacity = 16;
   shift_ = 60;
   while (capacity < 2 * expected) capacity *= 2, --shift_;
-  keys_.assign(capacity, kNoNode);
-  values_.resize(capacity);
+  entries_.assign(capacity, Entry{kNoNode, 0});
   size_ = 0;
 }
 
 void Refiner::SlotTable::grow() {
-  std::vector<std::uint32_t> keys, values;
-  keys.swap(keys_);
-  values.swap(values_);
-  reset(keys.size());  // doubles: reset makes room for twice the expected count
-  for (std::size_t i = 0; i < keys.size(); ++i)
-    if (keys[i] != kNoNode) insert(keys[i], values[i]);
+  std::vector<Entry> entries;
+  entries.swap(entries_);
+  reset(entries.size());  // doubles: reset makes room for twice the expected count
+  for (const Entry& e : entries)
+    if (e.key != kNoNode) insert(e.key, e.value);
 }
 
 void Refiner::SlotTable::insert(std::uint32_t key, std::uint32_t value) {
-  if (2 * (size_ + 1) > keys_.size()) grow();
-  const std::size_t mask = keys_.size() - 1;
+  if (2 * (size_ + 1) > entries_.size()) grow();
+  const std::size_t mask = entries_.size() - 1;
   std::size_t i = home(key);
-  while (keys_[i] != kNoNode) i = (i + 1) & mask;
-  keys_[i] = key;
-  values_[i] = value;
+  while (entries_[i].key != kNoNode) i = (i + 1) & mask;
+  entries_[i] = {key, value};
   ++size_;
 }
 
-std::uint32_t Refiner::SlotTable::find(std::uint32_t key) const {
-  const std::size_t mask = keys_.size() - 1;
-  for (std::size_t i = home(key);; i = (i + 1) & mask) {
-    if (keys_[i] == key) return values_[i];
-    if (keys_[i] == kNoNode) return kNoNode;
+std::size_t Refiner::SlotTable::position(std::uint32_t key) const {
+  const std::size_t mask = entries_.size() - 1;
+  std::size_t i = home(key);
+  while (entries_[i].key != key) {
+    assert(entries_[i].key != kNoNode);
+    i = (i + 1) & mask;
   }
+  return i;
 }
 
-void Refiner::SlotTable::assign(std::uint32_t key, std::uint32_t value) {
-  const std::size_t mask = keys_.size() - 1;
-  std::size_t i = home(key);
-  while (keys_[i] != key) i = (i + 1) & mask;
-  values_[i] = value;
-}
-
-void Refiner::SlotTable::erase(std::uint32_t key) {
-  const std::size_t mask = keys_.size() - 1;
-  std::size_t i = home(key);
-  while (keys_[i] != key) i = (i + 1) & mask;
+void Refiner::SlotTable::erase_at(std::size_t i) {
+  const std::size_t mask = entries_.size() - 1;
   // Backward shift: pull later entries of the probe run into the hole so lookups never stop early.
-  for (std::size_t j = (i + 1) & mask; keys_[j] != kNoNode; j = (j + 1) & mask) {
-    const std::size_t h = home(keys_[j]);
+  for (std::size_t j = (i + 1) & mask; entries_[j].key != kNoNode; j = (j + 1) & mask) {
+    const std::size_t h = home(entries_[j].key);
     // Entry j may move to i only if its home is not in the cyclic range (i, j].
     if (((j - h) & mask) >= ((j - i) & mask)) {
-      keys_[i] = keys_[j];
-      values_[i] = values_[j];
+      entries_[i] = entries_[j];
       i = j;
     }
   }
-  keys_[i] = kNoNode;
+  entries_[i].key = kNoNode;
   --size_;
 }
 
@@ -363,18 +352,19 @@ void Refiner::mesh_add(std::uint32_t t, std::uint32_t creator) {
 }
 
 void Refiner::mesh_remove(std::uint32_t t) {
-  const std::uint32_t slot = slots_.find(t);
-  assert(slot != kNoNode);
+  const std::size_t entry = slots_.position(t);
+  const std::uint32_t slot = slots_.value_at(entry);
   const std::uint32_t last = std::uint32_t(mesh_triangles_.size() - 1);
   if (slot != last) {
-    // Swap with the last entry so the arrays stay dense.
+    // Swap with the last entry so the arrays stay dense. (Assigning moves no table entry, so t's
+    // entry is still where it was.)
     const std::uint32_t moved = mesh_triangles_[last];
     mesh_triangles_[slot] = moved;
     std::copy_n(&mesh_corners_[3 * std::size_t{last}], 3, &mesh_corners_[3 * std::size_t{slot}]);
     mesh_errors_[slot] = mesh_errors_[last];
     slots_.assign(moved, slot);
   }
-  slots_.erase(t);
+  slots_.erase_at(entry);
   mesh_triangles_.pop_back();
   mesh_errors_.pop_back();
   mesh_corners_.resize(3 * std::size_t{last});

@@ -84,21 +84,26 @@ class Refiner {
 
  private:
   // Open-addressing map from triangle id to its slot in mesh_triangles_ (linear probing, backward
-  // shift deletion): no node allocations in the request path.
+  // shift deletion): no node allocations in the request path. Key and value share an entry, so a
+  // probe touches one cache line.
   class SlotTable {
    public:
     void reset(std::size_t expected);
     void insert(std::uint32_t key, std::uint32_t value);
-    std::uint32_t find(std::uint32_t key) const;  // kNoNode when absent
-    std::size_t memory_bytes() const { return (keys_.capacity() + values_.capacity()) * sizeof(std::uint32_t); }
-    void assign(std::uint32_t key, std::uint32_t value);
-    void erase(std::uint32_t key);
+    // Where key's entry is (it must be present), its value there, and erasing it from there.
+    std::size_t position(std::uint32_t key) const;
+    std::uint32_t value_at(std::size_t position) const { return entries_[position].value; }
+    void erase_at(std::size_t position);
+    std::size_t memory_bytes() const { return entries_.capacity() * sizeof(Entry); }
+    void assign(std::uint32_t key, std::uint32_t value) { entries_[position(key)].value = value; }
 
    private:
+    struct Entry {
+      std::uint32_t key, value;
+    };
     std::size_t home(std::uint32_t key) const { return std::size_t((key * 0x9E3779B97F4A7C15ull) >> shift_); }
     void grow();
-    std::vector<std::uint32_t> keys_;
-    std::vector<std::uint32_t> values_;
+    std::vector<Entry> entries_;
     std::size_t size_ = 0;
     unsigned shift_ = 64;
   };
