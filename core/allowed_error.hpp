@@ -130,6 +130,14 @@ class AllowedErrorField {
   }
   // The part of the multiplier the cell's labels give (every law combined), for a grid cell.
   float cell_multiplier(std::uint32_t cell) const;
+  // The focus law's multiplier is 1 for every label from this one on (0: everywhere; the table's
+  // length when it never reaches 1 within it).
+  std::size_t focus_reach() const {
+    const std::vector<float>& f = focus_table_.values;
+    std::size_t reach = f.size();
+    while (reach > 0 && f[reach - 1] == 1.0f) --reach;
+    return options_.use_focus ? reach : 0;
+  }
 
   // The focus law's multiplier in a grid cell (1 when focus mode is off). A vertex's allowed error
   // depends on the focus transform only through this value of its cell, so when the foci move, only

@@ -43,7 +43,8 @@ ViewExtractor::ViewExtractor(const Mt& mt, const OccupancyLevels& levels) : mt_(
 std::size_t ViewSession::memory_bytes() const {
   auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
   return bytes(allowed_error_) + bytes(silhouette_dt_) + bytes(neglect_dt_) + bytes(focus_factor_) +
-         bytes(cell_start_) + bytes(cell_vertices_) + bytes(cell_vertex_clip_w_) + bytes(changed_) + bytes(neglect_);
+         bytes(cell_start_) + bytes(cell_vertices_) + bytes(cell_vertex_clip_w_) + bytes(changed_) + bytes(neglect_) +
+         bytes(focus_cells_);
 }
 
 bool ViewExtractor::same_view(const ViewSession& s, const ViewRequest& r) {
@@ -163,10 +164,9 @@ void ViewExtractor::allowed_error() {
   allowed_ = s.allowed_error_;
   if (s.cell_start_.empty()) sort_vertices_by_cell(s);
   s.changed_.clear();
-  const std::size_t cells = request_->grid.cell_count();
-  for (std::uint32_t c = 0; c < cells; ++c) {
+  auto visit = [&](std::uint32_t c) {
     const float factor = field_.focus_factor(c);
-    if (factor == s.focus_factor_[c]) continue;
+    if (factor == s.focus_factor_[c]) return;
     s.focus_factor_[c] = factor;
     // The cell's labels give one multiplier for all its vertices, and each vertex's depth was kept
     // when they were sorted by cell: no vertex is projected again (same values as
@@ -177,7 +177,42 @@ void ViewExtractor::allowed_error() {
       allowed_[v] = field_.vertex_allowed_error_in_cell(multiplier, s.cell_vertex_clip_w_[k], v);
       s.changed_.push_back(v);
     }
+  };
+  // The focus multiplier is 1 from the label focus_reach() on, and a label below it lies within
+  // reach / units cells (Chebyshev) of a focus: a pixel step costs at least `units` in every
+  // transform (the Euclidean one rounds, hence one cell more). So only boxes around the old and the
+  // new foci can hold a changed multiplier; everywhere else it was 1 and still is.
+  const GridSize grid = request_->grid;
+  const std::uint32_t radius =
+      std::uint32_t(std::min<std::size_t>(field_.focus_reach() / units_per_pixel(options.metric) + 1,
+                                          std::max(grid.width, grid.height)));
+  const std::vector<std::uint32_t> old_foci = s.focus_cells_;
+  remember_focus_cells(s);
+  const std::vector<std::uint32_t>* both[] = {&old_foci, &s.focus_cells_};
+  std::size_t box_cells = 0;
+  for (const auto* foci : both)
+    for (const std::uint32_t f : *foci)
+      if (f != kNoCell) box_cells += std::size_t{2 * radius + 1} * (2 * radius + 1);
+  if (box_cells >= grid.cell_count()) {
+    for (std::uint32_t c = 0; c < grid.cell_count(); ++c) visit(c);
+    return;
   }
+  // A cell in two boxes is visited twice; the second visit finds its multiplier stored.
+  for (const auto* foci : both) {
+    for (const std::uint32_t f : *foci) {
+      if (f == kNoCell) continue;
+      const std::uint32_t fx = f % grid.width, fy = f / grid.width;
+      const std::uint32_t x0 = fx > radius ? fx - radius : 0, x1 = std::min(grid.width - 1, fx + radius);
+      const std::uint32_t y0 = fy > radius ? fy - radius : 0, y1 = std::min(grid.height - 1, fy + radius);
+      for (std::uint32_t y = y0; y <= y1; ++y)
+        for (std::uint32_t x = x0; x <= x1; ++x) visit(grid.cell(x, y));
+    }
+  }
+}
+
+void ViewExtractor::remember_focus_cells(ViewSession& s) const {
+  s.focus_cells_.clear();
+  for (const auto& p : request_->focus) s.focus_cells_.push_back(focus_cell(request_->grid, p[0], p[1]));
 }
 
 void ViewExtractor::remember_view(ViewSession& s) const {
@@ -195,6 +230,7 @@ void ViewExtractor::remember_view(ViewSession& s) const {
   const std::size_t cells = r.grid.cell_count();
   s.focus_factor_.resize(cells);
   for (std::uint32_t c = 0; c < cells; ++c) s.focus_factor_[c] = field_.focus_factor(c);
+  remember_focus_cells(s);
   s.cell_start_.clear();  // sorted again on the view's first reuse
   s.changed_.clear();
 }

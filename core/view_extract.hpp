@@ -68,6 +68,7 @@ class ViewSession {
   std::vector<std::uint16_t> silhouette_dt_;   // of the view
   std::vector<std::uint16_t> neglect_dt_;
   std::vector<float> focus_factor_;            // per cell, for the last request's foci
+  std::vector<std::uint32_t> focus_cells_;     // the last request's foci (kNoCell off the grid)
   std::vector<std::uint32_t> cell_start_;      // vertices by cell (counting sort), built on first reuse
   std::vector<std::uint32_t> cell_vertices_;
   std::vector<float> cell_vertex_clip_w_;      // clip-space w of each entry of cell_vertices_
@@ -118,6 +119,7 @@ class ViewExtractor {
   // Whether the request has the session's view (everything but the focus points).
   static bool same_view(const ViewSession& session, const ViewRequest& request);
   void remember_view(ViewSession& session) const;
+  void remember_focus_cells(ViewSession& session) const;
   void sort_vertices_by_cell(ViewSession& session);
   void transform_from_cells(std::span<const std::uint32_t> cells, std::span<std::uint16_t> out);
 
