@@ -415,20 +415,34 @@ void Refiner::update(const AllowedError& allowed, CutMesh& out) {
       std::memcpy(before + base, now + base, (end - base) * sizeof(float));
     }
   }
-  move_cut(allowed, all_changed, out);
+  if (move_cut(allowed, all_changed, out)) copy_mesh(out);
   if (all_changed) remember_field(allowed);
   std::fill(changed_bits_.begin(), changed_bits_.end(), 0);  // the list overload expects it clear
 }
 
 void Refiner::update(const AllowedError& allowed, std::span<const std::uint32_t> changed_vertices,
                      CutMesh& out) {
+  if (update_kept(allowed, changed_vertices, out)) copy_mesh(out);
+}
+
+CutView Refiner::update_view(const AllowedError& allowed, std::span<const std::uint32_t> changed_vertices,
+                             CutMesh& scratch) {
+  if (!update_kept(allowed, changed_vertices, scratch)) return CutView::of(scratch);
+  return {mesh_corners_, mesh_triangles_, cut_.size(), kept_max_error(), true};
+}
+
+bool Refiner::update_kept(const AllowedError& allowed, std::span<const std::uint32_t> changed_vertices,
+                          CutMesh& out) {
   assert(allowed.per_vertex.empty() || allowed.per_vertex.size() == mt_.vertex_count());
-  if (!dynamic_ready_) return refine_forced(allowed, out);
+  if (!dynamic_ready_) {
+    refine_forced(allowed, out);
+    return false;
+  }
   const bool all_changed = !field_known_ || allowed.per_vertex.empty() || previous_is_uniform_;
   if (!all_changed && changed_vertices.empty() && mesh_valid_) {
     // The same field: the kept cut is its minimal cut already (a gaze within the same cells).
     ++unchanged_;
-    return copy_mesh(out);
+    return true;
   }
   if (!all_changed) {
     changed_bits_.resize((mt_.vertex_count() + 63) / 64);
@@ -438,15 +452,16 @@ void Refiner::update(const AllowedError& allowed, std::span<const std::uint32_t>
       previous_field_[v] = allowed.per_vertex[v];
     }
   }
-  move_cut(allowed, all_changed, out);
+  const bool kept = move_cut(allowed, all_changed, out);
   if (all_changed) {
     remember_field(allowed);
   } else {
     for (const std::uint32_t v : changed_vertices) changed_bits_[v >> 6] = 0;  // leave the bitmap clear
   }
+  return kept;
 }
 
-void Refiner::move_cut(const AllowedError& allowed, bool all_changed, CutMesh& out) {
+bool Refiner::move_cut(const AllowedError& allowed, bool all_changed, CutMesh& out) {
   if (!mesh_valid_) index_mesh();
   if (changed_bits_.size() < (mt_.vertex_count() + 63) / 64)
     changed_bits_.assign((mt_.vertex_count() + 63) / 64, 0);
@@ -489,7 +504,7 @@ void Refiner::move_cut(const AllowedError& allowed, bool all_changed, CutMesh& o
     refine_forced(allowed, out);
     field_known_ = known;  // the kept copy of the field is already this one
     ++restarts_;
-    return;
+    return false;
   }
 
   // 2. Undo the dropped nodes, all at once: what they created and no node of the old cut removed
@@ -556,12 +571,18 @@ void Refiner::move_cut(const AllowedError& allowed, bool all_changed, CutMesh& o
   }
   for (std::size_t i = kept; i < cut_.size(); ++i) in_cut_[cut_[i]] = kIn;
   mesh_valid_ = true;
-  copy_mesh(out);
+  return true;
 }
 
 void Refiner::copy_mesh(CutMesh& out) const {
   out.triangles.assign(mesh_corners_.begin(), mesh_corners_.end());
   out.ids.assign(mesh_triangles_.begin(), mesh_triangles_.end());
+  out.max_error = kept_max_error();
+  out.node_count = cut_.size();
+  out.within_budget = true;
+}
+
+float Refiner::kept_max_error() const {
   // Eight independent running maxima, then the largest of them: the same value as one running
   // maximum, without one long chain of dependent comparisons.
   constexpr std::size_t kLanes = 8;
@@ -574,9 +595,7 @@ void Refiner::copy_mesh(CutMesh& out) const {
   float max_error = 0.0f;
   for (; i < n; ++i) max_error = std::max(max_error, errors[i]);
   for (const float lane : lanes) max_error = std::max(max_error, lane);
-  out.max_error = max_error;
-  out.node_count = cut_.size();
-  out.within_budget = true;
+  return max_error;
 }
 
 std::size_t Refiner::removed_count(std::uint32_t x) const {

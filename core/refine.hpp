@@ -42,6 +42,19 @@ struct CutMesh {
   std::size_t triangle_count() const { return triangles.size() / 3; }
 };
 
+// A read-only view of a cut, with CutMesh's fields: into a CutMesh, or into a refiner's kept mesh
+// (valid until that refiner's next call).
+struct CutView {
+  std::span<const std::uint32_t> triangles;
+  std::span<const std::uint32_t> ids;
+  std::size_t node_count = 0;
+  float max_error = 0.0f;
+  bool within_budget = true;
+
+  std::size_t triangle_count() const { return triangles.size() / 3; }
+  static CutView of(const CutMesh& m) { return {m.triangles, m.ids, m.node_count, m.max_error, m.within_budget}; }
+};
+
 // Keeps a cut and its scratch memory between requests (one per worker or client session). No
 // allocation once the buffers have grown to the model's size.
 class Refiner {
@@ -68,6 +81,10 @@ class Refiner {
   // vertex must have the same allowed error as then (duplicates in the list are fine). Skips the
   // O(vertices) comparison. A uniform field, or a previous uniform one, counts as all changed.
   void update(const AllowedError& allowed, std::span<const std::uint32_t> changed_vertices, CutMesh& out);
+  // The same without copying the result out: a view of the refiner's kept mesh when it moved the
+  // kept cut, or of `scratch` when it refined from the root (scratch is written then).
+  CutView update_view(const AllowedError& allowed, std::span<const std::uint32_t> changed_vertices,
+                      CutMesh& scratch);
 
   // Nodes of the kept cut, in the order they were added (parents before children).
   std::span<const std::uint32_t> cut_nodes() const { return cut_; }
@@ -124,13 +141,18 @@ class Refiner {
   void examine(std::uint32_t n, const AllowedError& allowed);
   void close_over(const AllowedError& allowed, std::size_t first);
   void emit(CutMesh& out) const;
-  // The kept mesh (maintained by move_cut) into out.
+  // The kept mesh (maintained by move_cut) into out, and its largest error.
   void copy_mesh(CutMesh& out) const;
+  float kept_max_error() const;
   void remember_field(const AllowedError& allowed);
   void index_mesh();
   void mesh_add(std::uint32_t t, std::uint32_t creator);
   void mesh_remove(std::uint32_t t);
-  void move_cut(const AllowedError& allowed, bool all_changed, CutMesh& out);
+  // Moves the kept cut; true when the kept mesh holds the result, false when it refined from the
+  // root into `out` instead.
+  bool move_cut(const AllowedError& allowed, bool all_changed, CutMesh& out);
+  // update(allowed, changed, ·) up to the output: true when the kept mesh holds the result.
+  bool update_kept(const AllowedError& allowed, std::span<const std::uint32_t> changed_vertices, CutMesh& out);
   bool vertex_changed(std::uint32_t v) const { return (changed_bits_[v >> 6] >> (v & 63)) & 1; }
 
   const Mt& mt_;

@@ -258,22 +258,36 @@ void ViewExtractor::sort_vertices_by_cell(ViewSession& s) {
 }
 
 void ViewExtractor::refine(Refiner& session, CutMesh& out) {
+  const CutView cut = refine_view(session, out);
+  if (cut.triangles.data() != out.triangles.data()) out.triangles.assign(cut.triangles.begin(), cut.triangles.end());
+  if (cut.ids.data() != out.ids.data()) out.ids.assign(cut.ids.begin(), cut.ids.end());
+  out.node_count = cut.node_count;
+  out.max_error = cut.max_error;
+  out.within_budget = cut.within_budget;
+}
+
+CutView ViewExtractor::refine_view(Refiner& session, CutMesh& scratch) {
   const AllowedError allowed = AllowedError::from_vertices(allowed_);
+  CutView cut;
   if (request_->budget) {
-    session.refine_budget(allowed, *request_->budget, out);
+    session.refine_budget(allowed, *request_->budget, scratch);
+    cut = CutView::of(scratch);
   } else if (request_->dynamic && incremental_) {
-    session.update(allowed, session_->changed_, out);  // even after a saccade: cheaper than from the root
+    cut = session.update_view(allowed, session_->changed_, scratch);  // even after a saccade: cheaper than from the root
   } else if (request_->dynamic) {
-    session.update(allowed, out);
+    session.update(allowed, scratch);
+    cut = CutView::of(scratch);
   } else {
-    session.refine(allowed, out);
+    session.refine(allowed, scratch);
+    cut = CutView::of(scratch);
   }
   if (request_->labels) {
     // Labels of the cut's vertices only: the silhouette distance when it was computed, else the focus's.
     const std::span<const std::uint16_t> dt = !silhouette_.empty() ? silhouette_ : std::span<const std::uint16_t>(focus_dt_);
     vertex_labels_.resize(mt_.vertex_count());
-    for (std::uint32_t v : out.triangles) vertex_labels_[v] = dt.empty() ? 0 : vertex_label(mapping_, mt_.positions, v, dt);
+    for (std::uint32_t v : cut.triangles) vertex_labels_[v] = dt.empty() ? 0 : vertex_label(mapping_, mt_.positions, v, dt);
   }
+  return cut;
 }
 
 std::size_t ViewExtractor::memory_bytes() const {

@@ -96,6 +96,9 @@ class ViewExtractor {
   // Stage 5: refines `session` (dynamic unless a budget is set or `dynamic` is off) and writes the
   // cut to `out`.
   void refine(Refiner& session, CutMesh& out);
+  // The same without copying a gaze's cut out of the session's refiner: a view of its kept mesh
+  // (valid until the refiner's next call), or of `scratch` when the cut was written there.
+  CutView refine_view(Refiner& session, CutMesh& scratch);
 
   // After the stages: the per-vertex labels (model vertex count entries; only the cut's vertices are
   // meaningful), the grids, and the occupancy cut, for encoders, tools and debug images.

@@ -81,7 +81,8 @@ std::variant<ExtractOutcome, protocol::ProtocolError> Engine::extract(const prot
   t.dt_us = elapsed_us(clock);
   extractor->allowed_error();
   t.labels_us = elapsed_us(clock);
-  extractor->refine(*state.refiner, worker.cut);
+  // A gaze's cut is read in place from the session's refiner (no copy of the whole mesh).
+  const core::CutView cut = extractor->refine_view(*state.refiner, worker.cut);
   t.refine_us = elapsed_us(clock);
 
   core::DracoOptions draco;
@@ -104,16 +105,16 @@ std::variant<ExtractOutcome, protocol::ProtocolError> Engine::extract(const prot
   }
   draco.normals = request.normals;
   draco.labels = request.labels;
-  std::span<const std::uint32_t> triangles = worker.cut.triangles;
+  std::span<const std::uint32_t> triangles = cut.triangles;
   if (request.delta) {
     // Only what the client does not have: the new triangles, in cut order, named by their ids.
-    const bool reset = state.sent.update(worker.cut.ids, model->mt.triangle_count(), worker.added, worker.removed);
+    const bool reset = state.sent.update(cut.ids, model->mt.triangle_count(), worker.added, worker.removed);
     worker.added_triangles.clear();
     worker.added_ids.clear();
     for (const std::uint32_t i : worker.added) {
-      worker.added_triangles.insert(worker.added_triangles.end(), &worker.cut.triangles[3 * std::size_t{i}],
-                                    &worker.cut.triangles[3 * std::size_t{i}] + 3);
-      worker.added_ids.push_back(worker.cut.ids[i]);
+      worker.added_triangles.insert(worker.added_triangles.end(), &cut.triangles[3 * std::size_t{i}],
+                                    &cut.triangles[3 * std::size_t{i}] + 3);
+      worker.added_ids.push_back(cut.ids[i]);
     }
     triangles = worker.added_triangles;
     outcome.reply.delta = protocol::MeshDelta{reset, 0, worker.added_ids.size(), worker.removed.size()};
@@ -140,10 +141,10 @@ std::variant<ExtractOutcome, protocol::ProtocolError> Engine::extract(const prot
   t.encode_us = elapsed_us(clock);
 
   outcome.reply.model = model->name;
-  outcome.reply.triangles = worker.cut.triangle_count();
+  outcome.reply.triangles = cut.triangle_count();
   outcome.reply.vertices = vertices;
   outcome.reply.bytes = outcome.payload.size();
-  outcome.reply.max_error = worker.cut.max_error;
+  outcome.reply.max_error = cut.max_error;
   outcome.reply.session_bytes = state.refiner->memory_bytes() + state.view.memory_bytes() + state.sent.memory_bytes();
   outcome.reply.scratch_bytes = extractor->memory_bytes() + worker.cut.triangles.capacity() * sizeof(std::uint32_t);
   return outcome;
