@@ -3,7 +3,6 @@
 #include "core/cut_delta.hpp"
 
 #include <algorithm>
-
 #include <cassert>
 
 namespace mtlod::core {

@@ -12,6 +12,7 @@
 #include <random>
 #include <memory>
 
+#include "core/cut_delta.hpp"
 #include "core/draco_encode.hpp"
 #include "core/io/mesh_io.hpp"
 #include "core/mt_builder.hpp"
@@ -205,7 +206,7 @@ BENCHMARK(BM_RefineAfterSmallMove)->Arg(0)->Arg(1)->ArgName("dynamic")->Unit(ben
 // raw:1 stores attribute values without Draco's entropy coding, as the server's gaze replies do.
 // gaze_criteria:1 uses mtlod-gaze's criteria (0.5 px, silhouette 2,0.25, full detail within 20 px
 // of the gaze) instead of this file's request_for: cuts of 45–95k triangles whose fine region
-// moves with every gaze.
+// moves with every gaze. delta_us: the diff a delta reply sends (core::CutDelta, as the server).
 void BM_GazeStream(benchmark::State& state) {
   const Model* m = model("dragon");
   if (!m) return state.SkipWithError("mesh not found");
@@ -229,7 +230,10 @@ void BM_GazeStream(benchmark::State& state) {
   std::vector<std::uint8_t> payload;
   std::mt19937 rng(5);
   std::uniform_real_distribution<double> anywhere(0.2, 0.8), drift(-0.003, 0.003), chance(0, 1);
-  double labels_us = 0, refine_us = 0, before_us = 0, encode_us = 0, triangles = 0, changed = 0, bytes = 0;
+  double labels_us = 0, refine_us = 0, before_us = 0, encode_us = 0, delta_us = 0, triangles = 0, changed = 0,
+         bytes = 0;
+  core::CutDelta delta;  // what a delta reply's diff costs (server, "delta": true)
+  std::vector<std::uint32_t> added, removed;
   for (auto _ : state) {
     auto& f = e.criteria.focus[0];
     if (chance(rng) < 0.1) {
@@ -250,6 +254,8 @@ void BM_GazeStream(benchmark::State& state) {
     gaze_us.push_back(us_since(start));
     before_us += gaze_us.back();
     t = Clock::now();
+    delta.update(cut.ids, m->mt.triangle_count(), added, removed);
+    delta_us += us_since(t);
     auto encoded = encoder.encode({m->mt.positions, {}, {}, cut.triangles}, draco, payload);
     encode_us += us_since(t);
     if (!encoded) return state.SkipWithError(encoded.error().message.c_str());
@@ -262,6 +268,7 @@ void BM_GazeStream(benchmark::State& state) {
   state.counters["refine_us"] = mean(refine_us);
   state.counters["before_encode_us"] = mean(before_us);
   state.counters["encode_us"] = mean(encode_us);
+  state.counters["delta_us"] = mean(delta_us);
   state.counters["triangles"] = mean(triangles);
   state.counters["changed_vertices"] = mean(changed);
   state.counters["bits_per_tri"] = 8.0 * bytes / std::max(1.0, triangles);
