@@ -82,11 +82,7 @@ void AllowedErrorField::tabulate(const RegionLaw& law, DistanceMetric metric, fl
   for (const std::uint16_t raw : dt)
     largest_plus_one = std::max(largest_plus_one, static_cast<std::int16_t>(static_cast<std::uint16_t>(raw + 1)));
   const std::uint16_t largest = largest_plus_one == 0 ? 0 : std::uint16_t(largest_plus_one - 1);
-  const bool same_law = table.valid && table.metric == metric && table.tan_per_px == tan_per_px &&
-                        table.law.law == law.law && table.law.distance_px == law.distance_px &&
-                        table.law.factor == law.factor && table.law.falloff_px == law.falloff_px &&
-                        table.law.foveal_e2_deg == law.foveal_e2_deg;
-  if (!same_law) {
+  if (!(table.valid && table.law == law && table.metric == metric && table.tan_per_px == tan_per_px)) {
     table.values.clear();
     table.valid = true, table.law = law, table.metric = metric, table.tan_per_px = tan_per_px;
   }

@@ -115,8 +115,7 @@ class AllowedErrorField {
   // Bytes of scratch memory held.
   std::size_t memory_bytes() const {
     return (silhouette_table_.values.capacity() + focus_table_.values.capacity() + neglect_table_.values.capacity() +
-            clip_w_.capacity() +
-            cell_multiplier_.capacity()) *
+            clip_w_.capacity() + cell_multiplier_.capacity()) *
                sizeof(float) +
            cells_.capacity() * sizeof(std::uint32_t);
   }
@@ -133,10 +132,11 @@ class AllowedErrorField {
   // The focus law's multiplier is 1 for every label from this one on (0: everywhere; the table's
   // length when it never reaches 1 within it).
   std::size_t focus_reach() const {
+    if (!options_.use_focus) return 0;
     const std::vector<float>& f = focus_table_.values;
     std::size_t reach = f.size();
     while (reach > 0 && f[reach - 1] == 1.0f) --reach;
-    return options_.use_focus ? reach : 0;
+    return reach;
   }
 
   // The focus law's multiplier in a grid cell (1 when focus mode is off). A vertex's allowed error

@@ -154,30 +154,31 @@ struct Candidate {
   std::uint32_t v;
 };
 
-// Stable LSD radix sort on the cost's bits (non-negative floats order like their bit patterns), so
-// equal costs keep vertex order and the build stays deterministic.
-void sort_by_cost(std::vector<Candidate>& items, std::vector<Candidate>& scratch) {
+// Stable LSD radix sort of `items` by a 32-bit key, 11 bits per pass: equal keys keep their order.
+template <class T, class Key>
+void radix_sort(std::vector<T>& items, std::vector<T>& scratch, const Key& key) {
   constexpr int kBits = 11;
   constexpr std::uint32_t kBuckets = 1u << kBits;
   scratch.resize(items.size());
   std::uint32_t counts[kBuckets];
   for (int shift = 0; shift < 32; shift += kBits) {
     std::fill(counts, counts + kBuckets, 0u);
-    auto key = [shift](const Candidate& c) {
-      std::uint32_t bits;
-      std::memcpy(&bits, &c.cost, 4);
-      return (bits >> shift) & (kBuckets - 1);
-    };
-    for (const Candidate& c : items) ++counts[key(c)];
+    auto digit = [&](const T& x) { return (key(x) >> shift) & (kBuckets - 1); };
+    for (const T& x : items) ++counts[digit(x)];
     std::uint32_t sum = 0;
-    for (std::uint32_t b = 0; b < kBuckets; ++b) {
-      const std::uint32_t n = counts[b];
-      counts[b] = sum;
-      sum += n;
-    }
-    for (const Candidate& c : items) scratch[counts[key(c)]++] = c;
+    for (std::uint32_t& n : counts) sum += std::exchange(n, sum);
+    for (const T& x : items) scratch[counts[digit(x)]++] = x;
     items.swap(scratch);
   }
+}
+
+// By cost, stably, so equal costs keep vertex order and the build stays deterministic.
+void sort_by_cost(std::vector<Candidate>& items, std::vector<Candidate>& scratch) {
+  radix_sort(items, scratch, [](const Candidate& c) {
+    std::uint32_t bits;
+    std::memcpy(&bits, &c.cost, 4);
+    return bits;
+  });
 }
 
 class Builder {
@@ -806,25 +807,17 @@ Mt Builder::assemble() {
   // Nodes by decreasing error, ties by reverse collapse order. This is a topological order (a
   // parent's error is at least its child's, and on a tie the parent collapsed later), and it makes
   // the static cut for a uniform threshold e a prefix: the root and every node with error > e. Cuts
-  // then walk the arrays front to back instead of jumping around. A stable radix sort on the
-  // error's bits (errors are never negative, so their bits order like them) of the collapses listed
-  // coarsest first gives exactly that order.
-  std::vector<std::uint32_t> order(k), order_scratch(k);
+  // then walk the arrays front to back instead of jumping around. A stable sort by decreasing error
+  // of the collapses listed coarsest first gives exactly that order.
+  std::vector<std::uint32_t> order(k), order_scratch;
   for (std::uint32_t c = 0; c < k; ++c) order[c] = k - 1 - c;  // coarsest collapse first
-  auto descending_key = [&](std::uint32_t c) {
+  radix_sort(order, order_scratch, [&](std::uint32_t c) {
+    // Errors are never negative, so their bits order like them (-0 taken as 0).
     const float e = collapse_error_[c];
     std::uint32_t bits = 0;
     if (e > 0) std::memcpy(&bits, &e, sizeof bits);
     return ~bits;
-  };
-  for (int shift = 0; shift < 32; shift += 11) {
-    std::uint32_t counts[1u << 11] = {};
-    for (const std::uint32_t c : order) ++counts[(descending_key(c) >> shift) & 0x7FF];
-    std::uint32_t sum = 0;
-    for (std::uint32_t& n : counts) sum += std::exchange(n, sum);
-    for (const std::uint32_t c : order) order_scratch[counts[(descending_key(c) >> shift) & 0x7FF]++] = c;
-    order.swap(order_scratch);
-  }
+  });
   std::vector<std::uint32_t> node_of(k);
   for (std::uint32_t i = 0; i < k; ++i) node_of[order[i]] = i + 1;
   // Creator and remover node of every triangle, looked up once.
@@ -835,8 +828,6 @@ Mt Builder::assemble() {
       removers[t] = mt_made_by_[t] == 0 ? kNoNode : node_of[mt_made_by_[t] - 1];
     }
   });
-  auto creator = [&](std::size_t t) { return creators[t]; };
-  auto remover = [&](std::size_t t) { return removers[t]; };
 
   mt.node_vertex.resize(node_count);
   mt.node_error.resize(node_count);
@@ -849,11 +840,11 @@ Mt Builder::assemble() {
 
   // Counting sort of triangles by creating node.
   mt.node_triangle_offsets.assign(node_count + 1, 0);
-  for (std::size_t t = 0; t < mt_count; ++t) ++mt.node_triangle_offsets[creator(t) + 1];
+  for (std::size_t t = 0; t < mt_count; ++t) ++mt.node_triangle_offsets[creators[t] + 1];
   for (std::size_t n = 0; n < node_count; ++n) mt.node_triangle_offsets[n + 1] += mt.node_triangle_offsets[n];
   std::vector<std::uint32_t> next(mt.node_triangle_offsets.begin(), mt.node_triangle_offsets.end() - 1);
   std::vector<std::uint32_t> new_id(mt_count);
-  for (std::size_t t = 0; t < mt_count; ++t) new_id[t] = next[creator(t)]++;
+  for (std::size_t t = 0; t < mt_count; ++t) new_id[t] = next[creators[t]]++;
 
   const std::size_t root_count = mt.node_triangle_offsets[1];
   mt.triangle_corners.resize(2 * mt_count);
@@ -862,7 +853,7 @@ Mt Builder::assemble() {
   // Each triangle writes its own slots: triangles run concurrently.
   for_chunks(mt_count, [&](std::size_t, std::size_t begin, std::size_t end) {
     for (std::size_t t = begin; t < end; ++t) {
-      const std::uint32_t n = creator(t), id = new_id[t];
+      const std::uint32_t n = creators[t], id = new_id[t];
       const std::uint32_t* tv = &mt_vertices_[3 * t];
       int first = 0;
       if (n == 0) {
@@ -874,7 +865,7 @@ Mt Builder::assemble() {
       }
       mt.triangle_corners[2 * std::size_t{id}] = tv[(first + 1) % 3];
       mt.triangle_corners[2 * std::size_t{id} + 1] = tv[(first + 2) % 3];
-      mt.triangle_remover[id] = remover(t);
+      mt.triangle_remover[id] = removers[t];
     }
   });
 
@@ -885,17 +876,17 @@ Mt Builder::assemble() {
   for (std::size_t t = mt_count; t-- > 0;)
     if (mt_made_by_[t] != 0) run_begin[mt_made_by_[t] - 1] = std::uint32_t(t);
   for (std::uint32_t c = k; c-- > 0;) run_begin[c] = std::min(run_begin[c], run_begin[c + 1]);
-  std::vector<std::uint32_t> parents(mt_count - (k == 0 ? mt_count : run_begin[0]));
-  const std::uint32_t parents_base = k == 0 ? 0 : run_begin[0];
+  const std::uint32_t parents_base = run_begin[0];  // mt_count when there are no collapses
+  std::vector<std::uint32_t> parents(mt_count - parents_base);
   std::vector<std::uint32_t> parent_count(node_count, 0);
   for_chunks(k, [&](std::size_t, std::size_t first, std::size_t last) {
     for (std::size_t c = first; c < last; ++c) {
       // Sorted distinct creators, written at the start of the run's own slice of parents.
-      std::uint32_t* out = &parents[run_begin[c] - parents_base];
+      std::uint32_t* out = parents.data() + (run_begin[c] - parents_base);
       std::uint32_t* const start = out;
       for (std::uint32_t t = run_begin[c]; t < run_begin[c + 1]; ++t) {
         assert(mt_made_by_[t] == c + 1);
-        *out++ = creator(t);
+        *out++ = creators[t];
       }
       std::sort(start, out);
       parent_count[node_of[c]] = std::uint32_t(std::unique(start, out) - start);
@@ -908,7 +899,8 @@ Mt Builder::assemble() {
   for_chunks(k, [&](std::size_t, std::size_t first, std::size_t last) {
     for (std::size_t c = first; c < last; ++c) {
       const std::uint32_t n = node_of[c];
-      std::copy_n(&parents[run_begin[c] - parents_base], parent_count[n], &mt.node_parents[mt.node_parent_offsets[n]]);
+      std::copy_n(parents.data() + (run_begin[c] - parents_base), parent_count[n],
+                  mt.node_parents.data() + mt.node_parent_offsets[n]);
     }
   });
   return mt;

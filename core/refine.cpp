@@ -22,6 +22,38 @@ namespace {
 // kNew: in the cut, added by the current update (only while its mesh is patched).
 enum : std::uint8_t { kOut = 0, kIn = 1, kAdding = 2, kDropped = 3, kNew = 4 };
 
+// The output of the static paths: sizes a CutMesh for an upper bound of triangles, writes each
+// triangle's corners and id unchecked, then trims the arrays to what was written.
+class MeshWriter {
+ public:
+  MeshWriter(const Mt& mt, CutMesh& out, std::size_t capacity) : corners_(mt.triangle_corners.data()), out_(out) {
+    out.triangles.resize(3 * capacity);
+    out.ids.resize(capacity);
+    write_ = out.triangles.data();
+    id_ = out.ids.data();
+  }
+  // Triangle t, whose first corner is `first` (its creator's split vertex, or its root entry).
+  void add(std::uint32_t t, std::uint32_t first) {
+    write_[0] = first;
+    write_[1] = corners_[2 * std::size_t{t}];
+    write_[2] = corners_[2 * std::size_t{t} + 1];
+    write_ += 3;
+    *id_++ = t;
+  }
+  void finish(std::size_t node_count, float max_error) {
+    out_.triangles.resize(std::size_t(write_ - out_.triangles.data()));
+    out_.ids.resize(std::size_t(id_ - out_.ids.data()));
+    out_.node_count = node_count;
+    out_.max_error = max_error;
+  }
+
+ private:
+  const std::uint32_t* corners_;
+  CutMesh& out_;
+  std::uint32_t* write_ = nullptr;
+  std::uint32_t* id_ = nullptr;
+};
+
 }  // namespace
 
 Refiner::Refiner(const Mt& mt)
@@ -143,12 +175,8 @@ void Refiner::emit(CutMesh& out) const {
   std::size_t created = 0;
   for (const std::uint32_t n : cut_)
     created += mt_.node_triangle_offsets[n + 1] - mt_.node_triangle_offsets[n];
-  out.triangles.resize(3 * created);
-  out.ids.resize(created);
-  std::uint32_t* write = out.triangles.data();
-  std::uint32_t* id = out.ids.data();
+  MeshWriter writer(mt_, out, created);
   const std::uint32_t* remover = mt_.triangle_remover.data();
-  const std::uint32_t* corners = mt_.triangle_corners.data();
   const std::uint8_t* in_cut = in_cut_.data();
   float max_error = 0.0f;
   for (const std::uint32_t n : cut_) {
@@ -160,17 +188,10 @@ void Refiner::emit(CutMesh& out) const {
         if (in_cut[r] == kIn) continue;
         max_error = std::max(max_error, mt_.node_error[r]);
       }
-      write[0] = n == 0 ? mt_.root_first_corner[t] : first;
-      write[1] = corners[2 * std::size_t{t}];
-      write[2] = corners[2 * std::size_t{t} + 1];
-      write += 3;
-      *id++ = t;
+      writer.add(t, n == 0 ? mt_.root_first_corner[t] : first);
     }
   }
-  out.triangles.resize(std::size_t(write - out.triangles.data()));
-  out.ids.resize(std::size_t(id - out.ids.data()));
-  out.node_count = cut_.size();
-  out.max_error = max_error;
+  writer.finish(cut_.size(), max_error);
 }
 
 void Refiner::remember_field(const AllowedError& allowed) {
@@ -210,13 +231,8 @@ void Refiner::refine_prefix(std::uint32_t end, CutMesh& out) {
   // No witnesses were recorded: the next update starts with a forced refinement.
   dynamic_ready_ = false;
 
-  const std::uint32_t triangle_end = mt_.node_triangle_offsets[end];
-  out.triangles.resize(3 * std::size_t{triangle_end});
-  out.ids.resize(triangle_end);
-  std::uint32_t* write = out.triangles.data();
-  std::uint32_t* id = out.ids.data();
+  MeshWriter writer(mt_, out, mt_.node_triangle_offsets[end]);
   const std::uint32_t* remover = mt_.triangle_remover.data();
-  const std::uint32_t* corners = mt_.triangle_corners.data();
   float max_error = 0.0f;
   for (std::uint32_t n = 0; n < end; ++n) {
     const std::uint32_t first = n == 0 ? kNoNode : mt_.node_vertex[n];
@@ -226,17 +242,10 @@ void Refiner::refine_prefix(std::uint32_t end, CutMesh& out) {
       // In the mesh unless its remover is in the prefix (kNoNode is larger than any node).
       if (r < end) continue;
       if (r != kNoNode) max_error = std::max(max_error, errors[r]);
-      write[0] = n == 0 ? mt_.root_first_corner[t] : first;
-      write[1] = corners[2 * std::size_t{t}];
-      write[2] = corners[2 * std::size_t{t} + 1];
-      write += 3;
-      *id++ = t;
+      writer.add(t, n == 0 ? mt_.root_first_corner[t] : first);
     }
   }
-  out.triangles.resize(std::size_t(write - out.triangles.data()));
-  out.ids.resize(std::size_t(id - out.ids.data()));
-  out.node_count = end;
-  out.max_error = max_error;
+  writer.finish(end, max_error);
   out.within_budget = true;
 }
 
@@ -261,10 +270,7 @@ void Refiner::refine_forced(const AllowedError& allowed, CutMesh& out) {
       }
     }
   }
-  out.triangles.resize(3 * (passing_.size() / 2));
-  out.ids.resize(passing_.size() / 2);
-  std::uint32_t* write = out.triangles.data();
-  std::uint32_t* id = out.ids.data();
+  MeshWriter writer(mt_, out, passing_.size() / 2);
   float max_error = 0.0f;
   for (std::size_t i = 0; i < passing_.size(); i += 2) {
     const std::uint32_t t = passing_[i], n = passing_[i + 1];
@@ -273,16 +279,9 @@ void Refiner::refine_forced(const AllowedError& allowed, CutMesh& out) {
       if (in_cut_[r] == kIn) continue;  // refined after it passed
       max_error = std::max(max_error, mt_.node_error[r]);
     }
-    *id++ = t;
-    write[0] = mt_.first_corner(TriangleId{t}, NodeId{n});
-    write[1] = mt_.triangle_corners[2 * std::size_t{t}];
-    write[2] = mt_.triangle_corners[2 * std::size_t{t} + 1];
-    write += 3;
+    writer.add(t, mt_.first_corner(TriangleId{t}, NodeId{n}));
   }
-  out.triangles.resize(std::size_t(write - out.triangles.data()));
-  out.ids.resize(std::size_t(id - out.ids.data()));
-  out.node_count = cut_.size();
-  out.max_error = max_error;
+  writer.finish(cut_.size(), max_error);
   out.within_budget = true;
   // The field is not copied here, to keep static refinement free of O(vertices) work; the next
   // update treats every vertex as changed.
@@ -415,20 +414,19 @@ void Refiner::update(const AllowedError& allowed, CutMesh& out) {
       std::memcpy(before + base, now + base, (end - base) * sizeof(float));
     }
   }
-  if (move_cut(allowed, all_changed, out)) copy_mesh(out);
+  if (move_cut(allowed, all_changed, out)) out.assign(kept_view());
   if (all_changed) remember_field(allowed);
   std::fill(changed_bits_.begin(), changed_bits_.end(), 0);  // the list overload expects it clear
 }
 
 void Refiner::update(const AllowedError& allowed, std::span<const std::uint32_t> changed_vertices,
                      CutMesh& out) {
-  if (update_kept(allowed, changed_vertices, out)) copy_mesh(out);
+  if (update_kept(allowed, changed_vertices, out)) out.assign(kept_view());
 }
 
 CutView Refiner::update_view(const AllowedError& allowed, std::span<const std::uint32_t> changed_vertices,
                              CutMesh& scratch) {
-  if (!update_kept(allowed, changed_vertices, scratch)) return CutView::of(scratch);
-  return {mesh_corners_, mesh_triangles_, cut_.size(), kept_max_error(), true};
+  return update_kept(allowed, changed_vertices, scratch) ? kept_view() : CutView::of(scratch);
 }
 
 bool Refiner::update_kept(const AllowedError& allowed, std::span<const std::uint32_t> changed_vertices,
@@ -574,12 +572,8 @@ bool Refiner::move_cut(const AllowedError& allowed, bool all_changed, CutMesh& o
   return true;
 }
 
-void Refiner::copy_mesh(CutMesh& out) const {
-  out.triangles.assign(mesh_corners_.begin(), mesh_corners_.end());
-  out.ids.assign(mesh_triangles_.begin(), mesh_triangles_.end());
-  out.max_error = kept_max_error();
-  out.node_count = cut_.size();
-  out.within_budget = true;
+CutView Refiner::kept_view() const {
+  return {mesh_corners_, mesh_triangles_, cut_.size(), kept_max_error(), true};
 }
 
 float Refiner::kept_max_error() const {

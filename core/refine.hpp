@@ -31,6 +31,8 @@ struct AllowedError {
 };
 
 // A cut's mesh, ready for an encoder. Caller-owned and reused between calls.
+struct CutView;
+
 struct CutMesh {
   std::vector<std::uint32_t> triangles;  // 3 vertex ids per triangle (CCW), ids into mt.positions; any order
   std::vector<std::uint32_t> ids;        // the MT triangle id of each triangle (same order): stable names
@@ -40,6 +42,8 @@ struct CutMesh {
   bool within_budget = true;             // false only when a budget is below the root's size
 
   std::size_t triangle_count() const { return triangles.size() / 3; }
+  // Becomes a copy of `view` (which may be a view of this mesh).
+  void assign(const CutView& view);
 };
 
 // A read-only view of a cut, with CutMesh's fields: into a CutMesh, or into a refiner's kept mesh
@@ -54,6 +58,14 @@ struct CutView {
   std::size_t triangle_count() const { return triangles.size() / 3; }
   static CutView of(const CutMesh& m) { return {m.triangles, m.ids, m.node_count, m.max_error, m.within_budget}; }
 };
+
+inline void CutMesh::assign(const CutView& view) {
+  if (view.triangles.data() != triangles.data()) triangles.assign(view.triangles.begin(), view.triangles.end());
+  if (view.ids.data() != ids.data()) ids.assign(view.ids.begin(), view.ids.end());
+  node_count = view.node_count;
+  max_error = view.max_error;
+  within_budget = view.within_budget;
+}
 
 // Keeps a cut and its scratch memory between requests (one per worker or client session). No
 // allocation once the buffers have grown to the model's size.
@@ -141,8 +153,8 @@ class Refiner {
   void examine(std::uint32_t n, const AllowedError& allowed);
   void close_over(const AllowedError& allowed, std::size_t first);
   void emit(CutMesh& out) const;
-  // The kept mesh (maintained by move_cut) into out, and its largest error.
-  void copy_mesh(CutMesh& out) const;
+  // The kept mesh (maintained by move_cut) as a cut, and its largest error.
+  CutView kept_view() const;
   float kept_max_error() const;
   void remember_field(const AllowedError& allowed);
   void index_mesh();

@@ -186,20 +186,13 @@ void ViewExtractor::allowed_error() {
   const std::uint32_t radius =
       std::uint32_t(std::min<std::size_t>(field_.focus_reach() / units_per_pixel(options.metric) + 1,
                                           std::max(grid.width, grid.height)));
-  const std::vector<std::uint32_t> old_foci = s.focus_cells_;
-  remember_focus_cells(s);
-  const std::vector<std::uint32_t>* both[] = {&old_foci, &s.focus_cells_};
-  std::size_t box_cells = 0;
-  for (const auto* foci : both)
-    for (const std::uint32_t f : *foci)
-      if (f != kNoCell) box_cells += std::size_t{2 * radius + 1} * (2 * radius + 1);
-  if (box_cells >= grid.cell_count()) {
-    for (std::uint32_t c = 0; c < grid.cell_count(); ++c) visit(c);
-    return;
-  }
+  std::size_t foci = 0;  // on the grid, old and new
+  for (const std::uint32_t f : s.focus_cells_) foci += f != kNoCell;
+  for (const auto& p : request_->focus) foci += focus_cell(grid, p[0], p[1]) != kNoCell;
+  const bool whole_grid = foci * (2 * std::size_t{radius} + 1) * (2 * std::size_t{radius} + 1) >= grid.cell_count();
   // A cell in two boxes is visited twice; the second visit finds its multiplier stored.
-  for (const auto* foci : both) {
-    for (const std::uint32_t f : *foci) {
+  auto visit_boxes = [&] {
+    for (const std::uint32_t f : s.focus_cells_) {
       if (f == kNoCell) continue;
       const std::uint32_t fx = f % grid.width, fy = f / grid.width;
       const std::uint32_t x0 = fx > radius ? fx - radius : 0, x1 = std::min(grid.width - 1, fx + radius);
@@ -207,7 +200,14 @@ void ViewExtractor::allowed_error() {
       for (std::uint32_t y = y0; y <= y1; ++y)
         for (std::uint32_t x = x0; x <= x1; ++x) visit(grid.cell(x, y));
     }
+  };
+  if (whole_grid) {
+    for (std::uint32_t c = 0; c < grid.cell_count(); ++c) visit(c);
+  } else {
+    visit_boxes();  // around the old foci
   }
+  remember_focus_cells(s);
+  if (!whole_grid) visit_boxes();  // around the new ones
 }
 
 void ViewExtractor::remember_focus_cells(ViewSession& s) const {
@@ -258,29 +258,23 @@ void ViewExtractor::sort_vertices_by_cell(ViewSession& s) {
 }
 
 void ViewExtractor::refine(Refiner& session, CutMesh& out) {
-  const CutView cut = refine_view(session, out);
-  if (cut.triangles.data() != out.triangles.data()) out.triangles.assign(cut.triangles.begin(), cut.triangles.end());
-  if (cut.ids.data() != out.ids.data()) out.ids.assign(cut.ids.begin(), cut.ids.end());
-  out.node_count = cut.node_count;
-  out.max_error = cut.max_error;
-  out.within_budget = cut.within_budget;
+  out.assign(refine_view(session, out));
 }
 
 CutView ViewExtractor::refine_view(Refiner& session, CutMesh& scratch) {
   const AllowedError allowed = AllowedError::from_vertices(allowed_);
-  CutView cut;
-  if (request_->budget) {
-    session.refine_budget(allowed, *request_->budget, scratch);
-    cut = CutView::of(scratch);
-  } else if (request_->dynamic && incremental_) {
-    cut = session.update_view(allowed, session_->changed_, scratch);  // even after a saccade: cheaper than from the root
-  } else if (request_->dynamic) {
-    session.update(allowed, scratch);
-    cut = CutView::of(scratch);
-  } else {
-    session.refine(allowed, scratch);
-    cut = CutView::of(scratch);
-  }
+  const CutView cut = [&] {
+    if (request_->budget) {
+      session.refine_budget(allowed, *request_->budget, scratch);
+    } else if (request_->dynamic && incremental_) {
+      return session.update_view(allowed, session_->changed_, scratch);  // even after a saccade: cheaper than from the root
+    } else if (request_->dynamic) {
+      session.update(allowed, scratch);
+    } else {
+      session.refine(allowed, scratch);
+    }
+    return CutView::of(scratch);  // taken once scratch holds the cut
+  }();
   if (request_->labels) {
     // Labels of the cut's vertices only: the silhouette distance when it was computed, else the focus's.
     const std::span<const std::uint16_t> dt = !silhouette_.empty() ? silhouette_ : std::span<const std::uint16_t>(focus_dt_);

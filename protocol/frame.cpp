@@ -1,25 +1,14 @@
-// Frame header coding (PROTOCOL.md, "Framing"). Little-endian by definition, assembled byte by byte
-// so the code does not depend on the host's byte order.
+// Frame header coding (PROTOCOL.md, "Framing"). Little-endian by definition (read_u32_le,
+// write_u32_le).
 #include "protocol/frame.hpp"
 
 #include "fmt/format.h"
 
 namespace mtlod::protocol {
-namespace {
-
-std::uint32_t read_u32(const std::uint8_t* p) {
-  return std::uint32_t{p[0]} | std::uint32_t{p[1]} << 8 | std::uint32_t{p[2]} << 16 | std::uint32_t{p[3]} << 24;
-}
-
-void write_u32(std::uint32_t v, std::uint8_t* p) {
-  for (int i = 0; i < 4; ++i) p[i] = static_cast<std::uint8_t>(v >> (8 * i));
-}
-
-}  // namespace
 
 Result<FrameHeader> decode_frame_header(std::span<const std::uint8_t, kFrameHeaderBytes> bytes,
                                         std::size_t max_body_bytes) {
-  FrameHeader h{read_u32(bytes.data()), read_u32(bytes.data() + 4)};
+  FrameHeader h{read_u32_le(bytes.data()), read_u32_le(bytes.data() + 4)};
   if (h.json_bytes == 0) return make_error(ErrorCode::kCorrupt, "frame has an empty JSON header");
   if (h.body_bytes() > max_body_bytes) {
     return make_error(ErrorCode::kLimitExceeded,
@@ -30,8 +19,8 @@ Result<FrameHeader> decode_frame_header(std::span<const std::uint8_t, kFrameHead
 
 std::array<std::uint8_t, kFrameHeaderBytes> encode_frame_header(const FrameHeader& header) {
   std::array<std::uint8_t, kFrameHeaderBytes> bytes;
-  write_u32(header.json_bytes, bytes.data());
-  write_u32(header.payload_bytes, bytes.data() + 4);
+  write_u32_le(header.json_bytes, bytes.data());
+  write_u32_le(header.payload_bytes, bytes.data() + 4);
   return bytes;
 }
 

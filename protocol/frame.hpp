@@ -16,6 +16,15 @@ namespace mtlod::protocol {
 
 inline constexpr std::size_t kFrameHeaderBytes = 8;
 
+// 32-bit little-endian values, assembled byte by byte so the code does not depend on the host's
+// byte order (frame headers, delta replies' ids).
+inline std::uint32_t read_u32_le(const std::uint8_t* p) {
+  return std::uint32_t{p[0]} | std::uint32_t{p[1]} << 8 | std::uint32_t{p[2]} << 16 | std::uint32_t{p[3]} << 24;
+}
+inline void write_u32_le(std::uint32_t v, std::uint8_t* p) {
+  for (int i = 0; i < 4; ++i) p[i] = static_cast<std::uint8_t>(v >> (8 * i));
+}
+
 struct FrameHeader {
   std::uint32_t json_bytes = 0;
   std::uint32_t payload_bytes = 0;

@@ -3,6 +3,7 @@
 
 #include "fmt/format.h"
 #include "nlohmann/json.hpp"
+#include "protocol/frame.hpp"
 
 namespace mtlod::protocol {
 namespace {
@@ -210,10 +211,7 @@ Result<DeltaPayload> split_delta_payload(const MeshDelta& delta, std::span<const
   out.draco = payload.first(static_cast<std::size_t>(delta.draco_bytes));
   auto read_ids = [&](std::size_t offset, std::uint64_t count, std::vector<std::uint32_t>& ids) {
     ids.resize(static_cast<std::size_t>(count));
-    for (std::size_t i = 0; i < ids.size(); ++i) {
-      const std::uint8_t* b = payload.data() + offset + 4 * i;
-      ids[i] = std::uint32_t{b[0]} | std::uint32_t{b[1]} << 8 | std::uint32_t{b[2]} << 16 | std::uint32_t{b[3]} << 24;
-    }
+    for (std::size_t i = 0; i < ids.size(); ++i) ids[i] = read_u32_le(payload.data() + offset + 4 * i);
   };
   read_ids(static_cast<std::size_t>(delta.draco_bytes), delta.added, out.added_ids);
   read_ids(static_cast<std::size_t>(delta.draco_bytes + 4 * delta.added), delta.removed, out.removed_ids);
@@ -226,10 +224,8 @@ void append_delta_ids(std::span<const std::uint32_t> added_ids, std::span<const 
   payload.resize(at + 4 * (added_ids.size() + removed_ids.size()));
   for (const auto ids : {added_ids, removed_ids}) {
     for (const std::uint32_t id : ids) {
-      payload[at++] = static_cast<std::uint8_t>(id);
-      payload[at++] = static_cast<std::uint8_t>(id >> 8);
-      payload[at++] = static_cast<std::uint8_t>(id >> 16);
-      payload[at++] = static_cast<std::uint8_t>(id >> 24);
+      write_u32_le(id, &payload[at]);
+      at += 4;
     }
   }
 }

@@ -147,20 +147,34 @@ TEST(AllowedError, FrustumAndBackFaceCoarsening) {
   EXPECT_EQ(out, (std::vector<float>{1.0f, 8.0f, 3.0f, 1.0f}));
 }
 
+// A sphere seen in perspective on a 96² grid, with its silhouette transform.
+struct SphereView {
+  test::Scene sphere = test::uv_sphere(1.0f, 24, 48);
+  ViewMapping mapping;
+  DistanceTransformer transformer;
+  std::vector<std::uint16_t> silhouette;
+  SphereView() {
+    Camera camera;
+    camera.view = glm::lookAt(glm::vec3(0.4f, 0.3f, 3.0f), glm::vec3(0, 0, 0), glm::vec3(0, 1, 0));
+    camera.projection = glm::perspective(glm::radians(50.0f), 1.0f, 0.1f, 10.0f);
+    mapping = ViewMapping(camera, GridSize{96, 96});
+    std::vector<std::uint8_t> occupancy(mapping.grid().cell_count());
+    rasterize_occupancy(mapping, sphere.positions, sphere.triangles, occupancy);
+    silhouette.resize(occupancy.size());
+    transformer.chamfer(DistanceMetric::kChamfer5711, occupancy, mapping.grid(), silhouette);
+  }
+};
+
 TEST(AllowedError, LazyVertexEqualsFullArray) {
   // A sphere seen in perspective, silhouette + focus + back-face, pixel bound: every vertex's lazy value
   // equals the full pass bit for bit (same projection arithmetic).
-  const test::Scene sphere = test::uv_sphere(1.0f, 24, 48);
-  Camera camera;
-  camera.view = glm::lookAt(glm::vec3(0.4f, 0.3f, 3.0f), glm::vec3(0, 0, 0), glm::vec3(0, 1, 0));
-  camera.projection = glm::perspective(glm::radians(50.0f), 1.0f, 0.1f, 10.0f);
-  const ViewMapping mapping(camera, GridSize{96, 96});
+  SphereView view;
+  const test::Scene& sphere = view.sphere;
+  const ViewMapping& mapping = view.mapping;
   const GridSize grid = mapping.grid();
-  std::vector<std::uint8_t> occupancy(grid.cell_count());
-  rasterize_occupancy(mapping, sphere.positions, sphere.triangles, occupancy);
-  DistanceTransformer transformer;
-  std::vector<std::uint16_t> silhouette(grid.cell_count()), focus(grid.cell_count());
-  transformer.chamfer(DistanceMetric::kChamfer5711, occupancy, grid, silhouette);
+  DistanceTransformer& transformer = view.transformer;
+  const std::vector<std::uint16_t>& silhouette = view.silhouette;
+  std::vector<std::uint16_t> focus(grid.cell_count());
   const std::vector<std::uint32_t> foci = {focus_cell(grid, 0.4f, 0.45f)};
   transformer.chamfer_from_cells(DistanceMetric::kChamfer5711, foci, grid, focus);
   AllowedErrorOptions options;
@@ -186,17 +200,13 @@ TEST(AllowedError, AFieldReusedOverLawsAndFociEqualsAFreshOneEveryTime) {
   // A field keeps its law tables between requests (gazes reuse them); whatever came before, its
   // values equal those of a field bound for the first time: same law with foci nearer and farther
   // (larger labels extend the table), then other laws, metrics and fields of view.
-  const test::Scene sphere = test::uv_sphere(1.0f, 24, 48);
-  Camera camera;
-  camera.view = glm::lookAt(glm::vec3(0.4f, 0.3f, 3.0f), glm::vec3(0, 0, 0), glm::vec3(0, 1, 0));
-  camera.projection = glm::perspective(glm::radians(50.0f), 1.0f, 0.1f, 10.0f);
-  const ViewMapping mapping(camera, GridSize{96, 96});
+  SphereView view;
+  const test::Scene& sphere = view.sphere;
+  const ViewMapping& mapping = view.mapping;
   const GridSize grid = mapping.grid();
-  std::vector<std::uint8_t> occupancy(grid.cell_count());
-  rasterize_occupancy(mapping, sphere.positions, sphere.triangles, occupancy);
-  DistanceTransformer transformer;
-  std::vector<std::uint16_t> silhouette(grid.cell_count()), focus(grid.cell_count());
-  transformer.chamfer(DistanceMetric::kChamfer5711, occupancy, grid, silhouette);
+  DistanceTransformer& transformer = view.transformer;
+  const std::vector<std::uint16_t>& silhouette = view.silhouette;
+  std::vector<std::uint16_t> focus(grid.cell_count());
   struct Step {
     float x, y;
     RegionLaw focus_law;

@@ -361,11 +361,7 @@ void expect_dynamic_matches_static(const MtCase* c, std::uint32_t seed, int step
     } else if (kind == 4) {
       // The same through a view (of the kept mesh, or of the scratch after a restart).
       CutMesh scratch;
-      const CutView view = dynamic.update_view(allowed, changed, scratch);
-      moving.triangles.assign(view.triangles.begin(), view.triangles.end());
-      moving.ids.assign(view.ids.begin(), view.ids.end());
-      moving.max_error = view.max_error;
-      moving.node_count = view.node_count;
+      moving.assign(dynamic.update_view(allowed, changed, scratch));
     } else if (kind == 6) {
       const std::size_t unchanged = dynamic.unchanged_updates();
       const std::vector<std::uint32_t> before = moving.ids;
