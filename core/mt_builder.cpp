@@ -298,6 +298,9 @@ class Builder {
   std::vector<std::uint8_t> vertex_dead_;
   std::vector<std::uint8_t> kind_;
   std::vector<std::uint32_t> touched_;  // pass number that last changed a vertex's fan
+  // For a vertex touched in the current pass only as a corner of one chosen collapse's fan: that
+  // collapse's v; kNoNode when it is an end of a chosen collapse or in two chosen fans.
+  std::vector<std::uint32_t> ring_target_;
   std::uint32_t pass_ = 0;
   Stamps chooser_stamps_, guesser_stamps_;
   std::vector<std::uint8_t> verdicts_;
@@ -643,6 +646,26 @@ void Builder::choose_collapses(std::size_t quota) {
   auto touch = [this](std::uint32_t x) {
     std::atomic_ref<std::uint32_t>(touched_[x]).store(pass_, std::memory_order_relaxed);
   };
+  auto target_of = [this](std::uint32_t x) {
+    return std::atomic_ref<std::uint32_t>(ring_target_[x]).load(std::memory_order_relaxed);
+  };
+  auto set_target = [this](std::uint32_t x, std::uint32_t target) {
+    std::atomic_ref<std::uint32_t>(ring_target_[x]).store(target, std::memory_order_relaxed);
+  };
+  // A candidate is blocked when an earlier choice of the pass changed u's fan, or v's fan in a
+  // way can_collapse would not see: v is an end of a chosen collapse, or in two chosen fans, or in
+  // the fan of a collapse into a neighbour w of u (then w becomes a common neighbour of u and v).
+  // A fan that only had one neighbour x of v replaced by w, with w not next to u, gives the same
+  // link, the same faces around u and so the same can_collapse answer as at the pass's start.
+  auto blocked = [&](const Candidate& c) {
+    if (is_touched(c.u)) return true;
+    if (!is_touched(c.v)) return false;
+    const std::uint32_t w = target_of(c.v);
+    if (w == kNoNode) return true;
+    for (std::uint32_t j = adjacency_begin_[c.u]; j < adjacency_end_[c.u]; ++j)
+      if (adjacency_[j].next == w || adjacency_[j].prev == w) return true;
+    return false;
+  };
   auto choose = [&] {
     std::size_t ordered = 0;
     std::uint32_t tag = std::uint32_t(collapse_u_.size()) + 1;
@@ -658,20 +681,30 @@ void Builder::choose_collapses(std::size_t quota) {
         __builtin_prefetch(&adjacency_begin_[ahead.v]);
       }
       const Candidate& c = candidates_[i];
-      if (is_touched(c.u) || is_touched(c.v)) {
+      if (blocked(c)) {
         ++ordered;
         continue;
       }
       const std::uint8_t verdict = std::atomic_ref<std::uint8_t>(verdicts_[i]).load(std::memory_order_relaxed);
       if (verdict == 2 || (verdict == 0 && !can_collapse(c.u, c.v, chooser_stamps_))) continue;
       chosen_.push_back({c.u, c.v, tag++, triangle, 1});  // u joins the points assigned to faces
-      touch(c.u);
-      touch(c.v);
+      for (const std::uint32_t x : {c.u, c.v}) {
+        touch(x);
+        set_target(x, kNoNode);
+      }
+      auto ring_touch = [&](std::uint32_t x) {
+        if (!is_touched(x)) {
+          touch(x);
+          set_target(x, c.v);
+        } else if (target_of(x) != c.v) {
+          set_target(x, kNoNode);
+        }
+      };
       for (std::uint32_t j = adjacency_begin_[c.u]; j < adjacency_end_[c.u]; ++j) {
         const Corner& t = adjacency_[j];  // the face (u, next, prev)
         chosen_.back().first_point += face_points_[t.face];
-        touch(t.next);
-        touch(t.prev);
+        ring_touch(t.next);
+        ring_touch(t.prev);
         if (t.next == c.v || t.prev == c.v)
           --alive_faces_;
         else
@@ -691,7 +724,7 @@ void Builder::choose_collapses(std::size_t quota) {
       if (i <= at) i = at + kGuessLead;
       if (i >= end) break;
       const Candidate& c = candidates_[i];
-      if (is_touched(c.u) || is_touched(c.v)) continue;
+      if (blocked(c)) continue;
       const std::uint8_t verdict = can_collapse(c.u, c.v, guesser_stamps_) ? 1 : 2;
       std::atomic_ref<std::uint8_t>(verdicts_[i]).store(verdict, std::memory_order_relaxed);
     }
@@ -961,6 +994,7 @@ Result<Mt> Builder::run(BuildStats* stats) {
     used_vertices_ = alive_vertex_list_.size();
   }
   touched_.assign(vertex_count_, 0);
+  ring_target_.assign(vertex_count_, kNoNode);
   for (Stamps* stamps : {&chooser_stamps_, &guesser_stamps_}) {
     stamps->link.assign(vertex_count_, 0);
     stamps->seen.assign(vertex_count_, 0);
