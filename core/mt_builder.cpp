@@ -4,11 +4,12 @@
 //
 // Per pass: rebuild vertex→face adjacency (CSR), classify every vertex (interior / boundary /
 // complex), give each collapsible vertex u its cheapest partner v, sort, and choose collapses in
-// cost order while neither end has been touched by an earlier choice of the same pass, so the
-// adjacency read at the start of the pass stays exact for every collapse that is tried. The chosen
-// collapses change disjoint fans and then run in any order. With BuildOptions::parallel_for these
-// steps run on several threads; every shared position (collapse tags, MT triangles, pool blocks) is
-// fixed before, so the MT is the same byte for byte.
+// cost order while no earlier choice of the same pass changed u's fan or changed v's fan in a way
+// that matters to the checks, so the adjacency read at the start of the pass gives every tried
+// collapse the answer the current mesh would. The chosen collapses change disjoint fans and then
+// run in any order. With BuildOptions::parallel_for these steps run on several threads; every
+// shared position (collapse tags, MT triangles, pool blocks) is fixed before, so the MT is the same
+// byte for byte.
 //
 // Global error (the Jade method's): every original vertex removed so far is assigned to one working
 // face. A collapse hands u and the vertices of u's faces to faces of the new fan, and its error is
@@ -790,7 +791,9 @@ void Builder::collapse(const Chosen& chosen, Scratch& scratch) {
     if (m.old_face != kNoNode) try_face(m.old_face);
     for (std::uint32_t i = 0; i < new_faces_.size() && !(best <= floor2); ++i)
       if (i != m.old_face) try_face(i);
-    measured = std::max(measured, std::sqrt(best));
+    // best <= measured² gives sqrt(best) <= measured (sqrt is correctly rounded): no sqrt on the
+    // running maximum's chain for the usual point that stays within it.
+    if (!(best <= floor2)) measured = std::max(measured, std::sqrt(best));
     m.new_face = best_face;
   }
   // Each new face's run, in the chosen block of the pool: reversed order of arrival (the order
@@ -1032,8 +1035,9 @@ Result<Mt> Builder::run(BuildStats* stats) {
 
     // Choose in cost order; the quota counts candidates that took part in the order (chosen, or
     // blocked by an earlier choice of this pass); invalid ones are skipped without using it up.
-    // A chosen collapse changes u's fan, so its corners are marked touched and no later choice of
-    // the pass reads a face it writes: can_collapse sees the adjacency of the pass's start.
+    // A chosen collapse changes u's fan, so its corners are marked touched; a later choice never
+    // writes a face it wrote, and can_collapse's answer from the pass's start still holds (see
+    // choose_collapses).
     const std::size_t quota =
         std::max<std::size_t>(1, std::size_t(double(candidates_.size()) * options_.pass_fraction));
     // Each pass moves every assigned point at most once; room for that keeps the pool's indices
