@@ -149,6 +149,53 @@ double point_triangle_distance_squared(const float* pf, const float* af, const f
   return dist2(a[0] + ab[0] * s + ac[0] * t, a[1] + ab[1] * s + ac[1] * t, a[2] + ab[2] * s + ac[2] * t);
 }
 
+// A cheap sufficient test for "the squared distance from p to triangle abc, as
+// point_triangle_distance_squared computes it, is at most r2": p projects inside the triangle and
+// its squared plane distance, with slack for rounding (relative 1e-9, plus 1e-12 of the longest
+// edge squared), is at most r2. Inputs are floats, so the differences below are exact in double.
+class WithinTest {
+ public:
+  void set(const float* af, const float* bf, const float* cf) {
+    for (int k = 0; k < 3; ++k) a_[k] = af[k], b_[k] = bf[k], c_[k] = cf[k];
+    const double ab[3] = {b_[0] - a_[0], b_[1] - a_[1], b_[2] - a_[2]};
+    const double bc[3] = {c_[0] - b_[0], c_[1] - b_[1], c_[2] - b_[2]};
+    const double ca[3] = {a_[0] - c_[0], a_[1] - c_[1], a_[2] - c_[2]};
+    cross3(ab, bc, n_);  // ab × ac: ac = ab + bc
+    cross3(n_, ab, inward_[0]);
+    cross3(n_, bc, inward_[1]);
+    cross3(n_, ca, inward_[2]);
+    n2_ = dot3(n_, n_);
+    const double longest = std::max({dot3(ab, ab), dot3(bc, bc), dot3(ca, ca)});
+    slack_ = 1e-12 * longest * n2_;
+    // A sliver's normal says little: leave it to the exact distance.
+    usable_ = n2_ > 1e-12 * longest * longest;
+  }
+  bool within(const float* pf, double r2) const {
+    if (!usable_) return false;
+    const double ap[3] = {pf[0] - a_[0], pf[1] - a_[1], pf[2] - a_[2]};
+    if (dot3(ap, inward_[0]) < 0) return false;
+    const double bp[3] = {pf[0] - b_[0], pf[1] - b_[1], pf[2] - b_[2]};
+    if (dot3(bp, inward_[1]) < 0) return false;
+    const double cp[3] = {pf[0] - c_[0], pf[1] - c_[1], pf[2] - c_[2]};
+    if (dot3(cp, inward_[2]) < 0) return false;
+    const double s = dot3(ap, n_);
+    return s * s * (1 + 1e-9) + slack_ <= r2 * n2_;
+  }
+
+ private:
+  static double dot3(const double* x, const double* y) { return x[0] * y[0] + x[1] * y[1] + x[2] * y[2]; }
+  static void cross3(const double* x, const double* y, double* out) {
+    out[0] = x[1] * y[2] - x[2] * y[1];
+    out[1] = x[2] * y[0] - x[0] * y[2];
+    out[2] = x[0] * y[1] - x[1] * y[0];
+  }
+  double a_[3], b_[3], c_[3];
+  double n_[3];
+  double inward_[3][3];  // n × edge for edges ab, bc, ca: towards the opposite corner
+  double n2_, slack_;
+  bool usable_;
+};
+
 struct Candidate {
   float cost;
   std::uint32_t u;
@@ -208,6 +255,7 @@ class Builder {
     std::vector<Moving> moving;
     std::vector<std::uint32_t> new_faces;
     std::vector<std::uint32_t> new_face_ends;
+    std::vector<WithinTest> within;  // per new face
   };
   // A collapse chosen for the current pass: its tag (index + 1), first MT triangle and first
   // assigned point are fixed before the collapses run, so the result does not depend on which
@@ -777,17 +825,31 @@ void Builder::collapse(const Chosen& chosen, Scratch& scratch) {
   // Jade-style global error: each moving vertex goes to a new face and the error is the largest
   // exact distance. A vertex stays on its own face (or takes the first face found) when that is
   // already within the running maximum, since a nearer face could not lower the maximum.
+  // Most points stay within the running maximum of the face they try first; WithinTest tells that
+  // from the point's plane distance, and the exact distance is computed only when it cannot.
+  std::vector<WithinTest>& within = scratch.within;
+  within.resize(new_faces_.size());
+  for (std::size_t i = 0; i < new_faces_.size(); ++i) {
+    const std::uint32_t* t = &working_[3 * std::size_t{new_faces_[i]}];
+    within[i].set(position(t[0]), position(t[1]), position(t[2]));
+  }
   double measured = fan_error;
   for (Moving& m : moving_) {
     const float* p = m.position;
     std::uint32_t best_face = kNoNode;
     double best = std::numeric_limits<double>::infinity();
+    double floor2 = 0;
     auto try_face = [&](std::uint32_t i) {
+      // Reached only while best > floor2, so a face within floor2 is the exact answer's choice too.
+      if (within[i].within(p, floor2)) {
+        best = floor2, best_face = i;
+        return;
+      }
       const std::uint32_t* t = &working_[3 * std::size_t{new_faces_[i]}];
       const double d2 = point_triangle_distance_squared(p, position(t[0]), position(t[1]), position(t[2]));
       if (d2 < best) best = d2, best_face = i;
     };
-    const double floor2 = measured * measured;
+    floor2 = measured * measured;
     if (m.old_face != kNoNode) try_face(m.old_face);
     for (std::uint32_t i = 0; i < new_faces_.size() && !(best <= floor2); ++i)
       if (i != m.old_face) try_face(i);
