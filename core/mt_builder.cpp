@@ -208,14 +208,21 @@ void radix_sort(std::vector<T>& items, std::vector<T>& scratch, const Key& key) 
   constexpr int kBits = 11;
   constexpr std::uint32_t kBuckets = 1u << kBits;
   scratch.resize(items.size());
-  std::uint32_t counts[kBuckets];
-  for (int shift = 0; shift < 32; shift += kBits) {
-    std::fill(counts, counts + kBuckets, 0u);
-    auto digit = [&](const T& x) { return (key(x) >> shift) & (kBuckets - 1); };
-    for (const T& x : items) ++counts[digit(x)];
+  constexpr int kPasses = (32 + kBits - 1) / kBits;
+  // Every pass's counts from one read of the items (the passes only permute them).
+  std::array<std::array<std::uint32_t, kBuckets>, kPasses> counts{};
+  for (const T& x : items) {
+    const std::uint32_t k = key(x);
+    for (int pass = 0; pass < kPasses; ++pass) ++counts[pass][(k >> (pass * kBits)) & (kBuckets - 1)];
+  }
+  for (int pass = 0; pass < kPasses; ++pass) {
+    // A digit all items share leaves the order as it is.
+    if (std::find(counts[pass].begin(), counts[pass].end(), std::uint32_t(items.size())) != counts[pass].end())
+      continue;
     std::uint32_t sum = 0;
-    for (std::uint32_t& n : counts) sum += std::exchange(n, sum);
-    for (const T& x : items) scratch[counts[digit(x)]++] = x;
+    for (std::uint32_t& n : counts[pass]) sum += std::exchange(n, sum);
+    const int shift = pass * kBits;
+    for (const T& x : items) scratch[counts[pass][(key(x) >> shift) & (kBuckets - 1)]++] = x;
     items.swap(scratch);
   }
 }
