@@ -284,7 +284,6 @@ class Builder {
   // Scratch marks of can_collapse, one set per thread that calls it.
   struct Stamps {
     std::vector<std::uint32_t> link;
-    std::vector<std::uint32_t> seen;
     std::uint32_t stamp = 0;
   };
   bool can_collapse(std::uint32_t u, std::uint32_t v, Stamps& stamps) const;
@@ -635,7 +634,6 @@ void Builder::find_partner(std::uint32_t u, const std::uint32_t* boundary_ends) 
 
 bool Builder::can_collapse(std::uint32_t u, std::uint32_t v, Stamps& stamps) const {
   std::vector<std::uint32_t>& link_stamp_ = stamps.link;
-  std::vector<std::uint32_t>& seen_stamp_ = stamps.seen;
   const std::uint32_t link = ++stamps.stamp;
   link_stamp_[v] = link;
   for (std::uint32_t i = adjacency_begin_[v]; i < adjacency_end_[v]; ++i)
@@ -656,11 +654,10 @@ bool Builder::can_collapse(std::uint32_t u, std::uint32_t v, Stamps& stamps) con
   for (std::uint32_t i = adjacency_begin_[u]; i < adjacency_end_[u]; ++i) {
     const std::uint32_t a = adjacency_[i].next, b = adjacency_[i].prev;
     if (a == v || b == v) continue;
-    for (const std::uint32_t w : {a, b}) {
-      if (link_stamp_[w] != link || seen_stamp_[w] == link) continue;
-      seen_stamp_[w] = link;
-      if (!((opposites > 0 && w == opposite[0]) || (opposites > 1 && w == opposite[1]))) return false;
-    }
+    // (A common neighbour met twice gets the same answer twice.)
+    for (const std::uint32_t w : {a, b})
+      if (link_stamp_[w] == link && !((opposites > 0 && w == opposite[0]) || (opposites > 1 && w == opposite[1])))
+        return false;
     ++survivors;
     const float* pa = position(a);
     const float* pb = position(b);
@@ -1067,10 +1064,7 @@ Result<Mt> Builder::run(BuildStats* stats) {
   }
   touched_.assign(vertex_count_, 0);
   ring_target_.assign(vertex_count_, kNoNode);
-  for (Stamps* stamps : {&chooser_stamps_, &guesser_stamps_}) {
-    stamps->link.assign(vertex_count_, 0);
-    stamps->seen.assign(vertex_count_, 0);
-  }
+  for (Stamps* stamps : {&chooser_stamps_, &guesser_stamps_}) stamps->link.assign(vertex_count_, 0);
   best_.assign(vertex_count_, Candidate{0, 0, 0});
   scratch_.resize(kChunks);
 
