@@ -1076,11 +1076,14 @@ Result<Mt> Builder::run(BuildStats* stats) {
   for (;;) {
     ++pass_;
     if (pass_ > 1) build_adjacency();
-    // A vertex's kind only changes when its fan does, i.e. when the last pass touched it.
+    // A vertex's kind only changes when its fan does, i.e. when the last pass touched it. An
+    // interior vertex touched only as a corner of one collapse stays interior: its cycle of
+    // neighbours had u replaced by v, or lost u next to v, and the link condition kept v out of
+    // the rest of the cycle.
     for_chunks(alive_vertex_list_.size(), [&](std::size_t, std::size_t begin, std::size_t end) {
       for (std::size_t i = begin; i < end; ++i) {
         const std::uint32_t u = alive_vertex_list_[i];
-        if (pass_ == 1 || touched_[u] == pass_ - 1)
+        if (pass_ == 1 || (touched_[u] == pass_ - 1 && (kind_[u] != kInterior || ring_target_[u] == kNoNode)))
           kind_[u] = classify(u, boundary_ends[2 * u], boundary_ends[2 * u + 1]);
       }
     });
