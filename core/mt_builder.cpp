@@ -1108,7 +1108,7 @@ Result<Mt> Builder::run(BuildStats* stats) {
         std::max<std::size_t>(1, std::size_t(double(candidates_.size()) * options_.pass_fraction));
     // Each pass moves every assigned point at most once; room for that keeps the pool's indices
     // valid while chunks append to their chosen blocks.
-    if (points_.size() / 3 + used_vertices_ > 3 * used_vertices_) compact_assigned_points();
+    if (points_.size() / 3 + used_vertices_ > 5 * used_vertices_) compact_assigned_points();
     std::uint32_t point = std::uint32_t(points_.size() / 3);
     choose_collapses(quota);
     const std::uint32_t tag = std::uint32_t(collapse_u_.size() + chosen_.size()) + 1;
