@@ -358,8 +358,8 @@ class Builder {
   std::vector<std::uint32_t> ring_target_;
   std::uint32_t pass_ = 0;
   Stamps chooser_stamps_, guesser_stamps_;
-  std::vector<std::uint8_t> verdicts_;
-  std::uint32_t chosen_triangles_end_ = 0;  // MT triangle count once the chosen collapses have run  // per candidate: 0 not known yet, 1 can collapse, 2 cannot
+  std::vector<std::uint8_t> verdicts_;     // per candidate: 0 not known yet, 1 can collapse, 2 cannot
+  std::uint32_t chosen_triangles_end_ = 0;  // MT triangle count once the chosen collapses have run
   std::vector<Candidate> best_;  // per vertex: cheapest partner found when it was last evaluated
   std::vector<Candidate> candidates_;
   std::vector<Candidate> candidate_scratch_;
