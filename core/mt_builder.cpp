@@ -102,6 +102,9 @@ struct Vec3 {
 Vec3 sub(const float* a, const float* b) {
   return {double{a[0]} - b[0], double{a[1]} - b[1], double{a[2]} - b[2]};
 }
+Vec3 sub(const float* a, const Vec3& b) {
+  return {a[0] - b.x, a[1] - b.y, a[2] - b.z};
+}
 Vec3 cross(const Vec3& a, const Vec3& b) {
   return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
 }
@@ -155,45 +158,34 @@ double point_triangle_distance_squared(const float* pf, const float* af, const f
 // edge squared), is at most r2. Inputs are floats, so the differences below are exact in double.
 class WithinTest {
  public:
-  void set(const float* af, const float* bf, const float* cf) {
-    for (int k = 0; k < 3; ++k) a_[k] = af[k], b_[k] = bf[k], c_[k] = cf[k];
-    const double ab[3] = {b_[0] - a_[0], b_[1] - a_[1], b_[2] - a_[2]};
-    const double bc[3] = {c_[0] - b_[0], c_[1] - b_[1], c_[2] - b_[2]};
-    const double ca[3] = {a_[0] - c_[0], a_[1] - c_[1], a_[2] - c_[2]};
-    cross3(ab, bc, n_);  // ab × ac: ac = ab + bc
-    cross3(n_, ab, inward_[0]);
-    cross3(n_, bc, inward_[1]);
-    cross3(n_, ca, inward_[2]);
-    n2_ = dot3(n_, n_);
-    const double longest = std::max({dot3(ab, ab), dot3(bc, bc), dot3(ca, ca)});
+  void set(const float* a, const float* b, const float* c) {
+    a_ = {a[0], a[1], a[2]}, b_ = {b[0], b[1], b[2]}, c_ = {c[0], c[1], c[2]};
+    const Vec3 ab = sub(b, a), bc = sub(c, b), ca = sub(a, c);
+    n_ = cross(ab, bc);  // ab × ac: ac = ab + bc
+    inward_[0] = cross(n_, ab);
+    inward_[1] = cross(n_, bc);
+    inward_[2] = cross(n_, ca);
+    n2_ = dot(n_, n_);
+    const double longest = std::max({dot(ab, ab), dot(bc, bc), dot(ca, ca)});
     slack_ = 1e-12 * longest * n2_;
     // A sliver's normal says little: leave it to the exact distance.
     usable_ = n2_ > 1e-12 * longest * longest;
   }
-  bool within(const float* pf, double r2) const {
+  bool within(const float* p, double r2) const {
     if (!usable_) return false;
-    const double ap[3] = {pf[0] - a_[0], pf[1] - a_[1], pf[2] - a_[2]};
-    if (dot3(ap, inward_[0]) < 0) return false;
-    const double bp[3] = {pf[0] - b_[0], pf[1] - b_[1], pf[2] - b_[2]};
-    if (dot3(bp, inward_[1]) < 0) return false;
-    const double cp[3] = {pf[0] - c_[0], pf[1] - c_[1], pf[2] - c_[2]};
-    if (dot3(cp, inward_[2]) < 0) return false;
-    const double s = dot3(ap, n_);
+    const Vec3 ap = sub(p, a_);
+    if (dot(ap, inward_[0]) < 0 || dot(sub(p, b_), inward_[1]) < 0 || dot(sub(p, c_), inward_[2]) < 0)
+      return false;
+    const double s = dot(ap, n_);
     return s * s * (1 + 1e-9) + slack_ <= r2 * n2_;
   }
 
  private:
-  static double dot3(const double* x, const double* y) { return x[0] * y[0] + x[1] * y[1] + x[2] * y[2]; }
-  static void cross3(const double* x, const double* y, double* out) {
-    out[0] = x[1] * y[2] - x[2] * y[1];
-    out[1] = x[2] * y[0] - x[0] * y[2];
-    out[2] = x[0] * y[1] - x[1] * y[0];
-  }
-  double a_[3], b_[3], c_[3];
-  double n_[3];
-  double inward_[3][3];  // n × edge for edges ab, bc, ca: towards the opposite corner
-  double n2_, slack_;
-  bool usable_;
+  Vec3 a_, b_, c_;
+  Vec3 n_;
+  Vec3 inward_[3];  // n × edge for edges ab, bc, ca: towards the opposite corner
+  double n2_ = 0, slack_ = 0;
+  bool usable_ = false;
 };
 
 struct Candidate {
@@ -842,7 +834,7 @@ void Builder::collapse(const Chosen& chosen, Scratch& scratch) {
     const float* p = m.position;
     std::uint32_t best_face = kNoNode;
     double best = std::numeric_limits<double>::infinity();
-    double floor2 = 0;
+    const double floor2 = measured * measured;
     auto try_face = [&](std::uint32_t i) {
       // Reached only while best > floor2, so a face within floor2 is the exact answer's choice too.
       if (within[i].within(p, floor2)) {
@@ -853,7 +845,6 @@ void Builder::collapse(const Chosen& chosen, Scratch& scratch) {
       const double d2 = point_triangle_distance_squared(p, position(t[0]), position(t[1]), position(t[2]));
       if (d2 < best) best = d2, best_face = i;
     };
-    floor2 = measured * measured;
     if (m.old_face != kNoNode) try_face(m.old_face);
     for (std::uint32_t i = 0; i < new_faces_.size() && !(best <= floor2); ++i)
       if (i != m.old_face) try_face(i);

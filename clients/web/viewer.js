@@ -203,7 +203,9 @@ async function applyDelta(delta, payload) {
     for (let f = 0; f < delta.added; ++f) {
       for (let k = 0; k < 3; ++k) {
         const v = index[3 * f + k];
-        corners.set([position.getX(v), position.getY(v), position.getZ(v)], 3 * k);
+        corners[3 * k] = position.getX(v);
+        corners[3 * k + 1] = position.getY(v);
+        corners[3 * k + 2] = position.getZ(v);
       }
       keptAdd(ids.getUint32(4 * f, true), corners);
     }

@@ -147,12 +147,14 @@ TEST(AllowedError, FrustumAndBackFaceCoarsening) {
   EXPECT_EQ(out, (std::vector<float>{1.0f, 8.0f, 3.0f, 1.0f}));
 }
 
-// A sphere seen in perspective on a 96² grid, with its silhouette transform.
+// A sphere seen in perspective on a 96² grid, with its silhouette transform and room for a focus
+// transform.
 struct SphereView {
   test::Scene sphere = test::uv_sphere(1.0f, 24, 48);
   ViewMapping mapping;
+  GridSize grid;
   DistanceTransformer transformer;
-  std::vector<std::uint16_t> silhouette;
+  std::vector<std::uint16_t> silhouette, focus;
   SphereView() {
     Camera camera;
     camera.view = glm::lookAt(glm::vec3(0.4f, 0.3f, 3.0f), glm::vec3(0, 0, 0), glm::vec3(0, 1, 0));
@@ -162,6 +164,8 @@ struct SphereView {
     rasterize_occupancy(mapping, sphere.positions, sphere.triangles, occupancy);
     silhouette.resize(occupancy.size());
     transformer.chamfer(DistanceMetric::kChamfer5711, occupancy, mapping.grid(), silhouette);
+    grid = mapping.grid();
+    focus.resize(grid.cell_count());
   }
 };
 
@@ -169,14 +173,8 @@ TEST(AllowedError, LazyVertexEqualsFullArray) {
   // A sphere seen in perspective, silhouette + focus + back-face, pixel bound: every vertex's lazy value
   // equals the full pass bit for bit (same projection arithmetic).
   SphereView view;
-  const test::Scene& sphere = view.sphere;
-  const ViewMapping& mapping = view.mapping;
-  const GridSize grid = mapping.grid();
-  DistanceTransformer& transformer = view.transformer;
-  const std::vector<std::uint16_t>& silhouette = view.silhouette;
-  std::vector<std::uint16_t> focus(grid.cell_count());
-  const std::vector<std::uint32_t> foci = {focus_cell(grid, 0.4f, 0.45f)};
-  transformer.chamfer_from_cells(DistanceMetric::kChamfer5711, foci, grid, focus);
+  const std::vector<std::uint32_t> foci = {focus_cell(view.grid, 0.4f, 0.45f)};
+  view.transformer.chamfer_from_cells(DistanceMetric::kChamfer5711, foci, view.grid, view.focus);
   AllowedErrorOptions options;
   options.error = 1.5f;
   options.units = ErrorUnits::kScreenPixels;
@@ -185,8 +183,9 @@ TEST(AllowedError, LazyVertexEqualsFullArray) {
   options.focus = {FalloffLaw::kFoveal, 0.0f, 0.1f, 0.0f, 2.3f};
   options.back_face_factor = 2.0f;
   AllowedErrorField field;
-  field.bind(mapping, options, {silhouette, focus, {}, sphere.positions, sphere.normals});
-  std::vector<float> full(sphere.vertex_count());
+  field.bind(view.mapping, options,
+             {view.silhouette, view.focus, {}, view.sphere.positions, view.sphere.normals});
+  std::vector<float> full(view.sphere.vertex_count());
   field.compute_all(full);
   std::size_t distinct = 0;
   for (std::uint32_t v = 0; v < full.size(); ++v) {
@@ -201,12 +200,6 @@ TEST(AllowedError, AFieldReusedOverLawsAndFociEqualsAFreshOneEveryTime) {
   // values equal those of a field bound for the first time: same law with foci nearer and farther
   // (larger labels extend the table), then other laws, metrics and fields of view.
   SphereView view;
-  const test::Scene& sphere = view.sphere;
-  const ViewMapping& mapping = view.mapping;
-  const GridSize grid = mapping.grid();
-  DistanceTransformer& transformer = view.transformer;
-  const std::vector<std::uint16_t>& silhouette = view.silhouette;
-  std::vector<std::uint16_t> focus(grid.cell_count());
   struct Step {
     float x, y;
     RegionLaw focus_law;
@@ -224,11 +217,11 @@ TEST(AllowedError, AFieldReusedOverLawsAndFociEqualsAFreshOneEveryTime) {
       {0.45f, 0.5f, foveal, DistanceMetric::kChamfer34, 70.0f},   // another field of view
   };
   AllowedErrorField reused;
-  std::vector<float> kept(sphere.vertex_count()), fresh_values(sphere.vertex_count());
+  std::vector<float> kept(view.sphere.vertex_count()), fresh_values(view.sphere.vertex_count());
   for (std::size_t i = 0; i < steps.size(); ++i) {
     const Step& step = steps[i];
-    const std::vector<std::uint32_t> foci = {focus_cell(grid, step.x, step.y)};
-    transformer.chamfer_from_cells(step.metric, foci, grid, focus);
+    const std::vector<std::uint32_t> foci = {focus_cell(view.grid, step.x, step.y)};
+    view.transformer.chamfer_from_cells(step.metric, foci, view.grid, view.focus);
     AllowedErrorOptions options;
     options.error = 1.5f;
     options.units = ErrorUnits::kScreenPixels;
@@ -237,14 +230,15 @@ TEST(AllowedError, AFieldReusedOverLawsAndFociEqualsAFreshOneEveryTime) {
     options.use_silhouette = true;
     options.use_focus = true;
     options.focus = step.focus_law;
-    const AllowedErrorInputs inputs{silhouette, focus, {}, sphere.positions, {}};
-    reused.bind(mapping, options, inputs);
+    const AllowedErrorInputs inputs{view.silhouette, view.focus, {}, view.sphere.positions, {}};
+    reused.bind(view.mapping, options, inputs);
     reused.compute_all(kept);
     AllowedErrorField fresh;
-    fresh.bind(mapping, options, inputs);
+    fresh.bind(view.mapping, options, inputs);
     fresh.compute_all(fresh_values);
     ASSERT_EQ(kept, fresh_values) << "step " << i;
-    for (std::uint32_t c = 0; c < grid.cell_count(); c += 7) ASSERT_EQ(reused.focus_factor(c), fresh.focus_factor(c));
+    for (std::uint32_t c = 0; c < view.grid.cell_count(); c += 7)
+      ASSERT_EQ(reused.focus_factor(c), fresh.focus_factor(c));
   }
 }
 

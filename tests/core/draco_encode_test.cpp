@@ -129,7 +129,6 @@ TEST(DracoEncoder, AFixedGridDecodesAVertexToTheSameFloatsInEveryPayload) {
       second(m.triangles.begin() + 3 * (n / 3), m.triangles.end());
   std::map<std::array<float, 3>, int> seen;  // decoded position → how many payloads hold it
   std::size_t shared = 0;
-  std::vector<std::vector<float>> decoded_positions;
   for (const auto* cut : {&first, &second}) {
     std::vector<std::uint8_t> bytes;
     ASSERT_TRUE(DracoEncoder().encode({m.positions, {}, {}, *cut}, options, bytes).ok());
