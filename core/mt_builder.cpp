@@ -280,9 +280,6 @@ class Builder {
   };
   bool can_collapse(std::uint32_t u, std::uint32_t v, Stamps& stamps) const;
   void choose_collapses(std::size_t quota);
-  // Orders chosen_ by split vertex u (all distinct) with one scan of the ascending alive vertex
-  // list instead of a comparison sort.
-  void sort_chosen_by_vertex();
   void collapse(const Chosen& chosen, Scratch& scratch);
   void prefetch_fan(std::uint32_t u) const {
     for (std::uint32_t i = adjacency_begin_[u]; i < adjacency_end_[u]; ++i) {
@@ -367,22 +364,8 @@ class Builder {
   std::vector<Scratch> scratch_;
   std::vector<Chosen> chosen_;
   std::vector<Chosen> chosen_scratch_;
-  std::vector<std::uint32_t> chosen_slot_;  // per vertex: 1 + its index in chosen_, or 0
   std::size_t complex_vertices_ = 0;
 };
-
-void Builder::sort_chosen_by_vertex() {
-  if (chosen_slot_.size() != vertex_count_) chosen_slot_.assign(vertex_count_, 0);
-  for (std::size_t i = 0; i < chosen_.size(); ++i) chosen_slot_[chosen_[i].u] = std::uint32_t(i + 1);
-  chosen_scratch_.clear();
-  for (const std::uint32_t u : alive_vertex_list_) {
-    if (chosen_slot_[u] == 0) continue;
-    chosen_scratch_.push_back(chosen_[chosen_slot_[u] - 1]);
-    chosen_slot_[u] = 0;
-  }
-  assert(chosen_scratch_.size() == chosen_.size());
-  chosen_.swap(chosen_scratch_);
-}
 
 void Builder::init_quadrics() {
   float lo[3] = {std::numeric_limits<float>::max(), std::numeric_limits<float>::max(),
@@ -1106,8 +1089,9 @@ Result<Mt> Builder::run(BuildStats* stats) {
     const std::uint32_t triangle = chosen_triangles_end_;
     const std::size_t collapses = chosen_.size();
     // Run the collapses in vertex order: neighbouring collapses then share cache lines, and the
-    // pool's blocks follow the mesh. Tags and triangles keep the cost order.
-    sort_chosen_by_vertex();
+    // pool's blocks follow the mesh. Tags and triangles keep the cost order. (A vertex is u of
+    // at most one collapse.)
+    radix_sort(chosen_, chosen_scratch_, [](const Chosen& c) { return c.u; });
     for (Chosen& c : chosen_) {
       const std::uint32_t count = c.first_point;
       c.first_point = point;
