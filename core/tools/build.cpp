@@ -2,9 +2,11 @@
 // with a progress bar on a terminal and a summary of counts, error, time and size.
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <string>
+#include <thread>
 
 #include "CLI/CLI.hpp"
 #include "core/io/mesh_io.hpp"
@@ -67,7 +69,11 @@ int main(int argc, char** argv) {
     options.progress = draw_bar;
     options.progress_user = &bar;
   }
-  if (!serial) options.parallel_for = mtlod::tools::thread_parallel_for;
+  mtlod::tools::ThreadPool pool(serial ? 1 : std::max(1u, std::thread::hardware_concurrency()));
+  if (!serial) {
+    options.parallel_for = mtlod::tools::ThreadPool::parallel_for;
+    options.parallel_user = &pool;
+  }
   BuildStats stats;
   const auto start = std::chrono::steady_clock::now();
   auto mt = build_mt(mesh, options, &stats);

@@ -52,7 +52,11 @@ void BM_BuildMt(benchmark::State& state) {
   BuildStats stats;
   BuildOptions options;
   // range(0) = 1: the pass's independent work on every core (2 here); the MT is the same as serial.
-  if (state.range(0) == 1) options.parallel_for = mtlod::tools::thread_parallel_for;
+  mtlod::tools::ThreadPool pool;
+  if (state.range(0) == 1) {
+    options.parallel_for = mtlod::tools::ThreadPool::parallel_for;
+    options.parallel_user = &pool;
+  }
   for (auto _ : state) {
     auto mt = build_mt(*mesh, options, &stats);
     benchmark::DoNotOptimize(mt);

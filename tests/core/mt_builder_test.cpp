@@ -219,9 +219,11 @@ TEST(MtBuilder, ConcurrentBuildGivesTheSameFileAsTheSerialOne) {
     ASSERT_TRUE(serial.ok());
     std::vector<std::uint8_t> expected;
     serialize_mt(*serial, expected);
-    for (const ParallelForFn runner : {reversed, ParallelForFn{tools::thread_parallel_for}}) {
+    tools::ThreadPool pool;
+    for (const ParallelForFn runner : {reversed, ParallelForFn{tools::ThreadPool::parallel_for}}) {
       BuildOptions concurrent;
       concurrent.parallel_for = runner;
+      concurrent.parallel_user = &pool;
       auto mt = build_mt(mesh, concurrent);
       ASSERT_TRUE(mt.ok());
       std::vector<std::uint8_t> bytes;
