@@ -30,6 +30,8 @@
 #include <utility>
 #include <vector>
 
+#include "core/bounds.hpp"
+
 namespace mtlod::core {
 namespace {
 
@@ -368,16 +370,9 @@ class Builder {
 };
 
 void Builder::init_quadrics() {
-  float lo[3] = {std::numeric_limits<float>::max(), std::numeric_limits<float>::max(),
-                 std::numeric_limits<float>::max()};
-  float hi[3] = {-lo[0], -lo[1], -lo[2]};
-  for (std::size_t v = 0; v < vertex_count_; ++v) {
-    for (int k = 0; k < 3; ++k) {
-      lo[k] = std::min(lo[k], mesh_.positions[3 * v + k]);
-      hi[k] = std::max(hi[k], mesh_.positions[3 * v + k]);
-    }
-  }
-  const float extent = std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]});
+  const Bounds box = bounds_of(mesh_.positions);
+  const std::array<float, 3>& lo = box.lo;
+  const float extent = box.largest_side();
   // Quadrics in float lose precision on large coordinates; the unit box keeps them well scaled.
   const float scale = extent > 0 ? 1.0f / extent : 1.0f;
   unit_positions_.resize(3 * vertex_count_);

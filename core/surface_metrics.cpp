@@ -6,6 +6,8 @@
 #include <cmath>
 #include <limits>
 
+#include "core/bounds.hpp"
+
 namespace mtlod::core {
 namespace {
 
@@ -142,13 +144,8 @@ TriangleIndex::TriangleIndex(std::span<const float> positions, std::span<const s
   stamp_.assign(count, 0);
   cell_offsets_.assign(2, 0);
   if (count == 0) return;
-  double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-  for (const std::uint32_t v : triangles) {
-    for (int c = 0; c < 3; ++c) {
-      lo[c] = std::min<double>(lo[c], positions[3 * std::size_t{v} + c]);
-      hi[c] = std::max<double>(hi[c], positions[3 * std::size_t{v} + c]);
-    }
-  }
+  const Bounds box = bounds_of(positions, triangles);
+  const double lo[3] = {box.lo[0], box.lo[1], box.lo[2]}, hi[3] = {box.hi[0], box.hi[1], box.hi[2]};
   // Cubic cells sized to the triangles (twice the square root of the mean area), so a cell on the
   // surface holds a few triangles whatever the volume around the surface; the cell count is capped
   // at 8 per triangle (and 1024 per side) by growing the cells.

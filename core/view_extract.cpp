@@ -5,6 +5,7 @@
 #include <cassert>
 #include <cmath>
 
+#include "core/bounds.hpp"
 #include "core/labels.hpp"
 #include "core/occupancy.hpp"
 
@@ -25,19 +26,9 @@ void to_fifths_of_pixel(std::span<const std::uint32_t> squared, std::span<std::u
 
 ViewExtractor::ViewExtractor(const Mt& mt, const OccupancyLevels& levels) : mt_(mt), levels_(levels) {
   // Bounding sphere (box centre and half diagonal): enough to pick the occupancy cut's error.
-  float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-  for (std::size_t v = 0; v < mt.vertex_count(); ++v) {
-    for (int c = 0; c < 3; ++c) {
-      lo[c] = std::min(lo[c], mt.positions[3 * v + c]);
-      hi[c] = std::max(hi[c], mt.positions[3 * v + c]);
-    }
-  }
-  float r2 = 0;
-  for (int c = 0; c < 3; ++c) {
-    centre_[c] = 0.5f * (lo[c] + hi[c]);
-    r2 += 0.25f * (hi[c] - lo[c]) * (hi[c] - lo[c]);
-  }
-  radius_ = std::sqrt(r2);
+  const Bounds box = bounds_of(mt.positions);
+  for (int c = 0; c < 3; ++c) centre_[c] = box.centre()[c];
+  radius_ = box.radius();
 }
 
 std::size_t ViewSession::memory_bytes() const {

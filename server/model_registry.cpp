@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cmath>
 
+#include "core/bounds.hpp"
 #include "core/io/mesh_io.hpp"
 #include "core/io/mt_file.hpp"
 #include "core/mt_builder.hpp"
@@ -38,14 +39,9 @@ std::unique_ptr<Model> describe(std::string name, fs::path path, core::Mt mt) {
   const core::Mt& m = model->mt;
   model->occupancy = std::make_unique<core::OccupancyLevels>(m);
   model->memory_bytes = m.memory_bytes() + model->occupancy->memory_bytes();
-  model->bounds_min = {INFINITY, INFINITY, INFINITY};
-  model->bounds_max = {-INFINITY, -INFINITY, -INFINITY};
-  for (std::size_t v = 0; v < m.vertex_count(); ++v) {
-    for (int c = 0; c < 3; ++c) {
-      model->bounds_min[c] = std::min(model->bounds_min[c], m.positions[3 * v + c]);
-      model->bounds_max[c] = std::max(model->bounds_max[c], m.positions[3 * v + c]);
-    }
-  }
+  const core::Bounds box = core::bounds_of(m.positions);
+  model->bounds_min = box.lo;
+  model->bounds_max = box.hi;
   // The full-resolution mesh is the set of triangles no node removes.
   model->input_triangles = static_cast<std::size_t>(
       std::count(m.triangle_remover.begin(), m.triangle_remover.end(), core::kNoNode));

@@ -25,6 +25,7 @@
 #include <glm/geometric.hpp>
 
 #include "CLI/CLI.hpp"
+#include "core/bounds.hpp"
 #include "core/io/image_io.hpp"
 #include "core/io/mesh_io.hpp"
 #include "core/io/mt_file.hpp"
@@ -47,22 +48,6 @@ namespace fs = std::filesystem;
 
 using Clock = std::chrono::steady_clock;
 double seconds_since(Clock::time_point start) { return std::chrono::duration<double>(Clock::now() - start).count(); }
-
-struct Bounds {
-  glm::vec3 lo{INFINITY}, hi{-INFINITY};
-  glm::vec3 centre() const { return 0.5f * (lo + hi); }
-  float radius() const { return 0.5f * glm::length(hi - lo); }
-  float diagonal() const { return glm::length(hi - lo); }
-};
-
-Bounds bounds_of(std::span<const float> positions) {
-  Bounds b;
-  for (std::size_t v = 0; v < positions.size() / 3; ++v) {
-    const glm::vec3 p(positions[3 * v], positions[3 * v + 1], positions[3 * v + 2]);
-    b.lo = glm::min(b.lo, p), b.hi = glm::max(b.hi, p);
-  }
-  return b;
-}
 
 // A perspective camera; fails on a degenerate or non-finite setup with a message naming the flag.
 Result<Camera> make_camera(const std::array<double, 3>& eye, const std::array<double, 3>& target,
@@ -90,8 +75,9 @@ Camera orbit_camera(const Bounds& b, int k, int n) {
   const double azimuth = 2.0 * M_PI * k / n, elevation = glm::radians(k % 2 == 0 ? 25.0 : -10.0);
   const double fov = 40.0, distance = b.radius() / std::sin(glm::radians(fov / 2)) / 0.9;
   const glm::vec3 dir(std::cos(elevation) * std::sin(azimuth), std::sin(elevation), std::cos(elevation) * std::cos(azimuth));
-  const glm::vec3 eye = b.centre() + float(distance) * dir;
-  auto camera = make_camera({eye.x, eye.y, eye.z}, {b.centre().x, b.centre().y, b.centre().z}, {0, 1, 0}, fov,
+  const std::array<float, 3> c = b.centre();
+  const glm::vec3 eye = glm::vec3(c[0], c[1], c[2]) + float(distance) * dir;
+  auto camera = make_camera({eye.x, eye.y, eye.z}, {c[0], c[1], c[2]}, {0, 1, 0}, fov,
                             std::max(1e-3 * distance, distance - 2.0 * b.radius()), distance + 2.0 * b.radius());
   return *camera;  // never degenerate: the direction is never parallel to +y
 }
@@ -153,7 +139,7 @@ int run_silhouette(const std::string& a_path, const std::string& b_path, const C
   if (f.size == 0 || f.size > kMaxGridSide)
     return fmt::print(stderr, "mtlod-eval: --size {} is outside [1, {}]\n", f.size, kMaxGridSide), 2;
   const Bounds bounds = bounds_of(a->positions);
-  std::array<double, 3> eye, target{bounds.centre().x, bounds.centre().y, bounds.centre().z}, up{f.up[0], f.up[1], f.up[2]};
+  std::array<double, 3> eye, target{bounds.centre()[0], bounds.centre()[1], bounds.centre()[2]}, up{f.up[0], f.up[1], f.up[2]};
   if (f.eye.empty()) {
     const double d = bounds.radius() / std::sin(glm::radians(f.fov / 2)) / 0.9;
     eye = {target[0], target[1], target[2] + d};

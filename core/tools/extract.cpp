@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "CLI/CLI.hpp"
+#include "core/bounds.hpp"
 #include "core/draco_encode.hpp"
 #include "core/io/image_io.hpp"
 #include "core/io/mesh_io.hpp"
@@ -126,13 +127,8 @@ int main(int argc, char** argv) {
   std::unique_ptr<ViewExtractor> extractor;
   double refine_s = 0;
   if (view) {
-    std::array<double, 3> lo{INFINITY, INFINITY, INFINITY}, hi{-INFINITY, -INFINITY, -INFINITY};
-    for (std::size_t v = 0; v < mt->vertex_count(); ++v) {
-      for (int c = 0; c < 3; ++c) {
-        lo[c] = std::min<double>(lo[c], mt->positions[3 * v + c]);
-        hi[c] = std::max<double>(hi[c], mt->positions[3 * v + c]);
-      }
-    }
+    const Bounds box = bounds_of(mt->positions);
+    const std::array<double, 3> lo{box.lo[0], box.lo[1], box.lo[2]}, hi{box.hi[0], box.hi[1], box.hi[2]};
     auto made = mtlod::protocol::make_extract(options.view, options.model, lo, hi);
     if (!made) {
       fmt::print(stderr, "mtlod-extract: {}\n", made.error().message);

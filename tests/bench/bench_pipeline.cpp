@@ -12,6 +12,7 @@
 #include <random>
 #include <memory>
 
+#include "core/bounds.hpp"
 #include "core/cut_delta.hpp"
 #include "core/draco_encode.hpp"
 #include "core/io/mesh_io.hpp"
@@ -56,14 +57,8 @@ const Model* model(const std::string& name) {
   slot = std::make_unique<Model>();
   slot->mt = std::move(*mt);
   slot->levels = std::make_unique<core::OccupancyLevels>(slot->mt);
-  slot->lo = {INFINITY, INFINITY, INFINITY};
-  slot->hi = {-INFINITY, -INFINITY, -INFINITY};
-  for (std::size_t v = 0; v < slot->mt.vertex_count(); ++v) {
-    for (int c = 0; c < 3; ++c) {
-      slot->lo[c] = std::min<double>(slot->lo[c], slot->mt.positions[3 * v + c]);
-      slot->hi[c] = std::max<double>(slot->hi[c], slot->mt.positions[3 * v + c]);
-    }
-  }
+  const core::Bounds box = core::bounds_of(slot->mt.positions);
+  for (int c = 0; c < 3; ++c) slot->lo[c] = box.lo[c], slot->hi[c] = box.hi[c];
   return slot.get();
 }
 

@@ -10,6 +10,7 @@
 #include <map>
 #include <unordered_map>
 
+#include "core/bounds.hpp"
 #include "core/draco_decode.hpp"
 #include "core/mesh_gen.hpp"
 #include "tests/core/googles_draco_decoder.hpp"
@@ -114,15 +115,9 @@ TEST(DracoEncoder, AFixedGridDecodesAVertexToTheSameFloatsInEveryPayload) {
   options.method = DracoMethod::kSequential;
   options.entropy_coding = false;
   DracoOptions::Grid grid;
-  std::array<float, 3> hi{-INFINITY, -INFINITY, -INFINITY};
-  grid.origin = {INFINITY, INFINITY, INFINITY};
-  for (std::size_t v = 0; v < m.vertex_count(); ++v) {
-    for (int c = 0; c < 3; ++c) {
-      grid.origin[c] = std::min(grid.origin[c], m.positions[3 * v + c]);
-      hi[c] = std::max(hi[c], m.positions[3 * v + c]);
-    }
-  }
-  for (int c = 0; c < 3; ++c) grid.range = std::max(grid.range, hi[c] - grid.origin[c]);
+  const Bounds box = bounds_of(m.positions);
+  grid.origin = box.lo;
+  grid.range = box.largest_side();
   options.position_grid = grid;
   const std::size_t n = m.triangle_count();
   const std::vector<std::uint32_t> first(m.triangles.begin(), m.triangles.begin() + 3 * (2 * n / 3)),

@@ -12,6 +12,8 @@
 #include <unordered_map>
 #include <vector>
 
+#include "core/bounds.hpp"
+
 namespace mtlod::test {
 
 // For each decoded vertex, the id (among `candidates`) of the nearest model vertex by max-norm;
@@ -66,14 +68,7 @@ inline std::vector<std::array<std::uint32_t, 3>> canonical_triangles(std::span<c
 
 // Largest side of the bounding box of the vertices `triangles` use.
 inline float used_extent(std::span<const float> positions, std::span<const std::uint32_t> triangles) {
-  float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-  for (std::uint32_t v : triangles) {
-    for (int c = 0; c < 3; ++c) {
-      lo[c] = std::min(lo[c], positions[3 * std::size_t{v} + c]);
-      hi[c] = std::max(hi[c], positions[3 * std::size_t{v} + c]);
-    }
-  }
-  return std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]});
+  return core::bounds_of(positions, triangles).largest_side();
 }
 
 // Draco quantizes over the encoded vertices' largest extent: one step is extent / (2^bits − 1), and

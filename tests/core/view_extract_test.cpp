@@ -12,6 +12,7 @@
 #include <random>
 #include <set>
 
+#include "core/bounds.hpp"
 #include "core/distance_transform.hpp"
 #include "core/io/mesh_io.hpp"
 #include "core/labels.hpp"
@@ -46,13 +47,9 @@ std::unique_ptr<Built> build(Mesh mesh) {
 
 // A perspective camera looking at the mesh's bounding-box centre from +z, the whole mesh in view.
 Camera front_camera(const Mesh& m, float aspect) {
-  glm::vec3 lo(INFINITY), hi(-INFINITY);
-  for (std::size_t v = 0; v < m.vertex_count(); ++v) {
-    const glm::vec3 p(m.positions[3 * v], m.positions[3 * v + 1], m.positions[3 * v + 2]);
-    lo = glm::min(lo, p), hi = glm::max(hi, p);
-  }
-  const glm::vec3 centre = 0.5f * (lo + hi);
-  const float radius = 0.5f * glm::length(hi - lo);
+  const Bounds box = bounds_of(m.positions);
+  const glm::vec3 centre(box.centre()[0], box.centre()[1], box.centre()[2]);
+  const float radius = box.radius();
   const float distance = 1.1f * radius / std::sin(glm::radians(22.5f));
   Camera c;
   c.view = glm::lookAt(centre + glm::vec3(0, 0, distance), centre, glm::vec3(0, 1, 0));

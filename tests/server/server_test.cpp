@@ -9,6 +9,7 @@
 
 #include "clients/common/connection.hpp"
 #include "clients/common/delta_mesh.hpp"
+#include "core/bounds.hpp"
 #include "core/draco_decode.hpp"
 #include "core/io/mesh_io.hpp"
 #include "core/io/mt_file.hpp"
@@ -85,10 +86,8 @@ class ServerTest : public testing::Test {
   static protocol::Extract extract_request(double focus_x = 0.5, double focus_y = 0.5) {
     protocol::Extract e;
     e.model = "bunny";
-    std::array<double, 3> lo{INFINITY, INFINITY, INFINITY}, hi{-INFINITY, -INFINITY, -INFINITY};
-    const core::Mt& mt = g_fixture->mt;
-    for (std::size_t v = 0; v < mt.vertex_count(); ++v)
-      for (int c = 0; c < 3; ++c) lo[c] = std::min<double>(lo[c], mt.positions[3 * v + c]), hi[c] = std::max<double>(hi[c], mt.positions[3 * v + c]);
+    const core::Bounds box = core::bounds_of(g_fixture->mt.positions);
+    const std::array<double, 3> lo{box.lo[0], box.lo[1], box.lo[2]}, hi{box.hi[0], box.hi[1], box.hi[2]};
     protocol::look_at_camera(protocol::frame_bounds(lo, hi), 4.0 / 3.0, e.view, e.projection);
     e.grid = {128, 96};
     e.error = 2;
