@@ -43,6 +43,10 @@ constexpr std::uint32_t kMaxFan = 64;
 // Concurrent phases split their range into at most kChunks chunks of at least kMinChunk items.
 constexpr std::size_t kChunks = 16;
 constexpr std::size_t kMinChunk = 2048;
+// Collapse chunks: a collapse's fixed cost in moved-point equivalents, and the least work a chunk
+// of collapses gets (about 0.2 ms on the 2-core VM).
+constexpr std::size_t kFanWork = 16;
+constexpr std::size_t kMinChunkWork = 4096;
 // How far ahead loops over scattered vertices prefetch.
 constexpr std::size_t kPrefetchAhead = 8;
 // How far ahead of the chooser the guesser starts when it falls behind.
@@ -366,6 +370,7 @@ class Builder {
   std::vector<Scratch> scratch_;
   std::vector<Chosen> chosen_;
   std::vector<Chosen> chosen_scratch_;
+  std::vector<std::size_t> collapse_chunk_begin_;  // chunk k of the pass's collapses starts here
   std::size_t complex_vertices_ = 0;
 };
 
@@ -1087,18 +1092,32 @@ Result<Mt> Builder::run(BuildStats* stats) {
     // pool's blocks follow the mesh. Tags and triangles keep the cost order. (A vertex is u of
     // at most one collapse.)
     radix_sort(chosen_, chosen_scratch_, [](const Chosen& c) { return c.u; });
-    for (Chosen& c : chosen_) {
+    // Collapses are chunked by work, not by count: the late passes make a few hundred collapses
+    // that each move thousands of assigned points. A collapse costs about as much as moving
+    // kFanWork points, besides the points it moves.
+    std::size_t total_work = 0;
+    for (const Chosen& c : chosen_) total_work += c.first_point + kFanWork;  // first_point: the count so far
+    const std::size_t chunks = std::clamp<std::size_t>(total_work / kMinChunkWork, 1, kChunks);
+    collapse_chunk_begin_.assign(1, 0);
+    std::size_t work = 0;
+    for (std::size_t i = 0; i < chosen_.size(); ++i) {
+      Chosen& c = chosen_[i];
+      work += c.first_point + kFanWork;
+      if (collapse_chunk_begin_.size() < chunks && work * chunks >= collapse_chunk_begin_.size() * total_work)
+        collapse_chunk_begin_.push_back(i + 1);
       const std::uint32_t count = c.first_point;
       c.first_point = point;
       point += count;
     }
+    collapse_chunk_begin_.push_back(chosen_.size());
     collapse_u_.resize(tag - 1);
     collapse_error_.resize(tag - 1);
     mt_vertices_.resize(3 * std::size_t{triangle});
     mt_made_by_.resize(triangle);
     mt_killed_by_.resize(triangle);
     points_.resize(3 * std::size_t{point});
-    for_chunks(collapses, [&](std::size_t chunk, std::size_t begin, std::size_t end) {
+    for_ranges(collapse_chunk_begin_.size() - 1, [&](std::size_t chunk) {
+      const std::size_t begin = collapse_chunk_begin_[chunk], end = collapse_chunk_begin_[chunk + 1];
       for (std::size_t i = begin; i < end; ++i) {
         // The collapses' data is scattered: ask for the next ones' early, in stages that each
         // read what the stage before fetched.
