@@ -9,6 +9,7 @@
 #include "core/io/mesh_io.hpp"
 #include "core/io/mt_file.hpp"
 #include "core/mt_builder.hpp"
+#include "core/tools/parallel_for.hpp"
 #include "fmt/format.h"
 #include "spdlog/spdlog.h"
 
@@ -85,7 +86,12 @@ Status ModelRegistry::add_mesh(const fs::path& mesh, const fs::path& mt_path) {
     const auto start = std::chrono::steady_clock::now();
     MTLOD_TRY(core::io::LoadedMesh loaded, core::io::load_mesh(mesh));
     core::BuildStats stats;
-    MTLOD_TRY(core::Mt mt, core::build_mt(loaded.mesh, {}, &stats));
+    // Built before the server serves anyone: every core helps (the MT is the same as serial).
+    tools::ThreadPool pool;
+    core::BuildOptions options;
+    options.parallel_for = tools::ThreadPool::parallel_for;
+    options.parallel_user = &pool;
+    MTLOD_TRY(core::Mt mt, core::build_mt(loaded.mesh, options, &stats));
     fs::create_directories(mt_path.parent_path(), ec);
     MTLOD_TRY(std::uint64_t bytes, core::io::write_mt_file(mt_path, mt));
     spdlog::info("built {} from {}: {} triangles → {} root triangles, {} nodes, {:.1f} MiB, {:.2f} s", mt_path.string(),
