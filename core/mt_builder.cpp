@@ -277,6 +277,10 @@ class Builder {
   // Calls body(i) for i in [0, count), concurrently when options_.parallel_for is set.
   template <class Body>
   void for_ranges(std::size_t count, const Body& body);
+  // Drops the items keep(item, half) refuses from list, keeping the order; the two halves of the
+  // list are visited concurrently. Returns how many of the kept items came from the first half.
+  template <class Keep>
+  std::size_t filter_in_halves(std::vector<std::uint32_t>& list, const Keep& keep);
   VertexKind classify(std::uint32_t u, std::uint32_t& boundary_next, std::uint32_t& boundary_prev) const;
   void find_partner(std::uint32_t u, const std::uint32_t* boundary_ends);
   // Scratch marks of can_collapse, one set per thread that calls it.
@@ -342,7 +346,7 @@ class Builder {
   std::vector<std::uint32_t> adjacency_begin_;
   std::vector<std::uint32_t> adjacency_end_;
   std::vector<std::uint32_t> second_half_;  // build_adjacency's counts and cursors of its second half
-  std::vector<Corner> adjacency_;
+  GrowOnlyVector<Corner> adjacency_;
   std::vector<std::uint32_t> alive_face_list_;
   std::vector<std::uint32_t> alive_vertex_list_;  // used by an alive face (may lag one pass)
   std::vector<std::uint8_t> vertex_dead_;
@@ -458,33 +462,42 @@ Quadric Builder::gather_quadric(std::uint32_t u) const {
   return q;
 }
 
-void Builder::build_adjacency() {
-  // Only what is alive is visited, so late passes over a small mesh cost little.
-  std::size_t kept = 0;
-  for (const std::uint32_t f : alive_face_list_)
-    if (face_alive_[f]) alive_face_list_[kept++] = f;
-  alive_face_list_.resize(kept);
-  kept = 0;
-  for (const std::uint32_t v : alive_vertex_list_)
-    if (!vertex_dead_[v]) alive_vertex_list_[kept++] = v;
-  alive_vertex_list_.resize(kept);
-
-  // Two halves of the face list are counted and placed concurrently, each with its own counts
-  // (adjacency_end_ and second_half_), so every vertex lists its faces in face order: the first
-  // half's, then the second's.
-  for (const std::uint32_t v : alive_vertex_list_) adjacency_end_[v] = 0, second_half_[v] = 0;
-  const std::size_t faces = alive_face_list_.size();
-  auto each_corner = [&](std::size_t half, auto&& body) {
-    for (std::size_t i = faces * half / 2; i < faces * (half + 1) / 2; ++i) {
-      const std::uint32_t f = alive_face_list_[i];
-      const std::uint32_t* t = &working_[3 * std::size_t{f}];
-      for (int k = 0; k < 3; ++k) body(f, t, k);
-    }
-  };
-  auto counts = [&](std::size_t half) { return half == 0 ? adjacency_end_.data() : second_half_.data(); };
+template <class Keep>
+std::size_t Builder::filter_in_halves(std::vector<std::uint32_t>& list, const Keep& keep) {
+  // Each half keeps its survivors at the start of its own range (so the halves never write each
+  // other's items), then the second half's are moved down behind the first's.
+  const std::size_t count = list.size(), middle = count / 2;
+  std::size_t kept[2];
   for_ranges(2, [&](std::size_t half) {
+    const std::size_t begin = half == 0 ? 0 : middle, end = half == 0 ? middle : count;
+    std::size_t out = begin;
+    for (std::size_t i = begin; i < end; ++i)
+      if (keep(list[i], half)) list[out++] = list[i];
+    kept[half] = out - begin;
+  });
+  if (kept[0] != middle) std::copy(list.begin() + middle, list.begin() + middle + kept[1], list.begin() + kept[0]);
+  list.resize(kept[0] + kept[1]);
+  return kept[0];
+}
+
+void Builder::build_adjacency() {
+  // Only what is alive is visited, so late passes over a small mesh cost little. The surviving
+  // vertices get both their counts cleared on the way.
+  filter_in_halves(alive_vertex_list_, [&](std::uint32_t v, std::size_t) {
+    if (vertex_dead_[v]) return false;
+    adjacency_end_[v] = 0, second_half_[v] = 0;
+    return true;
+  });
+  // Two halves of the face list are filtered, counted and placed concurrently, each with its own
+  // counts (adjacency_end_ and second_half_), so every vertex lists its faces in face order: the
+  // first half's, then the second's.
+  auto counts = [&](std::size_t half) { return half == 0 ? adjacency_end_.data() : second_half_.data(); };
+  const std::size_t split = filter_in_halves(alive_face_list_, [&](std::uint32_t f, std::size_t half) {
+    if (!face_alive_[f]) return false;
     std::uint32_t* count = counts(half);
-    each_corner(half, [&](std::uint32_t, const std::uint32_t* t, int k) { ++count[t[k]]; });
+    const std::uint32_t* t = &working_[3 * std::size_t{f}];
+    ++count[t[0]], ++count[t[1]], ++count[t[2]];
+    return true;
   });
   std::uint32_t total = 0;
   for (const std::uint32_t v : alive_vertex_list_) {
@@ -494,12 +507,15 @@ void Builder::build_adjacency() {
     second_half_[v] = total + first;     // where the second half's go
     total += first + second;
   }
-  adjacency_.resize(total);
+  adjacency_.resize(total);  // not filled: the halves write every slot
   for_ranges(2, [&](std::size_t half) {
     std::uint32_t* cursor = counts(half);
-    each_corner(half, [&](std::uint32_t f, const std::uint32_t* t, int k) {
-      adjacency_[cursor[t[k]]++] = {f, t[(k + 1) % 3], t[(k + 2) % 3]};
-    });
+    const std::size_t begin = half == 0 ? 0 : split, end = half == 0 ? split : alive_face_list_.size();
+    for (std::size_t i = begin; i < end; ++i) {
+      const std::uint32_t f = alive_face_list_[i];
+      const std::uint32_t* t = &working_[3 * std::size_t{f}];
+      for (int k = 0; k < 3; ++k) adjacency_[cursor[t[k]]++] = {f, t[(k + 1) % 3], t[(k + 2) % 3]};
+    }
   });
   // The second half's cursors stopped at the end of each list.
   for (const std::uint32_t v : alive_vertex_list_) adjacency_end_[v] = second_half_[v];
