@@ -72,9 +72,11 @@ struct DefaultInitAllocator : std::allocator<T> {
 template <class T>
 using GrowOnlyVector = std::vector<T, DefaultInitAllocator<T>>;
 
+// Zero when value-initialised (Quadric{}); left unset by default so big arrays of them are not
+// filled on one thread before the concurrent loop that writes them.
 struct Quadric {
-  float a00 = 0, a01 = 0, a02 = 0, a11 = 0, a12 = 0, a22 = 0;
-  float b0 = 0, b1 = 0, b2 = 0, c = 0;
+  float a00, a01, a02, a11, a12, a22;
+  float b0, b1, b2, c;
 };
 
 void add_plane(Quadric& q, float nx, float ny, float nz, float d, float w) {
@@ -248,7 +250,7 @@ class Builder {
   struct Plane {
     float nx, ny, nz, d, w;
   };
-  std::vector<Plane> face_planes_;  // while the quadrics are built: each face's plane and weight
+  GrowOnlyVector<Plane> face_planes_;  // while the quadrics are built: each face's plane and weight
   void build_adjacency();
   // Per-chunk scratch of the concurrent phases.
   struct Moving {
@@ -320,8 +322,8 @@ class Builder {
   std::size_t face_count_ = 0;
   std::size_t alive_faces_ = 0;
 
-  std::vector<float> unit_positions_;  // positions scaled to the unit box, for quadrics
-  std::vector<Quadric> quadrics_;
+  GrowOnlyVector<float> unit_positions_;  // positions scaled to the unit box, for quadrics
+  GrowOnlyVector<Quadric> quadrics_;
   std::vector<std::uint32_t> working_;  // 3 vertex ids per face slot
   std::vector<std::uint8_t> face_alive_;
   std::vector<std::uint32_t> face_mt_;  // MT triangle currently in each face slot
@@ -387,8 +389,10 @@ void Builder::init_quadrics() {
   // Quadrics in float lose precision on large coordinates; the unit box keeps them well scaled.
   const float scale = extent > 0 ? 1.0f / extent : 1.0f;
   unit_positions_.resize(3 * vertex_count_);
-  for (std::size_t v = 0; v < vertex_count_; ++v)
-    for (int k = 0; k < 3; ++k) unit_positions_[3 * v + k] = (mesh_.positions[3 * v + k] - lo[k]) * scale;
+  for_chunks(vertex_count_, [&](std::size_t, std::size_t begin, std::size_t end) {
+    for (std::size_t v = begin; v < end; ++v)
+      for (int k = 0; k < 3; ++k) unit_positions_[3 * v + k] = (mesh_.positions[3 * v + k] - lo[k]) * scale;
+  });
 
   // Face planes first, one per face (faces run concurrently); then each vertex sums its own from
   // its fan (vertices run concurrently). Fans list their faces in face order, and each vertex adds
@@ -410,15 +414,16 @@ void Builder::init_quadrics() {
       face_planes_[f] = {nx, ny, nz, -(nx * p0[0] + ny * p0[1] + nz * p0[2]), float(length * 0.5)};
     }
   });
-  quadrics_.assign(vertex_count_, Quadric{});
-  for_chunks(alive_vertex_list_.size(), [&](std::size_t, std::size_t begin, std::size_t end) {
-    for (std::size_t i = begin; i < end; ++i) quadrics_[alive_vertex_list_[i]] = gather_quadric(alive_vertex_list_[i]);
+  // Every vertex, used or not: a vertex without faces gets the zero quadric.
+  quadrics_.resize(vertex_count_);
+  for_chunks(vertex_count_, [&](std::size_t, std::size_t begin, std::size_t end) {
+    for (std::size_t v = begin; v < end; ++v) quadrics_[v] = gather_quadric(std::uint32_t(v));
   });
-  std::vector<Plane>().swap(face_planes_);
+  GrowOnlyVector<Plane>().swap(face_planes_);
 }
 
 Quadric Builder::gather_quadric(std::uint32_t u) const {
-  Quadric q;
+  Quadric q{};
   const std::uint32_t begin = adjacency_begin_[u], end = adjacency_end_[u];
   // A face that holds u twice is listed twice in a row; it has no area, so it adds no face plane,
   // and its boundary edges are visited once through its first listing.
