@@ -269,7 +269,7 @@ class Builder {
   // chunk runs when.
   struct Chosen {
     std::uint32_t u, v, tag, first_triangle;
-    std::uint32_t first_point;  // while choosing: the number of points the collapse moves
+    std::uint32_t first_point;  // until the collapses are placed: the number of points moved
   };
 
   // Calls body(chunk, begin, end) over [0, count) split into at most kChunks ranges, concurrently
@@ -738,7 +738,7 @@ void Builder::choose_collapses(std::size_t quota) {
       }
       const std::uint8_t verdict = std::atomic_ref<std::uint8_t>(verdicts_[i]).load(std::memory_order_relaxed);
       if (verdict == 2 || (verdict == 0 && !can_collapse(c.u, c.v, chooser_stamps_))) continue;
-      chosen_.push_back({c.u, c.v, tag++, triangle, 1});  // u joins the points assigned to faces
+      chosen_.push_back({c.u, c.v, tag++, triangle, 1});  // u joins the points (its fan's: counted later)
       for (const std::uint32_t x : {c.u, c.v}) {
         touch(x);
         set_target(x, kNoNode);
@@ -753,7 +753,6 @@ void Builder::choose_collapses(std::size_t quota) {
       };
       for (std::uint32_t j = adjacency_begin_[c.u]; j < adjacency_end_[c.u]; ++j) {
         const Corner& t = adjacency_[j];  // the face (u, next, prev)
-        chosen_.back().first_point += face_points_[t.face];
         ring_touch(t.next);
         ring_touch(t.prev);
         if (t.next == c.v || t.prev == c.v)
@@ -1134,8 +1133,17 @@ Result<Mt> Builder::run(BuildStats* stats) {
     // Collapses are chunked by work, not by count: the late passes make a few hundred collapses
     // that each move thousands of assigned points. A collapse costs about as much as moving
     // kFanWork points, besides the points it moves.
+    // The points each collapse moves are counted here, concurrently (in the serial chooser each
+    // count was a cache miss per face).
+    for_chunks(chosen_.size(), [&](std::size_t, std::size_t begin, std::size_t end) {
+      for (std::size_t i = begin; i < end; ++i) {
+        Chosen& c = chosen_[i];
+        for (std::uint32_t j = adjacency_begin_[c.u]; j < adjacency_end_[c.u]; ++j)
+          c.first_point += face_points_[adjacency_[j].face];
+      }
+    });
     std::size_t total_work = 0;
-    for (const Chosen& c : chosen_) total_work += c.first_point + kFanWork;  // first_point: the count so far
+    for (const Chosen& c : chosen_) total_work += c.first_point + kFanWork;
     const std::size_t chunks = std::clamp<std::size_t>(total_work / kMinChunkWork, 1, kChunks);
     collapse_chunk_begin_.assign(1, 0);
     std::size_t work = 0;
