@@ -730,6 +730,22 @@ void Builder::choose_collapses(std::size_t quota) {
         __builtin_prefetch(&touched_[ahead.v]);
         __builtin_prefetch(&adjacency_begin_[ahead.u]);
         __builtin_prefetch(&adjacency_begin_[ahead.v]);
+        __builtin_prefetch(&adjacency_end_[ahead.u]);
+      }
+      // A chosen candidate marks its fan's corners: fetch, in stages, the fan of a nearer one
+      // and then the marks of its corners (a candidate always has a face).
+      if (i + kPrefetchAhead / 2 < candidates_.size()) {
+        const Candidate& ahead = candidates_[i + kPrefetchAhead / 2];
+        __builtin_prefetch(&adjacency_[adjacency_begin_[ahead.u]]);
+        __builtin_prefetch(&adjacency_[adjacency_end_[ahead.u] - 1]);
+      }
+      if (i + 2 < candidates_.size()) {
+        const Candidate& ahead = candidates_[i + 2];
+        if (!is_touched(ahead.u))
+          for (std::uint32_t j = adjacency_begin_[ahead.u]; j < adjacency_end_[ahead.u]; ++j) {
+            __builtin_prefetch(&touched_[adjacency_[j].next]);
+            __builtin_prefetch(&ring_target_[adjacency_[j].next]);
+          }
       }
       const Candidate& c = candidates_[i];
       if (blocked(c)) {
