@@ -789,6 +789,18 @@ void Builder::choose_collapses(std::size_t quota) {
       const std::size_t at = chooser_at.load(std::memory_order_relaxed);
       if (i <= at) i = at + kGuessLead;
       if (i >= end) break;
+      if (i + kPrefetchAhead < end) {
+        const Candidate& ahead = candidates_[i + kPrefetchAhead];
+        for (const std::uint32_t x : {ahead.u, ahead.v}) {
+          __builtin_prefetch(&adjacency_begin_[x]);
+          __builtin_prefetch(&adjacency_end_[x]);
+          __builtin_prefetch(position(x));
+        }
+      }
+      if (i + kPrefetchAhead / 2 < end) {
+        const Candidate& ahead = candidates_[i + kPrefetchAhead / 2];
+        for (const std::uint32_t x : {ahead.u, ahead.v}) __builtin_prefetch(&adjacency_[adjacency_begin_[x]]);
+      }
       const Candidate& c = candidates_[i];
       if (blocked(c)) continue;
       const std::uint8_t verdict = can_collapse(c.u, c.v, guesser_stamps_) ? 1 : 2;
