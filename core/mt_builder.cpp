@@ -1071,41 +1071,46 @@ Result<Mt> Builder::run(BuildStats* stats) {
                                                          std::to_string(mesh_.triangles[i]) +
                                                          " >= vertex count " + std::to_string(vertex_count_));
 
-  working_ = mesh_.triangles;
-  face_alive_.assign(face_count_, 1);
   alive_faces_ = face_count_;
-  face_mt_.resize(face_count_);
-  face_error_.assign(face_count_, 0.0f);
-  mt_made_by_.reserve(3 * face_count_);
-  mt_killed_by_.reserve(3 * face_count_);
-  mt_vertices_.reserve(9 * face_count_);
-  for (std::size_t f = 0; f < face_count_; ++f) face_mt_[f] = std::uint32_t(f);
-  mt_vertices_.assign(mesh_.triangles.begin(), mesh_.triangles.end());
-  mt_made_by_.assign(face_count_, 0);
-  mt_killed_by_.assign(face_count_, 0);
-  collapse_u_.reserve(vertex_count_);
-  collapse_error_.reserve(vertex_count_);
-  kind_.assign(vertex_count_, kUnused);
-  face_first_point_.assign(face_count_, 0);
-  face_points_.assign(face_count_, 0);
-  adjacency_begin_.assign(vertex_count_, 0);
-  adjacency_end_.assign(vertex_count_, 0);
-  second_half_.assign(vertex_count_, 0);
-  vertex_dead_.assign(vertex_count_, 0);
   alive_face_list_.resize(face_count_);
-  for (std::size_t f = 0; f < face_count_; ++f) alive_face_list_[f] = std::uint32_t(f);
-  {
-    // Vertices no face uses never enter the lists.
-    std::vector<std::uint8_t> used(vertex_count_, 0);
-    for (const std::uint32_t v : mesh_.triangles) used[v] = 1;
-    for (std::uint32_t v = 0; v < vertex_count_; ++v)
-      if (used[v]) alive_vertex_list_.push_back(v);
-    used_vertices_ = alive_vertex_list_.size();
-  }
-  touched_.assign(vertex_count_, 0);
-  ring_target_.assign(vertex_count_, kNoNode);
-  for (Stamps* stamps : {&chooser_stamps_, &guesser_stamps_}) stamps->link.assign(vertex_count_, 0);
-  best_.assign(vertex_count_, Candidate{0, 0, 0});
+  // Three independent groups of arrays (each first touched here), filled concurrently.
+  for_ranges(3, [&](std::size_t group) {
+    if (group == 0) {
+      working_ = mesh_.triangles;
+      mt_vertices_.reserve(9 * face_count_);
+      mt_vertices_.assign(mesh_.triangles.begin(), mesh_.triangles.end());
+    } else if (group == 1) {
+      face_alive_.assign(face_count_, 1);
+      face_mt_.resize(face_count_);
+      for (std::size_t f = 0; f < face_count_; ++f) face_mt_[f] = std::uint32_t(f);
+      for (std::size_t f = 0; f < face_count_; ++f) alive_face_list_[f] = std::uint32_t(f);
+      face_error_.assign(face_count_, 0.0f);
+      mt_made_by_.reserve(3 * face_count_);
+      mt_killed_by_.reserve(3 * face_count_);
+      mt_made_by_.assign(face_count_, 0);
+      mt_killed_by_.assign(face_count_, 0);
+      face_first_point_.assign(face_count_, 0);
+      face_points_.assign(face_count_, 0);
+    } else {
+      // Vertices no face uses never enter the lists.
+      std::vector<std::uint8_t> used(vertex_count_, 0);
+      for (const std::uint32_t v : mesh_.triangles) used[v] = 1;
+      for (std::uint32_t v = 0; v < vertex_count_; ++v)
+        if (used[v]) alive_vertex_list_.push_back(v);
+      used_vertices_ = alive_vertex_list_.size();
+      collapse_u_.reserve(vertex_count_);
+      collapse_error_.reserve(vertex_count_);
+      kind_.assign(vertex_count_, kUnused);
+      adjacency_begin_.assign(vertex_count_, 0);
+      adjacency_end_.assign(vertex_count_, 0);
+      second_half_.assign(vertex_count_, 0);
+      vertex_dead_.assign(vertex_count_, 0);
+      touched_.assign(vertex_count_, 0);
+      ring_target_.assign(vertex_count_, kNoNode);
+      for (Stamps* stamps : {&chooser_stamps_, &guesser_stamps_}) stamps->link.assign(vertex_count_, 0);
+      best_.assign(vertex_count_, Candidate{0, 0, 0});
+    }
+  });
   scratch_.resize(kChunks);
 
   build_adjacency();
