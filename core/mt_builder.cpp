@@ -963,7 +963,7 @@ Mt Builder::assemble() {
   std::vector<std::uint32_t> node_of(k);
   for (std::uint32_t i = 0; i < k; ++i) node_of[order[i]] = i + 1;
   // Creator and remover node of every triangle, looked up once.
-  std::vector<std::uint32_t> creators(mt_count), removers(mt_count);
+  GrowOnlyVector<std::uint32_t> creators(mt_count), removers(mt_count);  // written below
   for_chunks(mt_count, [&](std::size_t, std::size_t begin, std::size_t end) {
     for (std::size_t t = begin; t < end; ++t) {
       creators[t] = mt_killed_by_[t] == 0 ? 0u : node_of[mt_killed_by_[t] - 1];
@@ -985,13 +985,19 @@ Mt Builder::assemble() {
   for (std::size_t t = 0; t < mt_count; ++t) ++mt.node_triangle_offsets[creators[t] + 1];
   for (std::size_t n = 0; n < node_count; ++n) mt.node_triangle_offsets[n + 1] += mt.node_triangle_offsets[n];
   std::vector<std::uint32_t> next(mt.node_triangle_offsets.begin(), mt.node_triangle_offsets.end() - 1);
-  std::vector<std::uint32_t> new_id(mt_count);
+  GrowOnlyVector<std::uint32_t> new_id(mt_count);  // written below
   for (std::size_t t = 0; t < mt_count; ++t) new_id[t] = next[creators[t]]++;
 
   const std::size_t root_count = mt.node_triangle_offsets[1];
-  mt.triangle_corners.resize(2 * mt_count);
-  mt.root_first_corner.resize(root_count);
-  mt.triangle_remover.resize(mt_count);
+  // The two big arrays are zero-filled by their resize: concurrently.
+  for_ranges(2, [&](std::size_t array) {
+    if (array == 0) {
+      mt.triangle_corners.resize(2 * mt_count);
+    } else {
+      mt.root_first_corner.resize(root_count);
+      mt.triangle_remover.resize(mt_count);
+    }
+  });
   // Each triangle writes its own slots: triangles run concurrently.
   for_chunks(mt_count, [&](std::size_t, std::size_t begin, std::size_t end) {
     for (std::size_t t = begin; t < end; ++t) {
