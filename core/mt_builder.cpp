@@ -203,8 +203,9 @@ struct Candidate {
 };
 
 // Stable LSD radix sort of `items` by a 32-bit key, 11 bits per pass: equal keys keep their order.
-template <class T, class Key>
-void radix_sort(std::vector<T>& items, std::vector<T>& scratch, const Key& key) {
+template <class Vector, class Key>
+void radix_sort(Vector& items, Vector& scratch, const Key& key) {
+  using T = typename Vector::value_type;
   constexpr int kBits = 11;
   constexpr std::uint32_t kBuckets = 1u << kBits;
   scratch.resize(items.size());
@@ -228,7 +229,7 @@ void radix_sort(std::vector<T>& items, std::vector<T>& scratch, const Key& key) 
 }
 
 // By cost, stably, so equal costs keep vertex order and the build stays deterministic.
-void sort_by_cost(std::vector<Candidate>& items, std::vector<Candidate>& scratch) {
+void sort_by_cost(GrowOnlyVector<Candidate>& items, GrowOnlyVector<Candidate>& scratch) {
   radix_sort(items, scratch, [](const Candidate& c) {
     std::uint32_t bits;
     std::memcpy(&bits, &c.cost, 4);
@@ -276,6 +277,10 @@ class Builder {
   // when options_.parallel_for is set.
   template <class Body>
   void for_chunks(std::size_t count, const Body& body);
+  // How many chunks for_chunks splits count items into (the same with or without a runner).
+  static std::size_t chunk_count(std::size_t count) {
+    return count < kMinChunk ? 1 : std::min(kChunks, count / kMinChunk);
+  }
   // Calls body(i) for i in [0, count), concurrently when options_.parallel_for is set.
   template <class Body>
   void for_ranges(std::size_t count, const Body& body);
@@ -362,8 +367,9 @@ class Builder {
   std::vector<std::uint8_t> verdicts_;     // per candidate: 0 not known yet, 1 can collapse, 2 cannot
   std::uint32_t chosen_triangles_end_ = 0;  // MT triangle count once the chosen collapses have run
   std::vector<Candidate> best_;  // per vertex: cheapest partner found when it was last evaluated
-  std::vector<Candidate> candidates_;
-  std::vector<Candidate> candidate_scratch_;
+  GrowOnlyVector<Candidate> candidates_;
+  GrowOnlyVector<Candidate> candidate_scratch_;
+  std::vector<std::size_t> chunk_candidates_, chunk_complex_;  // per chunk of alive_vertex_list_
   // Jade-style assignment of removed original vertices to working faces. Only their positions are
   // needed, kept as one contiguous run per face slot in a pool (x, y, z per point) that each pass
   // appends to and that is compacted when it grows past a few times the points alive.
@@ -590,7 +596,7 @@ void Builder::for_ranges(std::size_t count, const Body& body) {
 template <class Body>
 void Builder::for_chunks(std::size_t count, const Body& body) {
   // Small ranges are not worth a hand-off; the chunk count does not depend on the runner.
-  const std::size_t chunks = count < kMinChunk ? 1 : std::min(kChunks, count / kMinChunk);
+  const std::size_t chunks = chunk_count(count);
   struct Context {
     const Body* body;
     std::size_t count, chunks;
@@ -1138,16 +1144,35 @@ Result<Mt> Builder::run(BuildStats* stats) {
           kind_[u] = classify(u, boundary_ends[2 * u], boundary_ends[2 * u + 1]);
       }
     });
-    for_chunks(alive_vertex_list_.size(), [&](std::size_t, std::size_t begin, std::size_t end) {
-      for (std::size_t i = begin; i < end; ++i) find_partner(alive_vertex_list_[i], boundary_ends.data());
+    // Each chunk of vertices counts its candidates, then places them after the earlier chunks':
+    // the candidates are in vertex order before the sort.
+    const std::size_t vertices = alive_vertex_list_.size(), vertex_chunks = chunk_count(vertices);
+    chunk_candidates_.resize(vertex_chunks);
+    chunk_complex_.resize(vertex_chunks);
+    for_chunks(vertices, [&](std::size_t chunk, std::size_t begin, std::size_t end) {
+      std::size_t found = 0, complex = 0;
+      for (std::size_t i = begin; i < end; ++i) {
+        const std::uint32_t u = alive_vertex_list_[i];
+        find_partner(u, boundary_ends.data());
+        found += best_[u].v != u;
+        complex += kind_[u] == kComplex;
+      }
+      chunk_candidates_[chunk] = found;
+      chunk_complex_[chunk] = complex;
     });
     complex_vertices_ = 0;
-    candidates_.clear();
-    for (const std::uint32_t u : alive_vertex_list_) {
-      complex_vertices_ += kind_[u] == kComplex;
-      if (best_[u].v != u) candidates_.push_back(best_[u]);
+    std::size_t total = 0;
+    for (std::size_t chunk = 0; chunk < vertex_chunks; ++chunk) {
+      complex_vertices_ += chunk_complex_[chunk];
+      total += std::exchange(chunk_candidates_[chunk], total);
     }
-    if (candidates_.empty()) break;
+    if (total == 0) break;
+    candidates_.resize(total);
+    for_chunks(vertices, [&](std::size_t chunk, std::size_t begin, std::size_t end) {
+      std::size_t next = chunk_candidates_[chunk];
+      for (std::size_t i = begin; i < end; ++i)
+        if (const std::uint32_t u = alive_vertex_list_[i]; best_[u].v != u) candidates_[next++] = best_[u];
+    });
     sort_by_cost(candidates_, candidate_scratch_);
 
     // Choose in cost order; the quota counts candidates that took part in the order (chosen, or
