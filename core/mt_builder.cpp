@@ -369,7 +369,9 @@ class Builder {
   std::vector<Candidate> best_;  // per vertex: cheapest partner found when it was last evaluated
   GrowOnlyVector<Candidate> candidates_;
   GrowOnlyVector<Candidate> candidate_scratch_;
-  std::vector<std::size_t> chunk_candidates_, chunk_complex_;  // per chunk of alive_vertex_list_
+  // Per chunk of a for_chunks loop: a count, then where the chunk's output starts (candidates in
+  // run's loop, points in compact_assigned_points), and the complex vertices it met.
+  std::vector<std::size_t> chunk_counts_, chunk_complex_;
   // Jade-style assignment of removed original vertices to working faces. Only their positions are
   // needed, kept as one contiguous run per face slot in a pool (x, y, z per point) that each pass
   // appends to and that is compacted when it grows past a few times the points alive.
@@ -933,13 +935,28 @@ void Builder::grow_pool(std::size_t size) {
 }
 
 void Builder::compact_assigned_points() {
-  points_scratch_.clear();
-  for (std::size_t f = 0; f < face_count_; ++f) {
-    if (face_points_[f] == 0) continue;
-    const auto run = points_.begin() + 3 * std::ptrdiff_t{face_first_point_[f]};
-    face_first_point_[f] = std::uint32_t(points_scratch_.size() / 3);
-    points_scratch_.insert(points_scratch_.end(), run, run + 3 * std::ptrdiff_t{face_points_[f]});
-  }
+  // Runs in face order: each chunk of faces sums its points, then copies its runs after the
+  // earlier chunks'.
+  const std::size_t chunks = chunk_count(face_count_);
+  chunk_counts_.resize(chunks);
+  for_chunks(face_count_, [&](std::size_t chunk, std::size_t begin, std::size_t end) {
+    std::size_t points = 0;
+    for (std::size_t f = begin; f < end; ++f) points += face_points_[f];
+    chunk_counts_[chunk] = points;
+  });
+  std::size_t total = 0;
+  for (std::size_t chunk = 0; chunk < chunks; ++chunk) total += std::exchange(chunk_counts_[chunk], total);
+  points_scratch_.resize(3 * total);
+  for_chunks(face_count_, [&](std::size_t chunk, std::size_t begin, std::size_t end) {
+    std::size_t next = chunk_counts_[chunk];
+    for (std::size_t f = begin; f < end; ++f) {
+      if (face_points_[f] == 0) continue;
+      const auto run = points_.begin() + 3 * std::ptrdiff_t{face_first_point_[f]};
+      std::copy(run, run + 3 * std::ptrdiff_t{face_points_[f]}, points_scratch_.begin() + 3 * std::ptrdiff_t(next));
+      face_first_point_[f] = std::uint32_t(next);
+      next += face_points_[f];
+    }
+  });
   points_.swap(points_scratch_);
 }
 
@@ -1147,7 +1164,7 @@ Result<Mt> Builder::run(BuildStats* stats) {
     // Each chunk of vertices counts its candidates, then places them after the earlier chunks':
     // the candidates are in vertex order before the sort.
     const std::size_t vertices = alive_vertex_list_.size(), vertex_chunks = chunk_count(vertices);
-    chunk_candidates_.resize(vertex_chunks);
+    chunk_counts_.resize(vertex_chunks);
     chunk_complex_.resize(vertex_chunks);
     for_chunks(vertices, [&](std::size_t chunk, std::size_t begin, std::size_t end) {
       std::size_t found = 0, complex = 0;
@@ -1157,19 +1174,19 @@ Result<Mt> Builder::run(BuildStats* stats) {
         found += best_[u].v != u;
         complex += kind_[u] == kComplex;
       }
-      chunk_candidates_[chunk] = found;
+      chunk_counts_[chunk] = found;
       chunk_complex_[chunk] = complex;
     });
     complex_vertices_ = 0;
     std::size_t total = 0;
     for (std::size_t chunk = 0; chunk < vertex_chunks; ++chunk) {
       complex_vertices_ += chunk_complex_[chunk];
-      total += std::exchange(chunk_candidates_[chunk], total);
+      total += std::exchange(chunk_counts_[chunk], total);
     }
     if (total == 0) break;
     candidates_.resize(total);
     for_chunks(vertices, [&](std::size_t chunk, std::size_t begin, std::size_t end) {
-      std::size_t next = chunk_candidates_[chunk];
+      std::size_t next = chunk_counts_[chunk];
       for (std::size_t i = begin; i < end; ++i)
         if (const std::uint32_t u = alive_vertex_list_[i]; best_[u].v != u) candidates_[next++] = best_[u];
     });
