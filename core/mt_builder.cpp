@@ -514,14 +514,31 @@ void Builder::build_adjacency() {
     ++count[t[0]], ++count[t[1]], ++count[t[2]];
     return true;
   });
-  std::uint32_t total = 0;
-  for (const std::uint32_t v : alive_vertex_list_) {
-    adjacency_begin_[v] = total;
-    const std::uint32_t first = adjacency_end_[v], second = second_half_[v];
-    adjacency_end_[v] = total;           // where the first half's faces go
-    second_half_[v] = total + first;     // where the second half's go
-    total += first + second;
-  }
+  // Each vertex's list starts after those of the vertices before it in alive_vertex_list_: chunks
+  // sum their vertices' counts, then lay out their lists after the earlier chunks'.
+  const std::size_t vertices = alive_vertex_list_.size(), chunks = chunk_count(vertices);
+  chunk_counts_.resize(chunks);
+  for_chunks(vertices, [&](std::size_t chunk, std::size_t begin, std::size_t end) {
+    std::size_t corners = 0;
+    for (std::size_t i = begin; i < end; ++i) {
+      const std::uint32_t v = alive_vertex_list_[i];
+      corners += adjacency_end_[v] + second_half_[v];
+    }
+    chunk_counts_[chunk] = corners;
+  });
+  std::size_t total = 0;
+  for (std::size_t chunk = 0; chunk < chunks; ++chunk) total += std::exchange(chunk_counts_[chunk], total);
+  for_chunks(vertices, [&](std::size_t chunk, std::size_t begin, std::size_t end) {
+    auto next = std::uint32_t(chunk_counts_[chunk]);
+    for (std::size_t i = begin; i < end; ++i) {
+      const std::uint32_t v = alive_vertex_list_[i];
+      adjacency_begin_[v] = next;
+      const std::uint32_t first = adjacency_end_[v], second = second_half_[v];
+      adjacency_end_[v] = next;          // where the first half's faces go
+      second_half_[v] = next + first;    // where the second half's go
+      next += first + second;
+    }
+  });
   adjacency_.resize(total);  // not filled: the halves write every slot
   for_ranges(2, [&](std::size_t half) {
     std::uint32_t* cursor = counts(half);
@@ -533,7 +550,9 @@ void Builder::build_adjacency() {
     }
   });
   // The second half's cursors stopped at the end of each list.
-  for (const std::uint32_t v : alive_vertex_list_) adjacency_end_[v] = second_half_[v];
+  for_chunks(vertices, [&](std::size_t, std::size_t begin, std::size_t end) {
+    for (std::size_t i = begin; i < end; ++i) adjacency_end_[alive_vertex_list_[i]] = second_half_[alive_vertex_list_[i]];
+  });
 }
 
 VertexKind Builder::classify(std::uint32_t u, std::uint32_t& boundary_next, std::uint32_t& boundary_prev) const {
