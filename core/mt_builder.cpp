@@ -26,6 +26,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <numeric>
 #include <string>
 #include <utility>
 #include <vector>
@@ -281,6 +282,11 @@ class Builder {
   static std::size_t chunk_count(std::size_t count) {
     return count < kMinChunk ? 1 : std::min(kChunks, count / kMinChunk);
   }
+  // Runs count_chunk(chunk, begin, end), the number of outputs of that chunk, over the chunks of
+  // [0, count) as for_chunks does, and turns the numbers into each chunk's first output position
+  // (chunk_counts_), so a second for_chunks can place the outputs in order. Returns their total.
+  template <class Count>
+  std::size_t chunk_starts(std::size_t count, const Count& count_chunk);
   // Calls body(i) for i in [0, count), concurrently when options_.parallel_for is set.
   template <class Body>
   void for_ranges(std::size_t count, const Body& body);
@@ -369,9 +375,8 @@ class Builder {
   std::vector<Candidate> best_;  // per vertex: cheapest partner found when it was last evaluated
   GrowOnlyVector<Candidate> candidates_;
   GrowOnlyVector<Candidate> candidate_scratch_;
-  // Per chunk of a for_chunks loop: a count, then where the chunk's output starts (candidates in
-  // run's loop, points in compact_assigned_points), and the complex vertices it met.
-  std::vector<std::size_t> chunk_counts_, chunk_complex_;
+  std::vector<std::size_t> chunk_counts_;   // chunk_starts' result
+  std::vector<std::size_t> chunk_complex_;  // per chunk of the partner search: complex vertices met
   // Jade-style assignment of removed original vertices to working faces. Only their positions are
   // needed, kept as one contiguous run per face slot in a pool (x, y, z per point) that each pass
   // appends to and that is compacted when it grows past a few times the points alive.
@@ -516,18 +521,15 @@ void Builder::build_adjacency() {
   });
   // Each vertex's list starts after those of the vertices before it in alive_vertex_list_: chunks
   // sum their vertices' counts, then lay out their lists after the earlier chunks'.
-  const std::size_t vertices = alive_vertex_list_.size(), chunks = chunk_count(vertices);
-  chunk_counts_.resize(chunks);
-  for_chunks(vertices, [&](std::size_t chunk, std::size_t begin, std::size_t end) {
+  const std::size_t vertices = alive_vertex_list_.size();
+  const std::size_t total = chunk_starts(vertices, [&](std::size_t, std::size_t begin, std::size_t end) {
     std::size_t corners = 0;
     for (std::size_t i = begin; i < end; ++i) {
       const std::uint32_t v = alive_vertex_list_[i];
       corners += adjacency_end_[v] + second_half_[v];
     }
-    chunk_counts_[chunk] = corners;
+    return corners;
   });
-  std::size_t total = 0;
-  for (std::size_t chunk = 0; chunk < chunks; ++chunk) total += std::exchange(chunk_counts_[chunk], total);
   for_chunks(vertices, [&](std::size_t chunk, std::size_t begin, std::size_t end) {
     auto next = std::uint32_t(chunk_counts_[chunk]);
     for (std::size_t i = begin; i < end; ++i) {
@@ -631,6 +633,17 @@ void Builder::for_chunks(std::size_t count, const Body& body) {
   } else {
     options_.parallel_for(options_.parallel_user, chunks, task, &context);
   }
+}
+
+template <class Count>
+std::size_t Builder::chunk_starts(std::size_t count, const Count& count_chunk) {
+  chunk_counts_.resize(chunk_count(count));
+  for_chunks(count, [&](std::size_t chunk, std::size_t begin, std::size_t end) {
+    chunk_counts_[chunk] = count_chunk(chunk, begin, end);
+  });
+  std::size_t total = 0;
+  for (std::size_t& n : chunk_counts_) total += std::exchange(n, total);
+  return total;
 }
 
 void Builder::find_partner(std::uint32_t u, const std::uint32_t* boundary_ends) {
@@ -956,15 +969,11 @@ void Builder::grow_pool(std::size_t size) {
 void Builder::compact_assigned_points() {
   // Runs in face order: each chunk of faces sums its points, then copies its runs after the
   // earlier chunks'.
-  const std::size_t chunks = chunk_count(face_count_);
-  chunk_counts_.resize(chunks);
-  for_chunks(face_count_, [&](std::size_t chunk, std::size_t begin, std::size_t end) {
+  const std::size_t total = chunk_starts(face_count_, [&](std::size_t, std::size_t begin, std::size_t end) {
     std::size_t points = 0;
     for (std::size_t f = begin; f < end; ++f) points += face_points_[f];
-    chunk_counts_[chunk] = points;
+    return points;
   });
-  std::size_t total = 0;
-  for (std::size_t chunk = 0; chunk < chunks; ++chunk) total += std::exchange(chunk_counts_[chunk], total);
   points_scratch_.resize(3 * total);
   for_chunks(face_count_, [&](std::size_t chunk, std::size_t begin, std::size_t end) {
     std::size_t next = chunk_counts_[chunk];
@@ -1182,10 +1191,9 @@ Result<Mt> Builder::run(BuildStats* stats) {
     });
     // Each chunk of vertices counts its candidates, then places them after the earlier chunks':
     // the candidates are in vertex order before the sort.
-    const std::size_t vertices = alive_vertex_list_.size(), vertex_chunks = chunk_count(vertices);
-    chunk_counts_.resize(vertex_chunks);
-    chunk_complex_.resize(vertex_chunks);
-    for_chunks(vertices, [&](std::size_t chunk, std::size_t begin, std::size_t end) {
+    const std::size_t vertices = alive_vertex_list_.size();
+    chunk_complex_.resize(chunk_count(vertices));
+    const std::size_t total = chunk_starts(vertices, [&](std::size_t chunk, std::size_t begin, std::size_t end) {
       std::size_t found = 0, complex = 0;
       for (std::size_t i = begin; i < end; ++i) {
         const std::uint32_t u = alive_vertex_list_[i];
@@ -1193,15 +1201,10 @@ Result<Mt> Builder::run(BuildStats* stats) {
         found += best_[u].v != u;
         complex += kind_[u] == kComplex;
       }
-      chunk_counts_[chunk] = found;
       chunk_complex_[chunk] = complex;
+      return found;
     });
-    complex_vertices_ = 0;
-    std::size_t total = 0;
-    for (std::size_t chunk = 0; chunk < vertex_chunks; ++chunk) {
-      complex_vertices_ += chunk_complex_[chunk];
-      total += std::exchange(chunk_counts_[chunk], total);
-    }
+    complex_vertices_ = std::accumulate(chunk_complex_.begin(), chunk_complex_.end(), std::size_t{0});
     if (total == 0) break;
     candidates_.resize(total);
     for_chunks(vertices, [&](std::size_t chunk, std::size_t begin, std::size_t end) {
