@@ -287,9 +287,10 @@ class Builder {
   // (chunk_counts_), so a second for_chunks can place the outputs in order. Returns their total.
   template <class Count>
   std::size_t chunk_starts(std::size_t count, const Count& count_chunk);
-  // Calls body(i) for i in [0, count), concurrently when options_.parallel_for is set.
+  // Calls body(i) for i in [0, count), concurrently when options_.parallel_for is set and the
+  // ranges together cover at least kMinChunk items (`items`); in turn otherwise.
   template <class Body>
-  void for_ranges(std::size_t count, const Body& body);
+  void for_ranges(std::size_t count, std::size_t items, const Body& body);
   // Drops the items keep(item, half) refuses from list, keeping the order; the two halves of the
   // list are visited concurrently. Returns how many of the kept items came from the first half.
   template <class Keep>
@@ -488,7 +489,7 @@ std::size_t Builder::filter_in_halves(std::vector<std::uint32_t>& list, const Ke
   // other's items), then the second half's are moved down behind the first's.
   const std::size_t count = list.size(), middle = count / 2;
   std::size_t kept[2];
-  for_ranges(2, [&](std::size_t half) {
+  for_ranges(2, count, [&](std::size_t half) {
     const std::size_t begin = half == 0 ? 0 : middle, end = half == 0 ? middle : count;
     std::size_t out = begin;
     for (std::size_t i = begin; i < end; ++i)
@@ -542,7 +543,7 @@ void Builder::build_adjacency() {
     }
   });
   adjacency_.resize(total);  // not filled: the halves write every slot
-  for_ranges(2, [&](std::size_t half) {
+  for_ranges(2, alive_face_list_.size(), [&](std::size_t half) {
     std::uint32_t* cursor = counts(half);
     const std::size_t begin = half == 0 ? 0 : split, end = half == 0 ? split : alive_face_list_.size();
     for (std::size_t i = begin; i < end; ++i) {
@@ -607,9 +608,9 @@ VertexKind Builder::classify(std::uint32_t u, std::uint32_t& boundary_next, std:
 }
 
 template <class Body>
-void Builder::for_ranges(std::size_t count, const Body& body) {
+void Builder::for_ranges(std::size_t count, std::size_t items, const Body& body) {
   auto task = [](void* opaque, std::size_t i) { (*static_cast<const Body*>(opaque))(i); };
-  if (options_.parallel_for == nullptr || alive_face_list_.size() < kMinChunk) {
+  if (options_.parallel_for == nullptr || items < kMinChunk) {
     for (std::size_t i = 0; i < count; ++i) task(const_cast<Body*>(&body), i);
   } else {
     options_.parallel_for(options_.parallel_user, count, task, const_cast<Body*>(&body));
@@ -851,7 +852,7 @@ void Builder::choose_collapses(std::size_t quota) {
     choose();
     return;
   }
-  for_ranges(2, [&](std::size_t task) { task == 0 ? choose() : guess(); });
+  for_ranges(2, candidates_.size(), [&](std::size_t task) { task == 0 ? choose() : guess(); });
 }
 
 void Builder::collapse(const Chosen& chosen, Scratch& scratch) {
@@ -1041,7 +1042,7 @@ Mt Builder::assemble() {
 
   const std::size_t root_count = mt.node_triangle_offsets[1];
   // The two big arrays are zero-filled by their resize: concurrently.
-  for_ranges(2, [&](std::size_t array) {
+  for_ranges(2, mt_count, [&](std::size_t array) {
     if (array == 0) {
       mt.triangle_corners.resize(2 * mt_count);
     } else {
@@ -1129,9 +1130,8 @@ Result<Mt> Builder::run(BuildStats* stats) {
                                                          " >= vertex count " + std::to_string(vertex_count_));
 
   alive_faces_ = face_count_;
-  alive_face_list_.resize(face_count_);
   // Three independent groups of arrays (each first touched here), filled concurrently.
-  for_ranges(3, [&](std::size_t group) {
+  for_ranges(3, face_count_, [&](std::size_t group) {
     if (group == 0) {
       working_ = mesh_.triangles;
       mt_vertices_.reserve(9 * face_count_);
@@ -1139,8 +1139,9 @@ Result<Mt> Builder::run(BuildStats* stats) {
     } else if (group == 1) {
       face_alive_.assign(face_count_, 1);
       face_mt_.resize(face_count_);
-      for (std::size_t f = 0; f < face_count_; ++f) face_mt_[f] = std::uint32_t(f);
-      for (std::size_t f = 0; f < face_count_; ++f) alive_face_list_[f] = std::uint32_t(f);
+      std::iota(face_mt_.begin(), face_mt_.end(), 0u);
+      alive_face_list_.resize(face_count_);
+      std::iota(alive_face_list_.begin(), alive_face_list_.end(), 0u);
       face_error_.assign(face_count_, 0.0f);
       mt_made_by_.reserve(3 * face_count_);
       mt_killed_by_.reserve(3 * face_count_);
@@ -1233,9 +1234,6 @@ Result<Mt> Builder::run(BuildStats* stats) {
     // pool's blocks follow the mesh. Tags and triangles keep the cost order. (A vertex is u of
     // at most one collapse.)
     radix_sort(chosen_, chosen_scratch_, [](const Chosen& c) { return c.u; });
-    // Collapses are chunked by work, not by count: the late passes make a few hundred collapses
-    // that each move thousands of assigned points. A collapse costs about as much as moving
-    // kFanWork points, besides the points it moves.
     // The points each collapse moves are counted here, concurrently (in the serial chooser each
     // count was a cache miss per face).
     for_chunks(chosen_.size(), [&](std::size_t, std::size_t begin, std::size_t end) {
@@ -1245,6 +1243,9 @@ Result<Mt> Builder::run(BuildStats* stats) {
           c.first_point += face_points_[adjacency_[j].face];
       }
     });
+    // Collapses are chunked by work, not by count: the late passes make a few hundred collapses
+    // that each move thousands of assigned points. A collapse costs about as much as moving
+    // kFanWork points, besides the points it moves. Each gets its block of the pool meanwhile.
     std::size_t total_work = 0;
     for (const Chosen& c : chosen_) total_work += c.first_point + kFanWork;
     const std::size_t chunks = std::clamp<std::size_t>(total_work / kMinChunkWork, 1, kChunks);
@@ -1266,7 +1267,7 @@ Result<Mt> Builder::run(BuildStats* stats) {
     mt_made_by_.resize(triangle);
     mt_killed_by_.resize(triangle);
     grow_pool(3 * std::size_t{point});
-    for_ranges(collapse_chunk_begin_.size() - 1, [&](std::size_t chunk) {
+    for_ranges(collapse_chunk_begin_.size() - 1, total_work, [&](std::size_t chunk) {
       const std::size_t begin = collapse_chunk_begin_[chunk], end = collapse_chunk_begin_[chunk + 1];
       for (std::size_t i = begin; i < end; ++i) {
         // The collapses' data is scattered: ask for the next ones' early, in stages that each

@@ -30,9 +30,9 @@ struct AllowedError {
   }
 };
 
-// A cut's mesh, ready for an encoder. Caller-owned and reused between calls.
 struct CutView;
 
+// A cut's mesh, ready for an encoder. Caller-owned and reused between calls.
 struct CutMesh {
   std::vector<std::uint32_t> triangles;  // 3 vertex ids per triangle (CCW), ids into mt.positions; any order
   std::vector<std::uint32_t> ids;        // the MT triangle id of each triangle (same order): stable names

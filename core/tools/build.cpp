@@ -2,7 +2,6 @@
 // with a progress bar on a terminal and a summary of counts, error, time and size.
 #include <unistd.h>
 
-#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <string>
@@ -69,7 +68,7 @@ int main(int argc, char** argv) {
     options.progress = draw_bar;
     options.progress_user = &bar;
   }
-  mtlod::tools::ThreadPool pool(serial ? 1 : std::max(1u, std::thread::hardware_concurrency()));
+  mtlod::tools::ThreadPool pool(serial ? 1u : std::thread::hardware_concurrency());  // 1: no other thread
   if (!serial) {
     options.parallel_for = mtlod::tools::ThreadPool::parallel_for;
     options.parallel_user = &pool;

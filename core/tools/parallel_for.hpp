@@ -1,7 +1,8 @@
-// A ParallelForFn (core/mt_builder.hpp) for the offline tools and benchmarks: a pool of threads,
-// one per hardware core with the caller as one of them, that take task indices from a shared
-// counter until none are left. The threads are started once: a build calls parallel_for a few
-// hundred times, and starting a thread per call cost ~60 µs each on a 2-core VM.
+// A ParallelForFn (core/mt_builder.hpp) for the offline tools, the benchmarks and the server's
+// start-up builds (core itself starts no threads): a pool of threads, one per hardware core with
+// the caller as one of them, that take task indices from a shared counter until none are left. The
+// threads are started once: a build calls parallel_for a few hundred times, and starting a thread
+// per call cost ~60 µs each on a 2-core VM.
 #pragma once
 
 #include <algorithm>

@@ -282,55 +282,59 @@ TEST(ViewExtract, SessionGazePathEqualsAFreshExtractionEveryTime) {
   std::mt19937 rng(11);
   std::uniform_real_distribution<float> unit(0.1f, 0.9f);
   // 64² has fewer cells than the mesh has vertices (the field tabulates per cell), 160² more.
-  for (const FalloffLaw law : {FalloffLaw::kStep, FalloffLaw::kLinear, FalloffLaw::kSmoothstep, FalloffLaw::kFoveal}) {
+  for (const FalloffLaw law :
+       {FalloffLaw::kStep, FalloffLaw::kLinear, FalloffLaw::kSmoothstep, FalloffLaw::kFoveal}) {
     for (const ErrorUnits units : {ErrorUnits::kModel, ErrorUnits::kScreenPixels}) {
-     for (const std::uint32_t side : {64u, 160u}) {
-     for (const DistanceMetric metric : {DistanceMetric::kChamfer5711, DistanceMetric::kChamfer34, DistanceMetric::kEuclidean}) {
-      // The other transforms for one law and grid: a pixel step costs each its own number of units.
-      if (metric != DistanceMetric::kChamfer5711 && (law != FalloffLaw::kStep || side != 160u)) continue;
-      ViewRequest r;
-      r.camera = camera;
-      r.grid = {side, side};
-      r.allowed.metric = metric;
-      r.allowed.units = units;
-      r.allowed.error = units == ErrorUnits::kModel ? 0.02f : 1.0f;
-      r.allowed.use_silhouette = true;
-      r.allowed.silhouette = RegionLaw{FalloffLaw::kStep, 2.0f, 0.25f};
-      r.allowed.use_focus = true;
-      r.allowed.focus = RegionLaw{law, 8.0f, 0.1f, 16.0f};
-      ViewExtractor session_extractor(b->mt, *b->levels), fresh_extractor(b->mt, *b->levels);
-      ViewSession session;
-      Refiner kept(b->mt);
-      CutMesh cut, expected;
-      std::size_t reused = 0, recomputed = 0;
-      for (int step = 0; step < 12; ++step) {
-        r.focus = {{unit(rng), unit(rng)}};
-        if (step == 5) r.camera = other;  // a new view: everything again, then gazes on it
-        session_extractor.map(r, &session);
-        session_extractor.occupancy();
-        session_extractor.distance_transforms();
-        session_extractor.allowed_error();
-        session_extractor.refine(kept, cut);
-        EXPECT_EQ(session.reused(), step != 0 && step != 5) << "step " << step;
-        if (session.reused()) ++reused, recomputed += session.changed_vertices();
+      for (const std::uint32_t side : {64u, 160u}) {
+        for (const DistanceMetric metric :
+             {DistanceMetric::kChamfer5711, DistanceMetric::kChamfer34, DistanceMetric::kEuclidean}) {
+          // The other transforms for one law and grid: a pixel step costs each its own number of units.
+          if (metric != DistanceMetric::kChamfer5711 && (law != FalloffLaw::kStep || side != 160u)) continue;
+          ViewRequest r;
+          r.camera = camera;
+          r.grid = {side, side};
+          r.allowed.metric = metric;
+          r.allowed.units = units;
+          r.allowed.error = units == ErrorUnits::kModel ? 0.02f : 1.0f;
+          r.allowed.use_silhouette = true;
+          r.allowed.silhouette = RegionLaw{FalloffLaw::kStep, 2.0f, 0.25f};
+          r.allowed.use_focus = true;
+          r.allowed.focus = RegionLaw{law, 8.0f, 0.1f, 16.0f};
+          ViewExtractor session_extractor(b->mt, *b->levels), fresh_extractor(b->mt, *b->levels);
+          ViewSession session;
+          Refiner kept(b->mt);
+          CutMesh cut, expected;
+          std::size_t reused = 0, recomputed = 0;
+          for (int step = 0; step < 12; ++step) {
+            r.focus = {{unit(rng), unit(rng)}};
+            if (step == 5) r.camera = other;  // a new view: everything again, then gazes on it
+            session_extractor.map(r, &session);
+            session_extractor.occupancy();
+            session_extractor.distance_transforms();
+            session_extractor.allowed_error();
+            session_extractor.refine(kept, cut);
+            EXPECT_EQ(session.reused(), step != 0 && step != 5) << "step " << step;
+            if (session.reused()) ++reused, recomputed += session.changed_vertices();
 
-        Refiner fresh(b->mt);
-        ViewRequest static_request = r;
-        static_request.dynamic = false;
-        run(fresh_extractor, static_request, fresh, expected);
-        const auto a = session_extractor.vertex_allowed_error(), e = fresh_extractor.vertex_allowed_error();
-        ASSERT_EQ(a.size(), e.size());
-        ASSERT_EQ(std::memcmp(a.data(), e.data(), a.size() * sizeof(float)), 0)
-            << "allowed error differs at step " << step << ", law " << int(law) << ", metric " << int(metric);
-        ASSERT_EQ(triangle_set(cut), triangle_set(expected)) << "step " << step << ", law " << int(law);
+            Refiner fresh(b->mt);
+            ViewRequest static_request = r;
+            static_request.dynamic = false;
+            run(fresh_extractor, static_request, fresh, expected);
+            const auto a = session_extractor.vertex_allowed_error(),
+                       e = fresh_extractor.vertex_allowed_error();
+            ASSERT_EQ(a.size(), e.size());
+            ASSERT_EQ(std::memcmp(a.data(), e.data(), a.size() * sizeof(float)), 0)
+                << "allowed error differs at step " << step << ", law " << int(law) << ", metric "
+                << int(metric);
+            ASSERT_EQ(triangle_set(cut), triangle_set(expected)) << "step " << step << ", law " << int(law);
+          }
+          EXPECT_EQ(reused, 10u);
+          // The step law changes only cells near the old and new foci: far fewer vertices than all.
+          if (law == FalloffLaw::kStep) {
+            EXPECT_LT(recomputed, reused * b->mt.vertex_count() / 4);
+          }
+        }
       }
-      EXPECT_EQ(reused, 10u);
-      // The step law changes only cells near the old and new foci: far fewer vertices than all.
-      if (law == FalloffLaw::kStep) {
-        EXPECT_LT(recomputed, reused * b->mt.vertex_count() / 4);
-      }
-     }
-     }
     }
   }
 }
