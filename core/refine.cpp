@@ -40,6 +40,14 @@ class MeshWriter {
     write_ += 3;
     *id_++ = t;
   }
+  // Triangle t with its three corners already known.
+  void add(std::uint32_t t, const std::uint32_t (&corners)[3]) {
+    write_[0] = corners[0];
+    write_[1] = corners[1];
+    write_[2] = corners[2];
+    write_ += 3;
+    *id_++ = t;
+  }
   void finish(std::size_t node_count, float max_error) {
     out_.triangles.resize(std::size_t(write_ - out_.triangles.data()));
     out_.ids.resize(std::size_t(id_ - out_.ids.data()));
@@ -156,6 +164,40 @@ void Refiner::force(std::uint32_t r, std::uint32_t witness_triangle, std::uint32
   }
 }
 
+[[gnu::always_inline]] inline void Refiner::fetch_ahead(std::size_t i, const float* field) const {
+  // The queue ahead is known, so its nodes' data is fetched in stages and the misses overlap:
+  // 12 nodes ahead where its triangles are, 6 ahead those triangles, 3 ahead what they point to.
+  const std::uint32_t* offsets = mt_.node_triangle_offsets.data();
+  const std::uint32_t* removers = mt_.triangle_remover.data();
+  const std::uint32_t* corners = mt_.triangle_corners.data();
+  if (i + 12 < cut_.size()) {
+    const std::uint32_t ahead = cut_[i + 12];
+    __builtin_prefetch(offsets + ahead);
+    __builtin_prefetch(mt_.node_vertex.data() + ahead);
+  }
+  if (i + 6 < cut_.size()) {
+    const std::uint32_t ahead = cut_[i + 6];
+    const std::uint32_t first = offsets[ahead], last = offsets[ahead + 1];
+    __builtin_prefetch(removers + first);
+    __builtin_prefetch(removers + last - 1);
+    __builtin_prefetch(corners + 2 * std::size_t{first});
+    __builtin_prefetch(corners + 2 * std::size_t{last} - 1);
+    if (ahead != 0) __builtin_prefetch(field + mt_.node_vertex[ahead]);
+  }
+  if (i + 3 < cut_.size()) {
+    const std::uint32_t ahead = cut_[i + 3];
+    for (std::uint32_t t = offsets[ahead]; t < offsets[ahead + 1]; ++t) {
+      const std::uint32_t r = removers[t];
+      if (r == kNoNode) continue;
+      __builtin_prefetch(in_cut_.data() + r);
+      __builtin_prefetch(mt_.node_error.data() + r);
+      __builtin_prefetch(mt_.node_parent_offsets.data() + r);  // for force()
+      __builtin_prefetch(field + corners[2 * std::size_t{t}]);
+      __builtin_prefetch(field + corners[2 * std::size_t{t} + 1]);
+    }
+  }
+}
+
 void Refiner::examine(std::uint32_t n, const AllowedError& allowed) {
   const std::uint32_t end = mt_.node_triangle_offsets[n + 1];
   for (std::uint32_t t = mt_.node_triangle_offsets[n]; t < end; ++t) {
@@ -167,7 +209,11 @@ void Refiner::examine(std::uint32_t n, const AllowedError& allowed) {
 
 void Refiner::close_over(const AllowedError& allowed, std::size_t first) {
   // cut_ grows while we walk it: every added node gets its own triangles examined.
-  for (std::size_t i = first; i < cut_.size(); ++i) examine(cut_[i], allowed);
+  const bool uniform = allowed.per_vertex.empty();
+  for (std::size_t i = first; i < cut_.size(); ++i) {
+    if (!uniform) fetch_ahead(i, allowed.per_vertex.data());
+    examine(cut_[i], allowed);
+  }
 }
 
 void Refiner::emit(CutMesh& out) const {
@@ -256,30 +302,36 @@ void Refiner::refine_forced(const AllowedError& allowed, CutMesh& out) {
   // triangle examined while its remover was out either failed, forcing the remover in, or passed),
   // so the output filters that list instead of walking all the cut's triangles again.
   passing_.clear();
+  const std::uint32_t* offsets = mt_.node_triangle_offsets.data();
+  const std::uint32_t* removers = mt_.triangle_remover.data();
+  const std::uint32_t* corners = mt_.triangle_corners.data();
+  const float* field = allowed.per_vertex.data();
+  const bool uniform = allowed.per_vertex.empty();  // update() from no kept cut may pass one
   for (std::size_t i = 0; i < cut_.size(); ++i) {
+    if (!uniform) fetch_ahead(i, field);
     const std::uint32_t n = cut_[i];
-    const std::uint32_t end = mt_.node_triangle_offsets[n + 1];
-    for (std::uint32_t t = mt_.node_triangle_offsets[n]; t < end; ++t) {
-      const std::uint32_t r = mt_.triangle_remover[t];
+    const std::uint32_t split = n == 0 ? kNoNode : mt_.node_vertex[n];
+    const std::uint32_t end = offsets[n + 1];
+    for (std::uint32_t t = offsets[n]; t < end; ++t) {
+      const std::uint32_t r = removers[t];
       if (r != kNoNode && in_cut_[r] == kIn) continue;
-      if (fails(t, n, allowed)) {
+      // fails(t, n, allowed), with the values kept for the output.
+      const std::uint32_t a = n == 0 ? mt_.root_first_corner[t] : split;
+      const std::uint32_t b = corners[2 * std::size_t{t}], c = corners[2 * std::size_t{t} + 1];
+      const float error = r == kNoNode ? 0.0f : mt_.node_error[r];
+      if (r != kNoNode && error > (uniform ? allowed.uniform : std::min(field[a], std::min(field[b], field[c])))) {
         force(r, t, n);
       } else {
-        passing_.push_back(t);
-        passing_.push_back(n);
+        passing_.push_back({t, r, {a, b, c}, error});
       }
     }
   }
-  MeshWriter writer(mt_, out, passing_.size() / 2);
+  MeshWriter writer(mt_, out, passing_.size());
   float max_error = 0.0f;
-  for (std::size_t i = 0; i < passing_.size(); i += 2) {
-    const std::uint32_t t = passing_[i], n = passing_[i + 1];
-    const std::uint32_t r = mt_.triangle_remover[t];
-    if (r != kNoNode) {
-      if (in_cut_[r] == kIn) continue;  // refined after it passed
-      max_error = std::max(max_error, mt_.node_error[r]);
-    }
-    writer.add(t, mt_.first_corner(TriangleId{t}, NodeId{n}));
+  for (const Passing& p : passing_) {
+    if (p.remover != kNoNode && in_cut_[p.remover] == kIn) continue;  // refined after it passed
+    max_error = std::max(max_error, p.error);
+    writer.add(p.triangle, p.corners);
   }
   writer.finish(cut_.size(), max_error);
   out.within_budget = true;

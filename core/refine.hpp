@@ -144,6 +144,8 @@ class Refiner {
   std::size_t removed_count(std::uint32_t x) const;
   // Static refinement by forcing from the root; records witnesses so update can start from it.
   void refine_forced(const AllowedError& allowed, CutMesh& out);
+  // Prefetches what refine_forced will read for the nodes queued after cut_[i].
+  void fetch_ahead(std::size_t i, const float* field) const;
   bool fails(std::uint32_t t, std::uint32_t creator, const AllowedError& allowed) const;
   bool fails_at(std::uint32_t remover, const std::uint32_t* corners, const AllowedError& allowed) const;
   void reset_to_root();
@@ -193,7 +195,12 @@ class Refiner {
   std::vector<std::uint64_t> changed_bits_;  // per vertex, during update
   std::vector<std::uint32_t> dropped_;       // nodes dropped during one update
   std::vector<std::uint32_t> seeds_;         // uncovered triangle, creator pairs of one update
-  std::vector<std::uint32_t> passing_;       // triangle, creator pairs seen passing (refine_forced)
+  // Triangles seen passing in refine_forced, with what the output needs of them.
+  struct Passing {
+    std::uint32_t triangle, remover, corners[3];
+    float error;  // 0 for an input triangle
+  };
+  std::vector<Passing> passing_;
   struct HeapEntry {
     std::uint32_t tier;  // 1: allowed ≤ 0, ranked by error; 0: ranked by error / allowed
     float key;
