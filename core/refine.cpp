@@ -164,7 +164,7 @@ void Refiner::force(std::uint32_t r, std::uint32_t witness_triangle, std::uint32
   }
 }
 
-[[gnu::always_inline]] inline void Refiner::fetch_ahead(std::size_t i, const float* field) const {
+[[gnu::always_inline]] inline void Refiner::fetch_ahead(std::size_t i, const float* field, bool on_demand) const {
   // The queue ahead is known, so its nodes' data is fetched in stages and the misses overlap:
   // 12 nodes ahead where its triangles are, 6 ahead those triangles, 3 ahead what they point to.
   const std::uint32_t* offsets = mt_.node_triangle_offsets.data();
@@ -182,7 +182,12 @@ void Refiner::force(std::uint32_t r, std::uint32_t witness_triangle, std::uint32
     __builtin_prefetch(removers + last - 1);
     __builtin_prefetch(corners + 2 * std::size_t{first});
     __builtin_prefetch(corners + 2 * std::size_t{last} - 1);
-    if (ahead != 0) __builtin_prefetch(field + mt_.node_vertex[ahead]);
+    if (ahead != 0) {
+      const std::uint32_t split = mt_.node_vertex[ahead];
+      __builtin_prefetch(field + split);
+      // Its value is computed 3 nodes ahead, from its position.
+      if (on_demand) __builtin_prefetch(mt_.positions.data() + 3 * std::size_t{split});
+    }
   }
   if (i + 3 < cut_.size()) {
     const std::uint32_t ahead = cut_[i + 3];
@@ -211,7 +216,7 @@ void Refiner::close_over(const AllowedError& allowed, std::size_t first) {
   // cut_ grows while we walk it: every added node gets its own triangles examined.
   const bool uniform = allowed.per_vertex.empty();
   for (std::size_t i = first; i < cut_.size(); ++i) {
-    if (!uniform) fetch_ahead(i, allowed.per_vertex.data());
+    if (!uniform) fetch_ahead(i, allowed.per_vertex.data(), false);
     examine(cut_[i], allowed);
   }
 }
@@ -295,7 +300,20 @@ void Refiner::refine_prefix(std::uint32_t end, CutMesh& out) {
   out.within_budget = true;
 }
 
-void Refiner::refine_forced(const AllowedError& allowed, CutMesh& out) {
+void Refiner::refine_on_demand(const VertexErrorSource& source, std::span<float> field, CutMesh& out) {
+  assert(field.size() == mt_.vertex_count());
+  mesh_valid_ = false;
+  // The root's vertices first; the nodes' split vertices as the refinement reaches them.
+  for (std::uint32_t t = 0; t < mt_.node_triangle_offsets[1]; ++t) {
+    for (const std::uint32_t v :
+         {mt_.root_first_corner[t], mt_.triangle_corners[2 * std::size_t{t}], mt_.triangle_corners[2 * std::size_t{t} + 1]})
+      field[v] = source.vertex_allowed_error(v);
+  }
+  const OnDemand on_demand{source, field};
+  refine_forced(AllowedError::from_vertices(field), out, &on_demand);
+}
+
+void Refiner::refine_forced(const AllowedError& allowed, CutMesh& out, const OnDemand* on_demand) {
   mesh_valid_ = false;
   reset_to_root();
   // Like close_over, but remembering every passing triangle: the final mesh is among them (a
@@ -307,8 +325,18 @@ void Refiner::refine_forced(const AllowedError& allowed, CutMesh& out) {
   const std::uint32_t* corners = mt_.triangle_corners.data();
   const float* field = allowed.per_vertex.data();
   const bool uniform = allowed.per_vertex.empty();  // update() from no kept cut may pass one
+  // On demand, the split vertex of the node at position i is computed before position i − 3 is
+  // examined (or, when the queue is shorter, before i itself): after all its ancestors', which
+  // come earlier in cut_, and before any triangle that has it as a corner is read.
+  std::size_t computed = 1;  // positions of cut_ whose split vertex has its value (the root: its vertices)
   for (std::size_t i = 0; i < cut_.size(); ++i) {
-    if (!uniform) fetch_ahead(i, field);
+    if (!uniform) fetch_ahead(i, field, on_demand != nullptr);
+    if (on_demand) {
+      for (; computed < cut_.size() && computed <= i + 3; ++computed) {
+        const std::uint32_t split = mt_.node_vertex[cut_[computed]];
+        on_demand->field[split] = on_demand->source.vertex_allowed_error(split);
+      }
+    }
     const std::uint32_t n = cut_[i];
     const std::uint32_t split = n == 0 ? kNoNode : mt_.node_vertex[n];
     const std::uint32_t end = offsets[n + 1];

@@ -30,6 +30,15 @@ struct AllowedError {
   }
 };
 
+// Allowed errors vertex by vertex, for Refiner::refine_on_demand.
+class VertexErrorSource {
+ public:
+  virtual float vertex_allowed_error(std::uint32_t vertex) const = 0;
+
+ protected:
+  ~VertexErrorSource() = default;
+};
+
 struct CutView;
 
 // A cut's mesh, ready for an encoder. Caller-owned and reused between calls.
@@ -75,6 +84,13 @@ class Refiner {
 
   // Static refinement from the root: the minimal cut in which every triangle passes.
   void refine(const AllowedError& allowed, CutMesh& out);
+
+  // The same cut as refine(AllowedError::from_vertices(field of every vertex)), asking `source` only
+  // for the vertices the refinement reads: the root's and the split vertices of the cut's nodes
+  // (every corner of a triangle a node creates belongs to the root or to one of its ancestors).
+  // Their values are written to `field` (one entry per MT vertex, the caller's scratch); the other
+  // entries are left as they were. Records witnesses like refine, for a later update.
+  void refine_on_demand(const VertexErrorSource& source, std::span<float> field, CutMesh& out);
 
   // Budgeted refinement from the root: repeatedly refines the failing triangle with the largest
   // error/allowed ratio (allowed ≤ 0 ranks by error alone) and stops before the next refinement
@@ -143,9 +159,14 @@ class Refiner {
   // Triangles node x removes (counted over its parents' triangles).
   std::size_t removed_count(std::uint32_t x) const;
   // Static refinement by forcing from the root; records witnesses so update can start from it.
-  void refine_forced(const AllowedError& allowed, CutMesh& out);
+  // refine_on_demand's source and the field it fills (allowed.per_vertex views the same floats).
+  struct OnDemand {
+    const VertexErrorSource& source;
+    std::span<float> field;
+  };
+  void refine_forced(const AllowedError& allowed, CutMesh& out, const OnDemand* on_demand = nullptr);
   // Prefetches what refine_forced will read for the nodes queued after cut_[i].
-  void fetch_ahead(std::size_t i, const float* field) const;
+  void fetch_ahead(std::size_t i, const float* field, bool on_demand) const;
   bool fails(std::uint32_t t, std::uint32_t creator, const AllowedError& allowed) const;
   bool fails_at(std::uint32_t remover, const std::uint32_t* corners, const AllowedError& allowed) const;
   void reset_to_root();

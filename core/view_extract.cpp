@@ -22,6 +22,16 @@ void to_fifths_of_pixel(std::span<const std::uint32_t> squared, std::span<std::u
   }
 }
 
+// The allowed-error field as Refiner::refine_on_demand asks for it.
+class FieldSource final : public VertexErrorSource {
+ public:
+  explicit FieldSource(const AllowedErrorField& field) : field_(field) {}
+  float vertex_allowed_error(std::uint32_t vertex) const override { return field_.vertex_allowed_error(vertex); }
+
+ private:
+  const AllowedErrorField& field_;
+};
+
 }  // namespace
 
 ViewExtractor::ViewExtractor(const Mt& mt, const OccupancyLevels& levels) : mt_(mt), levels_(levels) {
@@ -136,6 +146,8 @@ void ViewExtractor::distance_transforms() {
 
 void ViewExtractor::allowed_error() {
   const ViewRequest& r = *request_;
+  on_demand_ = false;
+  field_completed_ = false;
   AllowedErrorOptions options = r.allowed;
   if (options.metric == DistanceMetric::kEuclidean) options.metric = DistanceMetric::kChamfer5711;  // see transform()
   options.use_silhouette = options.use_silhouette && !silhouette_.empty();
@@ -146,13 +158,27 @@ void ViewExtractor::allowed_error() {
     std::vector<float>& field = session_ ? session_->allowed_error_ : vertex_allowed_error_;
     field.resize(mt_.vertex_count());
     allowed_ = field;
+    on_demand_ = r.allowed_error_on_demand && !r.budget;
+    if (!on_demand_) field_.compute_all(allowed_);
+    if (session_) {
+      remember_view(*session_);
+      session_->allowed_error_complete_ = !on_demand_;
+    }
+    return;
+  }
+  ViewSession& s = *session_;
+  allowed_ = s.allowed_error_;
+  if (!s.allowed_error_complete_) {
+    // The view's first reuse after an on-demand refinement: every vertex now, for these foci.
     field_.compute_all(allowed_);
-    if (session_) remember_view(*session_);
+    s.allowed_error_complete_ = true;
+    field_completed_ = true;
+    for (std::uint32_t c = 0; c < s.focus_factor_.size(); ++c) s.focus_factor_[c] = field_.focus_factor(c);
+    remember_focus_cells(s);
+    s.changed_.clear();
     return;
   }
   // Only the foci moved: a vertex's allowed error changes only where its cell's focus multiplier did.
-  ViewSession& s = *session_;
-  allowed_ = s.allowed_error_;
   if (s.cell_start_.empty()) sort_vertices_by_cell(s);
   s.changed_.clear();
   auto visit = [&](std::uint32_t c) {
@@ -257,7 +283,10 @@ CutView ViewExtractor::refine_view(Refiner& session, CutMesh& scratch) {
   const CutView cut = [&] {
     if (request_->budget) {
       session.refine_budget(allowed, *request_->budget, scratch);
-    } else if (request_->dynamic && incremental_) {
+    } else if (on_demand_) {
+      const FieldSource source(field_);
+      session.refine_on_demand(source, allowed_, scratch);
+    } else if (request_->dynamic && incremental_ && !field_completed_) {
       return session.update_view(allowed, session_->changed_, scratch);  // even after a saccade: cheaper than from the root
     } else if (request_->dynamic) {
       session.update(allowed, scratch);

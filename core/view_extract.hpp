@@ -33,6 +33,10 @@ struct ViewRequest {
   float depth_jump = 0.1f;                    // relative depth difference that counts as a jump
   std::optional<std::size_t> budget;          // triangle budget: worst-first refinement
   bool dynamic = true;                        // move the session's cut (false: refine from the root)
+  // A new view without a budget refines from the root asking for the allowed error of only the
+  // vertices the refinement reads (Refiner::refine_on_demand) instead of every vertex's in stage 4;
+  // the same cut. false: stage 4 computes every vertex's (for callers that read the whole field).
+  bool allowed_error_on_demand = true;
   bool labels = false;                        // fill vertex labels (silhouette, else focus) for encoding
 };
 
@@ -65,6 +69,7 @@ class ViewSession {
   bool internal_silhouettes_ = false;
   float depth_jump_ = 0.0f;
   std::vector<float> allowed_error_;           // per vertex, for the session's last request
+  bool allowed_error_complete_ = false;        // false: only the last cut's vertices (on demand)
   std::vector<std::uint16_t> silhouette_dt_;   // of the view
   std::vector<std::uint16_t> neglect_dt_;
   std::vector<float> focus_factor_;            // per cell, for the last request's foci
@@ -91,7 +96,9 @@ class ViewExtractor {
   // Stage 3: the silhouette, focus and neglect transforms the request uses.
   void distance_transforms();
   // Stage 4: per-vertex allowed error (and labels when asked): every vertex, or on the incremental
-  // path only those in cells whose focus multiplier changed.
+  // path only those in cells whose focus multiplier changed; on a new view with
+  // allowed_error_on_demand, none yet: stage 5 asks for those it reads (the first reuse of the view
+  // then computes every vertex's).
   void allowed_error();
   // Stage 5: refines `session` (dynamic unless a budget is set or `dynamic` is off) and writes the
   // cut to `out`.
@@ -106,6 +113,7 @@ class ViewExtractor {
   std::span<const std::uint8_t> occupancy_grid() const { return occupancy_; }
   std::span<const std::uint16_t> silhouette_dt() const { return silhouette_; }
   std::span<const std::uint16_t> focus_dt() const { return focus_dt_; }
+  // Every vertex's allowed error, or only the cut's when it was computed on demand.
   std::span<const float> vertex_allowed_error() const { return allowed_; }
   const ViewMapping& mapping() const { return mapping_; }
   // The coarse cut the last occupancy() rasterised (null when it reused the session's view).
@@ -132,6 +140,8 @@ class ViewExtractor {
   const ViewRequest* request_ = nullptr;
   ViewSession* session_ = nullptr;
   bool incremental_ = false;
+  bool on_demand_ = false;         // stage 5 computes the allowed error it reads
+  bool field_completed_ = false;   // stage 4 completed an on-demand field: the refiner compares it all
   // The transforms and field in use: this extractor's buffers or the session's.
   std::span<const std::uint16_t> silhouette_, neglect_;
   std::span<float> allowed_;

@@ -477,6 +477,7 @@ int run_experiment(const ExperimentOptions& o, const std::string& command) {
         request.allowed.focus = {FalloffLaw::kStep, o.focus[0] * float(o.grid_px), o.focus[1], 16.0f, 2.3f};
         if (!silhouette) request.focus = {focus};
         request.dynamic = false;
+        request.allowed_error_on_demand = false;  // the whole field is read below
         extractor.map(request);
         extractor.occupancy();
         extractor.distance_transforms();

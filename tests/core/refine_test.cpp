@@ -159,6 +159,63 @@ TEST(Refine, StaticEqualsTheNaiveFixpointOnRandomFields) {
   }
 }
 
+// On demand: the same cut as with every vertex's value, asking only for the root's vertices and
+// the cut's split vertices, each once, and writing exactly those entries.
+TEST(Refine, OnDemandEqualsTheFullFieldAndAsksOnlyForTheCutsVertices) {
+  class Recorder final : public VertexErrorSource {
+   public:
+    explicit Recorder(const std::vector<float>& field) : field_(field), asked_(field.size(), 0) {}
+    float vertex_allowed_error(std::uint32_t v) const override {
+      ++asked_[v];
+      return field_[v];
+    }
+    const std::vector<int>& asked() const { return asked_; }
+
+   private:
+    const std::vector<float>& field_;
+    mutable std::vector<int> asked_;
+  };
+  std::mt19937 rng(5);
+  for (const MtCase* c : {test::shape_case(Shape::kSphere, 8'000), test::scan_case("bunny-npm-3k.ply"),
+                          test::scan_case("dragon-vrip-res4-11k.ply"), test::scan_case("armadillo-52k.ply")}) {
+    if (!c) continue;
+    const float top = max_node_error(c->mt);
+    Refiner full(c->mt), lazy(c->mt);
+    CutMesh expected, out;
+    for (int round = 0; round < 6; ++round) {
+      const std::vector<float> field = round % 2
+                                           ? focus_field(c->mesh, rng, top * 1e-3f, top * 0.3f)
+                                           : noise_field(c->mesh.vertex_count(), rng, top * 1e-3f, top * 0.5f);
+      full.refine(AllowedError::from_vertices(field), expected);
+      const Recorder source(field);
+      std::vector<float> written(field.size(), -1.0f);
+      lazy.refine_on_demand(source, written, out);
+      ASSERT_EQ(sorted_nodes(lazy), sorted_nodes(full)) << "round " << round;
+      EXPECT_EQ(test::triangle_set(out.triangles), test::triangle_set(expected.triangles));
+      EXPECT_EQ(out.max_error, expected.max_error);
+      // Asked for: the root triangles' corners and the split vertex of every other cut node.
+      std::vector<std::uint8_t> needed(field.size(), 0);
+      for (std::uint32_t t = 0; t < c->mt.root_triangle_count(); ++t) {
+        std::uint32_t v[3];
+        c->mt.triangle_vertices(t, v);
+        for (const std::uint32_t x : v) needed[x] = 1;
+      }
+      for (const std::uint32_t n : lazy.cut_nodes())
+        if (n != 0) needed[c->mt.node_vertex[n]] = 1;
+      std::size_t asked = 0;
+      for (std::uint32_t v = 0; v < field.size(); ++v) {
+        ASSERT_EQ(source.asked()[v] > 0, needed[v] == 1) << "vertex " << v << " round " << round;
+        ASSERT_EQ(written[v], needed[v] ? field[v] : -1.0f) << "vertex " << v;
+        asked += static_cast<std::size_t>(source.asked()[v]);
+      }
+      // Split vertices once each; a root vertex once per root triangle it is a corner of.
+      EXPECT_LE(asked, 3 * c->mt.root_triangle_count() + lazy.cut_nodes().size() - 1);
+      // Every corner of the cut was asked for: the refinement read only values it had asked for.
+      for (const std::uint32_t v : out.triangles) ASSERT_TRUE(needed[v]) << "vertex " << v;
+    }
+  }
+}
+
 TEST(Refine, UniformStaticEqualsTheNaiveFixpoint) {
   // The uniform case reads the cut off a prefix of the node order; the reference forces from the root.
   for (const MtCase* c :
