@@ -21,6 +21,7 @@
 
 #include "core/distance_transform.hpp"
 #include "core/labels.hpp"
+#include "core/refine.hpp"
 #include "core/view_grid.hpp"
 
 namespace mtlod::core {
@@ -103,7 +104,7 @@ struct AllowedErrorInputs {
 
 // The whole allowed-error function for one request: full (every vertex, struct-of-arrays passes) or
 // lazy (one vertex on demand). Keeps its scratch arrays between requests.
-class AllowedErrorField {
+class AllowedErrorField final : public VertexErrorSource {
  public:
   // Binds a request. The spans must outlive the calls below.
   void bind(const ViewMapping& mapping, const AllowedErrorOptions& options, const AllowedErrorInputs& inputs);
@@ -120,8 +121,9 @@ class AllowedErrorField {
            cells_.capacity() * sizeof(std::uint32_t);
   }
 
-  // Lazy variant: the same value for one vertex, projecting it on demand.
-  float vertex_allowed_error(std::uint32_t vertex) const;
+  // Lazy variant: the same value for one vertex, projecting it on demand (what
+  // Refiner::refine_on_demand asks for).
+  float vertex_allowed_error(std::uint32_t vertex) const override;
   // The same value for a vertex already known to lie in a grid cell with this clip-space w (as
   // map_point or map_vertices give them), with multiplier = cell_multiplier(cell).
   float vertex_allowed_error_in_cell(float multiplier, float clip_w, std::uint32_t vertex) const {

@@ -22,16 +22,6 @@ void to_fifths_of_pixel(std::span<const std::uint32_t> squared, std::span<std::u
   }
 }
 
-// The allowed-error field as Refiner::refine_on_demand asks for it.
-class FieldSource final : public VertexErrorSource {
- public:
-  explicit FieldSource(const AllowedErrorField& field) : field_(field) {}
-  float vertex_allowed_error(std::uint32_t vertex) const override { return field_.vertex_allowed_error(vertex); }
-
- private:
-  const AllowedErrorField& field_;
-};
-
 }  // namespace
 
 ViewExtractor::ViewExtractor(const Mt& mt, const OccupancyLevels& levels) : mt_(mt), levels_(levels) {
@@ -284,8 +274,7 @@ CutView ViewExtractor::refine_view(Refiner& session, CutMesh& scratch) {
     if (request_->budget) {
       session.refine_budget(allowed, *request_->budget, scratch);
     } else if (on_demand_) {
-      const FieldSource source(field_);
-      session.refine_on_demand(source, allowed_, scratch);
+      session.refine_on_demand(field_, allowed_, scratch);
     } else if (request_->dynamic && incremental_ && !field_completed_) {
       return session.update_view(allowed, session_->changed_, scratch);  // even after a saccade: cheaper than from the root
     } else if (request_->dynamic) {
