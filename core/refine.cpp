@@ -303,12 +303,18 @@ void Refiner::refine_prefix(std::uint32_t end, CutMesh& out) {
 void Refiner::refine_on_demand(const VertexErrorSource& source, std::span<float> field, CutMesh& out) {
   assert(field.size() == mt_.vertex_count());
   mesh_valid_ = false;
-  // The root's vertices first; the nodes' split vertices as the refinement reaches them.
-  for (std::uint32_t t = 0; t < mt_.node_triangle_offsets[1]; ++t) {
-    for (const std::uint32_t v :
-         {mt_.root_first_corner[t], mt_.triangle_corners[2 * std::size_t{t}], mt_.triangle_corners[2 * std::size_t{t} + 1]})
-      field[v] = source.vertex_allowed_error(v);
+  // The root's vertices first (each once: a vertex has about six root triangles); the nodes' split
+  // vertices as the refinement reaches them.
+  if (root_vertices_.empty()) {
+    for (std::uint32_t t = 0; t < mt_.node_triangle_offsets[1]; ++t) {
+      root_vertices_.push_back(mt_.root_first_corner[t]);
+      root_vertices_.push_back(mt_.triangle_corners[2 * std::size_t{t}]);
+      root_vertices_.push_back(mt_.triangle_corners[2 * std::size_t{t} + 1]);
+    }
+    std::sort(root_vertices_.begin(), root_vertices_.end());
+    root_vertices_.erase(std::unique(root_vertices_.begin(), root_vertices_.end()), root_vertices_.end());
   }
+  for (const std::uint32_t v : root_vertices_) field[v] = source.vertex_allowed_error(v);
   const OnDemand on_demand{source, field};
   refine_forced(AllowedError::from_vertices(field), out, &on_demand);
 }
@@ -766,7 +772,8 @@ std::size_t Refiner::memory_bytes() const {
   auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
   return bytes(in_cut_) + bytes(cut_) + bytes(witnesses_) + bytes(mesh_errors_) + bytes(stack_) +
          bytes(previous_field_) + bytes(mesh_triangles_) + bytes(mesh_corners_) + slots_.memory_bytes() +
-         bytes(changed_bits_) + bytes(dropped_) + bytes(seeds_) + bytes(passing_) + bytes(heap_);
+         bytes(changed_bits_) + bytes(dropped_) + bytes(seeds_) + bytes(passing_) + bytes(heap_) +
+         bytes(root_vertices_);
 }
 
 }  // namespace mtlod::core

@@ -199,6 +199,7 @@ class Refiner {
     std::uint32_t triangle, creator, corners[3];
   };
   std::vector<Witness> witnesses_;
+  std::vector<std::uint32_t> root_vertices_;    // distinct corners of the root's triangles (on demand)
   std::vector<std::uint32_t> stack_;             // DFS over missing ancestors: node, next parent index
   std::vector<float> previous_field_;            // allowed error of the last update, per vertex
   float previous_uniform_ = 0.0f;
