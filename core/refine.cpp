@@ -106,6 +106,7 @@ Refiner::HeapEntry Refiner::heap_entry(std::uint32_t t, std::uint32_t creator,
 }
 
 void Refiner::reset_to_root() {
+  passing_is_mesh_ = false;
   for (const std::uint32_t n : cut_) in_cut_[n] = kOut;
   cut_.clear();
   witnesses_.clear();
@@ -115,6 +116,7 @@ void Refiner::reset_to_root() {
 }
 
 void Refiner::add_node(std::uint32_t x, std::uint32_t witness_triangle, std::uint32_t witness_creator) {
+  passing_is_mesh_ = false;
   in_cut_[x] = kIn;
   cut_.push_back(x);
   // The witness's corners were just read to find it failing: cheap to keep now.
@@ -274,6 +276,7 @@ void Refiner::refine_prefix(std::uint32_t end, CutMesh& out) {
   // The cut of nodes [0, end) (every prefix is a cut: parents come first); its mesh is read off the
   // prefix of the triangle array in one sequential pass.
   const float* errors = mt_.node_error.data();
+  passing_is_mesh_ = false;
   for (const std::uint32_t n : cut_) in_cut_[n] = kOut;
   cut_.resize(end);
   witnesses_.clear();  // none recorded (see below)
@@ -369,6 +372,7 @@ void Refiner::refine_forced(const AllowedError& allowed, CutMesh& out, const OnD
   }
   writer.finish(cut_.size(), max_error);
   out.within_budget = true;
+  passing_is_mesh_ = true;  // for index_mesh, until the cut changes
   // The field is not copied here, to keep static refinement free of O(vertices) work; the next
   // update treats every vertex as changed.
   field_known_ = false;
@@ -459,6 +463,22 @@ void Refiner::index_mesh() {
   mesh_triangles_.clear();
   mesh_corners_.clear();
   mesh_errors_.clear();
+  if (passing_is_mesh_) {
+    // Right after refine_forced: its passing list holds the mesh's triangles (those not refined
+    // since), corners and errors, in order; only the slot table is scattered, so it is fetched ahead.
+    slots_.reset(passing_.size());
+    for (std::size_t i = 0; i < passing_.size(); ++i) {
+      if (i + 8 < passing_.size()) slots_.prefetch(passing_[i + 8].triangle);
+      const Passing& p = passing_[i];
+      if (p.remover != kNoNode && in_cut_[p.remover] == kIn) continue;
+      slots_.insert(p.triangle, std::uint32_t(mesh_triangles_.size()));
+      mesh_triangles_.push_back(p.triangle);
+      mesh_corners_.insert(mesh_corners_.end(), p.corners, p.corners + 3);
+      mesh_errors_.push_back(p.error);
+    }
+    mesh_valid_ = true;
+    return;
+  }
   std::size_t count = 0;
   for (const std::uint32_t n : cut_) count += mt_.node_triangle_offsets[n + 1] - mt_.node_triangle_offsets[n];
   slots_.reset(count);
@@ -556,7 +576,20 @@ bool Refiner::move_cut(const AllowedError& allowed, bool all_changed, CutMesh& o
   const std::uint32_t* parents = mt_.node_parents.data();
   std::size_t kept = 1;
   dropped_.clear();
-  for (std::size_t i = 1; i < cut_.size(); ++i) {
+  const std::size_t count = cut_.size();
+  for (std::size_t i = 1; i < count; ++i) {
+    // What the nodes ahead will read, in stages as in fetch_ahead (cut_ and witnesses_ are read
+    // in order; only the rest is scattered).
+    if (i + 16 < count) __builtin_prefetch(in_cut_.data() + witnesses_[i + 16].creator);
+    if (!dropped_.empty()) {  // parents are read once something was dropped
+      if (i + 16 < count) __builtin_prefetch(parent_offsets + cut_[i + 16]);
+      if (i + 8 < count) __builtin_prefetch(parents + parent_offsets[cut_[i + 8]]);
+      if (i + 4 < count) {
+        const std::uint32_t ahead = cut_[i + 4];
+        for (std::uint32_t j = parent_offsets[ahead]; j < parent_offsets[ahead + 1]; ++j)
+          __builtin_prefetch(in_cut_.data() + parents[j]);
+      }
+    }
     const std::uint32_t n = cut_[i];
     const Witness w = witnesses_[i];
     bool keep = in_cut_[w.creator] == kIn;

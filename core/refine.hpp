@@ -141,6 +141,7 @@ class Refiner {
     void erase_at(std::size_t position);
     std::size_t memory_bytes() const { return entries_.capacity() * sizeof(Entry); }
     void assign(std::uint32_t key, std::uint32_t value) { entries_[position(key)].value = value; }
+    void prefetch(std::uint32_t key) const { __builtin_prefetch(entries_.data() + home(key)); }
 
    private:
     struct Entry {
@@ -223,6 +224,7 @@ class Refiner {
     float error;  // 0 for an input triangle
   };
   std::vector<Passing> passing_;
+  bool passing_is_mesh_ = false;  // passing_ still describes the cut (set by refine_forced)
   struct HeapEntry {
     std::uint32_t tier;  // 1: allowed ≤ 0, ranked by error; 0: ranked by error / allowed
     float key;

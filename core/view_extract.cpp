@@ -148,7 +148,10 @@ void ViewExtractor::allowed_error() {
     std::vector<float>& field = session_ ? session_->allowed_error_ : vertex_allowed_error_;
     field.resize(mt_.vertex_count());
     allowed_ = field;
-    on_demand_ = r.allowed_error_on_demand && !r.budget;
+    // From the root anyway: a static request, or a session's new view (the session's field is
+    // completed on the view's first reuse). Without a session a dynamic request moves the
+    // refiner's cut, which compares every vertex's value.
+    on_demand_ = r.allowed_error_on_demand && !r.budget && (!r.dynamic || session_ != nullptr);
     if (!on_demand_) field_.compute_all(allowed_);
     if (session_) {
       remember_view(*session_);
