@@ -460,6 +460,9 @@ void Refiner::mesh_remove(std::uint32_t t) {
 }
 
 void Refiner::index_mesh() {
+  // Called by move_cut after its witness pass: the mesh is the cut's before that pass, whose nodes
+  // are now kIn (kept) or kDropped (in dropped_).
+  auto in_old_cut = [&](std::uint32_t n) { return in_cut_[n] == kIn || in_cut_[n] == kDropped; };
   mesh_triangles_.clear();
   mesh_corners_.clear();
   mesh_errors_.clear();
@@ -470,7 +473,7 @@ void Refiner::index_mesh() {
     for (std::size_t i = 0; i < passing_.size(); ++i) {
       if (i + 8 < passing_.size()) slots_.prefetch(passing_[i + 8].triangle);
       const Passing& p = passing_[i];
-      if (p.remover != kNoNode && in_cut_[p.remover] == kIn) continue;
+      if (p.remover != kNoNode && in_old_cut(p.remover)) continue;
       slots_.insert(p.triangle, std::uint32_t(mesh_triangles_.size()));
       mesh_triangles_.push_back(p.triangle);
       mesh_corners_.insert(mesh_corners_.end(), p.corners, p.corners + 3);
@@ -480,13 +483,18 @@ void Refiner::index_mesh() {
     return;
   }
   std::size_t count = 0;
-  for (const std::uint32_t n : cut_) count += mt_.node_triangle_offsets[n + 1] - mt_.node_triangle_offsets[n];
+  auto each_node = [&](auto&& visit) {
+    for (const std::uint32_t n : cut_) visit(n);
+    for (const std::uint32_t n : dropped_) visit(n);
+  };
+  each_node([&](std::uint32_t n) { count += mt_.node_triangle_offsets[n + 1] - mt_.node_triangle_offsets[n]; });
   slots_.reset(count);
-  for (const std::uint32_t n : cut_)
+  each_node([&](std::uint32_t n) {
     for (std::uint32_t t = mt_.node_triangle_offsets[n]; t < mt_.node_triangle_offsets[n + 1]; ++t) {
       const std::uint32_t r = mt_.triangle_remover[t];
-      if (r == kNoNode || in_cut_[r] != kIn) mesh_add(t, n);
+      if (r == kNoNode || !in_old_cut(r)) mesh_add(t, n);
     }
+  });
   mesh_valid_ = true;
 }
 
@@ -566,7 +574,6 @@ bool Refiner::update_kept(const AllowedError& allowed, std::span<const std::uint
 }
 
 bool Refiner::move_cut(const AllowedError& allowed, bool all_changed, CutMesh& out) {
-  if (!mesh_valid_) index_mesh();
   if (changed_bits_.size() < (mt_.vertex_count() + 63) / 64)
     changed_bits_.assign((mt_.vertex_count() + 63) / 64, 0);
   auto changed = [&](std::uint32_t v) { return all_changed || vertex_changed(v); };
@@ -625,6 +632,10 @@ bool Refiner::move_cut(const AllowedError& allowed, bool all_changed, CutMesh& o
     ++restarts_;
     return false;
   }
+
+  // The kept mesh is indexed only now, when the cut is moved rather than refined afresh (after a
+  // refinement from the root the next move indexes it).
+  if (!mesh_valid_) index_mesh();
 
   // 2. Undo the dropped nodes, all at once: what they created and no node of the old cut removed
   // leaves the mesh; what they had removed from kept nodes comes back and must be tested.

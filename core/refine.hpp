@@ -181,6 +181,7 @@ class Refiner {
   CutView kept_view() const;
   float kept_max_error() const;
   void remember_field(const AllowedError& allowed);
+  // Indexes the mesh of the cut before move_cut's witness pass (kept nodes kIn, dropped kDropped).
   void index_mesh();
   void mesh_add(std::uint32_t t, std::uint32_t creator);
   void mesh_remove(std::uint32_t t);
