@@ -459,6 +459,26 @@ void Refiner::mesh_remove(std::uint32_t t) {
   mesh_corners_.resize(3 * std::size_t{last});
 }
 
+void Refiner::edit_mesh(std::span<const std::uint32_t> removals, std::span<const std::uint32_t> additions) {
+  // Every edit probes the slot table somewhere else, and a removal moves the mesh's last triangle
+  // (probing again for it): the entries a few edits ahead are fetched while this one waits.
+  constexpr std::size_t kAhead = 8;
+  for (std::size_t i = 0; i < removals.size(); ++i) {
+    if (i + kAhead < removals.size()) slots_.prefetch(removals[i + kAhead]);
+    if (mesh_triangles_.size() > kAhead) slots_.prefetch(mesh_triangles_[mesh_triangles_.size() - 1 - kAhead]);
+    mesh_remove(removals[i]);
+  }
+  for (std::size_t i = 0; i < additions.size(); i += 2) {
+    if (i + 2 * kAhead < additions.size()) {
+      const std::uint32_t t = additions[i + 2 * kAhead];
+      slots_.prefetch(t);
+      __builtin_prefetch(mt_.triangle_corners.data() + 2 * std::size_t{t});
+      __builtin_prefetch(mt_.triangle_remover.data() + t);
+    }
+    mesh_add(additions[i], additions[i + 1]);
+  }
+}
+
 void Refiner::index_mesh() {
   // Called by move_cut after its witness pass: the mesh is the cut's before that pass, whose nodes
   // are now kIn (kept) or kDropped (in dropped_).
@@ -641,23 +661,25 @@ bool Refiner::move_cut(const AllowedError& allowed, bool all_changed, CutMesh& o
   // leaves the mesh; what they had removed from kept nodes comes back and must be tested.
   // (Undoing them one by one would also add and remove again what a dropped node removed from
   // another dropped node.)
+  // (The two sets are disjoint: one is created by dropped nodes, the other by kept ones.)
   seeds_.clear();
+  removals_.clear();
   for (const std::uint32_t x : dropped_) {
     for (std::uint32_t t = mt_.node_triangle_offsets[x]; t < mt_.node_triangle_offsets[x + 1]; ++t) {
       const std::uint32_t r = mt_.triangle_remover[t];
-      if (r == kNoNode || in_cut_[r] == kOut) mesh_remove(t);
+      if (r == kNoNode || in_cut_[r] == kOut) removals_.push_back(t);
     }
     for (std::uint32_t j = parent_offsets[x]; j < parent_offsets[x + 1]; ++j) {
       const std::uint32_t p = parents[j];
       if (in_cut_[p] != kIn) continue;
       for (std::uint32_t t = mt_.node_triangle_offsets[p]; t < mt_.node_triangle_offsets[p + 1]; ++t)
         if (mt_.triangle_remover[t] == x) {
-          mesh_add(t, p);
           seeds_.push_back(t);
           seeds_.push_back(p);
         }
     }
   }
+  edit_mesh(removals_, seeds_);
 
   // 3. Force the removers of what fails now: the uncovered triangles, and mesh triangles with a
   // changed corner; every other mesh triangle passed before and still does. Nodes added from here
@@ -683,22 +705,25 @@ bool Refiner::move_cut(const AllowedError& allowed, bool all_changed, CutMesh& o
   // what they create and no node of the cut removes joins it. A triangle both created and removed
   // by added nodes never enters.
   for (std::size_t i = kept; i < cut_.size(); ++i) in_cut_[cut_[i]] = kNew;
+  removals_.clear();
+  additions_.clear();
   for (std::size_t i = kept; i < cut_.size(); ++i) {
     const std::uint32_t x = cut_[i];
     for (std::uint32_t j = parent_offsets[x]; j < parent_offsets[x + 1]; ++j) {
       const std::uint32_t p = parents[j];
       if (in_cut_[p] != kIn) continue;
       for (std::uint32_t t = mt_.node_triangle_offsets[p]; t < mt_.node_triangle_offsets[p + 1]; ++t)
-        if (mt_.triangle_remover[t] == x) mesh_remove(t);
+        if (mt_.triangle_remover[t] == x) removals_.push_back(t);
     }
-  }
-  for (std::size_t i = kept; i < cut_.size(); ++i) {
-    const std::uint32_t x = cut_[i];
     for (std::uint32_t t = mt_.node_triangle_offsets[x]; t < mt_.node_triangle_offsets[x + 1]; ++t) {
       const std::uint32_t r = mt_.triangle_remover[t];
-      if (r == kNoNode || (in_cut_[r] != kIn && in_cut_[r] != kNew)) mesh_add(t, x);
+      if (r == kNoNode || (in_cut_[r] != kIn && in_cut_[r] != kNew)) {
+        additions_.push_back(t);
+        additions_.push_back(x);
+      }
     }
   }
+  edit_mesh(removals_, additions_);
   for (std::size_t i = kept; i < cut_.size(); ++i) in_cut_[cut_[i]] = kIn;
   mesh_valid_ = true;
   return true;
@@ -819,7 +844,7 @@ std::size_t Refiner::memory_bytes() const {
   return bytes(in_cut_) + bytes(cut_) + bytes(witnesses_) + bytes(mesh_errors_) + bytes(stack_) +
          bytes(previous_field_) + bytes(mesh_triangles_) + bytes(mesh_corners_) + slots_.memory_bytes() +
          bytes(changed_bits_) + bytes(dropped_) + bytes(seeds_) + bytes(passing_) + bytes(heap_) +
-         bytes(root_vertices_);
+         bytes(root_vertices_) + bytes(removals_) + bytes(additions_);
 }
 
 }  // namespace mtlod::core

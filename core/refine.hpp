@@ -185,6 +185,8 @@ class Refiner {
   void index_mesh();
   void mesh_add(std::uint32_t t, std::uint32_t creator);
   void mesh_remove(std::uint32_t t);
+  // Removes every triangle of `removals`, then adds every (triangle, creator) pair of `additions`.
+  void edit_mesh(std::span<const std::uint32_t> removals, std::span<const std::uint32_t> additions);
   // Moves the kept cut; true when the kept mesh holds the result, false when it refined from the
   // root into `out` instead.
   bool move_cut(const AllowedError& allowed, bool all_changed, CutMesh& out);
@@ -219,6 +221,8 @@ class Refiner {
   std::vector<std::uint64_t> changed_bits_;  // per vertex, during update
   std::vector<std::uint32_t> dropped_;       // nodes dropped during one update
   std::vector<std::uint32_t> seeds_;         // uncovered triangle, creator pairs of one update
+  std::vector<std::uint32_t> removals_;      // triangles leaving the kept mesh in one edit
+  std::vector<std::uint32_t> additions_;     // triangle, creator pairs joining it
   // Triangles seen passing in refine_forced, with what the output needs of them.
   struct Passing {
     std::uint32_t triangle, remover, corners[3];
