@@ -3,7 +3,7 @@
 // those between the smallest and largest x of (triangle ∩ strip j ≤ y ≤ j+1), which for a convex
 // polygon are found among its corners inside the strip and its edges' crossings of the strip's two
 // lines. This is exact for the closed triangle, so a triangle smaller than a cell marks its cell.
-// Triangles in front of the camera whose box lies inside the grid and spans at most 8 cells a side
+// Triangles in front of the camera whose box lies inside the grid and spans at most 16 cells a side
 // (nearly all of an occupancy cut's) take a faster exact test instead, cell by cell (fill_small).
 #include "core/occupancy.hpp"
 
@@ -171,7 +171,7 @@ class Rasterizer {
 // cell by cell: a cell of the triangle's box is met when, for each edge, the edge function's
 // largest value over the closed cell reaches the inside. In double, in coordinates relative to the
 // box's first cell, so every term is exact or rounds at the 1e-16 level, as the strip walk does.
-// Returns false, having marked nothing, for a degenerate triangle or a box over 8 cells on a side
+// Returns false, having marked nothing, for a degenerate triangle or a box over 16 cells on a side
 // (the strip walk takes those); otherwise true, with `marked` telling whether any cell was marked.
 bool fill_small(const ProjectedCorner& a, const ProjectedCorner& b, const ProjectedCorner& c, GridSize grid,
                 std::uint8_t* occupancy, bool& marked) {
@@ -180,7 +180,7 @@ bool fill_small(const ProjectedCorner& a, const ProjectedCorner& b, const Projec
   // Non-negative here, so truncation is floor.
   const auto i0 = static_cast<std::uint32_t>(x0), i1 = static_cast<std::uint32_t>(x1);
   const auto j0 = static_cast<std::uint32_t>(y0), j1 = static_cast<std::uint32_t>(y1);
-  constexpr std::uint32_t kSide = 8;
+  constexpr std::uint32_t kSide = 16;
   if (i1 - i0 >= kSide || j1 - j0 >= kSide) return false;
   const double p[3][2] = {{double(a.gx) - i0, double(a.gy) - j0},
                           {double(b.gx) - i0, double(b.gy) - j0},
