@@ -164,6 +164,27 @@ float AllowedErrorField::vertex_allowed_error(std::uint32_t vertex) const {
   return finish(cell_multiplier(cell), cell != kNoCell, clip_w, vertex);
 }
 
+void AllowedErrorField::fill(std::span<const std::uint32_t> vertices, std::span<float> field) const {
+  assert(mapping_ != nullptr);
+  constexpr std::size_t kBatch = 16;
+  float positions[3 * kBatch], clip_w[kBatch];
+  std::uint32_t cells[kBatch];
+  for (std::size_t first = 0; first < vertices.size(); first += kBatch) {
+    const std::size_t count = std::min(kBatch, vertices.size() - first);
+    for (std::size_t k = 0; k < count; ++k) {
+      const float* p = inputs_.positions.data() + 3 * std::size_t{vertices[first + k]};
+      std::copy_n(p, 3, positions + 3 * k);
+    }
+    // map_vertices gives the cells and clip.w of map_point, bit for bit.
+    map_vertices(*mapping_, std::span<const float>(positions, 3 * count), std::span(cells, count),
+                 std::span(clip_w, count));
+    for (std::size_t k = 0; k < count; ++k) {
+      const std::uint32_t v = vertices[first + k];
+      field[v] = finish(cell_multiplier(cells[k]), cells[k] != kNoCell, clip_w[k], v);
+    }
+  }
+}
+
 void compute_vertex_allowed_error(const ViewMapping& mapping, const AllowedErrorOptions& options,
                                   const AllowedErrorInputs& inputs, std::span<float> vertex_allowed_error) {
   AllowedErrorField field;

@@ -172,10 +172,13 @@ void Refiner::force(std::uint32_t r, std::uint32_t witness_triangle, std::uint32
   const std::uint32_t* offsets = mt_.node_triangle_offsets.data();
   const std::uint32_t* removers = mt_.triangle_remover.data();
   const std::uint32_t* corners = mt_.triangle_corners.data();
+  if (on_demand && i + 16 < cut_.size()) __builtin_prefetch(mt_.node_vertex.data() + cut_[i + 16]);
   if (i + 12 < cut_.size()) {
     const std::uint32_t ahead = cut_[i + 12];
     __builtin_prefetch(offsets + ahead);
     __builtin_prefetch(mt_.node_vertex.data() + ahead);
+    // On demand, its split vertex's value is computed 4 to 8 nodes ahead, from its position.
+    if (on_demand && ahead != 0) __builtin_prefetch(mt_.positions.data() + 3 * std::size_t{mt_.node_vertex[ahead]});
   }
   if (i + 6 < cut_.size()) {
     const std::uint32_t ahead = cut_[i + 6];
@@ -187,8 +190,6 @@ void Refiner::force(std::uint32_t r, std::uint32_t witness_triangle, std::uint32
     if (ahead != 0) {
       const std::uint32_t split = mt_.node_vertex[ahead];
       __builtin_prefetch(field + split);
-      // Its value is computed 3 nodes ahead, from its position.
-      if (on_demand) __builtin_prefetch(mt_.positions.data() + 3 * std::size_t{split});
     }
   }
   if (i + 3 < cut_.size()) {
@@ -317,7 +318,7 @@ void Refiner::refine_on_demand(const VertexErrorSource& source, std::span<float>
     std::sort(root_vertices_.begin(), root_vertices_.end());
     root_vertices_.erase(std::unique(root_vertices_.begin(), root_vertices_.end()), root_vertices_.end());
   }
-  for (const std::uint32_t v : root_vertices_) field[v] = source.vertex_allowed_error(v);
+  source.fill(root_vertices_, field);
   const OnDemand on_demand{source, field};
   refine_forced(AllowedError::from_vertices(field), out, &on_demand);
 }
@@ -334,17 +335,18 @@ void Refiner::refine_forced(const AllowedError& allowed, CutMesh& out, const OnD
   const std::uint32_t* corners = mt_.triangle_corners.data();
   const float* field = allowed.per_vertex.data();
   const bool uniform = allowed.per_vertex.empty();  // update() from no kept cut may pass one
-  // On demand, the split vertex of the node at position i is computed before position i − 3 is
-  // examined (or, when the queue is shorter, before i itself): after all its ancestors', which
-  // come earlier in cut_, and before any triangle that has it as a corner is read.
+  // On demand, the split vertices of the nodes at positions up to i + 3 have their values before
+  // position i is examined, computed in batches of about four (up to i + 7, or the queue's end):
+  // after all their ancestors', which come earlier in cut_, and before any triangle that has one
+  // as a corner is read.
   std::size_t computed = 1;  // positions of cut_ whose split vertex has its value (the root: its vertices)
   for (std::size_t i = 0; i < cut_.size(); ++i) {
     if (!uniform) fetch_ahead(i, field, on_demand != nullptr);
-    if (on_demand) {
-      for (; computed < cut_.size() && computed <= i + 3; ++computed) {
-        const std::uint32_t split = mt_.node_vertex[cut_[computed]];
-        on_demand->field[split] = on_demand->source.vertex_allowed_error(split);
-      }
+    if (on_demand && computed <= i + 3 && computed < cut_.size()) {
+      batch_.clear();
+      for (const std::size_t until = std::min(cut_.size(), i + 8); computed < until; ++computed)
+        batch_.push_back(mt_.node_vertex[cut_[computed]]);
+      on_demand->source.fill(batch_, on_demand->field);
     }
     const std::uint32_t n = cut_[i];
     const std::uint32_t split = n == 0 ? kNoNode : mt_.node_vertex[n];
@@ -844,7 +846,7 @@ std::size_t Refiner::memory_bytes() const {
   return bytes(in_cut_) + bytes(cut_) + bytes(witnesses_) + bytes(mesh_errors_) + bytes(stack_) +
          bytes(previous_field_) + bytes(mesh_triangles_) + bytes(mesh_corners_) + slots_.memory_bytes() +
          bytes(changed_bits_) + bytes(dropped_) + bytes(seeds_) + bytes(passing_) + bytes(heap_) +
-         bytes(root_vertices_) + bytes(removals_) + bytes(additions_);
+         bytes(root_vertices_) + bytes(removals_) + bytes(additions_) + bytes(batch_);
 }
 
 }  // namespace mtlod::core

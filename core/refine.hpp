@@ -34,6 +34,10 @@ struct AllowedError {
 class VertexErrorSource {
  public:
   virtual float vertex_allowed_error(std::uint32_t vertex) const = 0;
+  // field[v] = vertex_allowed_error(v) for every v of `vertices` (a source may do several at once).
+  virtual void fill(std::span<const std::uint32_t> vertices, std::span<float> field) const {
+    for (const std::uint32_t v : vertices) field[v] = vertex_allowed_error(v);
+  }
 
  protected:
   ~VertexErrorSource() = default;
@@ -203,6 +207,7 @@ class Refiner {
     std::uint32_t triangle, creator, corners[3];
   };
   std::vector<Witness> witnesses_;
+  std::vector<std::uint32_t> batch_;            // split vertices computed together (on demand)
   std::vector<std::uint32_t> root_vertices_;    // distinct corners of the root's triangles (on demand)
   std::vector<std::uint32_t> stack_;             // DFS over missing ancestors: node, next parent index
   std::vector<float> previous_field_;            // allowed error of the last update, per vertex
