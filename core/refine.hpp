@@ -121,8 +121,8 @@ class Refiner {
   // Nodes of the kept cut, in the order they were added (parents before children).
   std::span<const std::uint32_t> cut_nodes() const { return cut_; }
 
-  // Updates that found it cheaper to refine from the root than to move the kept cut (more of the
-  // cut's nodes dropped than kept); their result is the same.
+  // Updates that found it cheaper to refine from the root than to move the kept cut (a quarter of
+  // the cut's nodes dropped); their result is the same.
   std::size_t restarts() const { return restarts_; }
   // Updates given an empty list of changed vertices after a cut this refiner moved before: the
   // kept mesh is returned as it is.
