@@ -169,6 +169,7 @@ void Refiner::force(std::uint32_t r, std::uint32_t witness_triangle, std::uint32
 [[gnu::always_inline]] inline void Refiner::fetch_ahead(std::size_t i, const float* field, bool on_demand) const {
   // The queue ahead is known, so its nodes' data is fetched in stages and the misses overlap:
   // 12 nodes ahead where its triangles are, 6 ahead those triangles, 3 ahead what they point to.
+  // On demand also the split vertex 16 ahead and, 12 ahead, its position (computed 4–8 ahead).
   const std::uint32_t* offsets = mt_.node_triangle_offsets.data();
   const std::uint32_t* removers = mt_.triangle_remover.data();
   const std::uint32_t* corners = mt_.triangle_corners.data();
@@ -177,7 +178,6 @@ void Refiner::force(std::uint32_t r, std::uint32_t witness_triangle, std::uint32
     const std::uint32_t ahead = cut_[i + 12];
     __builtin_prefetch(offsets + ahead);
     __builtin_prefetch(mt_.node_vertex.data() + ahead);
-    // On demand, its split vertex's value is computed 4 to 8 nodes ahead, from its position.
     if (on_demand && ahead != 0) __builtin_prefetch(mt_.positions.data() + 3 * std::size_t{mt_.node_vertex[ahead]});
   }
   if (i + 6 < cut_.size()) {
@@ -306,7 +306,6 @@ void Refiner::refine_prefix(std::uint32_t end, CutMesh& out) {
 
 void Refiner::refine_on_demand(const VertexErrorSource& source, std::span<float> field, CutMesh& out) {
   assert(field.size() == mt_.vertex_count());
-  mesh_valid_ = false;
   // The root's vertices first (each once: a vertex has about six root triangles); the nodes' split
   // vertices as the refinement reaches them.
   if (root_vertices_.empty()) {
@@ -662,8 +661,8 @@ bool Refiner::move_cut(const AllowedError& allowed, bool all_changed, CutMesh& o
   // 2. Undo the dropped nodes, all at once: what they created and no node of the old cut removed
   // leaves the mesh; what they had removed from kept nodes comes back and must be tested.
   // (Undoing them one by one would also add and remove again what a dropped node removed from
-  // another dropped node.)
-  // (The two sets are disjoint: one is created by dropped nodes, the other by kept ones.)
+  // another dropped node.) All removals go first: the two sets are disjoint, one created by
+  // dropped nodes, the other by kept ones.
   seeds_.clear();
   removals_.clear();
   for (const std::uint32_t x : dropped_) {
