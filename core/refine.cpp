@@ -382,56 +382,6 @@ void Refiner::refine_forced(const AllowedError& allowed, CutMesh& out, const OnD
 
 // --- dynamic refinement -------------------------------------------------------------------------
 
-void Refiner::SlotTable::reset(std::size_t expected) {
-  std::size_t capacity = 16;
-  shift_ = 60;
-  while (capacity < 2 * expected) capacity *= 2, --shift_;
-  entries_.assign(capacity, Entry{kNoNode, 0});
-  size_ = 0;
-}
-
-void Refiner::SlotTable::grow() {
-  std::vector<Entry> entries;
-  entries.swap(entries_);
-  reset(entries.size());  // doubles: reset makes room for twice the expected count
-  for (const Entry& e : entries)
-    if (e.key != kNoNode) insert(e.key, e.value);
-}
-
-void Refiner::SlotTable::insert(std::uint32_t key, std::uint32_t value) {
-  if (2 * (size_ + 1) > entries_.size()) grow();
-  const std::size_t mask = entries_.size() - 1;
-  std::size_t i = home(key);
-  while (entries_[i].key != kNoNode) i = (i + 1) & mask;
-  entries_[i] = {key, value};
-  ++size_;
-}
-
-std::size_t Refiner::SlotTable::position(std::uint32_t key) const {
-  const std::size_t mask = entries_.size() - 1;
-  std::size_t i = home(key);
-  while (entries_[i].key != key) {
-    assert(entries_[i].key != kNoNode);
-    i = (i + 1) & mask;
-  }
-  return i;
-}
-
-void Refiner::SlotTable::erase_at(std::size_t i) {
-  const std::size_t mask = entries_.size() - 1;
-  // Backward shift: pull later entries of the probe run into the hole so lookups never stop early.
-  for (std::size_t j = (i + 1) & mask; entries_[j].key != kNoNode; j = (j + 1) & mask) {
-    const std::size_t h = home(entries_[j].key);
-    // Entry j may move to i only if its home is not in the cyclic range (i, j].
-    if (((j - h) & mask) >= ((j - i) & mask)) {
-      entries_[i] = entries_[j];
-      i = j;
-    }
-  }
-  entries_[i].key = kNoNode;
-  --size_;
-}
-
 void Refiner::mesh_add(std::uint32_t t, std::uint32_t creator) {
   slots_.insert(t, std::uint32_t(mesh_triangles_.size()));
   mesh_triangles_.push_back(t);

@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "core/mt.hpp"
+#include "core/slot_table.hpp"
 
 namespace mtlod::core {
 
@@ -132,32 +133,6 @@ class Refiner {
   std::size_t memory_bytes() const;
 
  private:
-  // Open-addressing map from triangle id to its slot in mesh_triangles_ (linear probing, backward
-  // shift deletion): no node allocations in the request path. Key and value share an entry, so a
-  // probe touches one cache line.
-  class SlotTable {
-   public:
-    void reset(std::size_t expected);
-    void insert(std::uint32_t key, std::uint32_t value);
-    // Where key's entry is (it must be present), its value there, and erasing it from there.
-    std::size_t position(std::uint32_t key) const;
-    std::uint32_t value_at(std::size_t position) const { return entries_[position].value; }
-    void erase_at(std::size_t position);
-    std::size_t memory_bytes() const { return entries_.capacity() * sizeof(Entry); }
-    void assign(std::uint32_t key, std::uint32_t value) { entries_[position(key)].value = value; }
-    void prefetch(std::uint32_t key) const { __builtin_prefetch(entries_.data() + home(key)); }
-
-   private:
-    struct Entry {
-      std::uint32_t key, value;
-    };
-    std::size_t home(std::uint32_t key) const { return std::size_t((key * 0x9E3779B97F4A7C15ull) >> shift_); }
-    void grow();
-    std::vector<Entry> entries_;
-    std::size_t size_ = 0;
-    unsigned shift_ = 64;
-  };
-
   void refine_uniform(float allowed_error, CutMesh& out);
   // The cut of nodes [0, end): the uniform static and budgeted results.
   void refine_prefix(std::uint32_t end, CutMesh& out);

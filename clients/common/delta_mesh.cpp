@@ -11,24 +11,25 @@ namespace mtlod::clients {
 Status DeltaMesh::apply(const protocol::MeshReply& reply, std::span<const std::uint8_t> payload) {
   if (!reply.delta) return make_error(ErrorCode::kInvalidArgument, "the reply is not a delta (ask with \"delta\": true)");
   MTLOD_TRY(const protocol::DeltaPayload parts, protocol::split_delta_payload(*reply.delta, payload));
-  if (reply.delta->reset) {
+  if (reply.delta->reset || ids_.empty()) {
     ids_.clear();
     corners_.clear();
-    slot_.clear();
+    slot_.reset(parts.added_ids.size());
   }
   for (const std::uint32_t id : parts.removed_ids) {
-    const auto it = slot_.find(id);
-    if (it == slot_.end()) {
+    const std::size_t entry = slot_.find(id);
+    if (entry == core::SlotTable::kAbsent) {
       return make_error(ErrorCode::kCorrupt, fmt::format("the delta removes triangle {}, which the mesh does not hold", id));
     }
-    // Swap with the last slot so the arrays stay dense.
-    const std::uint32_t slot = it->second, last = static_cast<std::uint32_t>(ids_.size() - 1);
-    slot_.erase(it);
+    // Swap with the last slot so the arrays stay dense. (Assigning moves no table entry, so the
+    // removed id's entry is still where it was.)
+    const std::uint32_t slot = slot_.value_at(entry), last = static_cast<std::uint32_t>(ids_.size() - 1);
     if (slot != last) {
       ids_[slot] = ids_[last];
       std::copy_n(&corners_[9 * std::size_t{last}], 9, &corners_[9 * std::size_t{slot}]);
-      slot_[ids_[slot]] = slot;
+      slot_.assign(ids_[slot], slot);
     }
+    slot_.erase_at(entry);
     ids_.pop_back();
     corners_.resize(9 * std::size_t{last});
   }
@@ -41,9 +42,13 @@ Status DeltaMesh::apply(const protocol::MeshReply& reply, std::span<const std::u
     }
     for (std::size_t f = 0; f < parts.added_ids.size(); ++f) {
       const std::uint32_t id = parts.added_ids[f];
-      if (!slot_.emplace(id, static_cast<std::uint32_t>(ids_.size())).second) {
+      if (id == core::SlotTable::kEmpty) {
+        return make_error(ErrorCode::kCorrupt, fmt::format("the delta adds triangle {}, not a triangle id", id));
+      }
+      if (slot_.find(id) != core::SlotTable::kAbsent) {
         return make_error(ErrorCode::kCorrupt, fmt::format("the delta adds triangle {}, which the mesh already holds", id));
       }
+      slot_.insert(id, static_cast<std::uint32_t>(ids_.size()));
       ids_.push_back(id);
       for (int k = 0; k < 3; ++k) {
         const float* p = &m.positions[3 * std::size_t{m.triangles[3 * f + k]}];

@@ -7,10 +7,10 @@
 #include <cstddef>
 #include <cstdint>
 #include <span>
-#include <unordered_map>
 #include <vector>
 
 #include "core/result.hpp"
+#include "core/slot_table.hpp"
 #include "protocol/replies.hpp"
 
 namespace mtlod::clients {
@@ -28,7 +28,7 @@ class DeltaMesh {
  private:
   std::vector<std::uint32_t> ids_;
   std::vector<float> corners_;
-  std::unordered_map<std::uint32_t, std::uint32_t> slot_;  // id → index into ids_
+  core::SlotTable slot_;  // id → index into ids_ (flat: a saccade's delta edits tens of thousands)
 };
 
 }  // namespace mtlod::clients
