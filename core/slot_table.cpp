@@ -31,6 +31,18 @@ void SlotTable::insert(std::uint32_t key, std::uint32_t value) {
   ++size_;
 }
 
+bool SlotTable::try_insert(std::uint32_t key, std::uint32_t value) {
+  assert(key != kEmpty);
+  if (2 * (size_ + 1) > entries_.size()) grow();
+  const std::size_t mask = entries_.size() - 1;
+  std::size_t i = home(key);
+  for (; entries_[i].key != kEmpty; i = (i + 1) & mask)
+    if (entries_[i].key == key) return false;
+  entries_[i] = {key, value};
+  ++size_;
+  return true;
+}
+
 std::size_t SlotTable::position(std::uint32_t key) const {
   const std::size_t mask = entries_.size() - 1;
   std::size_t i = home(key);

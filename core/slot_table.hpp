@@ -20,6 +20,8 @@ class SlotTable {
   void reset(std::size_t expected);
   // Adds a key that is not present (key != kEmpty).
   void insert(std::uint32_t key, std::uint32_t value);
+  // Adds key unless it is present (one probe); false when it was (key != kEmpty).
+  bool try_insert(std::uint32_t key, std::uint32_t value);
   // Where key's entry is: it must be present.
   std::size_t position(std::uint32_t key) const;
   // Where key's entry is, or kAbsent.

@@ -16,7 +16,13 @@ Status DeltaMesh::apply(const protocol::MeshReply& reply, std::span<const std::u
     corners_.clear();
     slot_.reset(parts.added_ids.size());
   }
-  for (const std::uint32_t id : parts.removed_ids) {
+  // Each edit probes the table at a scattered place: the probes a few edits ahead (and, for a
+  // removal, the probe for the triangle that moves into its slot) are fetched while this one waits.
+  constexpr std::size_t kAhead = 8;
+  for (std::size_t r = 0; r < parts.removed_ids.size(); ++r) {
+    const std::uint32_t id = parts.removed_ids[r];
+    if (r + kAhead < parts.removed_ids.size()) slot_.prefetch(parts.removed_ids[r + kAhead]);
+    if (ids_.size() > kAhead) slot_.prefetch(ids_[ids_.size() - 1 - kAhead]);
     const std::size_t entry = slot_.find(id);
     if (entry == core::SlotTable::kAbsent) {
       return make_error(ErrorCode::kCorrupt, fmt::format("the delta removes triangle {}, which the mesh does not hold", id));
@@ -45,10 +51,10 @@ Status DeltaMesh::apply(const protocol::MeshReply& reply, std::span<const std::u
       if (id == core::SlotTable::kEmpty) {
         return make_error(ErrorCode::kCorrupt, fmt::format("the delta adds triangle {}, not a triangle id", id));
       }
-      if (slot_.find(id) != core::SlotTable::kAbsent) {
+      if (f + kAhead < parts.added_ids.size()) slot_.prefetch(parts.added_ids[f + kAhead]);
+      if (!slot_.try_insert(id, static_cast<std::uint32_t>(ids_.size()))) {
         return make_error(ErrorCode::kCorrupt, fmt::format("the delta adds triangle {}, which the mesh already holds", id));
       }
-      slot_.insert(id, static_cast<std::uint32_t>(ids_.size()));
       ids_.push_back(id);
       for (int k = 0; k < 3; ++k) {
         const float* p = &m.positions[3 * std::size_t{m.triangles[3 * f + k]}];

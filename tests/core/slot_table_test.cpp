@@ -24,7 +24,12 @@ TEST(SlotTable, AgreesWithAHashMapUnderRandomEdits) {
       const std::size_t at = table.find(k);
       ASSERT_EQ(at != SlotTable::kAbsent, reference.count(k) == 1) << "step " << step;
       if (at == SlotTable::kAbsent) {
-        table.insert(k, static_cast<std::uint32_t>(step));
+        if (step % 2 == 0) {
+          table.insert(k, static_cast<std::uint32_t>(step));
+        } else {
+          ASSERT_TRUE(table.try_insert(k, static_cast<std::uint32_t>(step)));
+        }
+        ASSERT_FALSE(table.try_insert(k, 99));  // present now: left as it is
         reference[k] = static_cast<std::uint32_t>(step);
       } else if (step % 3 == 0) {
         ASSERT_EQ(table.value_at(at), reference[k]);
