@@ -71,42 +71,29 @@ Refiner::Refiner(const Mt& mt)
 }
 
 bool Refiner::fails(std::uint32_t t, std::uint32_t creator, const AllowedError& allowed) const {
-  const std::uint32_t r = mt_.triangle_remover[t];
-  if (r == kNoNode) return false;  // an input triangle: nothing finer exists
-  const float error = mt_.node_error[r];
-  if (allowed.per_vertex.empty()) return error > allowed.uniform;
-  const float* field = allowed.per_vertex.data();
-  const float a = field[mt_.first_corner(TriangleId{t}, NodeId{creator})];
-  const float b = field[mt_.triangle_corners[2 * std::size_t{t}]];
-  const float c = field[mt_.triangle_corners[2 * std::size_t{t} + 1]];
-  return error > std::min(a, std::min(b, c));
+  const std::uint32_t corners[3] = {mt_.first_corner(TriangleId{t}, NodeId{creator}),
+                                    mt_.triangle_corners[2 * std::size_t{t}],
+                                    mt_.triangle_corners[2 * std::size_t{t} + 1]};
+  return fails_at(mt_.triangle_remover[t], corners, allowed);
 }
 
 bool Refiner::fails_at(std::uint32_t r, const std::uint32_t* corners, const AllowedError& allowed) const {
-  if (r == kNoNode) return false;
-  const float error = mt_.node_error[r];
-  if (allowed.per_vertex.empty()) return error > allowed.uniform;
-  const float* field = allowed.per_vertex.data();
-  return error > std::min(field[corners[0]], std::min(field[corners[1]], field[corners[2]]));
+  if (r == kNoNode) return false;  // an input triangle: nothing finer exists
+  return mt_.node_error[r] > allowed.of_triangle(corners[0], corners[1], corners[2]);
 }
 
 Refiner::HeapEntry Refiner::heap_entry(std::uint32_t t, std::uint32_t creator,
                                        const AllowedError& allowed) const {
   const float error = mt_.node_error[mt_.triangle_remover[t]];
-  float a = allowed.uniform;
-  if (!allowed.per_vertex.empty()) {
-    const float* field = allowed.per_vertex.data();
-    a = std::min(field[mt_.first_corner(TriangleId{t}, NodeId{creator})],
-                 std::min(field[mt_.triangle_corners[2 * std::size_t{t}]],
-                          field[mt_.triangle_corners[2 * std::size_t{t} + 1]]));
-  }
+  const float a = allowed.of_triangle(mt_.first_corner(TriangleId{t}, NodeId{creator}),
+                                      mt_.triangle_corners[2 * std::size_t{t}],
+                                      mt_.triangle_corners[2 * std::size_t{t} + 1]);
   // allowed ≤ 0 would divide by zero: such triangles rank above all others, by error.
   if (!(a > 0)) return {1, error, t, creator};
   return {0, error / a, t, creator};
 }
 
 void Refiner::reset_to_root() {
-  passing_is_mesh_ = false;
   for (const std::uint32_t n : cut_) in_cut_[n] = kOut;
   cut_.clear();
   witnesses_.clear();
@@ -116,7 +103,9 @@ void Refiner::reset_to_root() {
 }
 
 void Refiner::add_node(std::uint32_t x, std::uint32_t witness_triangle, std::uint32_t witness_creator) {
-  passing_is_mesh_ = false;
+  // Nodes are added with the kept mesh set aside (refine_forced and refine_budget emit at the end,
+  // move_cut patches the mesh once for all its additions).
+  assert(!mesh_valid_);
   in_cut_[x] = kIn;
   cut_.push_back(x);
   // The witness's corners were just read to find it failing: cheap to keep now.
@@ -124,15 +113,6 @@ void Refiner::add_node(std::uint32_t x, std::uint32_t witness_triangle, std::uin
                         {mt_.first_corner(TriangleId{witness_triangle}, NodeId{witness_creator}),
                          mt_.triangle_corners[2 * std::size_t{witness_triangle}],
                          mt_.triangle_corners[2 * std::size_t{witness_triangle} + 1]}});
-  if (!mesh_valid_) return;
-  // x's parents are all in the cut: what it removes is in the mesh, what it creates is not yet.
-  for (std::uint32_t j = mt_.node_parent_offsets[x]; j < mt_.node_parent_offsets[x + 1]; ++j) {
-    const std::uint32_t p = mt_.node_parents[j];
-    for (std::uint32_t t = mt_.node_triangle_offsets[p]; t < mt_.node_triangle_offsets[p + 1]; ++t)
-      if (mt_.triangle_remover[t] == x) mesh_remove(t);
-  }
-  for (std::uint32_t t = mt_.node_triangle_offsets[x]; t < mt_.node_triangle_offsets[x + 1]; ++t)
-    mesh_add(t, x);
 }
 
 void Refiner::force(std::uint32_t r, std::uint32_t witness_triangle, std::uint32_t witness_creator) {
@@ -277,7 +257,6 @@ void Refiner::refine_prefix(std::uint32_t end, CutMesh& out) {
   // The cut of nodes [0, end) (every prefix is a cut: parents come first); its mesh is read off the
   // prefix of the triangle array in one sequential pass.
   const float* errors = mt_.node_error.data();
-  passing_is_mesh_ = false;
   for (const std::uint32_t n : cut_) in_cut_[n] = kOut;
   cut_.resize(end);
   witnesses_.clear();  // none recorded (see below)
@@ -357,7 +336,7 @@ void Refiner::refine_forced(const AllowedError& allowed, CutMesh& out, const OnD
       const std::uint32_t a = n == 0 ? mt_.root_first_corner[t] : split;
       const std::uint32_t b = corners[2 * std::size_t{t}], c = corners[2 * std::size_t{t} + 1];
       const float error = r == kNoNode ? 0.0f : mt_.node_error[r];
-      if (r != kNoNode && error > (uniform ? allowed.uniform : std::min(field[a], std::min(field[b], field[c])))) {
+      if (r != kNoNode && error > allowed.of_triangle(a, b, c)) {
         force(r, t, n);
       } else {
         passing_.push_back({t, r, {a, b, c}, error});
@@ -373,7 +352,6 @@ void Refiner::refine_forced(const AllowedError& allowed, CutMesh& out, const OnD
   }
   writer.finish(cut_.size(), max_error);
   out.within_budget = true;
-  passing_is_mesh_ = true;  // for index_mesh, until the cut changes
   // The field is not copied here, to keep static refinement free of O(vertices) work; the next
   // update treats every vertex as changed.
   field_known_ = false;
@@ -431,41 +409,25 @@ void Refiner::edit_mesh(std::span<const std::uint32_t> removals, std::span<const
 }
 
 void Refiner::index_mesh() {
-  // Called by move_cut after its witness pass: the mesh is the cut's before that pass, whose nodes
-  // are now kIn (kept) or kDropped (in dropped_).
-  auto in_old_cut = [&](std::uint32_t n) { return in_cut_[n] == kIn || in_cut_[n] == kDropped; };
+  // The kept mesh is set aside only by refine_forced (a move leaves it indexed; the other
+  // refinements clear dynamic_ready_, so no move follows them): its passing list still holds the
+  // mesh's triangles (those not refined since), corners and errors, in order. Only the slot table
+  // is scattered, so it is fetched ahead. The mesh is the cut's before move_cut's witness pass,
+  // whose nodes are now kIn (kept) or kDropped.
+  assert(dynamic_ready_ && !mesh_valid_);
   mesh_triangles_.clear();
   mesh_corners_.clear();
   mesh_errors_.clear();
-  if (passing_is_mesh_) {
-    // Right after refine_forced: its passing list holds the mesh's triangles (those not refined
-    // since), corners and errors, in order; only the slot table is scattered, so it is fetched ahead.
-    slots_.reset(passing_.size());
-    for (std::size_t i = 0; i < passing_.size(); ++i) {
-      if (i + 8 < passing_.size()) slots_.prefetch(passing_[i + 8].triangle);
-      const Passing& p = passing_[i];
-      if (p.remover != kNoNode && in_old_cut(p.remover)) continue;
-      slots_.insert(p.triangle, std::uint32_t(mesh_triangles_.size()));
-      mesh_triangles_.push_back(p.triangle);
-      mesh_corners_.insert(mesh_corners_.end(), p.corners, p.corners + 3);
-      mesh_errors_.push_back(p.error);
-    }
-    mesh_valid_ = true;
-    return;
+  slots_.reset(passing_.size());
+  for (std::size_t i = 0; i < passing_.size(); ++i) {
+    if (i + 8 < passing_.size()) slots_.prefetch(passing_[i + 8].triangle);
+    const Passing& p = passing_[i];
+    if (p.remover != kNoNode && (in_cut_[p.remover] == kIn || in_cut_[p.remover] == kDropped)) continue;
+    slots_.insert(p.triangle, std::uint32_t(mesh_triangles_.size()));
+    mesh_triangles_.push_back(p.triangle);
+    mesh_corners_.insert(mesh_corners_.end(), p.corners, p.corners + 3);
+    mesh_errors_.push_back(p.error);
   }
-  std::size_t count = 0;
-  auto each_node = [&](auto&& visit) {
-    for (const std::uint32_t n : cut_) visit(n);
-    for (const std::uint32_t n : dropped_) visit(n);
-  };
-  each_node([&](std::uint32_t n) { count += mt_.node_triangle_offsets[n + 1] - mt_.node_triangle_offsets[n]; });
-  slots_.reset(count);
-  each_node([&](std::uint32_t n) {
-    for (std::uint32_t t = mt_.node_triangle_offsets[n]; t < mt_.node_triangle_offsets[n + 1]; ++t) {
-      const std::uint32_t r = mt_.triangle_remover[t];
-      if (r == kNoNode || !in_old_cut(r)) mesh_add(t, n);
-    }
-  });
   mesh_valid_ = true;
 }
 

@@ -10,6 +10,7 @@
 // which all triangles pass contains every forced node, so the result does not depend on the order.
 #pragma once
 
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <span>
@@ -28,6 +29,12 @@ struct AllowedError {
   static AllowedError everywhere(float error) { return {error, {}}; }
   static AllowedError from_vertices(std::span<const float> vertex_allowed_error) {
     return {0.0f, vertex_allowed_error};
+  }
+  // Of a triangle with corners a, b, c: the uniform value, or the smallest of theirs.
+  float of_triangle(std::uint32_t a, std::uint32_t b, std::uint32_t c) const {
+    if (per_vertex.empty()) return uniform;
+    const float* field = per_vertex.data();
+    return std::min(field[a], std::min(field[b], field[c]));
   }
 };
 
@@ -160,7 +167,8 @@ class Refiner {
   CutView kept_view() const;
   float kept_max_error() const;
   void remember_field(const AllowedError& allowed);
-  // Indexes the mesh of the cut before move_cut's witness pass (kept nodes kIn, dropped kDropped).
+  // Indexes the mesh of the cut refine_forced left, from its passing list, once move_cut's witness
+  // pass has run (kept nodes kIn, dropped kDropped).
   void index_mesh();
   void mesh_add(std::uint32_t t, std::uint32_t creator);
   void mesh_remove(std::uint32_t t);
@@ -209,7 +217,6 @@ class Refiner {
     float error;  // 0 for an input triangle
   };
   std::vector<Passing> passing_;
-  bool passing_is_mesh_ = false;  // passing_ still describes the cut (set by refine_forced)
   struct HeapEntry {
     std::uint32_t tier;  // 1: allowed ≤ 0, ranked by error; 0: ranked by error / allowed
     float key;

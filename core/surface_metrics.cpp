@@ -145,7 +145,7 @@ TriangleIndex::TriangleIndex(std::span<const float> positions, std::span<const s
   cell_offsets_.assign(2, 0);
   if (count == 0) return;
   const Bounds box = bounds_of(positions, triangles);
-  const double lo[3] = {box.lo[0], box.lo[1], box.lo[2]}, hi[3] = {box.hi[0], box.hi[1], box.hi[2]};
+  const std::array<double, 3> lo = to_double(box.lo), hi = to_double(box.hi);
   // Cubic cells sized to the triangles (twice the square root of the mean area), so a cell on the
   // surface holds a few triangles whatever the volume around the surface; the cell count is capped
   // at 8 per triangle (and 1024 per side) by growing the cells.

@@ -166,8 +166,7 @@ void ViewExtractor::allowed_error() {
     field_.compute_all(allowed_);
     s.allowed_error_complete_ = true;
     field_completed_ = true;
-    for (std::uint32_t c = 0; c < s.focus_factor_.size(); ++c) s.focus_factor_[c] = field_.focus_factor(c);
-    remember_focus_cells(s);
+    remember_foci(s);
     s.changed_.clear();
     return;
   }
@@ -225,6 +224,13 @@ void ViewExtractor::remember_focus_cells(ViewSession& s) const {
   for (const auto& p : request_->focus) s.focus_cells_.push_back(focus_cell(request_->grid, p[0], p[1]));
 }
 
+void ViewExtractor::remember_foci(ViewSession& s) const {
+  const std::size_t cells = request_->grid.cell_count();
+  s.focus_factor_.resize(cells);
+  for (std::uint32_t c = 0; c < cells; ++c) s.focus_factor_[c] = field_.focus_factor(c);
+  remember_focus_cells(s);
+}
+
 void ViewExtractor::remember_view(ViewSession& s) const {
   const ViewRequest& r = *request_;
   s.valid_ = true;
@@ -237,10 +243,7 @@ void ViewExtractor::remember_view(ViewSession& s) const {
   s.depth_jump_ = r.depth_jump;
   s.silhouette_dt_.assign(silhouette_.begin(), silhouette_.end());
   s.neglect_dt_.assign(neglect_.begin(), neglect_.end());
-  const std::size_t cells = r.grid.cell_count();
-  s.focus_factor_.resize(cells);
-  for (std::uint32_t c = 0; c < cells; ++c) s.focus_factor_[c] = field_.focus_factor(c);
-  remember_focus_cells(s);
+  remember_foci(s);
   s.cell_start_.clear();  // sorted again on the view's first reuse
   s.changed_.clear();
 }

@@ -49,7 +49,8 @@ struct ViewRequest {
 // computing every stage again (tests/core/view_extract_test.cpp holds it to that).
 class ViewSession {
  public:
-  // Whether the last request took the incremental path, and how many vertices it recomputed.
+  // Whether the last request took the incremental path, and how many vertices it recomputed one
+  // by one (0 on the view's first reuse after an on-demand refinement, which computes them all).
   bool reused() const { return reused_; }
   std::size_t changed_vertices() const { return changed_.size(); }
   // Bytes held: per vertex 12 (the field, the vertices sorted by cell and their depths), per cell
@@ -132,6 +133,8 @@ class ViewExtractor {
   static bool same_view(const ViewSession& session, const ViewRequest& request);
   void remember_view(ViewSession& session) const;
   void remember_focus_cells(ViewSession& session) const;
+  // The focus multiplier of every cell and the foci, for the request's foci.
+  void remember_foci(ViewSession& session) const;
   void sort_vertices_by_cell(ViewSession& session);
   void transform_from_cells(std::span<const std::uint32_t> cells, std::span<std::uint16_t> out);
 

@@ -89,8 +89,7 @@ Status ModelRegistry::add_mesh(const fs::path& mesh, const fs::path& mt_path) {
     // Built before the server serves anyone: every core helps (the MT is the same as serial).
     tools::ThreadPool pool;
     core::BuildOptions options;
-    options.parallel_for = tools::ThreadPool::parallel_for;
-    options.parallel_user = &pool;
+    pool.attach(options);
     MTLOD_TRY(core::Mt mt, core::build_mt(loaded.mesh, options, &stats));
     fs::create_directories(mt_path.parent_path(), ec);
     MTLOD_TRY(std::uint64_t bytes, core::io::write_mt_file(mt_path, mt));

@@ -11,7 +11,7 @@ namespace mtlod::clients {
 Status DeltaMesh::apply(const protocol::MeshReply& reply, std::span<const std::uint8_t> payload) {
   if (!reply.delta) return make_error(ErrorCode::kInvalidArgument, "the reply is not a delta (ask with \"delta\": true)");
   MTLOD_TRY(const protocol::DeltaPayload parts, protocol::split_delta_payload(*reply.delta, payload));
-  if (reply.delta->reset || ids_.empty()) {
+  if (reply.delta->reset || ids_.empty()) {  // a new mesh: the table sized for what arrives
     ids_.clear();
     corners_.clear();
     slot_.reset(parts.added_ids.size());

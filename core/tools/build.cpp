@@ -69,10 +69,7 @@ int main(int argc, char** argv) {
     options.progress_user = &bar;
   }
   mtlod::tools::ThreadPool pool(serial ? 1u : std::thread::hardware_concurrency());  // 1: no other thread
-  if (!serial) {
-    options.parallel_for = mtlod::tools::ThreadPool::parallel_for;
-    options.parallel_user = &pool;
-  }
+  if (!serial) pool.attach(options);
   BuildStats stats;
   const auto start = std::chrono::steady_clock::now();
   auto mt = build_mt(mesh, options, &stats);

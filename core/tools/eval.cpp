@@ -139,7 +139,7 @@ int run_silhouette(const std::string& a_path, const std::string& b_path, const C
   if (f.size == 0 || f.size > kMaxGridSide)
     return fmt::print(stderr, "mtlod-eval: --size {} is outside [1, {}]\n", f.size, kMaxGridSide), 2;
   const Bounds bounds = bounds_of(a->positions);
-  std::array<double, 3> eye, target{bounds.centre()[0], bounds.centre()[1], bounds.centre()[2]}, up{f.up[0], f.up[1], f.up[2]};
+  std::array<double, 3> eye, target = to_double(bounds.centre()), up{f.up[0], f.up[1], f.up[2]};
   if (f.eye.empty()) {
     const double d = bounds.radius() / std::sin(glm::radians(f.fov / 2)) / 0.9;
     eye = {target[0], target[1], target[2] + d};

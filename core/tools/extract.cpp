@@ -128,8 +128,7 @@ int main(int argc, char** argv) {
   double refine_s = 0;
   if (view) {
     const Bounds box = bounds_of(mt->positions);
-    const std::array<double, 3> lo{box.lo[0], box.lo[1], box.lo[2]}, hi{box.hi[0], box.hi[1], box.hi[2]};
-    auto made = mtlod::protocol::make_extract(options.view, options.model, lo, hi);
+    auto made = mtlod::protocol::make_extract(options.view, options.model, to_double(box.lo), to_double(box.hi));
     if (!made) {
       fmt::print(stderr, "mtlod-extract: {}\n", made.error().message);
       return 2;

@@ -12,6 +12,8 @@
 #include <thread>
 #include <vector>
 
+#include "core/mt_builder.hpp"
+
 namespace mtlod::tools {
 
 class ThreadPool {
@@ -33,6 +35,11 @@ class ThreadPool {
   static void parallel_for(void* pool, std::size_t count, void (*task)(void* context, std::size_t i),
                            void* context) {
     static_cast<ThreadPool*>(pool)->run(count, task, context);
+  }
+  // Makes a build with these options run its concurrent phases on this pool.
+  void attach(core::BuildOptions& options) {
+    options.parallel_for = parallel_for;
+    options.parallel_user = this;
   }
 
  private:

@@ -53,10 +53,7 @@ void BM_BuildMt(benchmark::State& state) {
   BuildOptions options;
   // range(0) = 1: the pass's independent work on every core (2 here); the MT is the same as serial.
   mtlod::tools::ThreadPool pool;
-  if (state.range(0) == 1) {
-    options.parallel_for = mtlod::tools::ThreadPool::parallel_for;
-    options.parallel_user = &pool;
-  }
+  if (state.range(0) == 1) pool.attach(options);
   for (auto _ : state) {
     auto mt = build_mt(*mesh, options, &stats);
     benchmark::DoNotOptimize(mt);

@@ -58,7 +58,8 @@ const Model* model(const std::string& name) {
   slot->mt = std::move(*mt);
   slot->levels = std::make_unique<core::OccupancyLevels>(slot->mt);
   const core::Bounds box = core::bounds_of(slot->mt.positions);
-  for (int c = 0; c < 3; ++c) slot->lo[c] = box.lo[c], slot->hi[c] = box.hi[c];
+  slot->lo = core::to_double(box.lo);
+  slot->hi = core::to_double(box.hi);
   return slot.get();
 }
 

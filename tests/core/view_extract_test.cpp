@@ -48,7 +48,8 @@ std::unique_ptr<Built> build(Mesh mesh) {
 // A perspective camera looking at the mesh's bounding-box centre from +z, the whole mesh in view.
 Camera front_camera(const Mesh& m, float aspect) {
   const Bounds box = bounds_of(m.positions);
-  const glm::vec3 centre(box.centre()[0], box.centre()[1], box.centre()[2]);
+  const std::array<float, 3> middle = box.centre();
+  const glm::vec3 centre(middle[0], middle[1], middle[2]);
   const float radius = box.radius();
   const float distance = 1.1f * radius / std::sin(glm::radians(22.5f));
   Camera c;

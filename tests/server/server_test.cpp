@@ -87,8 +87,8 @@ class ServerTest : public testing::Test {
     protocol::Extract e;
     e.model = "bunny";
     const core::Bounds box = core::bounds_of(g_fixture->mt.positions);
-    const std::array<double, 3> lo{box.lo[0], box.lo[1], box.lo[2]}, hi{box.hi[0], box.hi[1], box.hi[2]};
-    protocol::look_at_camera(protocol::frame_bounds(lo, hi), 4.0 / 3.0, e.view, e.projection);
+    protocol::look_at_camera(protocol::frame_bounds(core::to_double(box.lo), core::to_double(box.hi)), 4.0 / 3.0,
+                             e.view, e.projection);
     e.grid = {128, 96};
     e.error = 2;
     e.error_unit = protocol::ErrorUnit::kPixels;
