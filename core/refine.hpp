@@ -122,15 +122,16 @@ class Refiner {
   // O(vertices) comparison. A uniform field, or a previous uniform one, counts as all changed.
   void update(const AllowedError& allowed, std::span<const std::uint32_t> changed_vertices, CutMesh& out);
   // The same without copying the result out: a view of the refiner's kept mesh when it moved the
-  // kept cut, or of `scratch` when it refined from the root (scratch is written then).
+  // kept cut, or of `scratch` when it refined afresh (scratch is written then).
   CutView update_view(const AllowedError& allowed, std::span<const std::uint32_t> changed_vertices,
                       CutMesh& scratch);
 
   // Nodes of the kept cut, in the order they were added (parents before children).
   std::span<const std::uint32_t> cut_nodes() const { return cut_; }
 
-  // Updates that found it cheaper to refine from the root than to move the kept cut (a quarter of
-  // the cut's nodes dropped); their result is the same.
+  // Updates that found it cheaper to refine afresh than to move the kept cut (a quarter of the cut's
+  // nodes dropped): forcing from the nodes that stay, as a static refinement forces from the root.
+  // Their result is the same.
   std::size_t restarts() const { return restarts_; }
   // Updates given an empty list of changed vertices after a cut this refiner moved before: the
   // kept mesh is returned as it is.
@@ -145,13 +146,17 @@ class Refiner {
   void refine_prefix(std::uint32_t end, CutMesh& out);
   // Triangles node x removes (counted over its parents' triangles).
   std::size_t removed_count(std::uint32_t x) const;
-  // Static refinement by forcing from the root; records witnesses so update can start from it.
+  // Static refinement by forcing from the root (or from cut_, see from_cut); records witnesses so
+  // update can start from it.
   // refine_on_demand's source and the field it fills (allowed.per_vertex views the same floats).
   struct OnDemand {
     const VertexErrorSource& source;
     std::span<float> field;
   };
-  void refine_forced(const AllowedError& allowed, CutMesh& out, const OnDemand* on_demand = nullptr);
+  // from_cut: start from the nodes in cut_ (a subset of the new minimal cut, with their witnesses,
+  // parents and witness creators before them) instead of the root alone.
+  void refine_forced(const AllowedError& allowed, CutMesh& out, const OnDemand* on_demand = nullptr,
+                     bool from_cut = false);
   // Prefetches what refine_forced will read for the nodes queued after cut_[i].
   void fetch_ahead(std::size_t i, const float* field, bool on_demand) const;
   bool fails(std::uint32_t t, std::uint32_t creator, const AllowedError& allowed) const;
