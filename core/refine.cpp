@@ -195,13 +195,15 @@ void Refiner::examine(std::uint32_t n, const AllowedError& allowed) {
   }
 }
 
-void Refiner::close_over(const AllowedError& allowed, std::size_t first) {
+bool Refiner::close_over(const AllowedError& allowed, std::size_t first, std::size_t max_nodes) {
   // cut_ grows while we walk it: every added node gets its own triangles examined.
   const bool uniform = allowed.per_vertex.empty();
   for (std::size_t i = first; i < cut_.size(); ++i) {
+    if (cut_.size() > max_nodes) return false;
     if (!uniform) fetch_ahead(i, allowed.per_vertex.data(), false);
     examine(cut_[i], allowed);
   }
+  return true;
 }
 
 void Refiner::emit(CutMesh& out) const {
@@ -560,14 +562,16 @@ bool Refiner::move_cut(const AllowedError& allowed, bool all_changed, CutMesh& o
   // from the kept nodes instead of the root then took the mean refinement from 1.87 to 1.62 ms and
   // the 90th percentile of the work before encoding from 5.7 to 4.6 ms, restarting past a quarter,
   // a seventh or a thirteenth alike.)
-  if (3 * dropped_.size() > kept) {
-    for (const std::uint32_t n : dropped_) in_cut_[n] = kOut;
+  auto refine_afresh = [&] {
+    for (const std::uint32_t n : dropped_)
+      if (in_cut_[n] == kDropped) in_cut_[n] = kOut;
     const bool known = field_known_;
     refine_forced(allowed, out, nullptr, true);
     field_known_ = known;  // the kept copy of the field is already this one
     ++restarts_;
     return false;
-  }
+  };
+  if (3 * dropped_.size() > kept) return refine_afresh();
 
   // The kept mesh is indexed only now, when the cut is moved rather than refined afresh (after a
   // refinement from the root the next move indexes it).
@@ -612,8 +616,9 @@ bool Refiner::move_cut(const AllowedError& allowed, bool all_changed, CutMesh& o
     // Refined meanwhile through another triangle, or an input triangle (fails_at is false then).
     if (r != kNoNode && in_cut_[r] != kIn && fails_at(r, corners, allowed)) force(r, t, mt_.triangle_creator(t));
   }
-  // 4. Nodes added in step 3 (and theirs, in turn) are examined in full.
-  close_over(allowed, kept);
+  // 4. Nodes added in step 3 (and theirs, in turn) are examined in full; once they outnumber a
+  // third of the kept nodes, refining afresh from all of them costs less than the mesh edits ahead.
+  if (!close_over(allowed, kept, kept + kept / 3)) return refine_afresh();
   for (const std::uint32_t n : dropped_)
     if (in_cut_[n] == kDropped) in_cut_[n] = kOut;
 
@@ -642,6 +647,7 @@ bool Refiner::move_cut(const AllowedError& allowed, bool all_changed, CutMesh& o
   edit_mesh(removals_, additions_);
   for (std::size_t i = kept; i < cut_.size(); ++i) in_cut_[cut_[i]] = kIn;
   mesh_valid_ = true;
+  ++moves_;
   return true;
 }
 

@@ -133,6 +133,8 @@ class Refiner {
   // nodes dropped): forcing from the nodes that stay, as a static refinement forces from the root.
   // Their result is the same.
   std::size_t restarts() const { return restarts_; }
+  // Updates that moved the kept cut (the others refined afresh, or found nothing changed).
+  std::size_t moves() const { return moves_; }
   // Updates given an empty list of changed vertices after a cut this refiner moved before: the
   // kept mesh is returned as it is.
   std::size_t unchanged_updates() const { return unchanged_; }
@@ -166,7 +168,9 @@ class Refiner {
   void force(std::uint32_t r, std::uint32_t witness_triangle, std::uint32_t witness_creator);
   void add_node(std::uint32_t x, std::uint32_t witness_triangle, std::uint32_t witness_creator);
   void examine(std::uint32_t n, const AllowedError& allowed);
-  void close_over(const AllowedError& allowed, std::size_t first);
+  // Examines cut_ from position first on, forcing what fails; false, leaving the rest unexamined,
+  // once cut_ holds more than max_nodes.
+  bool close_over(const AllowedError& allowed, std::size_t first, std::size_t max_nodes);
   void emit(CutMesh& out) const;
   // The kept mesh (maintained by move_cut) as a cut, and its largest error.
   CutView kept_view() const;
@@ -204,6 +208,7 @@ class Refiner {
   bool field_known_ = false;    // previous_* describe the field of the kept cut
   bool dynamic_ready_ = false;  // cut_ is the minimal cut of the previous field
   std::size_t restarts_ = 0;
+  std::size_t moves_ = 0;
   std::size_t unchanged_ = 0;
   // The kept cut's mesh, maintained by update: triangle ids, their corners, and their slots.
   bool mesh_valid_ = false;

@@ -435,10 +435,10 @@ void expect_dynamic_matches_static(const MtCase* c, std::uint32_t seed, int step
     expect_ids_name_triangles(c->mt, moving);
     expect_ids_name_triangles(c->mt, reference);
   }
-  // Both ways of updating ran: moving the kept cut, and refining afresh from the kept nodes after a
-  // large drop.
+  // Both ways of updating ran: moving the kept cut, and refining afresh from the nodes that stay
+  // after a large drop or addition.
   EXPECT_GT(dynamic.restarts(), 0u);
-  EXPECT_LT(dynamic.restarts(), static_cast<std::size_t>(steps) / 2);
+  EXPECT_GT(dynamic.moves(), static_cast<std::size_t>(steps) / 8);
   EXPECT_GT(dynamic.unchanged_updates(), 0u);  // and returning the kept cut when nothing changed
 }
 
