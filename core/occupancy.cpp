@@ -202,6 +202,12 @@ bool fill_small(const ProjectedCorner& a, const ProjectedCorner& b, const Projec
   // A row's cells met, one bit per column, then written as bytes.
   std::uint32_t any = 0;
 #if defined(__SSE2__)
+  // Bits become bytes 16 at a time, OR-ed into the row (cells past the box get 0 | their value),
+  // when 16 bytes from the box's last row's first cell stay inside the grid: no loop per bit, whose
+  // trip count the branch predictor cannot guess.
+  const bool whole_rows = std::size_t{j1} * grid.width + i0 + 16 <= grid.cell_count();
+  const __m128i bit_of_byte = _mm_set_epi8(-128, 64, 32, 16, 8, 4, 2, 1, -128, 64, 32, 16, 8, 4, 2, 1);
+  const __m128i one = _mm_set1_epi8(1);
   // Two columns per register: A·i for columns (2m, 2m+1), per edge, once per triangle.
   const std::uint32_t pairs = (columns + 1) / 2;
   __m128d edge_a_i[3][kSide / 2];
@@ -233,6 +239,16 @@ bool fill_small(const ProjectedCorner& a, const ProjectedCorner& b, const Projec
 #endif
     any |= bits;
     std::uint8_t* row = occupancy + std::size_t{j0 + dj} * grid.width + i0;
+#if defined(__SSE2__)
+    if (whole_rows) {
+      const __m128i spread = _mm_set_epi64x(static_cast<long long>((bits >> 8) * 0x0101010101010101ull),
+                                            static_cast<long long>((bits & 0xff) * 0x0101010101010101ull));
+      const __m128i set = _mm_and_si128(_mm_cmpeq_epi8(_mm_and_si128(spread, bit_of_byte), bit_of_byte), one);
+      auto* cells = reinterpret_cast<__m128i*>(row);
+      _mm_storeu_si128(cells, _mm_or_si128(_mm_loadu_si128(cells), set));
+      continue;
+    }
+#endif
     for (; bits != 0; bits &= bits - 1) row[std::countr_zero(bits)] = 1;
   }
   marked = any != 0;

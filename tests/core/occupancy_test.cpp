@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cstring>
 #include <random>
 #include <unordered_map>
@@ -105,6 +106,43 @@ TEST(Occupancy, RandomTrianglesMarkExactlyTheCellsTheyMeet) {
       for (std::uint32_t i = 0; i < 32; ++i) {
         ASSERT_EQ(occupancy[j * 32 + i] != 0, triangle_meets_cell(p, i, j))
             << "trial " << trial << " cell " << i << "," << j;
+      }
+    }
+  }
+}
+
+TEST(Occupancy, ManyTrianglesMarkTheUnionOfTheirCells) {
+  // Small triangles drawn into one grid: each must add its cells without clearing its neighbours'
+  // (small boxes are written 16 cells at a time, past the box and into the next row), up to the
+  // grid's last cells.
+  const ViewMapping mapping = ortho_camera(1.0f, 32);
+  std::mt19937 rng(47);
+  std::uniform_real_distribution<float> centre(-1.0f, 1.0f), size(0.0f, 0.3f), offset(-1.0f, 1.0f);
+  for (int trial = 0; trial < 40; ++trial) {
+    std::vector<float> positions;
+    std::vector<std::uint32_t> triangles;
+    std::vector<std::array<std::array<double, 2>, 3>> projected;
+    for (std::uint32_t t = 0; t < 25; ++t) {
+      const float cx = centre(rng), cy = centre(rng), s = size(rng) * size(rng);
+      std::array<std::array<double, 2>, 3> p;
+      for (int k = 0; k < 3; ++k) {
+        const float x = cx + s * offset(rng), y = cy + s * offset(rng);
+        positions.insert(positions.end(), {x, y, 0.0f});
+        triangles.push_back(3 * t + k);
+        p[k] = {(static_cast<double>(x) + 1.0) * 16.0, (1.0 - static_cast<double>(y)) * 16.0};
+      }
+      projected.push_back(p);
+    }
+    std::vector<std::uint8_t> occupancy(32 * 32, 7);  // overwritten
+    rasterize_occupancy(mapping, positions, triangles, occupancy);
+    for (std::uint32_t j = 0; j < 32; ++j) {
+      for (std::uint32_t i = 0; i < 32; ++i) {
+        bool met = false;
+        for (const auto& p : projected) {
+          const double q[3][2] = {{p[0][0], p[0][1]}, {p[1][0], p[1][1]}, {p[2][0], p[2][1]}};
+          met = met || triangle_meets_cell(q, i, j);
+        }
+        ASSERT_EQ(occupancy[j * 32 + i], met ? 1 : 0) << "trial " << trial << " cell " << i << "," << j;
       }
     }
   }
