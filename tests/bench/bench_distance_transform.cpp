@@ -28,6 +28,7 @@
 #include "core/labels.hpp"
 #include "core/mt_builder.hpp"
 #include "core/occupancy.hpp"
+#include "core/occupancy_levels.hpp"
 #include "core/refine.hpp"
 #include "core/view_grid.hpp"
 
@@ -472,9 +473,11 @@ void BM_RequestPipelineDragon256(benchmark::State& state) {
 }
 BENCHMARK(BM_RequestPipelineDragon256)->Unit(benchmark::kMillisecond);
 
-// Occupancy from uniform MT cuts of the dragon at 256² (arg: error bound in thousandths of the
-// bounding radius), and how far the silhouette labels of the full-resolution vertices move from those
-// of the full mesh's occupancy: share of vertices whose label changes at all, and by more than 1 px.
+// Occupancy from the coarse cuts requests rasterise (core::OccupancyLevels; arg: the level's
+// triangle budget) for the dragon at 256², and how far the silhouette labels of the full-resolution
+// vertices move from those of the full mesh's occupancy: share of vertices whose label changes at
+// all, and by more than 1 px. Chosen by size, not by error bound, so the rows stay the levels a
+// request uses whatever scale the builder's errors have.
 void BM_OccupancyFromMtCut256(benchmark::State& state) {
   const DragonMt& dragon = DragonMt::get();
   if (!dragon.mt) {
@@ -482,15 +485,19 @@ void BM_OccupancyFromMtCut256(benchmark::State& state) {
     return;
   }
   const Mt& mt = *dragon.mt;
+  static const OccupancyLevels levels(mt);
+  const OccupancyLevel* level = nullptr;
+  for (const OccupancyLevel& l : levels.levels())
+    if (l.triangle_count() <= static_cast<std::size_t>(state.range(0))) level = &l;
+  if (!level) return state.SkipWithError("no level that small");
   const ViewMapping mapping(dragon.camera, GridSize{256, 256});
   const GridSize grid = mapping.grid();
-  CutMesh coarse, full;
-  refine_static(mt, AllowedError::everywhere(static_cast<float>(state.range(0)) / 1000.0f * dragon.radius),
-                coarse);
+  CutMesh full;
   refine_static(mt, AllowedError::everywhere(-1.0f), full);
+  std::vector<ProjectedCorner> projected;
   std::vector<std::uint8_t> occupancy(grid.cell_count()), reference(grid.cell_count());
   for (auto _ : state) {
-    rasterize_occupancy(mapping, mt.positions, coarse.triangles, occupancy);
+    rasterize_occupancy_compact(mapping, level->positions, level->triangles, occupancy, {}, projected);
     benchmark::DoNotOptimize(occupancy.data());
   }
   rasterize_occupancy(mapping, mt.positions, full.triangles, reference);
@@ -512,19 +519,20 @@ void BM_OccupancyFromMtCut256(benchmark::State& state) {
     cells_differing += occupancy[c] != reference[c];
     object += reference[c] != 0;
   }
-  state.counters["cut_triangles"] = static_cast<double>(coarse.triangle_count());
   state.counters["cells_differing_pct"] =
       100.0 * static_cast<double>(cells_differing) / static_cast<double>(object);
   state.counters["labels_changed_pct"] = 100.0 * static_cast<double>(changed) / static_cast<double>(labelled);
   state.counters["labels_off_gt1px_pct"] = 100.0 * static_cast<double>(far) / static_cast<double>(labelled);
-  state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * coarse.triangle_count()));
+  state.counters["cut_triangles"] = static_cast<double>(level->triangle_count());
+  state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * level->triangle_count()));
 }
 BENCHMARK(BM_OccupancyFromMtCut256)
-    ->Arg(50)
-    ->Arg(100)
-    ->Arg(200)
-    ->Arg(300)
-    ->Arg(500)
+    ->Arg(4096)
+    ->Arg(8192)
+    ->Arg(16384)
+    ->Arg(32768)
+    ->Arg(65536)
+    ->Arg(131072)
     ->Unit(benchmark::kMillisecond);
 
 // The refinement alone, with the allowed errors of the pipeline above (for the breakdown).
