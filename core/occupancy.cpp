@@ -269,9 +269,16 @@ inline ProjectedCorner project(const ViewMapping& mapping, const float* p, bool 
 }
 
 // The rasterisation loop over triangle_count triangles; corner(t, k) gives corner k of triangle t.
+// Twice the signed area of a projected triangle, exact in sign: the differences of floats and
+// their products are exact in double, so only the final subtraction rounds, which keeps its sign.
+inline double signed_area2(const ProjectedCorner& a, const ProjectedCorner& b, const ProjectedCorner& c) {
+  return (double(b.gx) - a.gx) * (double(c.gy) - a.gy) - (double(b.gy) - a.gy) * (double(c.gx) - a.gx);
+}
+
+// cull_positive: skip triangles of positive signed area (see rasterize_occupancy_compact's closed).
 template <class CornerOf>
 std::size_t rasterize(const ViewMapping& mapping, std::size_t triangle_count, CornerOf&& corner,
-                      std::span<std::uint8_t> occupancy, std::span<float> depth) {
+                      std::span<std::uint8_t> occupancy, std::span<float> depth, bool cull_positive = false) {
   const GridSize grid = mapping.grid();
   assert(occupancy.size() == grid.cell_count());
   assert(depth.empty() || depth.size() == grid.cell_count());
@@ -287,6 +294,7 @@ std::size_t rasterize(const ViewMapping& mapping, std::size_t triangle_count, Co
     const ProjectedCorner& b = corner(t, 1);
     const ProjectedCorner& c = corner(t, 2);
     const bool all_front = a.cw >= kMinClipW && b.cw >= kMinClipW && c.cw >= kMinClipW;
+    if (cull_positive && signed_area2(a, b, c) > 0.0) continue;
     if (all_front && !with_depth) {
       // Most triangles of an occupancy cut are about a cell in size: one inside a single cell of
       // the grid marks just that cell.
@@ -348,18 +356,27 @@ std::size_t rasterize_occupancy(const ViewMapping& mapping, std::span<const floa
 
 std::size_t rasterize_occupancy_compact(const ViewMapping& mapping, std::span<const float> positions,
                                         std::span<const std::uint32_t> triangles, std::span<std::uint8_t> occupancy,
-                                        std::span<float> depth, std::vector<ProjectedCorner>& scratch) {
+                                        std::span<float> depth, std::vector<ProjectedCorner>& scratch, bool closed) {
   assert(triangles.size() % 3 == 0 && positions.size() % 3 == 0);
   const bool with_depth = !depth.empty();
   const std::size_t n = positions.size() / 3;
   scratch.resize(n);
   ProjectedCorner* projected = scratch.data();
-  for (std::size_t i = 0; i < n; ++i) projected[i] = project(mapping, positions.data() + 3 * i, with_depth);
+  bool all_in_front = true;
+  for (std::size_t i = 0; i < n; ++i) {
+    projected[i] = project(mapping, positions.data() + 3 * i, with_depth);
+    all_in_front &= projected[i].cw >= kMinClipW;
+  }
   auto corner = [&](std::size_t t, int k) -> const ProjectedCorner& {
     assert(triangles[3 * t + k] < n);
     return projected[triangles[3 * t + k]];
   };
-  return rasterize(mapping, triangles.size() / 3, corner, occupancy, depth);
+  // A closed surface projected whole (no corner behind the camera, so no clipping) is a 2-cycle in
+  // the plane: at any point off the edges the signed areas of the triangles covering it sum to
+  // zero, so every point of a triangle of positive area lies in one of negative (or zero) area,
+  // and, the cells being closed, every cell it meets is met by those. Depth needs the nearest
+  // surface in each cell, so it rasterises everything.
+  return rasterize(mapping, triangles.size() / 3, corner, occupancy, depth, closed && all_in_front && !with_depth);
 }
 
 std::size_t mark_depth_discontinuities(std::span<const float> depth, GridSize grid, float relative_jump,

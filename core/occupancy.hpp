@@ -36,13 +36,18 @@ struct ProjectedCorner {
   float gx, gy, ndc_z;
 };
 
-// The same result as rasterize_occupancy, but every vertex of `positions` is projected once, into
+// The same occupancy as rasterize_occupancy, but every vertex of `positions` is projected once, into
 // `scratch`, instead of once per triangle using it: for a compact mesh whose vertices are all used
 // (OccupancyLevel stores its cut this way, its positions copied out of the model so that they are
 // read in order rather than gathered from all over it).
+// closed: `triangles` form a closed surface, every directed edge (a, b) appearing as often as
+// (b, a) (is_closed_surface). Then, when every vertex is in front of the camera and no depth is
+// asked for, the triangles facing one way are skipped: the others meet every cell they meet. The
+// return value then counts only the triangles rasterised.
 std::size_t rasterize_occupancy_compact(const ViewMapping& mapping, std::span<const float> positions,
                                         std::span<const std::uint32_t> triangles, std::span<std::uint8_t> occupancy,
-                                        std::span<float> depth, std::vector<ProjectedCorner>& scratch);
+                                        std::span<float> depth, std::vector<ProjectedCorner>& scratch,
+                                        bool closed = false);
 
 // Internal silhouettes (DESIGN.md §3): for every pair of 4-neighbour object cells whose depths differ
 // by more than relative_jump times the nearer one, sets the farther cell of image to 0, so that a

@@ -19,13 +19,27 @@ namespace mtlod::core {
 // One coarse cut as a compact mesh for rasterize_occupancy_compact: the positions of its vertices
 // (copied from the model, in first-use order, so a request reads them in order instead of gathering
 // them from all over the model), its triangles as indices into them, and their model vertex ids.
+// Its holes are capped (cap_holes), so that the surface is closed and a request rasterises only
+// the triangles facing one way (rasterize_occupancy_compact's `closed`); cap triangles are not part
+// of the cut, and cover only cells the cut's own triangles cover from most viewpoints (they close a
+// scan's holes; README, "grid stages", measures the labels against the full mesh).
 struct OccupancyLevel {
   std::vector<float> positions;
-  std::vector<std::uint32_t> triangles;  // 3 indices into positions per triangle
+  std::vector<std::uint32_t> triangles;  // 3 indices into positions per triangle: the cut's, then caps
   std::vector<std::uint32_t> model_ids;  // per vertex: its id in the model
+  std::size_t cap_triangles = 0;         // the last ones of `triangles`
+  bool closed = false;                   // is_closed_surface(triangles)
 
-  std::size_t triangle_count() const { return triangles.size() / 3; }
+  std::size_t triangle_count() const { return triangles.size() / 3 - cap_triangles; }
 };
+
+// Whether every directed edge (a, b) of `triangles` (3 vertex ids each) appears as often as (b, a):
+// a closed surface, whose triangles facing one way cover the projection of all of them.
+bool is_closed_surface(std::span<const std::uint32_t> triangles);
+// Caps the holes of a surface whose directed edges each appear at most once: every boundary loop
+// (edges whose reverse is missing) gets a fan of triangles holding the reversed edges, a loop that
+// passes a vertex twice being split there. Returns how many triangles it appended.
+std::size_t cap_holes(std::vector<std::uint32_t>& triangles);
 
 class OccupancyLevels {
  public:

@@ -78,9 +78,13 @@ std::size_t ViewExtractor::occupancy() {
   const std::size_t cells = request_->grid.cell_count();
   occupancy_.resize(cells);
   if (request_->internal_silhouettes) depth_.resize(cells);
-  rasterize_occupancy_compact(mapping_, level.positions, level.triangles, occupancy_,
-                              request_->internal_silhouettes ? std::span<float>(depth_) : std::span<float>(),
-                              projected_);
+  if (request_->internal_silhouettes) {
+    // Depths come from the cut's own triangles: a hole's cap is not a surface.
+    const std::span<const std::uint32_t> cut(level.triangles.data(), 3 * level.triangle_count());
+    rasterize_occupancy_compact(mapping_, level.positions, cut, occupancy_, depth_, projected_);
+  } else {
+    rasterize_occupancy_compact(mapping_, level.positions, level.triangles, occupancy_, {}, projected_, level.closed);
+  }
   return level.triangle_count();
 }
 

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "core/distance_transform.hpp"
+#include "core/occupancy_levels.hpp"
 #include "tests/core/test_scenes.hpp"
 
 namespace mtlod::core {
@@ -219,6 +220,78 @@ TEST(Occupancy, CompactRasterisationEqualsThePlainOne) {
     ASSERT_EQ(plain_depth.size(), indexed_depth.size());
     if (with_depth) {
       EXPECT_EQ(std::memcmp(plain_depth.data(), indexed_depth.data(), plain_depth.size() * sizeof(float)), 0);
+    }
+  }
+}
+
+// A perspective camera at `eye` looking at the origin, on a side×side grid.
+ViewMapping perspective_camera(glm::vec3 eye, std::uint32_t side) {
+  Camera camera;
+  camera.view = glm::lookAt(eye, glm::vec3(0, 0, 0), glm::vec3(0, 1, 0));
+  camera.projection = glm::perspective(glm::radians(50.0f), 1.0f, 0.1f, 100.0f);
+  return ViewMapping(camera, GridSize{side, side});
+}
+
+TEST(Occupancy, CappedHolesCloseTheSurface) {
+  // A sphere with random triangles removed (single ones, and neighbours that merge into larger
+  // holes, some meeting at a vertex): open before, closed after, with one cap triangle per
+  // boundary edge minus two per loop, hence fewer than the boundary edges.
+  std::mt19937 rng(5);
+  for (int trial = 0; trial < 20; ++trial) {
+    test::Scene sphere = test::uv_sphere(1.0f, 12, 16);
+    ASSERT_TRUE(is_closed_surface(sphere.triangles));
+    std::vector<std::uint32_t> open;
+    std::bernoulli_distribution drop(0.05 + 0.01 * trial);
+    for (std::size_t t = 0; t < sphere.triangles.size(); t += 3)
+      if (!drop(rng)) open.insert(open.end(), &sphere.triangles[t], &sphere.triangles[t] + 3);
+    if (open.size() == sphere.triangles.size()) continue;
+    EXPECT_FALSE(is_closed_surface(open));
+    const std::size_t cut = open.size() / 3;
+    const std::size_t caps = cap_holes(open);
+    EXPECT_TRUE(is_closed_surface(open)) << "trial " << trial;
+    EXPECT_EQ(open.size() / 3, cut + caps);
+    for (std::size_t t = 3 * cut; t < open.size(); t += 3) {  // caps use the surface's vertices
+      EXPECT_NE(open[t], open[t + 1]);
+      EXPECT_NE(open[t + 1], open[t + 2]);
+      EXPECT_NE(open[t], open[t + 2]);
+    }
+  }
+}
+
+TEST(Occupancy, ClosedSurfacesRasteriseOneSideOnly) {
+  // Rasterising only the triangles of one orientation gives the same cells as all of them, for
+  // closed surfaces seen from anywhere in front: spheres, capped spheres with holes, and spheres
+  // whose vertices are scattered at random (the same closed connectivity, folded over itself in
+  // every direction). With a vertex behind the camera everything is rasterised.
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> unit(-1.0f, 1.0f), distance(2.5f, 6.0f);
+  std::vector<ProjectedCorner> scratch;
+  for (int trial = 0; trial < 60; ++trial) {
+    test::Scene scene = test::uv_sphere(1.0f, 6 + trial % 7, 8 + trial % 5);
+    if (trial % 3 == 1) {
+      std::vector<std::uint32_t> open;
+      for (std::size_t t = 0; t < scene.triangles.size(); t += 3)
+        if (rng() % 8 != 0) open.insert(open.end(), &scene.triangles[t], &scene.triangles[t] + 3);
+      cap_holes(open);
+      scene.triangles = open;
+    } else if (trial % 3 == 2) {
+      for (float& p : scene.positions) p = 0.9f * unit(rng);
+    }
+    ASSERT_TRUE(is_closed_surface(scene.triangles));
+    glm::vec3 direction(unit(rng), unit(rng), unit(rng));
+    if (glm::length(direction) < 0.1f) direction = glm::vec3(0, 0, 1);
+    const glm::vec3 eye = glm::normalize(direction) * (trial % 10 == 9 ? 0.3f : distance(rng));
+    const ViewMapping mapping = perspective_camera(eye, 48);
+    std::vector<std::uint8_t> all(mapping.grid().cell_count()), one_side(all.size());
+    const std::size_t rasterised_all =
+        rasterize_occupancy_compact(mapping, scene.positions, scene.triangles, all, {}, scratch);
+    const std::size_t rasterised =
+        rasterize_occupancy_compact(mapping, scene.positions, scene.triangles, one_side, {}, scratch, true);
+    ASSERT_EQ(all, one_side) << "trial " << trial;
+    if (trial % 10 == 9) {
+      EXPECT_EQ(rasterised, rasterised_all);  // the eye inside: nothing skipped
+    } else {
+      EXPECT_LT(rasterised, rasterised_all) << "trial " << trial;
     }
   }
 }
