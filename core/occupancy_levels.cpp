@@ -2,7 +2,7 @@
 #include "core/occupancy_levels.hpp"
 
 #include <algorithm>
-#include <functional>
+#include <limits>
 #include <span>
 #include <unordered_map>
 
@@ -11,76 +11,93 @@
 namespace mtlod::core {
 namespace {
 
-std::uint64_t edge_key(std::uint32_t from, std::uint32_t to) { return std::uint64_t{from} << 32 | to; }
+// Directed edges by first vertex (CSR): the second vertices of vertex a's edges are
+// to[offset[a] .. offset[a + 1]).
+struct Outgoing {
+  std::vector<std::uint32_t> offset, to;
 
-// Directed edges of `triangles` with how often each appears.
-std::unordered_map<std::uint64_t, std::uint32_t> directed_edges(std::span<const std::uint32_t> triangles) {
-  std::unordered_map<std::uint64_t, std::uint32_t> edges;
-  edges.reserve(triangles.size());
-  for (std::size_t t = 0; t + 2 < triangles.size(); t += 3)
-    for (int k = 0; k < 3; ++k) ++edges[edge_key(triangles[t + k], triangles[t + (k + 1) % 3])];
-  return edges;
-}
+  explicit Outgoing(std::span<const std::uint32_t> triangles) {
+    const std::uint32_t vertices = triangles.empty() ? 0 : *std::max_element(triangles.begin(), triangles.end()) + 1;
+    offset.assign(std::size_t{vertices} + 1, 0);
+    for (const std::uint32_t v : triangles) ++offset[v + 1];
+    for (std::size_t v = 0; v < vertices; ++v) offset[v + 1] += offset[v];
+    to.resize(triangles.size());
+    std::vector<std::uint32_t> fill(offset.begin(), offset.end() - 1);
+    for (std::size_t t = 0; t + 2 < triangles.size(); t += 3)
+      for (int k = 0; k < 3; ++k) to[fill[triangles[t + k]]++] = triangles[t + (k + 1) % 3];
+  }
+  std::uint32_t vertex_count() const { return static_cast<std::uint32_t>(offset.size() - 1); }
+  // How often (from, to) appears; from must be a vertex of the surface.
+  std::uint32_t count(std::uint32_t from, std::uint32_t target) const {
+    if (from >= vertex_count()) return 0;
+    return static_cast<std::uint32_t>(std::count(to.begin() + offset[from], to.begin() + offset[from + 1], target));
+  }
+};
 
 }  // namespace
 
 bool is_closed_surface(std::span<const std::uint32_t> triangles) {
-  const auto edges = directed_edges(triangles);
-  for (const auto& [key, count] : edges) {
-    const auto reverse = edges.find(key << 32 | key >> 32);
-    if (reverse == edges.end() || reverse->second != count) return false;
+  const Outgoing edges(triangles);
+  for (std::uint32_t a = 0; a < edges.vertex_count(); ++a) {
+    for (std::uint32_t i = edges.offset[a]; i < edges.offset[a + 1]; ++i) {
+      const std::uint32_t b = edges.to[i];
+      if (edges.count(a, b) != edges.count(b, a)) return false;
+    }
   }
   return true;
 }
 
 std::size_t cap_holes(std::vector<std::uint32_t>& triangles) {
   const std::size_t before = triangles.size();
-  // Boundary edges, by their first vertex.
-  std::unordered_map<std::uint32_t, std::vector<std::uint32_t>> boundary;
-  std::vector<std::uint32_t> starts;
+  // Boundary edges (whose reverse is missing), by first vertex, each list walked from its end.
+  std::vector<std::uint32_t> boundary_offset, boundary_to, remaining;
   {
-    const auto edges = directed_edges(triangles);
-    for (const auto& [key, count] : edges) {
-      if (edges.contains(key << 32 | key >> 32)) continue;
-      const auto from = static_cast<std::uint32_t>(key >> 32);
-      boundary[from].push_back(static_cast<std::uint32_t>(key));
-      starts.push_back(from);
+    const Outgoing edges(triangles);
+    const std::uint32_t vertices = edges.vertex_count();
+    boundary_offset.assign(std::size_t{vertices} + 1, 0);
+    for (std::uint32_t a = 0; a < vertices; ++a) {
+      boundary_offset[a + 1] = boundary_offset[a];
+      for (std::uint32_t i = edges.offset[a]; i < edges.offset[a + 1]; ++i) {
+        if (edges.count(edges.to[i], a) != 0) continue;
+        boundary_to.push_back(edges.to[i]);
+        ++boundary_offset[a + 1];
+      }
     }
+    remaining.resize(vertices);
+    for (std::uint32_t a = 0; a < vertices; ++a) remaining[a] = boundary_offset[a + 1] - boundary_offset[a];
   }
-  std::sort(starts.begin(), starts.end());  // the same caps whatever the hash order
-  for (auto& [from, targets] : boundary) std::sort(targets.begin(), targets.end(), std::greater<>());
+  auto next = [&](std::uint32_t from, std::uint32_t& to) {
+    if (remaining[from] == 0) return false;
+    to = boundary_to[boundary_offset[from] + --remaining[from]];
+    return true;
+  };
   // A loop l0 → l1 → … → l(m−1) → l0 gets (l0, l(i+1), l(i)) for i = 1 … m − 2: each holds one
   // loop edge reversed, and consecutive ones share (l0, l(i+1)) in opposite directions.
   auto fan = [&](std::span<const std::uint32_t> loop) {
     for (std::size_t i = 1; i + 1 < loop.size(); ++i) triangles.insert(triangles.end(), {loop[0], loop[i + 1], loop[i]});
   };
-  auto next = [&](std::uint32_t from, std::uint32_t& to) {
-    auto it = boundary.find(from);
-    if (it == boundary.end() || it->second.empty()) return false;
-    to = it->second.back();
-    it->second.pop_back();
-    return true;
-  };
+  constexpr std::size_t kNotOnPath = std::numeric_limits<std::size_t>::max();
+  std::vector<std::size_t> position(remaining.size(), kNotOnPath);  // of each vertex on the path
   std::vector<std::uint32_t> path;
-  std::unordered_map<std::uint32_t, std::size_t> position;  // of each vertex on the path
-  for (const std::uint32_t start : starts) {
+  for (std::uint32_t start = 0; start < remaining.size(); ++start) {
     std::uint32_t to = 0;
-    if (!next(start, to)) continue;  // its edges were walked from another start
-    path.assign(1, start);
-    position.clear();
-    position[start] = 0;
-    while (true) {
-      if (const auto seen = position.find(to); seen != position.end()) {
-        // Back at a vertex of the path: the part after it is a loop.
-        const std::size_t k = seen->second;
-        fan(std::span<const std::uint32_t>(path).subspan(k));
-        for (std::size_t i = k + 1; i < path.size(); ++i) position.erase(path[i]);
-        path.resize(k + 1);
-      } else {
-        position[to] = path.size();
-        path.push_back(to);
+    while (next(start, to)) {
+      path.assign(1, start);
+      position[start] = 0;
+      while (true) {
+        if (position[to] != kNotOnPath) {
+          // Back at a vertex of the path: the part after it is a loop.
+          const std::size_t k = position[to];
+          fan(std::span<const std::uint32_t>(path).subspan(k));
+          for (std::size_t i = k + 1; i < path.size(); ++i) position[path[i]] = kNotOnPath;
+          path.resize(k + 1);
+        } else {
+          position[to] = path.size();
+          path.push_back(to);
+        }
+        if (!next(path.back(), to)) break;  // (a surface's boundary always closes: only at the start)
       }
-      if (!next(path.back(), to)) break;  // (a surface's boundary always closes: only at the start)
+      for (const std::uint32_t v : path) position[v] = kNotOnPath;
     }
   }
   return (triangles.size() - before) / 3;
