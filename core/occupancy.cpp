@@ -268,13 +268,14 @@ inline ProjectedCorner project(const ViewMapping& mapping, const float* p, bool 
   return c;
 }
 
-// The rasterisation loop over triangle_count triangles; corner(t, k) gives corner k of triangle t.
-// Twice the signed area of a projected triangle, exact in sign: the differences of floats and
-// their products are exact in double, so only the final subtraction rounds, which keeps its sign.
+// Twice the signed area of a projected triangle, with the exact sign: in double the difference of
+// two floats is exact (unless one is over 2^28 times the other) and so is the product of two such
+// differences, so only the final subtraction rounds, and rounding keeps its sign.
 inline double signed_area2(const ProjectedCorner& a, const ProjectedCorner& b, const ProjectedCorner& c) {
   return (double(b.gx) - a.gx) * (double(c.gy) - a.gy) - (double(b.gy) - a.gy) * (double(c.gx) - a.gx);
 }
 
+// The rasterisation loop over triangle_count triangles; corner(t, k) gives corner k of triangle t.
 // cull_positive: skip triangles of positive signed area (see rasterize_occupancy_compact's closed).
 template <class CornerOf>
 std::size_t rasterize(const ViewMapping& mapping, std::size_t triangle_count, CornerOf&& corner,

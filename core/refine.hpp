@@ -130,8 +130,8 @@ class Refiner {
   std::span<const std::uint32_t> cut_nodes() const { return cut_; }
 
   // Updates that found it cheaper to refine afresh than to move the kept cut (a quarter of the cut's
-  // nodes dropped): forcing from the nodes that stay, as a static refinement forces from the root.
-  // Their result is the same.
+  // nodes dropped, or the nodes a move added outnumbered a third of those kept): forcing from the
+  // nodes in the cut by then, as a static refinement forces from the root. Their result is the same.
   std::size_t restarts() const { return restarts_; }
   // Updates that moved the kept cut (the others refined afresh, or found nothing changed).
   std::size_t moves() const { return moves_; }
