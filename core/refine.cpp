@@ -149,16 +149,19 @@ void Refiner::force(std::uint32_t r, std::uint32_t witness_triangle, std::uint32
 [[gnu::always_inline]] inline void Refiner::fetch_ahead(std::size_t i, const float* field, bool on_demand) const {
   // The queue ahead is known, so its nodes' data is fetched in stages and the misses overlap:
   // 12 nodes ahead where its triangles are, 6 ahead those triangles, 3 ahead what they point to.
-  // On demand also the split vertex 16 ahead and, 12 ahead, its position (computed 4–8 ahead).
+  // On demand also the split vertex 20 ahead and, 16 ahead, its position (computed 4–12 ahead).
   const std::uint32_t* offsets = mt_.node_triangle_offsets.data();
   const std::uint32_t* removers = mt_.triangle_remover.data();
   const std::uint32_t* corners = mt_.triangle_corners.data();
-  if (on_demand && i + 16 < cut_.size()) __builtin_prefetch(mt_.node_vertex.data() + cut_[i + 16]);
+  if (on_demand && i + 20 < cut_.size()) __builtin_prefetch(mt_.node_vertex.data() + cut_[i + 20]);
+  if (on_demand && i + 16 < cut_.size()) {
+    const std::uint32_t ahead = cut_[i + 16];
+    if (ahead != 0) __builtin_prefetch(mt_.positions.data() + 3 * std::size_t{mt_.node_vertex[ahead]});
+  }
   if (i + 12 < cut_.size()) {
     const std::uint32_t ahead = cut_[i + 12];
     __builtin_prefetch(offsets + ahead);
     __builtin_prefetch(mt_.node_vertex.data() + ahead);
-    if (on_demand && ahead != 0) __builtin_prefetch(mt_.positions.data() + 3 * std::size_t{mt_.node_vertex[ahead]});
   }
   if (i + 6 < cut_.size()) {
     const std::uint32_t ahead = cut_[i + 6];
@@ -316,7 +319,7 @@ void Refiner::refine_forced(const AllowedError& allowed, CutMesh& out, const OnD
   const float* field = allowed.per_vertex.data();
   const bool uniform = allowed.per_vertex.empty();  // update() from no kept cut may pass one
   // On demand, the split vertices of the nodes at positions up to i + 3 have their values before
-  // position i is examined, computed in batches of about four (up to i + 7, or the queue's end):
+  // position i is examined, computed in batches of about eight (up to i + 11, or the queue's end):
   // after all their ancestors', which come earlier in cut_, and before any triangle that has one
   // as a corner is read.
   std::size_t computed = 1;  // positions of cut_ whose split vertex has its value (the root: its vertices)
@@ -324,7 +327,7 @@ void Refiner::refine_forced(const AllowedError& allowed, CutMesh& out, const OnD
     if (!uniform) fetch_ahead(i, field, on_demand != nullptr);
     if (on_demand && computed <= i + 3 && computed < cut_.size()) {
       batch_.clear();
-      for (const std::size_t until = std::min(cut_.size(), i + 8); computed < until; ++computed)
+      for (const std::size_t until = std::min(cut_.size(), i + 12); computed < until; ++computed)
         batch_.push_back(mt_.node_vertex[cut_[computed]]);
       on_demand->source.fill(batch_, on_demand->field);
     }
