@@ -124,7 +124,7 @@ class AllowedErrorField final : public VertexErrorSource {
   // Lazy variant: the same value for one vertex, projecting it on demand (what
   // Refiner::refine_on_demand asks for).
   float vertex_allowed_error(std::uint32_t vertex) const override;
-  // The same for a batch, projected four at a time (bit for bit the same values).
+  // The same for a batch, projected together up to 16 at a time (bit for bit the same values).
   void fill(std::span<const std::uint32_t> vertices, std::span<float> field) const override;
   // The same value for a vertex already known to lie in a grid cell with this clip-space w (as
   // map_point or map_vertices give them), with multiplier = cell_multiplier(cell).

@@ -171,15 +171,12 @@ class Rasterizer {
 // cell by cell: a cell of the triangle's box is met when, for each edge, the edge function's
 // largest value over the closed cell reaches the inside. In double, in coordinates relative to the
 // box's first cell, so every term is exact or rounds at the 1e-16 level, as the strip walk does.
-// Returns false, having marked nothing, for a degenerate triangle or a box over 16 cells on a side
-// (the strip walk takes those); otherwise true, with `marked` telling whether any cell was marked.
-bool fill_small(const ProjectedCorner& a, const ProjectedCorner& b, const ProjectedCorner& c, GridSize grid,
-                std::uint8_t* occupancy, bool& marked) {
-  const float x0 = std::min({a.gx, b.gx, c.gx}), x1 = std::max({a.gx, b.gx, c.gx});
-  const float y0 = std::min({a.gy, b.gy, c.gy}), y1 = std::max({a.gy, b.gy, c.gy});
-  // Non-negative here, so truncation is floor.
-  const auto i0 = static_cast<std::uint32_t>(x0), i1 = static_cast<std::uint32_t>(x1);
-  const auto j0 = static_cast<std::uint32_t>(y0), j1 = static_cast<std::uint32_t>(y1);
+// The box is cells [i0, i1] × [j0, j1] of the grid. Returns false, having marked nothing, for a
+// degenerate triangle or a box over 16 cells on a side (the strip walk takes those); otherwise true,
+// with `marked` telling whether any cell was marked.
+bool fill_small(const ProjectedCorner& a, const ProjectedCorner& b, const ProjectedCorner& c, std::uint32_t i0,
+                std::uint32_t i1, std::uint32_t j0, std::uint32_t j1, GridSize grid, std::uint8_t* occupancy,
+                bool& marked) {
   constexpr std::uint32_t kSide = 16;
   if (i1 - i0 >= kSide || j1 - j0 >= kSide) return false;
   const double p[3][2] = {{double(a.gx) - i0, double(a.gy) - j0},
@@ -302,14 +299,16 @@ std::size_t rasterize(const ViewMapping& mapping, std::size_t triangle_count, Co
       const float x0 = std::min({a.gx, b.gx, c.gx}), x1 = std::max({a.gx, b.gx, c.gx});
       const float y0 = std::min({a.gy, b.gy, c.gy}), y1 = std::max({a.gy, b.gy, c.gy});
       if (x0 >= 0.0f && y0 >= 0.0f && x1 < width_f && y1 < height_f) {
-        const auto i = static_cast<std::uint32_t>(x0), j = static_cast<std::uint32_t>(y0);
-        if (i == static_cast<std::uint32_t>(x1) && j == static_cast<std::uint32_t>(y1)) {
-          occupancy[grid.cell(i, j)] = 1;
+        // Non-negative here, so truncation is floor.
+        const auto i0 = static_cast<std::uint32_t>(x0), i1 = static_cast<std::uint32_t>(x1);
+        const auto j0 = static_cast<std::uint32_t>(y0), j1 = static_cast<std::uint32_t>(y1);
+        if (i0 == i1 && j0 == j1) {
+          occupancy[grid.cell(i0, j0)] = 1;
           ++marking;
           continue;
         }
         bool marked = false;
-        if (fill_small(a, b, c, grid, occupancy.data(), marked)) {
+        if (fill_small(a, b, c, i0, i1, j0, j1, grid, occupancy.data(), marked)) {
           marking += marked ? 1 : 0;
           continue;
         }

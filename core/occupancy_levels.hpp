@@ -31,6 +31,8 @@ struct OccupancyLevel {
   bool closed = false;                   // is_closed_surface(triangles)
 
   std::size_t triangle_count() const { return triangles.size() / 3 - cap_triangles; }
+  // The cut's own triangles, without the caps.
+  std::span<const std::uint32_t> cut_triangles() const { return {triangles.data(), 3 * triangle_count()}; }
 };
 
 // Whether every directed edge (a, b) of `triangles` (3 vertex ids each) appears as often as (b, a):

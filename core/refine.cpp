@@ -102,6 +102,15 @@ void Refiner::reset_to_root() {
   witnesses_.push_back({kNoNode, kNoNode, {kNoNode, kNoNode, kNoNode}});  // the root needs none
 }
 
+template <class F>
+void Refiner::for_each_removed(std::uint32_t x, F&& f) const {
+  for (std::uint32_t j = mt_.node_parent_offsets[x]; j < mt_.node_parent_offsets[x + 1]; ++j) {
+    const std::uint32_t p = mt_.node_parents[j];
+    for (std::uint32_t t = mt_.node_triangle_offsets[p]; t < mt_.node_triangle_offsets[p + 1]; ++t)
+      if (mt_.triangle_remover[t] == x) f(t, p);
+  }
+}
+
 void Refiner::add_node(std::uint32_t x, std::uint32_t witness_triangle, std::uint32_t witness_creator) {
   // Nodes are added with the kept mesh set aside (refine_forced and refine_budget emit at the end,
   // move_cut patches the mesh once for all its additions).
@@ -307,6 +316,7 @@ void Refiner::refine_on_demand(const VertexErrorSource& source, std::span<float>
 }
 
 void Refiner::refine_forced(const AllowedError& allowed, CutMesh& out, const OnDemand* on_demand, bool from_cut) {
+  assert(!(on_demand && from_cut));
   mesh_valid_ = false;
   if (!from_cut) reset_to_root();
   // Like close_over, but remembering every passing triangle: the final mesh is among them (a
@@ -375,19 +385,14 @@ void Refiner::mesh_add(std::uint32_t t, std::uint32_t creator) {
 }
 
 void Refiner::mesh_remove(std::uint32_t t) {
-  const std::size_t entry = slots_.position(t);
-  const std::uint32_t slot = slots_.value_at(entry);
+  // The last triangle moves into t's slot so the arrays stay dense.
   const std::uint32_t last = std::uint32_t(mesh_triangles_.size() - 1);
+  const std::uint32_t slot = slots_.erase_moving_last(slots_.position(t), mesh_triangles_[last]);
   if (slot != last) {
-    // Swap with the last entry so the arrays stay dense. (Assigning moves no table entry, so t's
-    // entry is still where it was.)
-    const std::uint32_t moved = mesh_triangles_[last];
-    mesh_triangles_[slot] = moved;
+    mesh_triangles_[slot] = mesh_triangles_[last];
     std::copy_n(&mesh_corners_[3 * std::size_t{last}], 3, &mesh_corners_[3 * std::size_t{slot}]);
     mesh_errors_[slot] = mesh_errors_[last];
-    slots_.assign(moved, slot);
   }
-  slots_.erase_at(entry);
   mesh_triangles_.pop_back();
   mesh_errors_.pop_back();
   mesh_corners_.resize(3 * std::size_t{last});
@@ -565,9 +570,13 @@ bool Refiner::move_cut(const AllowedError& allowed, bool all_changed, CutMesh& o
   // from the kept nodes instead of the root then took the mean refinement from 1.87 to 1.62 ms and
   // the 90th percentile of the work before encoding from 5.7 to 4.6 ms, restarting past a quarter,
   // a seventh or a thirteenth alike.)
-  auto refine_afresh = [&] {
+  // Dropped nodes not forced back in are out once the new cut is known.
+  auto release_dropped = [&] {
     for (const std::uint32_t n : dropped_)
       if (in_cut_[n] == kDropped) in_cut_[n] = kOut;
+  };
+  auto refine_afresh = [&] {
+    release_dropped();
     const bool known = field_known_;
     refine_forced(allowed, out, nullptr, true);
     field_known_ = known;  // the kept copy of the field is already this one
@@ -592,15 +601,11 @@ bool Refiner::move_cut(const AllowedError& allowed, bool all_changed, CutMesh& o
       const std::uint32_t r = mt_.triangle_remover[t];
       if (r == kNoNode || in_cut_[r] == kOut) removals_.push_back(t);
     }
-    for (std::uint32_t j = parent_offsets[x]; j < parent_offsets[x + 1]; ++j) {
-      const std::uint32_t p = parents[j];
-      if (in_cut_[p] != kIn) continue;
-      for (std::uint32_t t = mt_.node_triangle_offsets[p]; t < mt_.node_triangle_offsets[p + 1]; ++t)
-        if (mt_.triangle_remover[t] == x) {
-          seeds_.push_back(t);
-          seeds_.push_back(p);
-        }
-    }
+    for_each_removed(x, [&](std::uint32_t t, std::uint32_t p) {
+      if (in_cut_[p] != kIn) return;
+      seeds_.push_back(t);
+      seeds_.push_back(p);
+    });
   }
   edit_mesh(removals_, seeds_);
 
@@ -622,8 +627,7 @@ bool Refiner::move_cut(const AllowedError& allowed, bool all_changed, CutMesh& o
   // 4. Nodes added in step 3 (and theirs, in turn) are examined in full; once they outnumber a
   // third of the kept nodes, refining afresh from all of them costs less than the mesh edits ahead.
   if (!close_over(allowed, kept, kept + kept / 3)) return refine_afresh();
-  for (const std::uint32_t n : dropped_)
-    if (in_cut_[n] == kDropped) in_cut_[n] = kOut;
+  release_dropped();
 
   // 5. The added nodes' mesh edit: what they remove from nodes that were there before leaves it,
   // what they create and no node of the cut removes joins it. A triangle both created and removed
@@ -633,12 +637,9 @@ bool Refiner::move_cut(const AllowedError& allowed, bool all_changed, CutMesh& o
   additions_.clear();
   for (std::size_t i = kept; i < cut_.size(); ++i) {
     const std::uint32_t x = cut_[i];
-    for (std::uint32_t j = parent_offsets[x]; j < parent_offsets[x + 1]; ++j) {
-      const std::uint32_t p = parents[j];
-      if (in_cut_[p] != kIn) continue;
-      for (std::uint32_t t = mt_.node_triangle_offsets[p]; t < mt_.node_triangle_offsets[p + 1]; ++t)
-        if (mt_.triangle_remover[t] == x) removals_.push_back(t);
-    }
+    for_each_removed(x, [&](std::uint32_t t, std::uint32_t p) {
+      if (in_cut_[p] == kIn) removals_.push_back(t);
+    });
     for (std::uint32_t t = mt_.node_triangle_offsets[x]; t < mt_.node_triangle_offsets[x + 1]; ++t) {
       const std::uint32_t r = mt_.triangle_remover[t];
       if (r == kNoNode || (in_cut_[r] != kIn && in_cut_[r] != kNew)) {
@@ -676,11 +677,7 @@ float Refiner::kept_max_error() const {
 
 std::size_t Refiner::removed_count(std::uint32_t x) const {
   std::size_t removed = 0;
-  for (std::uint32_t j = mt_.node_parent_offsets[x]; j < mt_.node_parent_offsets[x + 1]; ++j) {
-    const std::uint32_t p = mt_.node_parents[j];
-    for (std::uint32_t t = mt_.node_triangle_offsets[p]; t < mt_.node_triangle_offsets[p + 1]; ++t)
-      removed += mt_.triangle_remover[t] == x;
-  }
+  for_each_removed(x, [&](std::uint32_t, std::uint32_t) { ++removed; });
   return removed;
 }
 

@@ -146,17 +146,19 @@ class Refiner {
   void refine_uniform(float allowed_error, CutMesh& out);
   // The cut of nodes [0, end): the uniform static and budgeted results.
   void refine_prefix(std::uint32_t end, CutMesh& out);
-  // Triangles node x removes (counted over its parents' triangles).
+  // Calls f(t, p) for every triangle t node x removes, p being t's creator (one of x's parents).
+  template <class F>
+  void for_each_removed(std::uint32_t x, F&& f) const;
+  // Triangles node x removes.
   std::size_t removed_count(std::uint32_t x) const;
-  // Static refinement by forcing from the root (or from cut_, see from_cut); records witnesses so
-  // update can start from it.
   // refine_on_demand's source and the field it fills (allowed.per_vertex views the same floats).
   struct OnDemand {
     const VertexErrorSource& source;
     std::span<float> field;
   };
-  // from_cut: start from the nodes in cut_ (a subset of the new minimal cut, with their witnesses,
-  // parents and witness creators before them) instead of the root alone.
+  // Static refinement by forcing from the root; records witnesses so update can start from it.
+  // from_cut: start from the nodes in cut_ instead (a subset of the new minimal cut, with their
+  // witnesses, parents and witness creators before them); never on demand.
   void refine_forced(const AllowedError& allowed, CutMesh& out, const OnDemand* on_demand = nullptr,
                      bool from_cut = false);
   // Prefetches what refine_forced will read for the nodes queued after cut_[i].
@@ -183,8 +185,8 @@ class Refiner {
   void mesh_remove(std::uint32_t t);
   // Removes every triangle of `removals`, then adds every (triangle, creator) pair of `additions`.
   void edit_mesh(std::span<const std::uint32_t> removals, std::span<const std::uint32_t> additions);
-  // Moves the kept cut; true when the kept mesh holds the result, false when it refined from the
-  // root into `out` instead.
+  // Moves the kept cut; true when the kept mesh holds the result, false when it refined afresh
+  // into `out` instead.
   bool move_cut(const AllowedError& allowed, bool all_changed, CutMesh& out);
   // update(allowed, changed, ·) up to the output: true when the kept mesh holds the result.
   bool update_kept(const AllowedError& allowed, std::span<const std::uint32_t> changed_vertices, CutMesh& out);

@@ -22,13 +22,8 @@ void SlotTable::grow() {
 }
 
 void SlotTable::insert(std::uint32_t key, std::uint32_t value) {
-  assert(key != kEmpty);
-  if (2 * (size_ + 1) > entries_.size()) grow();
-  const std::size_t mask = entries_.size() - 1;
-  std::size_t i = home(key);
-  while (entries_[i].key != kEmpty) i = (i + 1) & mask;
-  entries_[i] = {key, value};
-  ++size_;
+  [[maybe_unused]] const bool added = try_insert(key, value);
+  assert(added);
 }
 
 bool SlotTable::try_insert(std::uint32_t key, std::uint32_t value) {
@@ -60,6 +55,14 @@ std::size_t SlotTable::find(std::uint32_t key) const {
     if (entries_[i].key == key) return i;
     if (entries_[i].key == kEmpty) return kAbsent;  // probe runs end at an empty entry (load ≤ 1/2)
   }
+}
+
+std::uint32_t SlotTable::erase_moving_last(std::size_t position, std::uint32_t last_key) {
+  const std::uint32_t slot = entries_[position].value;
+  // Assigning moves no entry, so the erased key's entry is still at `position` afterwards.
+  if (entries_[position].key != last_key) assign(last_key, slot);
+  erase_at(position);
+  return slot;
 }
 
 void SlotTable::erase_at(std::size_t i) {

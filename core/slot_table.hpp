@@ -28,6 +28,10 @@ class SlotTable {
   std::size_t find(std::uint32_t key) const;
   std::uint32_t value_at(std::size_t position) const { return entries_[position].value; }
   void erase_at(std::size_t position);
+  // For values that are slots in a dense array whose last slot holds last_key: erases the entry at
+  // `position` and points last_key at the slot it frees (unless last_key is the erased key).
+  // Returns that slot, where the caller moves its array's last element before dropping the last.
+  std::uint32_t erase_moving_last(std::size_t position, std::uint32_t last_key);
   void assign(std::uint32_t key, std::uint32_t value) { entries_[position(key)].value = value; }
   // Starts fetching the cache line where a probe for key begins.
   void prefetch(std::uint32_t key) const {

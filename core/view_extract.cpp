@@ -80,8 +80,7 @@ std::size_t ViewExtractor::occupancy() {
   if (request_->internal_silhouettes) depth_.resize(cells);
   if (request_->internal_silhouettes) {
     // Depths come from the cut's own triangles: a hole's cap is not a surface.
-    const std::span<const std::uint32_t> cut(level.triangles.data(), 3 * level.triangle_count());
-    rasterize_occupancy_compact(mapping_, level.positions, cut, occupancy_, depth_, projected_);
+    rasterize_occupancy_compact(mapping_, level.positions, level.cut_triangles(), occupancy_, depth_, projected_);
   } else {
     rasterize_occupancy_compact(mapping_, level.positions, level.triangles, occupancy_, {}, projected_, level.closed);
   }

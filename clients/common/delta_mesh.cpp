@@ -27,15 +27,13 @@ Status DeltaMesh::apply(const protocol::MeshReply& reply, std::span<const std::u
     if (entry == core::SlotTable::kAbsent) {
       return make_error(ErrorCode::kCorrupt, fmt::format("the delta removes triangle {}, which the mesh does not hold", id));
     }
-    // Swap with the last slot so the arrays stay dense. (Assigning moves no table entry, so the
-    // removed id's entry is still where it was.)
-    const std::uint32_t slot = slot_.value_at(entry), last = static_cast<std::uint32_t>(ids_.size() - 1);
+    // The last triangle moves into the freed slot so the arrays stay dense.
+    const auto last = static_cast<std::uint32_t>(ids_.size() - 1);
+    const std::uint32_t slot = slot_.erase_moving_last(entry, ids_[last]);
     if (slot != last) {
       ids_[slot] = ids_[last];
       std::copy_n(&corners_[9 * std::size_t{last}], 9, &corners_[9 * std::size_t{slot}]);
-      slot_.assign(ids_[slot], slot);
     }
-    slot_.erase_at(entry);
     ids_.pop_back();
     corners_.resize(9 * std::size_t{last});
   }

@@ -434,12 +434,13 @@ struct DragonMt {
 };
 
 // Bisection on an error bound over [1e-5, 1] × radius (cut size falls as the bound grows) until
-// run(bound) returns a cut size within 2 % of target; leaves the last bound tried in `bound`.
+// run(bound), which refines with that bound, returns a cut size within 2 % of target; run's last
+// call is with the bound found.
 template <class Run>
-void tune_error_for_size(float radius, std::size_t target, float& bound, Run&& run) {
+void tune_error_for_size(float radius, std::size_t target, Run&& run) {
   float lo = 1e-5f * radius, hi = radius;
   for (int step = 0; step < 40; ++step) {
-    bound = std::sqrt(lo * hi);
+    const float bound = std::sqrt(lo * hi);
     const std::size_t size = run(bound);
     if (size > target + target / 50)
       lo = bound;
@@ -478,7 +479,8 @@ void BM_RequestPipelineDragon256(benchmark::State& state) {
     field.compute_all(allowed);
     refiner.refine(AllowedError::from_vertices(allowed), cut);
   };
-  tune_error_for_size(dragon.radius, 50'000, options.error, [&](float) {
+  tune_error_for_size(dragon.radius, 50'000, [&](float bound) {
+    options.error = bound;
     request();
     return cut.triangle_count();
   });
@@ -572,7 +574,8 @@ void BM_RefineOnlyDragon256(benchmark::State& state) {
   options.silhouette = {FalloffLaw::kStep, 2.0f, 0.25f, 0.0f, 2.3f};
   std::vector<float> allowed(mt.vertex_count());
   Refiner refiner(mt);
-  tune_error_for_size(dragon.radius, static_cast<std::size_t>(state.range(0)), options.error, [&](float) {
+  tune_error_for_size(dragon.radius, static_cast<std::size_t>(state.range(0)), [&](float bound) {
+    options.error = bound;
     compute_vertex_allowed_error(mapping, options, {silhouette, {}, {}, mt.positions, {}}, allowed);
     refiner.refine(AllowedError::from_vertices(allowed), cut);
     return cut.triangle_count();

@@ -46,18 +46,21 @@ std::unique_ptr<Built> build(Mesh mesh) {
   return b;
 }
 
-// A perspective camera looking at the mesh's bounding-box centre from +z, the whole mesh in view.
-Camera front_camera(const Mesh& m, float aspect) {
-  const Bounds box = bounds_of(m.positions);
+// A perspective camera at centre + distance·axis looking at the bounding-box centre of `positions`,
+// the whole box in view (for an axis of about unit length).
+Camera camera_along(std::span<const float> positions, glm::vec3 axis, float aspect) {
+  const Bounds box = bounds_of(positions);
   const std::array<float, 3> middle = box.centre();
   const glm::vec3 centre(middle[0], middle[1], middle[2]);
-  const float radius = box.radius();
-  const float distance = 1.1f * radius / std::sin(glm::radians(22.5f));
+  const float distance = 1.1f * box.radius() / std::sin(glm::radians(22.5f));
   Camera c;
-  c.view = glm::lookAt(centre + glm::vec3(0, 0, distance), centre, glm::vec3(0, 1, 0));
+  c.view = glm::lookAt(centre + distance * axis, centre, glm::vec3(0, 1, 0));
   c.projection = glm::perspective(glm::radians(45.0f), aspect, distance / 100, distance * 100);
   return c;
 }
+
+// The same from +z.
+Camera front_camera(const Mesh& m, float aspect) { return camera_along(m.positions, glm::vec3(0, 0, 1), aspect); }
 
 void run(ViewExtractor& x, const ViewRequest& r, Refiner& refiner, CutMesh& cut) {
   x.map(r);
@@ -248,8 +251,7 @@ TEST(ViewExtract, OccupancyCutGrowsAsTheModelFillsMoreOfTheGrid) {
     CutMesh cut;
     refine_budget(b->mt, AllowedError::everywhere(0.0f), level.triangle_count(), cut);
     CutMesh compact;
-    for (std::size_t i = 0; i < 3 * level.triangle_count(); ++i)
-      compact.triangles.push_back(level.model_ids.at(level.triangles[i]));
+    for (const std::uint32_t local : level.cut_triangles()) compact.triangles.push_back(level.model_ids.at(local));
     EXPECT_EQ(triangle_set(compact), triangle_set(cut));
     EXPECT_TRUE(level.closed);
   }
@@ -277,24 +279,16 @@ TEST(ViewExtract, DragonOccupancyLevelsAreCappedAndClosed) {
   // when this test was written).
   const Built* b = dragon();
   if (!b) GTEST_SKIP() << "dragon mesh not found";
-  const Bounds box = bounds_of(b->mt.positions);
-  const std::array<float, 3> middle = box.centre();
-  const glm::vec3 centre(middle[0], middle[1], middle[2]);
-  const float distance = 1.1f * box.radius() / std::sin(glm::radians(22.5f));
   std::vector<ProjectedCorner> scratch;
   for (const OccupancyLevel& level : b->levels->levels()) {
     if (level.triangle_count() > 70'000) break;
     ASSERT_TRUE(level.closed) << level.triangle_count();
     EXPECT_GT(level.cap_triangles, 0u);
-    const std::span<const std::uint32_t> cut(level.triangles.data(), 3 * level.triangle_count());
     for (const glm::vec3 axis : {glm::vec3(0, 0, 1), glm::vec3(0, 0, -1), glm::vec3(1, 0, 0), glm::vec3(-1, 0, 0),
                                  glm::vec3(0, 1, 0.01f), glm::vec3(0, -1, 0.01f)}) {
-      Camera camera;
-      camera.view = glm::lookAt(centre + distance * axis, centre, glm::vec3(0, 1, 0));
-      camera.projection = glm::perspective(glm::radians(45.0f), 1.0f, distance / 100, distance * 100);
-      const ViewMapping mapping(camera, GridSize{256, 256});
+      const ViewMapping mapping(camera_along(b->mt.positions, axis, 1.0f), GridSize{256, 256});
       std::vector<std::uint8_t> own(mapping.grid().cell_count()), capped(own.size());
-      rasterize_occupancy_compact(mapping, level.positions, cut, own, {}, scratch);
+      rasterize_occupancy_compact(mapping, level.positions, level.cut_triangles(), own, {}, scratch);
       rasterize_occupancy_compact(mapping, level.positions, level.triangles, capped, {}, scratch, true);
       std::size_t object = 0, added = 0;
       for (std::size_t c = 0; c < own.size(); ++c) {
