@@ -30,7 +30,9 @@ struct TriangleId {
 };
 
 struct Mt {
-  // Vertices: every vertex of the input, with its input id.
+  // Vertices: every vertex of the input. build_mt numbers them as the nodes reach them (the root
+  // mesh's R vertices first, then node n's split vertex as R + n − 1, then any vertex no triangle
+  // uses) and reports each input vertex's id; nothing here relies on that order (FORMAT.md).
   std::vector<float> positions;      // x, y, z per vertex
   std::vector<float> normals;        // empty, or x, y, z per vertex
   std::vector<std::uint8_t> colors;  // empty, or r, g, b per vertex

@@ -242,7 +242,7 @@ class Builder {
  public:
   Builder(const Mesh& mesh, const BuildOptions& options) : mesh_(mesh), options_(options) {}
 
-  Result<Mt> run(BuildStats* stats);
+  Result<Mt> run(BuildStats* stats, std::vector<std::uint32_t>* vertex_ids);
 
  private:
   const float* position(std::uint32_t v) const { return &mesh_.positions[3 * std::size_t{v}]; }
@@ -326,7 +326,7 @@ class Builder {
     __builtin_prefetch(&quadrics_[chosen.v]);
     __builtin_prefetch(&adjacency_[adjacency_begin_[chosen.u]]);
   }
-  Mt assemble();
+  Mt assemble(std::vector<std::uint32_t>* vertex_ids);
 
   const Mesh& mesh_;
   BuildOptions options_;
@@ -989,7 +989,7 @@ void Builder::compact_assigned_points() {
   points_.swap(points_scratch_);
 }
 
-Mt Builder::assemble() {
+Mt Builder::assemble(std::vector<std::uint32_t>* vertex_ids) {
   Mt mt;
   mt.positions = mesh_.positions;
   mt.normals = mesh_.normals;
@@ -1023,12 +1023,40 @@ Mt Builder::assemble() {
     }
   });
 
+  // Vertex ids follow the nodes: the root mesh's vertices first (by input id), then node n's split
+  // vertex as id R + n − 1, then the vertices no triangle uses. A refinement reads each node's
+  // split vertex (its position, its allowed error) as it reaches the node, and it reaches nodes
+  // roughly in id order, so these reads walk the vertex arrays as they walk the node arrays.
+  std::vector<std::uint32_t> vertex_id(vertex_count_, kNoNode);
+  {
+    std::vector<std::uint8_t> kind(vertex_count_, 0);  // 0 unused, 1 in the root mesh, 2 split
+    for (const std::uint32_t v : mesh_.triangles) kind[v] = 1;
+    for (const std::uint32_t u : collapse_u_) kind[u] = 2;
+    std::uint32_t next = 0;
+    for (std::uint32_t v = 0; v < vertex_count_; ++v)
+      if (kind[v] == 1) vertex_id[v] = next++;
+    for (std::uint32_t c = 0; c < k; ++c) vertex_id[collapse_u_[c]] = next + node_of[c] - 1;
+    next += k;
+    for (std::uint32_t v = 0; v < vertex_count_; ++v)
+      if (kind[v] == 0) vertex_id[v] = next++;
+  }
+  const auto renumber = [&](auto& values) {
+    if (values.empty()) return;
+    auto by_id = values;
+    for (std::uint32_t v = 0; v < vertex_count_; ++v)
+      std::copy_n(&values[3 * std::size_t{v}], 3, &by_id[3 * std::size_t{vertex_id[v]}]);
+    values = std::move(by_id);
+  };
+  renumber(mt.positions);
+  renumber(mt.normals);
+  renumber(mt.colors);
+
   mt.node_vertex.resize(node_count);
   mt.node_error.resize(node_count);
   mt.node_vertex[0] = kNoNode;
   mt.node_error[0] = 0;
   for (std::uint32_t c = 0; c < k; ++c) {
-    mt.node_vertex[node_of[c]] = collapse_u_[c];
+    mt.node_vertex[node_of[c]] = vertex_id[collapse_u_[c]];
     mt.node_error[node_of[c]] = collapse_error_[c];
   }
 
@@ -1054,7 +1082,8 @@ Mt Builder::assemble() {
   for_chunks(mt_count, [&](std::size_t, std::size_t begin, std::size_t end) {
     for (std::size_t t = begin; t < end; ++t) {
       const std::uint32_t n = creators[t], id = new_id[t];
-      const std::uint32_t* tv = &mt_vertices_[3 * t];
+      const std::uint32_t tv[3] = {vertex_id[mt_vertices_[3 * t]], vertex_id[mt_vertices_[3 * t + 1]],
+                                   vertex_id[mt_vertices_[3 * t + 2]]};
       int first = 0;
       if (n == 0) {
         mt.root_first_corner[id] = tv[0];
@@ -1103,10 +1132,11 @@ Mt Builder::assemble() {
                   mt.node_parents.data() + mt.node_parent_offsets[n]);
     }
   });
+  if (vertex_ids) *vertex_ids = std::move(vertex_id);
   return mt;
 }
 
-Result<Mt> Builder::run(BuildStats* stats) {
+Result<Mt> Builder::run(BuildStats* stats, std::vector<std::uint32_t>* vertex_ids) {
   vertex_count_ = mesh_.vertex_count();
   face_count_ = mesh_.triangle_count();
   if (mesh_.positions.size() % 3 != 0 || mesh_.triangles.size() % 3 != 0)
@@ -1283,7 +1313,7 @@ Result<Mt> Builder::run(BuildStats* stats) {
     if (collapses == 0 || alive_faces_ <= options_.min_triangles) break;
   }
 
-  Mt mt = assemble();
+  Mt mt = assemble(vertex_ids);
   if (stats) {
     stats->input_triangles = face_count_;
     stats->root_triangles = mt.root_triangle_count();
@@ -1300,9 +1330,10 @@ Result<Mt> Builder::run(BuildStats* stats) {
 
 }  // namespace
 
-Result<Mt> build_mt(const Mesh& mesh, const BuildOptions& options, BuildStats* stats) {
+Result<Mt> build_mt(const Mesh& mesh, const BuildOptions& options, BuildStats* stats,
+                    std::vector<std::uint32_t>* vertex_ids) {
   Builder builder(mesh, options);
-  return builder.run(stats);
+  return builder.run(stats, vertex_ids);
 }
 
 }  // namespace mtlod::core

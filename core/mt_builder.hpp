@@ -5,6 +5,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <vector>
 
 #include "core/mesh.hpp"
 #include "core/mt.hpp"
@@ -55,6 +56,10 @@ struct BuildStats {
 // never collapsed). Normals and colours are copied. Fails with kInvalidArgument on an index out of
 // range or a non-finite coordinate, or with kLimitExceeded when counts do not fit 32-bit ids. An
 // empty mesh gives an MT of one empty root. stats may be null.
-Result<Mt> build_mt(const Mesh& mesh, const BuildOptions& options = {}, BuildStats* stats = nullptr);
+//
+// The MT numbers the vertices in its own order (core/mt.hpp); vertex_ids, when not null, receives
+// the MT id of every input vertex.
+Result<Mt> build_mt(const Mesh& mesh, const BuildOptions& options = {}, BuildStats* stats = nullptr,
+                    std::vector<std::uint32_t>* vertex_ids = nullptr);
 
 }  // namespace mtlod::core

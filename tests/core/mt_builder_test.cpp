@@ -56,15 +56,17 @@ TEST(MtBuilder, SquareCollapsesOneCornerAlongItsBoundary) {
   // one triangle. After that every corner has one triangle, and removing it would empty the mesh.
   // The removed corner lies 1/√2 from the remaining triangle's long edge (the line x + y = 1 seen
   // from (0,0) or (1,1)): the node's error is that distance, rounded up to the next float.
-  const Mesh mesh = test::square();
+  Mesh mesh = test::square();
   BuildStats stats;
-  auto mt = build_mt(mesh, {}, &stats);
+  std::vector<std::uint32_t> ids;
+  auto mt = build_mt(mesh, {}, &stats, &ids);
   ASSERT_TRUE(mt.ok());
   ASSERT_EQ(mt->node_count(), 2u);
   EXPECT_EQ(mt->root_triangle_count(), 1u);
   EXPECT_EQ(mt->triangle_count(), 3u);  // 1 root triangle + the 2 input triangles of node 1
   EXPECT_EQ(mt->node_error[1], std::nextafter(float(std::sqrt(0.5)), 2.0f));
-  EXPECT_TRUE(mt->node_vertex[1] == 0 || mt->node_vertex[1] == 2);
+  EXPECT_TRUE(mt->node_vertex[1] == ids[0] || mt->node_vertex[1] == ids[2]);
+  test::renumber_like_mt(mesh, ids);
   EXPECT_EQ(test::triangle_set(all_nodes_cut(*mt)), test::triangle_set(mesh.triangles));
   EXPECT_EQ(stats.nodes, 2u);
   EXPECT_EQ(stats.root_triangles, 1u);
@@ -155,6 +157,34 @@ TEST(MtBuilder, AllNodesReproduceTheInputAndTheRootIsAConformingCoarsestMesh) {
     EXPECT_TRUE(test::validate_cut(c->reference, root_cut(c->mt)));
     EXPECT_LT(c->mt.root_triangle_count(), c->mesh.triangle_count() / 4);
   }
+}
+
+TEST(MtBuilder, VerticesAreNumberedRootMeshFirstThenByNode) {
+  // build_mt's numbering (core/mt.hpp): root-mesh vertices by input id, node n's split vertex as
+  // R + n − 1, unused vertices last; vertex_ids maps every input vertex to its MT id.
+  Mesh mesh = generate_mesh({.shape = Shape::kShell, .target_triangles = 3'000});
+  const std::size_t used = mesh.vertex_count();
+  mesh.positions.insert(mesh.positions.begin() + 6, {7.0f, 8.0f, 9.0f});  // an unused vertex 2
+  for (std::uint32_t& v : mesh.triangles) v += v >= 2 ? 1 : 0;
+  std::vector<std::uint32_t> ids;
+  auto mt = build_mt(mesh, {}, nullptr, &ids);
+  ASSERT_TRUE(mt.ok());
+  ASSERT_EQ(ids.size(), mesh.vertex_count());
+  std::vector<std::uint32_t> input_of(mesh.vertex_count(), kNoNode);
+  for (std::uint32_t v = 0; v < ids.size(); ++v) {
+    ASSERT_LT(ids[v], mesh.vertex_count());
+    ASSERT_EQ(input_of[ids[v]], kNoNode) << "two input vertices share MT id " << ids[v];
+    input_of[ids[v]] = v;
+    for (int k = 0; k < 3; ++k) ASSERT_EQ(mt->positions[3 * ids[v] + k], mesh.positions[3 * v + k]);
+  }
+  EXPECT_EQ(ids[2], mesh.vertex_count() - 1);  // the unused vertex comes last
+  std::set<std::uint32_t> root_vertices;
+  for (const std::uint32_t v : root_cut(*mt)) root_vertices.insert(v);
+  const auto r = std::uint32_t(root_vertices.size());
+  EXPECT_EQ(*root_vertices.rbegin(), r - 1);  // ids 0 .. R − 1
+  EXPECT_EQ(r + mt->node_count() - 1, used);
+  for (std::uint32_t v = 1; v < r; ++v) EXPECT_LT(input_of[v - 1], input_of[v]);  // by input id
+  for (std::uint32_t n = 1; n < mt->node_count(); ++n) ASSERT_EQ(mt->node_vertex[n], r + n - 1);
 }
 
 TEST(MtBuilder, LoadedMtTakesAtMost64BytesPerInputTriangle) {

@@ -6,6 +6,7 @@
 #include <map>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "core/io/mesh_io.hpp"
 #include "core/mesh_gen.hpp"
@@ -21,13 +22,39 @@ struct MtCase {
   CutReference reference;
 };
 
+// The same mesh with its vertices numbered as the MT numbers them (ids[v]: MT id of input vertex v),
+// so cuts can be compared with it id for id.
+inline void renumber_like_mt(core::Mesh& mesh, const std::vector<std::uint32_t>& ids) {
+  const auto renumber = [&](auto& values) {
+    if (values.empty()) return;
+    auto by_id = values;
+    for (std::size_t v = 0; v < ids.size(); ++v)
+      for (int k = 0; k < 3; ++k) by_id[3 * std::size_t{ids[v]} + k] = values[3 * v + k];
+    values = std::move(by_id);
+  };
+  renumber(mesh.positions);
+  renumber(mesh.normals);
+  renumber(mesh.colors);
+  for (std::uint32_t& v : mesh.triangles) v = ids[v];
+}
+
+// Builds the MT of mesh and renumbers mesh like it.
+inline Result<core::Mt> build_mt_renumbering(core::Mesh& mesh, const core::BuildOptions& options = {},
+                                                   core::BuildStats* stats = nullptr) {
+  std::vector<std::uint32_t> ids;
+  auto mt = core::build_mt(mesh, options, stats, &ids);
+  if (mt.ok()) renumber_like_mt(mesh, ids);
+  return mt;
+}
+
+// The input mesh is kept numbered as the MT numbers its vertices.
 inline const MtCase* build_case(const std::string& key, core::Mesh mesh) {
   static std::map<std::string, std::unique_ptr<MtCase>> cache;
   auto& slot = cache[key];
   if (!slot) {
     auto c = std::make_unique<MtCase>();
     c->mesh = std::move(mesh);
-    auto mt = core::build_mt(c->mesh);
+    auto mt = build_mt_renumbering(c->mesh);
     EXPECT_TRUE(mt.ok()) << key << ": " << (mt.ok() ? "" : mt.error().message);
     if (!mt.ok()) return nullptr;
     c->mt = std::move(mt).value();

@@ -21,6 +21,7 @@
 #include "core/occupancy.hpp"
 #include "core/occupancy_levels.hpp"
 #include "tests/core/cut_validator.hpp"
+#include "tests/core/mt_fixtures.hpp"
 #include "tests/core/test_meshes.hpp"
 
 #include <glm/ext/matrix_clip_space.hpp>
@@ -38,7 +39,7 @@ struct Built {
 std::unique_ptr<Built> build(Mesh mesh) {
   auto b = std::make_unique<Built>();
   b->input = std::move(mesh);
-  auto mt = build_mt(b->input);
+  auto mt = test::build_mt_renumbering(b->input);
   EXPECT_TRUE(mt.ok()) << mt.error().message;
   if (!mt.ok()) return nullptr;
   b->mt = std::move(*mt);
