@@ -1,7 +1,9 @@
 // mtlod-gaze: replays eye-tracker gaze against mtlod-server (issue 6) and measures gaze-to-mesh
 // latency: from a sample's timestamp (its due time in the replay, so a late send counts) to the
 // arrival of the mesh reply that reflects it. Gaze updates the server coalesced away are counted;
-// each sample's wait for a mesh showing it or a newer sample is reported too. A dropped connection
+// each sample's wait for a mesh showing it or a newer sample is reported too. With --delta each stream
+// applies its replies on a thread of its own, so decoding one reply never delays the arrival time
+// taken for the next; gaze-to-applied (the mesh decoded into the client's copy) is reported too. A dropped connection
 // is reopened with backoff; the view's extract and the newest unanswered sample are sent again
 // (older samples are stale: the newest one supersedes them, as the server's coalescing would).
 #include <unistd.h>
@@ -44,6 +46,7 @@ struct Totals {
   std::mutex mutex;
   clients::LatencyHistogram mesh_latency_us;    // per mesh reply: its sample's time → arrival
   clients::LatencyHistogram sample_latency_us;  // per sample: its time → a mesh showing it or a newer one
+  clients::LatencyHistogram applied_latency_us;  // per delta mesh reply: its sample's time → applied
   std::uint64_t sent = 0, meshes = 0, superseded = 0, superseded_counted = 0, errors = 0, focus_mismatches = 0;
   std::uint64_t bytes = 0, triangles = 0, server_total_us = 0;
   std::map<std::string, std::uint64_t> errors_by_code;
@@ -65,7 +68,16 @@ struct Stream {
   std::size_t reflected = 0;  // samples [0, reflected) have a mesh showing them or a newer sample
   bool broken = false;
   std::mt19937_64 rng;  // backoff jitter
-  clients::DeltaMesh mesh;  // with --delta: the mesh the replies build (receive thread only)
+  clients::DeltaMesh mesh;  // with --delta: the mesh the replies build (apply thread only)
+  // Delta replies received and not yet applied, in arrival order, with their sample's time (ns;
+  // -1 for the view's extract); the apply thread takes them.
+  struct Received {
+    clients::ReplyFrame frame;
+    std::int64_t sample_ns;
+  };
+  std::deque<Received> to_apply;
+  bool receiving_done = false;
+  std::condition_variable to_apply_changed;
 };
 
 struct Link {
@@ -138,15 +150,22 @@ void receive_loop(Stream& stream, const Link& link, Clock::time_point start) {
       if (link.finished || !reconnect(stream, link, generation)) break;
       continue;
     }
+    const std::uint64_t id = frame->header.id.value_or(0);
+    const std::size_t payload_bytes = frame->payload.size();
+    const bool known_sample = id != 0 && id <= stream.trace.size();
     if (const auto* mesh = std::get_if<protocol::MeshReply>(&frame->header.reply); mesh && mesh->delta) {
       // Every delta in arrival order, the view's re-extract after a reconnect (id 0) included.
-      if (auto applied = stream.mesh.apply(*mesh, frame->payload); !applied) {
-        std::lock_guard lock(totals.mutex);
-        if (totals.delta_errors++ == 0) fmt::print(stderr, "mtlod-gaze: {}\n", applied.error().message);
+      const std::int64_t sample_ns = known_sample ? static_cast<std::int64_t>(stream.trace[id - 1].time_ms * 1e6) : -1;
+      clients::ReplyFrame copy;
+      copy.header = frame->header;
+      copy.payload = std::move(frame->payload);
+      {
+        std::lock_guard lock(stream.mutex);
+        stream.to_apply.push_back({std::move(copy), sample_ns});
       }
+      stream.to_apply_changed.notify_one();
     }
-    const std::uint64_t id = frame->header.id.value_or(0);
-    if (id == 0 || id > stream.trace.size()) continue;
+    if (!known_sample) continue;
     const std::size_t index = id - 1;
     const clients::GazeSample& sample = stream.trace[index];
     const auto sample_ns = static_cast<std::int64_t>(sample.time_ms * 1e6);
@@ -171,7 +190,7 @@ void receive_loop(Stream& stream, const Link& link, Clock::time_point start) {
       // The reply must say it reflects this sample (JSON carries doubles exactly).
       if (!mesh->focus || (*mesh->focus)[0] != sample.x || (*mesh->focus)[1] != sample.y) ++totals.focus_mismatches;
       totals.superseded_counted += mesh->superseded;
-      totals.bytes += frame->payload.size();
+      totals.bytes += payload_bytes;
       totals.triangles += mesh->triangles;
       totals.server_total_us += mesh->timings.total_us;
     } else if (const auto* error = std::get_if<protocol::ErrorReply>(&frame->header.reply)) {
@@ -185,6 +204,29 @@ void receive_loop(Stream& stream, const Link& link, Clock::time_point start) {
     stream.broken = true;
   }
   stream.changed.notify_all();
+}
+
+// Applies a stream's delta replies in arrival order until the receive loop is done and none is left.
+void apply_loop(Stream& stream, Totals& totals, Clock::time_point start) {
+  for (;;) {
+    Stream::Received received;
+    {
+      std::unique_lock lock(stream.mutex);
+      stream.to_apply_changed.wait(lock, [&] { return !stream.to_apply.empty() || stream.receiving_done; });
+      if (stream.to_apply.empty()) return;
+      received = std::move(stream.to_apply.front());
+      stream.to_apply.pop_front();
+    }
+    const auto& mesh = std::get<protocol::MeshReply>(received.frame.header.reply);
+    auto applied = stream.mesh.apply(mesh, received.frame.payload);
+    const std::int64_t now = since(start);
+    std::lock_guard lock(totals.mutex);
+    if (!applied) {
+      if (totals.delta_errors++ == 0) fmt::print(stderr, "mtlod-gaze: {}\n", applied.error().message);
+    } else if (received.sample_ns >= 0) {
+      totals.applied_latency_us.record(static_cast<std::uint64_t>(std::max<std::int64_t>(0, now - received.sample_ns) / 1000));
+    }
+  }
 }
 
 nlohmann::ordered_json percentiles_ms(const clients::LatencyHistogram& h) {
@@ -303,7 +345,15 @@ int main(int argc, char** argv) {
   std::vector<std::thread> threads;
   for (auto& s : streams) {
     Stream& stream = *s;
-    threads.emplace_back([&stream, &link, start] { receive_loop(stream, link, start); });
+    threads.emplace_back([&stream, &link, start] {
+      receive_loop(stream, link, start);
+      {
+        std::lock_guard lock(stream.mutex);
+        stream.receiving_done = true;
+      }
+      stream.to_apply_changed.notify_all();
+    });
+    if (flags.delta) threads.emplace_back([&stream, &totals, start] { apply_loop(stream, totals, start); });
     threads.emplace_back([&stream, &totals, &senders_done, start] {
       for (std::size_t i = 0; i < stream.trace.size(); ++i) {
         const clients::GazeSample& sample = stream.trace[i];
@@ -383,6 +433,7 @@ int main(int argc, char** argv) {
       {"throughput_rps", r.meshes / std::max(elapsed_s, 1e-9)},
       {"latency_ms", percentiles_ms(r.mesh_latency_us)},
       {"sample_latency_ms", percentiles_ms(r.sample_latency_us)},
+      {"applied_latency_ms", flags.delta ? percentiles_ms(r.applied_latency_us) : nlohmann::ordered_json(nullptr)},
       {"mean_triangles", r.triangles / per_mesh},
       {"bytes", r.bytes},
       {"server_total_us_mean", r.server_total_us / per_mesh},
@@ -396,6 +447,11 @@ int main(int argc, char** argv) {
   const auto& q = r.sample_latency_us;
   fmt::print("  every sample until a mesh shows it or a newer one, ms  p50 {:.2f}  p99 {:.2f}  max {:.2f}\n",
              q.value_at_percentile(50) / 1e3, q.value_at_percentile(99) / 1e3, q.max() / 1e3);
+  if (flags.delta) {
+    const auto& a = r.applied_latency_us;
+    fmt::print("  gaze-to-applied (delta decoded into the client's mesh) ms  p50 {:.2f}  p99 {:.2f}  max {:.2f}\n",
+               a.value_at_percentile(50) / 1e3, a.value_at_percentile(99) / 1e3, a.max() / 1e3);
+  }
   fmt::print("  {:.0f} triangles per mesh, {:.0f} bytes per mesh, server total {:.0f} µs mean, focus mismatches {}{}\n",
              r.triangles / per_mesh, static_cast<double>(r.bytes) / per_mesh, r.server_total_us / per_mesh,
              r.focus_mismatches, flags.delta ? fmt::format(", delta errors {}", r.delta_errors) : std::string());

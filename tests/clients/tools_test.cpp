@@ -174,6 +174,13 @@ TEST_F(ToolsTest, GazeReplayWithDeltasKeepsTheServersCutInFewerBytes) {
   EXPECT_GT(delta.at("meshes").get<std::uint64_t>(), 0u);
   EXPECT_EQ(delta.at("meshes").get<std::uint64_t>() + delta.at("superseded").get<std::uint64_t>(),
             delta.at("samples").get<std::uint64_t>());
+  // Each delta mesh is applied after it arrives: one applied latency per mesh, none shorter.
+  const json& applied = delta.at("applied_latency_ms");
+  expect_ordered_latency(applied);
+  EXPECT_EQ(applied.at("count"), delta.at("meshes"));
+  EXPECT_GE(applied.at("p50").get<double>(), delta.at("latency_ms").at("p50").get<double>());
+  EXPECT_GE(applied.at("max").get<double>(), delta.at("latency_ms").at("max").get<double>());
+  EXPECT_TRUE(whole.at("applied_latency_ms").is_null());
   const double whole_per_mesh = whole.at("bytes").get<double>() / whole.at("meshes").get<double>();
   const double delta_per_mesh = delta.at("bytes").get<double>() / delta.at("meshes").get<double>();
   EXPECT_LT(delta_per_mesh, whole_per_mesh);
