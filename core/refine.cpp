@@ -19,8 +19,7 @@
 namespace mtlod::core {
 namespace {
 
-// kNew: in the cut, added by the current update (only while its mesh is patched).
-enum : std::uint8_t { kOut = 0, kIn = 1, kAdding = 2, kDropped = 3, kNew = 4 };
+enum : std::uint8_t { kOut = 0, kIn = 1, kAdding = 2, kDropped = 3 };
 
 // The output of the static paths: sizes a CutMesh for an upper bound of triangles, writes each
 // triangle's corners and id unchecked, then trims the arrays to what was written.
@@ -354,7 +353,7 @@ void Refiner::refine_forced(const AllowedError& allowed, CutMesh& out, const OnD
       if (r != kNoNode && error > allowed.of_triangle(a, b, c)) {
         force(r, t, n);
       } else {
-        passing_.push_back({t, r, {a, b, c}, error});
+        passing_.push_back({t, n, r, {a, b, c}, error});
       }
     }
   }
@@ -375,68 +374,29 @@ void Refiner::refine_forced(const AllowedError& allowed, CutMesh& out, const OnD
 
 // --- dynamic refinement -------------------------------------------------------------------------
 
-void Refiner::mesh_add(std::uint32_t t, std::uint32_t creator) {
-  slots_.insert(t, std::uint32_t(mesh_triangles_.size()));
+void Refiner::mesh_push(std::uint32_t t, std::uint32_t creator, std::uint32_t remover, const std::uint32_t* corners,
+                        float error) {
   mesh_triangles_.push_back(t);
-  mesh_corners_.push_back(mt_.first_corner(TriangleId{t}, NodeId{creator}));
-  mesh_corners_.push_back(mt_.triangle_corners[2 * std::size_t{t}]);
-  mesh_corners_.push_back(mt_.triangle_corners[2 * std::size_t{t} + 1]);
-  mesh_errors_.push_back(mt_.triangle_error(t));
+  mesh_creators_.push_back(creator);
+  mesh_removers_.push_back(remover);
+  mesh_corners_.insert(mesh_corners_.end(), corners, corners + 3);
+  mesh_errors_.push_back(error);
 }
 
-void Refiner::mesh_remove(std::uint32_t t) {
-  // The last triangle moves into t's slot so the arrays stay dense.
-  const std::uint32_t last = std::uint32_t(mesh_triangles_.size() - 1);
-  const std::uint32_t slot = slots_.erase_moving_last(slots_.position(t), mesh_triangles_[last]);
-  if (slot != last) {
-    mesh_triangles_[slot] = mesh_triangles_[last];
-    std::copy_n(&mesh_corners_[3 * std::size_t{last}], 3, &mesh_corners_[3 * std::size_t{slot}]);
-    mesh_errors_[slot] = mesh_errors_[last];
-  }
-  mesh_triangles_.pop_back();
-  mesh_errors_.pop_back();
-  mesh_corners_.resize(3 * std::size_t{last});
-}
-
-void Refiner::edit_mesh(std::span<const std::uint32_t> removals, std::span<const std::uint32_t> additions) {
-  // Every edit probes the slot table somewhere else, and a removal moves the mesh's last triangle
-  // (probing again for it): the entries a few edits ahead are fetched while this one waits.
-  constexpr std::size_t kAhead = 8;
-  for (std::size_t i = 0; i < removals.size(); ++i) {
-    if (i + kAhead < removals.size()) slots_.prefetch(removals[i + kAhead]);
-    if (mesh_triangles_.size() > kAhead) slots_.prefetch(mesh_triangles_[mesh_triangles_.size() - 1 - kAhead]);
-    mesh_remove(removals[i]);
-  }
-  for (std::size_t i = 0; i < additions.size(); i += 2) {
-    if (i + 2 * kAhead < additions.size()) {
-      const std::uint32_t t = additions[i + 2 * kAhead];
-      slots_.prefetch(t);
-      __builtin_prefetch(mt_.triangle_corners.data() + 2 * std::size_t{t});
-      __builtin_prefetch(mt_.triangle_remover.data() + t);
-    }
-    mesh_add(additions[i], additions[i + 1]);
-  }
-}
-
-void Refiner::index_mesh() {
-  // The kept mesh is set aside only by refine_forced (a move leaves it indexed; the other
+void Refiner::take_kept_mesh() {
+  // The kept mesh is set aside only by refine_forced (a move leaves it in place; the other
   // refinements clear dynamic_ready_, so no move follows them): its passing list still holds the
-  // mesh's triangles (those not refined since), corners and errors, in order. Only the slot table
-  // is scattered, so it is fetched ahead. The mesh is the cut's before move_cut's witness pass,
-  // whose nodes are now kIn (kept) or kDropped.
+  // mesh's triangles (those not refined since), creators, removers, corners and errors. The mesh is
+  // the cut's before move_cut's witness pass, whose nodes are now kIn (kept) or kDropped.
   assert(dynamic_ready_ && !mesh_valid_);
   mesh_triangles_.clear();
+  mesh_creators_.clear();
+  mesh_removers_.clear();
   mesh_corners_.clear();
   mesh_errors_.clear();
-  slots_.reset(passing_.size());
-  for (std::size_t i = 0; i < passing_.size(); ++i) {
-    if (i + 8 < passing_.size()) slots_.prefetch(passing_[i + 8].triangle);
-    const Passing& p = passing_[i];
+  for (const Passing& p : passing_) {
     if (p.remover != kNoNode && (in_cut_[p.remover] == kIn || in_cut_[p.remover] == kDropped)) continue;
-    slots_.insert(p.triangle, std::uint32_t(mesh_triangles_.size()));
-    mesh_triangles_.push_back(p.triangle);
-    mesh_corners_.insert(mesh_corners_.end(), p.corners, p.corners + 3);
-    mesh_errors_.push_back(p.error);
+    mesh_push(p.triangle, p.creator, p.remover, p.corners, p.error);
   }
   mesh_valid_ = true;
 }
@@ -560,8 +520,8 @@ bool Refiner::move_cut(const AllowedError& allowed, bool all_changed, CutMesh& o
   cut_.resize(kept);
   witnesses_.resize(kept);
 
-  // Moving costs far more per node than a static refinement (triangles go in and out of the
-  // indexed mesh, one scattered probe after another), and a large drop is usually followed by as
+  // Moving costs more per node than a static refinement (the dropped and added nodes' triangles are
+  // looked up and tested, then the mesh is filtered and extended), and a large drop is usually followed by as
   // large an addition (a saccade, a new view): when a quarter of the cut's nodes drop, the cut is
   // refined afresh instead, forcing as refine_forced does from the root but from the kept nodes.
   // They lie in the new minimal cut, so forcing from them reaches it, and only the added nodes are
@@ -585,71 +545,86 @@ bool Refiner::move_cut(const AllowedError& allowed, bool all_changed, CutMesh& o
   };
   if (3 * dropped_.size() > kept) return refine_afresh();
 
-  // The kept mesh is indexed only now, when the cut is moved rather than refined afresh (after a
-  // refinement from the root the next move indexes it).
-  if (!mesh_valid_) index_mesh();
+  // The kept mesh is taken from the passing list only now, when the cut is moved rather than
+  // refined afresh (after a refinement from the root the next move takes it).
+  if (!mesh_valid_) take_kept_mesh();
 
-  // 2. Undo the dropped nodes, all at once: what they created and no node of the old cut removed
-  // leaves the mesh; what they had removed from kept nodes comes back and must be tested.
-  // (Undoing them one by one would also add and remove again what a dropped node removed from
-  // another dropped node.) All removals go first: the two sets are disjoint, one created by
-  // dropped nodes, the other by kept ones.
+  // 2. Undo the dropped nodes: what they removed from kept nodes is uncovered and must be tested
+  // (what they created leaves the mesh in step 5, by its creator's state).
   seeds_.clear();
-  removals_.clear();
   for (const std::uint32_t x : dropped_) {
-    for (std::uint32_t t = mt_.node_triangle_offsets[x]; t < mt_.node_triangle_offsets[x + 1]; ++t) {
-      const std::uint32_t r = mt_.triangle_remover[t];
-      if (r == kNoNode || in_cut_[r] == kOut) removals_.push_back(t);
-    }
     for_each_removed(x, [&](std::uint32_t t, std::uint32_t p) {
       if (in_cut_[p] != kIn) return;
       seeds_.push_back(t);
       seeds_.push_back(p);
     });
   }
-  edit_mesh(removals_, seeds_);
 
-  // 3. Force the removers of what fails now: the uncovered triangles, and mesh triangles with a
-  // changed corner; every other mesh triangle passed before and still does. Nodes added from here
-  // on leave the mesh alone (add_node skips it; step 5 patches it once), so it is read in place.
-  mesh_valid_ = false;
+  // 3. Force the removers of what fails now: the uncovered triangles, and mesh triangles of kept
+  // nodes with a changed corner; every other such triangle passed before and still does. (A
+  // dropped node forced back in has all its triangles examined in step 4.)
+  mesh_valid_ = false;  // nodes are added with the mesh set aside; step 5 rebuilds it
   for (std::size_t i = 0; i < seeds_.size(); i += 2) {
     const std::uint32_t t = seeds_[i], r = mt_.triangle_remover[t];
     if (in_cut_[r] != kIn && fails(t, seeds_[i + 1], allowed)) force(r, t, seeds_[i + 1]);
   }
-  for (std::size_t i = 0; i < mesh_triangles_.size(); ++i) {
+  const std::size_t mesh_size = mesh_triangles_.size();
+  for (std::size_t i = 0; i < mesh_size; ++i) {
     const std::uint32_t* corners = &mesh_corners_[3 * i];
     if (!changed(corners[0]) && !changed(corners[1]) && !changed(corners[2])) continue;
-    const std::uint32_t t = mesh_triangles_[i], r = mt_.triangle_remover[t];
-    // Refined meanwhile through another triangle, or an input triangle (fails_at is false then).
-    if (r != kNoNode && in_cut_[r] != kIn && fails_at(r, corners, allowed)) force(r, t, mt_.triangle_creator(t));
+    const std::uint32_t r = mesh_removers_[i];
+    // An input triangle (fails_at is false then), refined meanwhile through another triangle, or
+    // created by a dropped node.
+    if (r != kNoNode && in_cut_[r] != kIn && in_cut_[mesh_creators_[i]] == kIn && fails_at(r, corners, allowed))
+      force(r, mesh_triangles_[i], mesh_creators_[i]);
   }
   // 4. Nodes added in step 3 (and theirs, in turn) are examined in full; once they outnumber a
   // third of the kept nodes, refining afresh from all of them costs less than the mesh edits ahead.
   if (!close_over(allowed, kept, kept + kept / 3)) return refine_afresh();
   release_dropped();
 
-  // 5. The added nodes' mesh edit: what they remove from nodes that were there before leaves it,
-  // what they create and no node of the cut removes joins it. A triangle both created and removed
-  // by added nodes never enters.
-  for (std::size_t i = kept; i < cut_.size(); ++i) in_cut_[cut_[i]] = kNew;
-  removals_.clear();
-  additions_.clear();
+  // 5. The new mesh: of the old one, what kept nodes created and no node of the cut removes
+  // (compacted in place, in order); then the uncovered triangles no added node removes; then what
+  // the added nodes create and no node of the cut removes.
+  // Every old mesh triangle was created by a node of the old cut and removed by none: it stays
+  // unless its creator dropped (and perhaps came back: added nodes' triangles are pushed below) or
+  // its remover was added. Those nodes are marked in a bitmap 8 times denser than in_cut_.
+  if (node_changed_.empty()) node_changed_.assign((mt_.node_count() + 63) / 64, 0);
+  auto mark = [&](std::uint32_t n) { node_changed_[n >> 6] |= std::uint64_t{1} << (n & 63); };
+  auto marked = [&](std::uint32_t n) { return (node_changed_[n >> 6] >> (n & 63)) & 1; };
+  for (const std::uint32_t n : dropped_) mark(n);
+  for (std::size_t i = kept; i < cut_.size(); ++i) mark(cut_[i]);
+  std::size_t write = 0;
+  for (std::size_t i = 0; i < mesh_size; ++i) {
+    const std::uint32_t r = mesh_removers_[i];
+    if (marked(mesh_creators_[i]) || (r != kNoNode && marked(r))) continue;
+    mesh_triangles_[write] = mesh_triangles_[i];
+    mesh_creators_[write] = mesh_creators_[i];
+    mesh_removers_[write] = r;
+    std::copy_n(&mesh_corners_[3 * i], 3, &mesh_corners_[3 * write]);
+    mesh_errors_[write] = mesh_errors_[i];
+    ++write;
+  }
+  mesh_triangles_.resize(write);
+  mesh_creators_.resize(write);
+  mesh_removers_.resize(write);
+  mesh_corners_.resize(3 * write);
+  mesh_errors_.resize(write);
+  auto push = [&](std::uint32_t t, std::uint32_t creator) {
+    const std::uint32_t r = mt_.triangle_remover[t];
+    if (r != kNoNode && in_cut_[r] != kOut) return;
+    const std::uint32_t corners[3] = {mt_.first_corner(TriangleId{t}, NodeId{creator}),
+                                      mt_.triangle_corners[2 * std::size_t{t}],
+                                      mt_.triangle_corners[2 * std::size_t{t} + 1]};
+    mesh_push(t, creator, r, corners, r == kNoNode ? 0.0f : mt_.node_error[r]);
+  };
+  for (const std::uint32_t n : dropped_) node_changed_[n >> 6] = 0;
+  for (std::size_t i = kept; i < cut_.size(); ++i) node_changed_[cut_[i] >> 6] = 0;
+  for (std::size_t i = 0; i < seeds_.size(); i += 2) push(seeds_[i], seeds_[i + 1]);
   for (std::size_t i = kept; i < cut_.size(); ++i) {
     const std::uint32_t x = cut_[i];
-    for_each_removed(x, [&](std::uint32_t t, std::uint32_t p) {
-      if (in_cut_[p] == kIn) removals_.push_back(t);
-    });
-    for (std::uint32_t t = mt_.node_triangle_offsets[x]; t < mt_.node_triangle_offsets[x + 1]; ++t) {
-      const std::uint32_t r = mt_.triangle_remover[t];
-      if (r == kNoNode || (in_cut_[r] != kIn && in_cut_[r] != kNew)) {
-        additions_.push_back(t);
-        additions_.push_back(x);
-      }
-    }
+    for (std::uint32_t t = mt_.node_triangle_offsets[x]; t < mt_.node_triangle_offsets[x + 1]; ++t) push(t, x);
   }
-  edit_mesh(removals_, additions_);
-  for (std::size_t i = kept; i < cut_.size(); ++i) in_cut_[cut_[i]] = kIn;
   mesh_valid_ = true;
   ++moves_;
   return true;
@@ -764,9 +739,10 @@ void refine_budget(const Mt& mt, const AllowedError& allowed, std::size_t max_tr
 std::size_t Refiner::memory_bytes() const {
   auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
   return bytes(in_cut_) + bytes(cut_) + bytes(witnesses_) + bytes(mesh_errors_) + bytes(stack_) +
-         bytes(previous_field_) + bytes(mesh_triangles_) + bytes(mesh_corners_) + slots_.memory_bytes() +
+         bytes(previous_field_) + bytes(mesh_triangles_) + bytes(mesh_creators_) + bytes(mesh_removers_) +
+         bytes(mesh_corners_) +
          bytes(changed_bits_) + bytes(dropped_) + bytes(seeds_) + bytes(passing_) + bytes(heap_) +
-         bytes(root_vertices_) + bytes(removals_) + bytes(additions_) + bytes(batch_);
+         bytes(root_vertices_) + bytes(batch_) + bytes(node_changed_);
 }
 
 }  // namespace mtlod::core

@@ -17,7 +17,6 @@
 #include <vector>
 
 #include "core/mt.hpp"
-#include "core/slot_table.hpp"
 
 namespace mtlod::core {
 
@@ -113,7 +112,7 @@ class Refiner {
   // the nodes whose reason to be in the cut no longer holds and refining from what is left. The
   // result equals refine(allowed) as a set of triangles (the order differs). Without a kept cut (the
   // first call, or after a uniform refine or refine_budget, which record no witnesses) it runs a
-  // static refinement that does; the next call then indexes that cut's triangles (O(cut)). Changed
+  // static refinement that does; the next call then takes that cut's triangles (O(cut)). Changed
   // vertices are found by comparing with a copy of the previous field (one sequential O(vertices)
   // pass); everything else costs O(cut) in sequential passes plus work proportional to the change.
   void update(const AllowedError& allowed, CutMesh& out);
@@ -178,13 +177,11 @@ class Refiner {
   CutView kept_view() const;
   float kept_max_error() const;
   void remember_field(const AllowedError& allowed);
-  // Indexes the mesh of the cut refine_forced left, from its passing list, once move_cut's witness
+  // Takes the mesh of the cut refine_forced left from its passing list, once move_cut's witness
   // pass has run (kept nodes kIn, dropped kDropped).
-  void index_mesh();
-  void mesh_add(std::uint32_t t, std::uint32_t creator);
-  void mesh_remove(std::uint32_t t);
-  // Removes every triangle of `removals`, then adds every (triangle, creator) pair of `additions`.
-  void edit_mesh(std::span<const std::uint32_t> removals, std::span<const std::uint32_t> additions);
+  void take_kept_mesh();
+  void mesh_push(std::uint32_t t, std::uint32_t creator, std::uint32_t remover, const std::uint32_t* corners,
+                 float error);
   // Moves the kept cut; true when the kept mesh holds the result, false when it refined afresh
   // into `out` instead.
   bool move_cut(const AllowedError& allowed, bool all_changed, CutMesh& out);
@@ -212,20 +209,21 @@ class Refiner {
   std::size_t restarts_ = 0;
   std::size_t moves_ = 0;
   std::size_t unchanged_ = 0;
-  // The kept cut's mesh, maintained by update: triangle ids, their corners, and their slots.
+  // The kept cut's mesh, maintained by update: per triangle its id, creator, remover (kNoNode for
+  // an input triangle), corners and error (for the cut's max error).
   bool mesh_valid_ = false;
   std::vector<std::uint32_t> mesh_triangles_;
+  std::vector<std::uint32_t> mesh_creators_;
+  std::vector<std::uint32_t> mesh_removers_;
   std::vector<std::uint32_t> mesh_corners_;
-  std::vector<float> mesh_errors_;  // error of each mesh triangle, for the cut's max error
-  SlotTable slots_;
+  std::vector<float> mesh_errors_;
   std::vector<std::uint64_t> changed_bits_;  // per vertex, during update
   std::vector<std::uint32_t> dropped_;       // nodes dropped during one update
   std::vector<std::uint32_t> seeds_;         // uncovered triangle, creator pairs of one update
-  std::vector<std::uint32_t> removals_;      // triangles leaving the kept mesh in one edit
-  std::vector<std::uint32_t> additions_;     // triangle, creator pairs joining it
+  std::vector<std::uint64_t> node_changed_;  // per node: dropped or added by the update (clear between)
   // Triangles seen passing in refine_forced, with what the output needs of them.
   struct Passing {
-    std::uint32_t triangle, remover, corners[3];
+    std::uint32_t triangle, creator, remover, corners[3];
     float error;  // 0 for an input triangle
   };
   std::vector<Passing> passing_;

@@ -1,7 +1,7 @@
 // Open-addressing map from a 32-bit id to a 32-bit value (linear probing, backward-shift deletion):
 // no node allocations, and key and value share an entry so a probe touches one cache line. Used for
-// "where in a dense array is the triangle with this id" (the refiner's kept mesh, a client's delta
-// mesh). Key 0xFFFFFFFF marks an empty entry and cannot be stored.
+// "where in a dense array is the triangle with this id" (a client's delta mesh). Key 0xFFFFFFFF
+// marks an empty entry and cannot be stored.
 #pragma once
 
 #include <cstddef>
