@@ -252,7 +252,7 @@ void Refiner::refine(const AllowedError& allowed, CutMesh& out) {
   assert(allowed.per_vertex.empty() || allowed.per_vertex.size() == mt_.vertex_count());
   mesh_valid_ = false;  // static refinement emits at the end instead of tracking the mesh
   if (allowed.per_vertex.empty()) return refine_uniform(allowed.uniform, out);
-  refine_forced(allowed, out);
+  refine_forced(allowed, &out);
 }
 
 void Refiner::refine_uniform(float allowed_error, CutMesh& out) {
@@ -311,10 +311,10 @@ void Refiner::refine_on_demand(const VertexErrorSource& source, std::span<float>
   }
   source.fill(root_vertices_, field);
   const OnDemand on_demand{source, field};
-  refine_forced(AllowedError::from_vertices(field), out, &on_demand);
+  refine_forced(AllowedError::from_vertices(field), &out, &on_demand);
 }
 
-void Refiner::refine_forced(const AllowedError& allowed, CutMesh& out, const OnDemand* on_demand, bool from_cut) {
+void Refiner::refine_forced(const AllowedError& allowed, CutMesh* out, const OnDemand* on_demand, bool from_cut) {
   assert(!(on_demand && from_cut));
   mesh_valid_ = false;
   if (!from_cut) reset_to_root();
@@ -357,7 +357,9 @@ void Refiner::refine_forced(const AllowedError& allowed, CutMesh& out, const OnD
       }
     }
   }
-  MeshWriter writer(mt_, out, passing_.size());
+  dynamic_ready_ = true;
+  if (!out) return take_kept_mesh();
+  MeshWriter writer(mt_, *out, passing_.size());
   float max_error = 0.0f;
   for (const Passing& p : passing_) {
     if (p.remover != kNoNode && in_cut_[p.remover] == kIn) continue;  // refined after it passed
@@ -365,11 +367,10 @@ void Refiner::refine_forced(const AllowedError& allowed, CutMesh& out, const OnD
     writer.add(p.triangle, p.corners);
   }
   writer.finish(cut_.size(), max_error);
-  out.within_budget = true;
+  out->within_budget = true;
   // The field is not copied here, to keep static refinement free of O(vertices) work; the next
   // update treats every vertex as changed.
   field_known_ = false;
-  dynamic_ready_ = true;
 }
 
 // --- dynamic refinement -------------------------------------------------------------------------
@@ -403,7 +404,7 @@ void Refiner::take_kept_mesh() {
 
 void Refiner::update(const AllowedError& allowed, CutMesh& out) {
   assert(allowed.per_vertex.empty() || allowed.per_vertex.size() == mt_.vertex_count());
-  if (!dynamic_ready_) return refine_forced(allowed, out);
+  if (!dynamic_ready_) return refine_forced(allowed, &out);
   bool all_changed = !field_known_ || allowed.per_vertex.empty() || previous_is_uniform_;
   if (all_changed && field_known_ && allowed.per_vertex.empty() && previous_is_uniform_ &&
       std::memcmp(&allowed.uniform, &previous_uniform_, sizeof(float)) == 0) {
@@ -431,7 +432,8 @@ void Refiner::update(const AllowedError& allowed, CutMesh& out) {
       std::memcpy(before + base, now + base, (end - base) * sizeof(float));
     }
   }
-  if (move_cut(allowed, all_changed, out)) out.assign(kept_view());
+  move_cut(allowed, all_changed);
+  out.assign(kept_view());
   if (all_changed) remember_field(allowed);
   std::fill(changed_bits_.begin(), changed_bits_.end(), 0);  // the list overload expects it clear
 }
@@ -450,7 +452,7 @@ bool Refiner::update_kept(const AllowedError& allowed, std::span<const std::uint
                           CutMesh& out) {
   assert(allowed.per_vertex.empty() || allowed.per_vertex.size() == mt_.vertex_count());
   if (!dynamic_ready_) {
-    refine_forced(allowed, out);
+    refine_forced(allowed, &out);
     return false;
   }
   const bool all_changed = !field_known_ || allowed.per_vertex.empty() || previous_is_uniform_;
@@ -467,16 +469,16 @@ bool Refiner::update_kept(const AllowedError& allowed, std::span<const std::uint
       previous_field_[v] = allowed.per_vertex[v];
     }
   }
-  const bool kept = move_cut(allowed, all_changed, out);
+  move_cut(allowed, all_changed);
   if (all_changed) {
     remember_field(allowed);
   } else {
     for (const std::uint32_t v : changed_vertices) changed_bits_[v >> 6] = 0;  // leave the bitmap clear
   }
-  return kept;
+  return true;
 }
 
-bool Refiner::move_cut(const AllowedError& allowed, bool all_changed, CutMesh& out) {
+void Refiner::move_cut(const AllowedError& allowed, bool all_changed) {
   if (changed_bits_.size() < (mt_.vertex_count() + 63) / 64)
     changed_bits_.assign((mt_.vertex_count() + 63) / 64, 0);
   auto changed = [&](std::uint32_t v) { return all_changed || vertex_changed(v); };
@@ -535,13 +537,11 @@ bool Refiner::move_cut(const AllowedError& allowed, bool all_changed, CutMesh& o
     for (const std::uint32_t n : dropped_)
       if (in_cut_[n] == kDropped) in_cut_[n] = kOut;
   };
+  // The result becomes the kept mesh, as a move's does.
   auto refine_afresh = [&] {
     release_dropped();
-    const bool known = field_known_;
-    refine_forced(allowed, out, nullptr, true);
-    field_known_ = known;  // the kept copy of the field is already this one
+    refine_forced(allowed, nullptr, nullptr, true);
     ++restarts_;
-    return false;
   };
   if (3 * dropped_.size() > kept) return refine_afresh();
 
@@ -627,7 +627,6 @@ bool Refiner::move_cut(const AllowedError& allowed, bool all_changed, CutMesh& o
   }
   mesh_valid_ = true;
   ++moves_;
-  return true;
 }
 
 CutView Refiner::kept_view() const {

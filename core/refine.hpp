@@ -120,8 +120,8 @@ class Refiner {
   // vertex must have the same allowed error as then (duplicates in the list are fine). Skips the
   // O(vertices) comparison. A uniform field, or a previous uniform one, counts as all changed.
   void update(const AllowedError& allowed, std::span<const std::uint32_t> changed_vertices, CutMesh& out);
-  // The same without copying the result out: a view of the refiner's kept mesh when it moved the
-  // kept cut, or of `scratch` when it refined afresh (scratch is written then).
+  // The same without copying the result out: a view of the refiner's kept mesh, or of `scratch`
+  // when there was no kept cut to start from (scratch is written then).
   CutView update_view(const AllowedError& allowed, std::span<const std::uint32_t> changed_vertices,
                       CutMesh& scratch);
 
@@ -158,7 +158,8 @@ class Refiner {
   // Static refinement by forcing from the root; records witnesses so update can start from it.
   // from_cut: start from the nodes in cut_ instead (a subset of the new minimal cut, with their
   // witnesses, parents and witness creators before them); never on demand.
-  void refine_forced(const AllowedError& allowed, CutMesh& out, const OnDemand* on_demand = nullptr,
+  // out null: the result becomes the kept mesh (from_cut only), the field stays known.
+  void refine_forced(const AllowedError& allowed, CutMesh* out, const OnDemand* on_demand = nullptr,
                      bool from_cut = false);
   // Prefetches what refine_forced will read for the nodes queued after cut_[i].
   void fetch_ahead(std::size_t i, const float* field, bool on_demand) const;
@@ -182,10 +183,10 @@ class Refiner {
   void take_kept_mesh();
   void mesh_push(std::uint32_t t, std::uint32_t creator, std::uint32_t remover, const std::uint32_t* corners,
                  float error);
-  // Moves the kept cut; true when the kept mesh holds the result, false when it refined afresh
-  // into `out` instead.
-  bool move_cut(const AllowedError& allowed, bool all_changed, CutMesh& out);
-  // update(allowed, changed, ·) up to the output: true when the kept mesh holds the result.
+  // Moves the kept cut, or refines it afresh from the nodes that stay; the kept mesh holds the result.
+  void move_cut(const AllowedError& allowed, bool all_changed);
+  // update(allowed, changed, ·) up to the output: true when the kept mesh holds the result (false:
+  // a static refinement wrote `out`, there being no kept cut to move).
   bool update_kept(const AllowedError& allowed, std::span<const std::uint32_t> changed_vertices, CutMesh& out);
   bool vertex_changed(std::uint32_t v) const { return (changed_bits_[v >> 6] >> (v & 63)) & 1; }
 
