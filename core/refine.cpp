@@ -314,7 +314,8 @@ void Refiner::refine_on_demand(const VertexErrorSource& source, std::span<float>
   refine_forced(AllowedError::from_vertices(field), &out, &on_demand);
 }
 
-void Refiner::refine_forced(const AllowedError& allowed, CutMesh* out, const OnDemand* on_demand, bool from_cut) {
+void Refiner::refine_forced(const AllowedError& allowed, CutMesh* out, const OnDemand* on_demand,
+                            bool from_cut) {
   assert(!(on_demand && from_cut));
   mesh_valid_ = false;
   if (!from_cut) reset_to_root();
@@ -375,8 +376,8 @@ void Refiner::refine_forced(const AllowedError& allowed, CutMesh* out, const OnD
 
 // --- dynamic refinement -------------------------------------------------------------------------
 
-void Refiner::mesh_push(std::uint32_t t, std::uint32_t creator, std::uint32_t remover, const std::uint32_t* corners,
-                        float error) {
+void Refiner::mesh_push(std::uint32_t t, std::uint32_t creator, std::uint32_t remover,
+                        const std::uint32_t* corners, float error) {
   mesh_triangles_.push_back(t);
   mesh_creators_.push_back(creator);
   mesh_removers_.push_back(remover);
@@ -522,16 +523,17 @@ void Refiner::move_cut(const AllowedError& allowed, bool all_changed) {
   cut_.resize(kept);
   witnesses_.resize(kept);
 
-  // Moving costs more per node than a static refinement (the dropped and added nodes' triangles are
-  // looked up and tested, then the mesh is filtered and extended), and a large drop is usually followed by as
-  // large an addition (a saccade, a new view): when a quarter of the cut's nodes drop, the cut is
-  // refined afresh instead, forcing as refine_forced does from the root but from the kept nodes.
-  // They lie in the new minimal cut, so forcing from them reaches it, and only the added nodes are
-  // forced. (BM_GazeStream with mtlod-gaze's criteria: the slowest of 300 gazes 16.3 ms when
-  // restarting from the root past half dropped, 11.6–12.0 ms past a quarter or a ninth; refining
-  // from the kept nodes instead of the root then took the mean refinement from 1.87 to 1.62 ms and
-  // the 90th percentile of the work before encoding from 5.7 to 4.6 ms, restarting past a quarter,
-  // a seventh or a thirteenth alike.)
+  // Moving costs more per node than a static refinement (the dropped and added nodes' triangles
+  // are looked up and tested, then the mesh is filtered and extended), and a large drop is usually
+  // followed by as large an addition (a saccade, a new view): when a quarter of the cut's nodes
+  // drop, the cut is refined afresh instead, forcing as refine_forced does from the root but from
+  // the kept nodes. They lie in the new minimal cut, so forcing from them reaches it, and only the
+  // added nodes are forced. (BM_GazeStream with mtlod-gaze's criteria: the slowest of 300 gazes
+  // 16.3 ms when restarting from the root past half dropped, 11.6–12.0 ms past a quarter or a
+  // ninth; refining from the kept nodes instead of the root then took the mean refinement from 1.87
+  // to 1.62 ms and the 90th percentile of the work before encoding from 5.7 to 4.6 ms, restarting
+  // past a quarter, a seventh or a thirteenth alike. With the mesh filtered instead of edited
+  // through a slot table, restarting past a half or all of the cut made the slowest gazes slower.)
   // Dropped nodes not forced back in are out once the new cut is known.
   auto release_dropped = [&] {
     for (const std::uint32_t n : dropped_)
@@ -575,7 +577,8 @@ void Refiner::move_cut(const AllowedError& allowed, bool all_changed) {
     const std::uint32_t r = mesh_removers_[i];
     // An input triangle (fails_at is false then), refined meanwhile through another triangle, or
     // created by a dropped node.
-    if (r != kNoNode && in_cut_[r] != kIn && in_cut_[mesh_creators_[i]] == kIn && fails_at(r, corners, allowed))
+    if (r != kNoNode && in_cut_[r] != kIn && in_cut_[mesh_creators_[i]] == kIn &&
+        fails_at(r, corners, allowed))
       force(r, mesh_triangles_[i], mesh_creators_[i]);
   }
   // 4. Nodes added in step 3 (and theirs, in turn) are examined in full; once they outnumber a
@@ -623,7 +626,8 @@ void Refiner::move_cut(const AllowedError& allowed, bool all_changed) {
   for (std::size_t i = 0; i < seeds_.size(); i += 2) push(seeds_[i], seeds_[i + 1]);
   for (std::size_t i = kept; i < cut_.size(); ++i) {
     const std::uint32_t x = cut_[i];
-    for (std::uint32_t t = mt_.node_triangle_offsets[x]; t < mt_.node_triangle_offsets[x + 1]; ++t) push(t, x);
+    for (std::uint32_t t = mt_.node_triangle_offsets[x]; t < mt_.node_triangle_offsets[x + 1]; ++t)
+      push(t, x);
   }
   mesh_valid_ = true;
   ++moves_;
@@ -739,9 +743,8 @@ std::size_t Refiner::memory_bytes() const {
   auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
   return bytes(in_cut_) + bytes(cut_) + bytes(witnesses_) + bytes(mesh_errors_) + bytes(stack_) +
          bytes(previous_field_) + bytes(mesh_triangles_) + bytes(mesh_creators_) + bytes(mesh_removers_) +
-         bytes(mesh_corners_) +
-         bytes(changed_bits_) + bytes(dropped_) + bytes(seeds_) + bytes(passing_) + bytes(heap_) +
-         bytes(root_vertices_) + bytes(batch_) + bytes(node_changed_);
+         bytes(mesh_corners_) + bytes(changed_bits_) + bytes(dropped_) + bytes(seeds_) + bytes(passing_) +
+         bytes(heap_) + bytes(root_vertices_) + bytes(batch_) + bytes(node_changed_);
 }
 
 }  // namespace mtlod::core

@@ -178,8 +178,8 @@ class Refiner {
   CutView kept_view() const;
   float kept_max_error() const;
   void remember_field(const AllowedError& allowed);
-  // Takes the mesh of the cut refine_forced left from its passing list, once move_cut's witness
-  // pass has run (kept nodes kIn, dropped kDropped).
+  // Takes the mesh of the cut refine_forced left from its passing list: at the end of a restart, or
+  // once move_cut's witness pass has run (kept nodes kIn, dropped kDropped).
   void take_kept_mesh();
   void mesh_push(std::uint32_t t, std::uint32_t creator, std::uint32_t remover, const std::uint32_t* corners,
                  float error);

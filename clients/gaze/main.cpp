@@ -1,11 +1,12 @@
 // mtlod-gaze: replays eye-tracker gaze against mtlod-server (issue 6) and measures gaze-to-mesh
 // latency: from a sample's timestamp (its due time in the replay, so a late send counts) to the
 // arrival of the mesh reply that reflects it. Gaze updates the server coalesced away are counted;
-// each sample's wait for a mesh showing it or a newer sample is reported too. With --delta each stream
-// applies its replies on a thread of its own, so decoding one reply never delays the arrival time
-// taken for the next; gaze-to-applied (the mesh decoded into the client's copy) is reported too. A dropped connection
-// is reopened with backoff; the view's extract and the newest unanswered sample are sent again
-// (older samples are stale: the newest one supersedes them, as the server's coalescing would).
+// each sample's wait for a mesh showing it or a newer sample is reported too. With --delta each
+// stream applies its replies on a thread of its own, so decoding one reply never delays the arrival
+// time taken for the next; gaze-to-applied (the mesh decoded into the client's copy) is reported
+// too. A dropped connection is reopened with backoff; the view's extract and the newest unanswered
+// sample are sent again (older samples are stale: the newest one supersedes them, as the server's
+// coalescing would).
 #include <unistd.h>
 
 #include <atomic>
@@ -155,7 +156,8 @@ void receive_loop(Stream& stream, const Link& link, Clock::time_point start) {
     const bool known_sample = id != 0 && id <= stream.trace.size();
     if (const auto* mesh = std::get_if<protocol::MeshReply>(&frame->header.reply); mesh && mesh->delta) {
       // Every delta in arrival order, the view's re-extract after a reconnect (id 0) included.
-      const std::int64_t sample_ns = known_sample ? static_cast<std::int64_t>(stream.trace[id - 1].time_ms * 1e6) : -1;
+      const std::int64_t sample_ns =
+          known_sample ? static_cast<std::int64_t>(stream.trace[id - 1].time_ms * 1e6) : -1;
       clients::ReplyFrame copy;
       copy.header = frame->header;
       copy.payload = std::move(frame->payload);
@@ -224,7 +226,8 @@ void apply_loop(Stream& stream, Totals& totals, Clock::time_point start) {
     if (!applied) {
       if (totals.delta_errors++ == 0) fmt::print(stderr, "mtlod-gaze: {}\n", applied.error().message);
     } else if (received.sample_ns >= 0) {
-      totals.applied_latency_us.record(static_cast<std::uint64_t>(std::max<std::int64_t>(0, now - received.sample_ns) / 1000));
+      totals.applied_latency_us.record(
+          static_cast<std::uint64_t>(std::max<std::int64_t>(0, now - received.sample_ns) / 1000));
     }
   }
 }
@@ -413,8 +416,9 @@ int main(int argc, char** argv) {
   nlohmann::ordered_json report = {
       {"model", model},
       {"streams", streams_count},
-      {"trace", trace_file.empty() ? fmt::format("synthetic {} Hz, {} ms", synthesis.rate_hz, synthesis.duration_ms)
-                                   : trace_file},
+      {"trace", trace_file.empty()
+                    ? fmt::format("synthetic {} Hz, {} ms", synthesis.rate_hz, synthesis.duration_ms)
+                    : trace_file},
       {"budget", flags.budget ? nlohmann::json(*flags.budget) : nlohmann::json(nullptr)},
       {"elapsed_s", elapsed_s},
       {"samples", r.sent},
@@ -433,7 +437,8 @@ int main(int argc, char** argv) {
       {"throughput_rps", r.meshes / std::max(elapsed_s, 1e-9)},
       {"latency_ms", percentiles_ms(r.mesh_latency_us)},
       {"sample_latency_ms", percentiles_ms(r.sample_latency_us)},
-      {"applied_latency_ms", flags.delta ? percentiles_ms(r.applied_latency_us) : nlohmann::ordered_json(nullptr)},
+      {"applied_latency_ms",
+       flags.delta ? percentiles_ms(r.applied_latency_us) : nlohmann::ordered_json(nullptr)},
       {"mean_triangles", r.triangles / per_mesh},
       {"bytes", r.bytes},
       {"server_total_us_mean", r.server_total_us / per_mesh},
@@ -449,8 +454,9 @@ int main(int argc, char** argv) {
              q.value_at_percentile(50) / 1e3, q.value_at_percentile(99) / 1e3, q.max() / 1e3);
   if (flags.delta) {
     const auto& a = r.applied_latency_us;
-    fmt::print("  gaze-to-applied (delta decoded into the client's mesh) ms  p50 {:.2f}  p99 {:.2f}  max {:.2f}\n",
-               a.value_at_percentile(50) / 1e3, a.value_at_percentile(99) / 1e3, a.max() / 1e3);
+    fmt::print(
+        "  gaze-to-applied (delta decoded into the client's mesh) ms  p50 {:.2f}  p99 {:.2f}  max {:.2f}\n",
+        a.value_at_percentile(50) / 1e3, a.value_at_percentile(99) / 1e3, a.max() / 1e3);
   }
   fmt::print("  {:.0f} triangles per mesh, {:.0f} bytes per mesh, server total {:.0f} µs mean, focus mismatches {}{}\n",
              r.triangles / per_mesh, static_cast<double>(r.bytes) / per_mesh, r.server_total_us / per_mesh,

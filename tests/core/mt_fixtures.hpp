@@ -40,7 +40,7 @@ inline void renumber_like_mt(core::Mesh& mesh, const std::vector<std::uint32_t>&
 
 // Builds the MT of mesh and renumbers mesh like it.
 inline Result<core::Mt> build_mt_renumbering(core::Mesh& mesh, const core::BuildOptions& options = {},
-                                                   core::BuildStats* stats = nullptr) {
+                                             core::BuildStats* stats = nullptr) {
   std::vector<std::uint32_t> ids;
   auto mt = core::build_mt(mesh, options, stats, &ids);
   if (mt.ok()) renumber_like_mt(mesh, ids);
