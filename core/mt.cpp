@@ -20,6 +20,12 @@ void Mt::triangle_vertices(std::uint32_t t, std::uint32_t out[3]) const {
   out[2] = triangle_corners[2 * std::size_t{t} + 1];
 }
 
+bool Mt::vertices_in_node_order() const {
+  for (std::size_t n = 2; n < node_count(); ++n)
+    if (node_vertex[n] != node_vertex[n - 1] + 1) return false;
+  return true;
+}
+
 std::size_t Mt::memory_bytes() const {
   auto bytes = [](const auto& v) { return v.size() * sizeof(v[0]); };
   return bytes(positions) + bytes(normals) + bytes(colors) + bytes(node_vertex) + bytes(node_error) +

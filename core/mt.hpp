@@ -72,6 +72,9 @@ struct Mt {
 
   // Bytes held by all arrays (sizes, not capacities): the loaded footprint.
   std::size_t memory_bytes() const;
+  // Whether the split vertices are numbered in node order (node n + 1's is node n's plus one), as
+  // build_mt numbers them; files written before it did are valid but refine more slowly.
+  bool vertices_in_node_order() const;
 };
 
 }  // namespace mtlod::core

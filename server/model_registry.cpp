@@ -58,9 +58,21 @@ std::unique_ptr<Model> describe(std::string name, fs::path path, core::Mt mt) {
 }  // namespace
 
 Status ModelRegistry::add_file(const fs::path& path) {
-  const std::string name = path.stem().string();
-  if (find(name)) return make_error(ErrorCode::kInvalidArgument, fmt::format("{}: a model named '{}' is already loaded", path.string(), name));
   MTLOD_TRY(core::Mt mt, core::io::read_mt_file(path));
+  if (!mt.vertices_in_node_order()) {
+    spdlog::warn(
+        "{}: written by an older mtlod-build (vertices not in node order); it is served as it is, "
+        "and rebuilt with mtlod-build it refines about 10 % faster",
+        path.string());
+  }
+  return add(path, std::move(mt));
+}
+
+Status ModelRegistry::add(const fs::path& path, core::Mt mt) {
+  const std::string name = path.stem().string();
+  if (find(name))
+    return make_error(ErrorCode::kInvalidArgument,
+                      fmt::format("{}: a model named '{}' is already loaded", path.string(), name));
   models_.push_back(describe(name, path, std::move(mt)));
   return Ok{};
 }
@@ -82,7 +94,16 @@ Status ModelRegistry::add_mesh(const fs::path& mesh, const fs::path& mt_path) {
   std::error_code ec;
   const bool fresh = fs::exists(mt_path, ec) && fs::exists(mesh, ec) &&
                      fs::last_write_time(mt_path, ec) >= fs::last_write_time(mesh, ec);
-  if (!fresh) {
+  if (fresh) {
+    // A cached file an older build wrote is built again: that takes seconds, and it is built once.
+    auto cached = core::io::read_mt_file(mt_path);
+    if (cached && cached->vertices_in_node_order()) return add(mt_path, std::move(*cached));
+    spdlog::info(
+        "{}: {}; building it again from {}", mt_path.string(),
+        cached ? "written by an older mtlod-build (vertices not in node order)" : cached.error().message,
+        mesh.string());
+  }
+  {
     const auto start = std::chrono::steady_clock::now();
     MTLOD_TRY(core::io::LoadedMesh loaded, core::io::load_mesh(mesh));
     core::BuildStats stats;

@@ -36,13 +36,16 @@ class ModelRegistry {
   Status add_file(const std::filesystem::path& path);
   // Loads every .mt file of a directory (sorted by name).
   Status add_directory(const std::filesystem::path& dir);
-  // Builds MODEL.mt from a mesh unless it exists and is newer than the mesh, then loads it.
+  // Builds MODEL.mt from a mesh unless it exists, is newer than the mesh and has its vertices in
+  // node order (older builds of mtlod-build numbered them otherwise), then loads it.
   Status add_mesh(const std::filesystem::path& mesh, const std::filesystem::path& mt_path);
 
   const Model* find(std::string_view name) const;
   const std::vector<std::unique_ptr<Model>>& models() const { return models_; }
 
  private:
+  Status add(const std::filesystem::path& path, core::Mt mt);
+
   std::vector<std::unique_ptr<Model>> models_;
 };
 

@@ -185,6 +185,7 @@ TEST(MtBuilder, VerticesAreNumberedRootMeshFirstThenByNode) {
   EXPECT_EQ(r + mt->node_count() - 1, used);
   for (std::uint32_t v = 1; v < r; ++v) EXPECT_LT(input_of[v - 1], input_of[v]);  // by input id
   for (std::uint32_t n = 1; n < mt->node_count(); ++n) ASSERT_EQ(mt->node_vertex[n], r + n - 1);
+  EXPECT_TRUE(mt->vertices_in_node_order());
 }
 
 TEST(MtBuilder, LoadedMtTakesAtMost64BytesPerInputTriangle) {

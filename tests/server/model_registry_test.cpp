@@ -1,0 +1,114 @@
+// ModelRegistry (server/model_registry.hpp): what it does with cached .mt files a mesh was built
+// into — reused when current, built again when an older mtlod-build numbered the vertices
+// otherwise or when the file cannot be read — and that such older files still load on their own.
+#include "server/model_registry.hpp"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <chrono>
+#include <fstream>
+#include <numeric>
+#include <random>
+
+#include "core/io/mesh_io.hpp"
+#include "core/io/mt_file.hpp"
+#include "core/mesh_gen.hpp"
+#include "core/mt_builder.hpp"
+#include "tests/core/test_meshes.hpp"
+
+namespace mtlod {
+namespace {
+
+namespace fs = std::filesystem;
+
+// The same MT with its vertices numbered by a random permutation: valid, not in node order.
+core::Mt shuffled_vertices(core::Mt mt, std::uint32_t seed) {
+  std::vector<std::uint32_t> to(mt.vertex_count());
+  std::iota(to.begin(), to.end(), 0u);
+  std::shuffle(to.begin(), to.end(), std::mt19937(seed));
+  std::vector<float> positions(mt.positions.size());
+  for (std::size_t v = 0; v < to.size(); ++v)
+    std::copy_n(&mt.positions[3 * v], 3, &positions[3 * std::size_t{to[v]}]);
+  mt.positions = std::move(positions);
+  for (std::uint32_t& v : mt.node_vertex)
+    if (v != core::kNoNode) v = to[v];
+  for (std::uint32_t& v : mt.triangle_corners) v = to[v];
+  for (std::uint32_t& v : mt.root_first_corner) v = to[v];
+  return mt;
+}
+
+class ModelRegistryTest : public testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = test::scratch_dir("registry");
+    mesh_path_ = dir_ / "shell.ply";
+    mt_path_ = dir_ / "shell.mt";
+    core::GenerateOptions o;
+    o.shape = core::Shape::kShell;
+    o.target_triangles = 3000;
+    const core::Mesh mesh = core::generate_mesh(o);
+    ASSERT_TRUE(core::io::save_mesh(mesh_path_, mesh).ok());
+    auto mt = core::build_mt(mesh);
+    ASSERT_TRUE(mt.ok());
+    built_ = std::move(*mt);
+    ASSERT_TRUE(built_.vertices_in_node_order());
+  }
+  // Writes mt as the mesh's cached file, newer than the mesh.
+  void write_cache(const core::Mt& mt) {
+    ASSERT_TRUE(core::io::write_mt_file(mt_path_, mt).ok());
+    fs::last_write_time(mt_path_, fs::last_write_time(mesh_path_) + std::chrono::seconds(5));
+  }
+
+  fs::path dir_, mesh_path_, mt_path_;
+  core::Mt built_;
+};
+
+TEST_F(ModelRegistryTest, CurrentCacheIsReusedAsItIs) {
+  write_cache(built_);
+  const auto written = fs::last_write_time(mt_path_);
+  server::ModelRegistry registry;
+  ASSERT_TRUE(registry.add_mesh(mesh_path_, mt_path_).ok());
+  EXPECT_EQ(fs::last_write_time(mt_path_), written);
+  ASSERT_NE(registry.find("shell"), nullptr);
+  EXPECT_EQ(registry.find("shell")->mt.node_vertex, built_.node_vertex);
+}
+
+TEST_F(ModelRegistryTest, CacheFromAnOlderBuilderIsBuiltAgain) {
+  const core::Mt older = shuffled_vertices(built_, 7);
+  ASSERT_FALSE(older.vertices_in_node_order());
+  write_cache(older);
+  server::ModelRegistry registry;
+  ASSERT_TRUE(registry.add_mesh(mesh_path_, mt_path_).ok());
+  const server::Model* model = registry.find("shell");
+  ASSERT_NE(model, nullptr);
+  EXPECT_TRUE(model->mt.vertices_in_node_order());
+  EXPECT_EQ(model->mt.node_vertex, built_.node_vertex);
+  auto rewritten = core::io::read_mt_file(mt_path_);
+  ASSERT_TRUE(rewritten.ok());
+  EXPECT_TRUE(rewritten->vertices_in_node_order());
+}
+
+TEST_F(ModelRegistryTest, UnreadableCacheIsBuiltAgain) {
+  write_cache(built_);
+  std::fstream(mt_path_, std::ios::in | std::ios::out | std::ios::binary).seekp(100).put('\x5a');
+  fs::last_write_time(mt_path_, fs::last_write_time(mesh_path_) + std::chrono::seconds(5));
+  ASSERT_FALSE(core::io::read_mt_file(mt_path_).ok());  // the checksum sees the byte
+  server::ModelRegistry registry;
+  ASSERT_TRUE(registry.add_mesh(mesh_path_, mt_path_).ok());
+  ASSERT_NE(registry.find("shell"), nullptr);
+  EXPECT_TRUE(core::io::read_mt_file(mt_path_).ok());
+}
+
+TEST_F(ModelRegistryTest, OlderFileGivenByItselfIsServedAsItIs) {
+  const core::Mt older = shuffled_vertices(built_, 11);
+  const fs::path path = dir_ / "older.mt";
+  ASSERT_TRUE(core::io::write_mt_file(path, older).ok());
+  server::ModelRegistry registry;
+  ASSERT_TRUE(registry.add_file(path).ok());
+  ASSERT_NE(registry.find("older"), nullptr);
+  EXPECT_EQ(registry.find("older")->mt.node_vertex, older.node_vertex);
+}
+
+}  // namespace
+}  // namespace mtlod
