@@ -112,7 +112,7 @@ void Refiner::for_each_removed(std::uint32_t x, F&& f) const {
 
 void Refiner::add_node(std::uint32_t x, std::uint32_t witness_triangle, std::uint32_t witness_creator) {
   // Nodes are added with the kept mesh set aside (refine_forced and refine_budget emit at the end,
-  // move_cut patches the mesh once for all its additions).
+  // move_cut rebuilds the mesh once for all its additions).
   assert(!mesh_valid_);
   in_cut_[x] = kIn;
   cut_.push_back(x);
@@ -157,7 +157,7 @@ void Refiner::force(std::uint32_t r, std::uint32_t witness_triangle, std::uint32
 [[gnu::always_inline]] inline void Refiner::fetch_ahead(std::size_t i, const float* field, bool on_demand) const {
   // The queue ahead is known, so its nodes' data is fetched in stages and the misses overlap:
   // 12 nodes ahead where its triangles are, 6 ahead those triangles, 3 ahead what they point to.
-  // On demand also the split vertex 20 ahead and, 16 ahead, its position (computed 4–12 ahead).
+  // On demand also the split vertex 20 ahead and, 16 ahead, its position (computed 3–11 ahead).
   const std::uint32_t* offsets = mt_.node_triangle_offsets.data();
   const std::uint32_t* removers = mt_.triangle_remover.data();
   const std::uint32_t* corners = mt_.triangle_corners.data();
@@ -388,8 +388,9 @@ void Refiner::mesh_push(std::uint32_t t, std::uint32_t creator, std::uint32_t re
 void Refiner::take_kept_mesh() {
   // The kept mesh is set aside only by refine_forced (a move leaves it in place; the other
   // refinements clear dynamic_ready_, so no move follows them): its passing list still holds the
-  // mesh's triangles (those not refined since), creators, removers, corners and errors. The mesh is
-  // the cut's before move_cut's witness pass, whose nodes are now kIn (kept) or kDropped.
+  // mesh's triangles (those not refined since), creators, removers, corners and errors. Called at the
+  // end of a restart (no node dropped), or after move_cut's witness pass, whose nodes are now kIn
+  // (kept) or kDropped: either way a passing triangle whose remover is kIn or kDropped is not in it.
   assert(dynamic_ready_ && !mesh_valid_);
   mesh_triangles_.clear();
   mesh_creators_.clear();

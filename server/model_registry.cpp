@@ -103,7 +103,8 @@ Status ModelRegistry::add_mesh(const fs::path& mesh, const fs::path& mt_path) {
         cached ? "written by an older mtlod-build (vertices not in node order)" : cached.error().message,
         mesh.string());
   }
-  {
+  core::Mt built;
+  {  // the input mesh and the build's threads are released before the model is described
     const auto start = std::chrono::steady_clock::now();
     MTLOD_TRY(core::io::LoadedMesh loaded, core::io::load_mesh(mesh));
     core::BuildStats stats;
@@ -117,8 +118,9 @@ Status ModelRegistry::add_mesh(const fs::path& mesh, const fs::path& mt_path) {
     spdlog::info("built {} from {}: {} triangles → {} root triangles, {} nodes, {:.1f} MiB, {:.2f} s", mt_path.string(),
                  mesh.string(), stats.input_triangles, stats.root_triangles, stats.nodes, bytes / 1048576.0,
                  std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+    built = std::move(mt);
   }
-  return add_file(mt_path);
+  return add(mt_path, std::move(built));  // the MT just written, not read back
 }
 
 const Model* ModelRegistry::find(std::string_view name) const {

@@ -234,8 +234,8 @@ ViewMapping perspective_camera(glm::vec3 eye, std::uint32_t side) {
 
 TEST(Occupancy, CappedHolesCloseTheSurface) {
   // A sphere with random triangles removed (single ones, and neighbours that merge into larger
-  // holes, some meeting at a vertex): open before, closed after, with one cap triangle per
-  // boundary edge minus two per loop, hence fewer than the boundary edges.
+  // holes, some meeting at a vertex): open before, closed after, the caps appended after the
+  // surface's triangles and none of them degenerate.
   std::mt19937 rng(5);
   for (int trial = 0; trial < 20; ++trial) {
     test::Scene sphere = test::uv_sphere(1.0f, 12, 16);
