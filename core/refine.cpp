@@ -15,6 +15,7 @@
 #include <algorithm>
 #include <cassert>
 #include <cstring>
+#include <limits>
 
 namespace mtlod::core {
 namespace {
@@ -40,7 +41,7 @@ class MeshWriter {
     *id_++ = t;
   }
   // Triangle t with its three corners already known.
-  void add(std::uint32_t t, const std::uint32_t (&corners)[3]) {
+  void add(std::uint32_t t, const std::uint32_t* corners) {
     write_[0] = corners[0];
     write_[1] = corners[1];
     write_[2] = corners[2];
@@ -78,7 +79,7 @@ bool Refiner::fails(std::uint32_t t, std::uint32_t creator, const AllowedError& 
 
 bool Refiner::fails_at(std::uint32_t r, const std::uint32_t* corners, const AllowedError& allowed) const {
   if (r == kNoNode) return false;  // an input triangle: nothing finer exists
-  return mt_.node_error[r] > allowed.of_triangle(corners[0], corners[1], corners[2]);
+  return allowed.exceeded_by(mt_.node_error[r], allowed.of_triangle(corners[0], corners[1], corners[2]));
 }
 
 Refiner::HeapEntry Refiner::heap_entry(std::uint32_t t, std::uint32_t creator,
@@ -245,6 +246,7 @@ void Refiner::remember_field(const AllowedError& allowed) {
   field_known_ = true;
   previous_is_uniform_ = allowed.per_vertex.empty();
   previous_uniform_ = allowed.uniform;
+  previous_threshold_ = allowed.threshold;
   if (!previous_is_uniform_) previous_field_.assign(allowed.per_vertex.begin(), allowed.per_vertex.end());
 }
 
@@ -351,7 +353,7 @@ void Refiner::refine_forced(const AllowedError& allowed, CutMesh* out, const OnD
       const std::uint32_t a = n == 0 ? mt_.root_first_corner[t] : split;
       const std::uint32_t b = corners[2 * std::size_t{t}], c = corners[2 * std::size_t{t} + 1];
       const float error = r == kNoNode ? 0.0f : mt_.node_error[r];
-      if (r != kNoNode && error > allowed.of_triangle(a, b, c)) {
+      if (r != kNoNode && allowed.exceeded_by(error, allowed.of_triangle(a, b, c))) {
         force(r, t, n);
       } else {
         passing_.push_back({t, n, r, {a, b, c}, error});
@@ -434,9 +436,12 @@ void Refiner::update(const AllowedError& allowed, CutMesh& out) {
       std::memcpy(before + base, now + base, (end - base) * sizeof(float));
     }
   }
+  const bool field_all_changed = all_changed;
+  all_changed = all_changed || !(allowed.threshold == previous_threshold_);  // every triangle
   move_cut(allowed, all_changed);
   out.assign(kept_view());
-  if (all_changed) remember_field(allowed);
+  if (field_all_changed) remember_field(allowed);
+  previous_threshold_ = allowed.threshold;
   std::fill(changed_bits_.begin(), changed_bits_.end(), 0);  // the list overload expects it clear
 }
 
@@ -457,13 +462,14 @@ bool Refiner::update_kept(const AllowedError& allowed, std::span<const std::uint
     refine_forced(allowed, &out);
     return false;
   }
-  const bool all_changed = !field_known_ || allowed.per_vertex.empty() || previous_is_uniform_;
+  const bool field_all_changed = !field_known_ || allowed.per_vertex.empty() || previous_is_uniform_;
+  const bool all_changed = field_all_changed || !(allowed.threshold == previous_threshold_);
   if (!all_changed && changed_vertices.empty() && mesh_valid_) {
     // The same field: the kept cut is its minimal cut already (a gaze within the same cells).
     ++unchanged_;
     return true;
   }
-  if (!all_changed) {
+  if (!field_all_changed) {
     changed_bits_.resize((mt_.vertex_count() + 63) / 64);
     for (const std::uint32_t v : changed_vertices) {
       assert(v < mt_.vertex_count());
@@ -472,10 +478,11 @@ bool Refiner::update_kept(const AllowedError& allowed, std::span<const std::uint
     }
   }
   move_cut(allowed, all_changed);
-  if (all_changed) {
+  if (field_all_changed) {
     remember_field(allowed);
   } else {
     for (const std::uint32_t v : changed_vertices) changed_bits_[v >> 6] = 0;  // leave the bitmap clear
+    previous_threshold_ = allowed.threshold;
   }
   return true;
 }
@@ -587,17 +594,23 @@ void Refiner::move_cut(const AllowedError& allowed, bool all_changed) {
   if (!close_over(allowed, kept, kept + kept / 3)) return refine_afresh();
   release_dropped();
 
-  // 5. The new mesh: of the old one, what kept nodes created and no node of the cut removes
-  // (compacted in place, in order); then the uncovered triangles no added node removes; then what
-  // the added nodes create and no node of the cut removes.
-  // Every old mesh triangle was created by a node of the old cut and removed by none: it stays
-  // unless its creator dropped (and perhaps came back: added nodes' triangles are pushed below) or
-  // its remover was added. Those nodes are marked in a bitmap 8 times denser than in_cut_.
+  // 5. The new mesh.
+  rebuild_kept_mesh(kept);
+  ++moves_;
+}
+
+void Refiner::rebuild_kept_mesh(std::size_t added) {
+  // Of the old mesh, what kept nodes created and no node of the cut removes (compacted in place, in
+  // order); then the uncovered triangles no added node removes; then what the added nodes create and
+  // no node of the cut removes. Every old mesh triangle was created by a node of the old cut and removed by
+  // none: it stays unless its creator dropped (and perhaps came back: added nodes' triangles are pushed
+  // below) or its remover was added. Those nodes are marked in a bitmap 8 times denser than in_cut_.
   if (node_changed_.empty()) node_changed_.assign((mt_.node_count() + 63) / 64, 0);
   auto mark = [&](std::uint32_t n) { node_changed_[n >> 6] |= std::uint64_t{1} << (n & 63); };
   auto marked = [&](std::uint32_t n) { return (node_changed_[n >> 6] >> (n & 63)) & 1; };
   for (const std::uint32_t n : dropped_) mark(n);
-  for (std::size_t i = kept; i < cut_.size(); ++i) mark(cut_[i]);
+  for (std::size_t i = added; i < cut_.size(); ++i) mark(cut_[i]);
+  const std::size_t mesh_size = mesh_triangles_.size();
   std::size_t write = 0;
   for (std::size_t i = 0; i < mesh_size; ++i) {
     const std::uint32_t r = mesh_removers_[i];
@@ -623,15 +636,14 @@ void Refiner::move_cut(const AllowedError& allowed, bool all_changed) {
     mesh_push(t, creator, r, corners, r == kNoNode ? 0.0f : mt_.node_error[r]);
   };
   for (const std::uint32_t n : dropped_) node_changed_[n >> 6] = 0;
-  for (std::size_t i = kept; i < cut_.size(); ++i) node_changed_[cut_[i] >> 6] = 0;
+  for (std::size_t i = added; i < cut_.size(); ++i) node_changed_[cut_[i] >> 6] = 0;
   for (std::size_t i = 0; i < seeds_.size(); i += 2) push(seeds_[i], seeds_[i + 1]);
-  for (std::size_t i = kept; i < cut_.size(); ++i) {
+  for (std::size_t i = added; i < cut_.size(); ++i) {
     const std::uint32_t x = cut_[i];
     for (std::uint32_t t = mt_.node_triangle_offsets[x]; t < mt_.node_triangle_offsets[x + 1]; ++t)
       push(t, x);
   }
   mesh_valid_ = true;
-  ++moves_;
 }
 
 CutView Refiner::kept_view() const {
@@ -685,29 +697,48 @@ void Refiner::refine_budget(const AllowedError& allowed, std::size_t max_triangl
     return;
   }
   reset_to_root();
-  std::size_t count = mt_.root_triangle_count();
   heap_.clear();
-  auto less = [](const HeapEntry& x, const HeapEntry& y) {
-    // Ties broken by triangle id so the result does not depend on the heap's layout.
-    if (x.tier != y.tier) return x.tier < y.tier;
-    return x.key < y.key || (x.key == y.key && x.triangle > y.triangle);
-  };
-  auto push_failing = [&](std::uint32_t n) {
-    const std::uint32_t end = mt_.node_triangle_offsets[n + 1];
-    for (std::uint32_t t = mt_.node_triangle_offsets[n]; t < end; ++t) {
-      const std::uint32_t r = mt_.triangle_remover[t];
-      if (r == kNoNode || in_cut_[r] == kIn || !fails(t, n, allowed)) continue;
-      heap_.push_back(heap_entry(t, n, allowed));
-      std::push_heap(heap_.begin(), heap_.end(), less);
-    }
-  };
-  push_failing(0);
+  push_failing(0, allowed);
+  Rank level;
+  std::size_t level_end = 0;
+  fill_budget(allowed, mt_.root_triangle_count(), max_triangles, 0, level, level_end);
+  emit(out);
+  out.within_budget = out.triangle_count() <= max_triangles;
+}
+
+bool Refiner::heap_less(const HeapEntry& x, const HeapEntry& y) {
+  // Ties broken by triangle id so the result does not depend on the heap's layout.
+  if (x.tier != y.tier) return x.tier < y.tier;
+  return x.key < y.key || (x.key == y.key && x.triangle > y.triangle);
+}
+
+void Refiner::push_failing(std::uint32_t n, const AllowedError& allowed) {
+  const std::uint32_t end = mt_.node_triangle_offsets[n + 1];
+  for (std::uint32_t t = mt_.node_triangle_offsets[n]; t < end; ++t) {
+    const std::uint32_t r = mt_.triangle_remover[t];
+    if (r == kNoNode || in_cut_[r] == kIn || !fails(t, n, allowed)) continue;
+    heap_.push_back(heap_entry(t, n, allowed));
+    std::push_heap(heap_.begin(), heap_.end(), heap_less);
+  }
+}
+
+std::size_t Refiner::fill_budget(const AllowedError& allowed, std::size_t count, std::size_t max_triangles,
+                                 std::size_t target, Rank& level, std::size_t& level_end) {
+  // The ratios popped fall, but not steadily: refining a triangle can uncover worse ones, which are
+  // popped next. Clipped to the smallest ratio popped so far they do fall steadily (a max-min path
+  // search from the root), and when that smallest ratio first reaches ℓ every node whose forcing
+  // path stays above ℓ is in the cut and no other: the minimal cut of threshold ℓ.
+  Rank smallest{2, 0.0f};  // above every rank
   while (!heap_.empty()) {
-    std::pop_heap(heap_.begin(), heap_.end(), less);
+    std::pop_heap(heap_.begin(), heap_.end(), heap_less);
     const HeapEntry top = heap_.back();
     heap_.pop_back();
     const std::uint32_t r = mt_.triangle_remover[top.triangle];
     if (in_cut_[r] == kIn) continue;  // already refined through another triangle
+    if (const Rank rank{top.tier, top.key}; rank < smallest) {
+      smallest = rank;
+      if (count <= target) level = smallest, level_end = cut_.size();
+    }
     const std::size_t first_new = cut_.size();
     force(r, top.triangle, top.creator);
     // Size change: each new node adds what it creates and takes away what it removes.
@@ -721,13 +752,177 @@ void Refiner::refine_budget(const AllowedError& allowed, std::size_t max_triangl
       for (std::size_t i = first_new; i < cut_.size(); ++i) in_cut_[cut_[i]] = kOut;
       cut_.resize(first_new);
       witnesses_.resize(first_new);
-      break;
+      return count;
     }
     count = count + added - removed;
-    for (std::size_t i = first_new; i < cut_.size(); ++i) push_failing(cut_[i]);
+    for (std::size_t i = first_new; i < cut_.size(); ++i) push_failing(cut_[i], allowed);
   }
+  // Nothing fails: the minimal cut of threshold 1.
+  if (count <= target) level = Rank{}, level_end = cut_.size();
+  return count;
+}
+
+Rank Refiner::threshold_dropping(const AllowedError& allowed, std::size_t nodes) {
+  // A node stays only while its witness fails, so a threshold at or above the witness's rank drops
+  // it (and whatever it supports).
+  ranks_.clear();
+  for (std::size_t i = 1; i < cut_.size(); ++i) {
+    const Witness& w = witnesses_[i];
+    const float a = allowed.of_triangle(w.corners[0], w.corners[1], w.corners[2]);
+    const float error = mt_.node_error[mt_.triangle_remover[w.triangle]];
+    ranks_.push_back(a > 0.0f ? Rank{0, error / a} : Rank{1, error});
+  }
+  if (ranks_.empty()) return Rank{2, 0.0f};
+  const std::size_t k = std::min(nodes, ranks_.size()) - 1;
+  std::nth_element(ranks_.begin(), ranks_.begin() + std::ptrdiff_t(k), ranks_.end());
+  return ranks_[k];
+}
+
+void Refiner::write_refined(std::size_t added, std::size_t max_triangles, CutMesh& out) {
+  // The kept mesh less what the nodes from `added` on remove, then what they create and no node of
+  // the cut removes.
+  if (node_changed_.empty()) node_changed_.assign((mt_.node_count() + 63) / 64, 0);
+  std::size_t created = 0;
+  for (std::size_t i = added; i < cut_.size(); ++i) {
+    const std::uint32_t x = cut_[i];
+    node_changed_[x >> 6] |= std::uint64_t{1} << (x & 63);
+    created += mt_.node_triangle_offsets[x + 1] - mt_.node_triangle_offsets[x];
+  }
+  MeshWriter writer(mt_, out, mesh_triangles_.size() + created);
+  float max_error = 0.0f;
+  for (std::size_t i = 0; i < mesh_triangles_.size(); ++i) {
+    const std::uint32_t r = mesh_removers_[i];
+    if (r != kNoNode && ((node_changed_[r >> 6] >> (r & 63)) & 1)) continue;
+    writer.add(mesh_triangles_[i], &mesh_corners_[3 * i]);
+    max_error = std::max(max_error, mesh_errors_[i]);
+  }
+  for (std::size_t i = added; i < cut_.size(); ++i) node_changed_[cut_[i] >> 6] = 0;
+  for (std::size_t i = added; i < cut_.size(); ++i) {
+    const std::uint32_t x = cut_[i];
+    const std::uint32_t first = mt_.node_vertex[x];
+    for (std::uint32_t t = mt_.node_triangle_offsets[x]; t < mt_.node_triangle_offsets[x + 1]; ++t) {
+      const std::uint32_t r = mt_.triangle_remover[t];
+      if (r != kNoNode) {
+        if (in_cut_[r] == kIn) continue;
+        max_error = std::max(max_error, mt_.node_error[r]);
+      }
+      writer.add(t, first);
+    }
+  }
+  writer.finish(cut_.size(), max_error);
+  out.within_budget = out.triangle_count() <= max_triangles;
+}
+
+namespace {
+// Budgeted updates keep the threshold's cut between these fractions of the budget below it: the
+// worst-first refinement fills the gap at every gaze, and the threshold changes only when the cut
+// leaves the band (each change tests every triangle once).
+constexpr std::size_t kBudgetLow = 16;     // the band starts a sixteenth below the budget
+constexpr std::size_t kBudgetTarget = 32;  // a changed threshold aims a thirty-second below it
+}  // namespace
+
+std::size_t Refiner::budget_target(std::size_t max_triangles) const {
+  // Not below the root's size, for budgets just above it.
+  return std::max(max_triangles - max_triangles / kBudgetTarget, mt_.root_triangle_count());
+}
+
+void Refiner::start_budget(const AllowedError& allowed, std::size_t max_triangles, CutMesh& out) {
+  assert(!allowed.per_vertex.empty() && allowed.threshold == Rank{});
+  ++budget_starts_;
+  mesh_valid_ = false;
+  dynamic_ready_ = false;
+  budget_threshold_.reset();
+  reset_to_root();
+  heap_.clear();
+  push_failing(0, allowed);
+  Rank level;
+  std::size_t level_end = 0;
+  fill_budget(allowed, mt_.root_triangle_count(), max_triangles, budget_target(max_triangles), level,
+              level_end);
   emit(out);
   out.within_budget = out.triangle_count() <= max_triangles;
+  if (level_end == 0) return;  // no threshold's cut fits: the next update starts from the root too
+  // Keep the cut the refinement passed through at that threshold, and its mesh.
+  for (std::size_t i = level_end; i < cut_.size(); ++i) in_cut_[cut_[i]] = kOut;
+  cut_.resize(level_end);
+  witnesses_.resize(level_end);
+  mesh_triangles_.clear();
+  mesh_creators_.clear();
+  mesh_removers_.clear();
+  mesh_corners_.clear();
+  mesh_errors_.clear();
+  for (std::uint32_t t = 0; t < mt_.node_triangle_offsets[1]; ++t) {
+    const std::uint32_t r = mt_.triangle_remover[t];
+    const std::uint32_t corners[3] = {mt_.root_first_corner[t], mt_.triangle_corners[2 * std::size_t{t}],
+                                      mt_.triangle_corners[2 * std::size_t{t} + 1]};
+    mesh_push(t, 0, r, corners, r == kNoNode ? 0.0f : mt_.node_error[r]);
+  }
+  dropped_.clear();
+  seeds_.clear();
+  rebuild_kept_mesh(1);
+  AllowedError at = allowed;
+  at.threshold = level;
+  remember_field(at);
+  dynamic_ready_ = true;
+  budget_threshold_ = level;
+  budget_max_ = max_triangles;
+}
+
+void Refiner::update_budget(const AllowedError& allowed, std::span<const std::uint32_t> changed_vertices,
+                            std::size_t max_triangles, CutMesh& out) {
+  assert(!allowed.per_vertex.empty() && allowed.threshold == Rank{});
+  if (!dynamic_ready_ || !budget_threshold_ || budget_max_ != max_triangles)
+    return start_budget(allowed, max_triangles, out);
+  const std::size_t target = budget_target(max_triangles);
+  const std::size_t low = std::min(target, max_triangles - max_triangles / kBudgetLow);
+  // The new field's cut at the kept threshold; past the budget, raise the threshold until it fits
+  // (a node adds about two triangles, so drop about half the excess, aiming at the target).
+  AllowedError at = allowed;
+  at.threshold = *budget_threshold_;
+  update_kept(at, changed_vertices, out);
+  std::size_t count = mesh_triangles_.size();
+  for (int raises = 0; count > max_triangles; ++raises) {
+    const Rank threshold = threshold_dropping(allowed, (count - target) / 2 + 1);
+    if (raises == 3 || !(at.threshold < threshold) || threshold.tier == 2)
+      return start_budget(allowed, max_triangles, out);
+    ++budget_raises_;
+    at.threshold = threshold;
+    update_kept(at, {}, out);
+    count = mesh_triangles_.size();
+  }
+  budget_threshold_ = at.threshold;
+  // Worst first from there, with a heap of the mesh's failing triangles.
+  heap_.clear();
+  for (std::size_t i = 0; i < mesh_triangles_.size(); ++i) {
+    if (mesh_removers_[i] == kNoNode) continue;
+    const std::uint32_t* corners = &mesh_corners_[3 * i];
+    const float a = allowed.of_triangle(corners[0], corners[1], corners[2]);
+    const float error = mesh_errors_[i];
+    if (!(error > a)) continue;
+    heap_.push_back(a > 0.0f ? HeapEntry{0, error / a, mesh_triangles_[i], mesh_creators_[i]}
+                             : HeapEntry{1, error, mesh_triangles_[i], mesh_creators_[i]});
+  }
+  std::make_heap(heap_.begin(), heap_.end(), heap_less);
+  mesh_valid_ = false;  // nodes are added with the mesh set aside
+  const std::size_t base = cut_.size();
+  Rank level = at.threshold;
+  std::size_t level_end = base;
+  fill_budget(allowed, count, max_triangles, target, level, level_end);
+  write_refined(base, max_triangles, out);
+  // Far below the budget, keep the cut the refinement passed through nearest the target instead.
+  const std::size_t keep = count < low ? level_end : base;
+  for (std::size_t i = keep; i < cut_.size(); ++i) in_cut_[cut_[i]] = kOut;
+  cut_.resize(keep);
+  witnesses_.resize(keep);
+  if (keep > base) {
+    dropped_.clear();
+    seeds_.clear();
+    rebuild_kept_mesh(base);
+    budget_threshold_ = level;
+    previous_threshold_ = level;
+  } else {
+    mesh_valid_ = true;
+  }
 }
 
 void refine_static(const Mt& mt, const AllowedError& allowed, CutMesh& out) {
@@ -745,7 +940,7 @@ std::size_t Refiner::memory_bytes() const {
   return bytes(in_cut_) + bytes(cut_) + bytes(witnesses_) + bytes(mesh_errors_) + bytes(stack_) +
          bytes(previous_field_) + bytes(mesh_triangles_) + bytes(mesh_creators_) + bytes(mesh_removers_) +
          bytes(mesh_corners_) + bytes(changed_bits_) + bytes(dropped_) + bytes(seeds_) + bytes(passing_) +
-         bytes(heap_) + bytes(root_vertices_) + bytes(batch_) + bytes(node_changed_);
+         bytes(heap_) + bytes(ranks_) + bytes(root_vertices_) + bytes(batch_) + bytes(node_changed_);
 }
 
 }  // namespace mtlod::core

@@ -13,6 +13,7 @@
 #include <algorithm>
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -20,20 +21,42 @@
 
 namespace mtlod::core {
 
+// A place in the budgeted refinement's worst-first order: triangles whose allowed error is positive
+// rank by error / allowed (tier 0), above all of them those whose allowed error is ≤ 0 by error
+// alone (tier 1).
+struct Rank {
+  std::uint32_t tier = 0;
+  float key = 1.0f;
+  friend bool operator<(Rank x, Rank y) { return x.tier != y.tier ? x.tier < y.tier : x.key < y.key; }
+  friend bool operator==(Rank x, Rank y) { return x.tier == y.tier && x.key == y.key; }
+};
+
 // The allowed error per triangle, in model units.
 struct AllowedError {
   float uniform = 0.0f;               // used when per_vertex is empty
   std::span<const float> per_vertex;  // empty, or one value per MT vertex (mt.vertex_count())
+  // A triangle fails when its error exceeds its allowed error and its rank is above this threshold
+  // (at least {0, 1}, the plain test). The budgeted dynamic refinement keeps the minimal cut of a
+  // threshold (Refiner::update_budget).
+  Rank threshold;
 
-  static AllowedError everywhere(float error) { return {error, {}}; }
+  static AllowedError everywhere(float error) { return {error, {}, {}}; }
   static AllowedError from_vertices(std::span<const float> vertex_allowed_error) {
-    return {0.0f, vertex_allowed_error};
+    return {0.0f, vertex_allowed_error, {}};
   }
   // Of a triangle with corners a, b, c: the uniform value, or the smallest of theirs.
   float of_triangle(std::uint32_t a, std::uint32_t b, std::uint32_t c) const {
     if (per_vertex.empty()) return uniform;
     const float* field = per_vertex.data();
     return std::min(field[a], std::min(field[b], field[c]));
+  }
+  // Whether a triangle of this error and allowed error fails. At the plain threshold the division
+  // agrees with error > allowed (for allowed > 0 both are true together), so it is skipped.
+  bool exceeded_by(float error, float allowed) const {
+    if (!(error > allowed)) return false;
+    if (threshold.tier == 0 && threshold.key == 1.0f) return true;
+    if (!(allowed > 0.0f)) return threshold.tier == 0 || error > threshold.key;
+    return threshold.tier == 0 && error / allowed > threshold.key;
   }
 };
 
@@ -124,6 +147,26 @@ class Refiner {
   // when there was no kept cut to start from (scratch is written then).
   CutView update_view(const AllowedError& allowed, std::span<const std::uint32_t> changed_vertices,
                       CutMesh& scratch);
+
+  // Budgeted dynamic refinement: the same cut as refine_budget(allowed, max_triangles) (worst
+  // error/allowed ratio first from the root, stopping before the budget would be exceeded), found
+  // from the kept cut. The refiner keeps the minimal cut of a threshold in that order (see
+  // AllowedError::threshold) a little below the budget: the root's worst-first refinement passes
+  // through exactly that cut, so refining worst first from it gives the same result. A gaze moves
+  // the kept cut to the new field's minimal cut for the same threshold; past the budget the
+  // threshold rises until it fits, far below it the threshold falls to where the refinement passed.
+  // `allowed` must be per vertex at the plain threshold; every node must add triangles (true of vertex
+  // splits), so a cut's size grows with its nodes. The result is written to `out`.
+  // start_budget refines from the root (a new view); update_budget takes the vertices whose
+  // allowed error changed, as update does, and starts from the root when there is no kept cut.
+  void start_budget(const AllowedError& allowed, std::size_t max_triangles, CutMesh& out);
+  void update_budget(const AllowedError& allowed, std::span<const std::uint32_t> changed_vertices,
+                     std::size_t max_triangles, CutMesh& out);
+  // The threshold of the kept cut after a budgeted update (none when no threshold's cut fitted).
+  std::optional<Rank> budget_threshold() const { return budget_threshold_; }
+  // Budgeted updates that raised the threshold to fit the budget, and that refined from the root.
+  std::size_t budget_raises() const { return budget_raises_; }
+  std::size_t budget_starts() const { return budget_starts_; }
 
   // Nodes of the kept cut, in the order they were added (parents before children).
   std::span<const std::uint32_t> cut_nodes() const { return cut_; }
@@ -235,7 +278,32 @@ class Refiner {
     std::uint32_t creator;
   };
   HeapEntry heap_entry(std::uint32_t t, std::uint32_t creator, const AllowedError& allowed) const;
+  static bool heap_less(const HeapEntry& x, const HeapEntry& y);
+  // Pushes node n's triangles that fail and are in the mesh.
+  void push_failing(std::uint32_t n, const AllowedError& allowed);
+  // Worst ratio first from the cut, heap_ holding its mesh's failing triangles (count of them in
+  // all): refines until the next refinement would take the mesh over max_triangles or nothing fails.
+  // Returns the final count. At each new smallest ratio ℓ popped, the cut is the minimal cut of
+  // threshold ℓ: the last such ℓ whose cut had at most `target` triangles, and the cut's length
+  // then, are written to level and level_end (left as they were when there is none).
+  std::size_t fill_budget(const AllowedError& allowed, std::size_t count, std::size_t max_triangles,
+                          std::size_t target, Rank& level, std::size_t& level_end);
+  // The size a changed threshold's cut aims at: a little below the budget.
+  std::size_t budget_target(std::size_t max_triangles) const;
+  // The threshold at which at least `nodes` of the cut's nodes lose their witness.
+  Rank threshold_dropping(const AllowedError& allowed, std::size_t nodes);
+  // Writes the kept mesh with the nodes of cut_ from position `added` on refined into it.
+  void write_refined(std::size_t added, std::size_t max_triangles, CutMesh& out);
+  // Extends the kept mesh after nodes were dropped (dropped_, their uncovered triangles in seeds_)
+  // or added (cut_ from position `added` on): move_cut's last step.
+  void rebuild_kept_mesh(std::size_t added);
   std::vector<HeapEntry> heap_;
+  std::vector<Rank> ranks_;               // threshold_dropping's scratch
+  std::optional<Rank> budget_threshold_;  // the kept cut's threshold for budget_max_
+  std::size_t budget_max_ = 0;
+  std::size_t budget_raises_ = 0;
+  std::size_t budget_starts_ = 0;
+  Rank previous_threshold_;  // the threshold of the kept cut (field_known_)
 };
 
 // One-off static refinement (allocates a Refiner).

@@ -280,7 +280,11 @@ void ViewExtractor::refine(Refiner& session, CutMesh& out) {
 CutView ViewExtractor::refine_view(Refiner& session, CutMesh& scratch) {
   const AllowedError allowed = AllowedError::from_vertices(allowed_);
   const CutView cut = [&] {
-    if (request_->budget) {
+    if (request_->budget && request_->dynamic && incremental_ && !field_completed_) {
+      session.update_budget(allowed, session_->changed_, *request_->budget, scratch);  // a gaze
+    } else if (request_->budget && request_->dynamic && session_) {
+      session.start_budget(allowed, *request_->budget, scratch);  // kept for the gazes that follow
+    } else if (request_->budget) {
       session.refine_budget(allowed, *request_->budget, scratch);
     } else if (on_demand_) {
       session.refine_on_demand(field_, allowed_, scratch);

@@ -31,7 +31,8 @@ struct ViewRequest {
   std::vector<std::array<float, 2>> neglect;  // the same, for regions of neglect
   bool internal_silhouettes = false;          // depth jumps seed the silhouette transform too
   float depth_jump = 0.1f;                    // relative depth difference that counts as a jump
-  std::optional<std::size_t> budget;          // triangle budget: worst-first refinement
+  std::optional<std::size_t> budget;          // triangle budget: worst-first refinement (the same cut
+                                              // whether from the root or moved, on a session's gaze)
   bool dynamic = true;                        // move the session's cut (false: refine from the root)
   // A new view without a budget, static or in a session, refines from the root asking for the
   // allowed error of only the vertices the refinement reads (Refiner::refine_on_demand) instead of
@@ -102,8 +103,8 @@ class ViewExtractor {
   // allowed_error_on_demand, none yet: stage 5 asks for those it reads (the first reuse of the view
   // then computes every vertex's).
   void allowed_error();
-  // Stage 5: refines `session` (dynamic unless a budget is set or `dynamic` is off) and writes the
-  // cut to `out`.
+  // Stage 5: refines `session` (dynamic unless `dynamic` is off; with a budget, dynamic on the
+  // session's gazes) and writes the cut to `out`.
   void refine(Refiner& session, CutMesh& out);
   // The same without copying a gaze's cut out of the session's refiner: a view of its kept mesh
   // (valid until the refiner's next call), or of `scratch` when the cut was written there.

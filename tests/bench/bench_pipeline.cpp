@@ -202,18 +202,21 @@ BENCHMARK(BM_RefineAfterSmallMove)->Arg(0)->Arg(1)->ArgName("dynamic")->Unit(ben
 // raw:1 stores attribute values without Draco's entropy coding, as the server's gaze replies do.
 // gaze_criteria:1 uses mtlod-gaze's criteria (0.5 px, silhouette 2,0.25, full detail within 20 px
 // of the gaze) instead of this file's request_for: cuts of 45–95k triangles whose fine region
-// moves with every gaze. delta_us: the diff a delta reply sends (core::CutDelta, as the server).
+// moves with every gaze. gaze_criteria:2 adds a budget of 50k triangles (`--budget 50000`): cuts
+// refined worst-first, moved on a session (Refiner::update_budget).
+// delta_us: the diff a delta reply sends (core::CutDelta, as the server).
 void BM_GazeStream(benchmark::State& state) {
   const Model* m = model("dragon");
   if (!m) return state.SkipWithError("mesh not found");
   const bool with_session = state.range(0) == 1;
-  const bool gaze_criteria = state.range(2) == 1;
+  const bool gaze_criteria = state.range(2) >= 1, budget = state.range(2) == 2;
   protocol::Extract e = request_for(*m, gaze_criteria ? 0.5 : error_for_size(*m, 50'000));
   if (gaze_criteria) {
-    // mtlod-gaze's default criteria (README, "Gaze"): full resolution within 20 px of the gaze.
+    // mtlod-gaze's criteria (README, "Gaze"): full resolution within 20 px of the gaze.
     e.criteria.silhouette = protocol::Silhouette{2, 0.25};
     e.criteria.focus = {protocol::Focus{0.5, 0.5, 20, 0.1}};
   }
+  if (budget) e.budget = 50'000;
   std::vector<double> gaze_us;
   core::ViewExtractor x(m->mt, *m->levels);
   core::ViewSession session;
@@ -273,7 +276,13 @@ void BM_GazeStream(benchmark::State& state) {
   state.counters["before_encode_p90_us"] = gaze_us[gaze_us.size() * 9 / 10];
   state.counters["before_encode_max_us"] = gaze_us.back();
   state.counters["refine_restarts"] = static_cast<double>(refiner.restarts());
+  state.counters["budget_raises"] = static_cast<double>(refiner.budget_raises());
+  state.counters["budget_starts"] = static_cast<double>(refiner.budget_starts());
 }
-BENCHMARK(BM_GazeStream)->ArgsProduct({{0, 1}, {0, 1}, {0, 1}})->ArgNames({"session", "raw", "gaze_criteria"})->Unit(benchmark::kMillisecond)->Iterations(300);
+BENCHMARK(BM_GazeStream)
+    ->ArgsProduct({{0, 1}, {0, 1}, {0, 1, 2}})
+    ->ArgNames({"session", "raw", "gaze_criteria"})
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(300);
 
 }  // namespace

@@ -455,6 +455,107 @@ TEST(Refine, DynamicEqualsStaticAfterRandomSequences) {
   expect_dynamic_matches_static(test::shape_case(Shape::kSphere, 8'000), 29, 60);
 }
 
+// Budgeted dynamic refinement after sequences of fields equals the budgeted refinement from the root
+// of the last field: a focus moving in steps (told which vertices changed), jumping, per-vertex
+// noise, budgets from near the root's size to more than the whole error-bound cut.
+void expect_dynamic_budget_matches_static(const MtCase* c, std::uint32_t seed, int steps) {
+  const Mt& mt = c->mt;
+  // What the method relies on: every node adds triangles, so a cut's size grows with its nodes.
+  std::vector<std::uint32_t> removed(mt.node_count(), 0);
+  for (std::uint32_t t = 0; t < mt.triangle_count(); ++t)
+    if (mt.triangle_remover[t] != kNoNode) ++removed[mt.triangle_remover[t]];
+  for (std::uint32_t n = 1; n < mt.node_count(); ++n)
+    ASSERT_GT(mt.node_triangle_offsets[n + 1] - mt.node_triangle_offsets[n], removed[n]) << "node " << n;
+
+  std::mt19937 rng(seed);
+  const float top = max_node_error(mt);
+  const float diagonal = bbox_diagonal(c->mesh);
+  Refiner dynamic(mt), fixed(mt);
+  CutMesh moving, reference, other;
+  std::vector<float> field(c->mesh.vertex_count()), previous;
+  std::vector<std::uint32_t> changed;
+  // Budgets from just above the root's size to twice the error-bound cut's (chosen anew at times).
+  std::size_t budget = 0;
+  auto pick_budget = [&](std::size_t bound_cut) {
+    const std::size_t root = mt.root_triangle_count();
+    const std::size_t choices[] = {root + 40, root + (bound_cut - root) / 4, root + (bound_cut - root) / 2,
+                                   root + 3 * (bound_cut - root) / 4, 2 * bound_cut};
+    budget = choices[std::uniform_int_distribution<int>(0, 4)(rng)];
+  };
+  float fx = 0.0f, fy = 0.0f, fz = 0.0f;
+  std::size_t binding = 0, lowered = 0;
+  for (int step = 0; step < steps; ++step) {
+    const int kind = std::uniform_int_distribution<int>(0, 9)(rng);
+    const float* p =
+        &c->mesh.positions[3 * std::uniform_int_distribution<std::size_t>(0, field.size() - 1)(rng)];
+    if (step == 0 || kind == 0) {  // the focus jumps
+      fx = p[0], fy = p[1], fz = p[2];
+    } else if (kind <= 6) {  // it moves a little towards a random vertex
+      fx += 0.05f * (p[0] - fx), fy += 0.05f * (p[1] - fy), fz += 0.05f * (p[2] - fz);
+    }
+    for (std::size_t v = 0; v < field.size(); ++v) {
+      const float* q = &c->mesh.positions[3 * v];
+      const float d =
+          std::sqrt((q[0] - fx) * (q[0] - fx) + (q[1] - fy) * (q[1] - fy) + (q[2] - fz) * (q[2] - fz));
+      field[v] = top * (1e-5f + 0.02f * std::min(1.0f, d / (0.3f * diagonal)));
+    }
+    if (kind == 7) field = noise_field(field.size(), rng, top * 1e-5f, top * 0.02f);
+    // Full detail (allowed error 0) near a second point at times, as along a silhouette with factor
+    // 0: those triangles rank above all others, by error alone.
+    if (step % 3 == 0) {
+      for (std::size_t v = 0; v < field.size(); ++v) {
+        const float* q = &c->mesh.positions[3 * v];
+        const float d = std::abs(q[0] - p[0]) + std::abs(q[1] - p[1]) + std::abs(q[2] - p[2]);
+        if (d < (step % 2 ? 0.1f : 0.3f) * diagonal) field[v] = 0.0f;
+      }
+    }
+    changed.clear();
+    for (std::uint32_t v = 0; v < field.size(); ++v)
+      if (previous.empty() || field[v] != previous[v]) changed.push_back(v);
+    const AllowedError allowed = AllowedError::from_vertices(field);
+    fixed.refine(allowed, other);
+    if (step == 0 || kind == 8) pick_budget(other.triangle_count());
+    binding += other.triangle_count() > budget;
+    if (kind == 9) {
+      // Other refinements in between: the next budgeted update starts again or moves from their cut.
+      if (std::uniform_int_distribution<int>(0, 1)(rng))
+        dynamic.update(allowed, other);
+      else
+        dynamic.refine_budget(allowed, budget / 2, other);
+    }
+    const std::optional<Rank> before = dynamic.budget_threshold();
+    if (step % 7 == 3)
+      dynamic.start_budget(allowed, budget, moving);
+    else
+      dynamic.update_budget(allowed, changed, budget, moving);
+    lowered += before && dynamic.budget_threshold() && *dynamic.budget_threshold() < *before;
+    previous = field;
+    fixed.refine_budget(allowed, budget, reference);
+    ASSERT_EQ(test::triangle_set(moving.triangles), test::triangle_set(reference.triangles))
+        << "step " << step << " budget " << budget;
+    ASSERT_EQ(moving.max_error, reference.max_error) << "step " << step;
+    ASSERT_EQ(moving.node_count, reference.node_count) << "step " << step;
+    ASSERT_EQ(moving.within_budget, reference.within_budget) << "step " << step;
+    if (reference.within_budget) {
+      ASSERT_LE(moving.triangle_count(), budget);
+    }
+    expect_ids_name_triangles(mt, moving);
+  }
+  // The budget bound the cut (the error-bound cut was larger) in most steps; the threshold was
+  // raised past the budget, lowered far below it, and kept between.
+  EXPECT_GT(binding, std::size_t(steps) / 2);
+  EXPECT_GT(dynamic.budget_raises(), 0u);
+  EXPECT_GT(lowered, 0u);
+  EXPECT_LT(dynamic.budget_starts(), std::size_t(steps) / 2);
+}
+
+TEST(Refine, DynamicBudgetEqualsBudgetFromTheRoot) {
+  for (const char* file : {"bunny-npm-3k.ply", "dragon-vrip-res4-11k.ply", "armadillo-52k.ply"})
+    if (const MtCase* c = test::scan_case(file)) expect_dynamic_budget_matches_static(c, 41, 60);
+  expect_dynamic_budget_matches_static(test::shape_case(Shape::kTerrain, 3'000), 43, 80);
+  expect_dynamic_budget_matches_static(test::shape_case(Shape::kSphere, 8'000), 47, 80);
+}
+
 TEST(CutDelta, AppliedChangesRebuildEveryCutOfASequence) {
   // A client that applies each delta to a set of ids holds exactly the latest cut's ids.
   const MtCase* c = test::shape_case(Shape::kSphere, 8'000);

@@ -382,5 +382,61 @@ TEST(ViewExtract, SessionGazePathEqualsAFreshExtractionEveryTime) {
   }
 }
 
+TEST(ViewExtract, SessionBudgetedGazesEqualBudgetedRefinementFromTheRoot) {
+  // A budgeted session: a new view refines worst-first from the root and keeps a threshold's cut,
+  // each gaze on it moves that cut; every result equals the budgeted refinement of a fresh static
+  // extraction (grid, transforms, field and refinement from nothing).
+  GenerateOptions o;
+  o.target_triangles = 30'000;
+  auto b = build(generate_mesh(o));
+  ASSERT_NE(b, nullptr);
+  const Camera camera = front_camera(b->input, 1.0f);
+  Camera other = camera;
+  other.view = glm::rotate(camera.view, 0.3f, glm::vec3(0, 1, 0));
+  std::mt19937 rng(13);
+  std::uniform_real_distribution<float> unit(0.1f, 0.9f);
+  ViewRequest r;
+  r.camera = camera;
+  r.grid = {160, 160};
+  r.allowed.units = ErrorUnits::kScreenPixels;
+  r.allowed.error = 0.25f;
+  r.allowed.use_silhouette = true;
+  r.allowed.silhouette = RegionLaw{FalloffLaw::kStep, 2.0f, 0.25f};
+  r.allowed.use_focus = true;
+  r.allowed.focus = RegionLaw{FalloffLaw::kSmoothstep, 8.0f, 0.1f, 16.0f};
+  ViewExtractor session_extractor(b->mt, *b->levels), fresh_extractor(b->mt, *b->levels);
+  ViewSession session;
+  Refiner kept(b->mt);
+  CutMesh cut, expected, unbounded;
+  std::size_t binding = 0;
+  for (int step = 0; step < 16; ++step) {
+    r.focus = {{unit(rng), unit(rng)}};
+    if (step == 8) {
+      // A new view, keeping full resolution along the silhouette: those triangles rank first.
+      r.camera = other;
+      r.allowed.silhouette = RegionLaw{FalloffLaw::kStep, 2.0f, 0.0f};
+    }
+    r.budget = step < 12 ? 2'500 : 3'000;  // a new budget starts from the root as well
+    session_extractor.map(r, &session);
+    session_extractor.occupancy();
+    session_extractor.distance_transforms();
+    session_extractor.allowed_error();
+    session_extractor.refine(kept, cut);
+    EXPECT_EQ(session.reused(), step != 0 && step != 8) << "step " << step;
+
+    Refiner fresh(b->mt);
+    ViewRequest static_request = r;
+    static_request.dynamic = false;
+    run(fresh_extractor, static_request, fresh, expected);
+    ASSERT_EQ(triangle_set(cut), triangle_set(expected)) << "step " << step;
+    EXPECT_LE(cut.triangle_count(), *r.budget);
+    static_request.budget.reset();
+    run(fresh_extractor, static_request, fresh, unbounded);
+    binding += unbounded.triangle_count() > *r.budget;
+  }
+  EXPECT_EQ(binding, 16u);              // every gaze's error-bound cut was larger than the budget
+  EXPECT_EQ(kept.budget_starts(), 3u);  // the two new views and the new budget
+}
+
 }  // namespace
 }  // namespace mtlod::core
