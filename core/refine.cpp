@@ -94,6 +94,7 @@ Refiner::HeapEntry Refiner::heap_entry(std::uint32_t t, std::uint32_t creator,
 }
 
 void Refiner::reset_to_root() {
+  kept_mesh_pending_ = false;
   for (const std::uint32_t n : cut_) in_cut_[n] = kOut;
   cut_.clear();
   witnesses_.clear();
@@ -279,6 +280,7 @@ void Refiner::refine_prefix(std::uint32_t end, CutMesh& out) {
   std::fill(in_cut_.begin(), in_cut_.begin() + end, kIn);
   // No witnesses were recorded: the next update starts with a forced refinement.
   dynamic_ready_ = false;
+  kept_mesh_pending_ = false;
 
   MeshWriter writer(mt_, out, mt_.node_triangle_offsets[end]);
   const std::uint32_t* remover = mt_.triangle_remover.data();
@@ -488,6 +490,7 @@ bool Refiner::update_kept(const AllowedError& allowed, std::span<const std::uint
 }
 
 void Refiner::move_cut(const AllowedError& allowed, bool all_changed) {
+  if (kept_mesh_pending_) kept_mesh_from_cut();
   if (changed_bits_.size() < (mt_.vertex_count() + 63) / 64)
     changed_bits_.assign((mt_.vertex_count() + 63) / 64, 0);
   auto changed = [&](std::uint32_t v) { return all_changed || vertex_changed(v); };
@@ -842,10 +845,21 @@ void Refiner::start_budget(const AllowedError& allowed, std::size_t max_triangle
   emit(out);
   out.within_budget = out.triangle_count() <= max_triangles;
   if (level_end == 0) return;  // no threshold's cut fits: the next update starts from the root too
-  // Keep the cut the refinement passed through at that threshold, and its mesh.
+  // Keep the cut the refinement passed through at that threshold. Its mesh is built, and the new
+  // field compared in full, only when an update follows (an extraction may have no gazes after it).
   for (std::size_t i = level_end; i < cut_.size(); ++i) in_cut_[cut_[i]] = kOut;
   cut_.resize(level_end);
   witnesses_.resize(level_end);
+  kept_mesh_pending_ = true;
+  field_known_ = false;
+  previous_threshold_ = level;
+  dynamic_ready_ = true;
+  budget_threshold_ = level;
+  budget_max_ = max_triangles;
+}
+
+void Refiner::kept_mesh_from_cut() {
+  kept_mesh_pending_ = false;
   mesh_triangles_.clear();
   mesh_creators_.clear();
   mesh_removers_.clear();
@@ -860,12 +874,6 @@ void Refiner::start_budget(const AllowedError& allowed, std::size_t max_triangle
   dropped_.clear();
   seeds_.clear();
   rebuild_kept_mesh(1);
-  AllowedError at = allowed;
-  at.threshold = level;
-  remember_field(at);
-  dynamic_ready_ = true;
-  budget_threshold_ = level;
-  budget_max_ = max_triangles;
 }
 
 void Refiner::update_budget(const AllowedError& allowed, std::span<const std::uint32_t> changed_vertices,

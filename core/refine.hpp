@@ -297,6 +297,9 @@ class Refiner {
   // Extends the kept mesh after nodes were dropped (dropped_, their uncovered triangles in seeds_)
   // or added (cut_ from position `added` on): move_cut's last step.
   void rebuild_kept_mesh(std::size_t added);
+  // The kept mesh of the whole cut (after start_budget, before the next move).
+  void kept_mesh_from_cut();
+  bool kept_mesh_pending_ = false;
   std::vector<HeapEntry> heap_;
   std::vector<Rank> ranks_;               // threshold_dropping's scratch
   std::optional<Rank> budget_threshold_;  // the kept cut's threshold for budget_max_

@@ -20,7 +20,7 @@ Query it with:
   $bin/clients/client/mtlod-client list
   $bin/clients/client/mtlod-client extract bunny --error-px 1 --silhouette 2,0 -o bunny.ply
   $bin/clients/load/mtlod-load --model dragon-871k --connections 4 --duration 10 --budget 50000
-  $bin/clients/gaze/mtlod-gaze --model dragon-871k --streams 4 --hz 120 --budget 50000
+  $bin/clients/gaze/mtlod-gaze --model dragon-871k --streams 4 --hz 120 --error-px 0.5 --silhouette 2,0.25 --delta
 Stop it with Ctrl-C (it finishes in-flight requests first).
 MSG
 exec "$bin/server/mtlod-server" "${meshes[@]}" --cache-dir "$models" --http-port "$http_port" "$@"

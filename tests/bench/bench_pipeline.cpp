@@ -194,6 +194,35 @@ void BM_RefineAfterSmallMove(benchmark::State& state) {
 }
 BENCHMARK(BM_RefineAfterSmallMove)->Arg(0)->Arg(1)->ArgName("dynamic")->Unit(benchmark::kMillisecond);
 
+// A budgeted extraction of a new view (the dragon, mtlod-gaze's criteria, 50k triangles): the
+// refinement alone, worst-first from the root. kept:0 is Refiner::refine_budget (nothing kept),
+// kept:1 Refiner::start_budget, which also copies the field and builds the kept mesh so that the
+// session's gazes can move the cut (what the server does on a connection).
+void BM_BudgetNewView(benchmark::State& state) {
+  const Model* m = model("dragon");
+  if (!m) return state.SkipWithError("mesh not found");
+  protocol::Extract e = request_for(*m, 0.5);
+  e.criteria.silhouette = protocol::Silhouette{2, 0.25};
+  e.criteria.focus = {protocol::Focus{0.5, 0.5, 20, 0.1}};
+  e.budget = 50'000;
+  core::ViewRequest v = protocol::to_view_request(e, false);
+  v.allowed_error_on_demand = false;
+  core::ViewExtractor x(m->mt, *m->levels);
+  x.map(v), x.occupancy(), x.distance_transforms(), x.allowed_error();
+  const core::AllowedError allowed = core::AllowedError::from_vertices(x.vertex_allowed_error());
+  core::Refiner refiner(m->mt);
+  core::CutMesh cut;
+  for (auto _ : state) {
+    if (state.range(0) == 1) {
+      refiner.start_budget(allowed, 50'000, cut);
+    } else {
+      refiner.refine_budget(allowed, 50'000, cut);
+    }
+  }
+  state.counters["triangles"] = static_cast<double>(cut.triangle_count());
+}
+BENCHMARK(BM_BudgetNewView)->Arg(0)->Arg(1)->ArgName("kept")->Unit(benchmark::kMillisecond)->Iterations(30);
+
 // A gaze stream on the dragon (cut of about 50k triangles): fixations that drift by a fraction of a
 // percent of the screen, and a saccade to a random point one sample in ten. session:0 runs every
 // stage again per gaze (refining the kept cut dynamically); session:1 keeps a core::ViewSession, as
