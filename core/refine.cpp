@@ -62,6 +62,49 @@ class MeshWriter {
   std::uint32_t* id_ = nullptr;
 };
 
+// A triangle's place in the budget's worst-first order. allowed ≤ 0 would divide by zero: such
+// triangles rank above all others, by error.
+Rank rank_of(float error, float allowed) {
+  return allowed > 0.0f ? Rank{0, error / allowed} : Rank{1, error};
+}
+
+// Triangles the nodes create and no node of the cut removes.
+std::size_t created_by(const Mt& mt, std::span<const std::uint32_t> nodes) {
+  std::size_t created = 0;
+  for (const std::uint32_t n : nodes)
+    created += mt.node_triangle_offsets[n + 1] - mt.node_triangle_offsets[n];
+  return created;
+}
+
+// Writes what `nodes` create and no node of the cut (in_cut == kIn) removes; returns their largest
+// error.
+float write_created(const Mt& mt, const std::uint8_t* in_cut, std::span<const std::uint32_t> nodes,
+                    MeshWriter& writer) {
+  const std::uint32_t* remover = mt.triangle_remover.data();
+  float max_error = 0.0f;
+  for (const std::uint32_t n : nodes) {
+    const std::uint32_t end = mt.node_triangle_offsets[n + 1];
+    const std::uint32_t first = n == 0 ? kNoNode : mt.node_vertex[n];
+    for (std::uint32_t t = mt.node_triangle_offsets[n]; t < end; ++t) {
+      const std::uint32_t r = remover[t];
+      if (r != kNoNode) {
+        if (in_cut[r] == kIn) continue;
+        max_error = std::max(max_error, mt.node_error[r]);
+      }
+      writer.add(t, n == 0 ? mt.root_first_corner[t] : first);
+    }
+  }
+  return max_error;
+}
+
+// One bit per node (Refiner::node_changed_).
+void set_bit(std::vector<std::uint64_t>& bits, std::uint32_t n) {
+  bits[n >> 6] |= std::uint64_t{1} << (n & 63);
+}
+bool bit(const std::vector<std::uint64_t>& bits, std::uint32_t n) {
+  return (bits[n >> 6] >> (n & 63)) & 1;
+}
+
 }  // namespace
 
 Refiner::Refiner(const Mt& mt)
@@ -84,13 +127,11 @@ bool Refiner::fails_at(std::uint32_t r, const std::uint32_t* corners, const Allo
 
 Refiner::HeapEntry Refiner::heap_entry(std::uint32_t t, std::uint32_t creator,
                                        const AllowedError& allowed) const {
-  const float error = mt_.node_error[mt_.triangle_remover[t]];
   const float a = allowed.of_triangle(mt_.first_corner(TriangleId{t}, NodeId{creator}),
                                       mt_.triangle_corners[2 * std::size_t{t}],
                                       mt_.triangle_corners[2 * std::size_t{t} + 1]);
-  // allowed ≤ 0 would divide by zero: such triangles rank above all others, by error.
-  if (!(a > 0)) return {1, error, t, creator};
-  return {0, error / a, t, creator};
+  const Rank rank = rank_of(mt_.node_error[mt_.triangle_remover[t]], a);
+  return {rank.tier, rank.key, t, creator};
 }
 
 void Refiner::reset_to_root() {
@@ -221,26 +262,8 @@ bool Refiner::close_over(const AllowedError& allowed, std::size_t first, std::si
 
 void Refiner::emit(CutMesh& out) const {
   // Upper bound first (everything the cut's nodes create), then one unchecked write per corner.
-  std::size_t created = 0;
-  for (const std::uint32_t n : cut_)
-    created += mt_.node_triangle_offsets[n + 1] - mt_.node_triangle_offsets[n];
-  MeshWriter writer(mt_, out, created);
-  const std::uint32_t* remover = mt_.triangle_remover.data();
-  const std::uint8_t* in_cut = in_cut_.data();
-  float max_error = 0.0f;
-  for (const std::uint32_t n : cut_) {
-    const std::uint32_t end = mt_.node_triangle_offsets[n + 1];
-    const std::uint32_t first = n == 0 ? kNoNode : mt_.node_vertex[n];
-    for (std::uint32_t t = mt_.node_triangle_offsets[n]; t < end; ++t) {
-      const std::uint32_t r = remover[t];
-      if (r != kNoNode) {
-        if (in_cut[r] == kIn) continue;
-        max_error = std::max(max_error, mt_.node_error[r]);
-      }
-      writer.add(t, n == 0 ? mt_.root_first_corner[t] : first);
-    }
-  }
-  writer.finish(cut_.size(), max_error);
+  MeshWriter writer(mt_, out, created_by(mt_, cut_));
+  writer.finish(cut_.size(), write_created(mt_, in_cut_.data(), cut_, writer));
 }
 
 void Refiner::remember_field(const AllowedError& allowed) {
@@ -389,6 +412,14 @@ void Refiner::mesh_push(std::uint32_t t, std::uint32_t creator, std::uint32_t re
   mesh_errors_.push_back(error);
 }
 
+void Refiner::resize_kept_mesh(std::size_t triangles) {
+  mesh_triangles_.resize(triangles);
+  mesh_creators_.resize(triangles);
+  mesh_removers_.resize(triangles);
+  mesh_corners_.resize(3 * triangles);
+  mesh_errors_.resize(triangles);
+}
+
 void Refiner::take_kept_mesh() {
   // The kept mesh is set aside only by refine_forced (a move leaves it in place; the other
   // refinements clear dynamic_ready_, so no move follows them): its passing list still holds the
@@ -396,11 +427,7 @@ void Refiner::take_kept_mesh() {
   // end of a restart (no node dropped), or after move_cut's witness pass, whose nodes are now kIn
   // (kept) or kDropped: either way a passing triangle whose remover is kIn or kDropped is not in it.
   assert(dynamic_ready_ && !mesh_valid_);
-  mesh_triangles_.clear();
-  mesh_creators_.clear();
-  mesh_removers_.clear();
-  mesh_corners_.clear();
-  mesh_errors_.clear();
+  resize_kept_mesh(0);
   for (const Passing& p : passing_) {
     if (p.remover != kNoNode && (in_cut_[p.remover] == kIn || in_cut_[p.remover] == kDropped)) continue;
     mesh_push(p.triangle, p.creator, p.remover, p.corners, p.error);
@@ -609,15 +636,13 @@ void Refiner::rebuild_kept_mesh(std::size_t added) {
   // none: it stays unless its creator dropped (and perhaps came back: added nodes' triangles are pushed
   // below) or its remover was added. Those nodes are marked in a bitmap 8 times denser than in_cut_.
   if (node_changed_.empty()) node_changed_.assign((mt_.node_count() + 63) / 64, 0);
-  auto mark = [&](std::uint32_t n) { node_changed_[n >> 6] |= std::uint64_t{1} << (n & 63); };
-  auto marked = [&](std::uint32_t n) { return (node_changed_[n >> 6] >> (n & 63)) & 1; };
-  for (const std::uint32_t n : dropped_) mark(n);
-  for (std::size_t i = added; i < cut_.size(); ++i) mark(cut_[i]);
+  for (const std::uint32_t n : dropped_) set_bit(node_changed_, n);
+  for (std::size_t i = added; i < cut_.size(); ++i) set_bit(node_changed_, cut_[i]);
   const std::size_t mesh_size = mesh_triangles_.size();
   std::size_t write = 0;
   for (std::size_t i = 0; i < mesh_size; ++i) {
     const std::uint32_t r = mesh_removers_[i];
-    if (marked(mesh_creators_[i]) || (r != kNoNode && marked(r))) continue;
+    if (bit(node_changed_, mesh_creators_[i]) || (r != kNoNode && bit(node_changed_, r))) continue;
     mesh_triangles_[write] = mesh_triangles_[i];
     mesh_creators_[write] = mesh_creators_[i];
     mesh_removers_[write] = r;
@@ -625,11 +650,7 @@ void Refiner::rebuild_kept_mesh(std::size_t added) {
     mesh_errors_[write] = mesh_errors_[i];
     ++write;
   }
-  mesh_triangles_.resize(write);
-  mesh_creators_.resize(write);
-  mesh_removers_.resize(write);
-  mesh_corners_.resize(3 * write);
-  mesh_errors_.resize(write);
+  resize_kept_mesh(write);
   auto push = [&](std::uint32_t t, std::uint32_t creator) {
     const std::uint32_t r = mt_.triangle_remover[t];
     if (r != kNoNode && in_cut_[r] != kOut) return;
@@ -725,8 +746,8 @@ void Refiner::push_failing(std::uint32_t n, const AllowedError& allowed) {
   }
 }
 
-std::size_t Refiner::fill_budget(const AllowedError& allowed, std::size_t count, std::size_t max_triangles,
-                                 std::size_t target, Rank& level, std::size_t& level_end) {
+void Refiner::fill_budget(const AllowedError& allowed, std::size_t count, std::size_t max_triangles,
+                          std::size_t target, Rank& level, std::size_t& level_end) {
   // The ratios popped fall, but not steadily: refining a triangle can uncover worse ones, which are
   // popped next. Clipped to the smallest ratio popped so far they do fall steadily (a max-min path
   // search from the root), and when that smallest ratio first reaches ℓ every node whose forcing
@@ -755,14 +776,13 @@ std::size_t Refiner::fill_budget(const AllowedError& allowed, std::size_t count,
       for (std::size_t i = first_new; i < cut_.size(); ++i) in_cut_[cut_[i]] = kOut;
       cut_.resize(first_new);
       witnesses_.resize(first_new);
-      return count;
+      return;
     }
     count = count + added - removed;
     for (std::size_t i = first_new; i < cut_.size(); ++i) push_failing(cut_[i], allowed);
   }
   // Nothing fails: the minimal cut of threshold 1.
   if (count <= target) level = Rank{}, level_end = cut_.size();
-  return count;
 }
 
 Rank Refiner::threshold_dropping(const AllowedError& allowed, std::size_t nodes) {
@@ -772,8 +792,7 @@ Rank Refiner::threshold_dropping(const AllowedError& allowed, std::size_t nodes)
   for (std::size_t i = 1; i < cut_.size(); ++i) {
     const Witness& w = witnesses_[i];
     const float a = allowed.of_triangle(w.corners[0], w.corners[1], w.corners[2]);
-    const float error = mt_.node_error[mt_.triangle_remover[w.triangle]];
-    ranks_.push_back(a > 0.0f ? Rank{0, error / a} : Rank{1, error});
+    ranks_.push_back(rank_of(mt_.node_error[mt_.triangle_remover[w.triangle]], a));
   }
   if (ranks_.empty()) return Rank{2, 0.0f};
   const std::size_t k = std::min(nodes, ranks_.size()) - 1;
@@ -785,33 +804,18 @@ void Refiner::write_refined(std::size_t added, std::size_t max_triangles, CutMes
   // The kept mesh less what the nodes from `added` on remove, then what they create and no node of
   // the cut removes.
   if (node_changed_.empty()) node_changed_.assign((mt_.node_count() + 63) / 64, 0);
-  std::size_t created = 0;
-  for (std::size_t i = added; i < cut_.size(); ++i) {
-    const std::uint32_t x = cut_[i];
-    node_changed_[x >> 6] |= std::uint64_t{1} << (x & 63);
-    created += mt_.node_triangle_offsets[x + 1] - mt_.node_triangle_offsets[x];
-  }
-  MeshWriter writer(mt_, out, mesh_triangles_.size() + created);
+  const std::span<const std::uint32_t> nodes = std::span<const std::uint32_t>(cut_).subspan(added);
+  for (const std::uint32_t x : nodes) set_bit(node_changed_, x);
+  MeshWriter writer(mt_, out, mesh_triangles_.size() + created_by(mt_, nodes));
   float max_error = 0.0f;
   for (std::size_t i = 0; i < mesh_triangles_.size(); ++i) {
     const std::uint32_t r = mesh_removers_[i];
-    if (r != kNoNode && ((node_changed_[r >> 6] >> (r & 63)) & 1)) continue;
+    if (r != kNoNode && bit(node_changed_, r)) continue;
     writer.add(mesh_triangles_[i], &mesh_corners_[3 * i]);
     max_error = std::max(max_error, mesh_errors_[i]);
   }
-  for (std::size_t i = added; i < cut_.size(); ++i) node_changed_[cut_[i] >> 6] = 0;
-  for (std::size_t i = added; i < cut_.size(); ++i) {
-    const std::uint32_t x = cut_[i];
-    const std::uint32_t first = mt_.node_vertex[x];
-    for (std::uint32_t t = mt_.node_triangle_offsets[x]; t < mt_.node_triangle_offsets[x + 1]; ++t) {
-      const std::uint32_t r = mt_.triangle_remover[t];
-      if (r != kNoNode) {
-        if (in_cut_[r] == kIn) continue;
-        max_error = std::max(max_error, mt_.node_error[r]);
-      }
-      writer.add(t, first);
-    }
-  }
+  for (const std::uint32_t x : nodes) node_changed_[x >> 6] = 0;
+  max_error = std::max(max_error, write_created(mt_, in_cut_.data(), nodes, writer));
   writer.finish(cut_.size(), max_error);
   out.within_budget = out.triangle_count() <= max_triangles;
 }
@@ -851,29 +855,19 @@ void Refiner::start_budget(const AllowedError& allowed, std::size_t max_triangle
   cut_.resize(level_end);
   witnesses_.resize(level_end);
   kept_mesh_pending_ = true;
-  field_known_ = false;
-  previous_threshold_ = level;
+  field_known_ = false;  // the next update compares every vertex, at any threshold
   dynamic_ready_ = true;
   budget_threshold_ = level;
   budget_max_ = max_triangles;
 }
 
 void Refiner::kept_mesh_from_cut() {
+  // Every node of the cut counts as added to an empty mesh.
   kept_mesh_pending_ = false;
-  mesh_triangles_.clear();
-  mesh_creators_.clear();
-  mesh_removers_.clear();
-  mesh_corners_.clear();
-  mesh_errors_.clear();
-  for (std::uint32_t t = 0; t < mt_.node_triangle_offsets[1]; ++t) {
-    const std::uint32_t r = mt_.triangle_remover[t];
-    const std::uint32_t corners[3] = {mt_.root_first_corner[t], mt_.triangle_corners[2 * std::size_t{t}],
-                                      mt_.triangle_corners[2 * std::size_t{t} + 1]};
-    mesh_push(t, 0, r, corners, r == kNoNode ? 0.0f : mt_.node_error[r]);
-  }
+  resize_kept_mesh(0);
   dropped_.clear();
   seeds_.clear();
-  rebuild_kept_mesh(1);
+  rebuild_kept_mesh(0);
 }
 
 void Refiner::update_budget(const AllowedError& allowed, std::span<const std::uint32_t> changed_vertices,
@@ -882,7 +876,7 @@ void Refiner::update_budget(const AllowedError& allowed, std::span<const std::ui
   if (!dynamic_ready_ || !budget_threshold_ || budget_max_ != max_triangles)
     return start_budget(allowed, max_triangles, out);
   const std::size_t target = budget_target(max_triangles);
-  const std::size_t low = std::min(target, max_triangles - max_triangles / kBudgetLow);
+  const std::size_t low = max_triangles - max_triangles / kBudgetLow;  // below the target
   // The new field's cut at the kept threshold; past the budget, raise the threshold until it fits
   // (a node adds about two triangles, so drop about half the excess, aiming at the target).
   AllowedError at = allowed;
@@ -907,8 +901,8 @@ void Refiner::update_budget(const AllowedError& allowed, std::span<const std::ui
     const float a = allowed.of_triangle(corners[0], corners[1], corners[2]);
     const float error = mesh_errors_[i];
     if (!(error > a)) continue;
-    heap_.push_back(a > 0.0f ? HeapEntry{0, error / a, mesh_triangles_[i], mesh_creators_[i]}
-                             : HeapEntry{1, error, mesh_triangles_[i], mesh_creators_[i]});
+    const Rank rank = rank_of(error, a);
+    heap_.push_back({rank.tier, rank.key, mesh_triangles_[i], mesh_creators_[i]});
   }
   std::make_heap(heap_.begin(), heap_.end(), heap_less);
   mesh_valid_ = false;  // nodes are added with the mesh set aside

@@ -224,6 +224,8 @@ class Refiner {
   // Takes the mesh of the cut refine_forced left from its passing list: at the end of a restart, or
   // once move_cut's witness pass has run (kept nodes kIn, dropped kDropped).
   void take_kept_mesh();
+  // Truncates the kept mesh's arrays (all five) to this many triangles.
+  void resize_kept_mesh(std::size_t triangles);
   void mesh_push(std::uint32_t t, std::uint32_t creator, std::uint32_t remover, const std::uint32_t* corners,
                  float error);
   // Moves the kept cut, or refines it afresh from the nodes that stay; the kept mesh holds the result.
@@ -283,11 +285,11 @@ class Refiner {
   void push_failing(std::uint32_t n, const AllowedError& allowed);
   // Worst ratio first from the cut, heap_ holding its mesh's failing triangles (count of them in
   // all): refines until the next refinement would take the mesh over max_triangles or nothing fails.
-  // Returns the final count. At each new smallest ratio ℓ popped, the cut is the minimal cut of
+  // At each new smallest ratio ℓ popped, the cut is the minimal cut of
   // threshold ℓ: the last such ℓ whose cut had at most `target` triangles, and the cut's length
   // then, are written to level and level_end (left as they were when there is none).
-  std::size_t fill_budget(const AllowedError& allowed, std::size_t count, std::size_t max_triangles,
-                          std::size_t target, Rank& level, std::size_t& level_end);
+  void fill_budget(const AllowedError& allowed, std::size_t count, std::size_t max_triangles,
+                   std::size_t target, Rank& level, std::size_t& level_end);
   // The size a changed threshold's cut aims at: a little below the budget.
   std::size_t budget_target(std::size_t max_triangles) const;
   // The threshold at which at least `nodes` of the cut's nodes lose their witness.

@@ -280,15 +280,18 @@ void ViewExtractor::refine(Refiner& session, CutMesh& out) {
 CutView ViewExtractor::refine_view(Refiner& session, CutMesh& scratch) {
   const AllowedError allowed = AllowedError::from_vertices(allowed_);
   const CutView cut = [&] {
-    if (request_->budget && request_->dynamic && incremental_ && !field_completed_) {
-      session.update_budget(allowed, session_->changed_, *request_->budget, scratch);  // a gaze
-    } else if (request_->budget && request_->dynamic && session_) {
-      session.start_budget(allowed, *request_->budget, scratch);  // kept for the gazes that follow
-    } else if (request_->budget) {
-      session.refine_budget(allowed, *request_->budget, scratch);
+    const bool gaze = request_->dynamic && incremental_ && !field_completed_;
+    if (request_->budget) {
+      if (gaze) {
+        session.update_budget(allowed, session_->changed_, *request_->budget, scratch);
+      } else if (request_->dynamic && session_) {
+        session.start_budget(allowed, *request_->budget, scratch);  // kept for the gazes that follow
+      } else {
+        session.refine_budget(allowed, *request_->budget, scratch);
+      }
     } else if (on_demand_) {
       session.refine_on_demand(field_, allowed_, scratch);
-    } else if (request_->dynamic && incremental_ && !field_completed_) {
+    } else if (gaze) {
       return session.update_view(allowed, session_->changed_, scratch);  // even after a saccade: cheaper than from the root
     } else if (request_->dynamic) {
       session.update(allowed, scratch);

@@ -194,16 +194,23 @@ void BM_RefineAfterSmallMove(benchmark::State& state) {
 }
 BENCHMARK(BM_RefineAfterSmallMove)->Arg(0)->Arg(1)->ArgName("dynamic")->Unit(benchmark::kMillisecond);
 
+// mtlod-gaze's criteria (README, "Gaze"): 0.5 px, silhouette 2,0.25, full resolution within 20 px
+// of the gaze.
+protocol::Extract gaze_request(const Model& m) {
+  protocol::Extract e = request_for(m, 0.5);
+  e.criteria.silhouette = protocol::Silhouette{2, 0.25};
+  e.criteria.focus = {protocol::Focus{0.5, 0.5, 20, 0.1}};
+  return e;
+}
+
 // A budgeted extraction of a new view (the dragon, mtlod-gaze's criteria, 50k triangles): the
 // refinement alone, worst-first from the root. kept:0 is Refiner::refine_budget (nothing kept),
-// kept:1 Refiner::start_budget, which also copies the field and builds the kept mesh so that the
-// session's gazes can move the cut (what the server does on a connection).
+// kept:1 Refiner::start_budget, which keeps the threshold's cut for the session's gazes (what the
+// server does on a connection; the first gaze builds its mesh).
 void BM_BudgetNewView(benchmark::State& state) {
   const Model* m = model("dragon");
   if (!m) return state.SkipWithError("mesh not found");
-  protocol::Extract e = request_for(*m, 0.5);
-  e.criteria.silhouette = protocol::Silhouette{2, 0.25};
-  e.criteria.focus = {protocol::Focus{0.5, 0.5, 20, 0.1}};
+  protocol::Extract e = gaze_request(*m);
   e.budget = 50'000;
   core::ViewRequest v = protocol::to_view_request(e, false);
   v.allowed_error_on_demand = false;
@@ -239,12 +246,7 @@ void BM_GazeStream(benchmark::State& state) {
   if (!m) return state.SkipWithError("mesh not found");
   const bool with_session = state.range(0) == 1;
   const bool gaze_criteria = state.range(2) >= 1, budget = state.range(2) == 2;
-  protocol::Extract e = request_for(*m, gaze_criteria ? 0.5 : error_for_size(*m, 50'000));
-  if (gaze_criteria) {
-    // mtlod-gaze's criteria (README, "Gaze"): full resolution within 20 px of the gaze.
-    e.criteria.silhouette = protocol::Silhouette{2, 0.25};
-    e.criteria.focus = {protocol::Focus{0.5, 0.5, 20, 0.1}};
-  }
+  protocol::Extract e = gaze_criteria ? gaze_request(*m) : request_for(*m, error_for_size(*m, 50'000));
   if (budget) e.budget = 50'000;
   std::vector<double> gaze_us;
   core::ViewExtractor x(m->mt, *m->levels);

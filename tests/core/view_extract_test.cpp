@@ -63,8 +63,9 @@ Camera camera_along(std::span<const float> positions, glm::vec3 axis, float aspe
 // The same from +z.
 Camera front_camera(const Mesh& m, float aspect) { return camera_along(m.positions, glm::vec3(0, 0, 1), aspect); }
 
-void run(ViewExtractor& x, const ViewRequest& r, Refiner& refiner, CutMesh& cut) {
-  x.map(r);
+void run(ViewExtractor& x, const ViewRequest& r, Refiner& refiner, CutMesh& cut,
+         ViewSession* session = nullptr) {
+  x.map(r, session);
   x.occupancy();
   x.distance_transforms();
   x.allowed_error();
@@ -303,18 +304,32 @@ TEST(ViewExtract, DragonOccupancyLevelsAreCappedAndClosed) {
   }
 }
 
+// The session tests' scene: a generated 30k-triangle mesh (one MT build per process) seen from the
+// front, and turned by 0.3 rad for a second view.
+struct SessionScene {
+  const Built* built;
+  Camera front, turned;
+};
+SessionScene session_scene() {
+  static const std::unique_ptr<Built> built = [] {
+    GenerateOptions o;
+    o.target_triangles = 30'000;
+    return build(generate_mesh(o));
+  }();
+  if (!built) return {nullptr, {}, {}};
+  const Camera front = front_camera(built->input, 1.0f);
+  Camera turned = front;
+  turned.view = glm::rotate(front.view, 0.3f, glm::vec3(0, 1, 0));
+  return {built.get(), front, turned};
+}
+
 // A session's gaze path (same view, foci moved: occupancy and silhouette transform reused, allowed
 // error recomputed only where the focus multiplier changed, the refinement told which vertices
 // changed) must give exactly what a fresh extraction from the root gives, request after request,
 // for every falloff law, in model units and in pixels, with the camera changing now and then.
 TEST(ViewExtract, SessionGazePathEqualsAFreshExtractionEveryTime) {
-  GenerateOptions o;
-  o.target_triangles = 30'000;
-  auto b = build(generate_mesh(o));
+  const auto [b, camera, other] = session_scene();
   ASSERT_NE(b, nullptr);
-  const Camera camera = front_camera(b->input, 1.0f);
-  Camera other = camera;
-  other.view = glm::rotate(camera.view, 0.3f, glm::vec3(0, 1, 0));
   std::mt19937 rng(11);
   std::uniform_real_distribution<float> unit(0.1f, 0.9f);
   // 64² has fewer cells than the mesh has vertices (the field tabulates per cell), 160² more.
@@ -344,11 +359,7 @@ TEST(ViewExtract, SessionGazePathEqualsAFreshExtractionEveryTime) {
           for (int step = 0; step < 12; ++step) {
             r.focus = {{unit(rng), unit(rng)}};
             if (step == 5) r.camera = other;  // a new view: everything again, then gazes on it
-            session_extractor.map(r, &session);
-            session_extractor.occupancy();
-            session_extractor.distance_transforms();
-            session_extractor.allowed_error();
-            session_extractor.refine(kept, cut);
+            run(session_extractor, r, kept, cut, &session);
             EXPECT_EQ(session.reused(), step != 0 && step != 5) << "step " << step;
             if (session.reused()) ++reused, recomputed += session.changed_vertices();
 
@@ -386,13 +397,8 @@ TEST(ViewExtract, SessionBudgetedGazesEqualBudgetedRefinementFromTheRoot) {
   // A budgeted session: a new view refines worst-first from the root and keeps a threshold's cut,
   // each gaze on it moves that cut; every result equals the budgeted refinement of a fresh static
   // extraction (grid, transforms, field and refinement from nothing).
-  GenerateOptions o;
-  o.target_triangles = 30'000;
-  auto b = build(generate_mesh(o));
+  const auto [b, camera, other] = session_scene();
   ASSERT_NE(b, nullptr);
-  const Camera camera = front_camera(b->input, 1.0f);
-  Camera other = camera;
-  other.view = glm::rotate(camera.view, 0.3f, glm::vec3(0, 1, 0));
   std::mt19937 rng(13);
   std::uniform_real_distribution<float> unit(0.1f, 0.9f);
   ViewRequest r;
@@ -417,11 +423,7 @@ TEST(ViewExtract, SessionBudgetedGazesEqualBudgetedRefinementFromTheRoot) {
       r.allowed.silhouette = RegionLaw{FalloffLaw::kStep, 2.0f, 0.0f};
     }
     r.budget = step < 12 ? 2'500 : 3'000;  // a new budget starts from the root as well
-    session_extractor.map(r, &session);
-    session_extractor.occupancy();
-    session_extractor.distance_transforms();
-    session_extractor.allowed_error();
-    session_extractor.refine(kept, cut);
+    run(session_extractor, r, kept, cut, &session);
     EXPECT_EQ(session.reused(), step != 0 && step != 8) << "step " << step;
 
     Refiner fresh(b->mt);
