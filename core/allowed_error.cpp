@@ -80,7 +80,8 @@ void AllowedErrorField::tabulate(const RegionLaw& law, DistanceMetric metric, fl
   static_assert(kChamferUnreached == 0x7FFF);
   std::int16_t largest_plus_one = 0;
   for (const std::uint16_t raw : dt)
-    largest_plus_one = std::max(largest_plus_one, static_cast<std::int16_t>(static_cast<std::uint16_t>(raw + 1)));
+    largest_plus_one =
+        std::max(largest_plus_one, static_cast<std::int16_t>(static_cast<std::uint16_t>(raw + 1)));
   const std::uint16_t largest = largest_plus_one == 0 ? 0 : std::uint16_t(largest_plus_one - 1);
   if (!(table.valid && table.law == law && table.metric == metric && table.tan_per_px == tan_per_px)) {
     table.values.clear();
@@ -145,7 +146,8 @@ void AllowedErrorField::compute_all(std::span<float> vertex_allowed_error) {
       const std::uint32_t cell = cells_[k];
       const bool has_cell = cell != kNoCell;
       const float m = !has_cell ? no_cell : per_cell ? cell_multiplier_[cell] : cell_multiplier(cell);
-      vertex_allowed_error[first + k] = finish(m, has_cell, clip_w_[k], static_cast<std::uint32_t>(first + k));
+      vertex_allowed_error[first + k] =
+          finish(m, has_cell, clip_w_[k], static_cast<std::uint32_t>(first + k));
     }
   }
 }

@@ -115,8 +115,8 @@ class AllowedErrorField final : public VertexErrorSource {
 
   // Bytes of scratch memory held.
   std::size_t memory_bytes() const {
-    return (silhouette_table_.values.capacity() + focus_table_.values.capacity() + neglect_table_.values.capacity() +
-            clip_w_.capacity() + cell_multiplier_.capacity()) *
+    return (silhouette_table_.values.capacity() + focus_table_.values.capacity() +
+            neglect_table_.values.capacity() + clip_w_.capacity() + cell_multiplier_.capacity()) *
                sizeof(float) +
            cells_.capacity() * sizeof(std::uint32_t);
   }
@@ -153,7 +153,8 @@ class AllowedErrorField final : public VertexErrorSource {
  private:
   // A vertex's value in two parts: the multiplier of its cell's labels (cell_multiplier), then the
   // per-vertex factors and units.
-  float label_multiplier(std::uint32_t silhouette_label, std::uint32_t focus_label, std::uint32_t neglect_label) const;
+  float label_multiplier(std::uint32_t silhouette_label, std::uint32_t focus_label,
+                         std::uint32_t neglect_label) const;
   float finish(float label_multiplier, bool has_cell, float clip_w, std::uint32_t vertex) const;
   // Multiplier of a law at every raw label value present in its grid, so that no vertex pays for
   // the law itself (the foveal law's atan costs more than the rest of a vertex). A table keeps the

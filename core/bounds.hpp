@@ -32,7 +32,9 @@ struct Bounds {
 };
 
 // A corner in double, for the interfaces that take std::array<double, 3>.
-inline std::array<double, 3> to_double(const std::array<float, 3>& p) { return {p[0], p[1], p[2]}; }
+inline std::array<double, 3> to_double(const std::array<float, 3>& p) {
+  return {p[0], p[1], p[2]};
+}
 
 // Of every vertex.
 inline Bounds bounds_of(std::span<const float> positions) {

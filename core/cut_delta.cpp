@@ -8,9 +8,15 @@
 namespace mtlod::core {
 namespace {
 
-bool test(const std::vector<std::uint64_t>& bits, std::uint32_t id) { return (bits[id >> 6] >> (id & 63)) & 1; }
-void set(std::vector<std::uint64_t>& bits, std::uint32_t id) { bits[id >> 6] |= std::uint64_t{1} << (id & 63); }
-void clear(std::vector<std::uint64_t>& bits, std::uint32_t id) { bits[id >> 6] &= ~(std::uint64_t{1} << (id & 63)); }
+bool test(const std::vector<std::uint64_t>& bits, std::uint32_t id) {
+  return (bits[id >> 6] >> (id & 63)) & 1;
+}
+void set(std::vector<std::uint64_t>& bits, std::uint32_t id) {
+  bits[id >> 6] |= std::uint64_t{1} << (id & 63);
+}
+void clear(std::vector<std::uint64_t>& bits, std::uint32_t id) {
+  bits[id >> 6] &= ~(std::uint64_t{1} << (id & 63));
+}
 
 }  // namespace
 
@@ -27,7 +33,8 @@ bool CutDelta::update(std::span<const std::uint32_t> ids, std::size_t triangle_c
   added.clear();
   removed.clear();
   // The same cut in the same order (a gaze that moved no allowed error): nothing to diff.
-  if (!empty_ && ids.size() == sent_.size() && std::equal(ids.begin(), ids.end(), sent_.begin())) return false;
+  if (!empty_ && ids.size() == sent_.size() && std::equal(ids.begin(), ids.end(), sent_.begin()))
+    return false;
   for (std::uint32_t i = 0; i < ids.size(); ++i) {
     assert(ids[i] < triangle_count && !test(next_bits_, ids[i]));
     set(next_bits_, ids[i]);

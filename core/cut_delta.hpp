@@ -17,8 +17,8 @@ class CutDelta {
   // it received them. ids must be distinct and below triangle_count (the MT's). Returns true when
   // the change is relative to an empty mesh: the first call, after reset(), or when
   // triangle_count differs from the previous call's (another model); the client clears its mesh.
-  bool update(std::span<const std::uint32_t> ids, std::size_t triangle_count, std::vector<std::uint32_t>& added,
-              std::vector<std::uint32_t>& removed);
+  bool update(std::span<const std::uint32_t> ids, std::size_t triangle_count,
+              std::vector<std::uint32_t>& added, std::vector<std::uint32_t>& removed);
 
   // The client starts again from an empty mesh (call it when the client's mesh is replaced).
   void reset();

@@ -114,7 +114,6 @@ class DistanceTransformer {
   void run_chamfer(DistanceMetric metric, GridSize grid, std::span<std::uint16_t> out);
   void run_euclidean(GridSize grid, std::span<std::uint32_t> out);
 
-
  public:
   // Bytes of scratch memory held.
   std::size_t memory_bytes() const {

@@ -13,7 +13,8 @@ Result<DecodedMesh> decode_draco(std::span<const std::uint8_t> bytes) {
   draco::Decoder decoder;
   auto decoded = decoder.DecodeMeshFromBuffer(&buffer);
   if (!decoded.ok()) {
-    return make_error(ErrorCode::kCorrupt, fmt::format("not a Draco mesh: {}", decoded.status().error_msg_string()));
+    return make_error(ErrorCode::kCorrupt,
+                      fmt::format("not a Draco mesh: {}", decoded.status().error_msg_string()));
   }
   const draco::Mesh& in = *decoded.value();
   const draco::PointAttribute* position = in.GetNamedAttribute(draco::GeometryAttribute::POSITION);
@@ -26,13 +27,15 @@ Result<DecodedMesh> decode_draco(std::span<const std::uint8_t> bytes) {
   for (draco::PointIndex i(0); i < in.num_points(); ++i) {
     position->ConvertValue<float, 3>(position->mapped_index(i), &out.mesh.positions[3 * i.value()]);
   }
-  if (const auto* normal = in.GetNamedAttribute(draco::GeometryAttribute::NORMAL); normal && normal->num_components() == 3) {
+  if (const auto* normal = in.GetNamedAttribute(draco::GeometryAttribute::NORMAL);
+      normal && normal->num_components() == 3) {
     out.mesh.normals.resize(3 * n);
     for (draco::PointIndex i(0); i < in.num_points(); ++i) {
       normal->ConvertValue<float, 3>(normal->mapped_index(i), &out.mesh.normals[3 * i.value()]);
     }
   }
-  if (const auto* label = in.GetNamedAttribute(draco::GeometryAttribute::GENERIC); label && label->num_components() == 1) {
+  if (const auto* label = in.GetNamedAttribute(draco::GeometryAttribute::GENERIC);
+      label && label->num_components() == 1) {
     out.labels.resize(n);
     for (draco::PointIndex i(0); i < in.num_points(); ++i) {
       label->ConvertValue<std::uint16_t, 1>(label->mapped_index(i), &out.labels[i.value()]);

@@ -20,13 +20,14 @@ namespace mtlod::core {
 namespace {
 
 // Adds an attribute with one value per point (identity mapping) and copies `bytes` into it.
-int add_attribute(draco::Mesh& mesh, draco::GeometryAttribute::Type type, int components, draco::DataType data_type,
-                  int component_bytes, const void* values) {
+int add_attribute(draco::Mesh& mesh, draco::GeometryAttribute::Type type, int components,
+                  draco::DataType data_type, int component_bytes, const void* values) {
   draco::GeometryAttribute attribute;
   attribute.Init(type, nullptr, static_cast<std::uint8_t>(components), data_type, false,
                  components * component_bytes, 0);
   const int id = mesh.AddAttribute(attribute, true, mesh.num_points());
-  mesh.attribute(id)->buffer()->Write(0, values, std::size_t{mesh.num_points()} * components * component_bytes);
+  mesh.attribute(id)->buffer()->Write(0, values,
+                                      std::size_t{mesh.num_points()} * components * component_bytes);
   return id;
 }
 
@@ -58,18 +59,21 @@ Result<DracoStats> DracoEncoder::encode(const DracoInput& input, const DracoOpti
   out.clear();
   const std::size_t model_vertices = input.positions.size() / 3;
   if (options.speed < 0 || options.speed > 10) {
-    return make_error(ErrorCode::kInvalidArgument, fmt::format("draco speed {} is outside 0..10", options.speed));
-  }
-  if (options.position_bits < 0 || options.position_bits > 30 || options.normal_bits < 1 || options.normal_bits > 30) {
     return make_error(ErrorCode::kInvalidArgument,
-                      fmt::format("draco quantization bits {} / {} outside 0..30 / 1..30", options.position_bits,
-                                  options.normal_bits));
+                      fmt::format("draco speed {} is outside 0..10", options.speed));
+  }
+  if (options.position_bits < 0 || options.position_bits > 30 || options.normal_bits < 1 ||
+      options.normal_bits > 30) {
+    return make_error(ErrorCode::kInvalidArgument,
+                      fmt::format("draco quantization bits {} / {} outside 0..30 / 1..30",
+                                  options.position_bits, options.normal_bits));
   }
   if (options.normals && input.normals.size() != input.positions.size()) {
     return make_error(ErrorCode::kInvalidArgument, "normals requested but the model has none");
   }
   if (options.labels && input.labels.size() != model_vertices) {
-    return make_error(ErrorCode::kInvalidArgument, "labels requested but none were computed for this request");
+    return make_error(ErrorCode::kInvalidArgument,
+                      "labels requested but none were computed for this request");
   }
   if (input.triangles.empty()) {
     return make_error(ErrorCode::kInvalidArgument, "the cut has no triangles to encode");
@@ -115,8 +119,10 @@ Result<DracoStats> DracoEncoder::encode(const DracoInput& input, const DracoOpti
   }
   if (options.labels) {
     std::vector<std::uint16_t> labels(n);
-    for (std::size_t i = 0; i < n; ++i) labels[i] = static_cast<std::uint16_t>(std::min<std::uint32_t>(input.labels[used_[i]], 65535));
-    const int id = add_attribute(mesh, draco::GeometryAttribute::GENERIC, 1, draco::DT_UINT16, 2, labels.data());
+    for (std::size_t i = 0; i < n; ++i)
+      labels[i] = static_cast<std::uint16_t>(std::min<std::uint32_t>(input.labels[used_[i]], 65535));
+    const int id =
+        add_attribute(mesh, draco::GeometryAttribute::GENERIC, 1, draco::DT_UINT16, 2, labels.data());
     auto metadata = std::make_unique<draco::AttributeMetadata>();
     metadata->AddEntryString("name", "label");
     mesh.AddAttributeMetadata(id, std::move(metadata));
@@ -126,11 +132,13 @@ Result<DracoStats> DracoEncoder::encode(const DracoInput& input, const DracoOpti
   encoder.SetSpeedOptions(options.speed, options.speed);
   if (options.position_bits > 0 && options.position_grid && options.position_grid->range > 0) {
     encoder.SetAttributeExplicitQuantization(draco::GeometryAttribute::POSITION, options.position_bits, 3,
-                                             options.position_grid->origin.data(), options.position_grid->range);
+                                             options.position_grid->origin.data(),
+                                             options.position_grid->range);
   } else if (options.position_bits > 0) {
     encoder.SetAttributeQuantization(draco::GeometryAttribute::POSITION, options.position_bits);
   }
-  if (options.normals) encoder.SetAttributeQuantization(draco::GeometryAttribute::NORMAL, options.normal_bits);
+  if (options.normals)
+    encoder.SetAttributeQuantization(draco::GeometryAttribute::NORMAL, options.normal_bits);
   if (!options.entropy_coding) {
     encoder.options().SetGlobalBool("use_built_in_attribute_compression", false);
     // Stored raw, a 14-bit coordinate takes two bytes whether or not it is predicted first.
@@ -141,7 +149,8 @@ Result<DracoStats> DracoEncoder::encode(const DracoInput& input, const DracoOpti
   draco::EncoderBuffer buffer;
   const draco::Status status = encoder.EncodeMeshToBuffer(mesh, &buffer);
   if (!status.ok()) {
-    return make_error(ErrorCode::kInternal, fmt::format("draco refused the mesh: {}", status.error_msg_string()));
+    return make_error(ErrorCode::kInternal,
+                      fmt::format("draco refused the mesh: {}", status.error_msg_string()));
   }
   out.assign(buffer.data(), buffer.data() + buffer.size());
   return DracoStats{n, triangle_count, out.size()};

@@ -40,10 +40,10 @@ struct DracoOptions {
 // What a cut looks like to the encoder: the model's vertex arrays and the cut's triangles, whose
 // ids index those arrays. Only vertices the triangles use are encoded, in model vertex order.
 struct DracoInput {
-  std::span<const float> positions;           // x, y, z per model vertex
-  std::span<const float> normals;             // empty, or x, y, z per model vertex
-  std::span<const std::uint32_t> labels;      // empty, or one per model vertex (saturated to 65535)
-  std::span<const std::uint32_t> triangles;   // three model vertex ids per triangle
+  std::span<const float> positions;          // x, y, z per model vertex
+  std::span<const float> normals;            // empty, or x, y, z per model vertex
+  std::span<const std::uint32_t> labels;     // empty, or one per model vertex (saturated to 65535)
+  std::span<const std::uint32_t> triangles;  // three model vertex ids per triangle
 };
 
 struct DracoStats {
@@ -57,13 +57,14 @@ class DracoEncoder {
  public:
   // Encodes into `out` (cleared first). Fails with kInvalidArgument when options are out of range
   // or attributes asked for are missing, and kInternal when Draco refuses the mesh.
-  Result<DracoStats> encode(const DracoInput& input, const DracoOptions& options, std::vector<std::uint8_t>& out);
+  Result<DracoStats> encode(const DracoInput& input, const DracoOptions& options,
+                            std::vector<std::uint8_t>& out);
 
  private:
-  std::vector<std::uint64_t> used_bits_;   // one bit per model vertex: used by the cut
-  std::vector<std::uint32_t> rank_;        // per 64-bit word: used vertices in the words before it
-  std::vector<std::uint32_t> used_;        // encoded id -> model vertex id
-  std::vector<float> scratch_;             // compacted attribute values
+  std::vector<std::uint64_t> used_bits_;  // one bit per model vertex: used by the cut
+  std::vector<std::uint32_t> rank_;       // per 64-bit word: used vertices in the words before it
+  std::vector<std::uint32_t> used_;       // encoded id -> model vertex id
+  std::vector<float> scratch_;            // compacted attribute values
 };
 
 }  // namespace mtlod::core

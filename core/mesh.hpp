@@ -9,9 +9,9 @@
 namespace mtlod::core {
 
 struct Mesh {
-  std::vector<float> positions;       // x, y, z per vertex
-  std::vector<float> normals;         // empty, or x, y, z per vertex
-  std::vector<std::uint8_t> colors;   // empty, or r, g, b per vertex
+  std::vector<float> positions;          // x, y, z per vertex
+  std::vector<float> normals;            // empty, or x, y, z per vertex
+  std::vector<std::uint8_t> colors;      // empty, or r, g, b per vertex
   std::vector<std::uint32_t> triangles;  // three vertex ids per triangle, counter-clockwise
 
   std::size_t vertex_count() const { return positions.size() / 3; }

@@ -37,7 +37,9 @@ class DisjointSets {
   std::vector<std::uint32_t> parent_;
 };
 
-bool has_repeated_id(const std::uint32_t* t) { return t[0] == t[1] || t[1] == t[2] || t[0] == t[2]; }
+bool has_repeated_id(const std::uint32_t* t) {
+  return t[0] == t[1] || t[1] == t[2] || t[0] == t[2];
+}
 
 bool has_zero_area(std::span<const float> p, const std::uint32_t* t) {
   const float* a = &p[3 * std::size_t{t[0]}];
@@ -237,9 +239,9 @@ TopologyReport analyze_topology(std::span<const float> positions, std::span<cons
 }
 
 std::string TopologyReport::summary() const {
-  std::string s = fmt::format("{} vertices, {} triangles, {} edges, {} component{}, Euler characteristic {}",
-                              vertices, triangles, edges, components, components == 1 ? "" : "s",
-                              euler_characteristic);
+  std::string s =
+      fmt::format("{} vertices, {} triangles, {} edges, {} component{}, Euler characteristic {}", vertices,
+                  triangles, edges, components, components == 1 ? "" : "s", euler_characteristic);
   auto add = [&s](std::size_t n, const char* what) {
     if (n != 0) s += fmt::format("\n  {} {}", n, what);
   };
@@ -257,10 +259,10 @@ std::string TopologyReport::summary() const {
 
 std::string CleanupSummary::summary() const {
   if (!changed()) return "clean-up: nothing to fix";
-  return fmt::format("clean-up: welded {} vertices, dropped {} degenerate and {} duplicate triangles, "
-                     "dropped {} unused vertices",
-                     welded_vertices, dropped_degenerate_triangles, dropped_duplicate_triangles,
-                     dropped_unused_vertices);
+  return fmt::format(
+      "clean-up: welded {} vertices, dropped {} degenerate and {} duplicate triangles, "
+      "dropped {} unused vertices",
+      welded_vertices, dropped_degenerate_triangles, dropped_duplicate_triangles, dropped_unused_vertices);
 }
 
 CleanupSummary clean_mesh(Mesh& mesh, const CleanupOptions& options) {

@@ -16,10 +16,10 @@ namespace mtlod::core {
 struct TopologyReport {
   std::size_t vertices = 0;
   std::size_t triangles = 0;
-  std::size_t unused_vertices = 0;        // referenced by no triangle
-  std::size_t duplicate_positions = 0;    // vertices whose exact position an earlier vertex has
-  std::size_t degenerate_triangles = 0;   // a repeated vertex id, or zero area
-  std::size_t duplicate_triangles = 0;    // same vertex set as an earlier triangle
+  std::size_t unused_vertices = 0;       // referenced by no triangle
+  std::size_t duplicate_positions = 0;   // vertices whose exact position an earlier vertex has
+  std::size_t degenerate_triangles = 0;  // a repeated vertex id, or zero area
+  std::size_t duplicate_triangles = 0;   // same vertex set as an earlier triangle
   std::size_t edges = 0;
   std::size_t boundary_edges = 0;         // used by exactly one triangle
   std::size_t non_manifold_edges = 0;     // used by more than two triangles
@@ -54,7 +54,8 @@ struct CleanupSummary {
   std::size_t dropped_unused_vertices = 0;
   bool changed() const {
     return welded_vertices + dropped_degenerate_triangles + dropped_duplicate_triangles +
-               dropped_unused_vertices != 0;
+               dropped_unused_vertices !=
+           0;
   }
   std::string summary() const;
 };

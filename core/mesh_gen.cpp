@@ -21,7 +21,8 @@ float wave_noise(float x, float y, float z, std::uint32_t seed) {
   for (int octave = 0; octave < 4; ++octave) {
     h = h * 1664525u + 1013904223u;
     const float phase = static_cast<float>(h >> 8) * (1.0f / 16777216.0f) * 2.0f * kPi;
-    sum += amplitude * std::sin(frequency * (x + 0.7f * y) + phase) * std::cos(frequency * (z - 0.4f * x) + 1.3f * phase);
+    sum += amplitude * std::sin(frequency * (x + 0.7f * y) + phase) *
+           std::cos(frequency * (z - 0.4f * x) + 1.3f * phase);
     amplitude *= 0.5f;
     frequency *= 2.1f;
   }
@@ -89,7 +90,8 @@ Mesh generate_sphere(const GenerateOptions& o) {
 
 Mesh generate_terrain(const GenerateOptions& o) {
   // n×n samples, 2·(n−1)² triangles over [−1, 1]², heights from layered waves.
-  const auto n = static_cast<std::uint32_t>(std::max(2.0, std::round(std::sqrt(o.target_triangles / 2.0)) + 1));
+  const auto n =
+      static_cast<std::uint32_t>(std::max(2.0, std::round(std::sqrt(o.target_triangles / 2.0)) + 1));
   Mesh mesh;
   mesh.positions.reserve(3 * std::size_t{n} * n);
   mesh.triangles.reserve(6 * std::size_t{n - 1} * (n - 1));
@@ -167,18 +169,25 @@ Mesh generate_shell(const GenerateOptions& o) {
 }  // namespace
 
 bool parse_shape(std::string_view name, Shape& shape) {
-  if (name == "sphere") shape = Shape::kSphere;
-  else if (name == "terrain") shape = Shape::kTerrain;
-  else if (name == "shell") shape = Shape::kShell;
-  else return false;
+  if (name == "sphere")
+    shape = Shape::kSphere;
+  else if (name == "terrain")
+    shape = Shape::kTerrain;
+  else if (name == "shell")
+    shape = Shape::kShell;
+  else
+    return false;
   return true;
 }
 
 Mesh generate_mesh(const GenerateOptions& options) {
   switch (options.shape) {
-    case Shape::kSphere: return generate_sphere(options);
-    case Shape::kTerrain: return generate_terrain(options);
-    case Shape::kShell: return generate_shell(options);
+    case Shape::kSphere:
+      return generate_sphere(options);
+    case Shape::kTerrain:
+      return generate_terrain(options);
+    case Shape::kShell:
+      return generate_shell(options);
   }
   assert(false && "unknown shape");
   return {};

@@ -219,7 +219,8 @@ void radix_sort(Vector& items, Vector& scratch, const Key& key) {
   }
   for (int pass = 0; pass < kPasses; ++pass) {
     // A digit all items share leaves the order as it is.
-    if (std::find(counts[pass].begin(), counts[pass].end(), std::uint32_t(items.size())) != counts[pass].end())
+    if (std::find(counts[pass].begin(), counts[pass].end(), std::uint32_t(items.size())) !=
+        counts[pass].end())
       continue;
     std::uint32_t sum = 0;
     for (std::uint32_t& n : counts[pass]) sum += std::exchange(n, sum);
@@ -371,9 +372,9 @@ class Builder {
   std::vector<std::uint32_t> ring_target_;
   std::uint32_t pass_ = 0;
   Stamps chooser_stamps_, guesser_stamps_;
-  std::vector<std::uint8_t> verdicts_;     // per candidate: 0 not known yet, 1 can collapse, 2 cannot
+  std::vector<std::uint8_t> verdicts_;      // per candidate: 0 not known yet, 1 can collapse, 2 cannot
   std::uint32_t chosen_triangles_end_ = 0;  // MT triangle count once the chosen collapses have run
-  std::vector<Candidate> best_;  // per vertex: cheapest partner found when it was last evaluated
+  std::vector<Candidate> best_;             // per vertex: cheapest partner found when it was last evaluated
   GrowOnlyVector<Candidate> candidates_;
   GrowOnlyVector<Candidate> candidate_scratch_;
   std::vector<std::size_t> chunk_counts_;   // chunk_starts' result
@@ -441,7 +442,9 @@ Quadric Builder::gather_quadric(std::uint32_t u) const {
   const std::uint32_t begin = adjacency_begin_[u], end = adjacency_end_[u];
   // A face that holds u twice is listed twice in a row; it has no area, so it adds no face plane,
   // and its boundary edges are visited once through its first listing.
-  auto first_listing = [&](std::uint32_t i) { return i == begin || adjacency_[i].face != adjacency_[i - 1].face; };
+  auto first_listing = [&](std::uint32_t i) {
+    return i == begin || adjacency_[i].face != adjacency_[i - 1].face;
+  };
   auto position = [&](std::uint32_t v) { return &unit_positions_[3 * std::size_t{v}]; };
   for (std::uint32_t i = begin; i < end; ++i) {
     if (!first_listing(i)) continue;
@@ -496,7 +499,8 @@ std::size_t Builder::filter_in_halves(std::vector<std::uint32_t>& list, const Ke
       if (keep(list[i], half)) list[out++] = list[i];
     kept[half] = out - begin;
   });
-  if (kept[0] != middle) std::copy(list.begin() + middle, list.begin() + middle + kept[1], list.begin() + kept[0]);
+  if (kept[0] != middle)
+    std::copy(list.begin() + middle, list.begin() + middle + kept[1], list.begin() + kept[0]);
   list.resize(kept[0] + kept[1]);
   return kept[0];
 }
@@ -537,8 +541,8 @@ void Builder::build_adjacency() {
       const std::uint32_t v = alive_vertex_list_[i];
       adjacency_begin_[v] = next;
       const std::uint32_t first = adjacency_end_[v], second = second_half_[v];
-      adjacency_end_[v] = next;          // where the first half's faces go
-      second_half_[v] = next + first;    // where the second half's go
+      adjacency_end_[v] = next;        // where the first half's faces go
+      second_half_[v] = next + first;  // where the second half's go
       next += first + second;
     }
   });
@@ -554,11 +558,13 @@ void Builder::build_adjacency() {
   });
   // The second half's cursors stopped at the end of each list.
   for_chunks(vertices, [&](std::size_t, std::size_t begin, std::size_t end) {
-    for (std::size_t i = begin; i < end; ++i) adjacency_end_[alive_vertex_list_[i]] = second_half_[alive_vertex_list_[i]];
+    for (std::size_t i = begin; i < end; ++i)
+      adjacency_end_[alive_vertex_list_[i]] = second_half_[alive_vertex_list_[i]];
   });
 }
 
-VertexKind Builder::classify(std::uint32_t u, std::uint32_t& boundary_next, std::uint32_t& boundary_prev) const {
+VertexKind Builder::classify(std::uint32_t u, std::uint32_t& boundary_next,
+                             std::uint32_t& boundary_prev) const {
   const std::uint32_t begin = adjacency_begin_[u], end = adjacency_end_[u];
   const std::uint32_t degree = end - begin;
   if (degree == 0) return kUnused;
@@ -695,7 +701,8 @@ bool Builder::can_collapse(std::uint32_t u, std::uint32_t v, Stamps& stamps) con
     if (a == v || b == v) continue;
     // (A common neighbour met twice gets the same answer twice.)
     for (const std::uint32_t w : {a, b})
-      if (link_stamp_[w] == link && !((opposites > 0 && w == opposite[0]) || (opposites > 1 && w == opposite[1])))
+      if (link_stamp_[w] == link &&
+          !((opposites > 0 && w == opposite[0]) || (opposites > 1 && w == opposite[1])))
         return false;
     ++survivors;
     const float* pa = position(a);
@@ -793,7 +800,8 @@ void Builder::choose_collapses(std::size_t quota) {
         ++ordered;
         continue;
       }
-      const std::uint8_t verdict = std::atomic_ref<std::uint8_t>(verdicts_[i]).load(std::memory_order_relaxed);
+      const std::uint8_t verdict =
+          std::atomic_ref<std::uint8_t>(verdicts_[i]).load(std::memory_order_relaxed);
       if (verdict == 2 || (verdict == 0 && !can_collapse(c.u, c.v, chooser_stamps_))) continue;
       chosen_.push_back({c.u, c.v, tag++, triangle, 1});  // u joins the points (its fan's: counted later)
       for (const std::uint32_t x : {c.u, c.v}) {
@@ -876,7 +884,8 @@ void Builder::collapse(const Chosen& chosen, Scratch& scratch) {
     const bool survives = !(t[0] == v || t[1] == v || t[2] == v);
     const std::uint32_t local = survives ? std::uint32_t(new_faces_.size()) : kNoNode;
     const float* run = &points_[3 * std::size_t{face_first_point_[f]}];
-    for (std::uint32_t k = 0; k < face_points_[f]; ++k, run += 3) moving_.push_back({{run[0], run[1], run[2]}, local, 0});
+    for (std::uint32_t k = 0; k < face_points_[f]; ++k, run += 3)
+      moving_.push_back({{run[0], run[1], run[2]}, local, 0});
     face_points_[f] = 0;
     if (!survives) {
       face_alive_[f] = 0;
@@ -981,7 +990,8 @@ void Builder::compact_assigned_points() {
     for (std::size_t f = begin; f < end; ++f) {
       if (face_points_[f] == 0) continue;
       const auto run = points_.begin() + 3 * std::ptrdiff_t{face_first_point_[f]};
-      std::copy(run, run + 3 * std::ptrdiff_t{face_points_[f]}, points_scratch_.begin() + 3 * std::ptrdiff_t(next));
+      std::copy(run, run + 3 * std::ptrdiff_t{face_points_[f]},
+                points_scratch_.begin() + 3 * std::ptrdiff_t(next));
       face_first_point_[f] = std::uint32_t(next);
       next += face_points_[f];
     }
@@ -1224,17 +1234,18 @@ Result<Mt> Builder::run(BuildStats* stats, std::vector<std::uint32_t>* vertex_id
     // the candidates are in vertex order before the sort.
     const std::size_t vertices = alive_vertex_list_.size();
     chunk_complex_.resize(chunk_count(vertices));
-    const std::size_t total = chunk_starts(vertices, [&](std::size_t chunk, std::size_t begin, std::size_t end) {
-      std::size_t found = 0, complex = 0;
-      for (std::size_t i = begin; i < end; ++i) {
-        const std::uint32_t u = alive_vertex_list_[i];
-        find_partner(u, boundary_ends.data());
-        found += best_[u].v != u;
-        complex += kind_[u] == kComplex;
-      }
-      chunk_complex_[chunk] = complex;
-      return found;
-    });
+    const std::size_t total =
+        chunk_starts(vertices, [&](std::size_t chunk, std::size_t begin, std::size_t end) {
+          std::size_t found = 0, complex = 0;
+          for (std::size_t i = begin; i < end; ++i) {
+            const std::uint32_t u = alive_vertex_list_[i];
+            find_partner(u, boundary_ends.data());
+            found += best_[u].v != u;
+            complex += kind_[u] == kComplex;
+          }
+          chunk_complex_[chunk] = complex;
+          return found;
+        });
     complex_vertices_ = std::accumulate(chunk_complex_.begin(), chunk_complex_.end(), std::size_t{0});
     if (total == 0) break;
     candidates_.resize(total);

@@ -174,9 +174,9 @@ class Rasterizer {
 // The box is cells [i0, i1] × [j0, j1] of the grid. Returns false, having marked nothing, for a
 // degenerate triangle or a box over 16 cells on a side (the strip walk takes those); otherwise true,
 // with `marked` telling whether any cell was marked.
-bool fill_small(const ProjectedCorner& a, const ProjectedCorner& b, const ProjectedCorner& c, std::uint32_t i0,
-                std::uint32_t i1, std::uint32_t j0, std::uint32_t j1, GridSize grid, std::uint8_t* occupancy,
-                bool& marked) {
+bool fill_small(const ProjectedCorner& a, const ProjectedCorner& b, const ProjectedCorner& c,
+                std::uint32_t i0, std::uint32_t i1, std::uint32_t j0, std::uint32_t j1, GridSize grid,
+                std::uint8_t* occupancy, bool& marked) {
   constexpr std::uint32_t kSide = 16;
   if (i1 - i0 >= kSide || j1 - j0 >= kSide) return false;
   const double p[3][2] = {{double(a.gx) - i0, double(a.gy) - j0},
@@ -193,7 +193,8 @@ bool fill_small(const ProjectedCorner& a, const ProjectedCorner& b, const Projec
     const double* to = p[(k + 1) % 3];
     edge_a[k] = -orientation * (to[1] - from[1]);
     edge_b[k] = orientation * (to[0] - from[0]);
-    edge_c[k] = -(edge_a[k] * from[0] + edge_b[k] * from[1]) + std::max(edge_a[k], 0.0) + std::max(edge_b[k], 0.0);
+    edge_c[k] =
+        -(edge_a[k] * from[0] + edge_b[k] * from[1]) + std::max(edge_a[k], 0.0) + std::max(edge_b[k], 0.0);
   }
   const std::uint32_t columns = i1 - i0 + 1, rows = j1 - j0 + 1;
   // A row's cells met, one bit per column, then written as bytes.
@@ -321,7 +322,8 @@ std::size_t rasterize(const ViewMapping& mapping, std::size_t triangle_count, Co
       corners[1] = {b.gx, b.gy, b.ndc_z};
       corners[2] = {c.gx, c.gy, c.ndc_z};
     } else {
-      const std::array<ClipCorner, 3> clip = {ClipCorner{a.cx, a.cy, a.cz, a.cw}, ClipCorner{b.cx, b.cy, b.cz, b.cw},
+      const std::array<ClipCorner, 3> clip = {ClipCorner{a.cx, a.cy, a.cz, a.cw},
+                                              ClipCorner{b.cx, b.cy, b.cz, b.cw},
                                               ClipCorner{c.cx, c.cy, c.cz, c.cw}};
       std::array<ClipCorner, 4> front;
       count = clip_to_front(clip, front);
@@ -355,8 +357,9 @@ std::size_t rasterize_occupancy(const ViewMapping& mapping, std::span<const floa
 }
 
 std::size_t rasterize_occupancy_compact(const ViewMapping& mapping, std::span<const float> positions,
-                                        std::span<const std::uint32_t> triangles, std::span<std::uint8_t> occupancy,
-                                        std::span<float> depth, std::vector<ProjectedCorner>& scratch, bool closed) {
+                                        std::span<const std::uint32_t> triangles,
+                                        std::span<std::uint8_t> occupancy, std::span<float> depth,
+                                        std::vector<ProjectedCorner>& scratch, bool closed) {
   assert(triangles.size() % 3 == 0 && positions.size() % 3 == 0);
   const bool with_depth = !depth.empty();
   const std::size_t n = positions.size() / 3;
@@ -376,7 +379,8 @@ std::size_t rasterize_occupancy_compact(const ViewMapping& mapping, std::span<co
   // zero, so every point of a triangle of positive area lies in one of negative (or zero) area,
   // and, the cells being closed, every cell it meets is met by those. Depth needs the nearest
   // surface in each cell, so it rasterises everything.
-  return rasterize(mapping, triangles.size() / 3, corner, occupancy, depth, closed && all_in_front && !with_depth);
+  return rasterize(mapping, triangles.size() / 3, corner, occupancy, depth,
+                   closed && all_in_front && !with_depth);
 }
 
 std::size_t mark_depth_discontinuities(std::span<const float> depth, GridSize grid, float relative_jump,

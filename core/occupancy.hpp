@@ -45,9 +45,9 @@ struct ProjectedCorner {
 // asked for, the triangles facing one way are skipped: the others meet every cell they meet. The
 // return value then counts only the triangles rasterised.
 std::size_t rasterize_occupancy_compact(const ViewMapping& mapping, std::span<const float> positions,
-                                        std::span<const std::uint32_t> triangles, std::span<std::uint8_t> occupancy,
-                                        std::span<float> depth, std::vector<ProjectedCorner>& scratch,
-                                        bool closed = false);
+                                        std::span<const std::uint32_t> triangles,
+                                        std::span<std::uint8_t> occupancy, std::span<float> depth,
+                                        std::vector<ProjectedCorner>& scratch, bool closed = false);
 
 // Internal silhouettes (DESIGN.md §3): for every pair of 4-neighbour object cells whose depths differ
 // by more than relative_jump times the nearer one, sets the farther cell of image to 0, so that a

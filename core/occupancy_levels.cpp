@@ -17,7 +17,8 @@ struct Outgoing {
   std::vector<std::uint32_t> offset, to;
 
   explicit Outgoing(std::span<const std::uint32_t> triangles) {
-    const std::uint32_t vertices = triangles.empty() ? 0 : *std::max_element(triangles.begin(), triangles.end()) + 1;
+    const std::uint32_t vertices =
+        triangles.empty() ? 0 : *std::max_element(triangles.begin(), triangles.end()) + 1;
     offset.assign(std::size_t{vertices} + 1, 0);
     for (const std::uint32_t v : triangles) ++offset[v + 1];
     for (std::size_t v = 0; v < vertices; ++v) offset[v + 1] += offset[v];
@@ -30,7 +31,8 @@ struct Outgoing {
   // How often (from, to) appears; from must be a vertex of the surface.
   std::uint32_t count(std::uint32_t from, std::uint32_t target) const {
     if (from >= vertex_count()) return 0;
-    return static_cast<std::uint32_t>(std::count(to.begin() + offset[from], to.begin() + offset[from + 1], target));
+    return static_cast<std::uint32_t>(
+        std::count(to.begin() + offset[from], to.begin() + offset[from + 1], target));
   }
 };
 
@@ -74,7 +76,8 @@ std::size_t cap_holes(std::vector<std::uint32_t>& triangles) {
   // A loop l0 → l1 → … → l(m−1) → l0 gets (l0, l(i+1), l(i)) for i = 1 … m − 2: each holds one
   // loop edge reversed, and consecutive ones share (l0, l(i+1)) in opposite directions.
   auto fan = [&](std::span<const std::uint32_t> loop) {
-    for (std::size_t i = 1; i + 1 < loop.size(); ++i) triangles.insert(triangles.end(), {loop[0], loop[i + 1], loop[i]});
+    for (std::size_t i = 1; i + 1 < loop.size(); ++i)
+      triangles.insert(triangles.end(), {loop[0], loop[i + 1], loop[i]});
   };
   constexpr std::size_t kNotOnPath = std::numeric_limits<std::size_t>::max();
   std::vector<std::size_t> position(remaining.size(), kNotOnPath);  // of each vertex on the path
@@ -119,7 +122,8 @@ OccupancyLevels::OccupancyLevels(const Mt& mt) {
       const auto [it, added] = local.try_emplace(v, static_cast<std::uint32_t>(level.model_ids.size()));
       if (added) {
         level.model_ids.push_back(v);
-        level.positions.insert(level.positions.end(), &mt.positions[3 * std::size_t{v}], &mt.positions[3 * std::size_t{v} + 3]);
+        level.positions.insert(level.positions.end(), &mt.positions[3 * std::size_t{v}],
+                               &mt.positions[3 * std::size_t{v} + 3]);
       }
       level.triangles.push_back(it->second);
     }

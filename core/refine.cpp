@@ -26,7 +26,8 @@ enum : std::uint8_t { kOut = 0, kIn = 1, kAdding = 2, kDropped = 3 };
 // triangle's corners and id unchecked, then trims the arrays to what was written.
 class MeshWriter {
  public:
-  MeshWriter(const Mt& mt, CutMesh& out, std::size_t capacity) : corners_(mt.triangle_corners.data()), out_(out) {
+  MeshWriter(const Mt& mt, CutMesh& out, std::size_t capacity)
+      : corners_(mt.triangle_corners.data()), out_(out) {
     out.triangles.resize(3 * capacity);
     out.ids.resize(capacity);
     write_ = out.triangles.data();
@@ -107,9 +108,7 @@ bool bit(const std::vector<std::uint64_t>& bits, std::uint32_t n) {
 
 }  // namespace
 
-Refiner::Refiner(const Mt& mt)
-    : mt_(mt),
-      in_cut_(mt.node_count(), kOut) {
+Refiner::Refiner(const Mt& mt) : mt_(mt), in_cut_(mt.node_count(), kOut) {
   assert(mt.node_count() > 0);
 }
 
@@ -160,7 +159,8 @@ void Refiner::add_node(std::uint32_t x, std::uint32_t witness_triangle, std::uin
   in_cut_[x] = kIn;
   cut_.push_back(x);
   // The witness's corners were just read to find it failing: cheap to keep now.
-  witnesses_.push_back({witness_triangle, witness_creator,
+  witnesses_.push_back({witness_triangle,
+                        witness_creator,
                         {mt_.first_corner(TriangleId{witness_triangle}, NodeId{witness_creator}),
                          mt_.triangle_corners[2 * std::size_t{witness_triangle}],
                          mt_.triangle_corners[2 * std::size_t{witness_triangle} + 1]}});
@@ -197,7 +197,8 @@ void Refiner::force(std::uint32_t r, std::uint32_t witness_triangle, std::uint32
   }
 }
 
-[[gnu::always_inline]] inline void Refiner::fetch_ahead(std::size_t i, const float* field, bool on_demand) const {
+[[gnu::always_inline]] inline void Refiner::fetch_ahead(std::size_t i, const float* field,
+                                                        bool on_demand) const {
   // The queue ahead is known, so its nodes' data is fetched in stages and the misses overlap:
   // 12 nodes ahead where its triangles are, 6 ahead those triangles, 3 ahead what they point to.
   // On demand also the split vertex 20 ahead and, 16 ahead, its position (computed 3–11 ahead).

@@ -99,11 +99,14 @@ struct CutView {
   bool within_budget = true;
 
   std::size_t triangle_count() const { return triangles.size() / 3; }
-  static CutView of(const CutMesh& m) { return {m.triangles, m.ids, m.node_count, m.max_error, m.within_budget}; }
+  static CutView of(const CutMesh& m) {
+    return {m.triangles, m.ids, m.node_count, m.max_error, m.within_budget};
+  }
 };
 
 inline void CutMesh::assign(const CutView& view) {
-  if (view.triangles.data() != triangles.data()) triangles.assign(view.triangles.begin(), view.triangles.end());
+  if (view.triangles.data() != triangles.data())
+    triangles.assign(view.triangles.begin(), view.triangles.end());
   if (view.ids.data() != ids.data()) ids.assign(view.ids.begin(), view.ids.end());
   node_count = view.node_count;
   max_error = view.max_error;
@@ -232,22 +235,23 @@ class Refiner {
   void move_cut(const AllowedError& allowed, bool all_changed);
   // update(allowed, changed, ·) up to the output: true when the kept mesh holds the result (false:
   // a static refinement wrote `out`, there being no kept cut to move).
-  bool update_kept(const AllowedError& allowed, std::span<const std::uint32_t> changed_vertices, CutMesh& out);
+  bool update_kept(const AllowedError& allowed, std::span<const std::uint32_t> changed_vertices,
+                   CutMesh& out);
   bool vertex_changed(std::uint32_t v) const { return (changed_bits_[v >> 6] >> (v & 63)) & 1; }
 
   const Mt& mt_;
-  std::vector<std::uint8_t> in_cut_;             // per node: 0 out, 1 in, 2 being added, 3 dropped
-  std::vector<std::uint32_t> cut_;               // nodes in the cut, in the order added
+  std::vector<std::uint8_t> in_cut_;  // per node: 0 out, 1 in, 2 being added, 3 dropped
+  std::vector<std::uint32_t> cut_;    // nodes in the cut, in the order added
   // Per entry of cut_ (same index): the failing triangle that forced the node, its creator and its
   // three corners, so moving the cut reads them in one sequential pass.
   struct Witness {
     std::uint32_t triangle, creator, corners[3];
   };
   std::vector<Witness> witnesses_;
-  std::vector<std::uint32_t> batch_;            // split vertices computed together (on demand)
-  std::vector<std::uint32_t> root_vertices_;    // distinct corners of the root's triangles (on demand)
-  std::vector<std::uint32_t> stack_;             // DFS over missing ancestors: node, next parent index
-  std::vector<float> previous_field_;            // allowed error of the last update, per vertex
+  std::vector<std::uint32_t> batch_;          // split vertices computed together (on demand)
+  std::vector<std::uint32_t> root_vertices_;  // distinct corners of the root's triangles (on demand)
+  std::vector<std::uint32_t> stack_;          // DFS over missing ancestors: node, next parent index
+  std::vector<float> previous_field_;         // allowed error of the last update, per vertex
   float previous_uniform_ = 0.0f;
   bool previous_is_uniform_ = true;
   bool field_known_ = false;    // previous_* describe the field of the kept cut

@@ -29,7 +29,8 @@ std::array<std::uint8_t, 3> ramp_color(float t) {
   const int k = std::min(3, int(x));
   const float f = x - float(k);
   std::array<std::uint8_t, 3> out;
-  for (int c = 0; c < 3; ++c) out[c] = std::uint8_t(std::lround(kStops[k][c] + f * (kStops[k + 1][c] - kStops[k][c])));
+  for (int c = 0; c < 3; ++c)
+    out[c] = std::uint8_t(std::lround(kStops[k][c] + f * (kStops[k + 1][c] - kStops[k][c])));
   return out;
 }
 
@@ -62,18 +63,22 @@ std::size_t render_mesh(const ViewMapping& mapping, std::span<const float> posit
     // Headlight shading from the face normal and the ray to the eye at the centroid.
     float shade = 1.0f;
     if (options.shading) {
-      const glm::vec3 a(p[0][0], p[0][1], p[0][2]), b(p[1][0], p[1][1], p[1][2]), c(p[2][0], p[2][1], p[2][2]);
+      const glm::vec3 a(p[0][0], p[0][1], p[0][2]), b(p[1][0], p[1][1], p[1][2]),
+          c(p[2][0], p[2][1], p[2][2]);
       const glm::vec3 n = glm::cross(b - a, c - a);
       const glm::vec3 view = glm::vec3(eye) - eye.w * (a + b + c) / 3.0f;
       const float len = glm::length(n) * glm::length(view);
       shade = len > 0 ? 0.25f + 0.75f * std::abs(glm::dot(n, view)) / len : 0.25f;
     }
-    const double len01 = std::hypot(gx[1] - gx[0], gy[1] - gy[0]), len12 = std::hypot(gx[2] - gx[1], gy[2] - gy[1]),
+    const double len01 = std::hypot(gx[1] - gx[0], gy[1] - gy[0]),
+                 len12 = std::hypot(gx[2] - gx[1], gy[2] - gy[1]),
                  len20 = std::hypot(gx[0] - gx[2], gy[0] - gy[2]);
     const double lo_x = std::min({gx[0], gx[1], gx[2]}), hi_x = std::max({gx[0], gx[1], gx[2]});
     const double lo_y = std::min({gy[0], gy[1], gy[2]}), hi_y = std::max({gy[0], gy[1], gy[2]});
-    const int i0 = std::max(0, int(std::ceil(lo_x - 0.5))), i1 = std::min(int(grid.width) - 1, int(std::floor(hi_x - 0.5)));
-    const int j0 = std::max(0, int(std::ceil(lo_y - 0.5))), j1 = std::min(int(grid.height) - 1, int(std::floor(hi_y - 0.5)));
+    const int i0 = std::max(0, int(std::ceil(lo_x - 0.5))),
+              i1 = std::min(int(grid.width) - 1, int(std::floor(hi_x - 0.5)));
+    const int j0 = std::max(0, int(std::ceil(lo_y - 0.5))),
+              j1 = std::min(int(grid.height) - 1, int(std::floor(hi_y - 0.5)));
     for (int j = j0; j <= j1; ++j) {
       for (int i = i0; i <= i1; ++i) {
         const double px = i + 0.5, py = j + 0.5;
@@ -88,8 +93,8 @@ std::size_t render_mesh(const ViewMapping& mapping, std::span<const float> posit
         depth[cell] = z;
         std::uint8_t* out = &rgb[3 * cell];
         // Distance to each edge in pixels: |edge function| / edge length = w·|area| / length.
-        const double wire = std::min({w2 * std::abs(area) / len01, w0 * std::abs(area) / len12,
-                                      w1 * std::abs(area) / len20});
+        const double wire =
+            std::min({w2 * std::abs(area) / len01, w0 * std::abs(area) / len12, w1 * std::abs(area) / len20});
         if (options.wireframe && wire < options.wire_width_px) {
           for (int k = 0; k < 3; ++k) out[k] = options.wire_color[k];
           continue;
@@ -108,7 +113,8 @@ std::size_t render_mesh(const ViewMapping& mapping, std::span<const float> posit
       }
     }
   }
-  return grid.cell_count() - std::size_t(std::count(depth.begin(), depth.end(), std::numeric_limits<float>::infinity()));
+  return grid.cell_count() -
+         std::size_t(std::count(depth.begin(), depth.end(), std::numeric_limits<float>::infinity()));
 }
 
 }  // namespace mtlod::core

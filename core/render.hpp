@@ -16,9 +16,9 @@ class ViewMapping;  // core/view_grid.hpp
 struct RenderOptions {
   std::array<std::uint8_t, 3> background{255, 255, 255};
   std::array<std::uint8_t, 3> base_color{205, 200, 190};  // surface colour when no colours are given
-  bool shading = true;          // multiply by 0.25 + 0.75·|cos| of the view ray and the face normal
-  bool wireframe = false;       // draw the visible triangle edges
-  float wire_width_px = 0.5f;   // half width of a wire line, pixels
+  bool shading = true;         // multiply by 0.25 + 0.75·|cos| of the view ray and the face normal
+  bool wireframe = false;      // draw the visible triangle edges
+  float wire_width_px = 0.5f;  // half width of a wire line, pixels
   std::array<std::uint8_t, 3> wire_color{40, 40, 40};
 };
 

@@ -10,13 +10,13 @@
 namespace mtlod {
 
 enum class ErrorCode : std::uint8_t {
-  kInvalidArgument,   // a caller or request gave a value outside its domain
-  kNotFound,          // a named file, model or field does not exist
-  kIoError,           // the operating system refused a read or write
-  kCorrupt,           // bytes do not follow the format (bad magic, checksum, index, truncation)
-  kUnsupported,       // valid but not handled (unknown version, unknown property type)
-  kLimitExceeded,     // a size is over a configured limit
-  kInternal,          // a library we call failed in a way we did not foresee
+  kInvalidArgument,  // a caller or request gave a value outside its domain
+  kNotFound,         // a named file, model or field does not exist
+  kIoError,          // the operating system refused a read or write
+  kCorrupt,          // bytes do not follow the format (bad magic, checksum, index, truncation)
+  kUnsupported,      // valid but not handled (unknown version, unknown property type)
+  kLimitExceeded,    // a size is over a configured limit
+  kInternal,         // a library we call failed in a way we did not foresee
 };
 
 const char* to_string(ErrorCode code);
@@ -29,7 +29,7 @@ struct Error {
 template <class T>
 class [[nodiscard]] Result {
  public:
-  Result(T value) : data_(std::move(value)) {}  // NOLINT: implicit by design, like StatusOr
+  Result(T value) : data_(std::move(value)) {}      // NOLINT: implicit by design, like StatusOr
   Result(Error error) : data_(std::move(error)) {}  // NOLINT
 
   bool ok() const { return data_.index() == 0; }
@@ -54,7 +54,9 @@ class [[nodiscard]] Result {
 struct Ok {};
 using Status = Result<Ok>;
 
-inline Error make_error(ErrorCode code, std::string message) { return Error{code, std::move(message)}; }
+inline Error make_error(ErrorCode code, std::string message) {
+  return Error{code, std::move(message)};
+}
 
 }  // namespace mtlod
 
@@ -64,14 +66,14 @@ inline Error make_error(ErrorCode code, std::string message) { return Error{code
 // MTLOD_TRY(auto x, expr): evaluates a Result expression, returns its Error from the enclosing
 // function on failure, otherwise binds the value to the declaration.
 #define MTLOD_TRY(decl, expr) MTLOD_TRY_IMPL_(MTLOD_CONCAT_(mtlod_try_, __LINE__), decl, expr)
-#define MTLOD_TRY_IMPL_(tmp, decl, expr) \
+#define MTLOD_TRY_IMPL_(tmp, decl, expr)  \
   auto tmp = (expr);                      \
   if (!tmp.ok()) return tmp.take_error(); \
   decl = std::move(tmp).value()
 
 // MTLOD_RETURN_IF_ERROR(expr): for Status-returning calls.
-#define MTLOD_RETURN_IF_ERROR(expr)                                   \
-  do {                                                                \
-    auto mtlod_status_ = (expr);                                      \
-    if (!mtlod_status_.ok()) return mtlod_status_.take_error();       \
+#define MTLOD_RETURN_IF_ERROR(expr)                             \
+  do {                                                          \
+    auto mtlod_status_ = (expr);                                \
+    if (!mtlod_status_.ok()) return mtlod_status_.take_error(); \
   } while (0)

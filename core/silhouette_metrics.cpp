@@ -38,15 +38,17 @@ double point_segment_2d(double px, double py, double ax, double ay, double bx, d
 }
 
 // Distances from the contour pixels of `from` to the nearest contour pixel of `to`.
-ContourDistance contour_distance(std::span<const std::uint8_t> from_contour, std::span<const std::uint8_t> to_contour,
-                                 GridSize grid, std::vector<std::uint8_t>& seeds, std::vector<std::uint32_t>& dt) {
+ContourDistance contour_distance(std::span<const std::uint8_t> from_contour,
+                                 std::span<const std::uint8_t> to_contour, GridSize grid,
+                                 std::vector<std::uint8_t>& seeds, std::vector<std::uint32_t>& dt) {
   ContourDistance out;
   for (std::size_t c = 0; c < seeds.size(); ++c) seeds[c] = to_contour[c] ? 0 : 1;
   euclidean_squared(seeds, grid, dt);
   double sum = 0.0;
   for (std::size_t c = 0; c < from_contour.size(); ++c) {
     if (!from_contour[c]) continue;
-    const double d = dt[c] == kEuclideanUnreached ? std::numeric_limits<double>::infinity() : std::sqrt(double(dt[c]));
+    const double d =
+        dt[c] == kEuclideanUnreached ? std::numeric_limits<double>::infinity() : std::sqrt(double(dt[c]));
     out.max_px = std::max(out.max_px, d);
     sum += d;
     ++out.pixels;
@@ -70,8 +72,10 @@ std::size_t rasterize_silhouette(const ViewMapping& mapping, std::span<const flo
     // Pixel centres (i + 0.5, j + 0.5) inside the bounding box; both windings count.
     const double lo_x = std::min({g[0].x, g[1].x, g[2].x}), hi_x = std::max({g[0].x, g[1].x, g[2].x});
     const double lo_y = std::min({g[0].y, g[1].y, g[2].y}), hi_y = std::max({g[0].y, g[1].y, g[2].y});
-    const int i0 = std::max(0, int(std::ceil(lo_x - 0.5))), i1 = std::min(int(grid.width) - 1, int(std::floor(hi_x - 0.5)));
-    const int j0 = std::max(0, int(std::ceil(lo_y - 0.5))), j1 = std::min(int(grid.height) - 1, int(std::floor(hi_y - 0.5)));
+    const int i0 = std::max(0, int(std::ceil(lo_x - 0.5))),
+              i1 = std::min(int(grid.width) - 1, int(std::floor(hi_x - 0.5)));
+    const int j0 = std::max(0, int(std::ceil(lo_y - 0.5))),
+              j1 = std::min(int(grid.height) - 1, int(std::floor(hi_y - 0.5)));
     const double sign = area > 0 ? 1.0 : -1.0;
     for (int j = j0; j <= j1; ++j) {
       for (int i = i0; i <= i1; ++i) {
@@ -86,7 +90,8 @@ std::size_t rasterize_silhouette(const ViewMapping& mapping, std::span<const flo
   return std::size_t(std::count(mask.begin(), mask.end(), std::uint8_t{1}));
 }
 
-std::size_t xor_count(std::span<const std::uint8_t> a, std::span<const std::uint8_t> b, std::span<std::uint8_t> diff) {
+std::size_t xor_count(std::span<const std::uint8_t> a, std::span<const std::uint8_t> b,
+                      std::span<std::uint8_t> diff) {
   assert(a.size() == b.size());
   assert(diff.empty() || diff.size() == a.size());
   std::size_t count = 0;
@@ -98,7 +103,8 @@ std::size_t xor_count(std::span<const std::uint8_t> a, std::span<const std::uint
   return count;
 }
 
-std::size_t extract_contour(std::span<const std::uint8_t> mask, GridSize grid, std::span<std::uint8_t> contour) {
+std::size_t extract_contour(std::span<const std::uint8_t> mask, GridSize grid,
+                            std::span<std::uint8_t> contour) {
   assert(mask.size() == grid.cell_count() && contour.size() == mask.size());
   std::size_t count = 0;
   const auto object = [&](std::int64_t i, std::int64_t j) {
@@ -107,7 +113,8 @@ std::size_t extract_contour(std::span<const std::uint8_t> mask, GridSize grid, s
   };
   for (std::int64_t j = 0; j < std::int64_t(grid.height); ++j) {
     for (std::int64_t i = 0; i < std::int64_t(grid.width); ++i) {
-      const bool on = object(i, j) && !(object(i - 1, j) && object(i + 1, j) && object(i, j - 1) && object(i, j + 1));
+      const bool on =
+          object(i, j) && !(object(i - 1, j) && object(i + 1, j) && object(i, j - 1) && object(i, j + 1));
       contour[std::size_t(j) * grid.width + std::size_t(i)] = on;
       count += on;
     }
@@ -115,14 +122,15 @@ std::size_t extract_contour(std::span<const std::uint8_t> mask, GridSize grid, s
   return count;
 }
 
-SilhouetteError compare_silhouettes(std::span<const std::uint8_t> mask_a, std::span<const std::uint8_t> mask_b,
-                                    GridSize grid) {
+SilhouetteError compare_silhouettes(std::span<const std::uint8_t> mask_a,
+                                    std::span<const std::uint8_t> mask_b, GridSize grid) {
   assert(mask_a.size() == grid.cell_count() && mask_b.size() == grid.cell_count());
   SilhouetteError out;
   out.xor_pixels = xor_count(mask_a, mask_b);
   out.pixels_a = grid.cell_count() - std::size_t(std::count(mask_a.begin(), mask_a.end(), std::uint8_t{0}));
   out.pixels_b = grid.cell_count() - std::size_t(std::count(mask_b.begin(), mask_b.end(), std::uint8_t{0}));
-  std::vector<std::uint8_t> contour_a(grid.cell_count()), contour_b(grid.cell_count()), seeds(grid.cell_count());
+  std::vector<std::uint8_t> contour_a(grid.cell_count()), contour_b(grid.cell_count()),
+      seeds(grid.cell_count());
   std::vector<std::uint32_t> dt(grid.cell_count());
   extract_contour(mask_a, grid, contour_a);
   extract_contour(mask_b, grid, contour_b);
@@ -132,8 +140,8 @@ SilhouetteError compare_silhouettes(std::span<const std::uint8_t> mask_a, std::s
 }
 
 std::size_t triangles_near_point(const ViewMapping& mapping, std::span<const float> positions,
-                                 std::span<const std::uint32_t> triangles, float x_px, float y_px, float radius_px,
-                                 std::span<std::uint8_t> in_region) {
+                                 std::span<const std::uint32_t> triangles, float x_px, float y_px,
+                                 float radius_px, std::span<std::uint8_t> in_region) {
   assert(in_region.size() == triangles.size() / 3);
   std::size_t count = 0;
   GridPoint g[3];

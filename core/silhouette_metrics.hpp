@@ -29,7 +29,8 @@ std::size_t xor_count(std::span<const std::uint8_t> a, std::span<const std::uint
 
 // Contour of a mask: object pixels with a 4-neighbour that is background or off the image.
 // contour holds grid.cell_count() bytes (1 on the contour). Returns the number of contour pixels.
-std::size_t extract_contour(std::span<const std::uint8_t> mask, GridSize grid, std::span<std::uint8_t> contour);
+std::size_t extract_contour(std::span<const std::uint8_t> mask, GridSize grid,
+                            std::span<std::uint8_t> contour);
 
 // Distances from the contour pixels of one mask to the nearest contour pixel of the other, in pixels.
 struct ContourDistance {
@@ -48,14 +49,16 @@ struct SilhouetteError {
   double max_px() const { return a_to_b.max_px > b_to_a.max_px ? a_to_b.max_px : b_to_a.max_px; }
   double mean_px() const {
     const std::size_t n = a_to_b.pixels + b_to_a.pixels;
-    return n == 0 ? 0.0 : (a_to_b.mean_px * double(a_to_b.pixels) + b_to_a.mean_px * double(b_to_a.pixels)) / double(n);
+    return n == 0 ? 0.0
+                  : (a_to_b.mean_px * double(a_to_b.pixels) + b_to_a.mean_px * double(b_to_a.pixels)) /
+                        double(n);
   }
 };
 
 // Compares two masks of the same grid. A contour measured against an empty contour has +inf distances;
 // two empty masks give all zeros.
-SilhouetteError compare_silhouettes(std::span<const std::uint8_t> mask_a, std::span<const std::uint8_t> mask_b,
-                                    GridSize grid);
+SilhouetteError compare_silhouettes(std::span<const std::uint8_t> mask_a,
+                                    std::span<const std::uint8_t> mask_b, GridSize grid);
 
 // Focus region: in_region[t] = 1 when the projection of triangle t comes within radius_px pixels of
 // the point (x_px, y_px) of mapping's grid (continuous coordinates, pixel (i, j) covers
@@ -63,7 +66,7 @@ SilhouetteError compare_silhouettes(std::span<const std::uint8_t> mask_a, std::s
 // eye plane are left out. Visibility is ignored, as in the papers' labels. in_region has one entry per
 // triangle. Returns the number of triangles in the region.
 std::size_t triangles_near_point(const ViewMapping& mapping, std::span<const float> positions,
-                                 std::span<const std::uint32_t> triangles, float x_px, float y_px, float radius_px,
-                                 std::span<std::uint8_t> in_region);
+                                 std::span<const std::uint32_t> triangles, float x_px, float y_px,
+                                 float radius_px, std::span<std::uint8_t> in_region);
 
 }  // namespace mtlod::core

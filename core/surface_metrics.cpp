@@ -28,7 +28,9 @@ void load(std::span<const float> positions, std::uint32_t v, double out[3]) {
   for (int c = 0; c < 3; ++c) out[c] = positions[3 * std::size_t{v} + c];
 }
 
-double dot(const double a[3], const double b[3]) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+double dot(const double a[3], const double b[3]) {
+  return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+}
 
 double triangle_area(const double a[3], const double b[3], const double c[3]) {
   const double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
@@ -71,7 +73,8 @@ void sample_surface(std::span<const float> positions, std::span<const std::uint3
         const std::uint32_t v = triangles[3 * t + k];
         if (taken[v]) continue;
         taken[v] = 1;
-        out.points.insert(out.points.end(), &positions[3 * std::size_t{v}], &positions[3 * std::size_t{v} + 3]);
+        out.points.insert(out.points.end(), &positions[3 * std::size_t{v}],
+                          &positions[3 * std::size_t{v} + 3]);
         out.triangle_ids.push_back(static_cast<std::uint32_t>(t));
       }
     }
@@ -97,7 +100,8 @@ void sample_surface(std::span<const float> positions, std::span<const std::uint3
   for (std::size_t s = 0; s < options.area_samples; ++s) {
     const double target = rng.uniform() * total;
     const std::size_t t = std::min<std::size_t>(
-        std::upper_bound(cumulative.begin(), cumulative.end(), target) - cumulative.begin(), triangle_count - 1);
+        std::upper_bound(cumulative.begin(), cumulative.end(), target) - cumulative.begin(),
+        triangle_count - 1);
     // Uniform point in a triangle: fold the unit square onto the triangle (Turk, Graphics Gems I).
     double u = rng.uniform(), v = rng.uniform();
     if (u + v > 1.0) u = 1.0 - u, v = 1.0 - v;
@@ -126,14 +130,15 @@ double point_triangle_distance(const double p[3], const double a[3], const doubl
   const double denom = va + vb + vc;
   // A degenerate (collinear) triangle has no face region: its nearest point lies on an edge.
   if (!(denom > 0) || !std::isfinite(1.0 / denom)) {
-    return std::sqrt(std::min({point_segment_squared(p, a, b), point_segment_squared(p, b, c),
-                               point_segment_squared(p, c, a)}));
+    return std::sqrt(std::min(
+        {point_segment_squared(p, a, b), point_segment_squared(p, b, c), point_segment_squared(p, c, a)}));
   }
   if (vc <= 0 && d1 >= 0 && d3 <= 0) return std::sqrt(point_segment_squared(p, a, b));
   if (vb <= 0 && d2 >= 0 && d6 <= 0) return std::sqrt(point_segment_squared(p, a, c));
   if (va <= 0 && d4 - d3 >= 0 && d5 - d6 >= 0) return std::sqrt(point_segment_squared(p, b, c));
   const double v = vb / denom, w = vc / denom;
-  const double q[3] = {a[0] + ab[0] * v + ac[0] * w, a[1] + ab[1] * v + ac[1] * w, a[2] + ab[2] * v + ac[2] * w};
+  const double q[3] = {a[0] + ab[0] * v + ac[0] * w, a[1] + ab[1] * v + ac[1] * w,
+                       a[2] + ab[2] * v + ac[2] * w};
   return std::sqrt(squared_distance(p, q));
 }
 
@@ -152,7 +157,8 @@ TriangleIndex::TriangleIndex(std::span<const float> positions, std::span<const s
   double area = 0.0;
   for (std::size_t t = 0; t < count; ++t) {
     double a[3], b[3], c[3];
-    load(positions, triangles[3 * t], a), load(positions, triangles[3 * t + 1], b), load(positions, triangles[3 * t + 2], c);
+    load(positions, triangles[3 * t], a), load(positions, triangles[3 * t + 1], b),
+        load(positions, triangles[3 * t + 2], c);
     area += triangle_area(a, b, c);
   }
   const double extent = std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2], 1e-30});
@@ -187,7 +193,8 @@ TriangleIndex::TriangleIndex(std::span<const float> positions, std::span<const s
     cell_range(t, first, last);
     for (std::uint32_t k = first[2]; k <= last[2]; ++k)
       for (std::uint32_t j = first[1]; j <= last[1]; ++j)
-        for (std::uint32_t i = first[0]; i <= last[0]; ++i) ++cell_offsets_[(std::size_t{k} * dims_[1] + j) * dims_[0] + i + 1];
+        for (std::uint32_t i = first[0]; i <= last[0]; ++i)
+          ++cell_offsets_[(std::size_t{k} * dims_[1] + j) * dims_[0] + i + 1];
   }
   for (std::size_t c = 0; c < cells; ++c) cell_offsets_[c + 1] += cell_offsets_[c];
   cell_triangles_.resize(cell_offsets_[cells]);
@@ -197,18 +204,21 @@ TriangleIndex::TriangleIndex(std::span<const float> positions, std::span<const s
     for (std::uint32_t k = first[2]; k <= last[2]; ++k)
       for (std::uint32_t j = first[1]; j <= last[1]; ++j)
         for (std::uint32_t i = first[0]; i <= last[0]; ++i)
-          cell_triangles_[fill[(std::size_t{k} * dims_[1] + j) * dims_[0] + i]++] = static_cast<std::uint32_t>(t);
+          cell_triangles_[fill[(std::size_t{k} * dims_[1] + j) * dims_[0] + i]++] =
+              static_cast<std::uint32_t>(t);
   }
 }
 
-void TriangleIndex::visit_cell(std::uint32_t i, std::uint32_t j, std::uint32_t k, const double p[3], double& best) {
+void TriangleIndex::visit_cell(std::uint32_t i, std::uint32_t j, std::uint32_t k, const double p[3],
+                               double& best) {
   const std::size_t cell = (std::size_t{k} * dims_[1] + j) * dims_[0] + i;
   for (std::uint32_t s = cell_offsets_[cell]; s < cell_offsets_[cell + 1]; ++s) {
     const std::uint32_t t = cell_triangles_[s];
     if (stamp_[t] == query_) continue;
     stamp_[t] = query_;
     double a[3], b[3], c[3];
-    load(positions_, triangles_[3 * std::size_t{t}], a), load(positions_, triangles_[3 * std::size_t{t} + 1], b),
+    load(positions_, triangles_[3 * std::size_t{t}], a),
+        load(positions_, triangles_[3 * std::size_t{t} + 1], b),
         load(positions_, triangles_[3 * std::size_t{t} + 2], c);
     best = std::min(best, point_triangle_distance(p, a, b, c));
   }
@@ -262,7 +272,8 @@ double TriangleIndex::distance(float x, float y, float z) {
   return best;
 }
 
-DistanceStats sample_distances(const SurfaceSamples& samples, TriangleIndex& to, std::span<float> per_sample) {
+DistanceStats sample_distances(const SurfaceSamples& samples, TriangleIndex& to,
+                               std::span<float> per_sample) {
   assert(per_sample.empty() || per_sample.size() == samples.size());
   DistanceStats stats;
   double sum = 0.0, sum2 = 0.0;
@@ -273,12 +284,13 @@ DistanceStats sample_distances(const SurfaceSamples& samples, TriangleIndex& to,
     sum += d, sum2 += d * d;
   }
   stats.samples = samples.size();
-  if (stats.samples > 0) stats.mean = sum / double(stats.samples), stats.rms = std::sqrt(sum2 / double(stats.samples));
+  if (stats.samples > 0)
+    stats.mean = sum / double(stats.samples), stats.rms = std::sqrt(sum2 / double(stats.samples));
   return stats;
 }
 
-DistanceStats sample_distances_masked(const SurfaceSamples& samples, std::span<const std::uint8_t> triangle_mask,
-                                      TriangleIndex& to) {
+DistanceStats sample_distances_masked(const SurfaceSamples& samples,
+                                      std::span<const std::uint8_t> triangle_mask, TriangleIndex& to) {
   DistanceStats stats;
   double sum = 0.0, sum2 = 0.0;
   for (std::size_t s = 0; s < samples.size(); ++s) {
@@ -288,7 +300,8 @@ DistanceStats sample_distances_masked(const SurfaceSamples& samples, std::span<c
     sum += d, sum2 += d * d;
     ++stats.samples;
   }
-  if (stats.samples > 0) stats.mean = sum / double(stats.samples), stats.rms = std::sqrt(sum2 / double(stats.samples));
+  if (stats.samples > 0)
+    stats.mean = sum / double(stats.samples), stats.rms = std::sqrt(sum2 / double(stats.samples));
   return stats;
 }
 

@@ -16,7 +16,7 @@ namespace mtlod::core {
 
 // Samples on a surface: their positions and the triangle each lies on.
 struct SurfaceSamples {
-  std::vector<float> points;               // x, y, z per sample
+  std::vector<float> points;                // x, y, z per sample
   std::vector<std::uint32_t> triangle_ids;  // triangle of each sample
 
   std::size_t size() const { return triangle_ids.size(); }
@@ -43,9 +43,9 @@ void sample_surface(std::span<const float> positions, std::span<const std::uint3
 double point_triangle_distance(const double p[3], const double a[3], const double b[3], const double c[3]);
 
 // Nearest-triangle queries over a fixed triangle mesh: a uniform grid of cubic cells (about twice the
-// triangles' mean size, at most 8 cells per triangle), each triangle listed in every cell its bounding box overlaps (CSR). A query
-// visits rings of cells around the query's cell until the ring is farther than the best distance
-// found, so it is exact. Holds copies of nothing but the spans' data pointers: positions and
+// triangles' mean size, at most 8 cells per triangle), each triangle listed in every cell its bounding box
+// overlaps (CSR). A query visits rings of cells around the query's cell until the ring is farther than the
+// best distance found, so it is exact. Holds copies of nothing but the spans' data pointers: positions and
 // triangles must outlive the index. Queries reuse scratch memory and are not thread-safe.
 class TriangleIndex {
  public:
@@ -73,7 +73,7 @@ class TriangleIndex {
 
 // Distances of a set of samples to a surface.
 struct DistanceStats {
-  double max = 0.0;   // the one-sided Hausdorff distance
+  double max = 0.0;  // the one-sided Hausdorff distance
   double mean = 0.0;
   double rms = 0.0;
   std::size_t samples = 0;
@@ -81,12 +81,13 @@ struct DistanceStats {
 
 // Distance of every sample to the index's surface; per_sample (empty, or one entry per sample)
 // receives each distance. No samples gives all zeros.
-DistanceStats sample_distances(const SurfaceSamples& samples, TriangleIndex& to, std::span<float> per_sample = {});
+DistanceStats sample_distances(const SurfaceSamples& samples, TriangleIndex& to,
+                               std::span<float> per_sample = {});
 
 // The same over the samples whose triangle has a non-zero entry in triangle_mask (one entry per
 // triangle of the sampled surface): the focus-restricted error.
-DistanceStats sample_distances_masked(const SurfaceSamples& samples, std::span<const std::uint8_t> triangle_mask,
-                                      TriangleIndex& to);
+DistanceStats sample_distances_masked(const SurfaceSamples& samples,
+                                      std::span<const std::uint8_t> triangle_mask, TriangleIndex& to);
 
 // Both directions and the symmetric values: Hausdorff = max of both maxima; mean and RMS are those of
 // the worse direction (as Metro reports them).

@@ -34,8 +34,8 @@ ViewExtractor::ViewExtractor(const Mt& mt, const OccupancyLevels& levels) : mt_(
 std::size_t ViewSession::memory_bytes() const {
   auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
   return bytes(allowed_error_) + bytes(silhouette_dt_) + bytes(neglect_dt_) + bytes(focus_factor_) +
-         bytes(cell_start_) + bytes(cell_vertices_) + bytes(cell_vertex_clip_w_) + bytes(changed_) + bytes(neglect_) +
-         bytes(focus_cells_);
+         bytes(cell_start_) + bytes(cell_vertices_) + bytes(cell_vertex_clip_w_) + bytes(changed_) +
+         bytes(neglect_) + bytes(focus_cells_);
 }
 
 bool ViewExtractor::same_view(const ViewSession& s, const ViewRequest& r) {
@@ -80,9 +80,11 @@ std::size_t ViewExtractor::occupancy() {
   if (request_->internal_silhouettes) depth_.resize(cells);
   if (request_->internal_silhouettes) {
     // Depths come from the cut's own triangles: a hole's cap is not a surface.
-    rasterize_occupancy_compact(mapping_, level.positions, level.cut_triangles(), occupancy_, depth_, projected_);
+    rasterize_occupancy_compact(mapping_, level.positions, level.cut_triangles(), occupancy_, depth_,
+                                projected_);
   } else {
-    rasterize_occupancy_compact(mapping_, level.positions, level.triangles, occupancy_, {}, projected_, level.closed);
+    rasterize_occupancy_compact(mapping_, level.positions, level.triangles, occupancy_, {}, projected_,
+                                level.closed);
   }
   return level.triangle_count();
 }
@@ -97,7 +99,8 @@ void ViewExtractor::transform(std::span<const std::uint8_t> image, std::span<std
 
 void ViewExtractor::transform_from_cells(std::span<const std::uint32_t> cells, std::span<std::uint16_t> out) {
   const DistanceMetric metric = request_->allowed.metric;
-  if (metric != DistanceMetric::kEuclidean) return transformer_.chamfer_from_cells(metric, cells, request_->grid, out);
+  if (metric != DistanceMetric::kEuclidean)
+    return transformer_.chamfer_from_cells(metric, cells, request_->grid, out);
   euclidean_.resize(out.size());
   transformer_.euclidean_squared_from_cells(cells, request_->grid, euclidean_);
   to_fifths_of_pixel(euclidean_, out);
@@ -142,7 +145,8 @@ void ViewExtractor::allowed_error() {
   on_demand_ = false;
   field_completed_ = false;
   AllowedErrorOptions options = r.allowed;
-  if (options.metric == DistanceMetric::kEuclidean) options.metric = DistanceMetric::kChamfer5711;  // see transform()
+  if (options.metric == DistanceMetric::kEuclidean)
+    options.metric = DistanceMetric::kChamfer5711;  // see transform()
   options.use_silhouette = options.use_silhouette && !silhouette_.empty();
   options.use_focus = options.use_focus && !focus_dt_.empty();
   options.use_neglect = options.use_neglect && !neglect_.empty();
@@ -195,13 +199,13 @@ void ViewExtractor::allowed_error() {
   // transform (the Euclidean one rounds, hence one cell more). So only boxes around the old and the
   // new foci can hold a changed multiplier; everywhere else it was 1 and still is.
   const GridSize grid = request_->grid;
-  const std::uint32_t radius =
-      std::uint32_t(std::min<std::size_t>(field_.focus_reach() / units_per_pixel(options.metric) + 1,
-                                          std::max(grid.width, grid.height)));
+  const std::uint32_t radius = std::uint32_t(std::min<std::size_t>(
+      field_.focus_reach() / units_per_pixel(options.metric) + 1, std::max(grid.width, grid.height)));
   std::size_t foci = 0;  // on the grid, old and new
   for (const std::uint32_t f : s.focus_cells_) foci += f != kNoCell;
   for (const auto& p : request_->focus) foci += focus_cell(grid, p[0], p[1]) != kNoCell;
-  const bool whole_grid = foci * (2 * std::size_t{radius} + 1) * (2 * std::size_t{radius} + 1) >= grid.cell_count();
+  const bool whole_grid =
+      foci * (2 * std::size_t{radius} + 1) * (2 * std::size_t{radius} + 1) >= grid.cell_count();
   // A cell in two boxes is visited twice; the second visit finds its multiplier stored.
   auto visit_boxes = [&] {
     for (const std::uint32_t f : s.focus_cells_) {
@@ -292,7 +296,8 @@ CutView ViewExtractor::refine_view(Refiner& session, CutMesh& scratch) {
     } else if (on_demand_) {
       session.refine_on_demand(field_, allowed_, scratch);
     } else if (gaze) {
-      return session.update_view(allowed, session_->changed_, scratch);  // even after a saccade: cheaper than from the root
+      return session.update_view(allowed, session_->changed_,
+                                 scratch);  // even after a saccade: cheaper than from the root
     } else if (request_->dynamic) {
       session.update(allowed, scratch);
     } else {
@@ -302,18 +307,21 @@ CutView ViewExtractor::refine_view(Refiner& session, CutMesh& scratch) {
   }();
   if (request_->labels) {
     // Labels of the cut's vertices only: the silhouette distance when it was computed, else the focus's.
-    const std::span<const std::uint16_t> dt = !silhouette_.empty() ? silhouette_ : std::span<const std::uint16_t>(focus_dt_);
+    const std::span<const std::uint16_t> dt =
+        !silhouette_.empty() ? silhouette_ : std::span<const std::uint16_t>(focus_dt_);
     vertex_labels_.resize(mt_.vertex_count());
-    for (std::uint32_t v : cut.triangles) vertex_labels_[v] = dt.empty() ? 0 : vertex_label(mapping_, mt_.positions, v, dt);
+    for (std::uint32_t v : cut.triangles)
+      vertex_labels_[v] = dt.empty() ? 0 : vertex_label(mapping_, mt_.positions, v, dt);
   }
   return cut;
 }
 
 std::size_t ViewExtractor::memory_bytes() const {
   auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
-  return transformer_.memory_bytes() + bytes(occupancy_) + bytes(seeds_image_) + bytes(depth_) + bytes(silhouette_dt_) +
-         bytes(focus_dt_) + bytes(neglect_dt_) + bytes(euclidean_) + bytes(cells_) + bytes(vertex_allowed_error_) +
-         bytes(vertex_labels_) + bytes(projected_) + bytes(vertex_cells_) + bytes(vertex_clip_w_) + field_.memory_bytes();
+  return transformer_.memory_bytes() + bytes(occupancy_) + bytes(seeds_image_) + bytes(depth_) +
+         bytes(silhouette_dt_) + bytes(focus_dt_) + bytes(neglect_dt_) + bytes(euclidean_) + bytes(cells_) +
+         bytes(vertex_allowed_error_) + bytes(vertex_labels_) + bytes(projected_) + bytes(vertex_cells_) +
+         bytes(vertex_clip_w_) + field_.memory_bytes();
 }
 
 }  // namespace mtlod::core

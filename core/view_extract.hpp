@@ -39,7 +39,7 @@ struct ViewRequest {
   // every vertex's in stage 4; the same cut. false: stage 4 computes every vertex's (for callers
   // that read the whole field).
   bool allowed_error_on_demand = true;
-  bool labels = false;                        // fill vertex labels (silhouette, else focus) for encoding
+  bool labels = false;  // fill vertex labels (silhouette, else focus) for encoding
 };
 
 // What one client session keeps between its requests, so that a request with the same view as the
@@ -71,16 +71,16 @@ class ViewSession {
   bool has_focus_ = false;
   bool internal_silhouettes_ = false;
   float depth_jump_ = 0.0f;
-  std::vector<float> allowed_error_;           // per vertex, for the session's last request
-  bool allowed_error_complete_ = false;        // false: only the last cut's vertices (on demand)
-  std::vector<std::uint16_t> silhouette_dt_;   // of the view
+  std::vector<float> allowed_error_;          // per vertex, for the session's last request
+  bool allowed_error_complete_ = false;       // false: only the last cut's vertices (on demand)
+  std::vector<std::uint16_t> silhouette_dt_;  // of the view
   std::vector<std::uint16_t> neglect_dt_;
-  std::vector<float> focus_factor_;            // per cell, for the last request's foci
-  std::vector<std::uint32_t> focus_cells_;     // the last request's foci (kNoCell off the grid)
-  std::vector<std::uint32_t> cell_start_;      // vertices by cell (counting sort), built on first reuse
+  std::vector<float> focus_factor_;         // per cell, for the last request's foci
+  std::vector<std::uint32_t> focus_cells_;  // the last request's foci (kNoCell off the grid)
+  std::vector<std::uint32_t> cell_start_;   // vertices by cell (counting sort), built on first reuse
   std::vector<std::uint32_t> cell_vertices_;
-  std::vector<float> cell_vertex_clip_w_;      // clip-space w of each entry of cell_vertices_
-  std::vector<std::uint32_t> changed_;         // vertices recomputed by the last request
+  std::vector<float> cell_vertex_clip_w_;  // clip-space w of each entry of cell_vertices_
+  std::vector<std::uint32_t> changed_;     // vertices recomputed by the last request
 };
 
 class ViewExtractor {
@@ -145,8 +145,8 @@ class ViewExtractor {
   const ViewRequest* request_ = nullptr;
   ViewSession* session_ = nullptr;
   bool incremental_ = false;
-  bool on_demand_ = false;         // stage 5 computes the allowed error it reads
-  bool field_completed_ = false;   // stage 4 completed an on-demand field: the refiner compares it all
+  bool on_demand_ = false;        // stage 5 computes the allowed error it reads
+  bool field_completed_ = false;  // stage 4 completed an on-demand field: the refiner compares it all
   // The transforms and field in use: this extractor's buffers or the session's.
   std::span<const std::uint16_t> silhouette_, neglect_;
   std::span<float> allowed_;
@@ -161,7 +161,7 @@ class ViewExtractor {
   std::vector<std::uint32_t> euclidean_, cells_;
   std::vector<float> vertex_allowed_error_;
   std::vector<std::uint32_t> vertex_labels_;
-  std::vector<ProjectedCorner> projected_;    // occupancy scratch
+  std::vector<ProjectedCorner> projected_;   // occupancy scratch
   std::vector<std::uint32_t> vertex_cells_;  // sort_vertices_by_cell scratch
   std::vector<float> vertex_clip_w_;
 };

@@ -32,7 +32,8 @@ Result<std::array<std::uint32_t, 2>> parse_size(const std::string& text, const c
 
 Result<std::array<double, 3>> parse_vec3(const std::string& text, const char* flag) {
   std::vector<double> v;
-  if (!parse_numbers(text, 3, v)) return make_error(ErrorCode::kInvalidArgument, fmt::format("{} '{}': expected X,Y,Z", flag, text));
+  if (!parse_numbers(text, 3, v))
+    return make_error(ErrorCode::kInvalidArgument, fmt::format("{} '{}': expected X,Y,Z", flag, text));
   return std::array<double, 3>{v[0], v[1], v[2]};
 }
 
@@ -65,30 +66,41 @@ void add_extract_flags(CLI::App& app, ExtractFlags& f) {
   app.add_option("--error", f.error, "error bound e in model units");
   app.add_option("--error-px", f.error_px, "error bound e in screen pixels (converted per vertex by depth)");
   app.add_option("--silhouette", f.silhouette, "D,F: allowed error e·F within D pixels of the silhouette");
-  app.add_option("--focus", f.focus, "X,Y,D,F: focus at normalised X,Y (0..1), e·F within D pixels; repeatable")
+  app.add_option("--focus", f.focus,
+                 "X,Y,D,F: focus at normalised X,Y (0..1), e·F within D pixels; repeatable")
       ->take_all();
-  app.add_option("--neglect", f.neglect, "X,Y,D,F: region of neglect, e·F (F ≥ 1) within D pixels; repeatable")
+  app.add_option("--neglect", f.neglect,
+                 "X,Y,D,F: region of neglect, e·F (F ≥ 1) within D pixels; repeatable")
       ->take_all();
   app.add_option("--budget", f.budget, "at most this many triangles (worst first)");
   app.add_option("--falloff", f.falloff, "step, linear, smoothstep or foveal")->capture_default_str();
   app.add_option("--distance", f.distance, "chamfer-5-7-11, chamfer-3-4, city-block, chessboard or euclidean")
       ->capture_default_str();
   app.add_option("--units", f.units, "distances D in pixels or raw chamfer units")->capture_default_str();
-  app.add_flag("--internal-silhouettes", f.internal_silhouettes, "depth jumps seed the silhouette distance too");
-  app.add_option("--frustum-factor", f.frustum_factor, "error multiplier outside the view")->capture_default_str();
-  app.add_option("--backface-factor", f.backface_factor, "error multiplier for back faces")->capture_default_str();
-  app.add_option("--draco", f.draco_method,
-                 "Draco method: edgebreaker or sequential (default: edgebreaker for extract, sequential for gaze)");
-  app.add_option("--draco-speed", f.draco_speed, "Draco speed 0 (smallest) .. 10 (fastest)")->capture_default_str();
-  app.add_option("--draco-entropy", f.draco_entropy,
-                 "entropy-code Draco's attribute values: true or false (default: true for extract, false for gaze)");
-  app.add_option("--position-bits", f.position_bits, "Draco position quantization bits")->capture_default_str();
+  app.add_flag("--internal-silhouettes", f.internal_silhouettes,
+               "depth jumps seed the silhouette distance too");
+  app.add_option("--frustum-factor", f.frustum_factor, "error multiplier outside the view")
+      ->capture_default_str();
+  app.add_option("--backface-factor", f.backface_factor, "error multiplier for back faces")
+      ->capture_default_str();
+  app.add_option(
+      "--draco", f.draco_method,
+      "Draco method: edgebreaker or sequential (default: edgebreaker for extract, sequential for gaze)");
+  app.add_option("--draco-speed", f.draco_speed, "Draco speed 0 (smallest) .. 10 (fastest)")
+      ->capture_default_str();
+  app.add_option(
+      "--draco-entropy", f.draco_entropy,
+      "entropy-code Draco's attribute values: true or false (default: true for extract, false for gaze)");
+  app.add_option("--position-bits", f.position_bits, "Draco position quantization bits")
+      ->capture_default_str();
   app.add_flag("--normals", f.normals, "send vertex normals");
   app.add_flag("--labels", f.labels, "send per-vertex distance labels");
-  app.add_flag("--delta", f.delta, "replies carry what changed since the previous mesh (by triangle id; sequential Draco)");
+  app.add_flag("--delta", f.delta,
+               "replies carry what changed since the previous mesh (by triangle id; sequential Draco)");
 }
 
-Result<Extract> make_extract(const ExtractFlags& f, const std::string& model, const std::array<double, 3>& bounds_min,
+Result<Extract> make_extract(const ExtractFlags& f, const std::string& model,
+                             const std::array<double, 3>& bounds_min,
                              const std::array<double, 3>& bounds_max) {
   Extract e;
   e.model = model;
@@ -103,21 +115,26 @@ Result<Extract> make_extract(const ExtractFlags& f, const std::string& model, co
   }
   MTLOD_TRY(camera.up, parse_vec3(f.up, "--up"));
   camera.fov_deg = f.fov_deg;
-  look_at_camera(camera, static_cast<double>(e.viewport[0]) / std::max<std::uint32_t>(1, e.viewport[1]), e.view, e.projection);
+  look_at_camera(camera, static_cast<double>(e.viewport[0]) / std::max<std::uint32_t>(1, e.viewport[1]),
+                 e.view, e.projection);
   if (f.error.has_value() == f.error_px.has_value()) {
-    return make_error(ErrorCode::kInvalidArgument, "give exactly one of --error (model units) and --error-px (pixels)");
+    return make_error(ErrorCode::kInvalidArgument,
+                      "give exactly one of --error (model units) and --error-px (pixels)");
   }
   e.error = f.error ? *f.error : *f.error_px;
   e.error_unit = f.error ? ErrorUnit::kModel : ErrorUnit::kPixels;
   std::vector<double> v;
   if (!f.silhouette.empty()) {
-    if (!parse_numbers(f.silhouette, 2, v)) return make_error(ErrorCode::kInvalidArgument, fmt::format("--silhouette '{}': expected D,F", f.silhouette));
+    if (!parse_numbers(f.silhouette, 2, v))
+      return make_error(ErrorCode::kInvalidArgument,
+                        fmt::format("--silhouette '{}': expected D,F", f.silhouette));
     e.criteria.silhouette = Silhouette{v[0], v[1]};
   }
   for (const auto& [list, flag, out] : {std::tuple{&f.focus, "--focus", &e.criteria.focus},
                                         std::tuple{&f.neglect, "--neglect", &e.criteria.neglect}}) {
     for (const std::string& text : *list) {
-      if (!parse_numbers(text, 4, v)) return make_error(ErrorCode::kInvalidArgument, fmt::format("{} '{}': expected X,Y,D,F", flag, text));
+      if (!parse_numbers(text, 4, v))
+        return make_error(ErrorCode::kInvalidArgument, fmt::format("{} '{}': expected X,Y,D,F", flag, text));
       out->push_back(Focus{v[0], v[1], v[2], v[3]});
     }
   }
@@ -137,7 +154,8 @@ Result<Extract> make_extract(const ExtractFlags& f, const std::string& model, co
     if (!found) {
       std::string options;
       for (const char* n : names) options += fmt::format("{}{}", options.empty() ? "" : ", ", n);
-      return make_error(ErrorCode::kInvalidArgument, fmt::format("{} '{}': expected one of {}", flag, value, options));
+      return make_error(ErrorCode::kInvalidArgument,
+                        fmt::format("{} '{}': expected one of {}", flag, value, options));
     }
     out = *found;
     return Ok{};

@@ -19,7 +19,7 @@ namespace mtlod::protocol {
 struct ExtractFlags {
   std::string eye, target, up = "0,1,0";  // "X,Y,Z"; without --eye the model is framed from the front
   double fov_deg = 45;
-  std::string grid = "256";        // "W" or "WxH"
+  std::string grid = "256";  // "W" or "WxH"
   std::string viewport = "800x600";
   std::optional<double> error;     // model units
   std::optional<double> error_px;  // screen pixels
@@ -46,7 +46,8 @@ void add_extract_flags(CLI::App& app, ExtractFlags& flags);
 
 // Builds the request for `model` whose bounding box is given (for the default camera). The result
 // is checked by the same parser the server uses; errors name the flag.
-Result<Extract> make_extract(const ExtractFlags& flags, const std::string& model, const std::array<double, 3>& bounds_min,
+Result<Extract> make_extract(const ExtractFlags& flags, const std::string& model,
+                             const std::array<double, 3>& bounds_min,
                              const std::array<double, 3>& bounds_max);
 
 }  // namespace mtlod::protocol

@@ -11,8 +11,9 @@ Result<FrameHeader> decode_frame_header(std::span<const std::uint8_t, kFrameHead
   FrameHeader h{read_u32_le(bytes.data()), read_u32_le(bytes.data() + 4)};
   if (h.json_bytes == 0) return make_error(ErrorCode::kCorrupt, "frame has an empty JSON header");
   if (h.body_bytes() > max_body_bytes) {
-    return make_error(ErrorCode::kLimitExceeded,
-                      fmt::format("frame of {} bytes exceeds the limit of {} bytes", h.body_bytes(), max_body_bytes));
+    return make_error(
+        ErrorCode::kLimitExceeded,
+        fmt::format("frame of {} bytes exceeds the limit of {} bytes", h.body_bytes(), max_body_bytes));
   }
   return h;
 }
@@ -24,7 +25,8 @@ std::array<std::uint8_t, kFrameHeaderBytes> encode_frame_header(const FrameHeade
   return bytes;
 }
 
-void append_frame(std::string_view json, std::span<const std::uint8_t> payload, std::vector<std::uint8_t>& out) {
+void append_frame(std::string_view json, std::span<const std::uint8_t> payload,
+                  std::vector<std::uint8_t>& out) {
   const auto header = encode_frame_header(
       {static_cast<std::uint32_t>(json.size()), static_cast<std::uint32_t>(payload.size())});
   out.insert(out.end(), header.begin(), header.end());
@@ -47,8 +49,10 @@ Result<FrameReader::Next> FrameReader::next() {
   if (available < kFrameHeaderBytes + header.body_bytes()) return Next{};
   Next next;
   next.has_frame = true;
-  next.frame.json = std::string_view(reinterpret_cast<const char*>(start + kFrameHeaderBytes), header.json_bytes);
-  next.frame.payload = std::span<const std::uint8_t>(start + kFrameHeaderBytes + header.json_bytes, header.payload_bytes);
+  next.frame.json =
+      std::string_view(reinterpret_cast<const char*>(start + kFrameHeaderBytes), header.json_bytes);
+  next.frame.payload =
+      std::span<const std::uint8_t>(start + kFrameHeaderBytes + header.json_bytes, header.payload_bytes);
   consumed_ += kFrameHeaderBytes + header.body_bytes();
   return next;
 }

@@ -19,7 +19,8 @@ inline constexpr std::size_t kFrameHeaderBytes = 8;
 // 32-bit little-endian values, assembled byte by byte so the code does not depend on the host's
 // byte order (frame headers, delta replies' ids).
 inline std::uint32_t read_u32_le(const std::uint8_t* p) {
-  return std::uint32_t{p[0]} | std::uint32_t{p[1]} << 8 | std::uint32_t{p[2]} << 16 | std::uint32_t{p[3]} << 24;
+  return std::uint32_t{p[0]} | std::uint32_t{p[1]} << 8 | std::uint32_t{p[2]} << 16 |
+         std::uint32_t{p[3]} << 24;
 }
 inline void write_u32_le(std::uint32_t v, std::uint8_t* p) {
   for (int i = 0; i < 4; ++i) p[i] = static_cast<std::uint8_t>(v >> (8 * i));
@@ -39,7 +40,8 @@ Result<FrameHeader> decode_frame_header(std::span<const std::uint8_t, kFrameHead
 std::array<std::uint8_t, kFrameHeaderBytes> encode_frame_header(const FrameHeader& header);
 
 // Appends a whole frame (header, JSON, payload) to `out`.
-void append_frame(std::string_view json, std::span<const std::uint8_t> payload, std::vector<std::uint8_t>& out);
+void append_frame(std::string_view json, std::span<const std::uint8_t> payload,
+                  std::vector<std::uint8_t>& out);
 
 // A frame taken apart; the views point into the buffer it was split from.
 struct FrameView {
@@ -52,7 +54,9 @@ class FrameReader {
  public:
   explicit FrameReader(std::size_t max_body_bytes) : max_body_bytes_(max_body_bytes) {}
 
-  void feed(std::span<const std::uint8_t> bytes) { buffer_.insert(buffer_.end(), bytes.begin(), bytes.end()); }
+  void feed(std::span<const std::uint8_t> bytes) {
+    buffer_.insert(buffer_.end(), bytes.begin(), bytes.end());
+  }
 
   // The next complete frame, an empty optional-like result (ok with `has_frame == false`) when more
   // bytes are needed, or an error when the stream is broken. A returned frame stays valid until

@@ -16,14 +16,14 @@ inline constexpr int kProtocolVersion = 1;
 
 // Limits a server enforces and states in its hello reply.
 struct Limits {
-  std::uint32_t max_frame_bytes = 1u << 20;     // JSON + payload of one client frame
+  std::uint32_t max_frame_bytes = 1u << 20;  // JSON + payload of one client frame
   std::uint32_t max_connections = 256;
-  std::uint32_t max_in_flight = 8;              // extractions queued or running per connection
-  std::uint32_t max_grid = 4096;                // grid width and height
-  std::uint32_t max_budget = 5'000'000;         // triangles per extraction
-  std::uint32_t max_foci = 16;                  // focus points plus neglect regions
-  std::uint32_t idle_timeout_ms = 300'000;      // a connection with no request for this long is closed
-  std::uint32_t read_timeout_ms = 10'000;       // a frame started must arrive within this time
+  std::uint32_t max_in_flight = 8;          // extractions queued or running per connection
+  std::uint32_t max_grid = 4096;            // grid width and height
+  std::uint32_t max_budget = 5'000'000;     // triangles per extraction
+  std::uint32_t max_foci = 16;              // focus points plus neglect regions
+  std::uint32_t idle_timeout_ms = 300'000;  // a connection with no request for this long is closed
+  std::uint32_t read_timeout_ms = 10'000;   // a frame started must arrive within this time
 };
 
 using Matrix4 = std::array<double, 16>;  // column-major, as OpenGL and GLM store them
@@ -35,7 +35,7 @@ enum class Falloff : std::uint8_t { kStep, kLinear, kSmoothstep, kFoveal };
 inline constexpr std::array<const char*, 4> kFalloffNames{"step", "linear", "smoothstep", "foveal"};
 enum class DistanceKind : std::uint8_t { kChamfer5711, kChamfer34, kCityBlock, kChessboard, kEuclidean };
 inline constexpr std::array<const char*, 5> kDistanceKindNames{"chamfer-5-7-11", "chamfer-3-4", "city-block",
-                                                                "chessboard", "euclidean"};
+                                                               "chessboard", "euclidean"};
 enum class DistanceUnit : std::uint8_t { kPixels, kChamfer };
 inline constexpr std::array<const char*, 2> kDistanceUnitNames{"pixels", "chamfer"};
 enum class DracoMethod : std::uint8_t { kEdgebreaker, kSequential };
@@ -108,7 +108,7 @@ struct Extract {
   double error = 0;                                 // the bound e
   ErrorUnit error_unit = ErrorUnit::kModel;
   Criteria criteria;
-  std::optional<std::uint32_t> budget;              // at most this many triangles
+  std::optional<std::uint32_t> budget;  // at most this many triangles
   bool normals = false;
   bool labels = false;
   DracoSettings draco;

@@ -21,7 +21,9 @@ struct Failure {
   std::string message;
 };
 
-[[noreturn]] void fail(ErrorKind code, std::string message) { throw Failure{code, std::move(message)}; }
+[[noreturn]] void fail(ErrorKind code, std::string message) {
+  throw Failure{code, std::move(message)};
+}
 
 const char* type_name(const json& v) {
   if (v.is_null()) return "null";
@@ -43,7 +45,8 @@ std::string show(const json& v) {
 class ObjectReader {
  public:
   ObjectReader(const json& object, std::string path) : object_(object), path_(std::move(path)) {
-    if (!object_.is_object()) fail(ErrorKind::kBadRequest, fmt::format("{} must be an object, got {}", where(), type_name(object_)));
+    if (!object_.is_object())
+      fail(ErrorKind::kBadRequest, fmt::format("{} must be an object, got {}", where(), type_name(object_)));
   }
 
   bool has(const char* key) const { return object_.contains(key); }
@@ -73,7 +76,8 @@ class ObjectReader {
   bool boolean(const char* key, bool fallback) {
     const json* v = find(key);
     if (!v) return fallback;
-    if (!v->is_boolean()) fail(ErrorKind::kBadRequest, fmt::format("{} must be a boolean, got {}", field(key), type_name(*v)));
+    if (!v->is_boolean())
+      fail(ErrorKind::kBadRequest, fmt::format("{} must be a boolean, got {}", field(key), type_name(*v)));
     return v->get<bool>();
   }
   std::string string(const char* key, std::size_t max_length) {
@@ -99,34 +103,44 @@ class ObjectReader {
 
   void finish() const {
     for (auto it = object_.begin(); it != object_.end(); ++it) {
-      if (!read_.count(it.key())) fail(ErrorKind::kBadRequest, fmt::format("unknown field {}", field(it.key())));
+      if (!read_.count(it.key()))
+        fail(ErrorKind::kBadRequest, fmt::format("unknown field {}", field(it.key())));
     }
   }
 
-  std::string field(const std::string& key) const { return path_.empty() ? "'" + key + "'" : "'" + path_ + "." + key + "'"; }
+  std::string field(const std::string& key) const {
+    return path_.empty() ? "'" + key + "'" : "'" + path_ + "." + key + "'";
+  }
   std::string child(const std::string& key) const { return path_.empty() ? key : path_ + "." + key; }
   std::string where() const { return path_.empty() ? "the request" : "'" + path_ + "'"; }
 
   static double check_number(const json& v, const std::string& name, double min, double max) {
-    if (!v.is_number()) fail(ErrorKind::kBadRequest, fmt::format("{} must be a number, got {}", name, type_name(v)));
+    if (!v.is_number())
+      fail(ErrorKind::kBadRequest, fmt::format("{} must be a number, got {}", name, type_name(v)));
     const double x = v.get<double>();
     if (!std::isfinite(x) || x < min || x > max) {
       fail(ErrorKind::kBadRequest, fmt::format("{} is {}; expected {} to {}", name, show(v), min, max));
     }
     return x;
   }
-  static std::uint64_t check_integer(const json& v, const std::string& name, std::uint64_t min, std::uint64_t max) {
-    if (!v.is_number_integer() || (v.is_number_integer() && !v.is_number_unsigned() && v.get<std::int64_t>() < 0)) {
-      fail(ErrorKind::kBadRequest, fmt::format("{} must be a non-negative integer, got {} {}", name, type_name(v), show(v)));
+  static std::uint64_t check_integer(const json& v, const std::string& name, std::uint64_t min,
+                                     std::uint64_t max) {
+    if (!v.is_number_integer() ||
+        (v.is_number_integer() && !v.is_number_unsigned() && v.get<std::int64_t>() < 0)) {
+      fail(ErrorKind::kBadRequest,
+           fmt::format("{} must be a non-negative integer, got {} {}", name, type_name(v), show(v)));
     }
     const std::uint64_t x = v.get<std::uint64_t>();
-    if (x < min || x > max) fail(ErrorKind::kBadRequest, fmt::format("{} is {}; expected {} to {}", name, x, min, max));
+    if (x < min || x > max)
+      fail(ErrorKind::kBadRequest, fmt::format("{} is {}; expected {} to {}", name, x, min, max));
     return x;
   }
   static std::string check_string(const json& v, const std::string& name, std::size_t max_length) {
-    if (!v.is_string()) fail(ErrorKind::kBadRequest, fmt::format("{} must be a string, got {}", name, type_name(v)));
+    if (!v.is_string())
+      fail(ErrorKind::kBadRequest, fmt::format("{} must be a string, got {}", name, type_name(v)));
     std::string s = v.get<std::string>();
-    if (s.size() > max_length) fail(ErrorKind::kBadRequest, fmt::format("{} is longer than {} characters", name, max_length));
+    if (s.size() > max_length)
+      fail(ErrorKind::kBadRequest, fmt::format("{} is longer than {} characters", name, max_length));
     return s;
   }
 
@@ -156,8 +170,9 @@ double determinant(const Matrix4& m) {
 
 Matrix4 read_matrix(const json& v, const std::string& name) {
   if (!v.is_array() || v.size() != 16) {
-    fail(ErrorKind::kBadRequest, fmt::format("{} must be an array of 16 numbers (column-major), got {}", name,
-                                             v.is_array() ? fmt::format("{} elements", v.size()) : type_name(v)));
+    fail(ErrorKind::kBadRequest,
+         fmt::format("{} must be an array of 16 numbers (column-major), got {}", name,
+                     v.is_array() ? fmt::format("{} elements", v.size()) : type_name(v)));
   }
   Matrix4 m;
   double largest = 0;
@@ -173,8 +188,10 @@ Matrix4 read_matrix(const json& v, const std::string& name) {
   return m;
 }
 
-std::array<std::uint32_t, 2> read_pair(const json& v, const std::string& name, std::uint32_t max, ErrorKind over) {
-  if (!v.is_array() || v.size() != 2) fail(ErrorKind::kBadRequest, fmt::format("{} must be [width, height]", name));
+std::array<std::uint32_t, 2> read_pair(const json& v, const std::string& name, std::uint32_t max,
+                                       ErrorKind over) {
+  if (!v.is_array() || v.size() != 2)
+    fail(ErrorKind::kBadRequest, fmt::format("{} must be [width, height]", name));
   std::array<std::uint32_t, 2> out;
   for (std::size_t i = 0; i < 2; ++i) {
     const std::string element = fmt::format("{}[{}]", name, i);
@@ -203,8 +220,10 @@ std::vector<Focus> read_foci(const json* v, const std::string& path, bool neglec
     out.push_back(read_focus(*v, path, neglect));
     return out;
   }
-  if (!v->is_array()) fail(ErrorKind::kBadRequest, fmt::format("'{}' must be an array of {{x, y, ...}} objects", path));
-  for (std::size_t i = 0; i < v->size(); ++i) out.push_back(read_focus((*v)[i], fmt::format("{}[{}]", path, i), neglect));
+  if (!v->is_array())
+    fail(ErrorKind::kBadRequest, fmt::format("'{}' must be an array of {{x, y, ...}} objects", path));
+  for (std::size_t i = 0; i < v->size(); ++i)
+    out.push_back(read_focus((*v)[i], fmt::format("{}[{}]", path, i), neglect));
   return out;
 }
 
@@ -246,10 +265,12 @@ Extract read_extract(ObjectReader& r, const Limits& limits) {
     ObjectReader camera(r.require("camera"), "camera");
     e.view = read_matrix(camera.require("view"), "camera.view");
     e.projection = read_matrix(camera.require("projection"), "camera.projection");
-    if (const json* vp = camera.find("viewport")) e.viewport = read_pair(*vp, "camera.viewport", 16384, ErrorKind::kBadRequest);
+    if (const json* vp = camera.find("viewport"))
+      e.viewport = read_pair(*vp, "camera.viewport", 16384, ErrorKind::kBadRequest);
     camera.finish();
   }
-  if (const json* g = r.find("grid")) e.grid = read_pair(*g, "grid", limits.max_grid, ErrorKind::kLimitExceeded);
+  if (const json* g = r.find("grid"))
+    e.grid = read_pair(*g, "grid", limits.max_grid, ErrorKind::kLimitExceeded);
   const json& error = r.require("error");
   if (error.is_number()) {
     e.error = ObjectReader::check_number(error, "'error'", 0, 1e12);
@@ -263,7 +284,8 @@ Extract read_extract(ObjectReader& r, const Limits& limits) {
   if (const json* b = r.find("budget")) {
     const std::uint64_t budget = ObjectReader::check_integer(*b, "'budget'", 1, UINT32_MAX);
     if (budget > limits.max_budget) {
-      fail(ErrorKind::kLimitExceeded, fmt::format("'budget' {} exceeds the server limit {}", budget, limits.max_budget));
+      fail(ErrorKind::kLimitExceeded,
+           fmt::format("'budget' {} exceeds the server limit {}", budget, limits.max_budget));
     }
     e.budget = static_cast<std::uint32_t>(budget);
   }
@@ -276,7 +298,8 @@ Extract read_extract(ObjectReader& r, const Limits& limits) {
   e.delta = r.boolean("delta", false);
   if (const json* d = r.find("draco")) {
     ObjectReader dr(*d, "draco");
-    if (dr.has("method")) e.draco.method = static_cast<DracoMethod>(dr.choice("method", kDracoMethodNames, 0));
+    if (dr.has("method"))
+      e.draco.method = static_cast<DracoMethod>(dr.choice("method", kDracoMethodNames, 0));
     e.draco.speed = static_cast<int>(dr.integer("speed", e.draco.speed, 0, 10));
     e.draco.position_bits = static_cast<int>(dr.integer("position_bits", e.draco.position_bits, 1, 30));
     e.draco.normal_bits = static_cast<int>(dr.integer("normal_bits", e.draco.normal_bits, 1, 30));
@@ -287,7 +310,8 @@ Extract read_extract(ObjectReader& r, const Limits& limits) {
     fail(ErrorKind::kBadRequest, "'delta' needs draco.method 'sequential': edgebreaker reorders the faces");
   }
   if (e.delta && e.labels) {
-    fail(ErrorKind::kBadRequest, "'delta' cannot carry attributes.labels: the labels of kept triangles would go stale");
+    fail(ErrorKind::kBadRequest,
+         "'delta' cannot carry attributes.labels: the labels of kept triangles would go stale");
   }
   return e;
 }
@@ -299,7 +323,8 @@ Request read_request(ObjectReader& r, const std::string& type, const Limits& lim
     h.client = r.optional_string("client", "", 256);
     if (h.version != kProtocolVersion) {
       fail(ErrorKind::kUnsupportedVersion,
-           fmt::format("protocol version {} is not supported; this server speaks version {}", h.version, kProtocolVersion));
+           fmt::format("protocol version {} is not supported; this server speaks version {}", h.version,
+                       kProtocolVersion));
     }
     return h;
   }
@@ -318,27 +343,40 @@ Request read_request(ObjectReader& r, const std::string& type, const Limits& lim
   if (type == "stats") return Stats{};
   if (type == "ping") return Ping{};
   fail(ErrorKind::kUnknownType,
-       fmt::format("unknown request type '{}'; expected hello, list_models, model_info, extract, gaze, cancel, stats "
-                   "or ping",
-                   type));
+       fmt::format(
+           "unknown request type '{}'; expected hello, list_models, model_info, extract, gaze, cancel, stats "
+           "or ping",
+           type));
 }
 
 }  // namespace
 
 const char* to_string(ErrorKind kind) {
   switch (kind) {
-    case ErrorKind::kBadFrame: return "bad_frame";
-    case ErrorKind::kBadJson: return "bad_json";
-    case ErrorKind::kBadRequest: return "bad_request";
-    case ErrorKind::kUnknownType: return "unknown_type";
-    case ErrorKind::kUnsupportedVersion: return "unsupported_version";
-    case ErrorKind::kLimitExceeded: return "limit_exceeded";
-    case ErrorKind::kUnknownModel: return "unknown_model";
-    case ErrorKind::kNoView: return "no_view";
-    case ErrorKind::kCancelled: return "cancelled";
-    case ErrorKind::kSuperseded: return "superseded";
-    case ErrorKind::kShuttingDown: return "shutting_down";
-    case ErrorKind::kInternal: return "internal";
+    case ErrorKind::kBadFrame:
+      return "bad_frame";
+    case ErrorKind::kBadJson:
+      return "bad_json";
+    case ErrorKind::kBadRequest:
+      return "bad_request";
+    case ErrorKind::kUnknownType:
+      return "unknown_type";
+    case ErrorKind::kUnsupportedVersion:
+      return "unsupported_version";
+    case ErrorKind::kLimitExceeded:
+      return "limit_exceeded";
+    case ErrorKind::kUnknownModel:
+      return "unknown_model";
+    case ErrorKind::kNoView:
+      return "no_view";
+    case ErrorKind::kCancelled:
+      return "cancelled";
+    case ErrorKind::kSuperseded:
+      return "superseded";
+    case ErrorKind::kShuttingDown:
+      return "shutting_down";
+    case ErrorKind::kInternal:
+      return "internal";
   }
   return "internal";
 }
@@ -366,7 +404,8 @@ ParsedRequest parse_request(std::string_view text, const Limits& limits) {
     // Read the id first so that even a bad request's error reply carries it.
     if (const json* id = r.find("id"); id && id->is_number_unsigned()) parsed.id = id->get<std::uint64_t>();
     r.integer("id", 0, 0, UINT64_MAX);
-    if (!parsed.id) fail(ErrorKind::kBadRequest, "'id' is required: a non-negative integer chosen by the client");
+    if (!parsed.id)
+      fail(ErrorKind::kBadRequest, "'id' is required: a non-negative integer chosen by the client");
     const std::string type = r.string("type", 64);
     Request request = read_request(r, type, limits);
     r.finish();
@@ -385,7 +424,8 @@ namespace {
 
 json foci_json(const std::vector<Focus>& foci) {
   json out = json::array();
-  for (const Focus& f : foci) out.push_back({{"x", f.x}, {"y", f.y}, {"distance", f.distance}, {"factor", f.factor}});
+  for (const Focus& f : foci)
+    out.push_back({{"x", f.x}, {"y", f.y}, {"distance", f.distance}, {"factor", f.factor}});
   return out;
 }
 
@@ -397,7 +437,8 @@ json extract_json(const Extract& e) {
   j["error"] = {{"value", e.error}, {"unit", enum_name(kErrorUnitNames, e.error_unit)}};
   json c;
   if (e.criteria.silhouette) {
-    c["silhouette"] = {{"distance", e.criteria.silhouette->distance}, {"factor", e.criteria.silhouette->factor}};
+    c["silhouette"] = {{"distance", e.criteria.silhouette->distance},
+                       {"factor", e.criteria.silhouette->factor}};
   }
   if (!e.criteria.focus.empty()) c["focus"] = foci_json(e.criteria.focus);
   if (!e.criteria.neglect.empty()) c["neglect"] = foci_json(e.criteria.neglect);
@@ -411,7 +452,9 @@ json extract_json(const Extract& e) {
   if (e.budget) j["budget"] = *e.budget;
   j["attributes"] = {{"normals", e.normals}, {"labels", e.labels}};
   if (e.delta) j["delta"] = true;
-  j["draco"] = {{"speed", e.draco.speed}, {"position_bits", e.draco.position_bits}, {"normal_bits", e.draco.normal_bits}};
+  j["draco"] = {{"speed", e.draco.speed},
+                {"position_bits", e.draco.position_bits},
+                {"normal_bits", e.draco.normal_bits}};
   if (e.draco.method) j["draco"]["method"] = enum_name(kDracoMethodNames, *e.draco.method);
   if (e.draco.entropy_coding) j["draco"]["entropy_coding"] = *e.draco.entropy_coding;
   return j;

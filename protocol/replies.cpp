@@ -31,8 +31,12 @@ Limits limits_from(const json& j) {
 }
 
 json summary_json(const ModelSummary& m) {
-  return {{"name", m.name},         {"vertices", m.vertices},         {"input_triangles", m.input_triangles},
-          {"root_triangles", m.root_triangles}, {"nodes", m.nodes}, {"memory_bytes", m.memory_bytes},
+  return {{"name", m.name},
+          {"vertices", m.vertices},
+          {"input_triangles", m.input_triangles},
+          {"root_triangles", m.root_triangles},
+          {"nodes", m.nodes},
+          {"memory_bytes", m.memory_bytes},
           {"max_error", m.max_error}};
 }
 
@@ -49,8 +53,9 @@ ModelSummary summary_from(const json& j) {
 }
 
 json timings_json(const StageTimings& t) {
-  return {{"queue", t.queue_us},   {"map", t.map_us},       {"occupancy", t.occupancy_us}, {"dt", t.dt_us},
-          {"labels", t.labels_us}, {"refine", t.refine_us}, {"encode", t.encode_us},       {"total", t.total_us}};
+  return {{"queue", t.queue_us},   {"map", t.map_us},       {"occupancy", t.occupancy_us},
+          {"dt", t.dt_us},         {"labels", t.labels_us}, {"refine", t.refine_us},
+          {"encode", t.encode_us}, {"total", t.total_us}};
 }
 
 StageTimings timings_from(const json& j) {
@@ -76,7 +81,8 @@ ErrorKind error_kind_from(const std::string& code) {
 }  // namespace
 
 const char* reply_type_name(const Reply& reply) {
-  static constexpr const char* kNames[] = {"hello", "models", "model_info", "mesh", "error", "cancel", "stats", "pong"};
+  static constexpr const char* kNames[] = {"hello", "models", "model_info", "mesh",
+                                           "error", "cancel", "stats",      "pong"};
   return kNames[reply.index()];
 }
 
@@ -85,7 +91,10 @@ std::string to_json(const Reply& reply, std::optional<std::uint64_t> id) {
       [](const auto& r) -> json {
         using T = std::decay_t<decltype(r)>;
         if constexpr (std::is_same_v<T, HelloReply>) {
-          return {{"version", r.version}, {"server", r.server}, {"limits", limits_json(r.limits)}, {"instance", r.instance}};
+          return {{"version", r.version},
+                  {"server", r.server},
+                  {"limits", limits_json(r.limits)},
+                  {"instance", r.instance}};
         } else if constexpr (std::is_same_v<T, ModelsReply>) {
           json models = json::array();
           for (const ModelSummary& m : r.models) models.push_back(summary_json(m));
@@ -99,10 +108,13 @@ std::string to_json(const Reply& reply, std::optional<std::uint64_t> id) {
           m["colors"] = r.colors;
           return m;
         } else if constexpr (std::is_same_v<T, MeshReply>) {
-          json m = {{"model", r.model},           {"triangles", r.triangles},
-                    {"vertices", r.vertices},     {"max_error", r.max_error},
+          json m = {{"model", r.model},
+                    {"triangles", r.triangles},
+                    {"vertices", r.vertices},
+                    {"max_error", r.max_error},
                     {"bytes", r.bytes},
-                    {"superseded", r.superseded}, {"timings_us", timings_json(r.timings)},
+                    {"superseded", r.superseded},
+                    {"timings_us", timings_json(r.timings)},
                     {"memory", {{"session_bytes", r.session_bytes}, {"scratch_bytes", r.scratch_bytes}}}};
           if (r.focus) m["focus"] = *r.focus;
           if (r.delta) {
@@ -137,8 +149,8 @@ Result<ParsedReply> parse_reply(std::string_view text) {
     if (j.contains("id") && j["id"].is_number_unsigned()) out.id = j["id"].get<std::uint64_t>();
     const std::string type = j.value("type", "");
     if (type == "hello") {
-      out.reply = HelloReply{j.value("version", 0), j.value("server", ""), limits_from(j.value("limits", json::object())),
-                             j.value("instance", "")};
+      out.reply = HelloReply{j.value("version", 0), j.value("server", ""),
+                             limits_from(j.value("limits", json::object())), j.value("instance", "")};
     } else if (type == "models") {
       ModelsReply r;
       const json models = j.value("models", json::array());
@@ -199,13 +211,14 @@ Result<DeltaPayload> split_delta_payload(const MeshDelta& delta, std::span<const
   const std::uint64_t size = payload.size();
   if (delta.draco_bytes > size || delta.added > size / 4 || delta.removed > size / 4 ||
       delta.draco_bytes + 4 * (delta.added + delta.removed) != size) {
-    return make_error(ErrorCode::kInvalidArgument,
-                      fmt::format("delta payload of {} bytes does not hold {} Draco bytes, {} added and {} removed ids",
-                                  size, delta.draco_bytes, delta.added, delta.removed));
+    return make_error(
+        ErrorCode::kInvalidArgument,
+        fmt::format("delta payload of {} bytes does not hold {} Draco bytes, {} added and {} removed ids",
+                    size, delta.draco_bytes, delta.added, delta.removed));
   }
   if ((delta.added == 0) != (delta.draco_bytes == 0)) {
-    return make_error(ErrorCode::kInvalidArgument,
-                      fmt::format("delta with {} added ids has {} Draco bytes", delta.added, delta.draco_bytes));
+    return make_error(ErrorCode::kInvalidArgument, fmt::format("delta with {} added ids has {} Draco bytes",
+                                                               delta.added, delta.draco_bytes));
   }
   DeltaPayload out;
   out.draco = payload.first(static_cast<std::size_t>(delta.draco_bytes));

@@ -34,8 +34,8 @@ struct ModelSummary {
   std::uint64_t input_triangles = 0;  // the full-resolution mesh
   std::uint64_t root_triangles = 0;   // the coarsest mesh
   std::uint64_t nodes = 0;
-  std::uint64_t memory_bytes = 0;     // resident size of the loaded model
-  double max_error = 0;               // model units
+  std::uint64_t memory_bytes = 0;  // resident size of the loaded model
+  double max_error = 0;            // model units
 };
 
 struct ModelsReply {
@@ -89,14 +89,14 @@ struct MeshReply {
   std::string model;
   std::uint64_t triangles = 0;
   std::uint64_t vertices = 0;
-  double max_error = 0;           // largest error of a triangle in the cut, model units
-  std::uint64_t bytes = 0;        // payload size
+  double max_error = 0;                        // largest error of a triangle in the cut, model units
+  std::uint64_t bytes = 0;                     // payload size
   std::optional<std::array<double, 2>> focus;  // the focus this mesh reflects (gaze replies)
-  std::uint64_t superseded = 0;   // gaze updates replaced by this one before they ran
-  std::uint64_t session_bytes = 0;  // memory the connection's cut holds on the server
-  std::uint64_t scratch_bytes = 0;  // memory the worker that ran it holds for this model
+  std::uint64_t superseded = 0;                // gaze updates replaced by this one before they ran
+  std::uint64_t session_bytes = 0;             // memory the connection's cut holds on the server
+  std::uint64_t scratch_bytes = 0;             // memory the worker that ran it holds for this model
   StageTimings timings;
-  std::optional<MeshDelta> delta;   // set when the extract asked for delta replies
+  std::optional<MeshDelta> delta;  // set when the extract asked for delta replies
 };
 
 struct ErrorReply {
@@ -115,7 +115,8 @@ struct StatsReply {
 
 struct Pong {};
 
-using Reply = std::variant<HelloReply, ModelsReply, ModelInfoReply, MeshReply, ErrorReply, CancelReply, StatsReply, Pong>;
+using Reply = std::variant<HelloReply, ModelsReply, ModelInfoReply, MeshReply, ErrorReply, CancelReply,
+                           StatsReply, Pong>;
 
 // The JSON header of a reply; `id` is the request's id (absent only when the request had none).
 std::string to_json(const Reply& reply, std::optional<std::uint64_t> id);

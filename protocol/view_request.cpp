@@ -13,21 +13,30 @@ glm::mat4 to_glm(const Matrix4& m) {
 
 core::FalloffLaw to_core(Falloff f) {
   switch (f) {
-    case Falloff::kStep: return core::FalloffLaw::kStep;
-    case Falloff::kLinear: return core::FalloffLaw::kLinear;
-    case Falloff::kSmoothstep: return core::FalloffLaw::kSmoothstep;
-    case Falloff::kFoveal: return core::FalloffLaw::kFoveal;
+    case Falloff::kStep:
+      return core::FalloffLaw::kStep;
+    case Falloff::kLinear:
+      return core::FalloffLaw::kLinear;
+    case Falloff::kSmoothstep:
+      return core::FalloffLaw::kSmoothstep;
+    case Falloff::kFoveal:
+      return core::FalloffLaw::kFoveal;
   }
   return core::FalloffLaw::kStep;
 }
 
 core::DistanceMetric to_core(DistanceKind d) {
   switch (d) {
-    case DistanceKind::kChamfer5711: return core::DistanceMetric::kChamfer5711;
-    case DistanceKind::kChamfer34: return core::DistanceMetric::kChamfer34;
-    case DistanceKind::kCityBlock: return core::DistanceMetric::kCityBlock;
-    case DistanceKind::kChessboard: return core::DistanceMetric::kChessboard;
-    case DistanceKind::kEuclidean: return core::DistanceMetric::kEuclidean;
+    case DistanceKind::kChamfer5711:
+      return core::DistanceMetric::kChamfer5711;
+    case DistanceKind::kChamfer34:
+      return core::DistanceMetric::kChamfer34;
+    case DistanceKind::kCityBlock:
+      return core::DistanceMetric::kCityBlock;
+    case DistanceKind::kChessboard:
+      return core::DistanceMetric::kChessboard;
+    case DistanceKind::kEuclidean:
+      return core::DistanceMetric::kEuclidean;
   }
   return core::DistanceMetric::kChamfer5711;
 }
@@ -45,8 +54,9 @@ core::ViewRequest to_view_request(const Extract& e, bool model_has_normals) {
   a.viewport_height_px = static_cast<float>(e.viewport[1]);
   a.metric = to_core(e.criteria.distance);
   // Thresholds in raw units become pixels; exact Euclidean distances count fifths of a pixel.
-  const float per_pixel =
-      a.metric == core::DistanceMetric::kEuclidean ? 5.0f : static_cast<float>(core::units_per_pixel(a.metric));
+  const float per_pixel = a.metric == core::DistanceMetric::kEuclidean
+                              ? 5.0f
+                              : static_cast<float>(core::units_per_pixel(a.metric));
   const float to_px = e.criteria.units == DistanceUnit::kChamfer ? 1.0f / per_pixel : 1.0f;
   const core::FalloffLaw law = to_core(e.criteria.falloff);
   if (e.criteria.silhouette) {
@@ -60,14 +70,16 @@ core::ViewRequest to_view_request(const Extract& e, bool model_has_normals) {
     a.focus.law = law;
     a.focus.distance_px = static_cast<float>(e.criteria.focus.front().distance) * to_px;
     a.focus.factor = static_cast<float>(e.criteria.focus.front().factor);
-    for (const auto& f : e.criteria.focus) v.focus.push_back({static_cast<float>(f.x), static_cast<float>(f.y)});
+    for (const auto& f : e.criteria.focus)
+      v.focus.push_back({static_cast<float>(f.x), static_cast<float>(f.y)});
   }
   if (!e.criteria.neglect.empty()) {
     a.use_neglect = true;
     a.neglect.law = law == core::FalloffLaw::kFoveal ? core::FalloffLaw::kStep : law;
     a.neglect.distance_px = static_cast<float>(e.criteria.neglect.front().distance) * to_px;
     a.neglect.factor = static_cast<float>(e.criteria.neglect.front().factor);
-    for (const auto& f : e.criteria.neglect) v.neglect.push_back({static_cast<float>(f.x), static_cast<float>(f.y)});
+    for (const auto& f : e.criteria.neglect)
+      v.neglect.push_back({static_cast<float>(f.x), static_cast<float>(f.y)});
   }
   a.outside_view_factor = static_cast<float>(e.criteria.frustum_factor);
   a.back_face_factor = model_has_normals ? static_cast<float>(e.criteria.backface_factor) : 1.0f;

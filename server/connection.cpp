@@ -19,7 +19,9 @@ namespace net = boost::asio;
 namespace {
 
 std::int64_t now_ns() {
-  return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now().time_since_epoch()).count();
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(
+             std::chrono::steady_clock::now().time_since_epoch())
+      .count();
 }
 
 std::vector<std::uint8_t> make_frame(const protocol::Reply& reply, std::optional<std::uint64_t> id,
@@ -31,7 +33,8 @@ std::vector<std::uint8_t> make_frame(const protocol::Reply& reply, std::optional
   return frame;
 }
 
-std::vector<std::uint8_t> error_frame(protocol::ErrorKind code, std::string message, std::optional<std::uint64_t> id) {
+std::vector<std::uint8_t> error_frame(protocol::ErrorKind code, std::string message,
+                                      std::optional<std::uint64_t> id) {
   return make_frame(protocol::ErrorReply{code, std::move(message)}, id);
 }
 
@@ -40,7 +43,9 @@ std::vector<std::uint8_t> error_frame(protocol::ErrorKind code, std::string mess
 Connection::Connection(ServerContext& server, net::any_io_executor strand, std::uint64_t number)
     : server_(server), strand_(std::move(strand)), number_(number) {}
 
-void Connection::opened() { server_.metrics.connection_opened(); }
+void Connection::opened() {
+  server_.metrics.connection_opened();
+}
 
 void Connection::shutdown() {
   net::dispatch(strand_, [self = shared_from_this()] {
@@ -88,8 +93,9 @@ void Connection::on_read_end() {
 }
 
 void Connection::on_request(std::uint64_t seq, std::uint64_t id, const protocol::Hello&) {
-  replies_.fill(seq, make_frame(protocol::HelloReply{protocol::kProtocolVersion, "mtlod/0.1", server_.config.limits,
-                                                      server_.config.instance}, id));
+  replies_.fill(seq, make_frame(protocol::HelloReply{protocol::kProtocolVersion, "mtlod/0.1",
+                                                     server_.config.limits, server_.config.instance},
+                                id));
 }
 void Connection::on_request(std::uint64_t seq, std::uint64_t id, const protocol::ListModels&) {
   protocol::ModelsReply reply;
@@ -109,7 +115,8 @@ void Connection::on_request(std::uint64_t seq, std::uint64_t id, const protocol:
 }
 void Connection::on_request(std::uint64_t seq, std::uint64_t id, const protocol::Cancel& request) {
   std::optional<Job> job = jobs_.cancel(request.target);
-  if (job) replies_.fill(job->seq, error_frame(protocol::ErrorKind::kCancelled, "cancelled by the client", job->id));
+  if (job)
+    replies_.fill(job->seq, error_frame(protocol::ErrorKind::kCancelled, "cancelled by the client", job->id));
   replies_.fill(seq, make_frame(protocol::CancelReply{request.target, job.has_value()}, id));
 }
 void Connection::on_request(std::uint64_t seq, std::uint64_t id, const protocol::Extract& request) {
@@ -139,13 +146,14 @@ void Connection::enqueue(Job job) {
   const std::size_t in_flight = jobs_.queued() + (jobs_.running() ? 1 : 0);
   if (!coalesces && in_flight >= server_.config.limits.max_in_flight) {
     return reply_error(job.seq, protocol::ErrorKind::kLimitExceeded,
-                       fmt::format("{} extractions are in flight on this connection; the limit is {}", in_flight,
-                                   server_.config.limits.max_in_flight),
+                       fmt::format("{} extractions are in flight on this connection; the limit is {}",
+                                   in_flight, server_.config.limits.max_in_flight),
                        job.id);
   }
   if (std::optional<Job> replaced = jobs_.push(std::move(job))) {
     server_.metrics.error(protocol::ErrorKind::kSuperseded);
-    replies_.fill(replaced->seq, error_frame(protocol::ErrorKind::kSuperseded, "a newer gaze replaced this one", replaced->id));
+    replies_.fill(replaced->seq, error_frame(protocol::ErrorKind::kSuperseded,
+                                             "a newer gaze replaced this one", replaced->id));
   }
   start_next_job();
 }
@@ -170,18 +178,21 @@ void Connection::finish_job(const Job& job, std::int64_t started_ns,
   } else {
     ExtractOutcome& result = std::get<ExtractOutcome>(outcome);
     protocol::MeshReply& reply = result.reply;
-    reply.timings.queue_us = static_cast<std::uint64_t>(std::max<std::int64_t>(0, started_ns - job.received_ns) / 1000);
+    reply.timings.queue_us =
+        static_cast<std::uint64_t>(std::max<std::int64_t>(0, started_ns - job.received_ns) / 1000);
     reply.timings.total_us = static_cast<std::uint64_t>((now_ns() - job.received_ns) / 1000);
     reply.superseded = job.superseded;
     if (job.gaze && !job.extract.criteria.focus.empty()) {
-      reply.focus = std::array<double, 2>{job.extract.criteria.focus.front().x, job.extract.criteria.focus.front().y};
+      reply.focus =
+          std::array<double, 2>{job.extract.criteria.focus.front().x, job.extract.criteria.focus.front().y};
     }
     const auto& t = reply.timings;
-    spdlog::info("conn={} id={} {} model={} triangles={} bytes={} max_error={:.4g} us: queue={} map={} occupancy={} "
-                 "dt={} labels={} refine={} encode={} total={}",
-                 number_, job.id, job.gaze ? "gaze" : "extract", reply.model, reply.triangles, reply.bytes,
-                 reply.max_error, t.queue_us, t.map_us, t.occupancy_us, t.dt_us, t.labels_us, t.refine_us, t.encode_us,
-                 t.total_us);
+    spdlog::info(
+        "conn={} id={} {} model={} triangles={} bytes={} max_error={:.4g} us: queue={} map={} occupancy={} "
+        "dt={} labels={} refine={} encode={} total={}",
+        number_, job.id, job.gaze ? "gaze" : "extract", reply.model, reply.triangles, reply.bytes,
+        reply.max_error, t.queue_us, t.map_us, t.occupancy_us, t.dt_us, t.labels_us, t.refine_us, t.encode_us,
+        t.total_us);
     server_.metrics.extraction(t, reply.triangles);
     replies_.fill(job.seq, make_frame(reply, job.id, result.payload));
   }
@@ -192,7 +203,8 @@ void Connection::finish_job(const Job& job, std::int64_t started_ns,
 void Connection::reply_unknown_model(std::uint64_t seq, std::uint64_t id, const std::string& name) {
   std::string known;
   for (const auto& m : server_.models.models()) known += (known.empty() ? "" : ", ") + m->name;
-  reply_error(seq, protocol::ErrorKind::kUnknownModel, fmt::format("no model named '{}'; loaded: {}", name, known), id);
+  reply_error(seq, protocol::ErrorKind::kUnknownModel,
+              fmt::format("no model named '{}'; loaded: {}", name, known), id);
 }
 
 void Connection::reply_error(std::uint64_t seq, protocol::ErrorKind code, const std::string& message,

@@ -89,9 +89,11 @@ class Connection : public std::enable_shared_from_this<Connection> {
   bool paused() const;
   void enqueue(Job job);
   void start_next_job();
-  void finish_job(const Job& job, std::int64_t started_ns, std::variant<ExtractOutcome, protocol::ProtocolError>& outcome);
+  void finish_job(const Job& job, std::int64_t started_ns,
+                  std::variant<ExtractOutcome, protocol::ProtocolError>& outcome);
   void reply_unknown_model(std::uint64_t seq, std::uint64_t id, const std::string& name);
-  void reply_error(std::uint64_t seq, protocol::ErrorKind code, const std::string& message, std::optional<std::uint64_t> id);
+  void reply_error(std::uint64_t seq, protocol::ErrorKind code, const std::string& message,
+                   std::optional<std::uint64_t> id);
   void drain_jobs(protocol::ErrorKind code, const char* message);
   void flush();
   void close();

@@ -40,10 +40,12 @@ std::uint64_t elapsed_us(Clock::time_point& since) {
 
 }  // namespace
 
-std::variant<ExtractOutcome, protocol::ProtocolError> Engine::extract(const protocol::Extract& request, bool gaze,
-                                                                      SessionCut& session) {
+std::variant<ExtractOutcome, protocol::ProtocolError> Engine::extract(const protocol::Extract& request,
+                                                                      bool gaze, SessionCut& session) {
   const Model* model = models_.find(request.model);
-  if (!model) return protocol::ProtocolError{protocol::ErrorKind::kUnknownModel, fmt::format("no model named '{}'", request.model)};
+  if (!model)
+    return protocol::ProtocolError{protocol::ErrorKind::kUnknownModel,
+                                   fmt::format("no model named '{}'", request.model)};
   if (request.normals && !model->mt.has_normals()) {
     return protocol::ProtocolError{protocol::ErrorKind::kBadRequest,
                                    fmt::format("model '{}' has no normals to send", request.model)};
@@ -100,7 +102,8 @@ std::variant<ExtractOutcome, protocol::ProtocolError> Engine::extract(const prot
     // vertex in a new one decode to the same floats.
     core::DracoOptions::Grid grid;
     grid.origin = model->bounds_min;
-    for (int c = 0; c < 3; ++c) grid.range = std::max(grid.range, model->bounds_max[c] - model->bounds_min[c]);
+    for (int c = 0; c < 3; ++c)
+      grid.range = std::max(grid.range, model->bounds_max[c] - model->bounds_min[c]);
     draco.position_grid = grid;
   }
   draco.normals = request.normals;
@@ -124,9 +127,9 @@ std::variant<ExtractOutcome, protocol::ProtocolError> Engine::extract(const prot
   std::uint64_t vertices = 0;
   outcome.payload.clear();
   if (!triangles.empty() || !request.delta) {  // a full reply always goes through the encoder's checks
-    const core::DracoInput input{model->mt.positions, model->mt.normals,
-                                 request.labels ? extractor->vertex_labels() : std::span<const std::uint32_t>(),
-                                 triangles};
+    const core::DracoInput input{
+        model->mt.positions, model->mt.normals,
+        request.labels ? extractor->vertex_labels() : std::span<const std::uint32_t>(), triangles};
     auto encoded = worker.encoder.encode(input, draco, outcome.payload);
     if (!encoded) {
       state.sent.reset();  // this change never reaches the client: the next delta starts afresh
@@ -145,8 +148,10 @@ std::variant<ExtractOutcome, protocol::ProtocolError> Engine::extract(const prot
   outcome.reply.vertices = vertices;
   outcome.reply.bytes = outcome.payload.size();
   outcome.reply.max_error = cut.max_error;
-  outcome.reply.session_bytes = state.refiner->memory_bytes() + state.view.memory_bytes() + state.sent.memory_bytes();
-  outcome.reply.scratch_bytes = extractor->memory_bytes() + worker.cut.triangles.capacity() * sizeof(std::uint32_t);
+  outcome.reply.session_bytes =
+      state.refiner->memory_bytes() + state.view.memory_bytes() + state.sent.memory_bytes();
+  outcome.reply.scratch_bytes =
+      extractor->memory_bytes() + worker.cut.triangles.capacity() * sizeof(std::uint32_t);
   return outcome;
 }
 

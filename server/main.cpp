@@ -15,58 +15,69 @@
 
 int main(int argc, char** argv) {
   using namespace mtlod;
-  CLI::App app{"mtlod-server: a network level-of-detail server. Clients send camera matrices and gaze points "
-               "(protocol/PROTOCOL.md) and receive Draco-compressed view-dependent extractions."};
+  CLI::App app{
+      "mtlod-server: a network level-of-detail server. Clients send camera matrices and gaze points "
+      "(protocol/PROTOCOL.md) and receive Draco-compressed view-dependent extractions."};
   server::ServerConfig config;
   std::vector<std::string> model_files, meshes;
   std::string models_dir, cache_dir = "build/models", log_level = "info", port_file;
   app.add_option("models", model_files, "MT files to serve (model name = file stem)");
   app.add_option("--models", models_dir, "serve every .mt file in this directory");
-  app.add_option("--mesh", meshes,
-                 "a mesh (PLY/OBJ/OFF/STL) to serve; its MT is built into --cache-dir on first run and reused "
-                 "while newer than the mesh")
+  app.add_option(
+         "--mesh", meshes,
+         "a mesh (PLY/OBJ/OFF/STL) to serve; its MT is built into --cache-dir on first run and reused "
+         "while newer than the mesh")
       ->take_all();
   app.add_option("--cache-dir", cache_dir, "where MT files built from --mesh go")->capture_default_str();
   app.add_option("--host", config.host, "address to listen on")->capture_default_str();
   app.add_option("--port", config.port, "TCP port for the protocol (0: any free port, printed at start)")
       ->capture_default_str();
-  app.add_option("--port-file", port_file,
-                 "write the bound port to this file once listening (for scripts and tests); with --http-port the "
-                 "HTTP port follows on a second line");
-  app.add_option("--http-port", config.http_port,
-                 "serve the browser viewer and the protocol over WebSocket (/ws) on this HTTP port (0: any free "
-                 "port); off when not given");
+  app.add_option(
+      "--port-file", port_file,
+      "write the bound port to this file once listening (for scripts and tests); with --http-port the "
+      "HTTP port follows on a second line");
+  app.add_option(
+      "--http-port", config.http_port,
+      "serve the browser viewer and the protocol over WebSocket (/ws) on this HTTP port (0: any free "
+      "port); off when not given");
   config.web_root = MTLOD_DEFAULT_WEB_ROOT;
   app.add_option("--web-root", config.web_root,
                  "folder holding clients/web/ and scripts/node_modules/three/ (the viewer's files)")
       ->capture_default_str();
   app.add_option("--io-threads", config.io_threads, "threads serving sockets")->capture_default_str();
-  app.add_option("--workers", config.workers, "threads computing extractions (0: one per core)")->capture_default_str();
+  app.add_option("--workers", config.workers, "threads computing extractions (0: one per core)")
+      ->capture_default_str();
   auto& limits = config.limits;
-  app.add_option("--max-frame-bytes", limits.max_frame_bytes, "largest request frame (JSON + payload) accepted")
+  app.add_option("--max-frame-bytes", limits.max_frame_bytes,
+                 "largest request frame (JSON + payload) accepted")
       ->capture_default_str();
   app.add_option("--max-connections", limits.max_connections, "connections served at once; more are refused")
       ->capture_default_str();
   app.add_option("--max-in-flight", limits.max_in_flight, "unanswered requests allowed per connection")
       ->capture_default_str();
-  app.add_option("--max-grid", limits.max_grid, "largest distance-transform grid side")->capture_default_str();
-  app.add_option("--max-budget", limits.max_budget, "largest triangle budget per extraction")->capture_default_str();
+  app.add_option("--max-grid", limits.max_grid, "largest distance-transform grid side")
+      ->capture_default_str();
+  app.add_option("--max-budget", limits.max_budget, "largest triangle budget per extraction")
+      ->capture_default_str();
   app.add_option("--max-foci", limits.max_foci, "most focus points plus neglect regions per request")
       ->capture_default_str();
-  app.add_option("--idle-timeout-ms", limits.idle_timeout_ms, "close connections idle this long")->capture_default_str();
+  app.add_option("--idle-timeout-ms", limits.idle_timeout_ms, "close connections idle this long")
+      ->capture_default_str();
   app.add_option("--read-timeout-ms", limits.read_timeout_ms, "a started frame must arrive within this time")
       ->capture_default_str();
   app.add_option("--drain-timeout-ms", config.drain_timeout_ms,
                  "on SIGINT/SIGTERM, in-flight work gets this long before connections are closed")
       ->capture_default_str();
   std::string name;
-  app.add_option("--name", name,
-                 "this replica's name in hello replies and /health (letters, digits, '.', '_', '-'); default: the "
-                 "host name")
+  app.add_option(
+         "--name", name,
+         "this replica's name in hello replies and /health (letters, digits, '.', '_', '-'); default: the "
+         "host name")
       ->check([](const std::string& value) {
-        const bool plain = !value.empty() && value.size() <= 64 &&
-                           value.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789._-") ==
-                               std::string::npos;
+        const bool plain =
+            !value.empty() && value.size() <= 64 &&
+            value.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789._-") ==
+                std::string::npos;
         return plain ? std::string() : "a name of 1 to 64 letters, digits, '.', '_' or '-'";
       });
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error or off")->capture_default_str();
@@ -77,7 +88,10 @@ int main(int argc, char** argv) {
     char host[256] = {};
     name = ::gethostname(host, sizeof host - 1) == 0 ? host : "mtlod";
     name.erase(std::remove_if(name.begin(), name.end(),
-                              [](char c) { return !std::isalnum(static_cast<unsigned char>(c)) && c != '.' && c != '_' && c != '-'; }),
+                              [](char c) {
+                                return !std::isalnum(static_cast<unsigned char>(c)) && c != '.' && c != '_' &&
+                                       c != '-';
+                              }),
                name.end());
     if (name.empty()) name = "mtlod";
   }
@@ -103,16 +117,19 @@ int main(int argc, char** argv) {
   }
   for (const auto& model : registry.models()) {
     const auto s = model->summary();
-    spdlog::info("model {}: {} vertices, {} input triangles, {} root triangles, {} nodes, {:.1f} MiB ({:.1f} bytes per "
-                 "input triangle)",
-                 s.name, s.vertices, s.input_triangles, s.root_triangles, s.nodes, s.memory_bytes / 1048576.0,
-                 static_cast<double>(s.memory_bytes) / static_cast<double>(std::max<std::uint64_t>(1, s.input_triangles)));
+    spdlog::info(
+        "model {}: {} vertices, {} input triangles, {} root triangles, {} nodes, {:.1f} MiB ({:.1f} bytes "
+        "per "
+        "input triangle)",
+        s.name, s.vertices, s.input_triangles, s.root_triangles, s.nodes, s.memory_bytes / 1048576.0,
+        static_cast<double>(s.memory_bytes) /
+            static_cast<double>(std::max<std::uint64_t>(1, s.input_triangles)));
   }
 
   server::Server server(config, registry);
   check(server.listen());
-  spdlog::info("{} listening on {}:{} (protocol version {}); try: mtlod-client --port {} list", config.instance,
-               config.host, server.port(), protocol::kProtocolVersion, server.port());
+  spdlog::info("{} listening on {}:{} (protocol version {}); try: mtlod-client --port {} list",
+               config.instance, config.host, server.port(), protocol::kProtocolVersion, server.port());
   if (config.http_port) {
     spdlog::info("viewer: http://{}:{}/ (WebSocket at /ws, files from {})", config.host, server.http_port(),
                  config.web_root);

@@ -17,7 +17,8 @@ namespace mtlod::server {
 namespace fs = std::filesystem;
 
 protocol::ModelSummary Model::summary() const {
-  return {name, mt.vertex_count(), input_triangles, mt.root_triangle_count(), mt.node_count(), memory_bytes, max_error};
+  return {name,         mt.vertex_count(), input_triangles, mt.root_triangle_count(), mt.node_count(),
+          memory_bytes, max_error};
 }
 
 protocol::ModelInfoReply Model::info() const {
@@ -79,7 +80,8 @@ Status ModelRegistry::add(const fs::path& path, core::Mt mt) {
 
 Status ModelRegistry::add_directory(const fs::path& dir) {
   std::error_code ec;
-  if (!fs::is_directory(dir, ec)) return make_error(ErrorCode::kNotFound, fmt::format("{}: not a directory", dir.string()));
+  if (!fs::is_directory(dir, ec))
+    return make_error(ErrorCode::kNotFound, fmt::format("{}: not a directory", dir.string()));
   std::vector<fs::path> files;
   for (const auto& entry : fs::directory_iterator(dir, ec)) {
     if (entry.path().extension() == ".mt") files.push_back(entry.path());
@@ -115,8 +117,9 @@ Status ModelRegistry::add_mesh(const fs::path& mesh, const fs::path& mt_path) {
     MTLOD_TRY(core::Mt mt, core::build_mt(loaded.mesh, options, &stats));
     fs::create_directories(mt_path.parent_path(), ec);
     MTLOD_TRY(std::uint64_t bytes, core::io::write_mt_file(mt_path, mt));
-    spdlog::info("built {} from {}: {} triangles → {} root triangles, {} nodes, {:.1f} MiB, {:.2f} s", mt_path.string(),
-                 mesh.string(), stats.input_triangles, stats.root_triangles, stats.nodes, bytes / 1048576.0,
+    spdlog::info("built {} from {}: {} triangles → {} root triangles, {} nodes, {:.1f} MiB, {:.2f} s",
+                 mt_path.string(), mesh.string(), stats.input_triangles, stats.root_triangles, stats.nodes,
+                 bytes / 1048576.0,
                  std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
     built = std::move(mt);
   }

@@ -16,14 +16,14 @@
 namespace mtlod::server {
 
 struct Model {
-  std::string name;               // file stem: "bunny" for bunny.mt
+  std::string name;  // file stem: "bunny" for bunny.mt
   std::filesystem::path path;
   core::Mt mt;
   std::unique_ptr<core::OccupancyLevels> occupancy;  // coarse cuts for the occupancy stage
-  std::size_t memory_bytes = 0;   // resident size of the arrays
+  std::size_t memory_bytes = 0;                      // resident size of the arrays
   std::size_t input_triangles = 0;
-  float max_error = 0;            // largest triangle error
-  float min_error = 0;            // smallest non-zero triangle error
+  float max_error = 0;  // largest triangle error
+  float min_error = 0;  // smallest non-zero triangle error
   std::array<float, 3> bounds_min{}, bounds_max{};
 
   protocol::ModelSummary summary() const;

@@ -76,11 +76,12 @@ bool Server::Impl::admit(tcp::socket& socket, std::uint64_t number) {
   metrics.connection_refused();
   spdlog::warn("conn={} refused: {} connections open, the limit", number, config.limits.max_connections);
   std::vector<std::uint8_t> frame;
-  protocol::append_frame(protocol::to_json(protocol::ErrorReply{protocol::ErrorKind::kLimitExceeded,
-                                                                fmt::format("the server has {} connections, its limit",
-                                                                            config.limits.max_connections)},
-                                           std::nullopt),
-                         {}, frame);
+  protocol::append_frame(
+      protocol::to_json(protocol::ErrorReply{protocol::ErrorKind::kLimitExceeded,
+                                             fmt::format("the server has {} connections, its limit",
+                                                         config.limits.max_connections)},
+                        std::nullopt),
+      {}, frame);
   auto bytes = std::make_shared<std::vector<std::uint8_t>>(std::move(frame));
   auto refused = std::make_shared<tcp::socket>(std::move(socket));
   net::async_write(*refused, net::buffer(*bytes), [bytes, refused](error_code, std::size_t) {
@@ -111,7 +112,8 @@ void Server::Impl::accept() {
 
 void Server::Impl::begin_stop() {
   if (stopping.exchange(true)) return;
-  spdlog::info("shutting down: no new connections, finishing in-flight work (at most {} ms)", config.drain_timeout_ms);
+  spdlog::info("shutting down: no new connections, finishing in-flight work (at most {} ms)",
+               config.drain_timeout_ms);
   error_code ignored;
   acceptor.close(ignored);
   signals.cancel(ignored);
@@ -136,7 +138,8 @@ void Server::Impl::begin_stop() {
   });
 }
 
-Server::Server(ServerConfig config, const ModelRegistry& models) : impl_(std::make_unique<Impl>(std::move(config), models)) {}
+Server::Server(ServerConfig config, const ModelRegistry& models)
+    : impl_(std::make_unique<Impl>(std::move(config), models)) {}
 
 Server::~Server() {
   if (impl_->workers) impl_->workers->join();
@@ -145,7 +148,9 @@ Server::~Server() {
 Status Server::listen() {
   error_code ec;
   const auto address = net::ip::make_address(impl_->config.host, ec);
-  if (ec) return make_error(ErrorCode::kInvalidArgument, fmt::format("bad host '{}': {}", impl_->config.host, ec.message()));
+  if (ec)
+    return make_error(ErrorCode::kInvalidArgument,
+                      fmt::format("bad host '{}': {}", impl_->config.host, ec.message()));
   const tcp::endpoint endpoint(address, impl_->config.port);
   auto& acceptor = impl_->acceptor;
   acceptor.open(endpoint.protocol(), ec);
@@ -153,8 +158,8 @@ Status Server::listen() {
   if (!ec) acceptor.bind(endpoint, ec);
   if (!ec) acceptor.listen(net::socket_base::max_listen_connections, ec);
   if (ec) {
-    return make_error(ErrorCode::kIoError,
-                      fmt::format("cannot listen on {}:{}: {}", impl_->config.host, impl_->config.port, ec.message()));
+    return make_error(ErrorCode::kIoError, fmt::format("cannot listen on {}:{}: {}", impl_->config.host,
+                                                       impl_->config.port, ec.message()));
   }
   if (impl_->config.http_port) {
     impl_->web = std::make_unique<WebServer>(impl_->ioc, impl_->control, WebConfig{impl_->config.web_root});
@@ -168,13 +173,17 @@ std::uint16_t Server::port() const {
   return impl_->acceptor.local_endpoint(ec).port();
 }
 
-std::uint16_t Server::http_port() const { return impl_->web ? impl_->web->port() : 0; }
+std::uint16_t Server::http_port() const {
+  return impl_->web ? impl_->web->port() : 0;
+}
 
 void Server::run() {
   Impl& s = *impl_;
-  const unsigned workers = s.config.workers ? s.config.workers : std::max(1u, std::thread::hardware_concurrency());
+  const unsigned workers =
+      s.config.workers ? s.config.workers : std::max(1u, std::thread::hardware_concurrency());
   s.workers = std::make_unique<net::thread_pool>(workers);
-  s.context.reset(new ServerContext{s.config, s.models, s.engine, s.metrics, *s.workers, [&s] { s.on_connection_closed(); }});
+  s.context.reset(new ServerContext{s.config, s.models, s.engine, s.metrics, *s.workers,
+                                    [&s] { s.on_connection_closed(); }});
   s.signals.async_wait([&s](error_code ec, int signal) {
     if (ec) return;
     spdlog::info("received signal {}", signal);
@@ -196,6 +205,8 @@ void Server::stop() {
   net::post(impl_->control, [this] { impl_->begin_stop(); });
 }
 
-const Metrics& Server::metrics() const { return impl_->metrics; }
+const Metrics& Server::metrics() const {
+  return impl_->metrics;
+}
 
 }  // namespace mtlod::server

@@ -16,14 +16,14 @@ namespace mtlod::server {
 
 struct ServerConfig {
   std::string host = "127.0.0.1";
-  std::uint16_t port = 7878;        // 0: let the OS choose (see Server::port)
-  unsigned io_threads = 1;          // socket threads
-  unsigned workers = 0;             // extraction threads; 0 = one per core
+  std::uint16_t port = 7878;                // 0: let the OS choose (see Server::port)
+  unsigned io_threads = 1;                  // socket threads
+  unsigned workers = 0;                     // extraction threads; 0 = one per core
   std::uint32_t drain_timeout_ms = 10'000;  // on SIGINT/SIGTERM: in-flight work must finish by then
   protocol::Limits limits;
   // The browser viewer over HTTP + WebSocket (server/web_session.hpp); off when empty, 0 = any port.
   std::optional<std::uint16_t> http_port;
-  std::string web_root;             // repository root holding clients/web and scripts/node_modules/three
+  std::string web_root;  // repository root holding clients/web and scripts/node_modules/three
   // This process in hello replies and /health: "<name>@<random hex>" (see instance_id()).
   std::string instance = "mtlod";
 };

@@ -22,7 +22,9 @@ using boost::system::error_code;
 class TcpSession final : public Connection {
  public:
   TcpSession(ServerContext& server, tcp::socket socket, std::uint64_t number)
-      : Connection(server, socket.get_executor(), number), socket_(std::move(socket)), deadline_(socket_.get_executor()) {}
+      : Connection(server, socket.get_executor(), number),
+        socket_(std::move(socket)),
+        deadline_(socket_.get_executor()) {}
 
   void start() {
     net::dispatch(strand(), [self = shared_self()] {
@@ -32,7 +34,9 @@ class TcpSession final : public Connection {
   }
 
  private:
-  std::shared_ptr<TcpSession> shared_self() { return std::static_pointer_cast<TcpSession>(shared_from_this()); }
+  std::shared_ptr<TcpSession> shared_self() {
+    return std::static_pointer_cast<TcpSession>(shared_from_this());
+  }
 
   void do_read_header() {
     if (!may_read()) return;
@@ -82,7 +86,8 @@ class TcpSession final : public Connection {
     deadline_.async_wait([self = shared_self(), idle](error_code ec) {
       if (ec || !self->reading_) return;  // cancelled, or the read it guarded has completed
       if (idle && self->waiting_on_server()) {
-        return self->arm_deadline(self->server_.config.limits.idle_timeout_ms, true);  // not idle: we owe replies
+        return self->arm_deadline(self->server_.config.limits.idle_timeout_ms,
+                                  true);  // not idle: we owe replies
       }
       spdlog::info("conn={} closed: {} timeout", self->number(), idle ? "idle" : "read");
       self->force_close();
@@ -117,7 +122,8 @@ class TcpSession final : public Connection {
 
 }  // namespace
 
-std::shared_ptr<Connection> start_tcp_session(ServerContext& server, tcp::socket socket, std::uint64_t number) {
+std::shared_ptr<Connection> start_tcp_session(ServerContext& server, tcp::socket socket,
+                                              std::uint64_t number) {
   auto session = std::make_shared<TcpSession>(server, std::move(socket), number);
   session->start();
   return session;

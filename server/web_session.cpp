@@ -35,12 +35,14 @@ using tcp = net::ip::tcp;
 using boost::system::error_code;
 using Request = http::request<http::string_body>;
 
-constexpr auto kHttpTimeout = std::chrono::seconds(30);        // a request must arrive within this time
+constexpr auto kHttpTimeout = std::chrono::seconds(30);         // a request must arrive within this time
 constexpr auto kWebSocketHandshake = std::chrono::seconds(10);  // opening and closing handshakes
-constexpr std::size_t kHttpRequestMaxBytes = 16 * 1024;        // the viewer only sends small GETs
+constexpr std::size_t kHttpRequestMaxBytes = 16 * 1024;         // the viewer only sends small GETs
 
 std::int64_t now_ns() {
-  return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now().time_since_epoch()).count();
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(
+             std::chrono::steady_clock::now().time_since_epoch())
+      .count();
 }
 
 const char* content_type(const std::filesystem::path& path) {
@@ -57,15 +59,18 @@ const char* content_type(const std::filesystem::path& path) {
 
 // The file a request target names, or nullopt. Only plain names are served: no escapes, no "..",
 // nothing outside the two folders.
-std::optional<std::filesystem::path> resolve_target(std::string_view target, const std::filesystem::path& root) {
-  if (const std::size_t query = target.find('?'); query != std::string_view::npos) target = target.substr(0, query);
+std::optional<std::filesystem::path> resolve_target(std::string_view target,
+                                                    const std::filesystem::path& root) {
+  if (const std::size_t query = target.find('?'); query != std::string_view::npos)
+    target = target.substr(0, query);
   if (target.empty() || target.front() != '/') return std::nullopt;
   for (const char c : target) {
-    const bool plain = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '-' ||
-                       c == '_' || c == '.' || c == '/';
+    const bool plain = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') ||
+                       c == '-' || c == '_' || c == '.' || c == '/';
     if (!plain) return std::nullopt;
   }
-  if (target.find("..") != std::string_view::npos || target.find("//") != std::string_view::npos) return std::nullopt;
+  if (target.find("..") != std::string_view::npos || target.find("//") != std::string_view::npos)
+    return std::nullopt;
   if (target == "/") return root / "clients/web/index.html";
   constexpr std::string_view kThree = "/three/";
   if (target.starts_with(kThree)) {
@@ -81,7 +86,9 @@ std::optional<std::filesystem::path> resolve_target(std::string_view target, con
 class WebSocketSession final : public Connection {
  public:
   WebSocketSession(ServerContext& server, tcp::socket socket, std::uint64_t number)
-      : Connection(server, socket.get_executor(), number), ws_(std::move(socket)), deadline_(ws_.get_executor()) {}
+      : Connection(server, socket.get_executor(), number),
+        ws_(std::move(socket)),
+        deadline_(ws_.get_executor()) {}
 
   // Answers the upgrade request (already read by the HTTP session) and starts reading.
   void start(Request request) {
@@ -90,11 +97,13 @@ class WebSocketSession final : public Connection {
       self->opened();
       auto& ws = self->ws_;
       beast::get_lowest_layer(ws).expires_never();  // the WebSocket's own timeouts apply instead
-      ws.set_option(websocket::stream_base::timeout{kWebSocketHandshake, websocket::stream_base::none(), false});
+      ws.set_option(
+          websocket::stream_base::timeout{kWebSocketHandshake, websocket::stream_base::none(), false});
       ws.set_option(websocket::stream_base::decorator(
           [](websocket::response_type& response) { response.set(http::field::server, "mtlod/0.1"); }));
       // A binary message holds a whole frame: the header comes on top of the frame limit.
-      ws.read_message_max(std::size_t{self->server_.config.limits.max_frame_bytes} + protocol::kFrameHeaderBytes);
+      ws.read_message_max(std::size_t{self->server_.config.limits.max_frame_bytes} +
+                          protocol::kFrameHeaderBytes);
       ws.async_accept(self->request_, [self](error_code ec) { self->on_accept(ec); });
     });
   }
@@ -144,9 +153,9 @@ class WebSocketSession final : public Connection {
                                      message.size(), protocol::kFrameHeaderBytes));
       }
       const auto* bytes = reinterpret_cast<const std::uint8_t*>(message.data());
-      auto header = protocol::decode_frame_header(std::span<const std::uint8_t, protocol::kFrameHeaderBytes>(
-                                                      bytes, protocol::kFrameHeaderBytes),
-                                                  server_.config.limits.max_frame_bytes);
+      auto header = protocol::decode_frame_header(
+          std::span<const std::uint8_t, protocol::kFrameHeaderBytes>(bytes, protocol::kFrameHeaderBytes),
+          server_.config.limits.max_frame_bytes);
       const std::size_t body_bytes = message.size() - protocol::kFrameHeaderBytes;
       if (!header || header->body_bytes() != body_bytes) {
         const std::string reason =
@@ -190,8 +199,9 @@ class WebSocketSession final : public Connection {
     } else {
       // JSON only: a text message without the frame header.
       ws_.text(true);
-      ws_.async_write(net::buffer(frame.data() + protocol::kFrameHeaderBytes, frame.size() - protocol::kFrameHeaderBytes),
-                      std::move(done));
+      ws_.async_write(
+          net::buffer(frame.data() + protocol::kFrameHeaderBytes, frame.size() - protocol::kFrameHeaderBytes),
+          std::move(done));
     }
   }
   // A WebSocket cannot half-close its reading side without failing the stream, which would lose the
@@ -205,7 +215,8 @@ class WebSocketSession final : public Connection {
     closing_ = true;
     if (write_pending_ || read_failed_ || !ws_.is_open()) return close_socket();
     // A close handshake when the stream is idle, bounded by the handshake timeout.
-    ws_.async_close(websocket::close_code::normal, [self = shared_self()](error_code) { self->close_socket(); });
+    ws_.async_close(websocket::close_code::normal,
+                    [self = shared_self()](error_code) { self->close_socket(); });
   }
   void close_socket() {
     error_code ignored;
@@ -293,7 +304,8 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
         send(std::move(response));
       };
       const std::string_view target(request.target().data(), request.target().size());
-      if (target.substr(0, target.find('?')) != "/ws") return refuse(http::status::not_found, "WebSocket endpoint is /ws\n");
+      if (target.substr(0, target.find('?')) != "/ws")
+        return refuse(http::status::not_found, "WebSocket endpoint is /ws\n");
       if (server_->stopping) return refuse(http::status::service_unavailable, "shutting down\n");
       if (!server_->admit()) {
         return refuse(http::status::service_unavailable,
@@ -315,11 +327,12 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
       // For load balancers and orchestrators: this replica serves. While it drains, the HTTP
       // listener is closed, so probes fail to connect and traffic moves elsewhere.
       const ServerContext& context = *server_->context;
-      auto response = text_response(request, http::status::ok,
-                                    fmt::format(R"({{"status": "ok", "instance": "{}", "models": {}, "connections": {}}})"
-                                                "\n",
-                                                context.config.instance, context.models.models().size(),
-                                                context.metrics.open_connections()));
+      auto response =
+          text_response(request, http::status::ok,
+                        fmt::format(R"({{"status": "ok", "instance": "{}", "models": {}, "connections": {}}})"
+                                    "\n",
+                                    context.config.instance, context.models.models().size(),
+                                    context.metrics.open_connections()));
       response.set(http::field::content_type, "application/json");
       return send(std::move(response));
     }
@@ -343,7 +356,8 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     send(std::move(response));
   }
 
-  static http::response<http::string_body> text_response(const Request& request, http::status status, std::string text) {
+  static http::response<http::string_body> text_response(const Request& request, http::status status,
+                                                         std::string text) {
     http::response<http::string_body> response{status, request.version()};
     response.set(http::field::server, "mtlod/0.1");
     response.set(http::field::content_type, "text/plain; charset=utf-8");
@@ -375,24 +389,25 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
 };
 
 void WebServer::Impl::accept() {
-  acceptor.async_accept(net::make_strand(ioc), [self = shared_from_this()](error_code ec, tcp::socket socket) {
-    if (ec) {
-      if (ec != net::error::operation_aborted) spdlog::warn("http accept failed: {}", ec.message());
-      if (!self->stopping && self->acceptor.is_open()) self->accept();
-      return;
-    }
-    if (self->stopping) return;
-    error_code ignored;
-    socket.set_option(tcp::no_delay(true), ignored);  // as for TCP sessions: no Nagle delay on replies
-    auto session = std::make_shared<HttpSession>(std::move(socket), self);
-    {
-      std::lock_guard lock(self->sessions_mutex);
-      self->sessions.remove_if([](const std::weak_ptr<HttpSession>& s) { return s.expired(); });
-      self->sessions.push_back(session);
-    }
-    session->start();
-    self->accept();
-  });
+  acceptor.async_accept(
+      net::make_strand(ioc), [self = shared_from_this()](error_code ec, tcp::socket socket) {
+        if (ec) {
+          if (ec != net::error::operation_aborted) spdlog::warn("http accept failed: {}", ec.message());
+          if (!self->stopping && self->acceptor.is_open()) self->accept();
+          return;
+        }
+        if (self->stopping) return;
+        error_code ignored;
+        socket.set_option(tcp::no_delay(true), ignored);  // as for TCP sessions: no Nagle delay on replies
+        auto session = std::make_shared<HttpSession>(std::move(socket), self);
+        {
+          std::lock_guard lock(self->sessions_mutex);
+          self->sessions.remove_if([](const std::weak_ptr<HttpSession>& s) { return s.expired(); });
+          self->sessions.push_back(session);
+        }
+        session->start();
+        self->accept();
+      });
 }
 
 void WebServer::Impl::upgrade(tcp::socket socket, Request request) {
@@ -411,14 +426,17 @@ WebServer::~WebServer() = default;
 Status WebServer::listen(const std::string& host, std::uint16_t port) {
   error_code ec;
   const auto address = net::ip::make_address(host, ec);
-  if (ec) return make_error(ErrorCode::kInvalidArgument, fmt::format("bad host '{}': {}", host, ec.message()));
+  if (ec)
+    return make_error(ErrorCode::kInvalidArgument, fmt::format("bad host '{}': {}", host, ec.message()));
   const tcp::endpoint endpoint(address, port);
   auto& acceptor = impl_->acceptor;
   acceptor.open(endpoint.protocol(), ec);
   if (!ec) acceptor.set_option(net::socket_base::reuse_address(true), ec);
   if (!ec) acceptor.bind(endpoint, ec);
   if (!ec) acceptor.listen(net::socket_base::max_listen_connections, ec);
-  if (ec) return make_error(ErrorCode::kIoError, fmt::format("cannot listen for HTTP on {}:{}: {}", host, port, ec.message()));
+  if (ec)
+    return make_error(ErrorCode::kIoError,
+                      fmt::format("cannot listen for HTTP on {}:{}: {}", host, port, ec.message()));
   return Ok{};
 }
 

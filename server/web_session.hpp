@@ -31,7 +31,7 @@ struct WebConfig {
 
 // What the server lends the web listener for WebSocket connections.
 struct WebHooks {
-  std::function<std::uint64_t()> next_number;                    // connection numbers shared with TCP
+  std::function<std::uint64_t()> next_number;                     // connection numbers shared with TCP
   std::function<void(const std::shared_ptr<Connection>&)> track;  // drained on shutdown
 };
 

@@ -40,9 +40,10 @@ int main(int argc, char** argv) {
   app.add_option("--port", port, "server port")->capture_default_str();
   clients::RetryPolicy retry;
   retry.attempts = 5;
-  app.add_option("--attempts", retry.attempts,
-                 "tries per request: a dropped connection or a draining server (shutting_down) makes the client "
-                 "reconnect with backoff and send the request again")
+  app.add_option(
+         "--attempts", retry.attempts,
+         "tries per request: a dropped connection or a draining server (shutting_down) makes the client "
+         "reconnect with backoff and send the request again")
       ->capture_default_str()
       ->check(CLI::Range(1u, 100u));
   app.require_subcommand(1);
@@ -64,11 +65,11 @@ int main(int argc, char** argv) {
     auto reply = c.call(protocol::ListModels{});
     if (!reply) return fail(reply.error().message);
     if (is_error(*reply)) return 1;
-    fmt::print("{:<16} {:>10} {:>12} {:>8} {:>9} {:>10} {:>10}\n", "model", "vertices", "triangles", "root", "nodes",
-               "MiB", "max error");
+    fmt::print("{:<16} {:>10} {:>12} {:>8} {:>9} {:>10} {:>10}\n", "model", "vertices", "triangles", "root",
+               "nodes", "MiB", "max error");
     for (const auto& m : std::get<protocol::ModelsReply>(reply->header.reply).models) {
-      fmt::print("{:<16} {:>10} {:>12} {:>8} {:>9} {:>10.1f} {:>10.4g}\n", m.name, m.vertices, m.input_triangles,
-                 m.root_triangles, m.nodes, m.memory_bytes / 1048576.0, m.max_error);
+      fmt::print("{:<16} {:>10} {:>12} {:>8} {:>9} {:>10.1f} {:>10.4g}\n", m.name, m.vertices,
+                 m.input_triangles, m.root_triangles, m.nodes, m.memory_bytes / 1048576.0, m.max_error);
     }
     return 0;
   }
@@ -90,9 +91,11 @@ int main(int argc, char** argv) {
     fmt::print("{}: {} vertices, {} input triangles, {} root triangles, {} nodes, {:.1f} MiB\n", m.model.name,
                m.model.vertices, m.model.input_triangles, m.model.root_triangles, m.model.nodes,
                m.model.memory_bytes / 1048576.0);
-    fmt::print("bounds [{:.4g} {:.4g} {:.4g}] .. [{:.4g} {:.4g} {:.4g}], error {:.4g} .. {:.4g}, normals {}, colours {}\n",
-               m.bounds_min[0], m.bounds_min[1], m.bounds_min[2], m.bounds_max[0], m.bounds_max[1], m.bounds_max[2],
-               m.min_error, m.model.max_error, m.normals ? "yes" : "no", m.colors ? "yes" : "no");
+    fmt::print(
+        "bounds [{:.4g} {:.4g} {:.4g}] .. [{:.4g} {:.4g} {:.4g}], error {:.4g} .. {:.4g}, normals {}, "
+        "colours {}\n",
+        m.bounds_min[0], m.bounds_min[1], m.bounds_min[2], m.bounds_max[0], m.bounds_max[1], m.bounds_max[2],
+        m.min_error, m.model.max_error, m.normals ? "yes" : "no", m.colors ? "yes" : "no");
     return 0;
   }
 
@@ -102,15 +105,18 @@ int main(int argc, char** argv) {
   auto reply = c.call(*request, std::chrono::seconds(120));
   if (!reply) return fail(reply.error().message);
   if (is_error(*reply)) return 1;
-  const double round_trip_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  const double round_trip_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   const auto& mesh = std::get<protocol::MeshReply>(reply->header.reply);
   const auto& t = mesh.timings;
   fmt::print("{}: {} triangles, {} vertices, {} bytes ({:.1f} bits/triangle), max error {:.4g}\n", mesh.model,
-             mesh.triangles, mesh.vertices, mesh.bytes, 8.0 * mesh.bytes / std::max<std::uint64_t>(1, mesh.triangles),
-             mesh.max_error);
-  fmt::print("server µs: queue {} map {} occupancy {} dt {} labels {} refine {} encode {} total {}; round trip {:.2f} ms\n",
-             t.queue_us, t.map_us, t.occupancy_us, t.dt_us, t.labels_us, t.refine_us, t.encode_us, t.total_us,
-             round_trip_ms);
+             mesh.triangles, mesh.vertices, mesh.bytes,
+             8.0 * mesh.bytes / std::max<std::uint64_t>(1, mesh.triangles), mesh.max_error);
+  fmt::print(
+      "server µs: queue {} map {} occupancy {} dt {} labels {} refine {} encode {} total {}; round trip "
+      "{:.2f} ms\n",
+      t.queue_us, t.map_us, t.occupancy_us, t.dt_us, t.labels_us, t.refine_us, t.encode_us, t.total_us,
+      round_trip_ms);
   fmt::print("server memory: {:.1f} MiB for this connection's cut, {:.1f} MiB of worker scratch\n",
              mesh.session_bytes / 1048576.0, mesh.scratch_bytes / 1048576.0);
   fmt::print("served by {}{}\n", c.hello().instance,

@@ -36,7 +36,8 @@ namespace {
 // Waits until fd is ready for `events` or the deadline passes.
 bool wait_for(int fd, short events, std::chrono::steady_clock::time_point deadline) {
   for (;;) {
-    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+    const auto left =
+        std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
     if (left.count() <= 0) return false;
     pollfd p{fd, events, 0};
     const int r = ::poll(&p, 1, static_cast<int>(left.count()));
@@ -47,7 +48,8 @@ bool wait_for(int fd, short events, std::chrono::steady_clock::time_point deadli
 
 }  // namespace
 
-Result<Connection> Connection::open(const std::string& host, std::uint16_t port, std::chrono::milliseconds timeout) {
+Result<Connection> Connection::open(const std::string& host, std::uint16_t port,
+                                    std::chrono::milliseconds timeout) {
   const std::string peer = fmt::format("{}:{}", host, port);
   addrinfo hints{};
   hints.ai_family = AF_UNSPEC;
@@ -99,9 +101,11 @@ Status Connection::send_raw(const std::vector<std::uint8_t>& bytes) {
     if (n > 0) {
       sent += static_cast<std::size_t>(n);
     } else if (n < 0 && (errno == EAGAIN || errno == EINTR)) {
-      if (!wait_for(impl_->fd, POLLOUT, deadline)) return make_error(ErrorCode::kIoError, fmt::format("{}: send timed out", impl_->peer));
+      if (!wait_for(impl_->fd, POLLOUT, deadline))
+        return make_error(ErrorCode::kIoError, fmt::format("{}: send timed out", impl_->peer));
     } else {
-      return make_error(ErrorCode::kIoError, fmt::format("{}: send failed: {}", impl_->peer, std::strerror(errno)));
+      return make_error(ErrorCode::kIoError,
+                        fmt::format("{}: send failed: {}", impl_->peer, std::strerror(errno)));
     }
   }
   return Ok{};
@@ -123,13 +127,16 @@ Result<ReplyFrame> Connection::receive(std::chrono::milliseconds timeout) {
       if (n > 0) {
         got += static_cast<std::size_t>(n);
       } else if (n == 0) {
-        return make_error(ErrorCode::kIoError, fmt::format("{}: connection closed by the server", impl_->peer));
+        return make_error(ErrorCode::kIoError,
+                          fmt::format("{}: connection closed by the server", impl_->peer));
       } else if (errno == EAGAIN || errno == EINTR) {
         if (!wait_for(impl_->fd, POLLIN, deadline)) {
-          return make_error(ErrorCode::kIoError, fmt::format("{}: no reply within {} ms", impl_->peer, timeout.count()));
+          return make_error(ErrorCode::kIoError,
+                            fmt::format("{}: no reply within {} ms", impl_->peer, timeout.count()));
         }
       } else {
-        return make_error(ErrorCode::kIoError, fmt::format("{}: receive failed: {}", impl_->peer, std::strerror(errno)));
+        return make_error(ErrorCode::kIoError,
+                          fmt::format("{}: receive failed: {}", impl_->peer, std::strerror(errno)));
       }
     }
     return Ok{};
@@ -137,7 +144,8 @@ Result<ReplyFrame> Connection::receive(std::chrono::milliseconds timeout) {
   std::array<std::uint8_t, protocol::kFrameHeaderBytes> header_bytes;
   MTLOD_RETURN_IF_ERROR(read_exact(header_bytes.data(), header_bytes.size()));
   // A reply may carry a large mesh: accept up to 1 GiB.
-  MTLOD_TRY(const protocol::FrameHeader header, protocol::decode_frame_header(header_bytes, std::size_t{1} << 30));
+  MTLOD_TRY(const protocol::FrameHeader header,
+            protocol::decode_frame_header(header_bytes, std::size_t{1} << 30));
   ReplyFrame frame;
   frame.json.resize(header.json_bytes);
   MTLOD_RETURN_IF_ERROR(read_exact(reinterpret_cast<std::uint8_t*>(frame.json.data()), frame.json.size()));
@@ -147,7 +155,8 @@ Result<ReplyFrame> Connection::receive(std::chrono::milliseconds timeout) {
   return frame;
 }
 
-Result<ReplyFrame> Connection::call(const protocol::Request& request, std::uint64_t id, std::chrono::milliseconds timeout) {
+Result<ReplyFrame> Connection::call(const protocol::Request& request, std::uint64_t id,
+                                    std::chrono::milliseconds timeout) {
   MTLOD_RETURN_IF_ERROR(send(request, id));
   for (;;) {
     MTLOD_TRY(ReplyFrame frame, receive(timeout));
@@ -155,7 +164,9 @@ Result<ReplyFrame> Connection::call(const protocol::Request& request, std::uint6
   }
 }
 
-void Connection::close() { impl_.reset(); }
+void Connection::close() {
+  impl_.reset();
+}
 
 void Connection::interrupt() {
   if (impl_ && impl_->fd >= 0) ::shutdown(impl_->fd, SHUT_RDWR);

@@ -9,7 +9,8 @@
 namespace mtlod::clients {
 
 Status DeltaMesh::apply(const protocol::MeshReply& reply, std::span<const std::uint8_t> payload) {
-  if (!reply.delta) return make_error(ErrorCode::kInvalidArgument, "the reply is not a delta (ask with \"delta\": true)");
+  if (!reply.delta)
+    return make_error(ErrorCode::kInvalidArgument, "the reply is not a delta (ask with \"delta\": true)");
   MTLOD_TRY(const protocol::DeltaPayload parts, protocol::split_delta_payload(*reply.delta, payload));
   if (reply.delta->reset || ids_.empty()) {  // a new mesh: the table sized for what arrives
     ids_.clear();
@@ -25,7 +26,8 @@ Status DeltaMesh::apply(const protocol::MeshReply& reply, std::span<const std::u
     if (ids_.size() > kAhead) slot_.prefetch(ids_[ids_.size() - 1 - kAhead]);
     const std::size_t entry = slot_.find(id);
     if (entry == core::SlotTable::kAbsent) {
-      return make_error(ErrorCode::kCorrupt, fmt::format("the delta removes triangle {}, which the mesh does not hold", id));
+      return make_error(ErrorCode::kCorrupt,
+                        fmt::format("the delta removes triangle {}, which the mesh does not hold", id));
     }
     // The last triangle moves into the freed slot so the arrays stay dense.
     const auto last = static_cast<std::uint32_t>(ids_.size() - 1);
@@ -41,17 +43,20 @@ Status DeltaMesh::apply(const protocol::MeshReply& reply, std::span<const std::u
     MTLOD_TRY(const core::DecodedMesh decoded, core::decode_draco(parts.draco));
     const core::Mesh& m = decoded.mesh;
     if (m.triangle_count() != parts.added_ids.size()) {
-      return make_error(ErrorCode::kCorrupt, fmt::format("the delta's Draco mesh has {} triangles for {} added ids",
-                                                         m.triangle_count(), parts.added_ids.size()));
+      return make_error(ErrorCode::kCorrupt,
+                        fmt::format("the delta's Draco mesh has {} triangles for {} added ids",
+                                    m.triangle_count(), parts.added_ids.size()));
     }
     for (std::size_t f = 0; f < parts.added_ids.size(); ++f) {
       const std::uint32_t id = parts.added_ids[f];
       if (id == core::SlotTable::kEmpty) {
-        return make_error(ErrorCode::kCorrupt, fmt::format("the delta adds triangle {}, not a triangle id", id));
+        return make_error(ErrorCode::kCorrupt,
+                          fmt::format("the delta adds triangle {}, not a triangle id", id));
       }
       if (f + kAhead < parts.added_ids.size()) slot_.prefetch(parts.added_ids[f + kAhead]);
       if (!slot_.try_insert(id, static_cast<std::uint32_t>(ids_.size()))) {
-        return make_error(ErrorCode::kCorrupt, fmt::format("the delta adds triangle {}, which the mesh already holds", id));
+        return make_error(ErrorCode::kCorrupt,
+                          fmt::format("the delta adds triangle {}, which the mesh already holds", id));
       }
       ids_.push_back(id);
       for (int k = 0; k < 3; ++k) {
@@ -61,8 +66,9 @@ Status DeltaMesh::apply(const protocol::MeshReply& reply, std::span<const std::u
     }
   }
   if (ids_.size() != reply.triangles) {
-    return make_error(ErrorCode::kCorrupt, fmt::format("the mesh holds {} triangles after the delta, the server's cut {}",
-                                                       ids_.size(), reply.triangles));
+    return make_error(ErrorCode::kCorrupt,
+                      fmt::format("the mesh holds {} triangles after the delta, the server's cut {}",
+                                  ids_.size(), reply.triangles));
   }
   return Ok{};
 }

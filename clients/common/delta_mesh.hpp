@@ -23,7 +23,9 @@ class DeltaMesh {
   std::size_t triangle_count() const { return ids_.size(); }
   std::span<const std::uint32_t> ids() const { return ids_; }
   // Positions of the triangle in slot i (the slot of ids()[i]): 9 floats, as decoded.
-  std::span<const float, 9> corners(std::size_t i) const { return std::span<const float, 9>(&corners_[9 * i], 9); }
+  std::span<const float, 9> corners(std::size_t i) const {
+    return std::span<const float, 9>(&corners_[9 * i], 9);
+  }
 
  private:
   std::vector<std::uint32_t> ids_;

@@ -31,7 +31,8 @@ Result<Session> open_session(const std::string& host, std::uint16_t port, const 
       last_error = connection.error().message;
       continue;
     }
-    auto reply = connection->call(protocol::Hello{protocol::kProtocolVersion, client}, 0, std::chrono::seconds(10));
+    auto reply =
+        connection->call(protocol::Hello{protocol::kProtocolVersion, client}, 0, std::chrono::seconds(10));
     if (!reply) {
       last_error = reply.error().message;
       continue;
@@ -40,7 +41,8 @@ Result<Session> open_session(const std::string& host, std::uint16_t port, const 
       return Session{std::move(*connection), *hello};
     }
     if (const auto* error = std::get_if<protocol::ErrorReply>(&reply->header.reply)) {
-      last_error = fmt::format("{}:{} answered hello with {}: {}", host, port, protocol::to_string(error->code), error->message);
+      last_error = fmt::format("{}:{} answered hello with {}: {}", host, port,
+                               protocol::to_string(error->code), error->message);
     } else {
       last_error = fmt::format("{}:{} answered hello with something else", host, port);
     }
@@ -54,11 +56,12 @@ bool asks_for_retry(const ReplyFrame& frame) {
   return error && error->code == protocol::ErrorKind::kShuttingDown;
 }
 
-RetryingConnection::RetryingConnection(std::string host, std::uint16_t port, std::string client, RetryPolicy policy,
-                                       std::uint64_t seed)
+RetryingConnection::RetryingConnection(std::string host, std::uint16_t port, std::string client,
+                                       RetryPolicy policy, std::uint64_t seed)
     : host_(std::move(host)), port_(port), client_(std::move(client)), policy_(policy), rng_(seed) {}
 
-Result<ReplyFrame> RetryingConnection::call(const protocol::Request& request, std::chrono::milliseconds timeout) {
+Result<ReplyFrame> RetryingConnection::call(const protocol::Request& request,
+                                            std::chrono::milliseconds timeout) {
   const unsigned attempts = std::max(1u, policy_.attempts);
   std::string last_error;
   for (unsigned attempt = 0; attempt < attempts; ++attempt) {

@@ -45,10 +45,11 @@ std::int64_t since(Clock::time_point start) {
 
 struct Totals {
   std::mutex mutex;
-  clients::LatencyHistogram mesh_latency_us;    // per mesh reply: its sample's time → arrival
-  clients::LatencyHistogram sample_latency_us;  // per sample: its time → a mesh showing it or a newer one
+  clients::LatencyHistogram mesh_latency_us;     // per mesh reply: its sample's time → arrival
+  clients::LatencyHistogram sample_latency_us;   // per sample: its time → a mesh showing it or a newer one
   clients::LatencyHistogram applied_latency_us;  // per delta mesh reply: its sample's time → applied
-  std::uint64_t sent = 0, meshes = 0, superseded = 0, superseded_counted = 0, errors = 0, focus_mismatches = 0;
+  std::uint64_t sent = 0, meshes = 0, superseded = 0, superseded_counted = 0, errors = 0,
+                focus_mismatches = 0;
   std::uint64_t bytes = 0, triangles = 0, server_total_us = 0;
   std::map<std::string, std::uint64_t> errors_by_code;
   std::uint64_t reconnects = 0, resent = 0;
@@ -68,7 +69,7 @@ struct Stream {
   std::size_t answered = 0;   // samples answered (mesh or error)
   std::size_t reflected = 0;  // samples [0, reflected) have a mesh showing them or a newer sample
   bool broken = false;
-  std::mt19937_64 rng;  // backoff jitter
+  std::mt19937_64 rng;      // backoff jitter
   clients::DeltaMesh mesh;  // with --delta: the mesh the replies build (apply thread only)
   // Delta replies received and not yet applied, in arrival order, with their sample's time (ns;
   // -1 for the view's extract); the apply thread takes them.
@@ -98,8 +99,8 @@ bool reconnect(Stream& stream, const Link& link, std::uint64_t failed) {
     if (stream.generation != failed || stream.broken) return !stream.broken;
     stream.reconnecting = true;
   }
-  auto session =
-      clients::open_session(link.host, link.port, "mtlod-gaze/0.1", link.retry, stream.rng, nullptr, &link.finished);
+  auto session = clients::open_session(link.host, link.port, "mtlod-gaze/0.1", link.retry, stream.rng,
+                                       nullptr, &link.finished);
   auto connection = session ? std::make_shared<clients::Connection>(std::move(session->connection)) : nullptr;
   std::size_t sent = 0, answered = 0;
   {
@@ -184,21 +185,26 @@ void receive_loop(Stream& stream, const Link& link, Clock::time_point start) {
     std::lock_guard lock(totals.mutex);
     if (const auto* mesh = std::get_if<protocol::MeshReply>(&frame->header.reply)) {
       ++totals.meshes;
-      totals.mesh_latency_us.record(static_cast<std::uint64_t>(std::max<std::int64_t>(0, now - sample_ns) / 1000));
+      totals.mesh_latency_us.record(
+          static_cast<std::uint64_t>(std::max<std::int64_t>(0, now - sample_ns) / 1000));
       for (std::size_t i = newly_from; i < newly_to; ++i) {
         const auto t = static_cast<std::int64_t>(stream.trace[i].time_ms * 1e6);
-        totals.sample_latency_us.record(static_cast<std::uint64_t>(std::max<std::int64_t>(0, now - t) / 1000));
+        totals.sample_latency_us.record(
+            static_cast<std::uint64_t>(std::max<std::int64_t>(0, now - t) / 1000));
       }
       // The reply must say it reflects this sample (JSON carries doubles exactly).
-      if (!mesh->focus || (*mesh->focus)[0] != sample.x || (*mesh->focus)[1] != sample.y) ++totals.focus_mismatches;
+      if (!mesh->focus || (*mesh->focus)[0] != sample.x || (*mesh->focus)[1] != sample.y)
+        ++totals.focus_mismatches;
       totals.superseded_counted += mesh->superseded;
       totals.bytes += payload_bytes;
       totals.triangles += mesh->triangles;
       totals.server_total_us += mesh->timings.total_us;
     } else if (const auto* error = std::get_if<protocol::ErrorReply>(&frame->header.reply)) {
       ++totals.errors_by_code[protocol::to_string(error->code)];
-      if (error->code == protocol::ErrorKind::kSuperseded) ++totals.superseded;
-      else ++totals.errors;
+      if (error->code == protocol::ErrorKind::kSuperseded)
+        ++totals.superseded;
+      else
+        ++totals.errors;
     }
   }
   {
@@ -234,17 +240,21 @@ void apply_loop(Stream& stream, Totals& totals, Clock::time_point start) {
 
 nlohmann::ordered_json percentiles_ms(const clients::LatencyHistogram& h) {
   auto ms = [](std::uint64_t us) { return us / 1000.0; };
-  return {{"p50", ms(h.value_at_percentile(50))},   {"p90", ms(h.value_at_percentile(90))},
-          {"p99", ms(h.value_at_percentile(99))},   {"p999", ms(h.value_at_percentile(99.9))},
-          {"max", ms(h.max())},                     {"mean", h.mean() / 1000.0},
+  return {{"p50", ms(h.value_at_percentile(50))},
+          {"p90", ms(h.value_at_percentile(90))},
+          {"p99", ms(h.value_at_percentile(99))},
+          {"p999", ms(h.value_at_percentile(99.9))},
+          {"max", ms(h.max())},
+          {"mean", h.mean() / 1000.0},
           {"count", h.count()}};
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{"mtlod-gaze: replay a gaze trace (CSV time_ms,x,y) or a synthetic one against mtlod-server and "
-               "measure gaze-to-mesh latency."};
+  CLI::App app{
+      "mtlod-gaze: replay a gaze trace (CSV time_ms,x,y) or a synthetic one against mtlod-server and "
+      "measure gaze-to-mesh latency."};
   std::string host = "127.0.0.1", model = "bunny", trace_file, json_file;
   std::uint16_t port = 7878;
   unsigned streams_count = 1;
@@ -254,8 +264,9 @@ int main(int argc, char** argv) {
   app.add_option("--host", host, "server address")->capture_default_str();
   app.add_option("--port", port, "server port")->capture_default_str();
   app.add_option("--model", model, "model name")->capture_default_str();
-  app.add_option("--trace", trace_file, "CSV trace: time_ms,x,y per line (x, y normalised, 0,0 top left); "
-                                        "without it a trace is synthesised");
+  app.add_option("--trace", trace_file,
+                 "CSV trace: time_ms,x,y per line (x, y normalised, 0,0 top left); "
+                 "without it a trace is synthesised");
   app.add_option("--hz", synthesis.rate_hz, "synthesised trace: samples per second")
       ->capture_default_str()
       ->check(CLI::Range(1.0, 10000.0));
@@ -270,14 +281,16 @@ int main(int argc, char** argv) {
   app.add_option("--drain-timeout", drain_timeout_s, "seconds to wait for outstanding replies at the end")
       ->capture_default_str();
   clients::RetryPolicy retry;
-  app.add_option("--attempts", retry.attempts,
-                 "connection attempts, with exponential backoff, when a connection drops (1: give up at once)")
+  app.add_option(
+         "--attempts", retry.attempts,
+         "connection attempts, with exponential backoff, when a connection drops (1: give up at once)")
       ->capture_default_str()
       ->check(CLI::Range(1u, 1000u));
   app.add_option("--json", json_file, "write the report as JSON to this file");
   app.add_flag("-q,--quiet", quiet, "no progress line");
   std::string write_trace;
-  app.add_option("--write-trace", write_trace, "write the (first stream's) trace as CSV to this file and exit");
+  app.add_option("--write-trace", write_trace,
+                 "write the (first stream's) trace as CSV to this file and exit");
   protocol::ExtractFlags flags;
   protocol::add_extract_flags(app, flags);
   CLI11_PARSE(app, argc, argv);
@@ -331,9 +344,11 @@ int main(int argc, char** argv) {
     request->criteria.focus.front().y = stream->trace.front().y;
     auto first = connection->call(*request, 0, std::chrono::seconds(120));
     if (!first) return fail(first.error().message);
-    if (const auto* e = std::get_if<protocol::ErrorReply>(&first->header.reply)) return fail("extract: " + e->message);
+    if (const auto* e = std::get_if<protocol::ErrorReply>(&first->header.reply))
+      return fail("extract: " + e->message);
     if (const auto* mesh = std::get_if<protocol::MeshReply>(&first->header.reply); mesh && mesh->delta) {
-      if (auto applied = stream->mesh.apply(*mesh, first->payload); !applied) return fail(applied.error().message);
+      if (auto applied = stream->mesh.apply(*mesh, first->payload); !applied)
+        return fail(applied.error().message);
     }
     stream->view = std::move(*request);
     stream->connection = std::move(connection);
@@ -360,7 +375,8 @@ int main(int argc, char** argv) {
     threads.emplace_back([&stream, &totals, &senders_done, start] {
       for (std::size_t i = 0; i < stream.trace.size(); ++i) {
         const clients::GazeSample& sample = stream.trace[i];
-        std::this_thread::sleep_until(start + std::chrono::nanoseconds(static_cast<std::int64_t>(sample.time_ms * 1e6)));
+        std::this_thread::sleep_until(
+            start + std::chrono::nanoseconds(static_cast<std::int64_t>(sample.time_ms * 1e6)));
         std::lock_guard send_lock(stream.send_mutex);
         std::shared_ptr<clients::Connection> connection;
         {
@@ -380,7 +396,8 @@ int main(int argc, char** argv) {
 
   double trace_ms = 0;
   for (auto& s : streams) trace_ms = std::max(trace_ms, s->trace.back().time_ms);
-  const auto drain_deadline = start + std::chrono::milliseconds(static_cast<std::int64_t>(trace_ms + drain_timeout_s * 1000));
+  const auto drain_deadline =
+      start + std::chrono::milliseconds(static_cast<std::int64_t>(trace_ms + drain_timeout_s * 1000));
   const bool progress = !quiet && ::isatty(STDERR_FILENO);
   auto outstanding = [&] {
     std::size_t n = 0;
@@ -444,11 +461,12 @@ int main(int argc, char** argv) {
       {"server_total_us_mean", r.server_total_us / per_mesh},
   };
   const auto& h = r.mesh_latency_us;
-  fmt::print("{} stream(s) on {}: {} samples, {} meshes, {} superseded (server counted {}), {} errors, {} lost\n",
-             streams_count, model, r.sent, r.meshes, r.superseded, r.superseded_counted, r.errors, lost);
+  fmt::print(
+      "{} stream(s) on {}: {} samples, {} meshes, {} superseded (server counted {}), {} errors, {} lost\n",
+      streams_count, model, r.sent, r.meshes, r.superseded, r.superseded_counted, r.errors, lost);
   fmt::print("  gaze-to-mesh ms  p50 {:.2f}  p90 {:.2f}  p99 {:.2f}  p99.9 {:.2f}  max {:.2f}\n",
-             h.value_at_percentile(50) / 1e3, h.value_at_percentile(90) / 1e3, h.value_at_percentile(99) / 1e3,
-             h.value_at_percentile(99.9) / 1e3, h.max() / 1e3);
+             h.value_at_percentile(50) / 1e3, h.value_at_percentile(90) / 1e3,
+             h.value_at_percentile(99) / 1e3, h.value_at_percentile(99.9) / 1e3, h.max() / 1e3);
   const auto& q = r.sample_latency_us;
   fmt::print("  every sample until a mesh shows it or a newer one, ms  p50 {:.2f}  p99 {:.2f}  max {:.2f}\n",
              q.value_at_percentile(50) / 1e3, q.value_at_percentile(99) / 1e3, q.max() / 1e3);
@@ -458,9 +476,11 @@ int main(int argc, char** argv) {
         "  gaze-to-applied (delta decoded into the client's mesh) ms  p50 {:.2f}  p99 {:.2f}  max {:.2f}\n",
         a.value_at_percentile(50) / 1e3, a.value_at_percentile(99) / 1e3, a.max() / 1e3);
   }
-  fmt::print("  {:.0f} triangles per mesh, {:.0f} bytes per mesh, server total {:.0f} µs mean, focus mismatches {}{}\n",
-             r.triangles / per_mesh, static_cast<double>(r.bytes) / per_mesh, r.server_total_us / per_mesh,
-             r.focus_mismatches, flags.delta ? fmt::format(", delta errors {}", r.delta_errors) : std::string());
+  fmt::print(
+      "  {:.0f} triangles per mesh, {:.0f} bytes per mesh, server total {:.0f} µs mean, focus mismatches "
+      "{}{}\n",
+      r.triangles / per_mesh, static_cast<double>(r.bytes) / per_mesh, r.server_total_us / per_mesh,
+      r.focus_mismatches, flags.delta ? fmt::format(", delta errors {}", r.delta_errors) : std::string());
   if (!json_file.empty()) {
     std::ofstream out(json_file);
     out << report.dump(2) << "\n";

@@ -22,13 +22,16 @@ Result<std::vector<GazeSample>> parse_gaze_trace(const std::string& text) {
     std::vector<double> v;
     if (!protocol::parse_number_list(line, v) || v.size() != 3) {
       if (samples.empty() && number == 1) continue;  // a header line such as "time_ms,x,y"
-      return make_error(ErrorCode::kInvalidArgument, fmt::format("line {}: expected time_ms,x,y, got '{}'", number, line));
+      return make_error(ErrorCode::kInvalidArgument,
+                        fmt::format("line {}: expected time_ms,x,y, got '{}'", number, line));
     }
     if (v[1] < 0 || v[1] > 1 || v[2] < 0 || v[2] > 1) {
-      return make_error(ErrorCode::kInvalidArgument, fmt::format("line {}: x and y must lie in 0..1, got {}, {}", number, v[1], v[2]));
+      return make_error(ErrorCode::kInvalidArgument,
+                        fmt::format("line {}: x and y must lie in 0..1, got {}, {}", number, v[1], v[2]));
     }
     if (v[0] < 0 || (!samples.empty() && v[0] < samples.back().time_ms)) {
-      return make_error(ErrorCode::kInvalidArgument, fmt::format("line {}: time {} ms goes backwards", number, v[0]));
+      return make_error(ErrorCode::kInvalidArgument,
+                        fmt::format("line {}: time {} ms goes backwards", number, v[0]));
     }
     samples.push_back(GazeSample{v[0], v[1], v[2]});
   }

@@ -21,13 +21,13 @@ struct GazeSample {
 Result<std::vector<GazeSample>> parse_gaze_trace(const std::string& text);
 
 struct SynthesisOptions {
-  double rate_hz = 120;             // samples per second (eye trackers: 60..1000)
+  double rate_hz = 120;  // samples per second (eye trackers: 60..1000)
   double duration_ms = 10'000;
-  double fixation_min_ms = 150;     // fixations last 150..400 ms (typical reading and scene viewing)
+  double fixation_min_ms = 150;  // fixations last 150..400 ms (typical reading and scene viewing)
   double fixation_max_ms = 400;
-  double saccade_ms_per_unit = 100; // a saccade across the whole viewport takes about 100 ms
+  double saccade_ms_per_unit = 100;  // a saccade across the whole viewport takes about 100 ms
   double saccade_min_ms = 20;
-  double jitter = 0.002;            // fixational noise, normalised units (standard deviation)
+  double jitter = 0.002;  // fixational noise, normalised units (standard deviation)
   std::uint64_t seed = 1;
 };
 

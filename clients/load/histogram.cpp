@@ -31,7 +31,8 @@ std::uint64_t LatencyHistogram::highest_in_bucket(std::size_t bucket) {
   const std::uint64_t shift = (bucket - kSubBuckets) / kSubBuckets;
   const std::uint64_t sub = (bucket - kSubBuckets) % kSubBuckets;
   const std::uint64_t lowest = (kSubBuckets + sub) << shift;
-  return lowest + ((std::uint64_t{1} << shift) - 1);  // wraps to UINT64_MAX for the very last bucket, as it should
+  return lowest +
+         ((std::uint64_t{1} << shift) - 1);  // wraps to UINT64_MAX for the very last bucket, as it should
 }
 
 void LatencyHistogram::record(std::uint64_t value) {
@@ -50,7 +51,9 @@ void LatencyHistogram::merge(const LatencyHistogram& other) {
   sum_ += other.sum_;
 }
 
-void LatencyHistogram::clear() { *this = LatencyHistogram(); }
+void LatencyHistogram::clear() {
+  *this = LatencyHistogram();
+}
 
 std::uint64_t LatencyHistogram::value_at_percentile(double percentile) const {
   if (count_ == 0) return 0;

@@ -44,7 +44,7 @@ struct Options {
   std::uint64_t max_requests = 0;  // 0: bounded by duration only
   double rate = 0;                 // open loop: requests per second over all connections; 0: closed loop
   std::string arrivals = "uniform";
-  unsigned window = 0;             // open loop: unanswered requests per connection; 0: the server's max_in_flight
+  unsigned window = 0;  // open loop: unanswered requests per connection; 0: the server's max_in_flight
   std::string cameras = "random";  // random, fixed or a script file
   bool random_focus = true;
   std::string mix = "extract=1";
@@ -82,7 +82,7 @@ struct Totals {
 
 struct Pending {
   std::uint64_t id;
-  std::int64_t intended_ns;  // latency starts here
+  std::int64_t intended_ns;   // latency starts here
   protocol::Request request;  // kept to send again after a reconnect
   bool setup = false;         // an extract re-sent to restore the view for gazes: not counted
 };
@@ -96,7 +96,7 @@ struct Stream {
   std::shared_ptr<clients::Connection> connection;
   std::uint64_t generation = 0;  // bumped at every new connection
   bool reconnecting = false;
-  bool broken = false;  // no connection and no attempts left
+  bool broken = false;   // no connection and no attempts left
   std::string instance;  // the server process on the current connection
   std::deque<Pending> pending;
   std::optional<protocol::Extract> view;  // the last extract sent: restores the view for gazes
@@ -135,8 +135,8 @@ bool reconnect(Stream& stream, const Link& link, std::uint64_t failed) {
     old = stream.connection;
   }
   if (old) old->interrupt();
-  auto session = clients::open_session(link.options.host, link.options.port, "mtlod-load/0.1", link.options.retry,
-                                       stream.rng, nullptr, &link.finished);
+  auto session = clients::open_session(link.options.host, link.options.port, "mtlod-load/0.1",
+                                       link.options.retry, stream.rng, nullptr, &link.finished);
   std::vector<Pending> resend;
   auto connection = session ? std::make_shared<clients::Connection>(std::move(session->connection)) : nullptr;
   {
@@ -223,18 +223,22 @@ void receive_loop(Stream& stream, const Link& link, Clock::time_point start) {
       ++server.ok;
       if (server.first_ns < 0) server.first_ns = now;
       server.last_ns = now;
-      totals.latency_us.record(static_cast<std::uint64_t>(std::max<std::int64_t>(0, now - pending.intended_ns) / 1000));
+      totals.latency_us.record(
+          static_cast<std::uint64_t>(std::max<std::int64_t>(0, now - pending.intended_ns) / 1000));
       totals.server_total_us.record(mesh->timings.total_us);
       totals.bytes += frame->payload.size();
       totals.triangles += mesh->triangles;
       auto& s = totals.stage_sums;
       const auto& t = mesh->timings;
       s.queue_us += t.queue_us, s.map_us += t.map_us, s.occupancy_us += t.occupancy_us, s.dt_us += t.dt_us;
-      s.labels_us += t.labels_us, s.refine_us += t.refine_us, s.encode_us += t.encode_us, s.total_us += t.total_us;
+      s.labels_us += t.labels_us, s.refine_us += t.refine_us, s.encode_us += t.encode_us,
+          s.total_us += t.total_us;
     } else if (const auto* error = std::get_if<protocol::ErrorReply>(&frame->header.reply)) {
       ++totals.errors_by_code[protocol::to_string(error->code)];
-      if (error->code == protocol::ErrorKind::kSuperseded) ++totals.superseded;
-      else ++totals.errors;
+      if (error->code == protocol::ErrorKind::kSuperseded)
+        ++totals.superseded;
+      else
+        ++totals.errors;
     }
   }
   {
@@ -247,15 +251,18 @@ void receive_loop(Stream& stream, const Link& link, Clock::time_point start) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{"mtlod-load: load test for mtlod-server: closed loop (N connections, each waits for its reply) "
-               "or open loop (--rate: a fixed arrival schedule, latency from each request's due time)."};
+  CLI::App app{
+      "mtlod-load: load test for mtlod-server: closed loop (N connections, each waits for its reply) "
+      "or open loop (--rate: a fixed arrival schedule, latency from each request's due time)."};
   Options o;
   app.add_option("--host", o.host, "server address")->capture_default_str();
   app.add_option("--port", o.port, "server port")->capture_default_str();
   app.add_option("--model", o.models, "model name; repeat to spread connections over several models")
       ->capture_default_str()
       ->take_all();
-  app.add_option("-c,--connections", o.connections, "connections")->capture_default_str()->check(CLI::Range(1u, 4096u));
+  app.add_option("-c,--connections", o.connections, "connections")
+      ->capture_default_str()
+      ->check(CLI::Range(1u, 4096u));
   app.add_option("-d,--duration", o.duration_s, "seconds of sending (replies are awaited after)")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 86400.0));
@@ -265,8 +272,9 @@ int main(int argc, char** argv) {
       ->capture_default_str()
       ->check(CLI::Range(0.0, 1e6));
   app.add_option("--arrivals", o.arrivals, "open loop schedule: uniform or poisson")->capture_default_str();
-  app.add_option("--window", o.window,
-                 "open loop: unanswered requests per connection before sending waits (0: the server's max_in_flight)")
+  app.add_option(
+         "--window", o.window,
+         "open loop: unanswered requests per connection before sending waits (0: the server's max_in_flight)")
       ->capture_default_str();
   app.add_option("--cameras", o.cameras,
                  "random (orbits around the model), fixed (the camera flags) or a script file of "
@@ -274,24 +282,29 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--random-focus", o.random_focus, "each extract gets a random focus point (true/false)")
       ->capture_default_str();
-  app.add_option("--mix", o.mix, "request kinds by weight: extract=W,gaze=W (a gaze moves the focus of the "
-                                 "connection's last extract)")
+  app.add_option("--mix", o.mix,
+                 "request kinds by weight: extract=W,gaze=W (a gaze moves the focus of the "
+                 "connection's last extract)")
       ->capture_default_str();
-  app.add_option("--gaze-hz", o.gaze_hz,
-                 "gaze streams: every connection sends one extract, then gaze updates at this rate (sets --mix "
-                 "gaze=1 and --rate to connections × Hz)")
+  app.add_option(
+         "--gaze-hz", o.gaze_hz,
+         "gaze streams: every connection sends one extract, then gaze updates at this rate (sets --mix "
+         "gaze=1 and --rate to connections × Hz)")
       ->check(CLI::Range(0.0, 10000.0));
   app.add_option("--drain-timeout", o.drain_timeout_s, "seconds to wait for outstanding replies at the end")
       ->capture_default_str();
-  app.add_option("--seed", o.seed, "random seed for cameras, foci, mix and Poisson arrivals")->capture_default_str();
-  app.add_option("--attempts", o.retry.attempts,
-                 "connection attempts when a connection drops or its server drains, with exponential backoff; the "
-                 "unanswered requests are then sent again (1: give up at once)")
+  app.add_option("--seed", o.seed, "random seed for cameras, foci, mix and Poisson arrivals")
+      ->capture_default_str();
+  app.add_option(
+         "--attempts", o.retry.attempts,
+         "connection attempts when a connection drops or its server drains, with exponential backoff; the "
+         "unanswered requests are then sent again (1: give up at once)")
       ->capture_default_str()
       ->check(CLI::Range(1u, 1000u));
-  app.add_option("--reconnect-after", o.reconnect_after,
-                 "requests per connection: then it waits for its replies and reconnects, so a load balancer can "
-                 "move it (0: never)")
+  app.add_option(
+         "--reconnect-after", o.reconnect_after,
+         "requests per connection: then it waits for its replies and reconnects, so a load balancer can "
+         "move it (0: never)")
       ->capture_default_str();
   app.add_option("--json", o.json_file, "write the report as JSON to this file");
   app.add_flag("-q,--quiet", o.quiet, "no progress line");
@@ -307,7 +320,8 @@ int main(int argc, char** argv) {
   }
   auto mix = clients::parse_mix(o.mix);
   if (!mix) return fail(mix.error().message);
-  if (o.arrivals != "uniform" && o.arrivals != "poisson") return fail("--arrivals must be uniform or poisson");
+  if (o.arrivals != "uniform" && o.arrivals != "poisson")
+    return fail("--arrivals must be uniform or poisson");
   std::vector<clients::ScriptedCamera> script;
   if (o.cameras != "random" && o.cameras != "fixed") {
     std::ifstream in(o.cameras);
@@ -338,7 +352,9 @@ int main(int argc, char** argv) {
     auto info = streams.front()->connection->call(protocol::ModelInfo{name}, 0);
     if (!info) return fail(info.error().message);
     const auto* m = std::get_if<protocol::ModelInfoReply>(&info->header.reply);
-    if (!m) return fail(fmt::format("model '{}': {}", name, std::get<protocol::ErrorReply>(info->header.reply).message));
+    if (!m)
+      return fail(
+          fmt::format("model '{}': {}", name, std::get<protocol::ErrorReply>(info->header.reply).message));
     auto base = protocol::make_extract(flags, name, m->bounds_min, m->bounds_max);
     if (!base) return fail(base.error().message);
     models.push_back(ModelView{name, m->bounds_min, m->bounds_max, std::move(*base)});
@@ -349,8 +365,9 @@ int main(int argc, char** argv) {
   std::vector<std::vector<std::int64_t>> plan;
   if (open_loop) {
     plan = clients::plan_arrivals(
-        clients::ArrivalSchedule(o.rate, o.arrivals == "poisson" ? clients::Arrivals::kPoisson : clients::Arrivals::kUniform,
-                                 o.seed),
+        clients::ArrivalSchedule(
+            o.rate, o.arrivals == "poisson" ? clients::Arrivals::kPoisson : clients::Arrivals::kUniform,
+            o.seed),
         duration_ns, o.max_requests, o.connections);
   }
 
@@ -385,9 +402,9 @@ int main(int argc, char** argv) {
           // Recycle the connection once its replies are in, so a load balancer can place it anew.
           std::unique_lock lock(stream.mutex);
           if (stream.sent_on_connection >= o.reconnect_after) {
-            const bool idle = stream.changed.wait_until(lock, start + std::chrono::nanoseconds(duration_ns), [&] {
-              return stream.broken || stream.pending.empty();
-            });
+            const bool idle =
+                stream.changed.wait_until(lock, start + std::chrono::nanoseconds(duration_ns),
+                                          [&] { return stream.broken || stream.pending.empty(); });
             const std::uint64_t generation = stream.generation;
             lock.unlock();
             if (idle && !reconnect(stream, link, generation)) break;
@@ -396,9 +413,9 @@ int main(int argc, char** argv) {
         {
           // Wait for room in the window; past the end of the test, give up on the rest.
           std::unique_lock lock(stream.mutex);
-          const bool room = stream.changed.wait_until(lock, start + std::chrono::nanoseconds(duration_ns), [&] {
-            return stream.broken || stream.pending.size() < window;
-          });
+          const bool room =
+              stream.changed.wait_until(lock, start + std::chrono::nanoseconds(duration_ns),
+                                        [&] { return stream.broken || stream.pending.size() < window; });
           if (stream.broken) break;
           if (!room) {
             stream.unsent += open_loop ? plan[c].size() - i : 0;
@@ -415,7 +432,8 @@ int main(int argc, char** argv) {
           } else if (!script.empty()) {
             const clients::ScriptedCamera& s = script[script_index++ % script.size()];
             protocol::LookAt look{s.eye, s.target, {0, 1, 0}, flags.fov_deg};
-            protocol::look_at_camera(look, static_cast<double>(e.viewport[0]) / e.viewport[1], e.view, e.projection);
+            protocol::look_at_camera(look, static_cast<double>(e.viewport[0]) / e.viewport[1], e.view,
+                                     e.projection);
             if (s.has_focus) {
               if (e.criteria.focus.empty()) e.criteria.focus.emplace_back();
               e.criteria.focus.front().x = s.focus[0];
@@ -470,11 +488,13 @@ int main(int argc, char** argv) {
     if (progress) {
       const double t = since(start) / 1e9;
       std::lock_guard lock(totals.mutex);
-      fmt::print(stderr,
-                 "\r{:6.1f} s  sent {:>8}  mesh {:>8}  {:>8.1f}/s  p50 {:>7.2f} ms  p99 {:>7.2f} ms  errors {}  "
-                 "reconnects {}   ",
-                 t, totals.sent, totals.ok, totals.ok / std::max(t, 1e-3), totals.latency_us.value_at_percentile(50) / 1e3,
-                 totals.latency_us.value_at_percentile(99) / 1e3, totals.errors, totals.reconnects);
+      fmt::print(
+          stderr,
+          "\r{:6.1f} s  sent {:>8}  mesh {:>8}  {:>8.1f}/s  p50 {:>7.2f} ms  p99 {:>7.2f} ms  errors {}  "
+          "reconnects {}   ",
+          t, totals.sent, totals.ok, totals.ok / std::max(t, 1e-3),
+          totals.latency_us.value_at_percentile(50) / 1e3, totals.latency_us.value_at_percentile(99) / 1e3,
+          totals.errors, totals.reconnects);
     }
     if (senders_done == o.connections && outstanding() == 0) break;
     if (Clock::now() >= drain_deadline) break;
@@ -495,7 +515,8 @@ int main(int argc, char** argv) {
 
   // The report.
   const Totals& r = totals;
-  const double elapsed_s = std::max<double>(std::min(o.duration_s, since(start) / 1e9), r.last_reply_ns / 1e9);
+  const double elapsed_s =
+      std::max<double>(std::min(o.duration_s, since(start) / 1e9), r.last_reply_ns / 1e9);
   const double throughput = r.ok / std::max(elapsed_s, 1e-9);
   auto ms = [](std::uint64_t us) { return us / 1000.0; };
   const auto& h = r.latency_us;
@@ -550,28 +571,34 @@ int main(int argc, char** argv) {
     instances[name] = {{"ok", i.ok}, {"first_reply_s", i.first_ns / 1e9}, {"last_reply_s", i.last_ns / 1e9}};
   }
   report["instances"] = std::move(instances);
-  fmt::print("{} loop, {} connection(s), models {}, {:.1f} s{}\n", open_loop ? "open" : "closed", o.connections,
-             fmt::join(o.models, ","), elapsed_s, open_loop ? fmt::format(", {:.0f} requests/s offered", o.rate) : "");
-  fmt::print("  requests  sent {}  mesh {}  errors {}  superseded {}  unsent {}  lost {}\n", r.sent, r.ok, r.errors,
-             r.superseded, unsent, lost);
+  fmt::print("{} loop, {} connection(s), models {}, {:.1f} s{}\n", open_loop ? "open" : "closed",
+             o.connections, fmt::join(o.models, ","), elapsed_s,
+             open_loop ? fmt::format(", {:.0f} requests/s offered", o.rate) : "");
+  fmt::print("  requests  sent {}  mesh {}  errors {}  superseded {}  unsent {}  lost {}\n", r.sent, r.ok,
+             r.errors, r.superseded, unsent, lost);
   for (const auto& [code, n] : r.errors_by_code) fmt::print("    {:<20} {}\n", code, n);
   if (r.reconnects || r.gave_up) {
-    fmt::print("  reconnects {}, requests sent again {}, streams that gave up {}\n", r.reconnects, r.retried, r.gave_up);
+    fmt::print("  reconnects {}, requests sent again {}, streams that gave up {}\n", r.reconnects, r.retried,
+               r.gave_up);
   }
   if (r.instances.size() > 1) {
     for (const auto& [name, i] : r.instances) {
-      fmt::print("    {:<28} {:>8} meshes  {:.1f}..{:.1f} s\n", name, i.ok, i.first_ns / 1e9, i.last_ns / 1e9);
+      fmt::print("    {:<28} {:>8} meshes  {:.1f}..{:.1f} s\n", name, i.ok, i.first_ns / 1e9,
+                 i.last_ns / 1e9);
     }
   }
-  fmt::print("  throughput {:.1f} meshes/s, {:.2f} MB/s, {:.0f} triangles and {:.0f} bytes per mesh\n", throughput,
-             r.bytes / std::max(elapsed_s, 1e-9) / 1e6, r.triangles / mean_div, r.bytes / mean_div);
+  fmt::print("  throughput {:.1f} meshes/s, {:.2f} MB/s, {:.0f} triangles and {:.0f} bytes per mesh\n",
+             throughput, r.bytes / std::max(elapsed_s, 1e-9) / 1e6, r.triangles / mean_div,
+             r.bytes / mean_div);
   fmt::print("  latency ms  p50 {:.2f}  p90 {:.2f}  p99 {:.2f}  p99.9 {:.2f}  max {:.2f}  mean {:.2f}\n",
              ms(h.value_at_percentile(50)), ms(h.value_at_percentile(90)), ms(h.value_at_percentile(99)),
              ms(h.value_at_percentile(99.9)), ms(h.max()), h.mean() / 1000.0);
-  fmt::print("  server µs (mean)  queue {:.0f}  map {:.0f}  occupancy {:.0f}  dt {:.0f}  labels {:.0f}  refine {:.0f}  "
-             "encode {:.0f}  total {:.0f}\n",
-             s.queue_us / mean_div, s.map_us / mean_div, s.occupancy_us / mean_div, s.dt_us / mean_div,
-             s.labels_us / mean_div, s.refine_us / mean_div, s.encode_us / mean_div, s.total_us / mean_div);
+  fmt::print(
+      "  server µs (mean)  queue {:.0f}  map {:.0f}  occupancy {:.0f}  dt {:.0f}  labels {:.0f}  refine "
+      "{:.0f}  "
+      "encode {:.0f}  total {:.0f}\n",
+      s.queue_us / mean_div, s.map_us / mean_div, s.occupancy_us / mean_div, s.dt_us / mean_div,
+      s.labels_us / mean_div, s.refine_us / mean_div, s.encode_us / mean_div, s.total_us / mean_div);
   if (!o.json_file.empty()) {
     std::ofstream out(o.json_file);
     out << report.dump(2) << "\n";

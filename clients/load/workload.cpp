@@ -17,17 +17,20 @@ Result<std::vector<ScriptedCamera>> parse_camera_script(const std::string& text)
   std::vector<double> v;
   for (std::size_t number = 1; std::getline(in, line); ++number) {
     if (!line.empty() && line.back() == '\r') line.pop_back();
-    if (line.find_first_not_of(" \t") == std::string::npos || line[line.find_first_not_of(" \t")] == '#') continue;
+    if (line.find_first_not_of(" \t") == std::string::npos || line[line.find_first_not_of(" \t")] == '#')
+      continue;
     if (!protocol::parse_number_list(line, v) || (v.size() != 6 && v.size() != 8)) {
-      return make_error(ErrorCode::kInvalidArgument,
-                        fmt::format("camera script line {}: expected ex,ey,ez,tx,ty,tz[,fx,fy], got '{}'", number, line));
+      return make_error(
+          ErrorCode::kInvalidArgument,
+          fmt::format("camera script line {}: expected ex,ey,ez,tx,ty,tz[,fx,fy], got '{}'", number, line));
     }
     ScriptedCamera c;
     c.eye = {v[0], v[1], v[2]};
     c.target = {v[3], v[4], v[5]};
     if (v.size() == 8) {
       if (v[6] < 0 || v[6] > 1 || v[7] < 0 || v[7] > 1) {
-        return make_error(ErrorCode::kInvalidArgument, fmt::format("camera script line {}: focus must lie in 0..1", number));
+        return make_error(ErrorCode::kInvalidArgument,
+                          fmt::format("camera script line {}: focus must lie in 0..1", number));
       }
       c.has_focus = true;
       c.focus = {v[6], v[7]};
@@ -51,11 +54,13 @@ Result<Mix> parse_mix(const std::string& text) {
     }
     const std::string name = part.substr(0, eq);
     if (weight < 0 || !std::isfinite(weight) || (name != "extract" && name != "gaze")) {
-      return make_error(ErrorCode::kInvalidArgument, fmt::format("--mix '{}': expected extract=W,gaze=W", text));
+      return make_error(ErrorCode::kInvalidArgument,
+                        fmt::format("--mix '{}': expected extract=W,gaze=W", text));
     }
     (name == "extract" ? mix.extract : mix.gaze) = weight;
   }
-  if (mix.extract + mix.gaze <= 0) return make_error(ErrorCode::kInvalidArgument, fmt::format("--mix '{}': all weights are 0", text));
+  if (mix.extract + mix.gaze <= 0)
+    return make_error(ErrorCode::kInvalidArgument, fmt::format("--mix '{}': all weights are 0", text));
   return mix;
 }
 
@@ -63,15 +68,18 @@ void random_orbit_camera(const std::array<double, 3>& bounds_min, const std::arr
                          double fov_deg, std::mt19937_64& rng, protocol::Extract& request) {
   protocol::LookAt camera = protocol::frame_bounds(bounds_min, bounds_max, fov_deg);
   double distance = 0;
-  for (int i = 0; i < 3; ++i) distance += (camera.eye[i] - camera.target[i]) * (camera.eye[i] - camera.target[i]);
+  for (int i = 0; i < 3; ++i)
+    distance += (camera.eye[i] - camera.target[i]) * (camera.eye[i] - camera.target[i]);
   distance = std::sqrt(distance) * std::uniform_real_distribution<double>(0.8, 1.6)(rng);
   const double azimuth = std::uniform_real_distribution<double>(0, 2 * std::numbers::pi)(rng);
-  const double elevation = std::uniform_real_distribution<double>(-std::numbers::pi / 3, std::numbers::pi / 3)(rng);
+  const double elevation =
+      std::uniform_real_distribution<double>(-std::numbers::pi / 3, std::numbers::pi / 3)(rng);
   camera.eye = {camera.target[0] + distance * std::cos(elevation) * std::sin(azimuth),
                 camera.target[1] + distance * std::sin(elevation),
                 camera.target[2] + distance * std::cos(elevation) * std::cos(azimuth)};
   camera.near = camera.far = 0;  // derived from the new distance
-  const double aspect = static_cast<double>(request.viewport[0]) / std::max<std::uint32_t>(1, request.viewport[1]);
+  const double aspect =
+      static_cast<double>(request.viewport[0]) / std::max<std::uint32_t>(1, request.viewport[1]);
   protocol::look_at_camera(camera, aspect, request.view, request.projection);
 }
 

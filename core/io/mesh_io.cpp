@@ -56,9 +56,9 @@ class FlatImporter final : public OM::IO::BaseImporter {
     // Polygons become a fan from their first corner; readers hand over convex polygons in practice.
     if (corners.size() > 3) ++polygons_triangulated;
     for (std::size_t k = 1; k + 1 < corners.size(); ++k) {
-      mesh.triangles.insert(mesh.triangles.end(),
-                            {static_cast<std::uint32_t>(corners[0].idx()), static_cast<std::uint32_t>(corners[k].idx()),
-                             static_cast<std::uint32_t>(corners[k + 1].idx())});
+      mesh.triangles.insert(mesh.triangles.end(), {static_cast<std::uint32_t>(corners[0].idx()),
+                                                   static_cast<std::uint32_t>(corners[k].idx()),
+                                                   static_cast<std::uint32_t>(corners[k + 1].idx())});
     }
     return OM::FaceHandle(static_cast<int>(face));
   }
@@ -80,9 +80,15 @@ class FlatImporter final : public OM::IO::BaseImporter {
     grow(mesh.colors, std::uint8_t{0});
     std::copy_n(c.data(), 3, &mesh.colors[3 * static_cast<std::size_t>(vh.idx())]);
   }
-  void set_color(OM::VertexHandle vh, const OM::Vec4uc& c) override { set_color(vh, OM::Vec3uc(c[0], c[1], c[2])); }
-  void set_color(OM::VertexHandle vh, const OM::Vec3f& c) override { set_color(vh, to_bytes(c[0], c[1], c[2])); }
-  void set_color(OM::VertexHandle vh, const OM::Vec4f& c) override { set_color(vh, to_bytes(c[0], c[1], c[2])); }
+  void set_color(OM::VertexHandle vh, const OM::Vec4uc& c) override {
+    set_color(vh, OM::Vec3uc(c[0], c[1], c[2]));
+  }
+  void set_color(OM::VertexHandle vh, const OM::Vec3f& c) override {
+    set_color(vh, to_bytes(c[0], c[1], c[2]));
+  }
+  void set_color(OM::VertexHandle vh, const OM::Vec4f& c) override {
+    set_color(vh, to_bytes(c[0], c[1], c[2]));
+  }
 
   std::size_t n_vertices() const override { return mesh.positions.size() / 3; }
   std::size_t n_faces() const override { return faces_; }
@@ -139,7 +145,8 @@ class FlatImporter final : public OM::IO::BaseImporter {
   }
   static OM::Vec3uc to_bytes(float r, float g, float b) {
     auto byte = [](float x) {
-      return static_cast<unsigned char>(std::lround(std::clamp(std::isfinite(x) ? x : 0.0f, 0.0f, 1.0f) * 255.0f));
+      return static_cast<unsigned char>(
+          std::lround(std::clamp(std::isfinite(x) ? x : 0.0f, 0.0f, 1.0f) * 255.0f));
     };
     return OM::Vec3uc(byte(r), byte(g), byte(b));
   }
@@ -167,7 +174,8 @@ Status check_binary_ply_size(const std::filesystem::path& path, std::uintmax_t f
   auto type_size = [](const std::string& t) -> int {
     if (t == "char" || t == "uchar" || t == "int8" || t == "uint8") return 1;
     if (t == "short" || t == "ushort" || t == "int16" || t == "uint16") return 2;
-    if (t == "int" || t == "uint" || t == "float" || t == "int32" || t == "uint32" || t == "float32") return 4;
+    if (t == "int" || t == "uint" || t == "float" || t == "int32" || t == "uint32" || t == "float32")
+      return 4;
     if (t == "double" || t == "float64") return 8;
     return 0;
   };
@@ -182,14 +190,16 @@ Status check_binary_ply_size(const std::filesystem::path& path, std::uintmax_t f
       try {
         e.count = std::stoull(line.substr(space + 1));
       } catch (const std::exception&) {
-        return make_error(ErrorCode::kCorrupt, fmt::format("{}: bad PLY element line '{}'", path.string(), line));
+        return make_error(ErrorCode::kCorrupt,
+                          fmt::format("{}: bad PLY element line '{}'", path.string(), line));
       }
       elements.push_back(e);
     }
     if (line.rfind("property ", 0) == 0 && !elements.empty()) {
       char a[64] = {}, b[64] = {};
       if (line.rfind("property list ", 0) == 0) {
-        if (std::sscanf(line.c_str(), "property list %63s %63s", a, b) == 2) elements.back().fixed_bytes += type_size(a);
+        if (std::sscanf(line.c_str(), "property list %63s %63s", a, b) == 2)
+          elements.back().fixed_bytes += type_size(a);
       } else if (std::sscanf(line.c_str(), "property %63s", a) == 1) {
         elements.back().fixed_bytes += type_size(a);
       }
@@ -201,15 +211,16 @@ Status check_binary_ply_size(const std::filesystem::path& path, std::uintmax_t f
   std::uintmax_t needed = header_bytes;
   for (const Element& e : elements) {
     if (e.fixed_bytes != 0 && e.count > (UINTMAX_MAX - needed) / e.fixed_bytes) {
-      return make_error(ErrorCode::kCorrupt, fmt::format("{}: element '{}' count {} is impossible", path.string(),
-                                                         e.name, e.count));
+      return make_error(ErrorCode::kCorrupt, fmt::format("{}: element '{}' count {} is impossible",
+                                                         path.string(), e.name, e.count));
     }
     needed += e.count * e.fixed_bytes;
   }
   if (file_size < needed) {
-    return make_error(ErrorCode::kCorrupt,
-                      fmt::format("{}: truncated binary PLY: the header needs at least {} bytes, the file has {}",
-                                  path.string(), needed, file_size));
+    return make_error(
+        ErrorCode::kCorrupt,
+        fmt::format("{}: truncated binary PLY: the header needs at least {} bytes, the file has {}",
+                    path.string(), needed, file_size));
   }
   return Ok{};
 }
@@ -263,19 +274,25 @@ Result<LoadedMesh> load_mesh(const std::filesystem::path& path, const LoadOption
   for (std::size_t v = 0; v < mesh.vertex_count(); ++v) {
     const float* p = &mesh.positions[3 * v];
     if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2])) {
-      return make_error(ErrorCode::kCorrupt, fmt::format("{}: vertex {} has a non-finite coordinate ({}, {}, {})",
-                                                         name, v, p[0], p[1], p[2]));
+      return make_error(
+          ErrorCode::kCorrupt,
+          fmt::format("{}: vertex {} has a non-finite coordinate ({}, {}, {})", name, v, p[0], p[1], p[2]));
     }
   }
   if (mesh.vertex_count() > UINT32_MAX / 2) {
-    return make_error(ErrorCode::kLimitExceeded, fmt::format("{}: {} vertices is over the limit", name, mesh.vertex_count()));
+    return make_error(ErrorCode::kLimitExceeded,
+                      fmt::format("{}: {} vertices is over the limit", name, mesh.vertex_count()));
   }
   // Attributes the reader set for some vertices only are padded to every vertex; attributes it did
   // not set at all are dropped rather than kept as zeros.
-  if (!importer.saw_normal || !read_options.check(OM::IO::Options::VertexNormal)) mesh.normals.clear();
-  else mesh.normals.resize(mesh.positions.size(), 0.0f);
-  if (!importer.saw_color || !read_options.check(OM::IO::Options::VertexColor)) mesh.colors.clear();
-  else mesh.colors.resize(mesh.positions.size(), 0);
+  if (!importer.saw_normal || !read_options.check(OM::IO::Options::VertexNormal))
+    mesh.normals.clear();
+  else
+    mesh.normals.resize(mesh.positions.size(), 0.0f);
+  if (!importer.saw_color || !read_options.check(OM::IO::Options::VertexColor))
+    mesh.colors.clear();
+  else
+    mesh.colors.resize(mesh.positions.size(), 0);
   loaded.polygons_triangulated = importer.polygons_triangulated;
 
   loaded.input_topology = analyze_topology(mesh.positions, mesh.triangles);
@@ -299,9 +316,10 @@ namespace {
 Status write_ply(const std::filesystem::path& path, const Mesh& mesh) {
   std::FILE* f = std::fopen(path.string().c_str(), "wb");
   if (!f) return make_error(ErrorCode::kIoError, fmt::format("{}: cannot open for writing", path.string()));
-  std::string header = fmt::format("ply\nformat binary_little_endian 1.0\ncomment written by mtlod\n"
-                                   "element vertex {}\nproperty float x\nproperty float y\nproperty float z\n",
-                                   mesh.vertex_count());
+  std::string header = fmt::format(
+      "ply\nformat binary_little_endian 1.0\ncomment written by mtlod\n"
+      "element vertex {}\nproperty float x\nproperty float y\nproperty float z\n",
+      mesh.vertex_count());
   if (mesh.has_normals()) header += "property float nx\nproperty float ny\nproperty float nz\n";
   if (mesh.has_colors()) header += "property uchar red\nproperty uchar green\nproperty uchar blue\n";
   header += fmt::format("element face {}\nproperty list uchar uint vertex_indices\nend_header\n",
@@ -359,7 +377,8 @@ Status write_obj(const std::filesystem::path& path, const Mesh& mesh) {
     if (out.size() > (1u << 20)) flush();
   }
   for (std::size_t t = 0; t < mesh.triangle_count(); ++t) {
-    const std::uint32_t a = mesh.triangles[3 * t] + 1, b = mesh.triangles[3 * t + 1] + 1, c = mesh.triangles[3 * t + 2] + 1;
+    const std::uint32_t a = mesh.triangles[3 * t] + 1, b = mesh.triangles[3 * t + 1] + 1,
+                        c = mesh.triangles[3 * t + 2] + 1;
     if (mesh.has_normals()) {
       fmt::format_to(std::back_inserter(out), "f {0}//{0} {1}//{1} {2}//{2}\n", a, b, c);
     } else {

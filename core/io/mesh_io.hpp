@@ -12,14 +12,14 @@
 namespace mtlod::core::io {
 
 struct LoadOptions {
-  bool clean = true;                 // run clean_mesh (welding is forced on for STL)
+  bool clean = true;  // run clean_mesh (welding is forced on for STL)
   CleanupOptions cleanup = {};
 };
 
 struct LoadedMesh {
   Mesh mesh;
-  TopologyReport input_topology;     // of the file as read, before clean-up
-  CleanupSummary cleanup;            // what clean-up changed
+  TopologyReport input_topology;          // of the file as read, before clean-up
+  CleanupSummary cleanup;                 // what clean-up changed
   std::size_t polygons_triangulated = 0;  // input faces with more than three corners
 };
 

@@ -47,7 +47,9 @@ using namespace mtlod::core;
 namespace fs = std::filesystem;
 
 using Clock = std::chrono::steady_clock;
-double seconds_since(Clock::time_point start) { return std::chrono::duration<double>(Clock::now() - start).count(); }
+double seconds_since(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
 
 // A perspective camera; fails on a degenerate or non-finite setup with a message naming the flag.
 Result<Camera> make_camera(const std::array<double, 3>& eye, const std::array<double, 3>& target,
@@ -56,13 +58,16 @@ Result<Camera> make_camera(const std::array<double, 3>& eye, const std::array<do
   for (int c = 0; c < 3; ++c)
     if (!std::isfinite(e[c]) || !std::isfinite(t[c]) || !std::isfinite(u[c]))
       return make_error(ErrorCode::kInvalidArgument, "camera: --eye, --target and --up must be finite");
-  if (glm::length(t - e) <= 0.0f) return make_error(ErrorCode::kInvalidArgument, "camera: --eye equals --target");
+  if (glm::length(t - e) <= 0.0f)
+    return make_error(ErrorCode::kInvalidArgument, "camera: --eye equals --target");
   if (glm::length(glm::cross(t - e, u)) <= 1e-6f * glm::length(t - e) * glm::length(u))
     return make_error(ErrorCode::kInvalidArgument, "camera: --up is zero or parallel to the view direction");
   if (!(fov_deg > 0.0 && fov_deg < 180.0))
-    return make_error(ErrorCode::kInvalidArgument, fmt::format("camera: --fov {} is outside (0, 180)", fov_deg));
+    return make_error(ErrorCode::kInvalidArgument,
+                      fmt::format("camera: --fov {} is outside (0, 180)", fov_deg));
   if (!(near > 0.0 && far > near))
-    return make_error(ErrorCode::kInvalidArgument, fmt::format("camera: near {} / far {} planes invalid", near, far));
+    return make_error(ErrorCode::kInvalidArgument,
+                      fmt::format("camera: near {} / far {} planes invalid", near, far));
   Camera camera;
   camera.view = glm::lookAt(e, t, u);
   camera.projection = glm::perspective(glm::radians(float(fov_deg)), 1.0f, float(near), float(far));
@@ -74,11 +79,13 @@ Result<Camera> make_camera(const std::array<double, 3>& eye, const std::array<do
 Camera orbit_camera(const Bounds& b, int k, int n) {
   const double azimuth = 2.0 * M_PI * k / n, elevation = glm::radians(k % 2 == 0 ? 25.0 : -10.0);
   const double fov = 40.0, distance = b.radius() / std::sin(glm::radians(fov / 2)) / 0.9;
-  const glm::vec3 dir(std::cos(elevation) * std::sin(azimuth), std::sin(elevation), std::cos(elevation) * std::cos(azimuth));
+  const glm::vec3 dir(std::cos(elevation) * std::sin(azimuth), std::sin(elevation),
+                      std::cos(elevation) * std::cos(azimuth));
   const std::array<float, 3> c = b.centre();
   const glm::vec3 eye = glm::vec3(c[0], c[1], c[2]) + float(distance) * dir;
-  auto camera = make_camera({eye.x, eye.y, eye.z}, {c[0], c[1], c[2]}, {0, 1, 0}, fov,
-                            std::max(1e-3 * distance, distance - 2.0 * b.radius()), distance + 2.0 * b.radius());
+  auto camera =
+      make_camera({eye.x, eye.y, eye.z}, {c[0], c[1], c[2]}, {0, 1, 0}, fov,
+                  std::max(1e-3 * distance, distance - 2.0 * b.radius()), distance + 2.0 * b.radius());
   return *camera;  // never degenerate: the direction is never parallel to +y
 }
 
@@ -93,7 +100,8 @@ Result<Mesh> load(const fs::path& path) {
 // compare and silhouette subcommands
 
 // Two silhouette masks as one RGB image: pixels in both grey, only in `a` blue, only in `b` red.
-void xor_image(std::span<const std::uint8_t> a, std::span<const std::uint8_t> b, std::vector<std::uint8_t>& rgb) {
+void xor_image(std::span<const std::uint8_t> a, std::span<const std::uint8_t> b,
+               std::vector<std::uint8_t>& rgb) {
   rgb.resize(3 * a.size());
   for (std::size_t c = 0; c < a.size(); ++c) {
     const std::array<std::uint8_t, 3> colour = a[c] && b[c] ? std::array<std::uint8_t, 3>{175, 175, 175}
@@ -110,18 +118,19 @@ int run_compare(const std::string& a_path, const std::string& b_path, std::size_
   auto b = load(b_path);
   if (!b) return fmt::print(stderr, "mtlod-eval: {}\n", b.error().message), 1;
   const auto start = Clock::now();
-  const SurfaceError e = compare_surfaces(a->positions, a->triangles, b->positions, b->triangles, {samples, true, 1});
+  const SurfaceError e =
+      compare_surfaces(a->positions, a->triangles, b->positions, b->triangles, {samples, true, 1});
   const double diag = bounds_of(a->positions).diagonal();
   fmt::print("A = {} ({} triangles), B = {} ({} triangles), A's bounding-box diagonal {:.6g}\n", a_path,
              a->triangle_count(), b_path, b->triangle_count(), diag);
   const auto row = [&](const char* name, const DistanceStats& s) {
-    fmt::print("  {}: {} samples, max {:.6g} ({:.4f} % of diagonal), mean {:.6g}, RMS {:.6g}\n", name, s.samples, s.max,
-               100 * s.max / diag, s.mean, s.rms);
+    fmt::print("  {}: {} samples, max {:.6g} ({:.4f} % of diagonal), mean {:.6g}, RMS {:.6g}\n", name,
+               s.samples, s.max, 100 * s.max / diag, s.mean, s.rms);
   };
   row("A -> B", e.a_to_b);
   row("B -> A", e.b_to_a);
-  fmt::print("  symmetric Hausdorff {:.6g} ({:.4f} %), RMS {:.6g}; {:.2f} s\n", e.hausdorff(), 100 * e.hausdorff() / diag,
-             e.rms(), seconds_since(start));
+  fmt::print("  symmetric Hausdorff {:.6g} ({:.4f} %), RMS {:.6g}; {:.2f} s\n", e.hausdorff(),
+             100 * e.hausdorff() / diag, e.rms(), seconds_since(start));
   return 0;
 }
 
@@ -131,7 +140,8 @@ struct CameraFlags {
   std::uint32_t size = 512;
 };
 
-int run_silhouette(const std::string& a_path, const std::string& b_path, const CameraFlags& f, const std::string& png) {
+int run_silhouette(const std::string& a_path, const std::string& b_path, const CameraFlags& f,
+                   const std::string& png) {
   auto a = load(a_path);
   if (!a) return fmt::print(stderr, "mtlod-eval: {}\n", a.error().message), 1;
   auto b = load(b_path);
@@ -157,14 +167,17 @@ int run_silhouette(const std::string& a_path, const std::string& b_path, const C
   rasterize_silhouette(mapping, a->positions, a->triangles, mask_a);
   rasterize_silhouette(mapping, b->positions, b->triangles, mask_b);
   const SilhouetteError e = compare_silhouettes(mask_a, mask_b, grid);
-  fmt::print("{}x{} image: A covers {} px, B covers {} px, XOR {} px; contour distance mean {:.3f} px, max {:.3f} px "
-             "(A->B mean {:.3f} max {:.3f}, B->A mean {:.3f} max {:.3f})\n",
-             f.size, f.size, e.pixels_a, e.pixels_b, e.xor_pixels, e.mean_px(), e.max_px(), e.a_to_b.mean_px,
-             e.a_to_b.max_px, e.b_to_a.mean_px, e.b_to_a.max_px);
+  fmt::print(
+      "{}x{} image: A covers {} px, B covers {} px, XOR {} px; contour distance mean {:.3f} px, max {:.3f} "
+      "px "
+      "(A->B mean {:.3f} max {:.3f}, B->A mean {:.3f} max {:.3f})\n",
+      f.size, f.size, e.pixels_a, e.pixels_b, e.xor_pixels, e.mean_px(), e.max_px(), e.a_to_b.mean_px,
+      e.a_to_b.max_px, e.b_to_a.mean_px, e.b_to_a.max_px);
   if (!png.empty()) {
     std::vector<std::uint8_t> rgb;
     xor_image(mask_a, mask_b, rgb);
-    if (auto s = io::write_png_rgb(png, rgb, grid); !s) return fmt::print(stderr, "mtlod-eval: {}\n", s.error().message), 1;
+    if (auto s = io::write_png_rgb(png, rgb, grid); !s)
+      return fmt::print(stderr, "mtlod-eval: {}\n", s.error().message), 1;
   }
   return 0;
 }
@@ -176,8 +189,8 @@ struct ExperimentOptions {
   std::vector<std::string> meshes;  // NAME=PATH
   std::vector<std::size_t> budgets{1000, 4000, 16000};
   int cameras = 8;
-  std::uint32_t image_px = 512;  // silhouette masks and figures
-  std::uint32_t grid_px = 256;   // the view grid of the distance transforms (the server's default)
+  std::uint32_t image_px = 512;            // silhouette masks and figures
+  std::uint32_t grid_px = 256;             // the view grid of the distance transforms (the server's default)
   std::size_t reference_samples = 100000;  // area samples on the original
   std::size_t cut_samples = 30000;         // area samples on each simplification
   std::vector<float> silhouette{2.0f, 0.2f};  // d (grid px), f
@@ -269,8 +282,9 @@ void measure_focus(const Reference& ref, const CutDistances& d, std::span<const 
   out.focus_rms = std::max(rms_a, rms_b) / ref.diagonal;
 }
 
-void measure_silhouette(const ViewMapping& image, std::span<const std::uint8_t> ref_mask, std::span<const float> positions,
-                        std::span<const std::uint32_t> cut, std::vector<std::uint8_t>& scratch, Measure& out) {
+void measure_silhouette(const ViewMapping& image, std::span<const std::uint8_t> ref_mask,
+                        std::span<const float> positions, std::span<const std::uint32_t> cut,
+                        std::vector<std::uint8_t>& scratch, Measure& out) {
   rasterize_silhouette(image, positions, cut, scratch);
   const SilhouetteError e = compare_silhouettes(ref_mask, scratch, image.grid());
   out.xor_px = double(e.xor_pixels);
@@ -290,15 +304,17 @@ Status write_render(const fs::path& path, const ViewMapping& image, std::span<co
 // Figures for one mesh at one camera and budget: the four extractions shaded with wireframe, the
 // silhouette XOR of uniform and silhouette-DT, Hausdorff colour maps of the original against both,
 // and the silhouette distance labels.
-Status write_figures(const fs::path& dir, const std::string& name, std::size_t budget, const ViewMapping& image,
-                     const Mesh& mesh, const Mt& mt, const std::array<std::vector<std::uint32_t>, kMethodCount>& cuts,
+Status write_figures(const fs::path& dir, const std::string& name, std::size_t budget,
+                     const ViewMapping& image, const Mesh& mesh, const Mt& mt,
+                     const std::array<std::vector<std::uint32_t>, kMethodCount>& cuts,
                      const std::vector<float>& meshopt_positions, std::span<const std::uint8_t> ref_mask,
                      std::span<const std::uint16_t> silhouette_dt, const ViewMapping& dt_mapping,
                      std::vector<std::string>& figures) {
   const std::string stem = fmt::format("{}-{}", name, budget);
   for (int m = 0; m < kMethodCount; ++m) {
     const std::string file = fmt::format("{}-{}.png", stem, kMethodFiles[m]);
-    const std::span<const float> positions = m == kMeshopt ? std::span<const float>(meshopt_positions) : mt.positions;
+    const std::span<const float> positions =
+        m == kMeshopt ? std::span<const float>(meshopt_positions) : mt.positions;
     MTLOD_TRY(auto ok, write_render(dir / file, image, positions, cuts[m], {}, true));
     (void)ok;
     figures.push_back(file);
@@ -320,7 +336,8 @@ Status write_figures(const fs::path& dir, const std::string& name, std::size_t b
     TriangleIndex index(mt.positions, cuts[k == 0 ? kUniform : kSilhouette]);
     distance[k].resize(mesh.vertex_count());
     for (std::size_t v = 0; v < mesh.vertex_count(); ++v)
-      distance[k][v] = float(index.distance(mesh.positions[3 * v], mesh.positions[3 * v + 1], mesh.positions[3 * v + 2]));
+      distance[k][v] =
+          float(index.distance(mesh.positions[3 * v], mesh.positions[3 * v + 1], mesh.positions[3 * v + 2]));
   }
   const float scale = std::max(1e-30f, *std::max_element(distance[0].begin(), distance[0].end()));
   std::vector<std::uint8_t> colours(3 * mesh.vertex_count());
@@ -329,7 +346,8 @@ Status write_figures(const fs::path& dir, const std::string& name, std::size_t b
       const auto c = ramp_color(distance[k][v] / scale);
       std::copy(c.begin(), c.end(), &colours[3 * v]);
     }
-    const std::string file = fmt::format("{}-hausdorff-{}.png", stem, kMethodFiles[k == 0 ? kUniform : kSilhouette]);
+    const std::string file =
+        fmt::format("{}-hausdorff-{}.png", stem, kMethodFiles[k == 0 ? kUniform : kSilhouette]);
     MTLOD_TRY(auto ok, write_render(dir / file, image, mesh.positions, mesh.triangles, {colours, {}}, false));
     (void)ok;
     figures.push_back(file);
@@ -365,7 +383,8 @@ std::array<float, 2> focus_point(std::span<const std::uint8_t> mask, GridSize gr
   for (std::uint32_t j = 0; j < grid.height; ++j) {
     for (std::uint32_t i = 0; i < grid.width; ++i) {
       const double d = std::hypot(i + 0.5 - fx, j + 0.5 - fy);
-      if (mask[grid.cell(i, j)] && d < best) best = d, out = {float((i + 0.5) / grid.width), float((j + 0.5) / grid.height)};
+      if (mask[grid.cell(i, j)] && d < best)
+        best = d, out = {float((i + 0.5) / grid.width), float((j + 0.5) / grid.height)};
     }
   }
   return out;
@@ -387,14 +406,16 @@ std::string report_markdown(const ExperimentOptions& o, const std::vector<Row>& 
 
 int run_experiment(const ExperimentOptions& o, const std::string& command) {
   const auto start = Clock::now();
-  if (o.meshes.empty()) return fmt::print(stderr, "mtlod-eval: experiment needs at least one --mesh NAME=PATH\n"), 2;
+  if (o.meshes.empty())
+    return fmt::print(stderr, "mtlod-eval: experiment needs at least one --mesh NAME=PATH\n"), 2;
   if (o.cameras < 1) return fmt::print(stderr, "mtlod-eval: --cameras {} must be at least 1\n", o.cameras), 2;
   if (o.silhouette.size() != 2 || o.focus.size() != 2)
     return fmt::print(stderr, "mtlod-eval: --silhouette and --focus take D,F\n"), 2;
   const fs::path out_dir = o.out_dir, figure_dir = out_dir / "figures";
   std::error_code ec;
   fs::create_directories(figure_dir, ec);
-  if (ec) return fmt::print(stderr, "mtlod-eval: cannot create {}: {}\n", figure_dir.string(), ec.message()), 1;
+  if (ec)
+    return fmt::print(stderr, "mtlod-eval: cannot create {}: {}\n", figure_dir.string(), ec.message()), 1;
 
   std::vector<Row> rows;
   std::vector<std::pair<std::string, std::string>> mesh_info;
@@ -420,10 +441,12 @@ int run_experiment(const ExperimentOptions& o, const std::string& command) {
     ref.diagonal = bounds.diagonal();
     // Vertices as samples too while they are few; big meshes get area samples only (said in the report).
     const bool with_vertices = mesh->vertex_count() <= o.reference_samples;
-    sample_surface(mesh->positions, mesh->triangles, {}, {o.reference_samples, with_vertices, 1}, ref.samples);
+    sample_surface(mesh->positions, mesh->triangles, {}, {o.reference_samples, with_vertices, 1},
+                   ref.samples);
     ref.index = std::make_unique<TriangleIndex>(mesh->positions, mesh->triangles);
-    mesh_info.push_back({name, fmt::format("{} | {} | {} | {} | {}", path, mesh->vertex_count(), mesh->triangle_count(),
-                                           mt->root_triangle_count(), ref.samples.size())});
+    mesh_info.push_back(
+        {name, fmt::format("{} | {} | {} | {} | {}", path, mesh->vertex_count(), mesh->triangle_count(),
+                           mt->root_triangle_count(), ref.samples.size())});
 
     // Budgets the MT can honour: above its root and below half the input.
     std::vector<std::size_t> budgets;
@@ -440,8 +463,9 @@ int run_experiment(const ExperimentOptions& o, const std::string& command) {
     std::map<std::size_t, CutDistances> meshopt_distances;
     for (const std::size_t b : budgets) {
       std::vector<std::uint32_t> out(mesh->triangles.size());
-      out.resize(meshopt_simplify(out.data(), mesh->triangles.data(), mesh->triangles.size(), mesh->positions.data(),
-                                  mesh->vertex_count(), 3 * sizeof(float), 3 * b, 1e3f));
+      out.resize(meshopt_simplify(out.data(), mesh->triangles.data(), mesh->triangles.size(),
+                                  mesh->positions.data(), mesh->vertex_count(), 3 * sizeof(float), 3 * b,
+                                  1e3f));
       meshopt[b] = std::move(out);
       Measure m;
       m.triangles = double(meshopt[b].size() / 3);
@@ -461,8 +485,8 @@ int run_experiment(const ExperimentOptions& o, const std::string& command) {
       rasterize_silhouette(image, mesh->positions, mesh->triangles, ref_mask);
       const std::array<float, 2> focus = focus_point(ref_mask, image_grid);
       const float focus_radius_img = o.focus[0] * float(o.image_px);
-      triangles_near_point(image, mesh->positions, mesh->triangles, focus[0] * o.image_px, focus[1] * o.image_px,
-                           focus_radius_img, ref_focus);
+      triangles_near_point(image, mesh->positions, mesh->triangles, focus[0] * o.image_px,
+                           focus[1] * o.image_px, focus_radius_img, ref_focus);
 
       // The two view-dependent fields: a tiny bound e so that every triangle fails and the budget
       // alone stops the refinement; the ranking error / allowed then depends only on the factors.
@@ -490,7 +514,8 @@ int run_experiment(const ExperimentOptions& o, const std::string& command) {
       };
       field(true, sil_field);
       field(false, focus_field);
-      const std::array<AllowedError, 3> allowed{AllowedError::everywhere(0.0f), AllowedError::from_vertices(sil_field),
+      const std::array<AllowedError, 3> allowed{AllowedError::everywhere(0.0f),
+                                                AllowedError::from_vertices(sil_field),
                                                 AllowedError::from_vertices(focus_field)};
 
       for (const std::size_t b : budgets) {
@@ -499,8 +524,10 @@ int run_experiment(const ExperimentOptions& o, const std::string& command) {
         std::size_t target = b;
         for (int round = 0; round < 6; ++round) {
           for (int m = 0; m < 3; ++m) refiner.refine_budget(allowed[m], target, cuts[m]);
-          const std::size_t lo = std::min({cuts[0].triangle_count(), cuts[1].triangle_count(), cuts[2].triangle_count()});
-          const std::size_t hi = std::max({cuts[0].triangle_count(), cuts[1].triangle_count(), cuts[2].triangle_count()});
+          const std::size_t lo =
+              std::min({cuts[0].triangle_count(), cuts[1].triangle_count(), cuts[2].triangle_count()});
+          const std::size_t hi =
+              std::max({cuts[0].triangle_count(), cuts[1].triangle_count(), cuts[2].triangle_count()});
           if (lo == hi) break;
           target = lo;
         }
@@ -509,8 +536,8 @@ int run_experiment(const ExperimentOptions& o, const std::string& command) {
           Measure& r = row.m[m];
           r.triangles = double(cuts[m].triangle_count());
           cut_focus.resize(cuts[m].triangle_count());
-          triangles_near_point(image, mt->positions, cuts[m].triangles, focus[0] * o.image_px, focus[1] * o.image_px,
-                               focus_radius_img, cut_focus);
+          triangles_near_point(image, mt->positions, cuts[m].triangles, focus[0] * o.image_px,
+                               focus[1] * o.image_px, focus_radius_img, cut_focus);
           measure_surface(ref, mt->positions, cuts[m].triangles, o.cut_samples, distances, r);
           measure_focus(ref, distances, ref_focus, cut_focus, r);
           measure_silhouette(image, ref_mask, mt->positions, cuts[m].triangles, scratch, r);
@@ -529,28 +556,32 @@ int run_experiment(const ExperimentOptions& o, const std::string& command) {
           std::array<std::vector<std::uint32_t>, kMethodCount> tris{cuts[0].triangles, cuts[1].triangles,
                                                                     cuts[2].triangles, meshopt[b]};
           // The meshopt cut indexes the loaded mesh, whose vertices are the MT's (same ids).
-          if (auto s = write_figures(figure_dir, name, b, image, *mesh, *mt, tris, mesh->positions, ref_mask, sil_dt0,
-                                     dt_mapping0, figures);
+          if (auto s = write_figures(figure_dir, name, b, image, *mesh, *mt, tris, mesh->positions, ref_mask,
+                                     sil_dt0, dt_mapping0, figures);
               !s)
             return fmt::print(stderr, "mtlod-eval: {}\n", s.error().message), 1;
         }
       }
     }
-    fmt::print("{}: {} triangles, {} budgets x {} cameras in {:.1f} s\n", name, mesh->triangle_count(), budgets.size(),
-               o.cameras, seconds_since(mesh_start));
+    fmt::print("{}: {} triangles, {} budgets x {} cameras in {:.1f} s\n", name, mesh->triangle_count(),
+               budgets.size(), o.cameras, seconds_since(mesh_start));
     std::fflush(stdout);
   }
 
   // results.csv: one line per mesh, budget, camera and method.
-  std::string csv = "mesh,budget,camera,method,triangles,xor_px,contour_mean_px,contour_max_px,hausdorff,rms,"
-                    "focus_hausdorff,focus_rms\n";
+  std::string csv =
+      "mesh,budget,camera,method,triangles,xor_px,contour_mean_px,contour_max_px,hausdorff,rms,"
+      "focus_hausdorff,focus_rms\n";
   for (const Row& r : rows)
     for (int m = 0; m < kMethodCount; ++m)
-      csv += fmt::format("{},{},{},{},{:.0f},{:.0f},{:.4f},{:.4f},{:.6g},{:.6g},{:.6g},{:.6g}\n", r.mesh, r.budget, r.camera,
-                         kMethodFiles[m], r.m[m].triangles, r.m[m].xor_px, r.m[m].contour_mean_px, r.m[m].contour_max_px,
-                         r.m[m].hausdorff, r.m[m].rms, r.m[m].focus_hausdorff, r.m[m].focus_rms);
-  const std::string report = report_markdown(o, rows, mesh_info, notes, figures, seconds_since(start), command);
-  for (const auto& [file, text] : {std::pair{out_dir / "results.csv", csv}, std::pair{out_dir / "REPORT.md", report}}) {
+      csv += fmt::format("{},{},{},{},{:.0f},{:.0f},{:.4f},{:.4f},{:.6g},{:.6g},{:.6g},{:.6g}\n", r.mesh,
+                         r.budget, r.camera, kMethodFiles[m], r.m[m].triangles, r.m[m].xor_px,
+                         r.m[m].contour_mean_px, r.m[m].contour_max_px, r.m[m].hausdorff, r.m[m].rms,
+                         r.m[m].focus_hausdorff, r.m[m].focus_rms);
+  const std::string report =
+      report_markdown(o, rows, mesh_info, notes, figures, seconds_since(start), command);
+  for (const auto& [file, text] :
+       {std::pair{out_dir / "results.csv", csv}, std::pair{out_dir / "REPORT.md", report}}) {
     std::FILE* f = std::fopen(file.c_str(), "wb");
     const bool ok = f && std::fwrite(text.data(), 1, text.size(), f) == text.size();
     if (f) std::fclose(f);
@@ -569,39 +600,49 @@ std::string report_markdown(const ExperimentOptions& o, const std::vector<Row>& 
   const auto add = [&](const std::string& s) { md += s, md += '\n'; };
   add("# Evaluation: distance-transform-weighted extraction against uniform extraction and meshoptimizer");
   add("");
-  add(fmt::format("Generated by `{}` (from `scripts/evaluate.sh`) in {:.0f} s. Do not edit by hand.", command, total_s));
+  add(fmt::format("Generated by `{}` (from `scripts/evaluate.sh`) in {:.0f} s. Do not edit by hand.", command,
+                  total_s));
   add("");
   add("## Setup");
   add("");
-  add(fmt::format("- {} cameras per mesh on an orbit around the bounding sphere (azimuth every {:.0f}°, elevation "
-                  "alternating +25° and −10°, 40° field of view, the sphere filling ~90 % of the view).",
-                  o.cameras, 360.0 / o.cameras));
+  add(fmt::format(
+      "- {} cameras per mesh on an orbit around the bounding sphere (azimuth every {:.0f}°, elevation "
+      "alternating +25° and −10°, 40° field of view, the sphere filling ~90 % of the view).",
+      o.cameras, 360.0 / o.cameras));
   add("- Methods, all from the same Multi-Tessellation (core/mt_builder) by budgeted refinement "
       "(core/refine `refine_budget`, worst error/allowed ratio first):");
   add("  - **uniform**: one allowed error everywhere (the ranking is the triangles' own error);");
-  add(fmt::format("  - **silhouette-DT**: the papers' step law on the 5-7-11 silhouette transform of a {}×{} view grid "
-                  "(core/view_extract): allowed error ×{} within {} grid px of the external silhouette;",
-                  o.grid_px, o.grid_px, o.silhouette[1], o.silhouette[0]));
-  add(fmt::format("  - **focus-DT**: the same law on the focus transform: ×{} within {:.0f} grid px ({:.0f} % of the "
-                  "view) of a focus at the centroid of the model's image;",
-                  o.focus[1], o.focus[0] * o.grid_px, 100 * o.focus[0]));
-  add("  - **meshopt**: `meshopt_simplify` (meshoptimizer 0.18, Debian) on the full-resolution mesh, target index count "
+  add(fmt::format(
+      "  - **silhouette-DT**: the papers' step law on the 5-7-11 silhouette transform of a {}×{} view grid "
+      "(core/view_extract): allowed error ×{} within {} grid px of the external silhouette;",
+      o.grid_px, o.grid_px, o.silhouette[1], o.silhouette[0]));
+  add(fmt::format(
+      "  - **focus-DT**: the same law on the focus transform: ×{} within {:.0f} grid px ({:.0f} % of the "
+      "view) of a focus at the centroid of the model's image;",
+      o.focus[1], o.focus[0] * o.grid_px, 100 * o.focus[0]));
+  add("  - **meshopt**: `meshopt_simplify` (meshoptimizer 0.18, Debian) on the full-resolution mesh, target "
+      "index count "
       "3 × budget, no error limit; view-independent, so one result per budget.");
-  add("- Equal counts: each MT method is refined to the budget, then all three again to the smallest count, until the "
-      "counts agree (a node adds or removes about two triangles, so this converges within a few rounds). The tables "
+  add("- Equal counts: each MT method is refined to the budget, then all three again to the smallest count, "
+      "until the "
+      "counts agree (a node adds or removes about two triangles, so this converges within a few rounds). The "
+      "tables "
       "give the actual counts (mean over the cameras).");
-  add(fmt::format("- Silhouette error: masks of the original and the simplification rasterised at {}×{} (pixel "
-                  "centres), XOR pixel count, and the mean / max distance between the two contours in pixels (exact "
-                  "EDT of the other contour; symmetric).",
-                  o.image_px, o.image_px));
-  add(fmt::format("- Object-space error, Metro-style: {} area samples on the original (plus its vertices when it has "
-                  "at most that many), {} area samples plus the vertices on each simplification; exact point–triangle "
-                  "distances through a uniform grid; symmetric Hausdorff (max of both directions) and RMS (worse "
-                  "direction), in % of the original's bounding-box diagonal.",
-                  o.reference_samples, o.cut_samples));
-  add(fmt::format("- Focus-region error: the same restricted to the triangles (of the original and of the "
-                  "simplification) whose projection comes within {:.0f} image px of the focus, visible or not.",
-                  o.focus[0] * o.image_px));
+  add(fmt::format(
+      "- Silhouette error: masks of the original and the simplification rasterised at {}×{} (pixel "
+      "centres), XOR pixel count, and the mean / max distance between the two contours in pixels (exact "
+      "EDT of the other contour; symmetric).",
+      o.image_px, o.image_px));
+  add(fmt::format(
+      "- Object-space error, Metro-style: {} area samples on the original (plus its vertices when it has "
+      "at most that many), {} area samples plus the vertices on each simplification; exact point–triangle "
+      "distances through a uniform grid; symmetric Hausdorff (max of both directions) and RMS (worse "
+      "direction), in % of the original's bounding-box diagonal.",
+      o.reference_samples, o.cut_samples));
+  add(fmt::format(
+      "- Focus-region error: the same restricted to the triangles (of the original and of the "
+      "simplification) whose projection comes within {:.0f} image px of the focus, visible or not.",
+      o.focus[0] * o.image_px));
   add("- Numbers are means over the cameras. Ratios in the target table are ratios of those means.");
   for (const std::string& n : o.notes) add(fmt::format("- {}", n));
   add("");
@@ -614,7 +655,8 @@ std::string report_markdown(const ExperimentOptions& o, const std::vector<Row>& 
   // Cases: (mesh, budget).
   std::vector<std::pair<std::string, std::size_t>> cases;
   for (const Row& r : rows)
-    if (std::find(cases.begin(), cases.end(), std::pair{r.mesh, r.budget}) == cases.end()) cases.push_back({r.mesh, r.budget});
+    if (std::find(cases.begin(), cases.end(), std::pair{r.mesh, r.budget}) == cases.end())
+      cases.push_back({r.mesh, r.budget});
 
   struct Target {
     const char* what;
@@ -632,10 +674,12 @@ std::string report_markdown(const ExperimentOptions& o, const std::vector<Row>& 
   };
   add("## Targets");
   add("");
-  add("Each cell: the ratio of the means over the cameras for one mesh and budget; ✓ when it meets the target.");
+  add("Each cell: the ratio of the means over the cameras for one mesh and budget; ✓ when it meets the "
+      "target.");
   add("");
   std::string header = "| mesh | budget |", rule = "| --- | ---: |", limits = "| **target** | |";
-  for (const Target& t : targets) header += fmt::format(" {} |", t.what), rule += " ---: |", limits += fmt::format(" ≤ {} |", t.limit);
+  for (const Target& t : targets)
+    header += fmt::format(" {} |", t.what), rule += " ---: |", limits += fmt::format(" ≤ {} |", t.limit);
   add(header);
   add(rule);
   add(limits);
@@ -644,7 +688,8 @@ std::string report_markdown(const ExperimentOptions& o, const std::vector<Row>& 
     std::string line = fmt::format("| {} | {} |", mesh, budget);
     for (std::size_t k = 0; k < std::size(targets); ++k) {
       const Target& t = targets[k];
-      const double a = mean_of(rows, mesh, budget, t.method, t.field), b = mean_of(rows, mesh, budget, t.against, t.field);
+      const double a = mean_of(rows, mesh, budget, t.method, t.field),
+                   b = mean_of(rows, mesh, budget, t.against, t.field);
       const double ratio = b > 0 ? a / b : (a > 0 ? INFINITY : 1.0);
       met[k] += ratio <= t.limit;
       line += fmt::format(" {:.2f}{} |", ratio, ratio <= t.limit ? " ✓" : "");
@@ -661,11 +706,12 @@ std::string report_markdown(const ExperimentOptions& o, const std::vector<Row>& 
   add("Means over the cameras. Triangles: actual counts. XOR and contour distances in pixels of the "
       "silhouette image; Hausdorff and RMS in % of the bounding-box diagonal.");
   add("");
-  const auto cells = [&](const std::string& mesh, std::size_t budget, double Measure::*field, const char* format,
-                         double scale) {
+  const auto cells = [&](const std::string& mesh, std::size_t budget, double Measure::*field,
+                         const char* format, double scale) {
     std::string s;
     for (int m = 0; m < kMethodCount; ++m)
-      s += fmt::format(fmt::runtime(format), scale * mean_of(rows, mesh, budget, m, field)) + (m + 1 < kMethodCount ? " / " : "");
+      s += fmt::format(fmt::runtime(format), scale * mean_of(rows, mesh, budget, m, field)) +
+           (m + 1 < kMethodCount ? " / " : "");
     return s;
   };
   std::string last_mesh;
@@ -676,16 +722,19 @@ std::string report_markdown(const ExperimentOptions& o, const std::vector<Row>& 
       add("");
       add("Each cell: uniform / silhouette-DT / focus-DT / meshopt.");
       add("");
-      add("| budget | triangles | XOR px | contour mean px | contour max px | Hausdorff % | RMS % | focus Hausdorff % | "
+      add("| budget | triangles | XOR px | contour mean px | contour max px | Hausdorff % | RMS % | focus "
+          "Hausdorff % | "
           "focus RMS % |");
       add("| ---: | --- | --- | --- | --- | --- | --- | --- | --- |");
       last_mesh = mesh;
     }
     add(fmt::format("| {} | {} | {} | {} | {} | {} | {} | {} | {} |", budget,
                     cells(mesh, budget, &Measure::triangles, "{:.0f}", 1),
-                    cells(mesh, budget, &Measure::xor_px, "{:.0f}", 1), cells(mesh, budget, &Measure::contour_mean_px, "{:.2f}", 1),
+                    cells(mesh, budget, &Measure::xor_px, "{:.0f}", 1),
+                    cells(mesh, budget, &Measure::contour_mean_px, "{:.2f}", 1),
                     cells(mesh, budget, &Measure::contour_max_px, "{:.1f}", 1),
-                    cells(mesh, budget, &Measure::hausdorff, "{:.3f}", 100), cells(mesh, budget, &Measure::rms, "{:.4f}", 100),
+                    cells(mesh, budget, &Measure::hausdorff, "{:.3f}", 100),
+                    cells(mesh, budget, &Measure::rms, "{:.4f}", 100),
                     cells(mesh, budget, &Measure::focus_hausdorff, "{:.3f}", 100),
                     cells(mesh, budget, &Measure::focus_rms, "{:.4f}", 100)));
     const bool last_of_mesh = c + 1 == cases.size() || cases[c + 1].first != mesh;
@@ -694,9 +743,12 @@ std::string report_markdown(const ExperimentOptions& o, const std::vector<Row>& 
 
   add("## Figures");
   add("");
-  add("Camera 0, smallest budget. Renders: flat shading with the cut's wireframe. XOR: grey = both, blue = only the "
-      "original, red = only the simplification. Hausdorff: the original's vertices coloured by their distance to the "
-      "simplification, blue = 0 to red = the uniform cut's largest (one scale for both images, as in the paper's "
+  add("Camera 0, smallest budget. Renders: flat shading with the cut's wireframe. XOR: grey = both, blue = "
+      "only the "
+      "original, red = only the simplification. Hausdorff: the original's vertices coloured by their "
+      "distance to the "
+      "simplification, blue = 0 to red = the uniform cut's largest (one scale for both images, as in the "
+      "paper's "
       "figure 5). Labels: the 5-7-11 silhouette distance of every vertex, blue = 0 to red = 20 grid px.");
   add("");
   for (const std::string& f : figures) add(fmt::format("![{}](figures/{})", f, f));
@@ -708,8 +760,9 @@ std::string report_markdown(const ExperimentOptions& o, const std::vector<Row>& 
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{"Measure extractions against the original mesh: object-space (Hausdorff, RMS), silhouette (XOR, "
-               "contour distance) and focus-region error; run the evaluation experiment."};
+  CLI::App app{
+      "Measure extractions against the original mesh: object-space (Hausdorff, RMS), silhouette (XOR, "
+      "contour distance) and focus-region error; run the evaluation experiment."};
   app.require_subcommand(1);
 
   std::string a, b;
@@ -724,17 +777,23 @@ int main(int argc, char** argv) {
   auto* silhouette = app.add_subcommand("silhouette", "silhouette XOR and contour distances from one camera");
   silhouette->add_option("a", a, "original mesh")->required();
   silhouette->add_option("b", b, "simplified mesh")->required();
-  silhouette->add_option("--eye", camera.eye, "X,Y,Z (default: in front of A along +z)")->delimiter(',')->expected(3);
-  silhouette->add_option("--target", camera.target, "X,Y,Z (default: A's bounding-box centre)")->delimiter(',')->expected(3);
+  silhouette->add_option("--eye", camera.eye, "X,Y,Z (default: in front of A along +z)")
+      ->delimiter(',')
+      ->expected(3);
+  silhouette->add_option("--target", camera.target, "X,Y,Z (default: A's bounding-box centre)")
+      ->delimiter(',')
+      ->expected(3);
   silhouette->add_option("--up", camera.up, "X,Y,Z")->delimiter(',')->expected(3);
   silhouette->add_option("--fov", camera.fov, "vertical field of view, degrees");
   silhouette->add_option("--near", camera.near, "near plane (default: distance/100)");
   silhouette->add_option("--far", camera.far, "far plane (default: distance·100)");
   silhouette->add_option("--size", camera.size, "image side in pixels");
-  silhouette->add_option("--xor-png", xor_png, "write the two masks as PNG (grey both, red B only, blue A only)");
+  silhouette->add_option("--xor-png", xor_png,
+                         "write the two masks as PNG (grey both, red B only, blue A only)");
 
   ExperimentOptions ex;
-  auto* experiment = app.add_subcommand("experiment", "the whole study; writes REPORT.md, results.csv, figures/");
+  auto* experiment =
+      app.add_subcommand("experiment", "the whole study; writes REPORT.md, results.csv, figures/");
   experiment->add_option("--mesh", ex.meshes, "NAME=PATH, repeatable")->required();
   experiment->add_option("--budgets", ex.budgets, "triangle budgets")->delimiter(',');
   experiment->add_option("--cameras", ex.cameras, "cameras per mesh");
@@ -743,9 +802,11 @@ int main(int argc, char** argv) {
   experiment->add_option("--reference-samples", ex.reference_samples, "area samples on each original");
   experiment->add_option("--cut-samples", ex.cut_samples, "area samples on each simplification");
   experiment->add_option("--silhouette", ex.silhouette, "D,F: step law within D grid px of the silhouette")
-      ->delimiter(',')->expected(2);
+      ->delimiter(',')
+      ->expected(2);
   experiment->add_option("--focus", ex.focus, "R,F: step law within R (fraction of the view) of the focus")
-      ->delimiter(',')->expected(2);
+      ->delimiter(',')
+      ->expected(2);
   experiment->add_option("--out-dir", ex.out_dir, "report directory");
   experiment->add_option("--cache-dir", ex.cache_dir, "where MT files are cached");
   experiment->add_option("--note", ex.notes, "a line for the report's setup section, repeatable");

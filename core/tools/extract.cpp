@@ -25,10 +25,10 @@
 namespace {
 
 struct ExtractOptions {
-  std::string model;                 // .mt file to read
-  std::string output;                // mesh to write (.ply, .obj or .drc)
-  std::string dump_dt;               // PNG of the silhouette (else focus) distance transform
-  std::string dump_occupancy;        // PNG of the occupancy grid
+  std::string model;                   // .mt file to read
+  std::string output;                  // mesh to write (.ply, .obj or .drc)
+  std::string dump_dt;                 // PNG of the silhouette (else focus) distance transform
+  std::string dump_occupancy;          // PNG of the occupancy grid
   mtlod::protocol::ExtractFlags view;  // --error, --budget, camera, criteria, grid, Draco
 };
 
@@ -36,15 +36,16 @@ void add_extract_options(CLI::App& app, ExtractOptions& o) {
   app.add_option("model", o.model, "MT file written by mtlod-build")->required();
   app.add_option("-o,--output", o.output, "mesh to write: .ply (binary), .obj, or .drc (Draco)")->required();
   app.add_option("--dump-dt", o.dump_dt, "write the distance transform as PNG (view-dependent mode)");
-  app.add_option("--dump-occupancy", o.dump_occupancy, "write the occupancy grid as PNG (view-dependent mode)");
+  app.add_option("--dump-occupancy", o.dump_occupancy,
+                 "write the occupancy grid as PNG (view-dependent mode)");
   mtlod::protocol::add_extract_flags(app, o.view);
 }
 
 // View-dependent when a camera, a criterion or a pixel bound is given; otherwise uniform.
 bool view_dependent(const ExtractOptions& o) {
   const auto& v = o.view;
-  return !v.eye.empty() || !v.target.empty() || !v.silhouette.empty() || !v.focus.empty() || !v.neglect.empty() ||
-         v.error_px.has_value() || !o.dump_dt.empty() || !o.dump_occupancy.empty();
+  return !v.eye.empty() || !v.target.empty() || !v.silhouette.empty() || !v.focus.empty() ||
+         !v.neglect.empty() || v.error_px.has_value() || !o.dump_dt.empty() || !o.dump_occupancy.empty();
 }
 
 // The cut with its used vertices only, renumbered in first-use order; normals and colours follow.
@@ -73,9 +74,10 @@ using namespace mtlod;
 using namespace mtlod::core;
 
 // Writes the cut as a mesh file, or as the Draco payload the server would send for the request.
-Status write_output(const std::string& path, const Mt& mt, const CutMesh& cut, const protocol::Extract* request,
-                    std::span<const std::uint32_t> labels) {
-  if (std::filesystem::path(path).extension() != ".drc") return io::save_mesh(path, compact(mt, cut.triangles));
+Status write_output(const std::string& path, const Mt& mt, const CutMesh& cut,
+                    const protocol::Extract* request, std::span<const std::uint32_t> labels) {
+  if (std::filesystem::path(path).extension() != ".drc")
+    return io::save_mesh(path, compact(mt, cut.triangles));
   DracoOptions draco;
   if (request) {
     draco.method = request->draco.method.value_or(mtlod::protocol::DracoMethod::kEdgebreaker) ==
@@ -88,7 +90,8 @@ Status write_output(const std::string& path, const Mt& mt, const CutMesh& cut, c
     draco.labels = request->labels && !labels.empty();
   }
   std::vector<std::uint8_t> bytes;
-  MTLOD_TRY(DracoStats stats, DracoEncoder().encode({mt.positions, mt.normals, labels, cut.triangles}, draco, bytes));
+  MTLOD_TRY(DracoStats stats,
+            DracoEncoder().encode({mt.positions, mt.normals, labels, cut.triangles}, draco, bytes));
   std::FILE* f = std::fopen(path.c_str(), "wb");
   const bool ok = f && std::fwrite(bytes.data(), 1, bytes.size(), f) == bytes.size();
   if (f) std::fclose(f);
@@ -101,8 +104,9 @@ Status write_output(const std::string& path, const Mt& mt, const CutMesh& cut, c
 
 int main(int argc, char** argv) {
   using namespace mtlod::core;
-  CLI::App app{"Extract a level of detail from a Multi-Tessellation: uniform (--error, --budget) or "
-               "view-dependent (camera, silhouette, focus... as mtlod-client extract)."};
+  CLI::App app{
+      "Extract a level of detail from a Multi-Tessellation: uniform (--error, --budget) or "
+      "view-dependent (camera, silhouette, focus... as mtlod-client extract)."};
   ExtractOptions options;
   add_extract_options(app, options);
   CLI11_PARSE(app, argc, argv);
@@ -128,7 +132,8 @@ int main(int argc, char** argv) {
   double refine_s = 0;
   if (view) {
     const Bounds box = bounds_of(mt->positions);
-    auto made = mtlod::protocol::make_extract(options.view, options.model, to_double(box.lo), to_double(box.hi));
+    auto made =
+        mtlod::protocol::make_extract(options.view, options.model, to_double(box.lo), to_double(box.hi));
     if (!made) {
       fmt::print(stderr, "mtlod-extract: {}\n", made.error().message);
       return 2;
@@ -181,16 +186,20 @@ int main(int argc, char** argv) {
     fmt::print(stderr, "mtlod-extract: warning: the coarsest mesh has {} triangles, over the budget of {}\n",
                cut.triangle_count(), *options.view.budget);
 
-  const std::span<const std::uint32_t> labels = extractor ? extractor->vertex_labels() : std::span<const std::uint32_t>();
+  const std::span<const std::uint32_t> labels =
+      extractor ? extractor->vertex_labels() : std::span<const std::uint32_t>();
   if (auto saved = write_output(options.output, *mt, cut, request ? &*request : nullptr, labels); !saved) {
     fmt::print(stderr, "mtlod-extract: {}\n", saved.error().message);
     return 1;
   }
   fmt::print(
-      "{}: {} triangles, {} of {} nodes, max error {:.6g}{}\n  loaded in {:.3f} s, {} in {:.3f} ms; wrote {}\n",
+      "{}: {} triangles, {} of {} nodes, max error {:.6g}{}\n  loaded in {:.3f} s, {} in {:.3f} ms; wrote "
+      "{}\n",
       options.model, cut.triangle_count(), cut.node_count, mt->node_count(), cut.max_error,
-      view ? fmt::format(", occupancy from {} triangles", extractor->occupancy_level() ? extractor->occupancy_level()->triangle_count() : 0) : "", load_s,
-      view ? "extracted (map, occupancy, distance transforms, allowed error, refinement)" : "refined", refine_s * 1e3,
-      options.output);
+      view ? fmt::format(", occupancy from {} triangles",
+                         extractor->occupancy_level() ? extractor->occupancy_level()->triangle_count() : 0)
+           : "",
+      load_s, view ? "extracted (map, occupancy, distance transforms, allowed error, refinement)" : "refined",
+      refine_s * 1e3, options.output);
   return 0;
 }

@@ -15,14 +15,17 @@ int main(int argc, char** argv) {
   CLI::App app{"Generate a synthetic triangle mesh as binary PLY."};
   std::string shape_name = "sphere", output;
   GenerateOptions options;
-  app.add_option("--shape", shape_name, "sphere (closed, noisy), terrain (open height field) or shell "
-                                        "(closed logarithmic-spiral sea shell)")
+  app.add_option("--shape", shape_name,
+                 "sphere (closed, noisy), terrain (open height field) or shell "
+                 "(closed logarithmic-spiral sea shell)")
       ->check(CLI::IsMember({"sphere", "terrain", "shell"}))
       ->capture_default_str();
-  app.add_option("--triangles,-n", options.target_triangles, "target triangle count (met within a few percent)")
+  app.add_option("--triangles,-n", options.target_triangles,
+                 "target triangle count (met within a few percent)")
       ->check(CLI::Range(std::size_t{16}, std::size_t{200'000'000}))
       ->capture_default_str();
-  app.add_option("--seed", options.seed, "noise seed: the same seed gives the same mesh")->capture_default_str();
+  app.add_option("--seed", options.seed, "noise seed: the same seed gives the same mesh")
+      ->capture_default_str();
   app.add_option("--noise", options.noise, "relative noise amplitude, 0 for a smooth surface")
       ->check(CLI::Range(0.0f, 0.5f))
       ->capture_default_str();
@@ -39,6 +42,7 @@ int main(int argc, char** argv) {
   }
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   const TopologyReport topology = analyze_topology(mesh.positions, mesh.triangles);
-  fmt::print("{} ({}): {}\ngenerated and written in {:.2f} s\n", output, shape_name, topology.summary(), seconds);
+  fmt::print("{} ({}): {}\ngenerated and written in {:.2f} s\n", output, shape_name, topology.summary(),
+             seconds);
   return 0;
 }

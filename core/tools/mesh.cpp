@@ -28,7 +28,8 @@ int main(int argc, char** argv) {
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   const Mesh& mesh = loaded->mesh;
   fmt::print("{}: read in {:.2f} s\n  as read: {}\n", input, seconds, loaded->input_topology.summary());
-  if (loaded->polygons_triangulated != 0) fmt::print("  {} polygons triangulated\n", loaded->polygons_triangulated);
+  if (loaded->polygons_triangulated != 0)
+    fmt::print("  {} polygons triangulated\n", loaded->polygons_triangulated);
   if (!raw) fmt::print("  {}\n", loaded->cleanup.summary());
   fmt::print("  result: {} vertices, {} triangles{}{}\n", mesh.vertex_count(), mesh.triangle_count(),
              mesh.has_normals() ? ", normals" : "", mesh.has_colors() ? ", colours" : "");

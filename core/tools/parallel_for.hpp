@@ -61,7 +61,8 @@ class ThreadPool {
     generation_.notify_all();
     take_tasks();
     // The job lives in the caller's frame: wait until every worker has left it.
-    for (unsigned busy = busy_.load(std::memory_order_acquire); busy != 0; busy = busy_.load(std::memory_order_acquire))
+    for (unsigned busy = busy_.load(std::memory_order_acquire); busy != 0;
+         busy = busy_.load(std::memory_order_acquire))
       busy_.wait(busy, std::memory_order_acquire);
   }
 

@@ -473,7 +473,8 @@ void BM_RequestPipelineDragon256(benchmark::State& state) {
   options.use_silhouette = true;
   options.silhouette = {FalloffLaw::kStep, 2.0f, 0.25f, 0.0f, 2.3f};
   auto request = [&] {
-    rasterize_occupancy_compact(mapping, level.positions, level.triangles, occupancy, {}, projected, level.closed);
+    rasterize_occupancy_compact(mapping, level.positions, level.triangles, occupancy, {}, projected,
+                                level.closed);
     transformer.chamfer(DistanceMetric::kChamfer5711, occupancy, grid, silhouette);
     field.bind(mapping, options, {silhouette, {}, {}, mt.positions, {}});
     field.compute_all(allowed);
@@ -515,7 +516,8 @@ void BM_OccupancyFromMtCut256(benchmark::State& state) {
   std::vector<ProjectedCorner> projected;
   std::vector<std::uint8_t> occupancy(grid.cell_count()), reference(grid.cell_count());
   for (auto _ : state) {
-    rasterize_occupancy_compact(mapping, level->positions, level->triangles, occupancy, {}, projected, level->closed);
+    rasterize_occupancy_compact(mapping, level->positions, level->triangles, occupancy, {}, projected,
+                                level->closed);
     benchmark::DoNotOptimize(occupancy.data());
   }
   rasterize_occupancy(mapping, mt.positions, full.triangles, reference);
@@ -567,7 +569,8 @@ void BM_RefineOnlyDragon256(benchmark::State& state) {
   std::vector<ProjectedCorner> projected;
   std::vector<std::uint8_t> occupancy(mapping.grid().cell_count());
   std::vector<std::uint16_t> silhouette(occupancy.size());
-  rasterize_occupancy_compact(mapping, level.positions, level.triangles, occupancy, {}, projected, level.closed);
+  rasterize_occupancy_compact(mapping, level.positions, level.triangles, occupancy, {}, projected,
+                              level.closed);
   chamfer_5_7_11(occupancy, mapping.grid(), silhouette);
   AllowedErrorOptions options;
   options.use_silhouette = true;

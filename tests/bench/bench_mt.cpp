@@ -65,7 +65,13 @@ void BM_BuildMt(benchmark::State& state) {
   state.counters["nodes"] = double(stats.nodes);
 }
 // Wall time: the threaded build spends CPU time on threads the main thread does not count.
-BENCHMARK(BM_BuildMt)->ArgName("threaded")->Arg(0)->Arg(1)->UseRealTime()->Unit(benchmark::kMillisecond)->Iterations(3);
+BENCHMARK(BM_BuildMt)
+    ->ArgName("threaded")
+    ->Arg(0)
+    ->Arg(1)
+    ->UseRealTime()
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(3);
 
 // meshopt_simplify to a fraction of the input (range(0) percent), no error limit.
 void BM_MeshoptSimplify(benchmark::State& state) {

@@ -4,13 +4,13 @@
 // (MTLOD_BENCH_DRAGON=path overrides the dragon, default ../shared/meshes or build/models).
 #include <benchmark/benchmark.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
-#include <algorithm>
 #include <map>
-#include <random>
 #include <memory>
+#include <random>
 
 #include "core/bounds.hpp"
 #include "core/cut_delta.hpp"
@@ -46,8 +46,10 @@ const Model* model(const std::string& name) {
   static std::map<std::string, std::unique_ptr<Model>> cache;
   if (auto it = cache.find(name); it != cache.end()) return it->second.get();
   const fs::path shared = MTLOD_SHARED_MESHES_DIR, models = MTLOD_MODELS_DIR;
-  const fs::path path = name == "dragon" ? find_mesh("MTLOD_BENCH_DRAGON", {shared / "dragon-vrip-871k.ply", models / "dragon-871k.ply"})
-                                         : find_mesh("MTLOD_BENCH_BUNNY", {models / "bunny.ply", shared / "bunny-npm-3k.ply"});
+  const fs::path path =
+      name == "dragon"
+          ? find_mesh("MTLOD_BENCH_DRAGON", {shared / "dragon-vrip-871k.ply", models / "dragon-871k.ply"})
+          : find_mesh("MTLOD_BENCH_BUNNY", {models / "bunny.ply", shared / "bunny-npm-3k.ply"});
   auto& slot = cache[name];
   if (path.empty()) return nullptr;
   auto mesh = core::io::load_mesh(path);

@@ -37,8 +37,8 @@ class ToolsTest : public testing::Test {
 
   void SetUp() override {
     server_ = std::make_unique<test::ServerProcess>(
-        std::vector<std::string>{"--mesh", (*dir_ / "bunny.ply").string(), "--cache-dir", dir_->string(), "--workers",
-                                 "2", "--log-level", "warn"},
+        std::vector<std::string>{"--mesh", (*dir_ / "bunny.ply").string(), "--cache-dir", dir_->string(),
+                                 "--workers", "2", "--log-level", "warn"},
         *dir_);
     ASSERT_TRUE(server_->running()) << server_->log();
   }
@@ -47,8 +47,9 @@ class ToolsTest : public testing::Test {
   json run(const std::string& binary, const std::string& args) {
     const auto report = *dir_ / "report.json";
     std::filesystem::remove(report);
-    const std::string command = fmt::format("{} --port {} --quiet --json {} {} > {} 2>&1", binary, server_->port(),
-                                            report.string(), args, (*dir_ / "tool.log").string());
+    const std::string command =
+        fmt::format("{} --port {} --quiet --json {} {} > {} 2>&1", binary, server_->port(), report.string(),
+                    args, (*dir_ / "tool.log").string());
     const int status = std::system(command.c_str());
     std::ifstream log(*dir_ / "tool.log");
     const std::string output{std::istreambuf_iterator<char>(log), std::istreambuf_iterator<char>()};
@@ -68,7 +69,8 @@ class ToolsTest : public testing::Test {
     auto reply = c->call(protocol::Stats{}, 1);
     EXPECT_TRUE(reply.ok());
     std::map<std::string, double> out;
-    for (const auto& [name, value] : std::get<protocol::StatsReply>(reply->header.reply).counters) out[name] = value;
+    for (const auto& [name, value] : std::get<protocol::StatsReply>(reply->header.reply).counters)
+      out[name] = value;
     return out;
   }
 
@@ -117,8 +119,9 @@ TEST_F(ToolsTest, ClosedLoopLoadReportAgreesWithTheServer) {
 TEST_F(ToolsTest, OpenLoopLoadSendsItsScheduleExactly) {
   // 50 requests/s for 2 s: due at 0, 20, ..., 1980 ms, 100 requests whatever the server does; half
   // of them (by weight) gazes, which the server may coalesce.
-  const json r = run(MTLOD_LOAD_BINARY, "--model bunny --connections 2 --duration 2 --rate 50 --mix extract=1,gaze=1 "
-                                        "--budget 1500");
+  const json r = run(MTLOD_LOAD_BINARY,
+                     "--model bunny --connections 2 --duration 2 --rate 50 --mix extract=1,gaze=1 "
+                     "--budget 1500");
   ASSERT_TRUE(r.contains("sent")) << r.dump(2);
   EXPECT_EQ(r.at("mode"), "open");
   EXPECT_EQ(r.at("sent"), 100);

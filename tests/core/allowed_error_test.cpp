@@ -209,12 +209,12 @@ TEST(AllowedError, AFieldReusedOverLawsAndFociEqualsAFreshOneEveryTime) {
   const RegionLaw foveal{FalloffLaw::kFoveal, 0.0f, 0.1f, 0.0f, 2.3f};
   const RegionLaw linear{FalloffLaw::kLinear, 4.0f, 0.2f, 12.0f, 2.3f};
   const std::vector<Step> steps = {
-      {0.5f, 0.5f, foveal, DistanceMetric::kChamfer5711, 0.0f},   // centre: small labels
-      {0.02f, 0.03f, foveal, DistanceMetric::kChamfer5711, 0.0f}, // corner: larger labels, table grows
-      {0.45f, 0.5f, foveal, DistanceMetric::kChamfer5711, 0.0f},  // back: the longer table stays
-      {0.45f, 0.5f, linear, DistanceMetric::kChamfer5711, 0.0f},  // another law
-      {0.45f, 0.5f, linear, DistanceMetric::kChamfer34, 0.0f},    // another metric (same labels)
-      {0.45f, 0.5f, foveal, DistanceMetric::kChamfer34, 70.0f},   // another field of view
+      {0.5f, 0.5f, foveal, DistanceMetric::kChamfer5711, 0.0f},    // centre: small labels
+      {0.02f, 0.03f, foveal, DistanceMetric::kChamfer5711, 0.0f},  // corner: larger labels, table grows
+      {0.45f, 0.5f, foveal, DistanceMetric::kChamfer5711, 0.0f},   // back: the longer table stays
+      {0.45f, 0.5f, linear, DistanceMetric::kChamfer5711, 0.0f},   // another law
+      {0.45f, 0.5f, linear, DistanceMetric::kChamfer34, 0.0f},     // another metric (same labels)
+      {0.45f, 0.5f, foveal, DistanceMetric::kChamfer34, 70.0f},    // another field of view
   };
   AllowedErrorField reused;
   std::vector<float> kept(view.sphere.vertex_count()), fresh_values(view.sphere.vertex_count());

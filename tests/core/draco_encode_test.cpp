@@ -34,7 +34,8 @@ Mesh sphere(std::size_t triangles) {
 }
 
 // Encodes `cut` (triangles of `model`), decodes, and checks the triangle set is unchanged.
-void expect_round_trip(const Mesh& model, const std::vector<std::uint32_t>& cut, const DracoOptions& options) {
+void expect_round_trip(const Mesh& model, const std::vector<std::uint32_t>& cut,
+                       const DracoOptions& options) {
   DracoEncoder encoder;
   std::vector<std::uint8_t> bytes;
   DracoInput input{model.positions, model.normals, {}, cut};
@@ -45,8 +46,10 @@ void expect_round_trip(const Mesh& model, const std::vector<std::uint32_t>& cut,
   auto decoded = decode_draco(bytes);
   ASSERT_TRUE(decoded.ok()) << decoded.error().message;
   ASSERT_EQ(decoded->mesh.triangle_count(), cut.size() / 3);
-  const float tolerance = test::draco_tolerance(test::used_extent(model.positions, cut), options.position_bits);
-  const auto match = test::match_vertices(decoded->mesh.positions, model.positions, cut, 4 * tolerance, tolerance);
+  const float tolerance =
+      test::draco_tolerance(test::used_extent(model.positions, cut), options.position_bits);
+  const auto match =
+      test::match_vertices(decoded->mesh.positions, model.positions, cut, 4 * tolerance, tolerance);
   EXPECT_EQ(test::canonical_triangles(decoded->mesh.triangles, &match), test::canonical_triangles(cut));
 }
 
@@ -55,7 +58,8 @@ TEST(DracoEncoder, DecodesToTheSameTrianglesForEveryMethodAndSpeed) {
   for (DracoMethod method : {DracoMethod::kEdgebreaker, DracoMethod::kSequential}) {
     for (int speed : {0, 5, 10}) {
       for (bool entropy : {true, false}) {
-        SCOPED_TRACE(testing::Message() << "method " << int(method) << " speed " << speed << " entropy " << entropy);
+        SCOPED_TRACE(testing::Message()
+                     << "method " << int(method) << " speed " << speed << " entropy " << entropy);
         DracoOptions options;
         options.method = method;
         options.speed = speed;
@@ -84,7 +88,8 @@ TEST(DracoEncoder, EncodesOnlyTheVerticesOfAPartialCut) {
   // Every third triangle: an open, sparse subset whose vertex ids are scattered over the model.
   const Mesh m = sphere(6'000);
   std::vector<std::uint32_t> cut;
-  for (std::size_t t = 0; t < m.triangle_count(); t += 3) cut.insert(cut.end(), &m.triangles[3 * t], &m.triangles[3 * t] + 3);
+  for (std::size_t t = 0; t < m.triangle_count(); t += 3)
+    cut.insert(cut.end(), &m.triangles[3 * t], &m.triangles[3 * t] + 3);
   std::vector<std::uint8_t> used(m.vertex_count(), 0);
   for (std::uint32_t v : cut) used[v] = 1;
   DracoEncoder encoder;
@@ -130,7 +135,8 @@ TEST(DracoEncoder, AFixedGridDecodesAVertexToTheSameFloatsInEveryPayload) {
     auto decoded = decode_draco(bytes);
     ASSERT_TRUE(decoded.ok()) << decoded.error().message;
     const float tolerance = test::draco_tolerance(grid.range, options.position_bits);
-    const auto match = test::match_vertices(decoded->mesh.positions, m.positions, *cut, 4 * tolerance, tolerance);
+    const auto match =
+        test::match_vertices(decoded->mesh.positions, m.positions, *cut, 4 * tolerance, tolerance);
     EXPECT_EQ(test::canonical_triangles(decoded->mesh.triangles, &match), test::canonical_triangles(*cut));
     for (std::size_t i = 0; i < decoded->mesh.vertex_count(); ++i) {
       const float* p = &decoded->mesh.positions[3 * i];
@@ -162,8 +168,10 @@ TEST_P(DracoAttributes, NormalsAndLabelsSurviveTheRoundTrip) {
   ASSERT_TRUE(DracoEncoder().encode({m.positions, m.normals, labels, m.triangles}, options, bytes).ok());
   auto decoded = decode_draco(bytes);
   ASSERT_TRUE(decoded.ok()) << decoded.error().message;
-  const float tolerance = test::draco_tolerance(test::used_extent(m.positions, m.triangles), options.position_bits);
-  const auto match = test::match_vertices(decoded->mesh.positions, m.positions, m.triangles, 4 * tolerance, tolerance);
+  const float tolerance =
+      test::draco_tolerance(test::used_extent(m.positions, m.triangles), options.position_bits);
+  const auto match =
+      test::match_vertices(decoded->mesh.positions, m.positions, m.triangles, 4 * tolerance, tolerance);
   ASSERT_EQ(decoded->mesh.normals.size(), decoded->mesh.positions.size());
   ASSERT_EQ(decoded->labels.size(), decoded->mesh.vertex_count());
   for (std::size_t i = 0; i < match.size(); ++i) {
@@ -199,7 +207,8 @@ TEST_P(GooglesDecoder, ReadsThePayload) {
   DracoOptions options;
   if (!GetParam()) options.method = DracoMethod::kSequential, options.entropy_coding = false;
   ASSERT_TRUE(DracoEncoder().encode({m.positions, {}, {}, m.triangles}, options, bytes).ok());
-  auto loaded = test::googles_draco_decode(bytes, test::scratch_dir("draco-cli"), GetParam() ? "coded" : "raw");
+  auto loaded =
+      test::googles_draco_decode(bytes, test::scratch_dir("draco-cli"), GetParam() ? "coded" : "raw");
   ASSERT_TRUE(loaded.ok()) << loaded.error().message;
   EXPECT_EQ(loaded->triangle_count(), m.triangle_count());
   EXPECT_EQ(loaded->vertex_count(), m.vertex_count());

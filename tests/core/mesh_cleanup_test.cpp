@@ -15,7 +15,9 @@
 namespace mtlod::core {
 namespace {
 
-TopologyReport analyze(const Mesh& m) { return analyze_topology(m.positions, m.triangles); }
+TopologyReport analyze(const Mesh& m) {
+  return analyze_topology(m.positions, m.triangles);
+}
 
 TEST(AnalyzeTopology, TetrahedronIsClosedManifoldWithEulerTwo) {
   const TopologyReport r = analyze(test::tetrahedron());
@@ -80,9 +82,9 @@ TEST(AnalyzeTopology, DegenerateTrianglesByRepeatedIdAndByZeroArea) {
 
 TEST(CleanMesh, DropsDegenerateDuplicateAndUnusedKeepingGeometry) {
   Mesh m = test::tetrahedron();
-  m.positions.insert(m.positions.end(), {9, 9, 9});        // 4: unused
-  m.triangles.insert(m.triangles.end(), {0, 1, 1});        // degenerate
-  m.triangles.insert(m.triangles.end(), {2, 0, 1});        // duplicate of {0,1,2}, same winding
+  m.positions.insert(m.positions.end(), {9, 9, 9});  // 4: unused
+  m.triangles.insert(m.triangles.end(), {0, 1, 1});  // degenerate
+  m.triangles.insert(m.triangles.end(), {2, 0, 1});  // duplicate of {0,1,2}, same winding
   m.normals.assign(3 * 5, 0.0f);
   m.normals[3 * 3] = 7.0f;  // marks vertex 3 so we can see it follow its vertex
   const CleanupSummary s = clean_mesh(m);

@@ -19,7 +19,8 @@ namespace mtlod::test {
 // For each decoded vertex, the id (among `candidates`) of the nearest model vertex by max-norm;
 // fails the test when that distance exceeds `tolerance`. `cell` should be a few tolerances.
 inline std::vector<std::uint32_t> match_vertices(std::span<const float> decoded, std::span<const float> model,
-                                                 std::span<const std::uint32_t> candidates, float cell, float tolerance) {
+                                                 std::span<const std::uint32_t> candidates, float cell,
+                                                 float tolerance) {
   auto key = [cell](const float* p) {
     std::array<long, 3> k;
     for (int c = 0; c < 3; ++c) k[c] = std::lround(std::floor(p[c] / cell));
@@ -55,8 +56,8 @@ inline std::vector<std::uint32_t> match_vertices(std::span<const float> decoded,
 
 // Triangles as id triples (through `remap` when given), each rotated to start at its smallest id
 // (orientation kept), sorted: equal for the same triangle set in any order.
-inline std::vector<std::array<std::uint32_t, 3>> canonical_triangles(std::span<const std::uint32_t> triangles,
-                                                                     const std::vector<std::uint32_t>* remap = nullptr) {
+inline std::vector<std::array<std::uint32_t, 3>> canonical_triangles(
+    std::span<const std::uint32_t> triangles, const std::vector<std::uint32_t>* remap = nullptr) {
   std::vector<std::array<std::uint32_t, 3>> out(triangles.size() / 3);
   for (std::size_t t = 0; t < out.size(); ++t) {
     for (int c = 0; c < 3; ++c) out[t][c] = remap ? (*remap)[triangles[3 * t + c]] : triangles[3 * t + c];

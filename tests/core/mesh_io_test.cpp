@@ -147,9 +147,10 @@ TEST(MeshIo, RejectsEveryTruncationOfABinaryPly) {
 
 TEST(MeshIo, RejectsFaceIndexOutOfRange) {
   const auto dir = test::scratch_dir("out-of-range");
-  write_file(dir / "oob.ply",
-             "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
-             "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n");
+  write_file(
+      dir / "oob.ply",
+      "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+      "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n");
   expect_rejected(dir / "oob.ply", "refers to vertex 7, but the file has 3 vertices");
   Mesh m = test::tetrahedron();
   m.triangles[5] = 4;

@@ -242,7 +242,8 @@ TEST(MtBuilder, ConcurrentBuildGivesTheSameFileAsTheSerialOne) {
   options.target_triangles = 60'000;
   meshes.push_back(generate_mesh(options));
   if (const MtCase* c = test::scan_case("bunny-zipper-69k.ply")) meshes.push_back(c->mesh);
-  const ParallelForFn reversed = [](void*, std::size_t count, void (*task)(void*, std::size_t), void* context) {
+  const ParallelForFn reversed = [](void*, std::size_t count, void (*task)(void*, std::size_t),
+                                    void* context) {
     for (std::size_t i = count; i-- > 0;) task(context, i);
   };
   for (const Mesh& mesh : meshes) {

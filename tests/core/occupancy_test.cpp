@@ -184,7 +184,8 @@ TEST(Occupancy, CompactRasterisationEqualsThePlainOne) {
   std::mt19937 rng(8);
   std::uniform_real_distribution<float> coordinate(-6.0f, 6.0f), depth(-12.0f, 1.0f), nudge(-0.3f, 0.3f);
   std::vector<float> positions;
-  for (int v = 0; v < 3000; ++v) positions.insert(positions.end(), {coordinate(rng), coordinate(rng), depth(rng)});
+  for (int v = 0; v < 3000; ++v)
+    positions.insert(positions.end(), {coordinate(rng), coordinate(rng), depth(rng)});
   // Small triangles around random vertices, plus large ones between random vertices.
   std::vector<std::uint32_t> local, triangles;
   std::uniform_int_distribution<std::uint32_t> pick(0, 2999);
@@ -195,8 +196,9 @@ TEST(Occupancy, CompactRasterisationEqualsThePlainOne) {
     const std::uint32_t base = pick(rng);
     const std::uint32_t added = static_cast<std::uint32_t>(positions.size() / 3);
     for (int k = 0; k < 2; ++k) {
-      positions.insert(positions.end(), {positions[3 * base] + nudge(rng), positions[3 * base + 1] + nudge(rng),
-                                         positions[3 * base + 2] + nudge(rng)});
+      positions.insert(positions.end(),
+                       {positions[3 * base] + nudge(rng), positions[3 * base + 1] + nudge(rng),
+                        positions[3 * base + 2] + nudge(rng)});
     }
     triangles.insert(triangles.end(), {base, added, added + 1});
   }
@@ -205,7 +207,8 @@ TEST(Occupancy, CompactRasterisationEqualsThePlainOne) {
   std::unordered_map<std::uint32_t, std::uint32_t> index;
   for (const std::uint32_t v : triangles) {
     const auto [it, added] = index.try_emplace(v, static_cast<std::uint32_t>(compact.size() / 3));
-    if (added) compact.insert(compact.end(), &positions[3 * std::size_t{v}], &positions[3 * std::size_t{v} + 3]);
+    if (added)
+      compact.insert(compact.end(), &positions[3 * std::size_t{v}], &positions[3 * std::size_t{v} + 3]);
     local.push_back(it->second);
   }
   std::vector<ProjectedCorner> scratch;
@@ -213,7 +216,8 @@ TEST(Occupancy, CompactRasterisationEqualsThePlainOne) {
     std::vector<std::uint8_t> plain(mapping.grid().cell_count()), indexed(mapping.grid().cell_count(), 9);
     std::vector<float> plain_depth(with_depth ? plain.size() : 0), indexed_depth(plain_depth.size());
     const std::size_t a = rasterize_occupancy(mapping, positions, triangles, plain, plain_depth);
-    const std::size_t b = rasterize_occupancy_compact(mapping, compact, local, indexed, indexed_depth, scratch);
+    const std::size_t b =
+        rasterize_occupancy_compact(mapping, compact, local, indexed, indexed_depth, scratch);
     EXPECT_EQ(a, b);
     EXPECT_GT(a, 1000u);
     EXPECT_EQ(plain, indexed);

@@ -177,16 +177,17 @@ TEST(Refine, OnDemandEqualsTheFullFieldAndAsksOnlyForTheCutsVertices) {
     mutable std::vector<int> asked_;
   };
   std::mt19937 rng(5);
-  for (const MtCase* c : {test::shape_case(Shape::kSphere, 8'000), test::scan_case("bunny-npm-3k.ply"),
-                          test::scan_case("dragon-vrip-res4-11k.ply"), test::scan_case("armadillo-52k.ply")}) {
+  for (const MtCase* c :
+       {test::shape_case(Shape::kSphere, 8'000), test::scan_case("bunny-npm-3k.ply"),
+        test::scan_case("dragon-vrip-res4-11k.ply"), test::scan_case("armadillo-52k.ply")}) {
     if (!c) continue;
     const float top = max_node_error(c->mt);
     Refiner full(c->mt), lazy(c->mt);
     CutMesh expected, out;
     for (int round = 0; round < 6; ++round) {
-      const std::vector<float> field = round % 2
-                                           ? focus_field(c->mesh, rng, top * 1e-3f, top * 0.3f)
-                                           : noise_field(c->mesh.vertex_count(), rng, top * 1e-3f, top * 0.5f);
+      const std::vector<float> field =
+          round % 2 ? focus_field(c->mesh, rng, top * 1e-3f, top * 0.3f)
+                    : noise_field(c->mesh.vertex_count(), rng, top * 1e-3f, top * 0.5f);
       full.refine(AllowedError::from_vertices(field), expected);
       const Recorder source(field);
       std::vector<float> written(field.size(), -1.0f);
@@ -369,7 +370,8 @@ void expect_ids_name_triangles(const Mt& mt, const CutMesh& cut) {
   for (std::size_t i = 0; i < cut.ids.size(); ++i) {
     std::uint32_t corners[3];
     mt.triangle_vertices(cut.ids[i], corners);
-    ASSERT_TRUE(std::equal(corners, corners + 3, &cut.triangles[3 * i])) << "triangle " << i << " id " << cut.ids[i];
+    ASSERT_TRUE(std::equal(corners, corners + 3, &cut.triangles[3 * i]))
+        << "triangle " << i << " id " << cut.ids[i];
   }
 }
 
@@ -573,8 +575,10 @@ TEST(CutDelta, AppliedChangesRebuildEveryCutOfASequence) {
     const bool from_empty = delta.update(cut.ids, c->mt.triangle_count(), added, removed);
     EXPECT_EQ(from_empty, step == 0 || step == 20) << step;
     if (from_empty) client.clear();
-    for (const std::uint32_t id : removed) ASSERT_EQ(client.erase(id), 1u) << "removed twice or never added: " << id;
-    for (const std::uint32_t i : added) ASSERT_TRUE(client.insert(cut.ids[i]).second) << "added twice: " << cut.ids[i];
+    for (const std::uint32_t id : removed)
+      ASSERT_EQ(client.erase(id), 1u) << "removed twice or never added: " << id;
+    for (const std::uint32_t i : added)
+      ASSERT_TRUE(client.insert(cut.ids[i]).second) << "added twice: " << cut.ids[i];
     ASSERT_EQ(client, std::set<std::uint32_t>(cut.ids.begin(), cut.ids.end())) << step;
     partial += !from_empty && added.size() < cut.ids.size();
   }

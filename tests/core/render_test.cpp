@@ -47,7 +47,8 @@ TEST(Render, NearerSurfaceWinsInEitherOrder) {
   std::vector<std::uint32_t> t;
   add_rectangle(p, t, -0.8f, -0.8f, 0.4f, 0.4f, 0.0f);  // far (z = 0, camera at z = 5)
   add_rectangle(p, t, -0.4f, -0.4f, 0.8f, 0.8f, 1.0f);  // near, overlapping the centre
-  const std::vector<std::uint8_t> colours = {255, 0, 0, 255, 0, 0, 0, 0, 255, 0, 0, 255};  // far red, near blue
+  const std::vector<std::uint8_t> colours = {255, 0, 0,   255, 0, 0,
+                                             0,   0, 255, 0,   0, 255};  // far red, near blue
   RenderOptions options;
   options.shading = false;
   std::vector<std::uint8_t> rgb(3 * 64 * 64);

@@ -94,13 +94,15 @@ TEST(TriangleIndex, MatchesBruteForceOnRandomTriangles) {
   Soup s;
   for (std::uint32_t t = 0; t < 300; ++t) {
     const float cx = coord(rng), cy = coord(rng), cz = coord(rng);
-    for (int k = 0; k < 3; ++k) s.positions.insert(s.positions.end(), {cx + small(rng), cy + small(rng), cz + small(rng)});
+    for (int k = 0; k < 3; ++k)
+      s.positions.insert(s.positions.end(), {cx + small(rng), cy + small(rng), cz + small(rng)});
     s.triangles.insert(s.triangles.end(), {3 * t, 3 * t + 1, 3 * t + 2});
   }
   TriangleIndex index(s.positions, s.triangles);
   for (int q = 0; q < 2000; ++q) {
     // Half the queries inside the box, half far outside it.
-    const float x = q % 2 ? far(rng) : coord(rng), y = q % 2 ? far(rng) : coord(rng), z = q % 2 ? far(rng) : coord(rng);
+    const float x = q % 2 ? far(rng) : coord(rng), y = q % 2 ? far(rng) : coord(rng),
+                z = q % 2 ? far(rng) : coord(rng);
     const double p[3] = {x, y, z};
     double expected = std::numeric_limits<double>::infinity();
     for (std::size_t t = 0; t < s.triangles.size() / 3; ++t) {
@@ -116,7 +118,8 @@ TEST(TriangleIndex, MatchesBruteForceOnRandomTriangles) {
 
 TEST(SurfaceMetrics, IdenticalMeshesHaveZeroError) {
   const Soup s = sphere(3);
-  const SurfaceError e = compare_surfaces(s.positions, s.triangles, s.positions, s.triangles, {20000, true, 3});
+  const SurfaceError e =
+      compare_surfaces(s.positions, s.triangles, s.positions, s.triangles, {20000, true, 3});
   // Area samples are rounded to float, so they sit up to ~1 ulp of a unit coordinate off the plane.
   EXPECT_LT(e.hausdorff(), 1e-6);
   EXPECT_LT(e.rms(), 1e-6);
@@ -125,7 +128,8 @@ TEST(SurfaceMetrics, IdenticalMeshesHaveZeroError) {
 
 TEST(SurfaceMetrics, PlaneOffsetByKnownDistance) {
   const Soup a = plane(8, 2.0f, 0.0f), b = plane(3, 2.0f, 0.25f);
-  const SurfaceError e = compare_surfaces(a.positions, a.triangles, b.positions, b.triangles, {5000, true, 11});
+  const SurfaceError e =
+      compare_surfaces(a.positions, a.triangles, b.positions, b.triangles, {5000, true, 11});
   // Both planes cover the same square, so every sample's nearest point is straight above or below it:
   // every distance is 0.25 (float rounding of 0.25 is exact; the samples' z is exactly 0 or 0.25).
   EXPECT_NEAR(e.a_to_b.max, 0.25, 1e-7);

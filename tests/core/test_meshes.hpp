@@ -12,13 +12,18 @@
 namespace mtlod::test {
 
 // The shared real scans (see their README); tests GTEST_SKIP when the folder is absent.
-inline std::filesystem::path shared_meshes_dir() { return MTLOD_SHARED_MESHES_DIR; }
+inline std::filesystem::path shared_meshes_dir() {
+  return MTLOD_SHARED_MESHES_DIR;
+}
 // Built-in models written by scripts/prepare-models.sh.
-inline std::filesystem::path models_dir() { return MTLOD_MODELS_DIR; }
+inline std::filesystem::path models_dir() {
+  return MTLOD_MODELS_DIR;
+}
 
 // A fresh, empty directory for files a test writes; per process, since ctest runs tests in parallel.
 inline std::filesystem::path scratch_dir(const std::string& name) {
-  auto dir = std::filesystem::temp_directory_path() / ("mtlod-test-" + name + "-" + std::to_string(::getpid()));
+  auto dir =
+      std::filesystem::temp_directory_path() / ("mtlod-test-" + name + "-" + std::to_string(::getpid()));
   std::filesystem::remove_all(dir);
   std::filesystem::create_directories(dir);
   // Removed when the test process ends.

@@ -22,8 +22,8 @@ struct Scene {
 
 // Appends the rectangle [x0, x1] × [y0, y1] in the plane z, facing +z (counter-clockwise seen from
 // +z): four vertices, two triangles.
-inline void add_rectangle(std::vector<float>& positions, std::vector<std::uint32_t>& triangles, float x0, float y0,
-                          float x1, float y1, float z) {
+inline void add_rectangle(std::vector<float>& positions, std::vector<std::uint32_t>& triangles, float x0,
+                          float y0, float x1, float y1, float z) {
   const auto base = static_cast<std::uint32_t>(positions.size() / 3);
   // One corner at a time: GCC 12 warns (wrongly) that inserting a list into an empty vector
   // overflows it.

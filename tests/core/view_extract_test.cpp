@@ -7,8 +7,8 @@
 
 #include <algorithm>
 #include <cmath>
-#include <memory>
 #include <cstring>
+#include <memory>
 #include <random>
 #include <set>
 
@@ -61,7 +61,9 @@ Camera camera_along(std::span<const float> positions, glm::vec3 axis, float aspe
 }
 
 // The same from +z.
-Camera front_camera(const Mesh& m, float aspect) { return camera_along(m.positions, glm::vec3(0, 0, 1), aspect); }
+Camera front_camera(const Mesh& m, float aspect) {
+  return camera_along(m.positions, glm::vec3(0, 0, 1), aspect);
+}
 
 void run(ViewExtractor& x, const ViewRequest& r, Refiner& refiner, CutMesh& cut,
          ViewSession* session = nullptr) {
@@ -107,14 +109,16 @@ TEST(ViewExtract, DragonSilhouetteRegionIsAtFullResolutionAndTheRestIsCoarser) {
   const std::uint32_t d_raw = raw_threshold(2.0f, DistanceMetric::kChamfer5711);  // 10
   std::set<std::array<std::uint32_t, 3>> input;
   for (std::size_t t = 0; t < d->input.triangle_count(); ++t) {
-    input.insert(test::canonical(d->input.triangles[3 * t], d->input.triangles[3 * t + 1], d->input.triangles[3 * t + 2]));
+    input.insert(test::canonical(d->input.triangles[3 * t], d->input.triangles[3 * t + 1],
+                                 d->input.triangles[3 * t + 2]));
   }
   std::size_t in_region = 0, coarse = 0, contour_vertices = 0;
   for (std::size_t t = 0; t < cut.triangle_count(); ++t) {
     const std::uint32_t* v = &cut.triangles[3 * t];
     std::uint32_t label = kLabelNoCell;
     for (int c = 0; c < 3; ++c) {
-      const std::uint32_t l = vertex_label(x.mapping(), std::span<const float>(d->mt.positions), v[c], std::span<const std::uint16_t>(dt));
+      const std::uint32_t l = vertex_label(x.mapping(), std::span<const float>(d->mt.positions), v[c],
+                                           std::span<const std::uint16_t>(dt));
       label = std::min(label, l);
       contour_vertices += l == 5;  // on a contour cell: one step from the background
     }
@@ -133,7 +137,8 @@ TEST(ViewExtract, DragonSilhouetteRegionIsAtFullResolutionAndTheRestIsCoarser) {
   // The labels handed to the encoder are the same labels.
   for (std::size_t i = 0; i < std::min<std::size_t>(cut.triangles.size(), 3000); ++i) {
     const std::uint32_t v = cut.triangles[i];
-    ASSERT_EQ(x.vertex_labels()[v], vertex_label(x.mapping(), std::span<const float>(d->mt.positions), v, std::span<const std::uint16_t>(dt)));
+    ASSERT_EQ(x.vertex_labels()[v], vertex_label(x.mapping(), std::span<const float>(d->mt.positions), v,
+                                                 std::span<const std::uint16_t>(dt)));
   }
 }
 
@@ -171,7 +176,8 @@ TEST(ViewExtract, DragonTriangleDensityFallsWithDistanceFromTheFocus) {
     const double mx = (g[0].x + g[1].x + g[2].x) / 3 - 128, my = (g[0].y + g[1].y + g[2].y) / 3 - 128;
     const int ring = static_cast<int>(std::sqrt(mx * mx + my * my) / 20);
     if (ring >= kRings) continue;
-    areas[ring].push_back(0.5 * std::abs((g[1].x - g[0].x) * (g[2].y - g[0].y) - (g[2].x - g[0].x) * (g[1].y - g[0].y)));
+    areas[ring].push_back(
+        0.5 * std::abs((g[1].x - g[0].x) * (g[2].y - g[0].y) - (g[2].x - g[0].x) * (g[1].y - g[0].y)));
   }
   // Per ring, the area-weighted mean area Σa²/Σa: the size of the triangle under a random covered
   // cell. The dragon's never-collapsed slivers (boundary and non-manifold bits, full resolution in
@@ -215,7 +221,8 @@ TEST(ViewExtract, EuclideanLabelsAreExactDistancesInFifthsOfAPixel) {
         for (std::uint32_t ii = 0; ii < r.grid.width; ++ii) {
           const double d2 = double(ii - double(i)) * (ii - double(i)) + (jj - double(j)) * (jj - double(j));
           if (occ[r.grid.cell(ii, jj)] == 0) best = std::min(best, d2);
-          if (r.grid.cell(ii, jj) == focus_cells[0] || r.grid.cell(ii, jj) == focus_cells[1]) best_focus = std::min(best_focus, d2);
+          if (r.grid.cell(ii, jj) == focus_cells[0] || r.grid.cell(ii, jj) == focus_cells[1])
+            best_focus = std::min(best_focus, d2);
         }
       }
       const std::uint32_t c = r.grid.cell(i, j);
@@ -229,7 +236,8 @@ TEST(ViewExtract, EuclideanLabelsAreExactDistancesInFifthsOfAPixel) {
 std::vector<std::array<std::uint32_t, 3>> triangle_set(const CutMesh& cut) {
   std::vector<std::array<std::uint32_t, 3>> out;
   for (std::size_t t = 0; t < cut.triangle_count(); ++t) {
-    std::array<std::uint32_t, 3> tri{cut.triangles[3 * t], cut.triangles[3 * t + 1], cut.triangles[3 * t + 2]};
+    std::array<std::uint32_t, 3> tri{cut.triangles[3 * t], cut.triangles[3 * t + 1],
+                                     cut.triangles[3 * t + 2]};
     std::rotate(tri.begin(), std::min_element(tri.begin(), tri.end()), tri.end());
     out.push_back(tri);
   }
@@ -248,12 +256,14 @@ TEST(ViewExtract, OccupancyCutGrowsAsTheModelFillsMoreOfTheGrid) {
   for (const OccupancyLevel& level : b->levels->levels()) {
     ASSERT_EQ(level.positions.size(), 3 * level.model_ids.size());
     for (std::size_t i = 0; i < level.model_ids.size(); ++i) {
-      for (int c = 0; c < 3; ++c) ASSERT_EQ(level.positions[3 * i + c], b->mt.positions[3 * level.model_ids[i] + c]);
+      for (int c = 0; c < 3; ++c)
+        ASSERT_EQ(level.positions[3 * i + c], b->mt.positions[3 * level.model_ids[i] + c]);
     }
     CutMesh cut;
     refine_budget(b->mt, AllowedError::everywhere(0.0f), level.triangle_count(), cut);
     CutMesh compact;
-    for (const std::uint32_t local : level.cut_triangles()) compact.triangles.push_back(level.model_ids.at(local));
+    for (const std::uint32_t local : level.cut_triangles())
+      compact.triangles.push_back(level.model_ids.at(local));
     EXPECT_EQ(triangle_set(compact), triangle_set(cut));
     EXPECT_TRUE(level.closed);
   }
@@ -267,8 +277,9 @@ TEST(ViewExtract, OccupancyCutGrowsAsTheModelFillsMoreOfTheGrid) {
     const std::size_t triangles = x.occupancy();
     // At least one triangle per four covered cells, from the precomputed levels.
     EXPECT_GE(triangles, previous) << side;
-    EXPECT_GE(static_cast<double>(triangles), std::min(0.25 * x.covered_cells(),
-                                                      static_cast<double>(b->levels->levels().back().triangle_count())));
+    EXPECT_GE(
+        static_cast<double>(triangles),
+        std::min(0.25 * x.covered_cells(), static_cast<double>(b->levels->levels().back().triangle_count())));
     previous = triangles;
   }
   EXPECT_GT(previous, b->levels->levels().front().triangle_count());
@@ -286,8 +297,8 @@ TEST(ViewExtract, DragonOccupancyLevelsAreCappedAndClosed) {
     if (level.triangle_count() > 70'000) break;
     ASSERT_TRUE(level.closed) << level.triangle_count();
     EXPECT_GT(level.cap_triangles, 0u);
-    for (const glm::vec3 axis : {glm::vec3(0, 0, 1), glm::vec3(0, 0, -1), glm::vec3(1, 0, 0), glm::vec3(-1, 0, 0),
-                                 glm::vec3(0, 1, 0.01f), glm::vec3(0, -1, 0.01f)}) {
+    for (const glm::vec3 axis : {glm::vec3(0, 0, 1), glm::vec3(0, 0, -1), glm::vec3(1, 0, 0),
+                                 glm::vec3(-1, 0, 0), glm::vec3(0, 1, 0.01f), glm::vec3(0, -1, 0.01f)}) {
       const ViewMapping mapping(camera_along(b->mt.positions, axis, 1.0f), GridSize{256, 256});
       std::vector<std::uint8_t> own(mapping.grid().cell_count()), capped(own.size());
       rasterize_occupancy_compact(mapping, level.positions, level.cut_triangles(), own, {}, scratch);
@@ -299,7 +310,8 @@ TEST(ViewExtract, DragonOccupancyLevelsAreCappedAndClosed) {
         added += own[c] == 0 && capped[c] != 0;
       }
       EXPECT_GT(object, 1000u);
-      EXPECT_LE(added, object / 200) << level.triangle_count() << " triangles, view " << axis.x << "," << axis.y << "," << axis.z;
+      EXPECT_LE(added, object / 200) << level.triangle_count() << " triangles, view " << axis.x << ","
+                                     << axis.y << "," << axis.z;
     }
   }
 }
@@ -378,7 +390,8 @@ TEST(ViewExtract, SessionGazePathEqualsAFreshExtractionEveryTime) {
             } else {
               // A new view asked for the cut's vertices only.
               for (const std::uint32_t v : cut.triangles)
-                ASSERT_EQ(std::memcmp(&a[v], &e[v], sizeof(float)), 0) << "vertex " << v << " at step " << step;
+                ASSERT_EQ(std::memcmp(&a[v], &e[v], sizeof(float)), 0)
+                    << "vertex " << v << " at step " << step;
             }
             ASSERT_EQ(triangle_set(cut), triangle_set(expected)) << "step " << step << ", law " << int(law);
           }

@@ -53,8 +53,8 @@ TEST(Drain, SigtermRefusesNewConnectionsFinishesInFlightAndExitsWithinTheBound) 
   const auto dir = test::scratch_dir("drain");
   const auto model = write_sphere(dir, 60'000);
   constexpr int kDrainMs = 3000;
-  test::ServerProcess server({model.string(), "--workers", "1", "--drain-timeout-ms", std::to_string(kDrainMs),
-                              "--log-level", "info"},
+  test::ServerProcess server({model.string(), "--workers", "1", "--drain-timeout-ms",
+                              std::to_string(kDrainMs), "--log-level", "info"},
                              dir);
   ASSERT_TRUE(server.running()) << server.log();
 
@@ -97,7 +97,8 @@ TEST(Drain, SigtermRefusesNewConnectionsFinishesInFlightAndExitsWithinTheBound) 
 
   // New connections are refused while the server still drains.
   std::this_thread::sleep_for(100ms);
-  EXPECT_FALSE(Connection::open("127.0.0.1", server.port(), 500ms).ok()) << "a draining server accepts nothing new";
+  EXPECT_FALSE(Connection::open("127.0.0.1", server.port(), 500ms).ok())
+      << "a draining server accepts nothing new";
   EXPECT_TRUE(server.running()) << "the stuck client keeps the drain going until its bound\n" << server.log();
 
   // The extraction in flight finishes and its reply arrives whole.

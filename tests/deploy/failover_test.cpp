@@ -83,8 +83,8 @@ struct Replica {
 
   void start(const std::filesystem::path& models) {
     process = std::make_unique<test::ServerProcess>(
-        std::vector<std::string>{"--models", models.string(), "--name", name, "--http-port", std::to_string(http_port),
-                                 "--workers", "1", "--log-level", "warn"},
+        std::vector<std::string>{"--models", models.string(), "--name", name, "--http-port",
+                                 std::to_string(http_port), "--workers", "1", "--log-level", "warn"},
         dir, port);
   }
 };
@@ -105,7 +105,8 @@ TEST(Failover, LoadThroughHaproxySurvivesAKilledReplicaAndComesBackToItsRestart)
     replicas.back().start(models);
     ASSERT_TRUE(replicas.back().process->running()) << replicas.back().process->log();
   }
-  const std::uint16_t lb_port = test::free_port(), lb_http_port = test::free_port(), stats_port = test::free_port();
+  const std::uint16_t lb_port = test::free_port(), lb_http_port = test::free_port(),
+                      stats_port = test::free_port();
   const std::map<std::string, std::string> environment = {
       {"MTLOD_BIND", "127.0.0.1"},
       {"MTLOD_LB_PORT", std::to_string(lb_port)},
@@ -118,27 +119,32 @@ TEST(Failover, LoadThroughHaproxySurvivesAKilledReplicaAndComesBackToItsRestart)
       {"MTLOD_REPLICA_2_PORT", std::to_string(replicas[1].port)},
       {"MTLOD_REPLICA_2_HTTP_PORT", std::to_string(replicas[1].http_port)},
   };
-  test::Child haproxy({MTLOD_HAPROXY_BINARY, "-db", "-f", MTLOD_SOURCE_DIR "/docker/haproxy.cfg"}, environment,
-                      dir / "haproxy.log");
-  ASSERT_TRUE(wait_until([&] { return haproxy_says_up(stats_port, "replicas", "replica-1") &&
-                                      haproxy_says_up(stats_port, "replicas", "replica-2"); },
-                         30s))
-      << "HAProxy never saw both replicas up\n" << haproxy.log();
+  test::Child haproxy({MTLOD_HAPROXY_BINARY, "-db", "-f", MTLOD_SOURCE_DIR "/docker/haproxy.cfg"},
+                      environment, dir / "haproxy.log");
+  ASSERT_TRUE(wait_until(
+      [&] {
+        return haproxy_says_up(stats_port, "replicas", "replica-1") &&
+               haproxy_says_up(stats_port, "replicas", "replica-2");
+      },
+      30s))
+      << "HAProxy never saw both replicas up\n"
+      << haproxy.log();
   const std::string first_instance = health_instance(replicas[0].http_port);
   ASSERT_FALSE(first_instance.empty());
 
   // Closed loop through HAProxy; connections are recycled every 10 requests so that the balancer
   // can place them on the restarted replica.
   const auto report = dir / "load.json";
-  test::Child load({MTLOD_LOAD_BINARY, "--port", std::to_string(lb_port), "--model", "sphere", "--connections", "4",
-                    "--duration", "14", "--budget", "2000", "--reconnect-after", "10", "--attempts", "40", "--quiet",
-                    "--json", report.string()},
+  test::Child load({MTLOD_LOAD_BINARY, "--port", std::to_string(lb_port), "--model", "sphere",
+                    "--connections", "4", "--duration", "14", "--budget", "2000", "--reconnect-after", "10",
+                    "--attempts", "40", "--quiet", "--json", report.string()},
                    {}, dir / "load.log");
   std::this_thread::sleep_for(3s);
   ASSERT_TRUE(load.running()) << load.log();
   // Kill it while it serves: a closed-loop connection always has a request in flight.
   ASSERT_TRUE(wait_until([&] { return haproxy_sessions(stats_port, "replicas", "replica-1") >= 1; }, 10s))
-      << "no connection reached replica-1\n" << haproxy.log();
+      << "no connection reached replica-1\n"
+      << haproxy.log();
   const int status = replicas[0].process->stop(SIGKILL);
   EXPECT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL) << status;
   std::this_thread::sleep_for(1500ms);

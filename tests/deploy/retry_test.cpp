@@ -85,15 +85,16 @@ TEST(Retry, GazeStreamReconnectsAfterItsServerIsKilledAndRestarted) {
       std::vector<std::string>{model.string(), "--log-level", "warn"}, dir, port);
   ASSERT_TRUE(server->running()) << server->log();
   const auto report = dir / "gaze.json";
-  test::Child gaze({MTLOD_GAZE_BINARY, "--port", std::to_string(port), "--model", "sphere", "--hz", "60", "--duration",
-                    "6000", "--attempts", "40", "--budget", "1000", "--quiet", "--json", report.string()},
-                   {}, dir / "gaze.log");
+  test::Child gaze(
+      {MTLOD_GAZE_BINARY, "--port", std::to_string(port), "--model", "sphere", "--hz", "60", "--duration",
+       "6000", "--attempts", "40", "--budget", "1000", "--quiet", "--json", report.string()},
+      {}, dir / "gaze.log");
   std::this_thread::sleep_for(2s);
   const int status = server->stop(SIGKILL);
   EXPECT_TRUE(WIFSIGNALED(status)) << status;
   std::this_thread::sleep_for(500ms);
-  server = std::make_unique<test::ServerProcess>(std::vector<std::string>{model.string(), "--log-level", "warn"}, dir,
-                                                 port);
+  server = std::make_unique<test::ServerProcess>(
+      std::vector<std::string>{model.string(), "--log-level", "warn"}, dir, port);
   ASSERT_TRUE(server->running()) << server->log();
   ASSERT_EQ(gaze.wait(60s), 0) << gaze.log();
   std::ifstream in(report);

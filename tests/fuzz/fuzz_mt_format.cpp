@@ -21,7 +21,8 @@ void check(std::span<const std::uint8_t> bytes) {
     for (std::uint32_t t = 0; t < mt->triangle_count(); ++t) {
       mt->triangle_vertices(t, corners);
       sum += corners[0] + corners[1] + corners[2];
-      if (corners[0] >= mt->vertex_count() || corners[1] >= mt->vertex_count() || corners[2] >= mt->vertex_count()) {
+      if (corners[0] >= mt->vertex_count() || corners[1] >= mt->vertex_count() ||
+          corners[2] >= mt->vertex_count()) {
         __builtin_trap();
       }
     }

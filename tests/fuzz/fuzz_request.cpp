@@ -8,7 +8,8 @@
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   using namespace mtlod::protocol;
-  const ParsedRequest parsed = parse_request(std::string_view(reinterpret_cast<const char*>(data), size), Limits{});
+  const ParsedRequest parsed =
+      parse_request(std::string_view(reinterpret_cast<const char*>(data), size), Limits{});
   if (!parsed.ok()) {
     if (parsed.error.message.empty()) __builtin_trap();
     return 0;

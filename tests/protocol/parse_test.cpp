@@ -74,8 +74,9 @@ TEST(ParseRequest, ReadsBackEveryFieldAClientWrote) {
 
 TEST(ParseRequest, EveryOtherRequestTypeRoundTrips) {
   const Limits limits;
-  const std::vector<Request> requests = {Hello{1, "test"}, ListModels{}, ModelInfo{"dragon"},
-                                         Gaze{0.1, 0.9, 12.0, 0.5}, Cancel{77}, Stats{}, Ping{}};
+  const std::vector<Request> requests = {
+      Hello{1, "test"}, ListModels{}, ModelInfo{"dragon"}, Gaze{0.1, 0.9, 12.0, 0.5}, Cancel{77},
+      Stats{},          Ping{}};
   for (const Request& r : requests) {
     const ParsedRequest parsed = parse_request(to_json(r, 5), limits);
     ASSERT_TRUE(parsed.ok()) << request_type_name(r) << ": " << parsed.error.message;

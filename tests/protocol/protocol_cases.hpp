@@ -16,7 +16,9 @@ struct MalformedCase {
   std::string message_contains;
 };
 
-inline std::filesystem::path protocol_document() { return std::filesystem::path(MTLOD_SOURCE_DIR) / "protocol/PROTOCOL.md"; }
+inline std::filesystem::path protocol_document() {
+  return std::filesystem::path(MTLOD_SOURCE_DIR) / "protocol/PROTOCOL.md";
+}
 
 // Rows of the form | `{...}` | `code` | `text in the message` |
 inline std::vector<MalformedCase> malformed_cases() {

@@ -49,7 +49,8 @@ TEST(Replies, DeltaHeaderAndPayloadRoundTrip) {
   EXPECT_TRUE(r.delta->reset);
   auto parts = split_delta_payload(*r.delta, payload);
   ASSERT_TRUE(parts.ok()) << parts.error().message;
-  EXPECT_EQ(std::vector<std::uint8_t>(parts->draco.begin(), parts->draco.end()), (std::vector<std::uint8_t>{1, 2, 3, 4, 5}));
+  EXPECT_EQ(std::vector<std::uint8_t>(parts->draco.begin(), parts->draco.end()),
+            (std::vector<std::uint8_t>{1, 2, 3, 4, 5}));
   EXPECT_EQ(parts->added_ids, added);
   EXPECT_EQ(parts->removed_ids, removed);
   EXPECT_FALSE(std::get<MeshReply>(parse_reply(to_json(MeshReply{}, 1))->reply).delta);
@@ -58,12 +59,12 @@ TEST(Replies, DeltaHeaderAndPayloadRoundTrip) {
 TEST(Replies, DeltaPayloadWhoseSizesDoNotAddUpIsRejected) {
   std::vector<std::uint8_t> payload(5 + 4 * 5);
   EXPECT_TRUE(split_delta_payload({false, 5, 3, 2}, payload).ok());
-  EXPECT_FALSE(split_delta_payload({false, 5, 3, 3}, payload).ok());                  // one id short
-  EXPECT_FALSE(split_delta_payload({false, 6, 3, 2}, payload).ok());                  // one byte short
-  EXPECT_FALSE(split_delta_payload({false, 0, 0, 0}, payload).ok());                  // bytes left over
-  EXPECT_FALSE(split_delta_payload({false, 5, UINT64_MAX / 2, 2}, payload).ok());     // would overflow
-  EXPECT_FALSE(split_delta_payload({false, 25, 0, 0}, payload).ok());                 // Draco bytes, no ids
-  EXPECT_TRUE(split_delta_payload({false, 0, 0, 0}, {}).ok());                        // nothing changed
+  EXPECT_FALSE(split_delta_payload({false, 5, 3, 3}, payload).ok());               // one id short
+  EXPECT_FALSE(split_delta_payload({false, 6, 3, 2}, payload).ok());               // one byte short
+  EXPECT_FALSE(split_delta_payload({false, 0, 0, 0}, payload).ok());               // bytes left over
+  EXPECT_FALSE(split_delta_payload({false, 5, UINT64_MAX / 2, 2}, payload).ok());  // would overflow
+  EXPECT_FALSE(split_delta_payload({false, 25, 0, 0}, payload).ok());              // Draco bytes, no ids
+  EXPECT_TRUE(split_delta_payload({false, 0, 0, 0}, {}).ok());                     // nothing changed
 }
 
 TEST(Replies, EveryReplyTypeKeepsItsType) {

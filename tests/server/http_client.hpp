@@ -34,7 +34,8 @@ inline HttpReply http_request(std::uint16_t port, const std::string& request) {
   (void)::send(fd, request.data(), request.size(), MSG_NOSIGNAL);
   std::string all;
   char buffer[65536];
-  for (ssize_t n; (n = ::recv(fd, buffer, sizeof buffer, 0)) > 0;) all.append(buffer, static_cast<std::size_t>(n));
+  for (ssize_t n; (n = ::recv(fd, buffer, sizeof buffer, 0)) > 0;)
+    all.append(buffer, static_cast<std::size_t>(n));
   ::close(fd);
   const auto end = all.find("\r\n\r\n");
   if (end == std::string::npos || all.size() < 12) return reply;

@@ -19,8 +19,8 @@ namespace mtlod::test {
 
 // Starts args[0] with args as its argv and `environment` added to its own, its stdout and stderr
 // appended to `log`. Returns the child's pid.
-inline pid_t spawn(const std::vector<std::string>& args, const std::map<std::string, std::string>& environment,
-                   const std::filesystem::path& log) {
+inline pid_t spawn(const std::vector<std::string>& args,
+                   const std::map<std::string, std::string>& environment, const std::filesystem::path& log) {
   const pid_t pid = ::fork();
   if (pid == 0) {
     for (const auto& [name, value] : environment) ::setenv(name.c_str(), value.c_str(), 1);
@@ -44,12 +44,13 @@ class ServerProcess {
   // args: everything after the binary name except --port and --port-file. `port` 0: any free one.
   // The log goes to dir/server.log (appended to, so a restart in the same folder keeps the first
   // run's log).
-  ServerProcess(const std::vector<std::string>& args, const std::filesystem::path& dir, std::uint16_t port = 0) {
+  ServerProcess(const std::vector<std::string>& args, const std::filesystem::path& dir,
+                std::uint16_t port = 0) {
     const auto port_file = dir / "port";
     std::filesystem::remove(port_file);
     log_ = dir / "server.log";
-    std::vector<std::string> argv_strings = {MTLOD_SERVER_BINARY, "--port", std::to_string(port), "--port-file",
-                                             port_file.string()};
+    std::vector<std::string> argv_strings = {MTLOD_SERVER_BINARY, "--port", std::to_string(port),
+                                             "--port-file", port_file.string()};
     argv_strings.insert(argv_strings.end(), args.begin(), args.end());
     pid_ = spawn(argv_strings, {}, log_);
     // Model loading may take a while under sanitizers: wait up to a minute for the port.

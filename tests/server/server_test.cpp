@@ -63,7 +63,8 @@ class ServerTest : public testing::Test {
     g_fixture->mt = std::move(*mt);
     g_fixture->levels = std::make_unique<core::OccupancyLevels>(g_fixture->mt);
     g_fixture->server = std::make_unique<test::ServerProcess>(
-        std::vector<std::string>{(g_fixture->dir / "bunny.mt").string(), "--workers", "2", "--log-level", "warn"},
+        std::vector<std::string>{(g_fixture->dir / "bunny.mt").string(), "--workers", "2", "--log-level",
+                                 "warn"},
         g_fixture->dir);
     ASSERT_TRUE(g_fixture->server->running()) << g_fixture->server->log();
   }
@@ -87,8 +88,8 @@ class ServerTest : public testing::Test {
     protocol::Extract e;
     e.model = "bunny";
     const core::Bounds box = core::bounds_of(g_fixture->mt.positions);
-    protocol::look_at_camera(protocol::frame_bounds(core::to_double(box.lo), core::to_double(box.hi)), 4.0 / 3.0,
-                             e.view, e.projection);
+    protocol::look_at_camera(protocol::frame_bounds(core::to_double(box.lo), core::to_double(box.hi)),
+                             4.0 / 3.0, e.view, e.projection);
     e.grid = {128, 96};
     e.error = 2;
     e.error_unit = protocol::ErrorUnit::kPixels;
@@ -98,8 +99,12 @@ class ServerTest : public testing::Test {
   }
 };
 
-const protocol::MeshReply* as_mesh(const ReplyFrame& f) { return std::get_if<protocol::MeshReply>(&f.header.reply); }
-const protocol::ErrorReply* as_error(const ReplyFrame& f) { return std::get_if<protocol::ErrorReply>(&f.header.reply); }
+const protocol::MeshReply* as_mesh(const ReplyFrame& f) {
+  return std::get_if<protocol::MeshReply>(&f.header.reply);
+}
+const protocol::ErrorReply* as_error(const ReplyFrame& f) {
+  return std::get_if<protocol::ErrorReply>(&f.header.reply);
+}
 
 TEST_F(ServerTest, HelloStatesVersionAndLimits) {
   Connection c = connect();
@@ -153,7 +158,8 @@ TEST_F(ServerTest, ExtractDecodesToTheInProcessCut) {
                                                 request.draco.position_bits);
   const auto match = test::match_vertices(decoded->mesh.positions, g_fixture->mt.positions, cut.triangles,
                                           4 * tolerance, tolerance);
-  EXPECT_EQ(test::canonical_triangles(decoded->mesh.triangles, &match), test::canonical_triangles(cut.triangles));
+  EXPECT_EQ(test::canonical_triangles(decoded->mesh.triangles, &match),
+            test::canonical_triangles(cut.triangles));
 }
 
 TEST_F(ServerTest, GooglesDracoDecoderReadsAServerPayload) {
@@ -282,7 +288,8 @@ TEST_F(ServerTest, EveryDocumentedMalformedRequestGetsItsCodeWhileOthersAreServe
     const auto* error = as_error(*reply);
     ASSERT_NE(error, nullptr) << c.json << " -> " << reply->json;
     EXPECT_EQ(protocol::to_string(error->code), c.code) << c.json << " -> " << error->message;
-    EXPECT_NE(error->message.find(c.message_contains), std::string::npos) << c.json << " -> " << error->message;
+    EXPECT_NE(error->message.find(c.message_contains), std::string::npos)
+        << c.json << " -> " << error->message;
     // Everyone else is still served.
     auto pong = good.call(protocol::Ping{}, good_id++);
     ASSERT_TRUE(pong.ok()) << pong.error().message;

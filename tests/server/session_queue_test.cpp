@@ -6,7 +6,9 @@
 namespace mtlod::server {
 namespace {
 
-std::vector<std::uint8_t> bytes(std::uint8_t b) { return {b}; }
+std::vector<std::uint8_t> bytes(std::uint8_t b) {
+  return {b};
+}
 
 TEST(ReplyOrder, HoldsLaterRepliesUntilEarlierOnesArrive) {
   ReplyOrder order;

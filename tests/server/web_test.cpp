@@ -17,9 +17,9 @@
 namespace mtlod {
 namespace {
 
-using test::HttpReply;
 using test::http_get;
 using test::http_request;
+using test::HttpReply;
 
 std::string file_text(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
@@ -32,8 +32,8 @@ class WebTest : public testing::Test {
     const auto dir = test::scratch_dir("web");
     const auto bunny = test::models_dir() / "bunny.ply";
     if (!std::filesystem::exists(bunny)) GTEST_SKIP() << "no " << bunny;
-    server_ = new test::ServerProcess({"--mesh", bunny.string(), "--cache-dir", dir.string(), "--http-port", "0",
-                                       "--max-connections", "1", "--log-level", "warn"},
+    server_ = new test::ServerProcess({"--mesh", bunny.string(), "--cache-dir", dir.string(), "--http-port",
+                                       "0", "--max-connections", "1", "--log-level", "warn"},
                                       dir);
   }
   static void TearDownTestSuite() {
@@ -80,16 +80,17 @@ TEST_F(WebTest, HealthAnswersOkWithTheInstance) {
 
 TEST_F(WebTest, NothingOutsideTheTwoFoldersIsServed) {
   // Each of these exists on disk relative to some folder the server reads from, or escapes it.
-  for (const char* target : {"/../README.md", "/..%2fREADME.md", "/three/package.json", "/three/../../README.md",
-                             "/three/examples/../package.json", "//etc/passwd", "/%2e%2e/README.md", "/no-such-file.js",
-                             "/three/build", "relative.html"}) {
+  for (const char* target : {"/../README.md", "/..%2fREADME.md", "/three/package.json",
+                             "/three/../../README.md", "/three/examples/../package.json", "//etc/passwd",
+                             "/%2e%2e/README.md", "/no-such-file.js", "/three/build", "relative.html"}) {
     EXPECT_EQ(http_get(server_->http_port(), target).status, 404) << target;
   }
 }
 
 TEST_F(WebTest, OnlyGetIsServed) {
-  const HttpReply post = http_request(server_->http_port(),
-                                      "POST /health HTTP/1.1\r\nHost: x\r\nContent-Length: 2\r\nConnection: close\r\n\r\nhi");
+  const HttpReply post =
+      http_request(server_->http_port(),
+                   "POST /health HTTP/1.1\r\nHost: x\r\nContent-Length: 2\r\nConnection: close\r\n\r\nhi");
   EXPECT_EQ(post.status, 405);
 }
 
