@@ -9,6 +9,7 @@
 
 #include "fmt/format.h"
 #include "nlohmann/json.hpp"
+#include "protocol/text.hpp"
 
 namespace mtlod::protocol {
 namespace {
@@ -36,8 +37,8 @@ const char* type_name(const json& v) {
 }
 
 std::string show(const json& v) {
-  std::string s = v.dump();
-  if (s.size() > 40) s = s.substr(0, 37) + "...";
+  std::string s = v.dump(-1, ' ', false, json::error_handler_t::replace);
+  if (s.size() > 40) s = std::string(utf8_prefix(s, 37)) + "...";
   return s;
 }
 
@@ -393,10 +394,12 @@ ParsedRequest parse_request(std::string_view text, const Limits& limits) {
   try {
     doc = json::parse(text.begin(), text.end());
   } catch (const json::parse_error& e) {
-    parsed.error = {ErrorKind::kBadJson, fmt::format("JSON does not parse at byte {}: {}", e.byte, e.what())};
+    // The parser's message quotes the bytes it last read, whatever they are.
+    parsed.error = {ErrorKind::kBadJson,
+                    printable(fmt::format("JSON does not parse at byte {}: {}", e.byte, e.what()))};
     return parsed;
   } catch (const json::exception& e) {
-    parsed.error = {ErrorKind::kBadJson, fmt::format("JSON does not parse: {}", e.what())};
+    parsed.error = {ErrorKind::kBadJson, printable(fmt::format("JSON does not parse: {}", e.what()))};
     return parsed;
   }
   try {
@@ -415,6 +418,8 @@ ParsedRequest parse_request(std::string_view text, const Limits& limits) {
   } catch (const json::exception& e) {
     parsed.error = {ErrorKind::kBadRequest, e.what()};
   }
+  // Messages quote the request's bytes; what goes back to the client and into logs must be text.
+  if (!parsed.ok()) parsed.error.message = printable(parsed.error.message);
   return parsed;
 }
 
@@ -481,7 +486,7 @@ std::string to_json(const Request& request, std::uint64_t id) {
       request);
   j["type"] = request_type_name(request);
   j["id"] = id;
-  return j.dump();
+  return j.dump(-1, ' ', false, json::error_handler_t::replace);
 }
 
 }  // namespace mtlod::protocol

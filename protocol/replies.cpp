@@ -139,7 +139,8 @@ std::string to_json(const Reply& reply, std::optional<std::uint64_t> id) {
       reply);
   j["type"] = reply_type_name(reply);
   if (id) j["id"] = *id;
-  return j.dump();
+  // Replace, never throw: a reply may quote client bytes, and a throw here would escape the server.
+  return j.dump(-1, ' ', false, json::error_handler_t::replace);
 }
 
 Result<ParsedReply> parse_reply(std::string_view text) {
