@@ -18,12 +18,16 @@ inline constexpr int kProtocolVersion = 1;
 struct Limits {
   std::uint32_t max_frame_bytes = 1u << 20;  // JSON + payload of one client frame
   std::uint32_t max_connections = 256;
-  std::uint32_t max_in_flight = 8;          // extractions queued or running per connection
-  std::uint32_t max_grid = 4096;            // grid width and height
-  std::uint32_t max_budget = 5'000'000;     // triangles per extraction
-  std::uint32_t max_foci = 16;              // focus points plus neglect regions
-  std::uint32_t idle_timeout_ms = 300'000;  // a connection with no request for this long is closed
-  std::uint32_t read_timeout_ms = 10'000;   // a frame started must arrive within this time
+  std::uint32_t max_in_flight = 8;                 // extractions queued or running per connection
+  std::uint32_t max_grid = 4096;                   // grid width and height
+  std::uint32_t max_budget = 5'000'000;            // triangles per extraction
+  std::uint32_t max_foci = 16;                     // focus points plus neglect regions
+  std::uint32_t idle_timeout_ms = 300'000;         // a connection with no request for this long is closed
+  std::uint32_t read_timeout_ms = 10'000;          // a frame started must arrive within this time
+  std::uint32_t first_frame_timeout_ms = 5'000;    // a new connection's first frame must arrive by then
+  std::uint32_t max_connections_per_address = 64;  // connections one client address may hold (0: no cap)
+  // Worker scratch plus sessions; 0 when not stated (the server then derives it from the machine).
+  std::uint64_t max_memory_bytes = 0;
 };
 
 using Matrix4 = std::array<double, 16>;  // column-major, as OpenGL and GLM store them
@@ -81,7 +85,7 @@ struct Criteria {
 
 struct DracoSettings {
   // Unset: edgebreaker for extract (smallest payload), sequential for gaze (lowest latency), the
-  // defaults chosen from tests/bench/bench_pipeline (README, "Draco").
+  // defaults chosen from tests/bench/bench_pipeline (tests/bench/BENCHMARKS.md, "Draco").
   std::optional<DracoMethod> method;
   int speed = 10;  // 0 best ratio .. 10 fastest; 10 is also no larger than 5-8 (bench_pipeline)
   int position_bits = 14;

@@ -11,10 +11,17 @@ namespace {
 using nlohmann::json;
 
 json limits_json(const Limits& l) {
-  return {{"max_frame_bytes", l.max_frame_bytes}, {"max_connections", l.max_connections},
-          {"max_in_flight", l.max_in_flight},     {"max_grid", l.max_grid},
-          {"max_budget", l.max_budget},           {"max_foci", l.max_foci},
-          {"idle_timeout_ms", l.idle_timeout_ms}, {"read_timeout_ms", l.read_timeout_ms}};
+  return {{"max_frame_bytes", l.max_frame_bytes},
+          {"max_connections", l.max_connections},
+          {"max_in_flight", l.max_in_flight},
+          {"max_grid", l.max_grid},
+          {"max_budget", l.max_budget},
+          {"max_foci", l.max_foci},
+          {"idle_timeout_ms", l.idle_timeout_ms},
+          {"read_timeout_ms", l.read_timeout_ms},
+          {"first_frame_timeout_ms", l.first_frame_timeout_ms},
+          {"max_connections_per_address", l.max_connections_per_address},
+          {"max_memory_bytes", l.max_memory_bytes}};
 }
 
 Limits limits_from(const json& j) {
@@ -27,6 +34,9 @@ Limits limits_from(const json& j) {
   l.max_foci = j.value("max_foci", l.max_foci);
   l.idle_timeout_ms = j.value("idle_timeout_ms", l.idle_timeout_ms);
   l.read_timeout_ms = j.value("read_timeout_ms", l.read_timeout_ms);
+  l.first_frame_timeout_ms = j.value("first_frame_timeout_ms", l.first_frame_timeout_ms);
+  l.max_connections_per_address = j.value("max_connections_per_address", l.max_connections_per_address);
+  l.max_memory_bytes = j.value("max_memory_bytes", l.max_memory_bytes);
   return l;
 }
 

@@ -6,11 +6,13 @@
 #include <boost/asio/post.hpp>
 
 #include <chrono>
+#include <utility>
 
 #include "fmt/format.h"
 #include "protocol/frame.hpp"
 #include "protocol/parse.hpp"
 #include "protocol/replies.hpp"
+#include "protocol/text.hpp"
 #include "spdlog/spdlog.h"
 
 namespace mtlod::server {
@@ -40,8 +42,13 @@ std::vector<std::uint8_t> error_frame(protocol::ErrorKind code, std::string mess
 
 }  // namespace
 
-Connection::Connection(ServerContext& server, net::any_io_executor strand, std::uint64_t number)
-    : server_(server), strand_(std::move(strand)), number_(number) {}
+Connection::Connection(ServerContext& server, net::any_io_executor strand, std::uint64_t number,
+                       AddressTable::Slot slot)
+    : server_(server),
+      strand_(std::move(strand)),
+      number_(number),
+      slot_(std::move(slot)),
+      address_(slot_.address()) {}
 
 void Connection::opened() {
   server_.metrics.connection_opened();
@@ -62,23 +69,71 @@ void Connection::force_close() {
 }
 
 void Connection::handle_frame(std::string_view json, std::int64_t received_ns) {
-  const protocol::ParsedRequest parsed = protocol::parse_request(json, server_.config.limits);
+  got_request_ = true;
   const std::uint64_t seq = replies_.open();
-  if (!parsed.ok()) {
-    reply_error(seq, parsed.error.code, parsed.error.message, parsed.id);
-  } else {
-    server_.metrics.request(parsed.request->index());
-    received_ns_ = received_ns;
-    std::visit([&](const auto& request) { on_request(seq, *parsed.id, request); }, *parsed.request);
+  std::optional<std::uint64_t> id;
+  try {
+    const protocol::ParsedRequest parsed = protocol::parse_request(json, server_.config.limits);
+    id = parsed.id;
+    if (!parsed.ok()) {
+      reply_error(seq, parsed.error.code, parsed.error.message, parsed.id);
+    } else {
+      server_.metrics.request(parsed.request->index());
+      received_ns_ = received_ns;
+      std::visit([&](const auto& request) { on_request(seq, *parsed.id, request); }, *parsed.request);
+    }
+  } catch (const std::exception& e) {
+    // This request fails; the connection and every other one carry on.
+    spdlog::error("conn={} id={} request failed: {}", number_, id.value_or(0), protocol::printable(e.what()));
+    if (!replies_.filled(seq))
+      reply_error(seq, protocol::ErrorKind::kInternal, "the server failed on this request", id);
   }
   flush();
+}
+
+std::optional<protocol::FrameHeader> Connection::frame_header(
+    std::span<const std::uint8_t, protocol::kFrameHeaderBytes> bytes) {
+  server_.metrics.bytes_in(bytes.size());
+  auto header = protocol::decode_frame_header(bytes, server_.config.limits.max_frame_bytes);
+  if (!header) {
+    bad_frame(header.error().message);
+    return std::nullopt;
+  }
+  return *header;
+}
+
+bool Connection::handle_message(bool text, std::string_view message, std::int64_t received_ns) {
+  if (text) {
+    handle_frame(message, received_ns);
+    return true;
+  }
+  // A binary message is a whole frame: its header must announce exactly the bytes that follow.
+  if (message.size() < protocol::kFrameHeaderBytes) {
+    bad_frame(fmt::format("a binary message of {} bytes is shorter than the {}-byte frame header",
+                          message.size(), protocol::kFrameHeaderBytes));
+    return false;
+  }
+  const auto* bytes = reinterpret_cast<const std::uint8_t*>(message.data());
+  auto header = protocol::decode_frame_header(
+      std::span<const std::uint8_t, protocol::kFrameHeaderBytes>(bytes, protocol::kFrameHeaderBytes),
+      server_.config.limits.max_frame_bytes);
+  const std::size_t body_bytes = message.size() - protocol::kFrameHeaderBytes;
+  if (!header || header->body_bytes() != body_bytes) {
+    bad_frame(header ? fmt::format("the frame header announces {} bytes but the message holds {} after it",
+                                   header->body_bytes(), body_bytes)
+                     : header.error().message);
+    return false;
+  }
+  handle_frame(message.substr(protocol::kFrameHeaderBytes, header->json_bytes), received_ns);
+  return true;
 }
 
 void Connection::bad_frame(const std::string& message) {
   // The stream cannot be resynchronised: answer, then close once the answer is written.
   server_.metrics.error(protocol::ErrorKind::kBadFrame);
-  spdlog::warn("conn={} bad frame: {}", number_, message);
-  replies_.fill(replies_.open(), error_frame(protocol::ErrorKind::kBadFrame, message, std::nullopt));
+  const std::string text = protocol::printable(message);
+  spdlog::warn("conn={} bad frame: {}", number_, text);
+  replies_.fill(replies_.open(), error_frame(protocol::ErrorKind::kBadFrame, text, std::nullopt));
   stopping_ = true;
   drain_jobs(protocol::ErrorKind::kShuttingDown, "connection closing after a bad frame");
   flush();
@@ -108,7 +163,10 @@ void Connection::on_request(std::uint64_t seq, std::uint64_t id, const protocol:
   replies_.fill(seq, make_frame(model->info(), id));
 }
 void Connection::on_request(std::uint64_t seq, std::uint64_t id, const protocol::Stats&) {
-  replies_.fill(seq, make_frame(protocol::StatsReply{server_.metrics.snapshot()}, id));
+  protocol::StatsReply reply{server_.metrics.snapshot()};
+  reply.counters.emplace_back("memory_held_bytes", static_cast<double>(server_.memory.held()));
+  reply.counters.emplace_back("memory_limit_bytes", static_cast<double>(server_.memory.limit()));
+  replies_.fill(seq, make_frame(reply, id));
 }
 void Connection::on_request(std::uint64_t seq, std::uint64_t id, const protocol::Ping&) {
   replies_.fill(seq, make_frame(protocol::Pong{}, id));
@@ -159,11 +217,37 @@ void Connection::enqueue(Job job) {
 }
 
 void Connection::start_next_job() {
-  std::optional<Job> job = jobs_.start_next();
-  if (!job) return;
-  net::post(server_.workers, [self = shared_from_this(), job = std::move(*job)]() mutable {
+  std::optional<Job> job;
+  for (;;) {
+    job = jobs_.start_next();
+    if (!job) return;
+    const std::uint64_t need = server_.engine.estimate_bytes(job->extract);
+    if (server_.memory.reserve(need)) {
+      reserved_ = need;
+      break;
+    }
+    jobs_.finish();
+    reply_error(
+        job->seq, protocol::ErrorKind::kLimitExceeded,
+        fmt::format("this extraction could need {:.1f} MiB (grid {}x{} of model '{}'); the server holds "
+                    "{:.1f} MiB of its {:.1f} MiB memory limit",
+                    need / 1048576.0, job->extract.grid[0], job->extract.grid[1], job->extract.model,
+                    server_.memory.held() / 1048576.0, server_.memory.limit() / 1048576.0),
+        job->id);
+  }
+  server_.scheduler.submit(address_, [self = shared_from_this(), job = std::move(*job)]() mutable {
     const std::int64_t started = now_ns();
-    auto outcome = self->server_.engine.extract(job.extract, job.gaze, self->cut_);
+    std::variant<ExtractOutcome, protocol::ProtocolError> outcome;
+    try {
+      outcome = self->server_.engine.extract(job.extract, job.gaze, self->cut_);
+    } catch (const std::exception& e) {
+      // A throw on a worker thread would end the process. The session's cut may be half-updated:
+      // drop it, so the next extraction on this connection starts afresh.
+      spdlog::error("conn={} id={} extraction failed: {}", self->number_, job.id, e.what());
+      self->cut_ = SessionCut{};
+      outcome =
+          protocol::ProtocolError{protocol::ErrorKind::kInternal, "the server failed on this extraction"};
+    }
     net::post(self->strand_, [self, job = std::move(job), started, outcome = std::move(outcome)]() mutable {
       self->finish_job(job, started, outcome);
     });
@@ -173,6 +257,27 @@ void Connection::start_next_job() {
 void Connection::finish_job(const Job& job, std::int64_t started_ns,
                             std::variant<ExtractOutcome, protocol::ProtocolError>& outcome) {
   jobs_.finish();
+  // The reservation gives way to what the extraction really left in its session.
+  server_.memory.release(std::exchange(reserved_, 0));
+  const std::uint64_t session_bytes = cut_.memory_bytes();
+  server_.memory.adjust(static_cast<std::int64_t>(session_bytes) -
+                        static_cast<std::int64_t>(session_accounted_));
+  session_accounted_ = session_bytes;
+  if (closed_) release_session();
+  try {
+    finish_reply(job, started_ns, outcome);
+  } catch (const std::exception& e) {
+    spdlog::error("conn={} id={} reply failed: {}", number_, job.id, e.what());
+    if (!replies_.filled(job.seq)) {
+      reply_error(job.seq, protocol::ErrorKind::kInternal, "the server failed on this extraction", job.id);
+    }
+  }
+  start_next_job();
+  flush();
+}
+
+void Connection::finish_reply(const Job& job, std::int64_t started_ns,
+                              std::variant<ExtractOutcome, protocol::ProtocolError>& outcome) {
   if (auto* error = std::get_if<protocol::ProtocolError>(&outcome)) {
     reply_error(job.seq, error->code, error->message, job.id);
   } else {
@@ -196,8 +301,6 @@ void Connection::finish_job(const Job& job, std::int64_t started_ns,
     server_.metrics.extraction(t, reply.triangles);
     replies_.fill(job.seq, make_frame(reply, job.id, result.payload));
   }
-  start_next_job();
-  flush();
 }
 
 void Connection::reply_unknown_model(std::uint64_t seq, std::uint64_t id, const std::string& name) {
@@ -210,8 +313,19 @@ void Connection::reply_unknown_model(std::uint64_t seq, std::uint64_t id, const 
 void Connection::reply_error(std::uint64_t seq, protocol::ErrorKind code, const std::string& message,
                              std::optional<std::uint64_t> id) {
   server_.metrics.error(code);
-  spdlog::debug("conn={} id={} error {}: {}", number_, id.value_or(0), protocol::to_string(code), message);
-  replies_.fill(seq, error_frame(code, message, id));
+  const std::string text = protocol::printable(message);  // it may quote what the client sent
+  spdlog::debug("conn={} id={} error {}: {}", number_, id.value_or(0), protocol::to_string(code), text);
+  replies_.fill(seq, error_frame(code, text, id));
+}
+
+void Connection::failed(const char* what, const char* reason) noexcept {
+  try {
+    spdlog::error("conn={} {} failed: {}; closing the connection", number_, what,
+                  protocol::printable(reason));
+    server_.metrics.error(protocol::ErrorKind::kInternal);
+  } catch (...) {
+  }
+  close();
 }
 
 void Connection::drain_jobs(protocol::ErrorKind code, const char* message) {
@@ -255,10 +369,17 @@ bool Connection::may_read() {
   return true;
 }
 
+void Connection::release_session() {
+  server_.memory.release(std::exchange(session_accounted_, 0));
+  cut_ = SessionCut{};
+}
+
 void Connection::close() {
   if (closed_) return;
   closed_ = true;
   close_transport();
+  slot_.reset();
+  if (!jobs_.running()) release_session();
   server_.metrics.connection_closed();
   server_.on_connection_closed();
 }

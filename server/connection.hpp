@@ -11,12 +11,15 @@
 #include <functional>
 #include <memory>
 #include <optional>
+#include <span>
 #include <string>
 #include <string_view>
 #include <vector>
 
 #include "protocol/errors.hpp"
+#include "protocol/frame.hpp"
 #include "protocol/messages.hpp"
+#include "server/admission.hpp"
 #include "server/engine.hpp"
 #include "server/metrics.hpp"
 #include "server/server.hpp"
@@ -30,7 +33,9 @@ struct ServerContext {
   const ModelRegistry& models;
   Engine& engine;
   Metrics& metrics;
-  boost::asio::thread_pool& workers;
+  AddressTable& addresses;
+  FairScheduler& scheduler;  // runs extractions on the worker pool, client addresses taking turns
+  MemoryCeiling& memory;     // worker scratch plus sessions, against --max-memory
   std::function<void()> on_connection_closed;  // called once per connection, from its strand
 };
 
@@ -45,7 +50,9 @@ class Connection : public std::enable_shared_from_this<Connection> {
   void force_close();
 
  protected:
-  Connection(ServerContext& server, boost::asio::any_io_executor strand, std::uint64_t number);
+  // `slot`: this connection's hold on its client address (AddressTable), released when it closes.
+  Connection(ServerContext& server, boost::asio::any_io_executor strand, std::uint64_t number,
+             AddressTable::Slot slot);
 
   // ---- Transport hooks (called on the strand) ----
   // Starts writing one reply frame (8-byte header, JSON, payload); call on_written() when done.
@@ -61,8 +68,28 @@ class Connection : public std::enable_shared_from_this<Connection> {
   void opened();
   // A complete request's JSON text arrived at received_ns (steady clock).
   void handle_frame(std::string_view json, std::int64_t received_ns);
+  // A stream transport read a frame header: its decoded form, or nullopt after answering
+  // `bad_frame` (the stream cannot continue).
+  std::optional<protocol::FrameHeader> frame_header(
+      std::span<const std::uint8_t, protocol::kFrameHeaderBytes> bytes);
+  // A message transport received a whole message arriving at received_ns: a text message holds a
+  // request's JSON, a binary one a whole frame (header included). False when the message broke
+  // the stream (answered `bad_frame`; read no more).
+  bool handle_message(bool text, std::string_view message, std::int64_t received_ns);
   // The stream cannot continue (bad frame header): answer `bad_frame`, then close.
   void bad_frame(const std::string& message);
+  // Runs a transport's completion handler so that no exception leaves it: a throw (an allocation
+  // failure, a bug) is logged and closes this connection only, never the process.
+  template <class F>
+  void guarded(const char* what, F&& handler) noexcept {
+    try {
+      handler();
+    } catch (const std::exception& e) {
+      failed(what, e.what());
+    } catch (...) {
+      failed(what, "an unknown exception");
+    }
+  }
   // The last write_frame finished (ok = false: the peer is gone).
   void on_written(bool ok, std::size_t bytes);
   // The peer closed its side or the read failed.
@@ -74,6 +101,9 @@ class Connection : public std::enable_shared_from_this<Connection> {
   bool waiting_on_server() const { return replies_.outstanding() > 0; }
   bool ending() const { return stopping_ || closed_; }
   std::uint64_t number() const { return number_; }
+  const std::string& address() const { return address_; }
+  // Whether a request has arrived yet: until then the first-frame deadline applies, not the idle one.
+  bool got_request() const { return got_request_; }
   const boost::asio::any_io_executor& strand() const { return strand_; }
   ServerContext& server_;
 
@@ -87,19 +117,29 @@ class Connection : public std::enable_shared_from_this<Connection> {
   void on_request(std::uint64_t seq, std::uint64_t id, const protocol::Stats& request);
   void on_request(std::uint64_t seq, std::uint64_t id, const protocol::Ping& request);
   bool paused() const;
+  void failed(const char* what, const char* reason) noexcept;
   void enqueue(Job job);
   void start_next_job();
   void finish_job(const Job& job, std::int64_t started_ns,
                   std::variant<ExtractOutcome, protocol::ProtocolError>& outcome);
+  void finish_reply(const Job& job, std::int64_t started_ns,
+                    std::variant<ExtractOutcome, protocol::ProtocolError>& outcome);
   void reply_unknown_model(std::uint64_t seq, std::uint64_t id, const std::string& name);
   void reply_error(std::uint64_t seq, protocol::ErrorKind code, const std::string& message,
                    std::optional<std::uint64_t> id);
   void drain_jobs(protocol::ErrorKind code, const char* message);
   void flush();
   void close();
+  // Frees the session's cut and its share of the memory ceiling (no job may be running).
+  void release_session();
 
   boost::asio::any_io_executor strand_;
   std::uint64_t number_;
+  AddressTable::Slot slot_;
+  std::string address_;
+  bool got_request_ = false;
+  std::uint64_t session_accounted_ = 0;  // the session's bytes as counted in the memory ceiling
+  std::uint64_t reserved_ = 0;           // the running job's reservation in the memory ceiling
   ReplyOrder replies_;
   JobQueue jobs_;
   SessionCut cut_;

@@ -38,7 +38,59 @@ std::uint64_t elapsed_us(Clock::time_point& since) {
   return static_cast<std::uint64_t>(us);
 }
 
+// Per worker: one extractor per model and one encoder, created on first use, reused after.
+struct Worker {
+  std::unordered_map<const Model*, std::unique_ptr<core::ViewExtractor>> extractors;
+  core::DracoEncoder encoder;
+  core::CutMesh cut;
+  std::vector<std::uint32_t> added, removed, added_ids, added_triangles;  // delta replies
+  std::uint64_t accounted = 0;  // scratch bytes last reported to the memory ceiling
+
+  std::uint64_t scratch_bytes() const {
+    std::uint64_t bytes = cut.triangles.capacity() * sizeof(std::uint32_t);
+    for (const auto& [model, extractor] : extractors) bytes += extractor->memory_bytes();
+    return bytes;
+  }
+};
+
+Worker& this_worker() {
+  thread_local Worker worker;
+  return worker;
+}
+
+// Bytes per grid cell and per model vertex of a worker's extractor; per grid cell, per vertex, per
+// input triangle (the largest cut) and per MT triangle (delta state) of a session. Upper bounds
+// with headroom, checked against the real figures by tests/server/memory_test.cpp.
+constexpr std::uint64_t kScratchPerCell = 16, kScratchPerVertex = 48;
+constexpr std::uint64_t kSessionPerCell = 16, kSessionPerVertex = 24, kSessionPerCutTriangle = 80,
+                        kSessionPerMtTriangle = 1;
+
 }  // namespace
+
+std::uint64_t SessionCut::memory_bytes() const {
+  if (!state || !state->refiner) return 0;
+  return state->refiner->memory_bytes() + state->view.memory_bytes() + state->sent.memory_bytes();
+}
+
+std::uint64_t Engine::estimate_bytes(const protocol::Extract& request) const {
+  const Model* model = models_.find(request.model);
+  if (!model) return 0;
+  const std::uint64_t cells = std::uint64_t{request.grid[0]} * request.grid[1];
+  const std::uint64_t vertices = model->mt.vertex_count();
+  return kScratchPerCell * cells + kScratchPerVertex * vertices + kSessionPerCell * cells +
+         kSessionPerVertex * vertices + kSessionPerCutTriangle * model->input_triangles +
+         kSessionPerMtTriangle * model->mt.triangle_count();
+}
+
+std::int64_t Engine::settle_worker_scratch() {
+  Worker& worker = this_worker();
+  std::erase_if(worker.extractors,
+                [](const auto& entry) { return entry.second->memory_bytes() > kRetainedScratchBytes; });
+  const std::uint64_t now = worker.scratch_bytes();
+  const auto change = static_cast<std::int64_t>(now) - static_cast<std::int64_t>(worker.accounted);
+  worker.accounted = now;
+  return change;
+}
 
 std::variant<ExtractOutcome, protocol::ProtocolError> Engine::extract(const protocol::Extract& request,
                                                                       bool gaze, SessionCut& session) {
@@ -51,14 +103,7 @@ std::variant<ExtractOutcome, protocol::ProtocolError> Engine::extract(const prot
                                    fmt::format("model '{}' has no normals to send", request.model)};
   }
 
-  // Per worker: one extractor per model and one encoder, created on first use, reused ever after.
-  struct Worker {
-    std::unordered_map<const Model*, std::unique_ptr<core::ViewExtractor>> extractors;
-    core::DracoEncoder encoder;
-    core::CutMesh cut;
-    std::vector<std::uint32_t> added, removed, added_ids, added_triangles;  // delta replies
-  };
-  thread_local Worker worker;
+  Worker& worker = this_worker();
   auto& extractor = worker.extractors[model];
   if (!extractor) extractor = std::make_unique<core::ViewExtractor>(model->mt, *model->occupancy);
 
@@ -148,8 +193,7 @@ std::variant<ExtractOutcome, protocol::ProtocolError> Engine::extract(const prot
   outcome.reply.vertices = vertices;
   outcome.reply.bytes = outcome.payload.size();
   outcome.reply.max_error = cut.max_error;
-  outcome.reply.session_bytes =
-      state.refiner->memory_bytes() + state.view.memory_bytes() + state.sent.memory_bytes();
+  outcome.reply.session_bytes = session.memory_bytes();
   outcome.reply.scratch_bytes =
       extractor->memory_bytes() + worker.cut.triangles.capacity() * sizeof(std::uint32_t);
   return outcome;

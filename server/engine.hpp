@@ -22,6 +22,8 @@ class SessionCut {
   ~SessionCut();
   SessionCut(SessionCut&&) noexcept;
   SessionCut& operator=(SessionCut&&) noexcept;
+  // Bytes the session holds (its refiner, kept view and delta state).
+  std::uint64_t memory_bytes() const;
   struct State;
   std::unique_ptr<State> state;
 };
@@ -39,6 +41,15 @@ class Engine {
   // gaze: the request comes from a gaze update (it picks the gaze defaults, e.g. Draco's method).
   std::variant<ExtractOutcome, protocol::ProtocolError> extract(const protocol::Extract& request, bool gaze,
                                                                 SessionCut& session);
+
+  // An upper bound on the memory `request` may add: scratch for its grid and model on the worker
+  // that runs it, and a session's cut of the whole model. Zero for an unknown model.
+  std::uint64_t estimate_bytes(const protocol::Extract& request) const;
+
+  // On a worker thread after its extraction: by how much this worker's scratch grew (or shrank).
+  // Scratch above kRetainedScratchBytes for one model (a huge grid) is freed here, not kept.
+  static std::int64_t settle_worker_scratch();
+  static constexpr std::uint64_t kRetainedScratchBytes = std::uint64_t{64} << 20;
 
   const ModelRegistry& models() const { return models_; }
 

@@ -53,6 +53,10 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--max-connections", limits.max_connections, "connections served at once; more are refused")
       ->capture_default_str();
+  app.add_option("--max-connections-per-address", limits.max_connections_per_address,
+                 "connections one client address may hold (0: no cap; raise it behind a proxy that does "
+                 "not pass client addresses)")
+      ->capture_default_str();
   app.add_option("--max-in-flight", limits.max_in_flight, "unanswered requests allowed per connection")
       ->capture_default_str();
   app.add_option("--max-grid", limits.max_grid, "largest distance-transform grid side")
@@ -61,7 +65,14 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--max-foci", limits.max_foci, "most focus points plus neglect regions per request")
       ->capture_default_str();
+  app.add_option("--max-memory", limits.max_memory_bytes,
+                 "memory for worker scratch plus every connection's session (e.g. 4G, 512M); extractions "
+                 "that could pass it are refused with limit_exceeded (default: half the RAM or cgroup limit)")
+      ->transform(CLI::AsSizeValue(false));
   app.add_option("--idle-timeout-ms", limits.idle_timeout_ms, "close connections idle this long")
+      ->capture_default_str();
+  app.add_option("--first-frame-timeout-ms", limits.first_frame_timeout_ms,
+                 "close a new connection (or HTTP keep-alive connection) that sends no request this long")
       ->capture_default_str();
   app.add_option("--read-timeout-ms", limits.read_timeout_ms, "a started frame must arrive within this time")
       ->capture_default_str();

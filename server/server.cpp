@@ -14,6 +14,7 @@
 #include "fmt/format.h"
 #include "protocol/frame.hpp"
 #include "protocol/replies.hpp"
+#include "protocol/text.hpp"
 #include "server/connection.hpp"
 #include "server/tcp_session.hpp"
 #include "server/web_session.hpp"
@@ -43,6 +44,9 @@ struct Server::Impl {
   net::strand<net::io_context::executor_type> control{net::make_strand(ioc)};
   tcp::acceptor acceptor{control};
   std::unique_ptr<net::thread_pool> workers;
+  std::unique_ptr<FairScheduler> scheduler;
+  AddressTable addresses{config.limits.max_connections_per_address};
+  MemoryCeiling memory{config.limits.max_memory_bytes};
   std::unique_ptr<ServerContext> context;
   net::signal_set signals{control, SIGINT, SIGTERM};
   net::steady_timer drain_timer{control};
@@ -52,12 +56,18 @@ struct Server::Impl {
   std::list<std::weak_ptr<Connection>> connections;
   std::unique_ptr<WebServer> web;  // HTTP + WebSocket, when config.http_port is set
 
-  Impl(ServerConfig c, const ModelRegistry& m) : config(std::move(c)), models(m), engine(m) {}
+  Impl(ServerConfig c, const ModelRegistry& m)
+      : config(with_memory_limit(std::move(c))), models(m), engine(m) {}
+  static ServerConfig with_memory_limit(ServerConfig c) {
+    if (c.limits.max_memory_bytes == 0) c.limits.max_memory_bytes = default_memory_limit();
+    return c;
+  }
 
   void accept();
   void begin_stop();
-  // Refuses a connection over the limit with an error frame; returns false when it was refused.
-  bool admit(tcp::socket& socket, std::uint64_t number);
+  // The new connection's address slot, or an empty one after refusing it with an error frame (over
+  // the server's or its address's connection limit).
+  AddressTable::Slot admit(tcp::socket& socket, std::uint64_t number);
   void track(const std::shared_ptr<Connection>& connection) {
     std::lock_guard lock(connections_mutex);
     connections.remove_if([](const std::weak_ptr<Connection>& c) { return c.expired(); });
@@ -71,25 +81,26 @@ struct Server::Impl {
   }
 };
 
-bool Server::Impl::admit(tcp::socket& socket, std::uint64_t number) {
-  if (metrics.open_connections() < config.limits.max_connections) return true;
+AddressTable::Slot Server::Impl::admit(tcp::socket& socket, std::uint64_t number) {
+  std::string why;
+  AddressTable::Slot slot;
+  const std::string address = remote_address(socket);
+  if (metrics.open_connections() >= config.limits.max_connections) {
+    why = fmt::format("the server has {} connections, its limit", config.limits.max_connections);
+  } else if (!(slot = addresses.acquire(address))) {
+    why = fmt::format("{} holds {} connections, the limit per client address", address,
+                      config.limits.max_connections_per_address);
+  } else {
+    return slot;
+  }
   metrics.connection_refused();
-  spdlog::warn("conn={} refused: {} connections open, the limit", number, config.limits.max_connections);
+  spdlog::warn("conn={} from {} refused: {}", number, address, why);
   std::vector<std::uint8_t> frame;
   protocol::append_frame(
-      protocol::to_json(protocol::ErrorReply{protocol::ErrorKind::kLimitExceeded,
-                                             fmt::format("the server has {} connections, its limit",
-                                                         config.limits.max_connections)},
-                        std::nullopt),
-      {}, frame);
-  auto bytes = std::make_shared<std::vector<std::uint8_t>>(std::move(frame));
-  auto refused = std::make_shared<tcp::socket>(std::move(socket));
-  net::async_write(*refused, net::buffer(*bytes), [bytes, refused](error_code, std::size_t) {
-    error_code ignored;
-    refused->shutdown(tcp::socket::shutdown_both, ignored);
-    refused->close(ignored);
-  });
-  return false;
+      protocol::to_json(protocol::ErrorReply{protocol::ErrorKind::kLimitExceeded, why}, std::nullopt), {},
+      frame);
+  refuse_socket(std::move(socket), std::string(frame.begin(), frame.end()));
+  return slot;
 }
 
 void Server::Impl::accept() {
@@ -105,7 +116,9 @@ void Server::Impl::accept() {
     error_code ignored;
     socket.set_option(tcp::no_delay(true), ignored);
     const std::uint64_t number = next_connection++;
-    if (admit(socket, number)) track(start_tcp_session(*context, std::move(socket), number));
+    if (AddressTable::Slot slot = admit(socket, number)) {
+      track(start_tcp_session(*context, std::move(socket), number, std::move(slot)));
+    }
     accept();
   });
 }
@@ -182,8 +195,9 @@ void Server::run() {
   const unsigned workers =
       s.config.workers ? s.config.workers : std::max(1u, std::thread::hardware_concurrency());
   s.workers = std::make_unique<net::thread_pool>(workers);
-  s.context.reset(new ServerContext{s.config, s.models, s.engine, s.metrics, *s.workers,
-                                    [&s] { s.on_connection_closed(); }});
+  s.scheduler = std::make_unique<FairScheduler>(*s.workers, workers);
+  s.context.reset(new ServerContext{s.config, s.models, s.engine, s.metrics, s.addresses, *s.scheduler,
+                                    s.memory, [&s] { s.on_connection_closed(); }});
   s.signals.async_wait([&s](error_code ec, int signal) {
     if (ec) return;
     spdlog::info("received signal {}", signal);
@@ -194,9 +208,23 @@ void Server::run() {
     s.web->start(*s.context, WebHooks{[&s] { return s.next_connection++; },
                                       [&s](const std::shared_ptr<Connection>& c) { s.track(c); }});
   }
+  // Handlers catch what they can throw; should one still escape, the I/O thread logs it and runs on
+  // rather than ending the process with every client's connection.
+  auto run_io = [&s] {
+    for (;;) {
+      try {
+        s.ioc.run();
+        return;
+      } catch (const std::exception& e) {
+        spdlog::error("an I/O handler failed: {}", protocol::printable(e.what()));
+      } catch (...) {
+        spdlog::error("an I/O handler failed with an unknown exception");
+      }
+    }
+  };
   std::vector<std::thread> extra;
-  for (unsigned i = 1; i < std::max(1u, s.config.io_threads); ++i) extra.emplace_back([&s] { s.ioc.run(); });
-  s.ioc.run();
+  for (unsigned i = 1; i < std::max(1u, s.config.io_threads); ++i) extra.emplace_back(run_io);
+  run_io();
   for (auto& t : extra) t.join();
   s.workers->join();
 }

@@ -20,6 +20,11 @@ class ReplyOrder {
   std::uint64_t open();
   // Gives the reply for a place (once).
   void fill(std::uint64_t seq, std::vector<std::uint8_t> frame);
+  // Whether a place has its reply (popped places had theirs).
+  bool filled(std::uint64_t seq) const {
+    return seq < next_pop_ ||
+           (seq < next_seq_ && waiting_[static_cast<std::size_t>(seq - next_pop_)].has_value());
+  }
   // The next reply that may be written, if its turn has come.
   std::optional<std::vector<std::uint8_t>> pop();
   // Places opened and not yet popped: the connection's unanswered requests.

@@ -21,8 +21,8 @@ using boost::system::error_code;
 
 class TcpSession final : public Connection {
  public:
-  TcpSession(ServerContext& server, tcp::socket socket, std::uint64_t number)
-      : Connection(server, socket.get_executor(), number),
+  TcpSession(ServerContext& server, tcp::socket socket, std::uint64_t number, AddressTable::Slot slot)
+      : Connection(server, socket.get_executor(), number, std::move(slot)),
         socket_(std::move(socket)),
         deadline_(socket_.get_executor()) {}
 
@@ -41,9 +41,13 @@ class TcpSession final : public Connection {
   void do_read_header() {
     if (!may_read()) return;
     reading_ = true;
-    arm_deadline(server_.config.limits.idle_timeout_ms, /*idle=*/true);
-    net::async_read(socket_, net::buffer(header_),
-                    [self = shared_self()](error_code ec, std::size_t) { self->on_header(ec); });
+    // A connection that has sent nothing yet gets a short deadline: idle sockets must not hold the
+    // connection slots of clients that would use them.
+    const auto& limits = server_.config.limits;
+    arm_deadline(got_request() ? limits.idle_timeout_ms : limits.first_frame_timeout_ms, /*idle=*/true);
+    net::async_read(socket_, net::buffer(header_), [self = shared_self()](error_code ec, std::size_t) {
+      self->guarded("read header", [&] { self->on_header(ec); });
+    });
   }
 
   void on_header(error_code ec) {
@@ -52,15 +56,15 @@ class TcpSession final : public Connection {
     // Closed or draining while the header was on its way: read no further. (Reading on would also
     // arm a read deadline after close_transport cancelled it, and hold up a shutdown by that long.)
     if (ending()) return end(net::error::operation_aborted, "read header");
-    server_.metrics.bytes_in(header_.size());
-    auto header = protocol::decode_frame_header(header_, server_.config.limits.max_frame_bytes);
-    if (!header) return bad_frame(header.error().message);
+    const std::optional<protocol::FrameHeader> header = frame_header(header_);
+    if (!header) return;
     body_.resize(header->body_bytes());
     json_bytes_ = header->json_bytes;
     reading_ = true;
     arm_deadline(server_.config.limits.read_timeout_ms, /*idle=*/false);
-    net::async_read(socket_, net::buffer(body_),
-                    [self = shared_self()](error_code ec, std::size_t n) { self->on_body(ec, n); });
+    net::async_read(socket_, net::buffer(body_), [self = shared_self()](error_code ec, std::size_t n) {
+      self->guarded("read body", [&] { self->on_body(ec, n); });
+    });
   }
 
   void on_body(error_code ec, std::size_t n) {
@@ -89,7 +93,10 @@ class TcpSession final : public Connection {
         return self->arm_deadline(self->server_.config.limits.idle_timeout_ms,
                                   true);  // not idle: we owe replies
       }
-      spdlog::info("conn={} closed: {} timeout", self->number(), idle ? "idle" : "read");
+      spdlog::info("conn={} closed: {} timeout", self->number(),
+                   !idle                 ? "read"
+                   : self->got_request() ? "idle"
+                                         : "first frame");
       self->force_close();
     });
   }
@@ -97,7 +104,7 @@ class TcpSession final : public Connection {
   void write_frame(std::vector<std::uint8_t>& frame) override {
     net::async_write(socket_, net::buffer(frame), [self = shared_self()](error_code ec, std::size_t n) {
       if (ec) spdlog::debug("conn={} write failed: {}", self->number(), ec.message());
-      self->on_written(!ec, n);
+      self->guarded("write", [&] { self->on_written(!ec, n); });
     });
   }
   void stop_reading() override {
@@ -122,9 +129,9 @@ class TcpSession final : public Connection {
 
 }  // namespace
 
-std::shared_ptr<Connection> start_tcp_session(ServerContext& server, tcp::socket socket,
-                                              std::uint64_t number) {
-  auto session = std::make_shared<TcpSession>(server, std::move(socket), number);
+std::shared_ptr<Connection> start_tcp_session(ServerContext& server, tcp::socket socket, std::uint64_t number,
+                                              AddressTable::Slot slot) {
+  auto session = std::make_shared<TcpSession>(server, std::move(socket), number, std::move(slot));
   session->start();
   return session;
 }

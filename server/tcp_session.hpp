@@ -13,6 +13,6 @@ namespace mtlod::server {
 
 // Starts serving an accepted socket; the socket's executor must be a strand.
 std::shared_ptr<Connection> start_tcp_session(ServerContext& server, boost::asio::ip::tcp::socket socket,
-                                              std::uint64_t number);
+                                              std::uint64_t number, AddressTable::Slot slot);
 
 }  // namespace mtlod::server

@@ -22,6 +22,7 @@
 
 #include "fmt/format.h"
 #include "protocol/frame.hpp"
+#include "protocol/text.hpp"
 #include "spdlog/spdlog.h"
 
 namespace mtlod::server {
@@ -35,7 +36,6 @@ using tcp = net::ip::tcp;
 using boost::system::error_code;
 using Request = http::request<http::string_body>;
 
-constexpr auto kHttpTimeout = std::chrono::seconds(30);         // a request must arrive within this time
 constexpr auto kWebSocketHandshake = std::chrono::seconds(10);  // opening and closing handshakes
 constexpr std::size_t kHttpRequestMaxBytes = 16 * 1024;         // the viewer only sends small GETs
 
@@ -85,8 +85,8 @@ std::optional<std::filesystem::path> resolve_target(std::string_view target,
 
 class WebSocketSession final : public Connection {
  public:
-  WebSocketSession(ServerContext& server, tcp::socket socket, std::uint64_t number)
-      : Connection(server, socket.get_executor(), number),
+  WebSocketSession(ServerContext& server, tcp::socket socket, std::uint64_t number, AddressTable::Slot slot)
+      : Connection(server, socket.get_executor(), number, std::move(slot)),
         ws_(std::move(socket)),
         deadline_(ws_.get_executor()) {}
 
@@ -104,7 +104,9 @@ class WebSocketSession final : public Connection {
       // A binary message holds a whole frame: the header comes on top of the frame limit.
       ws.read_message_max(std::size_t{self->server_.config.limits.max_frame_bytes} +
                           protocol::kFrameHeaderBytes);
-      ws.async_accept(self->request_, [self](error_code ec) { self->on_accept(ec); });
+      ws.async_accept(self->request_, [self](error_code ec) {
+        self->guarded("websocket handshake", [&] { self->on_accept(ec); });
+      });
     });
   }
 
@@ -127,7 +129,9 @@ class WebSocketSession final : public Connection {
     if (!may_read()) return;
     reading_ = true;
     arm_idle_deadline();
-    ws_.async_read(buffer_, [self = shared_self()](error_code ec, std::size_t n) { self->on_read(ec, n); });
+    ws_.async_read(buffer_, [self = shared_self()](error_code ec, std::size_t n) {
+      self->guarded("websocket read", [&] { self->on_read(ec, n); });
+    });
   }
 
   void on_read(error_code ec, std::size_t n) {
@@ -142,41 +146,22 @@ class WebSocketSession final : public Connection {
     server_.metrics.bytes_in(n);
     if (ending()) return buffer_.clear();  // draining: nothing new is taken
     const auto data = buffer_.cdata();
-    const std::string_view message(static_cast<const char*>(data.data()), data.size());
-    if (ws_.got_text()) {
-      handle_frame(message, now_ns());
-    } else {
-      // A binary message is a whole frame: its header must announce exactly the bytes that follow.
-      if (message.size() < protocol::kFrameHeaderBytes) {
-        buffer_.clear();
-        return bad_frame(fmt::format("a binary message of {} bytes is shorter than the {}-byte frame header",
-                                     message.size(), protocol::kFrameHeaderBytes));
-      }
-      const auto* bytes = reinterpret_cast<const std::uint8_t*>(message.data());
-      auto header = protocol::decode_frame_header(
-          std::span<const std::uint8_t, protocol::kFrameHeaderBytes>(bytes, protocol::kFrameHeaderBytes),
-          server_.config.limits.max_frame_bytes);
-      const std::size_t body_bytes = message.size() - protocol::kFrameHeaderBytes;
-      if (!header || header->body_bytes() != body_bytes) {
-        const std::string reason =
-            header ? fmt::format("the frame header announces {} bytes but the message holds {} after it",
-                                 header->body_bytes(), body_bytes)
-                   : header.error().message;
-        buffer_.clear();
-        return bad_frame(reason);
-      }
-      handle_frame(message.substr(protocol::kFrameHeaderBytes, header->json_bytes), now_ns());
-    }
+    const bool more =
+        handle_message(ws_.got_text(), {static_cast<const char*>(data.data()), data.size()}, now_ns());
     buffer_.clear();
-    do_read();
+    if (more) do_read();
   }
 
   void arm_idle_deadline() {
-    deadline_.expires_after(std::chrono::milliseconds(server_.config.limits.idle_timeout_ms));
+    // Until its first message a connection gets the short first-frame deadline, as over TCP.
+    const auto& limits = server_.config.limits;
+    deadline_.expires_after(
+        std::chrono::milliseconds(got_request() ? limits.idle_timeout_ms : limits.first_frame_timeout_ms));
     deadline_.async_wait([self = shared_self()](error_code ec) {
       if (ec || !self->reading_) return;  // cancelled, or a message has arrived since
       if (self->waiting_on_server()) return self->arm_idle_deadline();  // not idle: we owe replies
-      spdlog::info("conn={} closed: idle timeout", self->number());
+      spdlog::info("conn={} closed: {} timeout", self->number(),
+                   self->got_request() ? "idle" : "first frame");
       self->force_close();
     });
   }
@@ -191,7 +176,7 @@ class WebSocketSession final : public Connection {
     auto done = [self = shared_self()](error_code ec, std::size_t n) {
       self->write_pending_ = false;
       if (ec) spdlog::debug("conn={} websocket write failed: {}", self->number(), ec.message());
-      self->on_written(!ec, n);
+      self->guarded("websocket write", [&] { self->on_written(!ec, n); });
     };
     if (has_payload) {
       ws_.binary(true);
@@ -252,7 +237,7 @@ struct WebServer::Impl : std::enable_shared_from_this<WebServer::Impl> {
     context->metrics.connection_refused();
     return false;
   }
-  void upgrade(tcp::socket socket, Request request);
+  void upgrade(tcp::socket socket, Request request, AddressTable::Slot slot);
 
   boost::asio::io_context& ioc;
   WebConfig config;
@@ -266,8 +251,8 @@ struct WebServer::Impl : std::enable_shared_from_this<WebServer::Impl> {
 
 class HttpSession : public std::enable_shared_from_this<HttpSession> {
  public:
-  HttpSession(tcp::socket socket, std::shared_ptr<WebServer::Impl> server)
-      : stream_(std::move(socket)), server_(std::move(server)) {}
+  HttpSession(tcp::socket socket, std::shared_ptr<WebServer::Impl> server, AddressTable::Slot slot)
+      : stream_(std::move(socket)), server_(std::move(server)), slot_(std::move(slot)) {}
 
   void start() {
     net::dispatch(stream_.get_executor(), [self = shared_from_this()] { self->do_read(); });
@@ -282,9 +267,17 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     parser_.emplace();
     parser_->header_limit(kHttpRequestMaxBytes);
     parser_->body_limit(kHttpRequestMaxBytes);
-    stream_.expires_after(kHttpTimeout);
-    http::async_read(stream_, buffer_, *parser_,
-                     [self = shared_from_this()](error_code ec, std::size_t) { self->on_read(ec); });
+    // Each request must arrive within the first-frame deadline: idle sockets hold no slot for long.
+    stream_.expires_after(std::chrono::milliseconds(server_->context->config.limits.first_frame_timeout_ms));
+    http::async_read(stream_, buffer_, *parser_, [self = shared_from_this()](error_code ec, std::size_t) {
+      // As for protocol connections: a throw while answering ends this HTTP connection only.
+      try {
+        self->on_read(ec);
+      } catch (const std::exception& e) {
+        spdlog::error("http request failed: {}; closing the connection", protocol::printable(e.what()));
+        self->close_socket();
+      }
+    });
   }
 
   void on_read(error_code ec) {
@@ -313,7 +306,7 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
                                   server_->context->config.limits.max_connections));
       }
       stream_.expires_never();
-      return server_->upgrade(stream_.release_socket(), std::move(request));
+      return server_->upgrade(stream_.release_socket(), std::move(request), std::move(slot_));
     }
     respond(request);
   }
@@ -339,7 +332,8 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     const auto path = resolve_target(target, server_->config.root);
     std::error_code missing;
     if (!path || !std::filesystem::is_regular_file(*path, missing)) {
-      return send(text_response(request, http::status::not_found, fmt::format("{} not found\n", target)));
+      return send(text_response(request, http::status::not_found,
+                                fmt::format("{} not found\n", protocol::printable(target))));
     }
     error_code ec;
     http::file_body::value_type body;
@@ -386,6 +380,7 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
   beast::flat_buffer buffer_;
   std::optional<http::request_parser<http::string_body>> parser_;
   std::shared_ptr<WebServer::Impl> server_;
+  AddressTable::Slot slot_;  // moves to the WebSocket session on an upgrade
 };
 
 void WebServer::Impl::accept() {
@@ -399,7 +394,15 @@ void WebServer::Impl::accept() {
         if (self->stopping) return;
         error_code ignored;
         socket.set_option(tcp::no_delay(true), ignored);  // as for TCP sessions: no Nagle delay on replies
-        auto session = std::make_shared<HttpSession>(std::move(socket), self);
+        AddressTable::Slot slot = self->context->addresses.acquire(remote_address(socket));
+        if (!slot) {
+          self->context->metrics.connection_refused();
+          refuse_socket(std::move(socket),
+                        "HTTP/1.1 503 Service Unavailable\r\nConnection: close\r\n"
+                        "Content-Length: 0\r\n\r\n");
+          return self->accept();
+        }
+        auto session = std::make_shared<HttpSession>(std::move(socket), self, std::move(slot));
         {
           std::lock_guard lock(self->sessions_mutex);
           self->sessions.remove_if([](const std::weak_ptr<HttpSession>& s) { return s.expired(); });
@@ -410,8 +413,9 @@ void WebServer::Impl::accept() {
       });
 }
 
-void WebServer::Impl::upgrade(tcp::socket socket, Request request) {
-  auto session = std::make_shared<WebSocketSession>(*context, std::move(socket), hooks.next_number());
+void WebServer::Impl::upgrade(tcp::socket socket, Request request, AddressTable::Slot slot) {
+  auto session =
+      std::make_shared<WebSocketSession>(*context, std::move(socket), hooks.next_number(), std::move(slot));
   hooks.track(session);
   session->start(std::move(request));
   // A shutdown that began while this upgrade was on its way has not seen the connection.

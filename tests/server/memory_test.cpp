@@ -1,0 +1,76 @@
+// The engine's memory estimate, which the server's ceiling (--max-memory) reserves before an
+// extraction runs, must bound what the extraction really holds afterwards: the session's bytes
+// and the worker's scratch, as the engine itself measures them.
+#include <gtest/gtest.h>
+
+#include "core/io/mt_file.hpp"
+#include "core/mesh_gen.hpp"
+#include "core/mt_builder.hpp"
+#include "protocol/camera.hpp"
+#include "server/engine.hpp"
+#include "server/model_registry.hpp"
+#include "tests/core/test_meshes.hpp"
+
+namespace mtlod::server {
+namespace {
+
+TEST(MemoryEstimate, BoundsSessionAndScratchOfExtremeRequests) {
+  const auto dir = test::scratch_dir("memory-estimate");
+  core::GenerateOptions shape;
+  shape.shape = core::Shape::kShell;
+  shape.target_triangles = 20000;
+  auto mt = core::build_mt(core::generate_mesh(shape));
+  ASSERT_TRUE(mt.ok()) << mt.error().message;
+  ASSERT_TRUE(core::io::write_mt_file(dir / "shell.mt", *mt).ok());
+  ModelRegistry models;
+  ASSERT_TRUE(models.add_file(dir / "shell.mt").ok());
+  const Model& model = *models.find("shell");
+  Engine engine(models);
+
+  protocol::Extract base;
+  base.model = "shell";
+  protocol::look_at_camera(protocol::frame_bounds({model.bounds_min[0], model.bounds_min[1], model.bounds_min[2]},
+                                                  {model.bounds_max[0], model.bounds_max[1], model.bounds_max[2]}),
+                           1.0, base.view, base.projection);
+  std::vector<protocol::Extract> requests;
+  for (const std::uint32_t side : {16u, 256u, 1024u, 2048u}) {
+    for (const bool delta : {false, true}) {
+      protocol::Extract e = base;
+      e.grid = {side, side};
+      e.error = 0;  // every triangle: the largest cut
+      e.error_unit = protocol::ErrorUnit::kModel;
+      e.delta = delta;
+      requests.push_back(e);
+      e.error = 1;
+      e.error_unit = protocol::ErrorUnit::kPixels;
+      e.criteria.silhouette = protocol::Silhouette{2, 0};
+      e.criteria.focus = {protocol::Focus{0.5, 0.5, 20, 0.1}};
+      requests.push_back(e);
+    }
+  }
+  SessionCut session;  // one session through all of them, as a connection would keep it
+  for (const auto& request : requests) {
+    auto outcome = engine.extract(request, false, session);
+    ASSERT_TRUE(std::holds_alternative<ExtractOutcome>(outcome));
+    const auto& reply = std::get<ExtractOutcome>(outcome).reply;
+    const std::uint64_t estimate = engine.estimate_bytes(request);
+    EXPECT_LE(reply.session_bytes + reply.scratch_bytes, estimate)
+        << "grid " << request.grid[0] << " error " << request.error << " delta " << request.delta
+        << ": session " << reply.session_bytes << " scratch " << reply.scratch_bytes;
+    EXPECT_EQ(reply.session_bytes, session.memory_bytes());
+    // Not wildly above either: the ceiling would refuse work it has room for.
+    EXPECT_LT(estimate, 8 * (reply.session_bytes + reply.scratch_bytes) + (std::uint64_t{4} << 20));
+  }
+  // A worker keeps modest scratch for its next request and frees a huge grid's.
+  Engine::settle_worker_scratch();
+  protocol::Extract huge = requests.back();  // silhouette and focus transforms
+  huge.grid = {4096, 4096};
+  auto outcome = engine.extract(huge, false, session);
+  ASSERT_TRUE(std::holds_alternative<ExtractOutcome>(outcome));
+  const std::uint64_t used = std::get<ExtractOutcome>(outcome).reply.scratch_bytes;
+  ASSERT_GT(used, Engine::kRetainedScratchBytes) << "the request does not exercise the release";
+  EXPECT_LT(Engine::settle_worker_scratch(), 0) << "the 4096² grid's " << used << " bytes of scratch were kept";
+}
+
+}  // namespace
+}  // namespace mtlod::server
