@@ -26,7 +26,7 @@ struct BuildOptions {
   // Share of each pass's candidate collapses (cheapest first) that is attempted before the next
   // pass re-sorts. Smaller follows the quadric order more closely but takes more passes. (On the
   // shared scans, 0.5 gives cuts within a few percent of 0.3's error at equal triangle count, in
-  // 41 passes instead of 48 on the 871k dragon; README "MT build".)
+  // 41 passes instead of 48 on the 871k dragon; tests/bench/BENCHMARKS.md, "MT build and refinement".)
   float pass_fraction = 0.5f;
   // A collapse is refused when a surviving triangle's normal turns by more than acos(min_normal_cos).
   float min_normal_cos = 0.2f;

@@ -2,9 +2,9 @@
 // "not from the full-resolution mesh per request: use a cut whose triangles are about a cell in
 // size"). A few cuts of growing size are built once per model; a request rasterises the coarsest
 // one with a triangle per four covered grid cells, so the occupancy costs a rasterisation, not a
-// refinement. Measured on the dragon at 256² (README, "grid stages", BM_OccupancyFromMtCut256): the
-// 16k level a request takes there moves 16 % of the silhouette labels, none by more than a pixel,
-// against the full 871k mesh; the 8k level 38 %, none by more; the 4k one 18 % by more.
+// refinement. Measured on the dragon at 256² (tests/bench/BENCHMARKS.md, "Grid stages",
+// BM_OccupancyFromMtCut256): the 16k level a request takes there moves 16 % of the silhouette labels, none by
+// more than a pixel, against the full 871k mesh; the 8k level 38 %, none by more; the 4k one 18 % by more.
 #pragma once
 
 #include <cstddef>
@@ -22,7 +22,7 @@ namespace mtlod::core {
 // Its holes are capped (cap_holes), so that the surface is closed and a request rasterises only
 // the triangles facing one way (rasterize_occupancy_compact's `closed`); cap triangles are not part
 // of the cut, and cover only cells the cut's own triangles cover from most viewpoints (they close a
-// scan's holes; README, "grid stages", measures the labels against the full mesh).
+// scan's holes; tests/bench/BENCHMARKS.md, "Grid stages", measures the labels against the full mesh).
 struct OccupancyLevel {
   std::vector<float> positions;
   std::vector<std::uint32_t> triangles;  // 3 indices into positions per triangle: the cut's, then caps

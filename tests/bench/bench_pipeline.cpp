@@ -196,8 +196,8 @@ void BM_RefineAfterSmallMove(benchmark::State& state) {
 }
 BENCHMARK(BM_RefineAfterSmallMove)->Arg(0)->Arg(1)->ArgName("dynamic")->Unit(benchmark::kMillisecond);
 
-// mtlod-gaze's criteria (README, "Gaze"): 0.5 px, silhouette 2,0.25, full resolution within 20 px
-// of the gaze.
+// mtlod-gaze's criteria (tests/bench/BENCHMARKS.md, "Gaze through the server"): 0.5 px, silhouette 2,0.25,
+// full resolution within 20 px of the gaze.
 protocol::Extract gaze_request(const Model& m) {
   protocol::Extract e = request_for(m, 0.5);
   e.criteria.silhouette = protocol::Silhouette{2, 0.25};
