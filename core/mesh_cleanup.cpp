@@ -1,4 +1,4 @@
-// Topology analysis and clean-up of raw scanned meshes (foundation issue, "Mesh I/O").
+// Topology analysis and clean-up of raw scanned meshes.
 // Edges are found by sorting 64-bit keys rather than hashing: one pass, no per-edge allocation,
 // and the 871k-triangle dragon analyses in well under a second.
 #include "core/mesh_cleanup.hpp"

@@ -1,4 +1,4 @@
-// Topology analysis and clean-up of raw scanned meshes (foundation issue, "Mesh I/O").
+// Topology analysis and clean-up of raw scanned meshes.
 // Every fix is counted and reported, never done silently: real scans (see the shared meshes'
 // README) carry unused vertices, duplicate positions, holes and non-manifold edges.
 #pragma once

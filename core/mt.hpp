@@ -20,6 +20,9 @@
 namespace mtlod::core {
 
 inline constexpr std::uint32_t kNoNode = std::numeric_limits<std::uint32_t>::max();
+// "None" for a vertex or a face index (the same value: ids of each kind stay below it).
+inline constexpr std::uint32_t kNoVertex = std::numeric_limits<std::uint32_t>::max();
+inline constexpr std::uint32_t kNoFace = std::numeric_limits<std::uint32_t>::max();
 
 // Distinct id types where node, triangle and vertex ids meet in one signature.
 struct NodeId {
@@ -38,7 +41,7 @@ struct Mt {
   std::vector<std::uint8_t> colors;  // empty, or r, g, b per vertex
 
   // Nodes (node_count() of them), topological order: every parent has a smaller id.
-  std::vector<std::uint32_t> node_vertex;            // split vertex of node n ≥ 1; kNoNode for the root
+  std::vector<std::uint32_t> node_vertex;            // split vertex of node n ≥ 1; kNoVertex for the root
   std::vector<float> node_error;                     // error of the triangles node n removes (model units)
   std::vector<std::uint32_t> node_triangle_offsets;  // node_count()+1: node n creates [off[n], off[n+1])
   std::vector<std::uint32_t> node_parent_offsets;    // node_count()+1, CSR into node_parents

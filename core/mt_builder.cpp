@@ -258,7 +258,7 @@ class Builder {
   // Per-chunk scratch of the concurrent phases.
   struct Moving {
     float position[3];
-    std::uint32_t old_face;  // index into the new faces of its old face when that survives, else kNoNode
+    std::uint32_t old_face;  // index into the new faces of its old face when that survives, else kNoFace
     std::uint32_t new_face;  // index into the new faces
   };
   struct Scratch {
@@ -318,7 +318,7 @@ class Builder {
   void prefetch_fan_data(std::uint32_t u) {
     for (std::uint32_t i = adjacency_begin_[u]; i < adjacency_end_[u]; ++i) {
       const std::uint32_t f = adjacency_[i].face;
-      __builtin_prefetch(&mt_killed_by_[face_mt_[f]], 1);
+      __builtin_prefetch(&creating_collapse_[face_mt_[f]], 1);
       if (face_points_[f] > 0) __builtin_prefetch(&points_[3 * std::size_t{face_first_point_[f]}]);
     }
   }
@@ -342,12 +342,13 @@ class Builder {
   std::vector<std::uint32_t> face_mt_;  // MT triangle currently in each face slot
   std::vector<float> face_error_;       // its error: that of the collapse that made it, 0 for input
 
-  // MT triangles in order of appearance: vertices, and the collapses (index + 1, 0 = none) that
-  // made and removed them during simplification.
+  // MT triangles in order of appearance: vertices, and the collapses (index + 1, 0 = none) whose
+  // MT nodes remove and create them. A collapse's node undoes it: it removes the triangles the
+  // collapse made and creates those the collapse took away.
   // Grown once per pass for the chosen collapses, which write every new slot: no zero fill first.
   GrowOnlyVector<std::uint32_t> mt_vertices_;
-  GrowOnlyVector<std::uint32_t> mt_made_by_;
-  GrowOnlyVector<std::uint32_t> mt_killed_by_;
+  GrowOnlyVector<std::uint32_t> removing_collapse_;
+  GrowOnlyVector<std::uint32_t> creating_collapse_;
   std::vector<std::uint32_t> collapse_u_;
   std::vector<float> collapse_error_;
 
@@ -368,7 +369,7 @@ class Builder {
   std::vector<std::uint8_t> kind_;
   std::vector<std::uint32_t> touched_;  // pass number that last changed a vertex's fan
   // For a vertex touched in the current pass only as a corner of one chosen collapse's fan: that
-  // collapse's v; kNoNode when it is an end of a chosen collapse or in two chosen fans.
+  // collapse's v; kNoVertex when it is an end of a chosen collapse or in two chosen fans.
   std::vector<std::uint32_t> ring_target_;
   std::uint32_t pass_ = 0;
   Stamps chooser_stamps_, guesser_stamps_;
@@ -678,11 +679,11 @@ void Builder::find_partner(std::uint32_t u, const std::uint32_t* boundary_ends) 
 }
 
 bool Builder::can_collapse(std::uint32_t u, std::uint32_t v, Stamps& stamps) const {
-  std::vector<std::uint32_t>& link_stamp_ = stamps.link;
+  std::vector<std::uint32_t>& link_stamp = stamps.link;
   const std::uint32_t link = ++stamps.stamp;
-  link_stamp_[v] = link;
+  link_stamp[v] = link;
   for (std::uint32_t i = adjacency_begin_[v]; i < adjacency_end_[v]; ++i)
-    link_stamp_[adjacency_[i].next] = link_stamp_[adjacency_[i].prev] = link;
+    link_stamp[adjacency_[i].next] = link_stamp[adjacency_[i].prev] = link;
   std::uint32_t opposite[2] = {0, 0};
   int opposites = 0;
   for (std::uint32_t i = adjacency_begin_[u]; i < adjacency_end_[u]; ++i) {
@@ -701,7 +702,7 @@ bool Builder::can_collapse(std::uint32_t u, std::uint32_t v, Stamps& stamps) con
     if (a == v || b == v) continue;
     // (A common neighbour met twice gets the same answer twice.)
     for (const std::uint32_t w : {a, b})
-      if (link_stamp_[w] == link &&
+      if (link_stamp[w] == link &&
           !((opposites > 0 && w == opposite[0]) || (opposites > 1 && w == opposite[1])))
         return false;
     ++survivors;
@@ -717,7 +718,7 @@ bool Builder::can_collapse(std::uint32_t u, std::uint32_t v, Stamps& stamps) con
     if (!(new_length > 1e-6 * longest)) return false;
     if (!(dot(old_normal, new_normal) > options_.min_normal_cos * old_length * new_length)) return false;
     // The new face (v, a, b) must not repeat a face v already has (a tetrahedron folding flat).
-    if (link_stamp_[a] == link && link_stamp_[b] == link) {
+    if (link_stamp[a] == link && link_stamp[b] == link) {
       for (std::uint32_t j = adjacency_begin_[v]; j < adjacency_end_[v]; ++j) {
         const Corner& t = adjacency_[j];  // the face (v, next, prev)
         const bool has_a = v == a || t.next == a || t.prev == a;
@@ -760,7 +761,7 @@ void Builder::choose_collapses(std::size_t quota) {
     if (is_touched(c.u)) return true;
     if (!is_touched(c.v)) return false;
     const std::uint32_t w = target_of(c.v);
-    if (w == kNoNode) return true;
+    if (w == kNoVertex) return true;
     for (std::uint32_t j = adjacency_begin_[c.u]; j < adjacency_end_[c.u]; ++j)
       if (adjacency_[j].next == w || adjacency_[j].prev == w) return true;
     return false;
@@ -768,7 +769,7 @@ void Builder::choose_collapses(std::size_t quota) {
   auto choose = [&] {
     std::size_t ordered = 0;
     std::uint32_t tag = std::uint32_t(collapse_u_.size()) + 1;
-    std::uint32_t triangle = std::uint32_t(mt_made_by_.size());
+    std::uint32_t triangle = std::uint32_t(removing_collapse_.size());
     chosen_.clear();
     for (std::size_t i = 0; i < candidates_.size() && ordered < quota; ++i) {
       chooser_at.store(i, std::memory_order_relaxed);
@@ -806,14 +807,14 @@ void Builder::choose_collapses(std::size_t quota) {
       chosen_.push_back({c.u, c.v, tag++, triangle, 1});  // u joins the points (its fan's: counted later)
       for (const std::uint32_t x : {c.u, c.v}) {
         touch(x);
-        set_target(x, kNoNode);
+        set_target(x, kNoVertex);
       }
       auto ring_touch = [&](std::uint32_t x) {
         if (!is_touched(x)) {
           touch(x);
           set_target(x, c.v);
         } else if (target_of(x) != c.v) {
-          set_target(x, kNoNode);
+          set_target(x, kNoVertex);
         }
       };
       for (std::uint32_t j = adjacency_begin_[c.u]; j < adjacency_end_[c.u]; ++j) {
@@ -867,25 +868,25 @@ void Builder::collapse(const Chosen& chosen, Scratch& scratch) {
   // Only faces of u's fan and vertices assigned to them are written, and the pass's choice keeps
   // the fans of its collapses disjoint, so collapses of one pass may run concurrently.
   const std::uint32_t u = chosen.u, v = chosen.v, tag = chosen.tag;
-  std::vector<Moving>& moving_ = scratch.moving;
+  std::vector<Moving>& moving = scratch.moving;
   std::vector<std::uint32_t>& new_faces_ = scratch.new_faces;
   // Errors never drop from a node to its children, so the fan's largest error is a floor.
   float fan_error = 0;
   // Original vertices that leave with the fan: u itself and those assigned to u's faces.
-  moving_.clear();
-  moving_.push_back({{position(u)[0], position(u)[1], position(u)[2]}, kNoNode, 0});
+  moving.clear();
+  moving.push_back({{position(u)[0], position(u)[1], position(u)[2]}, kNoFace, 0});
   new_faces_.clear();
   std::uint32_t triangle = chosen.first_triangle;
   for (std::uint32_t i = adjacency_begin_[u]; i < adjacency_end_[u]; ++i) {
     const std::uint32_t f = adjacency_[i].face;
     std::uint32_t* t = &working_[3 * std::size_t{f}];
-    mt_killed_by_[face_mt_[f]] = tag;
+    creating_collapse_[face_mt_[f]] = tag;
     fan_error = std::max(fan_error, face_error_[f]);
     const bool survives = !(t[0] == v || t[1] == v || t[2] == v);
-    const std::uint32_t local = survives ? std::uint32_t(new_faces_.size()) : kNoNode;
+    const std::uint32_t local = survives ? std::uint32_t(new_faces_.size()) : kNoFace;
     const float* run = &points_[3 * std::size_t{face_first_point_[f]}];
     for (std::uint32_t k = 0; k < face_points_[f]; ++k, run += 3)
-      moving_.push_back({{run[0], run[1], run[2]}, local, 0});
+      moving.push_back({{run[0], run[1], run[2]}, local, 0});
     face_points_[f] = 0;
     if (!survives) {
       face_alive_[f] = 0;
@@ -896,8 +897,8 @@ void Builder::collapse(const Chosen& chosen, Scratch& scratch) {
     new_faces_.push_back(f);
     face_mt_[f] = triangle;
     std::copy(t, t + 3, &mt_vertices_[3 * std::size_t{triangle}]);
-    mt_made_by_[triangle] = tag;
-    mt_killed_by_[triangle] = 0;
+    removing_collapse_[triangle] = tag;
+    creating_collapse_[triangle] = 0;
     ++triangle;
   }
 
@@ -913,9 +914,9 @@ void Builder::collapse(const Chosen& chosen, Scratch& scratch) {
     within[i].set(position(t[0]), position(t[1]), position(t[2]));
   }
   double measured = fan_error;
-  for (Moving& m : moving_) {
+  for (Moving& m : moving) {
     const float* p = m.position;
-    std::uint32_t best_face = kNoNode;
+    std::uint32_t best_face = kNoFace;
     double best = std::numeric_limits<double>::infinity();
     const double floor2 = measured * measured;
     auto try_face = [&](std::uint32_t i) {
@@ -928,7 +929,7 @@ void Builder::collapse(const Chosen& chosen, Scratch& scratch) {
       const double d2 = point_triangle_distance_squared(p, position(t[0]), position(t[1]), position(t[2]));
       if (d2 < best) best = d2, best_face = i;
     };
-    if (m.old_face != kNoNode) try_face(m.old_face);
+    if (m.old_face != kNoFace) try_face(m.old_face);
     for (std::uint32_t i = 0; i < new_faces_.size() && !(best <= floor2); ++i)
       if (i != m.old_face) try_face(i);
     // best <= measured² gives sqrt(best) <= measured (sqrt is correctly rounded): no sqrt on the
@@ -940,7 +941,7 @@ void Builder::collapse(const Chosen& chosen, Scratch& scratch) {
   // the linked lists of earlier versions gave, so their MTs are reproduced exactly).
   std::vector<std::uint32_t>& ends = scratch.new_face_ends;
   ends.assign(new_faces_.size(), 0);
-  for (const Moving& m : moving_) ++ends[m.new_face];
+  for (const Moving& m : moving) ++ends[m.new_face];
   std::uint32_t next_point = chosen.first_point;
   for (std::size_t i = 0; i < new_faces_.size(); ++i) {
     face_first_point_[new_faces_[i]] = next_point;
@@ -948,7 +949,7 @@ void Builder::collapse(const Chosen& chosen, Scratch& scratch) {
     next_point += ends[i];
     ends[i] = next_point;
   }
-  for (const Moving& m : moving_)
+  for (const Moving& m : moving)
     std::copy(m.position, m.position + 3, &points_[3 * std::size_t{--ends[m.new_face]}]);
   // Round up so the float bound is never below the computed distance.
   const float error = std::nextafter(float(measured), std::numeric_limits<float>::max());
@@ -1007,7 +1008,7 @@ Mt Builder::assemble(std::vector<std::uint32_t>* vertex_ids) {
 
   const std::uint32_t k = std::uint32_t(collapse_u_.size());
   const std::size_t node_count = std::size_t{k} + 1;
-  const std::size_t mt_count = mt_made_by_.size();
+  const std::size_t mt_count = removing_collapse_.size();
   // Nodes by decreasing error, ties by reverse collapse order. This is a topological order (a
   // parent's error is at least its child's, and on a tie the parent collapsed later), and it makes
   // the static cut for a uniform threshold e a prefix: the root and every node with error > e. Cuts
@@ -1028,8 +1029,8 @@ Mt Builder::assemble(std::vector<std::uint32_t>* vertex_ids) {
   GrowOnlyVector<std::uint32_t> creators(mt_count), removers(mt_count);  // written below
   for_chunks(mt_count, [&](std::size_t, std::size_t begin, std::size_t end) {
     for (std::size_t t = begin; t < end; ++t) {
-      creators[t] = mt_killed_by_[t] == 0 ? 0u : node_of[mt_killed_by_[t] - 1];
-      removers[t] = mt_made_by_[t] == 0 ? kNoNode : node_of[mt_made_by_[t] - 1];
+      creators[t] = creating_collapse_[t] == 0 ? 0u : node_of[creating_collapse_[t] - 1];
+      removers[t] = removing_collapse_[t] == 0 ? kNoNode : node_of[removing_collapse_[t] - 1];
     }
   });
 
@@ -1037,7 +1038,7 @@ Mt Builder::assemble(std::vector<std::uint32_t>* vertex_ids) {
   // vertex as id R + n − 1, then the vertices no triangle uses. A refinement reads each node's
   // split vertex (its position, its allowed error) as it reaches the node, and it reaches nodes
   // roughly in id order, so these reads walk the vertex arrays as they walk the node arrays.
-  std::vector<std::uint32_t> vertex_id(vertex_count_, kNoNode);
+  std::vector<std::uint32_t> vertex_id(vertex_count_, kNoVertex);
   {
     std::vector<std::uint8_t> kind(vertex_count_, 0);  // 0 unused, 1 in the root mesh, 2 split
     for (const std::uint32_t v : mesh_.triangles) kind[v] = 1;
@@ -1063,7 +1064,7 @@ Mt Builder::assemble(std::vector<std::uint32_t>* vertex_ids) {
 
   mt.node_vertex.resize(node_count);
   mt.node_error.resize(node_count);
-  mt.node_vertex[0] = kNoNode;
+  mt.node_vertex[0] = kNoVertex;
   mt.node_error[0] = 0;
   for (std::uint32_t c = 0; c < k; ++c) {
     mt.node_vertex[node_of[c]] = vertex_id[collapse_u_[c]];
@@ -1113,7 +1114,7 @@ Mt Builder::assemble(std::vector<std::uint32_t>* vertex_ids) {
   // node's list comes from one run; runs are independent.
   std::vector<std::uint32_t> run_begin(std::size_t{k} + 1, std::uint32_t(mt_count));
   for (std::size_t t = mt_count; t-- > 0;)
-    if (mt_made_by_[t] != 0) run_begin[mt_made_by_[t] - 1] = std::uint32_t(t);
+    if (removing_collapse_[t] != 0) run_begin[removing_collapse_[t] - 1] = std::uint32_t(t);
   for (std::uint32_t c = k; c-- > 0;) run_begin[c] = std::min(run_begin[c], run_begin[c + 1]);
   const std::uint32_t parents_base = run_begin[0];  // mt_count when there are no collapses
   std::vector<std::uint32_t> parents(mt_count - parents_base);
@@ -1124,7 +1125,7 @@ Mt Builder::assemble(std::vector<std::uint32_t>* vertex_ids) {
       std::uint32_t* out = parents.data() + (run_begin[c] - parents_base);
       std::uint32_t* const start = out;
       for (std::uint32_t t = run_begin[c]; t < run_begin[c + 1]; ++t) {
-        assert(mt_made_by_[t] == c + 1);
+        assert(removing_collapse_[t] == c + 1);
         *out++ = creators[t];
       }
       std::sort(start, out);
@@ -1156,7 +1157,7 @@ Result<Mt> Builder::run(BuildStats* stats, std::vector<std::uint32_t>* vertex_id
   if (!mesh_.colors.empty() && mesh_.colors.size() != mesh_.positions.size())
     return make_error(ErrorCode::kInvalidArgument, "mesh colors do not match its vertex count");
   // Each collapse adds fewer faces than the input has corners, so 5 × triangles bounds every count.
-  if (vertex_count_ >= kNoNode || face_count_ * 15 >= kNoNode)
+  if (vertex_count_ >= kNoVertex || face_count_ * 15 >= kNoFace)
     return make_error(ErrorCode::kLimitExceeded,
                       "mesh with " + std::to_string(face_count_) + " triangles exceeds 32-bit MT ids");
   for (std::size_t i = 0; i < mesh_.positions.size(); ++i)
@@ -1183,10 +1184,10 @@ Result<Mt> Builder::run(BuildStats* stats, std::vector<std::uint32_t>* vertex_id
       alive_face_list_.resize(face_count_);
       std::iota(alive_face_list_.begin(), alive_face_list_.end(), 0u);
       face_error_.assign(face_count_, 0.0f);
-      mt_made_by_.reserve(3 * face_count_);
-      mt_killed_by_.reserve(3 * face_count_);
-      mt_made_by_.assign(face_count_, 0);
-      mt_killed_by_.assign(face_count_, 0);
+      removing_collapse_.reserve(3 * face_count_);
+      creating_collapse_.reserve(3 * face_count_);
+      removing_collapse_.assign(face_count_, 0);
+      creating_collapse_.assign(face_count_, 0);
       face_first_point_.assign(face_count_, 0);
       face_points_.assign(face_count_, 0);
     } else {
@@ -1204,7 +1205,7 @@ Result<Mt> Builder::run(BuildStats* stats, std::vector<std::uint32_t>* vertex_id
       second_half_.assign(vertex_count_, 0);
       vertex_dead_.assign(vertex_count_, 0);
       touched_.assign(vertex_count_, 0);
-      ring_target_.assign(vertex_count_, kNoNode);
+      ring_target_.assign(vertex_count_, kNoVertex);
       for (Stamps* stamps : {&chooser_stamps_, &guesser_stamps_}) stamps->link.assign(vertex_count_, 0);
       best_.assign(vertex_count_, Candidate{0, 0, 0});
     }
@@ -1226,7 +1227,8 @@ Result<Mt> Builder::run(BuildStats* stats, std::vector<std::uint32_t>* vertex_id
     for_chunks(alive_vertex_list_.size(), [&](std::size_t, std::size_t begin, std::size_t end) {
       for (std::size_t i = begin; i < end; ++i) {
         const std::uint32_t u = alive_vertex_list_[i];
-        if (pass_ == 1 || (touched_[u] == pass_ - 1 && (kind_[u] != kInterior || ring_target_[u] == kNoNode)))
+        if (pass_ == 1 ||
+            (touched_[u] == pass_ - 1 && (kind_[u] != kInterior || ring_target_[u] == kNoVertex)))
           kind_[u] = classify(u, boundary_ends[2 * u], boundary_ends[2 * u + 1]);
       }
     });
@@ -1305,8 +1307,8 @@ Result<Mt> Builder::run(BuildStats* stats, std::vector<std::uint32_t>* vertex_id
     collapse_u_.resize(tag - 1);
     collapse_error_.resize(tag - 1);
     mt_vertices_.resize(3 * std::size_t{triangle});
-    mt_made_by_.resize(triangle);
-    mt_killed_by_.resize(triangle);
+    removing_collapse_.resize(triangle);
+    creating_collapse_.resize(triangle);
     grow_pool(3 * std::size_t{point});
     for_ranges(collapse_chunk_begin_.size() - 1, total_work, [&](std::size_t chunk) {
       const std::size_t begin = collapse_chunk_begin_[chunk], end = collapse_chunk_begin_[chunk + 1];

@@ -92,7 +92,7 @@ Status validate(const Mt& mt) {
   const std::uint64_t v = mt.vertex_count(), n = mt.node_count(), t = mt.triangle_count();
   for (std::uint64_t i = 0; i < mt.positions.size(); ++i)
     if (!std::isfinite(mt.positions[i])) return corrupt("positions[" + std::to_string(i) + "] is not finite");
-  if (mt.node_vertex[0] != kNoNode) return corrupt("node_vertex[0] of the root is not the none marker");
+  if (mt.node_vertex[0] != kNoVertex) return corrupt("node_vertex[0] of the root is not the none marker");
   for (std::uint64_t i = 1; i < n; ++i)
     if (mt.node_vertex[i] >= v)
       return corrupt("node_vertex[" + std::to_string(i) + "] = " + std::to_string(mt.node_vertex[i]) +

@@ -1,10 +1,10 @@
-// Precomputed coarse cuts of a Multi-Tessellation for the occupancy stage (DESIGN.md §1.2; issue:
-// "not from the full-resolution mesh per request: use a cut whose triangles are about a cell in
-// size"). A few cuts of growing size are built once per model; a request rasterises the coarsest
-// one with a triangle per four covered grid cells, so the occupancy costs a rasterisation, not a
-// refinement. Measured on the dragon at 256² (tests/bench/BENCHMARKS.md, "Grid stages",
-// BM_OccupancyFromMtCut256): the 16k level a request takes there moves 16 % of the silhouette labels, none by
-// more than a pixel, against the full 871k mesh; the 8k level 38 %, none by more; the 4k one 18 % by more.
+// Precomputed coarse cuts of a Multi-Tessellation for the occupancy stage (DESIGN.md §1.2): not
+// the full-resolution mesh per request, but a cut whose triangles are about a cell in size. A few cuts of
+// growing size are built once per model; a request rasterises the coarsest one with a triangle per four
+// covered grid cells, so the occupancy costs a rasterisation, not a refinement. Measured on the dragon at
+// 256² (tests/bench/BENCHMARKS.md, "Grid stages", BM_OccupancyFromMtCut256): the 16k level a request takes
+// there moves 16 % of the silhouette labels, none by more than a pixel, against the full 871k mesh; the 8k
+// level 38 %, none by more; the 4k one 18 % by more.
 #pragma once
 
 #include <cstddef>

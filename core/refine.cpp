@@ -85,7 +85,7 @@ float write_created(const Mt& mt, const std::uint8_t* in_cut, std::span<const st
   float max_error = 0.0f;
   for (const std::uint32_t n : nodes) {
     const std::uint32_t end = mt.node_triangle_offsets[n + 1];
-    const std::uint32_t first = n == 0 ? kNoNode : mt.node_vertex[n];
+    const std::uint32_t first = n == 0 ? kNoVertex : mt.node_vertex[n];
     for (std::uint32_t t = mt.node_triangle_offsets[n]; t < end; ++t) {
       const std::uint32_t r = remover[t];
       if (r != kNoNode) {
@@ -310,7 +310,7 @@ void Refiner::refine_prefix(std::uint32_t end, CutMesh& out) {
   const std::uint32_t* remover = mt_.triangle_remover.data();
   float max_error = 0.0f;
   for (std::uint32_t n = 0; n < end; ++n) {
-    const std::uint32_t first = n == 0 ? kNoNode : mt_.node_vertex[n];
+    const std::uint32_t first = n == 0 ? kNoVertex : mt_.node_vertex[n];
     const std::uint32_t last = mt_.node_triangle_offsets[n + 1];
     for (std::uint32_t t = mt_.node_triangle_offsets[n]; t < last; ++t) {
       const std::uint32_t r = remover[t];
@@ -370,7 +370,7 @@ void Refiner::refine_forced(const AllowedError& allowed, CutMesh* out, const OnD
       on_demand->source.fill(batch_, on_demand->field);
     }
     const std::uint32_t n = cut_[i];
-    const std::uint32_t split = n == 0 ? kNoNode : mt_.node_vertex[n];
+    const std::uint32_t split = n == 0 ? kNoVertex : mt_.node_vertex[n];
     const std::uint32_t end = offsets[n + 1];
     for (std::uint32_t t = offsets[n]; t < end; ++t) {
       const std::uint32_t r = removers[t];

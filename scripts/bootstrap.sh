@@ -23,6 +23,7 @@ test_packages=(
   libopencv-dev                               # a peer measured in the benchmarks
   chromium                                    # the browser test drives the viewer headless
   haproxy                                     # the failover test runs replicas behind it
+  clang-format                                # the test suite checks the tree's formatting
 )
 # What the binaries load at run time (the -dev packages above depend on these).
 runtime_packages=(libdraco7 libopenmesh1 libspdlog1.10 libfmt9 libpng16-16 libmeshoptimizer2d)

@@ -9,7 +9,7 @@
 #include "core/io/mesh_io.hpp"
 #include "core/io/mt_file.hpp"
 #include "core/mt_builder.hpp"
-#include "core/tools/parallel_for.hpp"
+#include "core/threads/thread_pool.hpp"
 #include "fmt/format.h"
 #include "spdlog/spdlog.h"
 
@@ -111,7 +111,7 @@ Status ModelRegistry::add_mesh(const fs::path& mesh, const fs::path& mt_path) {
     MTLOD_TRY(core::io::LoadedMesh loaded, core::io::load_mesh(mesh));
     core::BuildStats stats;
     // Built before the server serves anyone: every core helps (the MT is the same as serial).
-    tools::ThreadPool pool;
+    core::ThreadPool pool;
     core::BuildOptions options;
     pool.attach(options);
     MTLOD_TRY(core::Mt mt, core::build_mt(loaded.mesh, options, &stats));

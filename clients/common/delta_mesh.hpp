@@ -9,8 +9,8 @@
 #include <span>
 #include <vector>
 
+#include "clients/common/slot_table.hpp"
 #include "core/result.hpp"
-#include "core/slot_table.hpp"
 #include "protocol/replies.hpp"
 
 namespace mtlod::clients {

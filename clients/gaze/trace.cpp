@@ -6,8 +6,8 @@
 #include <random>
 #include <sstream>
 
+#include "clients/common/extract_flags.hpp"
 #include "fmt/format.h"
-#include "protocol/extract_flags.hpp"
 
 namespace mtlod::clients {
 

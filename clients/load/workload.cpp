@@ -5,9 +5,9 @@
 #include <numbers>
 #include <sstream>
 
+#include "clients/common/extract_flags.hpp"
 #include "fmt/format.h"
 #include "protocol/camera.hpp"
-#include "protocol/extract_flags.hpp"
 
 namespace mtlod::clients {
 Result<std::vector<ScriptedCamera>> parse_camera_script(const std::string& text) {

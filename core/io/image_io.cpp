@@ -7,8 +7,8 @@
 #include <string>
 #include <vector>
 
-#include "core/debug_image.hpp"
 #include "core/distance_transform.hpp"
+#include "core/eval/debug_image.hpp"
 
 namespace mtlod::core::io {
 

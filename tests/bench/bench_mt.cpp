@@ -18,7 +18,7 @@
 #include "core/io/mesh_io.hpp"
 #include "core/mt_builder.hpp"
 #include "core/refine.hpp"
-#include "core/tools/parallel_for.hpp"
+#include "core/threads/thread_pool.hpp"
 
 namespace {
 
@@ -52,7 +52,7 @@ void BM_BuildMt(benchmark::State& state) {
   BuildStats stats;
   BuildOptions options;
   // range(0) = 1: the pass's independent work on every core (2 here); the MT is the same as serial.
-  mtlod::tools::ThreadPool pool;
+  mtlod::core::ThreadPool pool;
   if (state.range(0) == 1) pool.attach(options);
   for (auto _ : state) {
     auto mt = build_mt(*mesh, options, &stats);

@@ -7,8 +7,8 @@
 #include <map>
 
 #include "clients/common/connection.hpp"
+#include "core/eval/mesh_gen.hpp"
 #include "core/io/mesh_io.hpp"
-#include "core/mesh_gen.hpp"
 #include "fmt/format.h"
 #include "nlohmann/json.hpp"
 #include "tests/core/test_meshes.hpp"

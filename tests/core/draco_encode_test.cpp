@@ -12,7 +12,7 @@
 
 #include "core/bounds.hpp"
 #include "core/draco_decode.hpp"
-#include "core/mesh_gen.hpp"
+#include "core/eval/mesh_gen.hpp"
 #include "tests/core/googles_draco_decoder.hpp"
 #include "tests/core/mesh_compare.hpp"
 #include "tests/core/test_meshes.hpp"

@@ -1,6 +1,6 @@
 // Synthetic meshes: sizes near the target, the promised topology, outward orientation, and
 // determinism for a seed.
-#include "core/mesh_gen.hpp"
+#include "core/eval/mesh_gen.hpp"
 
 #include <gtest/gtest.h>
 

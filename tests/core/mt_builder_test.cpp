@@ -11,7 +11,7 @@
 #include <vector>
 
 #include "core/mt_format.hpp"
-#include "core/tools/parallel_for.hpp"
+#include "core/threads/thread_pool.hpp"
 #include "tests/core/cut_validator.hpp"
 #include "tests/core/mt_fixtures.hpp"
 
@@ -170,10 +170,10 @@ TEST(MtBuilder, VerticesAreNumberedRootMeshFirstThenByNode) {
   auto mt = build_mt(mesh, {}, nullptr, &ids);
   ASSERT_TRUE(mt.ok());
   ASSERT_EQ(ids.size(), mesh.vertex_count());
-  std::vector<std::uint32_t> input_of(mesh.vertex_count(), kNoNode);
+  std::vector<std::uint32_t> input_of(mesh.vertex_count(), kNoVertex);
   for (std::uint32_t v = 0; v < ids.size(); ++v) {
     ASSERT_LT(ids[v], mesh.vertex_count());
-    ASSERT_EQ(input_of[ids[v]], kNoNode) << "two input vertices share MT id " << ids[v];
+    ASSERT_EQ(input_of[ids[v]], kNoVertex) << "two input vertices share MT id " << ids[v];
     input_of[ids[v]] = v;
     for (int k = 0; k < 3; ++k) ASSERT_EQ(mt->positions[3 * ids[v] + k], mesh.positions[3 * v + k]);
   }
@@ -251,8 +251,8 @@ TEST(MtBuilder, ConcurrentBuildGivesTheSameFileAsTheSerialOne) {
     ASSERT_TRUE(serial.ok());
     std::vector<std::uint8_t> expected;
     serialize_mt(*serial, expected);
-    tools::ThreadPool pool;
-    for (const ParallelForFn runner : {reversed, ParallelForFn{tools::ThreadPool::parallel_for}}) {
+    core::ThreadPool pool;
+    for (const ParallelForFn runner : {reversed, ParallelForFn{core::ThreadPool::parallel_for}}) {
       BuildOptions concurrent;
       concurrent.parallel_for = runner;
       concurrent.parallel_user = &pool;

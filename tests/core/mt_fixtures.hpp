@@ -8,8 +8,8 @@
 #include <string>
 #include <vector>
 
+#include "core/eval/mesh_gen.hpp"
 #include "core/io/mesh_io.hpp"
-#include "core/mesh_gen.hpp"
 #include "core/mt_builder.hpp"
 #include "tests/core/cut_validator.hpp"
 #include "tests/core/test_meshes.hpp"

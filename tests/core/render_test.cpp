@@ -1,7 +1,7 @@
 // The evaluation's software rasteriser (core/render): coverage of a square of known size, the
 // z-buffer (the nearer of two overlapping squares wins whatever the order), per-triangle colours,
 // the wireframe overlay on the shared diagonal, and the colour ramp's ends.
-#include "core/render.hpp"
+#include "core/eval/render.hpp"
 
 #include <gtest/gtest.h>
 

@@ -1,7 +1,7 @@
 // Image-space silhouette error (core/silhouette_metrics): masks of squares whose pixel coverage is
 // known, a shifted square with a known XOR count and contour distance, contour distances against
 // brute force, and the focus-region triangle selection.
-#include "core/silhouette_metrics.hpp"
+#include "core/eval/silhouette_metrics.hpp"
 
 #include <gtest/gtest.h>
 

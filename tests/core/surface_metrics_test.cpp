@@ -1,7 +1,7 @@
 // Object-space error (core/surface_metrics): exact point–triangle distances in hand-made cases, the
 // grid index against brute force on random triangles, and Hausdorff/RMS on analytic pairs: identical
 // meshes, a plane and its offset copy, and a sphere against its inscribed octahedron.
-#include "core/surface_metrics.hpp"
+#include "core/eval/surface_metrics.hpp"
 
 #include <gtest/gtest.h>
 

@@ -14,9 +14,9 @@
 
 #include "core/bounds.hpp"
 #include "core/distance_transform.hpp"
+#include "core/eval/mesh_gen.hpp"
 #include "core/io/mesh_io.hpp"
 #include "core/labels.hpp"
-#include "core/mesh_gen.hpp"
 #include "core/mt_builder.hpp"
 #include "core/occupancy.hpp"
 #include "core/occupancy_levels.hpp"

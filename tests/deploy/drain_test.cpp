@@ -7,8 +7,8 @@
 
 #include "clients/common/connection.hpp"
 #include "core/draco_decode.hpp"
+#include "core/eval/mesh_gen.hpp"
 #include "core/io/mt_file.hpp"
-#include "core/mesh_gen.hpp"
 #include "core/mt_builder.hpp"
 #include "protocol/camera.hpp"
 #include "protocol/frame.hpp"

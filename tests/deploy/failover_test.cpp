@@ -10,8 +10,8 @@
 #include <sstream>
 
 #include "clients/common/connection.hpp"
+#include "core/eval/mesh_gen.hpp"
 #include "core/io/mt_file.hpp"
-#include "core/mesh_gen.hpp"
 #include "core/mt_builder.hpp"
 #include "nlohmann/json.hpp"
 #include "tests/core/test_meshes.hpp"

@@ -6,8 +6,8 @@
 #include <fstream>
 
 #include "clients/common/retry.hpp"
+#include "core/eval/mesh_gen.hpp"
 #include "core/io/mt_file.hpp"
-#include "core/mesh_gen.hpp"
 #include "core/mt_builder.hpp"
 #include "nlohmann/json.hpp"
 #include "tests/core/test_meshes.hpp"

@@ -37,7 +37,8 @@ struct Served {
     const auto dir = test::scratch_dir("abuse-" + name);
     const auto bunny = test::models_dir() / "bunny.ply";
     if (!std::filesystem::exists(bunny)) return;
-    std::vector<std::string> args = {"--mesh", bunny.string(), "--cache-dir", dir.string(), "--log-level", "warn"};
+    std::vector<std::string> args = {"--mesh",     bunny.string(), "--cache-dir",
+                                     dir.string(), "--log-level",  "warn"};
     args.insert(args.end(), flags.begin(), flags.end());
     server = std::make_unique<test::ServerProcess>(args, dir);
     if (!server->running()) return;
@@ -47,8 +48,8 @@ struct Served {
     if (!info) return;
     const auto& model = std::get<protocol::ModelInfoReply>(info->header.reply);
     extract.model = "bunny";
-    protocol::look_at_camera(protocol::frame_bounds(model.bounds_min, model.bounds_max), 4.0 / 3.0, extract.view,
-                             extract.projection);
+    protocol::look_at_camera(protocol::frame_bounds(model.bounds_min, model.bounds_max), 4.0 / 3.0,
+                             extract.view, extract.projection);
     extract.grid = {128, 96};
     extract.error = 1;
     extract.error_unit = protocol::ErrorUnit::kPixels;
@@ -63,12 +64,13 @@ struct Served {
     if (!c) return out;
     auto reply = c->call(protocol::Stats{}, 1);
     if (!reply) return out;
-    for (const auto& [name, value] : std::get<protocol::StatsReply>(reply->header.reply).counters) out[name] = value;
+    for (const auto& [name, value] : std::get<protocol::StatsReply>(reply->header.reply).counters)
+      out[name] = value;
     return out;
   }
 };
 
-#define SKIP_WITHOUT_SERVER(served) \
+#define SKIP_WITHOUT_SERVER(served)                                                                    \
   if (!std::filesystem::exists(test::models_dir() / "bunny.ply")) GTEST_SKIP() << "no built-in bunny"; \
   ASSERT_TRUE((served).ok()) << ((served).server ? (served).server->log() : std::string())
 
@@ -88,8 +90,8 @@ bool served_from(const Served& s, const std::string& source) {
 }
 
 TEST(Abuse, IdleSocketsFromOneAddressNeitherLockOthersOutNorStay) {
-  Served s("idle", {"--max-connections", "16", "--max-connections-per-address", "4", "--first-frame-timeout-ms",
-                    "1000", "--http-port", "0"});
+  Served s("idle", {"--max-connections", "16", "--max-connections-per-address", "4",
+                    "--first-frame-timeout-ms", "1000", "--http-port", "0"});
   SKIP_WITHOUT_SERVER(s);
   // 127.0.0.2 opens ten connections and sends nothing: four are held, six refused by name.
   std::vector<RawClient> idle;
@@ -334,9 +336,11 @@ TEST(Abuse, HostileTrafficBesideANormalLoadLeavesTheServerAsItWas) {
         if (!c) return void(++failures);
         for (int r = 0; r < rounds; ++r) {
           auto mesh = c->call(s.extract, 2 * r);
-          if (!mesh || !std::holds_alternative<protocol::MeshReply>(mesh->header.reply)) return void(++failures);
+          if (!mesh || !std::holds_alternative<protocol::MeshReply>(mesh->header.reply))
+            return void(++failures);
           auto gaze = c->call(protocol::Gaze{0.3 + 0.1 * i, 0.5, 20, 0.2}, 2 * r + 1);
-          if (!gaze || !std::holds_alternative<protocol::MeshReply>(gaze->header.reply)) return void(++failures);
+          if (!gaze || !std::holds_alternative<protocol::MeshReply>(gaze->header.reply))
+            return void(++failures);
           meshes += 2;
         }
       });

@@ -69,7 +69,8 @@ TEST(FairScheduler, KeysTakeTurnsAndEachKeysJobsKeepTheirOrder) {
   }
   cv.notify_all();
   pool.join();
-  const std::vector<std::string> expected = {"flood0", "flood1", "b1", "c1", "flood2", "b2", "flood3", "flood4"};
+  const std::vector<std::string> expected = {"flood0", "flood1", "b1",     "c1",
+                                             "flood2", "b2",     "flood3", "flood4"};
   EXPECT_EQ(order, expected);
   EXPECT_EQ(scheduler.waiting(), 0u);
 }

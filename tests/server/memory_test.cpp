@@ -3,8 +3,8 @@
 // and the worker's scratch, as the engine itself measures them.
 #include <gtest/gtest.h>
 
+#include "core/eval/mesh_gen.hpp"
 #include "core/io/mt_file.hpp"
-#include "core/mesh_gen.hpp"
 #include "core/mt_builder.hpp"
 #include "protocol/camera.hpp"
 #include "server/engine.hpp"
@@ -29,9 +29,10 @@ TEST(MemoryEstimate, BoundsSessionAndScratchOfExtremeRequests) {
 
   protocol::Extract base;
   base.model = "shell";
-  protocol::look_at_camera(protocol::frame_bounds({model.bounds_min[0], model.bounds_min[1], model.bounds_min[2]},
-                                                  {model.bounds_max[0], model.bounds_max[1], model.bounds_max[2]}),
-                           1.0, base.view, base.projection);
+  protocol::look_at_camera(
+      protocol::frame_bounds({model.bounds_min[0], model.bounds_min[1], model.bounds_min[2]},
+                             {model.bounds_max[0], model.bounds_max[1], model.bounds_max[2]}),
+      1.0, base.view, base.projection);
   std::vector<protocol::Extract> requests;
   for (const std::uint32_t side : {16u, 256u, 1024u, 2048u}) {
     for (const bool delta : {false, true}) {
@@ -69,7 +70,8 @@ TEST(MemoryEstimate, BoundsSessionAndScratchOfExtremeRequests) {
   ASSERT_TRUE(std::holds_alternative<ExtractOutcome>(outcome));
   const std::uint64_t used = std::get<ExtractOutcome>(outcome).reply.scratch_bytes;
   ASSERT_GT(used, Engine::kRetainedScratchBytes) << "the request does not exercise the release";
-  EXPECT_LT(Engine::settle_worker_scratch(), 0) << "the 4096² grid's " << used << " bytes of scratch were kept";
+  EXPECT_LT(Engine::settle_worker_scratch(), 0)
+      << "the 4096² grid's " << used << " bytes of scratch were kept";
 }
 
 }  // namespace

@@ -11,9 +11,9 @@
 #include <numeric>
 #include <random>
 
+#include "core/eval/mesh_gen.hpp"
 #include "core/io/mesh_io.hpp"
 #include "core/io/mt_file.hpp"
-#include "core/mesh_gen.hpp"
 #include "core/mt_builder.hpp"
 #include "tests/core/test_meshes.hpp"
 
@@ -32,7 +32,7 @@ core::Mt shuffled_vertices(core::Mt mt, std::uint32_t seed) {
     std::copy_n(&mt.positions[3 * v], 3, &positions[3 * std::size_t{to[v]}]);
   mt.positions = std::move(positions);
   for (std::uint32_t& v : mt.node_vertex)
-    if (v != core::kNoNode) v = to[v];
+    if (v != core::kNoVertex) v = to[v];
   for (std::uint32_t& v : mt.triangle_corners) v = to[v];
   for (std::uint32_t& v : mt.root_first_corner) v = to[v];
   return mt;

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "CLI/CLI.hpp"
+#include "clients/common/extract_flags.hpp"
 #include "core/bounds.hpp"
 #include "core/draco_encode.hpp"
 #include "core/io/image_io.hpp"
@@ -19,7 +20,6 @@
 #include "core/refine.hpp"
 #include "core/view_extract.hpp"
 #include "fmt/format.h"
-#include "protocol/extract_flags.hpp"
 #include "protocol/view_request.hpp"
 
 namespace {

@@ -1,6 +1,6 @@
-// Synthetic meshes of any size for scaling tests and benchmarks (foundation issue, "Built-in
-// models"): a noisy sphere, a terrain height field and a parametric sea shell, the papers' shell
-// example. Each generator aims at a target triangle count and is deterministic for a seed.
+// Synthetic meshes of any size for scaling tests and benchmarks: a noisy sphere, a terrain height field and a
+// parametric sea shell, the papers' shell example. Each generator aims at a target triangle count and is
+// deterministic for a seed.
 #pragma once
 
 #include <cstddef>

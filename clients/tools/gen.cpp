@@ -5,9 +5,9 @@
 #include <string>
 
 #include "CLI/CLI.hpp"
+#include "core/eval/mesh_gen.hpp"
 #include "core/io/mesh_io.hpp"
 #include "core/mesh_cleanup.hpp"
-#include "core/mesh_gen.hpp"
 #include "fmt/format.h"
 
 int main(int argc, char** argv) {

@@ -1,5 +1,5 @@
 // Open-addressing id → value map (see slot_table.hpp).
-#include "core/slot_table.hpp"
+#include "clients/common/slot_table.hpp"
 
 #include <cassert>
 

@@ -1,6 +1,6 @@
 // SlotTable (core/slot_table.hpp) against std::unordered_map over random inserts, lookups and
 // erasures, growth included: every key present maps to its value, every other key is absent.
-#include "core/slot_table.hpp"
+#include "clients/common/slot_table.hpp"
 
 #include <gtest/gtest.h>
 

@@ -1,5 +1,5 @@
 // Silhouette masks, XOR and contour distances (see silhouette_metrics.hpp).
-#include "core/silhouette_metrics.hpp"
+#include "core/eval/silhouette_metrics.hpp"
 
 #include <algorithm>
 #include <cassert>

@@ -1,6 +1,6 @@
 // Colour maps for the debug images of DESIGN.md §1.2–1.4 (the papers' figures 2–3 show the
 // distance image over the projected model).
-#include "core/debug_image.hpp"
+#include "core/eval/debug_image.hpp"
 
 #include <algorithm>
 #include <cassert>

@@ -1,6 +1,6 @@
 // Synthetic meshes (see mesh_gen.hpp). Vertices are indexed from integer lattice coordinates, never
 // welded by float position, so shared edges are exact and every mesh is watertight by construction.
-#include "core/mesh_gen.hpp"
+#include "core/eval/mesh_gen.hpp"
 
 #include <algorithm>
 #include <cassert>

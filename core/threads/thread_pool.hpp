@@ -1,8 +1,9 @@
 // A ParallelForFn (core/mt_builder.hpp) for the offline tools, the benchmarks and the server's
-// start-up builds (core itself starts no threads): a pool of threads, one per hardware core with
+// start-up builds. core/threads/ is the only part of core that starts threads; the algorithms take
+// a ParallelForFn and never start one themselves. A pool of threads, one per hardware core with
 // the caller as one of them, that take task indices from a shared counter until none are left. The
-// threads are started once: a build calls parallel_for a few hundred times, and starting a thread
-// per call cost ~60 µs each on a 2-core VM.
+// threads are started once: a build calls parallel_for a few hundred times, each too short to pay
+// for starting threads.
 #pragma once
 
 #include <algorithm>
@@ -14,7 +15,7 @@
 
 #include "core/mt_builder.hpp"
 
-namespace mtlod::tools {
+namespace mtlod::core {
 
 class ThreadPool {
  public:
@@ -101,4 +102,4 @@ class ThreadPool {
   std::size_t count_ = 0;
 };
 
-}  // namespace mtlod::tools
+}  // namespace mtlod::core

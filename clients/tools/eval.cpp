@@ -1,4 +1,4 @@
-// mtlod-eval: measures extractions against the original mesh (issue #7; papers/000 §4 figures 3–5,
+// mtlod-eval: measures extractions against the original mesh (papers/000 §4 figures 3–5,
 // papers/002 §4). Subcommands:
 //   compare A B              object-space Hausdorff / mean / RMS, both directions (Metro-style)
 //   silhouette A B --eye ... silhouette XOR and contour distances from one camera
@@ -26,6 +26,9 @@
 
 #include "CLI/CLI.hpp"
 #include "core/bounds.hpp"
+#include "core/eval/render.hpp"
+#include "core/eval/silhouette_metrics.hpp"
+#include "core/eval/surface_metrics.hpp"
 #include "core/io/image_io.hpp"
 #include "core/io/mesh_io.hpp"
 #include "core/io/mt_file.hpp"
@@ -33,9 +36,6 @@
 #include "core/mt_builder.hpp"
 #include "core/occupancy_levels.hpp"
 #include "core/refine.hpp"
-#include "core/render.hpp"
-#include "core/silhouette_metrics.hpp"
-#include "core/surface_metrics.hpp"
 #include "core/view_extract.hpp"
 #include "core/view_grid.hpp"
 #include "fmt/format.h"

@@ -1,6 +1,6 @@
 // Extraction flags (see extract_flags.hpp). The request is validated by round-tripping through
 // parse_request, so a bad flag gets exactly the message a bad request would.
-#include "protocol/extract_flags.hpp"
+#include "clients/common/extract_flags.hpp"
 
 #include <cctype>
 #include <cmath>
@@ -92,6 +92,7 @@ void add_extract_flags(CLI::App& app, ExtractFlags& f) {
       "--draco-entropy", f.draco_entropy,
       "entropy-code Draco's attribute values: true or false (default: true for extract, false for gaze)");
   app.add_option("--position-bits", f.position_bits, "Draco position quantization bits")
+      ->check(CLI::Range(1, 20))
       ->capture_default_str();
   app.add_flag("--normals", f.normals, "send vertex normals");
   app.add_flag("--labels", f.labels, "send per-vertex distance labels");

@@ -1,5 +1,5 @@
 // Metro-style surface sampling and nearest-triangle distances (see surface_metrics.hpp).
-#include "core/surface_metrics.hpp"
+#include "core/eval/surface_metrics.hpp"
 
 #include <algorithm>
 #include <cassert>

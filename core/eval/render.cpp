@@ -1,5 +1,5 @@
 // Software rasteriser for the evaluation figures (see render.hpp).
-#include "core/render.hpp"
+#include "core/eval/render.hpp"
 
 #include <algorithm>
 #include <cassert>

@@ -11,7 +11,7 @@
 #include "core/io/mesh_io.hpp"
 #include "core/io/mt_file.hpp"
 #include "core/mt_builder.hpp"
-#include "core/tools/parallel_for.hpp"
+#include "core/threads/thread_pool.hpp"
 #include "fmt/format.h"
 
 namespace {
@@ -68,7 +68,7 @@ int main(int argc, char** argv) {
     options.progress = draw_bar;
     options.progress_user = &bar;
   }
-  mtlod::tools::ThreadPool pool(serial ? 1u : std::thread::hardware_concurrency());  // 1: no other thread
+  mtlod::core::ThreadPool pool(serial ? 1u : std::thread::hardware_concurrency());  // 1: no other thread
   if (!serial) pool.attach(options);
   BuildStats stats;
   const auto start = std::chrono::steady_clock::now();
