@@ -27,167 +27,134 @@ struct Failure {
   throw Failure{code, std::move(message)};
 }
 
-const char *type_name(const json &v) {
-  if (v.is_null())
-    return "null";
-  if (v.is_boolean())
-    return "boolean";
-  if (v.is_number_integer())
-    return "integer";
-  if (v.is_number())
-    return "number";
-  if (v.is_string())
-    return "string";
-  if (v.is_array())
-    return "array";
+const char* type_name(const json& v) {
+  if (v.is_null()) return "null";
+  if (v.is_boolean()) return "boolean";
+  if (v.is_number_integer()) return "integer";
+  if (v.is_number()) return "number";
+  if (v.is_string()) return "string";
+  if (v.is_array()) return "array";
   return "object";
 }
 
-std::string show(const json &v) {
+std::string show(const json& v) {
   std::string s = v.dump(-1, ' ', false, json::error_handler_t::replace);
-  if (s.size() > 40)
-    s = std::string(utf8_prefix(s, 37)) + "...";
+  if (s.size() > 40) s = std::string(utf8_prefix(s, 37)) + "...";
   return s;
 }
 
 // Walks one JSON object; remembers which keys were read so finish() can name
 // the others.
 class ObjectReader {
-public:
-  ObjectReader(const json &object, std::string path)
-      : object_(object), path_(std::move(path)) {
+ public:
+  ObjectReader(const json& object, std::string path) : object_(object), path_(std::move(path)) {
     if (!object_.is_object())
-      fail(ErrorKind::kBadRequest, fmt::format("{} must be an object, got {}",
-                                               where(), type_name(object_)));
+      fail(ErrorKind::kBadRequest, fmt::format("{} must be an object, got {}", where(), type_name(object_)));
   }
 
-  bool has(const char *key) const { return object_.contains(key); }
+  bool has(const char* key) const { return object_.contains(key); }
 
-  const json *find(const char *key) {
+  const json* find(const char* key) {
     read_.insert(key);
     auto it = object_.find(key);
     return it == object_.end() ? nullptr : &*it;
   }
-  const json &require(const char *key) {
-    const json *v = find(key);
-    if (!v)
-      fail(ErrorKind::kBadRequest, fmt::format("{} is required", field(key)));
+  const json& require(const char* key) {
+    const json* v = find(key);
+    if (!v) fail(ErrorKind::kBadRequest, fmt::format("{} is required", field(key)));
     return *v;
   }
 
-  double number(const char *key, double fallback, double min, double max) {
-    const json *v = find(key);
+  double number(const char* key, double fallback, double min, double max) {
+    const json* v = find(key);
     return v ? check_number(*v, field(key), min, max) : fallback;
   }
-  double required_number(const char *key, double min, double max) {
+  double required_number(const char* key, double min, double max) {
     return check_number(require(key), field(key), min, max);
   }
-  std::uint64_t integer(const char *key, std::uint64_t fallback,
-                        std::uint64_t min, std::uint64_t max) {
-    const json *v = find(key);
+  std::uint64_t integer(const char* key, std::uint64_t fallback, std::uint64_t min, std::uint64_t max) {
+    const json* v = find(key);
     return v ? check_integer(*v, field(key), min, max) : fallback;
   }
-  bool boolean(const char *key, bool fallback) {
-    const json *v = find(key);
-    if (!v)
-      return fallback;
+  bool boolean(const char* key, bool fallback) {
+    const json* v = find(key);
+    if (!v) return fallback;
     if (!v->is_boolean())
-      fail(ErrorKind::kBadRequest, fmt::format("{} must be a boolean, got {}",
-                                               field(key), type_name(*v)));
+      fail(ErrorKind::kBadRequest, fmt::format("{} must be a boolean, got {}", field(key), type_name(*v)));
     return v->get<bool>();
   }
-  std::string string(const char *key, std::size_t max_length) {
+  std::string string(const char* key, std::size_t max_length) {
     return check_string(require(key), field(key), max_length);
   }
-  std::string optional_string(const char *key, std::string fallback,
-                              std::size_t max_length) {
-    const json *v = find(key);
+  std::string optional_string(const char* key, std::string fallback, std::size_t max_length) {
+    const json* v = find(key);
     return v ? check_string(*v, field(key), max_length) : fallback;
   }
   // One of `names` (index into it).
   template <std::size_t N>
-  std::size_t choice(const char *key, const std::array<const char *, N> &names,
-                     std::size_t fallback) {
-    const json *v = find(key);
-    if (!v)
-      return fallback;
+  std::size_t choice(const char* key, const std::array<const char*, N>& names, std::size_t fallback) {
+    const json* v = find(key);
+    if (!v) return fallback;
     const std::string s = check_string(*v, field(key), 64);
     for (std::size_t i = 0; i < N; ++i) {
-      if (s == names[i])
-        return i;
+      if (s == names[i]) return i;
     }
     std::string options;
-    for (const char *n : names)
-      options += fmt::format("{}'{}'", options.empty() ? "" : ", ", n);
-    fail(ErrorKind::kBadRequest,
-         fmt::format("{} is '{}'; expected one of {}", field(key), s, options));
+    for (const char* n : names) options += fmt::format("{}'{}'", options.empty() ? "" : ", ", n);
+    fail(ErrorKind::kBadRequest, fmt::format("{} is '{}'; expected one of {}", field(key), s, options));
   }
 
   void finish() const {
     for (auto it = object_.begin(); it != object_.end(); ++it) {
       if (!read_.count(it.key()))
-        fail(ErrorKind::kBadRequest,
-             fmt::format("unknown field {}", field(it.key())));
+        fail(ErrorKind::kBadRequest, fmt::format("unknown field {}", field(it.key())));
     }
   }
 
-  std::string field(const std::string &key) const {
+  std::string field(const std::string& key) const {
     return path_.empty() ? "'" + key + "'" : "'" + path_ + "." + key + "'";
   }
-  std::string child(const std::string &key) const {
-    return path_.empty() ? key : path_ + "." + key;
-  }
-  std::string where() const {
-    return path_.empty() ? "the request" : "'" + path_ + "'";
-  }
+  std::string child(const std::string& key) const { return path_.empty() ? key : path_ + "." + key; }
+  std::string where() const { return path_.empty() ? "the request" : "'" + path_ + "'"; }
 
-  static double check_number(const json &v, const std::string &name, double min,
-                             double max) {
+  static double check_number(const json& v, const std::string& name, double min, double max) {
     if (!v.is_number())
-      fail(ErrorKind::kBadRequest,
-           fmt::format("{} must be a number, got {}", name, type_name(v)));
+      fail(ErrorKind::kBadRequest, fmt::format("{} must be a number, got {}", name, type_name(v)));
     const double x = v.get<double>();
     if (!std::isfinite(x) || x < min || x > max) {
-      fail(ErrorKind::kBadRequest,
-           fmt::format("{} is {}; expected {} to {}", name, show(v), min, max));
+      fail(ErrorKind::kBadRequest, fmt::format("{} is {}; expected {} to {}", name, show(v), min, max));
     }
     return x;
   }
-  static std::uint64_t check_integer(const json &v, const std::string &name,
-                                     std::uint64_t min, std::uint64_t max) {
+  static std::uint64_t check_integer(const json& v, const std::string& name, std::uint64_t min,
+                                     std::uint64_t max) {
     if (!v.is_number_integer() ||
-        (v.is_number_integer() && !v.is_number_unsigned() &&
-         v.get<std::int64_t>() < 0)) {
+        (v.is_number_integer() && !v.is_number_unsigned() && v.get<std::int64_t>() < 0)) {
       fail(ErrorKind::kBadRequest,
-           fmt::format("{} must be a non-negative integer, got {} {}", name,
-                       type_name(v), show(v)));
+           fmt::format("{} must be a non-negative integer, got {} {}", name, type_name(v), show(v)));
     }
     const std::uint64_t x = v.get<std::uint64_t>();
     if (x < min || x > max)
-      fail(ErrorKind::kBadRequest,
-           fmt::format("{} is {}; expected {} to {}", name, x, min, max));
+      fail(ErrorKind::kBadRequest, fmt::format("{} is {}; expected {} to {}", name, x, min, max));
     return x;
   }
-  static std::string check_string(const json &v, const std::string &name,
-                                  std::size_t max_length) {
+  static std::string check_string(const json& v, const std::string& name, std::size_t max_length) {
     if (!v.is_string())
-      fail(ErrorKind::kBadRequest,
-           fmt::format("{} must be a string, got {}", name, type_name(v)));
+      fail(ErrorKind::kBadRequest, fmt::format("{} must be a string, got {}", name, type_name(v)));
     std::string s = v.get<std::string>();
     if (s.size() > max_length)
-      fail(ErrorKind::kBadRequest,
-           fmt::format("{} is longer than {} characters", name, max_length));
+      fail(ErrorKind::kBadRequest, fmt::format("{} is longer than {} characters", name, max_length));
     return s;
   }
 
-private:
-  const json &object_;
+ private:
+  const json& object_;
   std::string path_;
   std::set<std::string, std::less<>> read_;
 };
 
 // 4×4 determinant by cofactor expansion in double precision.
-double determinant(const Matrix4 &m) {
+double determinant(const Matrix4& m) {
   auto a = [&m](int row, int col) { return m[col * 4 + row]; };
   double det = 0;
   for (int c = 0; c < 4; ++c) {
@@ -195,8 +162,7 @@ double determinant(const Matrix4 &m) {
     int k = 0;
     for (int r = 1; r < 4; ++r)
       for (int cc = 0; cc < 4; ++cc)
-        if (cc != c)
-          minor[k++] = a(r, cc);
+        if (cc != c) minor[k++] = a(r, cc);
     const double d3 = minor[0] * (minor[4] * minor[8] - minor[5] * minor[7]) -
                       minor[1] * (minor[3] * minor[8] - minor[5] * minor[6]) +
                       minor[2] * (minor[3] * minor[7] - minor[4] * minor[6]);
@@ -205,85 +171,72 @@ double determinant(const Matrix4 &m) {
   return det;
 }
 
-Matrix4 read_matrix(const json &v, const std::string &name) {
+Matrix4 read_matrix(const json& v, const std::string& name) {
   if (!v.is_array() || v.size() != 16) {
     fail(ErrorKind::kBadRequest,
-         fmt::format("{} must be an array of 16 numbers (column-major), got {}",
-                     name,
-                     v.is_array() ? fmt::format("{} elements", v.size())
-                                  : type_name(v)));
+         fmt::format("{} must be an array of 16 numbers (column-major), got {}", name,
+                     v.is_array() ? fmt::format("{} elements", v.size()) : type_name(v)));
   }
   Matrix4 m;
   double largest = 0;
   for (std::size_t i = 0; i < 16; ++i) {
-    m[i] = ObjectReader::check_number(v[i], fmt::format("{}[{}]", name, i),
-                                      -1e12, 1e12);
+    m[i] = ObjectReader::check_number(v[i], fmt::format("{}[{}]", name, i), -1e12, 1e12);
     largest = std::max(largest, std::abs(m[i]));
   }
   // Singular, or so badly conditioned that projecting through it is
   // meaningless.
   const double det = determinant(m);
   if (largest == 0 || !(std::abs(det) > 1e-12 * std::pow(largest, 4))) {
-    fail(ErrorKind::kBadRequest,
-         fmt::format("{} is singular (determinant {:g})", name, det));
+    fail(ErrorKind::kBadRequest, fmt::format("{} is singular (determinant {:g})", name, det));
   }
   return m;
 }
 
-std::array<std::uint32_t, 2> read_pair(const json &v, const std::string &name,
-                                       std::uint32_t max, ErrorKind over) {
+std::array<std::uint32_t, 2> read_pair(const json& v, const std::string& name, std::uint32_t max,
+                                       ErrorKind over) {
   if (!v.is_array() || v.size() != 2)
-    fail(ErrorKind::kBadRequest,
-         fmt::format("{} must be [width, height]", name));
+    fail(ErrorKind::kBadRequest, fmt::format("{} must be [width, height]", name));
   std::array<std::uint32_t, 2> out;
   for (std::size_t i = 0; i < 2; ++i) {
     const std::string element = fmt::format("{}[{}]", name, i);
-    const std::uint64_t x =
-        ObjectReader::check_integer(v[i], element, 1, UINT32_MAX);
-    if (x > max)
-      fail(over,
-           fmt::format("{} {} exceeds the server limit {}", element, x, max));
+    const std::uint64_t x = ObjectReader::check_integer(v[i], element, 1, UINT32_MAX);
+    if (x > max) fail(over, fmt::format("{} {} exceeds the server limit {}", element, x, max));
     out[i] = static_cast<std::uint32_t>(x);
   }
   return out;
 }
 
-Focus read_focus(const json &v, const std::string &path, bool neglect) {
+Focus read_focus(const json& v, const std::string& path, bool neglect) {
   ObjectReader r(v, path);
   Focus f;
   f.x = r.required_number("x", 0, 1);
   f.y = r.required_number("y", 0, 1);
   f.distance = r.number("distance", neglect ? 50 : 20, 0, 1e6);
-  f.factor =
-      neglect ? r.number("factor", 4, 1, 1e6) : r.number("factor", 0.25, 0, 1);
+  f.factor = neglect ? r.number("factor", 4, 1, 1e6) : r.number("factor", 0.25, 0, 1);
   r.finish();
   return f;
 }
 
-std::vector<Focus> read_foci(const json *v, const std::string &path,
-                             bool neglect) {
+std::vector<Focus> read_foci(const json* v, const std::string& path, bool neglect) {
   std::vector<Focus> out;
-  if (!v)
-    return out;
-  if (v->is_object()) { // a single focus may be given without the array
+  if (!v) return out;
+  if (v->is_object()) {  // a single focus may be given without the array
     out.push_back(read_focus(*v, path, neglect));
     return out;
   }
   if (!v->is_array())
-    fail(ErrorKind::kBadRequest,
-         fmt::format("'{}' must be an array of {{x, y, ...}} objects", path));
+    fail(ErrorKind::kBadRequest, fmt::format("'{}' must be an array of {{x, y, ...}} objects", path));
   for (std::size_t i = 0; i < v->size(); ++i)
     out.push_back(read_focus((*v)[i], fmt::format("{}[{}]", path, i), neglect));
   return out;
 }
 
-Criteria read_criteria(const json &v, const Limits &limits) {
+Criteria read_criteria(const json& v, const Limits& limits) {
   ObjectReader r(v, "criteria");
   Criteria c;
-  if (const json *s = r.find("silhouette")) {
+  if (const json* s = r.find("silhouette")) {
     if (s->is_boolean()) {
-      if (s->get<bool>())
-        c.silhouette = Silhouette{};
+      if (s->get<bool>()) c.silhouette = Silhouette{};
     } else {
       ObjectReader sr(*s, "criteria.silhouette");
       Silhouette sil;
@@ -296,13 +249,11 @@ Criteria read_criteria(const json &v, const Limits &limits) {
   c.focus = read_foci(r.find("focus"), "criteria.focus", false);
   c.neglect = read_foci(r.find("neglect"), "criteria.neglect", true);
   if (c.focus.size() + c.neglect.size() > limits.max_foci) {
-    fail(ErrorKind::kLimitExceeded,
-         fmt::format("{} focus and neglect points exceed the server limit {}",
-                     c.focus.size() + c.neglect.size(), limits.max_foci));
+    fail(ErrorKind::kLimitExceeded, fmt::format("{} focus and neglect points exceed the server limit {}",
+                                                c.focus.size() + c.neglect.size(), limits.max_foci));
   }
   c.falloff = static_cast<Falloff>(r.choice("falloff", kFalloffNames, 0));
-  c.distance =
-      static_cast<DistanceKind>(r.choice("distance", kDistanceKindNames, 0));
+  c.distance = static_cast<DistanceKind>(r.choice("distance", kDistanceKindNames, 0));
   c.units = static_cast<DistanceUnit>(r.choice("units", kDistanceUnitNames, 0));
   c.internal_silhouettes = r.boolean("internal_silhouettes", false);
   c.frustum_factor = r.number("frustum_factor", c.frustum_factor, 1, 1e6);
@@ -311,200 +262,173 @@ Criteria read_criteria(const json &v, const Limits &limits) {
   return c;
 }
 
-Extract read_extract(ObjectReader &r, const Limits &limits) {
+Extract read_extract(ObjectReader& r, const Limits& limits) {
   Extract e;
   e.model = r.string("model", 256);
   {
     ObjectReader camera(r.require("camera"), "camera");
     e.view = read_matrix(camera.require("view"), "camera.view");
-    e.projection =
-        read_matrix(camera.require("projection"), "camera.projection");
-    if (const json *vp = camera.find("viewport"))
-      e.viewport =
-          read_pair(*vp, "camera.viewport", 16384, ErrorKind::kBadRequest);
+    e.projection = read_matrix(camera.require("projection"), "camera.projection");
+    if (const json* vp = camera.find("viewport"))
+      e.viewport = read_pair(*vp, "camera.viewport", 16384, ErrorKind::kBadRequest);
     camera.finish();
   }
-  if (const json *g = r.find("grid"))
+  if (const json* g = r.find("grid"))
     e.grid = read_pair(*g, "grid", limits.max_grid, ErrorKind::kLimitExceeded);
-  const json &error = r.require("error");
+  const json& error = r.require("error");
   if (error.is_number()) {
     e.error = ObjectReader::check_number(error, "'error'", 0, 1e12);
   } else {
     ObjectReader er(error, "error");
     e.error = er.required_number("value", 0, 1e12);
-    e.error_unit =
-        static_cast<ErrorUnit>(er.choice("unit", kErrorUnitNames, 0));
+    e.error_unit = static_cast<ErrorUnit>(er.choice("unit", kErrorUnitNames, 0));
     er.finish();
   }
-  if (const json *c = r.find("criteria"))
-    e.criteria = read_criteria(*c, limits);
-  if (const json *b = r.find("budget")) {
-    const std::uint64_t budget =
-        ObjectReader::check_integer(*b, "'budget'", 1, UINT32_MAX);
+  if (const json* c = r.find("criteria")) e.criteria = read_criteria(*c, limits);
+  if (const json* b = r.find("budget")) {
+    const std::uint64_t budget = ObjectReader::check_integer(*b, "'budget'", 1, UINT32_MAX);
     if (budget > limits.max_budget) {
       fail(ErrorKind::kLimitExceeded,
-           fmt::format("'budget' {} exceeds the server limit {}", budget,
-                       limits.max_budget));
+           fmt::format("'budget' {} exceeds the server limit {}", budget, limits.max_budget));
     }
     e.budget = static_cast<std::uint32_t>(budget);
   }
-  if (const json *a = r.find("attributes")) {
+  if (const json* a = r.find("attributes")) {
     ObjectReader ar(*a, "attributes");
     e.normals = ar.boolean("normals", false);
     e.labels = ar.boolean("labels", false);
     ar.finish();
   }
   e.delta = r.boolean("delta", false);
-  if (const json *d = r.find("draco")) {
+  if (const json* d = r.find("draco")) {
     ObjectReader dr(*d, "draco");
     if (dr.has("method"))
-      e.draco.method =
-          static_cast<DracoMethod>(dr.choice("method", kDracoMethodNames, 0));
+      e.draco.method = static_cast<DracoMethod>(dr.choice("method", kDracoMethodNames, 0));
     e.draco.speed = static_cast<int>(dr.integer("speed", e.draco.speed, 0, 10));
     // Positions are floats (24-bit mantissa), and Draco's entropy coder's time
     // and memory double with each bit: 20 bits is finer than any model needs
     // and still cheap. Its octahedral normal coding needs at least 2 bits.
-    e.draco.position_bits = static_cast<int>(
-        dr.integer("position_bits", e.draco.position_bits, 1, 20));
-    e.draco.normal_bits =
-        static_cast<int>(dr.integer("normal_bits", e.draco.normal_bits, 2, 16));
-    if (dr.has("entropy_coding"))
-      e.draco.entropy_coding = dr.boolean("entropy_coding", true);
+    e.draco.position_bits = static_cast<int>(dr.integer("position_bits", e.draco.position_bits, 1, 20));
+    e.draco.normal_bits = static_cast<int>(dr.integer("normal_bits", e.draco.normal_bits, 2, 16));
+    if (dr.has("entropy_coding")) e.draco.entropy_coding = dr.boolean("entropy_coding", true);
     dr.finish();
   }
   if (e.delta && e.draco.method == DracoMethod::kEdgebreaker) {
-    fail(ErrorKind::kBadRequest, "'delta' needs draco.method 'sequential': "
-                                 "edgebreaker reorders the faces");
+    fail(ErrorKind::kBadRequest,
+         "'delta' needs draco.method 'sequential': "
+         "edgebreaker reorders the faces");
   }
   if (e.delta && e.labels) {
-    fail(ErrorKind::kBadRequest, "'delta' cannot carry attributes.labels: the "
-                                 "labels of kept triangles would go stale");
+    fail(ErrorKind::kBadRequest,
+         "'delta' cannot carry attributes.labels: the "
+         "labels of kept triangles would go stale");
   }
   return e;
 }
 
-Request read_request(ObjectReader &r, const std::string &type,
-                     const Limits &limits) {
+Request read_request(ObjectReader& r, const std::string& type, const Limits& limits) {
   if (type == "hello") {
     Hello h;
-    h.version =
-        static_cast<int>(r.integer("version", kProtocolVersion, 0, 1000));
+    h.version = static_cast<int>(r.integer("version", kProtocolVersion, 0, 1000));
     h.client = r.optional_string("client", "", 256);
     if (h.version != kProtocolVersion) {
-      fail(ErrorKind::kUnsupportedVersion,
-           fmt::format("protocol version {} is not supported; this server "
-                       "speaks version {}",
-                       h.version, kProtocolVersion));
+      fail(ErrorKind::kUnsupportedVersion, fmt::format("protocol version {} is not supported; this server "
+                                                       "speaks version {}",
+                                                       h.version, kProtocolVersion));
     }
     return h;
   }
-  if (type == "list_models")
-    return ListModels{};
-  if (type == "model_info")
-    return ModelInfo{r.string("model", 256)};
-  if (type == "extract")
-    return read_extract(r, limits);
+  if (type == "list_models") return ListModels{};
+  if (type == "model_info") return ModelInfo{r.string("model", 256)};
+  if (type == "extract") return read_extract(r, limits);
   if (type == "gaze") {
     Gaze g;
     g.x = r.required_number("x", 0, 1);
     g.y = r.required_number("y", 0, 1);
-    if (r.has("distance"))
-      g.distance = r.number("distance", 0, 0, 1e6);
-    if (r.has("factor"))
-      g.factor = r.number("factor", 0, 0, 1);
+    if (r.has("distance")) g.distance = r.number("distance", 0, 0, 1e6);
+    if (r.has("factor")) g.factor = r.number("factor", 0, 0, 1);
     return g;
   }
-  if (type == "cancel")
-    return Cancel{r.integer("target", 0, 0, UINT64_MAX)};
-  if (type == "stats")
-    return Stats{};
-  if (type == "ping")
-    return Ping{};
-  fail(ErrorKind::kUnknownType,
-       fmt::format("unknown request type '{}'; expected hello, list_models, "
-                   "model_info, extract, gaze, cancel, stats "
-                   "or ping",
-                   type));
+  if (type == "cancel") return Cancel{r.integer("target", 0, 0, UINT64_MAX)};
+  if (type == "stats") return Stats{};
+  if (type == "ping") return Ping{};
+  fail(ErrorKind::kUnknownType, fmt::format("unknown request type '{}'; expected hello, list_models, "
+                                            "model_info, extract, gaze, cancel, stats "
+                                            "or ping",
+                                            type));
 }
 
-} // namespace
+}  // namespace
 
-const char *to_string(ErrorKind kind) {
+const char* to_string(ErrorKind kind) {
   switch (kind) {
-  case ErrorKind::kBadFrame:
-    return "bad_frame";
-  case ErrorKind::kBadJson:
-    return "bad_json";
-  case ErrorKind::kBadRequest:
-    return "bad_request";
-  case ErrorKind::kUnknownType:
-    return "unknown_type";
-  case ErrorKind::kUnsupportedVersion:
-    return "unsupported_version";
-  case ErrorKind::kLimitExceeded:
-    return "limit_exceeded";
-  case ErrorKind::kUnknownModel:
-    return "unknown_model";
-  case ErrorKind::kNoView:
-    return "no_view";
-  case ErrorKind::kCancelled:
-    return "cancelled";
-  case ErrorKind::kSuperseded:
-    return "superseded";
-  case ErrorKind::kShuttingDown:
-    return "shutting_down";
-  case ErrorKind::kInternal:
-    return "internal";
+    case ErrorKind::kBadFrame:
+      return "bad_frame";
+    case ErrorKind::kBadJson:
+      return "bad_json";
+    case ErrorKind::kBadRequest:
+      return "bad_request";
+    case ErrorKind::kUnknownType:
+      return "unknown_type";
+    case ErrorKind::kUnsupportedVersion:
+      return "unsupported_version";
+    case ErrorKind::kLimitExceeded:
+      return "limit_exceeded";
+    case ErrorKind::kUnknownModel:
+      return "unknown_model";
+    case ErrorKind::kNoView:
+      return "no_view";
+    case ErrorKind::kCancelled:
+      return "cancelled";
+    case ErrorKind::kSuperseded:
+      return "superseded";
+    case ErrorKind::kShuttingDown:
+      return "shutting_down";
+    case ErrorKind::kInternal:
+      return "internal";
   }
   return "internal";
 }
 
-const char *request_type_name(const Request &request) {
-  static constexpr const char *kNames[] = {
-      "hello", "list_models", "model_info", "extract",
-      "gaze",  "cancel",      "stats",      "ping"};
+const char* request_type_name(const Request& request) {
+  static constexpr const char* kNames[] = {"hello", "list_models", "model_info", "extract",
+                                           "gaze",  "cancel",      "stats",      "ping"};
   return kNames[request.index()];
 }
 
-ParsedRequest parse_request(std::string_view text, const Limits &limits) {
+ParsedRequest parse_request(std::string_view text, const Limits& limits) {
   ParsedRequest parsed;
   json doc;
   try {
     doc = json::parse(text.begin(), text.end());
-  } catch (const json::parse_error &e) {
+  } catch (const json::parse_error& e) {
     // The parser's message quotes the bytes it last read, whatever they are.
     parsed.error = {ErrorKind::kBadJson,
-                    printable(fmt::format("JSON does not parse at byte {}: {}",
-                                          e.byte, e.what()))};
+                    printable(fmt::format("JSON does not parse at byte {}: {}", e.byte, e.what()))};
     return parsed;
-  } catch (const json::exception &e) {
-    parsed.error = {
-        ErrorKind::kBadJson,
-        printable(fmt::format("JSON does not parse: {}", e.what()))};
+  } catch (const json::exception& e) {
+    parsed.error = {ErrorKind::kBadJson, printable(fmt::format("JSON does not parse: {}", e.what()))};
     return parsed;
   }
   try {
     ObjectReader r(doc, "");
     // Read the id first so that even a bad request's error reply carries it.
-    if (const json *id = r.find("id"); id && id->is_number_unsigned())
-      parsed.id = id->get<std::uint64_t>();
+    if (const json* id = r.find("id"); id && id->is_number_unsigned()) parsed.id = id->get<std::uint64_t>();
     r.integer("id", 0, 0, UINT64_MAX);
     if (!parsed.id)
-      fail(ErrorKind::kBadRequest,
-           "'id' is required: a non-negative integer chosen by the client");
+      fail(ErrorKind::kBadRequest, "'id' is required: a non-negative integer chosen by the client");
     const std::string type = r.string("type", 64);
     Request request = read_request(r, type, limits);
     r.finish();
     parsed.request = std::move(request);
-  } catch (const Failure &f) {
+  } catch (const Failure& f) {
     parsed.error = {f.code, f.message};
-  } catch (const json::exception &e) {
+  } catch (const json::exception& e) {
     parsed.error = {ErrorKind::kBadRequest, e.what()};
   }
   // Messages quote the request's bytes; what goes back to the client and into
   // logs must be text.
-  if (!parsed.ok())
-    parsed.error.message = printable(parsed.error.message);
+  if (!parsed.ok()) parsed.error.message = printable(parsed.error.message);
   return parsed;
 }
 
@@ -513,33 +437,26 @@ ParsedRequest parse_request(std::string_view text, const Limits &limits) {
 
 namespace {
 
-json foci_json(const std::vector<Focus> &foci) {
+json foci_json(const std::vector<Focus>& foci) {
   json out = json::array();
-  for (const Focus &f : foci)
-    out.push_back({{"x", f.x},
-                   {"y", f.y},
-                   {"distance", f.distance},
-                   {"factor", f.factor}});
+  for (const Focus& f : foci)
+    out.push_back({{"x", f.x}, {"y", f.y}, {"distance", f.distance}, {"factor", f.factor}});
   return out;
 }
 
-json extract_json(const Extract &e) {
+json extract_json(const Extract& e) {
   json j;
   j["model"] = e.model;
-  j["camera"] = {
-      {"view", e.view}, {"projection", e.projection}, {"viewport", e.viewport}};
+  j["camera"] = {{"view", e.view}, {"projection", e.projection}, {"viewport", e.viewport}};
   j["grid"] = e.grid;
-  j["error"] = {{"value", e.error},
-                {"unit", enum_name(kErrorUnitNames, e.error_unit)}};
+  j["error"] = {{"value", e.error}, {"unit", enum_name(kErrorUnitNames, e.error_unit)}};
   json c;
   if (e.criteria.silhouette) {
     c["silhouette"] = {{"distance", e.criteria.silhouette->distance},
                        {"factor", e.criteria.silhouette->factor}};
   }
-  if (!e.criteria.focus.empty())
-    c["focus"] = foci_json(e.criteria.focus);
-  if (!e.criteria.neglect.empty())
-    c["neglect"] = foci_json(e.criteria.neglect);
+  if (!e.criteria.focus.empty()) c["focus"] = foci_json(e.criteria.focus);
+  if (!e.criteria.neglect.empty()) c["neglect"] = foci_json(e.criteria.neglect);
   c["falloff"] = enum_name(kFalloffNames, e.criteria.falloff);
   c["distance"] = enum_name(kDistanceKindNames, e.criteria.distance);
   c["units"] = enum_name(kDistanceUnitNames, e.criteria.units);
@@ -547,43 +464,33 @@ json extract_json(const Extract &e) {
   c["frustum_factor"] = e.criteria.frustum_factor;
   c["backface_factor"] = e.criteria.backface_factor;
   j["criteria"] = c;
-  if (e.budget)
-    j["budget"] = *e.budget;
+  if (e.budget) j["budget"] = *e.budget;
   j["attributes"] = {{"normals", e.normals}, {"labels", e.labels}};
-  if (e.delta)
-    j["delta"] = true;
+  if (e.delta) j["delta"] = true;
   j["draco"] = {{"speed", e.draco.speed},
                 {"position_bits", e.draco.position_bits},
                 {"normal_bits", e.draco.normal_bits}};
-  if (e.draco.method)
-    j["draco"]["method"] = enum_name(kDracoMethodNames, *e.draco.method);
-  if (e.draco.entropy_coding)
-    j["draco"]["entropy_coding"] = *e.draco.entropy_coding;
+  if (e.draco.method) j["draco"]["method"] = enum_name(kDracoMethodNames, *e.draco.method);
+  if (e.draco.entropy_coding) j["draco"]["entropy_coding"] = *e.draco.entropy_coding;
   return j;
 }
 
-} // namespace
+}  // namespace
 
-std::string to_json(const Request &request, std::uint64_t id) {
+std::string to_json(const Request& request, std::uint64_t id) {
   json j = std::visit(
-      [](const auto &r) -> json {
+      [](const auto& r) -> json {
         using T = std::decay_t<decltype(r)>;
-        if constexpr (std::is_same_v<T, Hello>)
-          return {{"version", r.version}, {"client", r.client}};
-        if constexpr (std::is_same_v<T, ModelInfo>)
-          return {{"model", r.model}};
-        if constexpr (std::is_same_v<T, Extract>)
-          return extract_json(r);
+        if constexpr (std::is_same_v<T, Hello>) return {{"version", r.version}, {"client", r.client}};
+        if constexpr (std::is_same_v<T, ModelInfo>) return {{"model", r.model}};
+        if constexpr (std::is_same_v<T, Extract>) return extract_json(r);
         if constexpr (std::is_same_v<T, Gaze>) {
           json g = {{"x", r.x}, {"y", r.y}};
-          if (r.distance)
-            g["distance"] = *r.distance;
-          if (r.factor)
-            g["factor"] = *r.factor;
+          if (r.distance) g["distance"] = *r.distance;
+          if (r.factor) g["factor"] = *r.factor;
           return g;
         }
-        if constexpr (std::is_same_v<T, Cancel>)
-          return {{"target", r.target}};
+        if constexpr (std::is_same_v<T, Cancel>) return {{"target", r.target}};
         return json::object();
       },
       request);
@@ -592,4 +499,4 @@ std::string to_json(const Request &request, std::uint64_t id) {
   return j.dump(-1, ' ', false, json::error_handler_t::replace);
 }
 
-} // namespace mtlod::protocol
+}  // namespace mtlod::protocol

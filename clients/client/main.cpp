@@ -17,26 +17,24 @@ namespace {
 
 using namespace mtlod;
 
-int fail(const std::string &message) {
+int fail(const std::string& message) {
   fmt::print(stderr, "mtlod-client: {}\n", message);
   return 1;
 }
 
 // Prints an error reply and returns true when the frame is one.
-bool is_error(const clients::ReplyFrame &frame) {
-  if (const auto *e = std::get_if<protocol::ErrorReply>(&frame.header.reply)) {
-    fmt::print(stderr, "mtlod-client: server error {}: {}\n",
-               protocol::to_string(e->code), e->message);
+bool is_error(const clients::ReplyFrame& frame) {
+  if (const auto* e = std::get_if<protocol::ErrorReply>(&frame.header.reply)) {
+    fmt::print(stderr, "mtlod-client: server error {}: {}\n", protocol::to_string(e->code), e->message);
     return true;
   }
   return false;
 }
 
-} // namespace
+}  // namespace
 
-int main(int argc, char **argv) {
-  CLI::App app{
-      "mtlod-client: query mtlod-server and fetch view-dependent extractions."};
+int main(int argc, char** argv) {
+  CLI::App app{"mtlod-client: query mtlod-server and fetch view-dependent extractions."};
   std::string host = "127.0.0.1", model, output;
   std::uint16_t port = 7878;
   app.add_option("--host", host, "server address")->capture_default_str();
@@ -50,16 +48,13 @@ int main(int argc, char **argv) {
       ->capture_default_str()
       ->check(CLI::Range(1u, 100u));
   app.require_subcommand(1);
-  auto *list = app.add_subcommand("list", "list the server's models");
-  auto *info = app.add_subcommand("info", "describe one model");
+  auto* list = app.add_subcommand("list", "list the server's models");
+  auto* info = app.add_subcommand("info", "describe one model");
   info->add_option("model", model, "model name")->required();
-  auto *stats = app.add_subcommand("stats", "print the server's counters");
-  auto *extract =
-      app.add_subcommand("extract", "fetch a view-dependent extraction");
+  auto* stats = app.add_subcommand("stats", "print the server's counters");
+  auto* extract = app.add_subcommand("extract", "fetch a view-dependent extraction");
   extract->add_option("model", model, "model name")->required();
-  extract->add_option(
-      "-o,--output", output,
-      "write the mesh: .drc (as received), .ply or .obj (decoded)");
+  extract->add_option("-o,--output", output, "write the mesh: .drc (as received), .ply or .obj (decoded)");
   protocol::ExtractFlags flags;
   protocol::add_extract_flags(*extract, flags);
   CLI11_PARSE(app, argc, argv);
@@ -70,113 +65,94 @@ int main(int argc, char **argv) {
 
   if (*list) {
     auto reply = c.call(protocol::ListModels{});
-    if (!reply)
-      return fail(reply.error().message);
-    if (is_error(*reply))
-      return 1;
-    fmt::print("{:<16} {:>10} {:>12} {:>8} {:>9} {:>10} {:>10}\n", "model",
-               "vertices", "triangles", "root", "nodes", "MiB", "max error");
-    for (const auto &m :
-         std::get<protocol::ModelsReply>(reply->header.reply).models) {
-      fmt::print("{:<16} {:>10} {:>12} {:>8} {:>9} {:>10.1f} {:>10.4g}\n",
-                 m.name, m.vertices, m.input_triangles, m.root_triangles,
-                 m.nodes, m.memory_bytes / 1048576.0, m.max_error);
+    if (!reply) return fail(reply.error().message);
+    if (is_error(*reply)) return 1;
+    fmt::print("{:<16} {:>10} {:>12} {:>8} {:>9} {:>10} {:>10}\n", "model", "vertices", "triangles", "root",
+               "nodes", "MiB", "max error");
+    for (const auto& m : std::get<protocol::ModelsReply>(reply->header.reply).models) {
+      fmt::print("{:<16} {:>10} {:>12} {:>8} {:>9} {:>10.1f} {:>10.4g}\n", m.name, m.vertices,
+                 m.input_triangles, m.root_triangles, m.nodes, m.memory_bytes / 1048576.0, m.max_error);
     }
     return 0;
   }
   if (*stats) {
     auto reply = c.call(protocol::Stats{});
-    if (!reply)
-      return fail(reply.error().message);
-    if (is_error(*reply))
-      return 1;
-    for (const auto &[name, value] :
-         std::get<protocol::StatsReply>(reply->header.reply).counters) {
+    if (!reply) return fail(reply.error().message);
+    if (is_error(*reply)) return 1;
+    for (const auto& [name, value] : std::get<protocol::StatsReply>(reply->header.reply).counters) {
       fmt::print("{:<28} {}\n", name, value);
     }
     return 0;
   }
 
   auto described = c.call(protocol::ModelInfo{model});
-  if (!described)
-    return fail(described.error().message);
-  if (is_error(*described))
-    return 1;
-  const auto &m = std::get<protocol::ModelInfoReply>(described->header.reply);
+  if (!described) return fail(described.error().message);
+  if (is_error(*described)) return 1;
+  const auto& m = std::get<protocol::ModelInfoReply>(described->header.reply);
   if (*info) {
-    fmt::print("{}: {} vertices, {} input triangles, {} root triangles, {} "
-               "nodes, {:.1f} MiB\n",
-               m.model.name, m.model.vertices, m.model.input_triangles,
-               m.model.root_triangles, m.model.nodes,
-               m.model.memory_bytes / 1048576.0);
-    fmt::print("bounds [{:.4g} {:.4g} {:.4g}] .. [{:.4g} {:.4g} {:.4g}], error "
-               "{:.4g} .. {:.4g}, normals {}, "
-               "colours {}\n",
-               m.bounds_min[0], m.bounds_min[1], m.bounds_min[2],
-               m.bounds_max[0], m.bounds_max[1], m.bounds_max[2], m.min_error,
-               m.model.max_error, m.normals ? "yes" : "no",
-               m.colors ? "yes" : "no");
+    fmt::print(
+        "{}: {} vertices, {} input triangles, {} root triangles, {} "
+        "nodes, {:.1f} MiB\n",
+        m.model.name, m.model.vertices, m.model.input_triangles, m.model.root_triangles, m.model.nodes,
+        m.model.memory_bytes / 1048576.0);
+    fmt::print(
+        "bounds [{:.4g} {:.4g} {:.4g}] .. [{:.4g} {:.4g} {:.4g}], error "
+        "{:.4g} .. {:.4g}, normals {}, "
+        "colours {}\n",
+        m.bounds_min[0], m.bounds_min[1], m.bounds_min[2], m.bounds_max[0], m.bounds_max[1], m.bounds_max[2],
+        m.min_error, m.model.max_error, m.normals ? "yes" : "no", m.colors ? "yes" : "no");
     return 0;
   }
 
-  auto request =
-      protocol::make_extract(flags, model, m.bounds_min, m.bounds_max);
-  if (!request)
-    return fail(request.error().message);
+  auto request = protocol::make_extract(flags, model, m.bounds_min, m.bounds_max);
+  if (!request) return fail(request.error().message);
   const auto start = std::chrono::steady_clock::now();
   auto reply = c.call(*request, std::chrono::seconds(120));
-  if (!reply)
-    return fail(reply.error().message);
-  if (is_error(*reply))
-    return 1;
-  const double round_trip_ms = std::chrono::duration<double, std::milli>(
-                                   std::chrono::steady_clock::now() - start)
-                                   .count();
-  const auto &mesh = std::get<protocol::MeshReply>(reply->header.reply);
-  const auto &t = mesh.timings;
-  fmt::print("{}: {} triangles, {} vertices, {} bytes ({:.1f} bits/triangle), "
-             "max error {:.4g}\n",
-             mesh.model, mesh.triangles, mesh.vertices, mesh.bytes,
-             8.0 * mesh.bytes / std::max<std::uint64_t>(1, mesh.triangles),
-             mesh.max_error);
-  fmt::print("server µs: queue {} map {} occupancy {} dt {} labels {} refine "
-             "{} encode {} total {}; round trip "
-             "{:.2f} ms\n",
-             t.queue_us, t.map_us, t.occupancy_us, t.dt_us, t.labels_us,
-             t.refine_us, t.encode_us, t.total_us, round_trip_ms);
-  fmt::print("server memory: {:.1f} MiB for this connection's cut, {:.1f} MiB "
-             "of worker scratch\n",
-             mesh.session_bytes / 1048576.0, mesh.scratch_bytes / 1048576.0);
+  if (!reply) return fail(reply.error().message);
+  if (is_error(*reply)) return 1;
+  const double round_trip_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  const auto& mesh = std::get<protocol::MeshReply>(reply->header.reply);
+  const auto& t = mesh.timings;
+  fmt::print(
+      "{}: {} triangles, {} vertices, {} bytes ({:.1f} bits/triangle), "
+      "max error {:.4g}\n",
+      mesh.model, mesh.triangles, mesh.vertices, mesh.bytes,
+      8.0 * mesh.bytes / std::max<std::uint64_t>(1, mesh.triangles), mesh.max_error);
+  fmt::print(
+      "server µs: queue {} map {} occupancy {} dt {} labels {} refine "
+      "{} encode {} total {}; round trip "
+      "{:.2f} ms\n",
+      t.queue_us, t.map_us, t.occupancy_us, t.dt_us, t.labels_us, t.refine_us, t.encode_us, t.total_us,
+      round_trip_ms);
+  fmt::print(
+      "server memory: {:.1f} MiB for this connection's cut, {:.1f} MiB "
+      "of worker scratch\n",
+      mesh.session_bytes / 1048576.0, mesh.scratch_bytes / 1048576.0);
   fmt::print("served by {}{}\n", c.hello().instance,
-             c.retries() ? fmt::format(" after {} retr{}", c.retries(),
-                                       c.retries() == 1 ? "y" : "ies")
-                         : "");
+             c.retries() ? fmt::format(" after {} retr{}", c.retries(), c.retries() == 1 ? "y" : "ies") : "");
   if (!output.empty()) {
     // A delta reply (--delta) starts from an empty mesh here: its Draco part is
     // the whole cut.
     std::span<const std::uint8_t> draco = reply->payload;
     if (mesh.delta) {
       auto parts = protocol::split_delta_payload(*mesh.delta, reply->payload);
-      if (!parts)
-        return fail(parts.error().message);
+      if (!parts) return fail(parts.error().message);
       draco = parts->draco;
-      fmt::print("delta: {} triangles added, {} removed (ids follow the Draco "
-                 "bytes in the payload)\n",
-                 mesh.delta->added, mesh.delta->removed);
+      fmt::print(
+          "delta: {} triangles added, {} removed (ids follow the Draco "
+          "bytes in the payload)\n",
+          mesh.delta->added, mesh.delta->removed);
     }
     const std::string ext = std::filesystem::path(output).extension().string();
     if (ext == ".drc") {
       std::ofstream out(output, std::ios::binary);
-      out.write(reinterpret_cast<const char *>(draco.data()),
-                static_cast<std::streamsize>(draco.size()));
-      if (!out)
-        return fail(fmt::format("{}: write failed", output));
+      out.write(reinterpret_cast<const char*>(draco.data()), static_cast<std::streamsize>(draco.size()));
+      if (!out) return fail(fmt::format("{}: write failed", output));
     } else {
       auto decoded = core::decode_draco(draco);
-      if (!decoded)
-        return fail(decoded.error().message);
-      if (auto saved = core::io::save_mesh(output, decoded->mesh); !saved)
-        return fail(saved.error().message);
+      if (!decoded) return fail(decoded.error().message);
+      if (auto saved = core::io::save_mesh(output, decoded->mesh); !saved) return fail(saved.error().message);
     }
     fmt::print("wrote {}\n", output);
   }
