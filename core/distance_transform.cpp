@@ -402,7 +402,7 @@ void DistanceTransformer::euclidean_squared_from_cells(std::span<const std::uint
   for (std::size_t y = 1; y < h; ++y) {
     std::uint16_t* cur = g + y * w;
     for (std::size_t x = 0; x < w; ++x)
-      cur[x] = std::min<std::uint16_t>(cur[x], std::min<std::uint32_t>(cur[x - w] + 1u, far));
+      cur[x] = std::min<std::uint16_t>(cur[x], std::min<std::uint32_t>((cur - w)[x] + 1u, far));
   }
   for (std::size_t y = h - 1; y-- > 0;) {
     std::uint16_t* cur = g + y * w;

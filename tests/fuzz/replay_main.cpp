@@ -1,6 +1,8 @@
 // Runs a libFuzzer target without libFuzzer (GCC builds, CI): every seed file given on the command
 // line, then deterministic mutations of each (byte flips, truncations, splices), so the target's
 // checks run under the sanitizers on every test run. Usage: TARGET [--mutations N] SEED...
+// With MTLOD_REPLAY_SAVE=FILE, each input is written to FILE before it runs: after a crash, FILE
+// holds the input that caused it.
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
@@ -29,10 +31,18 @@ int main(int argc, char** argv) {
     seeds.emplace_back(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
   }
   if (seeds.empty()) seeds.emplace_back();
+  const char* save = std::getenv("MTLOD_REPLAY_SAVE");
+  auto run = [save](const std::vector<std::uint8_t>& input) {
+    if (save) {
+      std::ofstream out(save, std::ios::binary);
+      out.write(reinterpret_cast<const char*>(input.data()), static_cast<std::streamsize>(input.size()));
+    }
+    LLVMFuzzerTestOneInput(input.data(), input.size());
+  };
   std::mt19937 rng(12345);
   std::size_t runs = 0;
   for (const auto& seed : seeds) {
-    LLVMFuzzerTestOneInput(seed.data(), seed.size());
+    run(seed);
     ++runs;
     for (int m = 0; m < mutations; ++m) {
       std::vector<std::uint8_t> input = seed;
@@ -55,7 +65,7 @@ int main(int argc, char** argv) {
         default:  // set a byte to an edge value
           if (!input.empty()) input[rng() % input.size()] = (rng() % 2) ? 0xFF : 0x00;
       }
-      LLVMFuzzerTestOneInput(input.data(), input.size());
+      run(input);
       ++runs;
     }
   }

@@ -1,0 +1,33 @@
+#!/usr/bin/env bash
+# Open-ended fuzzing with libFuzzer under ASan+UBSan (clang) in build/fuzz. Starts from the committed
+# corpus (tests/fuzz/corpus/TARGET) and, when the time is up, merges into it the new inputs that add
+# coverage. Usage: scripts/fuzz.sh [TARGET] [SECONDS]
+#   TARGET: server_stream (default), server_messages, request, frame or mt_format; SECONDS: 300.
+set -euo pipefail
+root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+target=${1:-server_stream}
+seconds=${2:-300}
+build=$root/build/fuzz
+binary=$build/tests/mtlod_fuzz_$target
+corpus=$root/tests/fuzz/corpus/$target
+found=$build/corpus/$target  # everything this run finds; merged into $corpus at the end
+export CCACHE_BASEDIR="$root" CCACHE_NOHASHDIR=true
+CXX=clang++ cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DMTLOD_FUZZ=ON \
+  -DMTLOD_SANITIZE=address,undefined -DMTLOD_BENCHMARKS=OFF >/dev/null
+cmake --build "$build" --target "mtlod_fuzz_$target" -j "$(nproc)"
+mkdir -p "$corpus" "$found" "$build/crashes"
+dict=()
+case $target in server_* | request) dict=(-dict="$root/tests/fuzz/server.dict") ;; esac
+# Crashes land in build/fuzz/crashes; replay one with: $binary FILE
+"$binary" "$found" "$corpus" "${dict[@]}" -max_total_time="$seconds" -timeout=20 -print_final_stats=1 \
+  -artifact_prefix="$build/crashes/$target-"
+before=$(ls "$corpus" | wc -l)
+# Edges only (no hit counts): the committed corpus keeps one input per new branch and stays small.
+"$binary" -merge=1 -use_counters=0 "$corpus" "$found" 2>&1 | tail -1
+echo "$corpus: $before -> $(ls "$corpus" | wc -l) files, $(du -sh --apparent-size "$corpus" | cut -f1)"
+cat <<MSG
+Before committing a corpus that has grown past ~300 files or 1 MB, minimise it (hand-made seeds
+have an extension and stay; libFuzzer's finds are bare hashes):
+  mkdir $corpus.min && cp $corpus/*.* $corpus.min/
+  $binary -merge=1 -use_counters=0 $corpus.min $corpus && rm -r $corpus && mv $corpus.min $corpus
+MSG
