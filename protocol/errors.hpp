@@ -19,7 +19,8 @@ enum class ErrorKind : std::uint8_t {
   kCancelled,           // the request was cancelled before it ran
   kSuperseded,          // a newer gaze replaced this one before it ran
   kShuttingDown,        // the server is draining and takes no new work
-  kInternal,            // the server failed; the message says how
+  kUnauthorized,        // the server wants an access token and the connection has not shown a valid one
+  kInternal,            // the server failed; the message says how (kept last: counters size by it)
 };
 
 const char* to_string(ErrorKind kind);

@@ -98,6 +98,7 @@ struct DracoSettings {
 struct Hello {
   int version = kProtocolVersion;
   std::string client;
+  std::string token;  // access token (mtlod-server --auth-tokens); empty: none
 };
 struct ListModels {};
 struct ModelInfo {

@@ -1,7 +1,6 @@
-// Request parsing and validation (PROTOCOL.md, "Messages"). nlohmann's
-// exceptions are caught at the entry point; inside, a small reader walks each
-// object, checks types and ranges with the field's full path in every message,
-// and reports fields nobody asked for.
+// Request parsing and validation (PROTOCOL.md, "Messages"). nlohmann's exceptions are caught at
+// the entry point; inside, a small reader walks each object, checks types and ranges with the
+// field's full path in every message, and reports fields nobody asked for.
 #include "protocol/parse.hpp"
 
 #include <algorithm>
@@ -43,8 +42,7 @@ std::string show(const json& v) {
   return s;
 }
 
-// Walks one JSON object; remembers which keys were read so finish() can name
-// the others.
+// Walks one JSON object; remembers which keys were read so finish() can name the others.
 class ObjectReader {
  public:
   ObjectReader(const json& object, std::string path) : object_(object), path_(std::move(path)) {
@@ -183,8 +181,7 @@ Matrix4 read_matrix(const json& v, const std::string& name) {
     m[i] = ObjectReader::check_number(v[i], fmt::format("{}[{}]", name, i), -1e12, 1e12);
     largest = std::max(largest, std::abs(m[i]));
   }
-  // Singular, or so badly conditioned that projecting through it is
-  // meaningless.
+  // Singular, or so badly conditioned that projecting through it is meaningless.
   const double det = determinant(m);
   if (largest == 0 || !(std::abs(det) > 1e-12 * std::pow(largest, 4))) {
     fail(ErrorKind::kBadRequest, fmt::format("{} is singular (determinant {:g})", name, det));
@@ -305,23 +302,20 @@ Extract read_extract(ObjectReader& r, const Limits& limits) {
     if (dr.has("method"))
       e.draco.method = static_cast<DracoMethod>(dr.choice("method", kDracoMethodNames, 0));
     e.draco.speed = static_cast<int>(dr.integer("speed", e.draco.speed, 0, 10));
-    // Positions are floats (24-bit mantissa), and Draco's entropy coder's time
-    // and memory double with each bit: 20 bits is finer than any model needs
-    // and still cheap. Its octahedral normal coding needs at least 2 bits.
+    // Positions are floats (24-bit mantissa), and Draco's entropy coder's time and memory double with
+    // each bit: 20 bits is finer than any model needs and still cheap. Its octahedral normal coding
+    // needs at least 2 bits.
     e.draco.position_bits = static_cast<int>(dr.integer("position_bits", e.draco.position_bits, 1, 20));
     e.draco.normal_bits = static_cast<int>(dr.integer("normal_bits", e.draco.normal_bits, 2, 16));
     if (dr.has("entropy_coding")) e.draco.entropy_coding = dr.boolean("entropy_coding", true);
     dr.finish();
   }
   if (e.delta && e.draco.method == DracoMethod::kEdgebreaker) {
-    fail(ErrorKind::kBadRequest,
-         "'delta' needs draco.method 'sequential': "
-         "edgebreaker reorders the faces");
+    fail(ErrorKind::kBadRequest, "'delta' needs draco.method 'sequential': edgebreaker reorders the faces");
   }
   if (e.delta && e.labels) {
     fail(ErrorKind::kBadRequest,
-         "'delta' cannot carry attributes.labels: the "
-         "labels of kept triangles would go stale");
+         "'delta' cannot carry attributes.labels: the labels of kept triangles would go stale");
   }
   return e;
 }
@@ -331,10 +325,11 @@ Request read_request(ObjectReader& r, const std::string& type, const Limits& lim
     Hello h;
     h.version = static_cast<int>(r.integer("version", kProtocolVersion, 0, 1000));
     h.client = r.optional_string("client", "", 256);
+    h.token = r.optional_string("token", "", 256);
     if (h.version != kProtocolVersion) {
-      fail(ErrorKind::kUnsupportedVersion, fmt::format("protocol version {} is not supported; this server "
-                                                       "speaks version {}",
-                                                       h.version, kProtocolVersion));
+      fail(ErrorKind::kUnsupportedVersion,
+           fmt::format("protocol version {} is not supported; this server speaks version {}", h.version,
+                       kProtocolVersion));
     }
     return h;
   }
@@ -352,10 +347,11 @@ Request read_request(ObjectReader& r, const std::string& type, const Limits& lim
   if (type == "cancel") return Cancel{r.integer("target", 0, 0, UINT64_MAX)};
   if (type == "stats") return Stats{};
   if (type == "ping") return Ping{};
-  fail(ErrorKind::kUnknownType, fmt::format("unknown request type '{}'; expected hello, list_models, "
-                                            "model_info, extract, gaze, cancel, stats "
-                                            "or ping",
-                                            type));
+  fail(ErrorKind::kUnknownType,
+       fmt::format(
+           "unknown request type '{}'; expected hello, list_models, model_info, extract, gaze, cancel, stats "
+           "or ping",
+           type));
 }
 
 }  // namespace
@@ -384,6 +380,8 @@ const char* to_string(ErrorKind kind) {
       return "superseded";
     case ErrorKind::kShuttingDown:
       return "shutting_down";
+    case ErrorKind::kUnauthorized:
+      return "unauthorized";
     case ErrorKind::kInternal:
       return "internal";
   }
@@ -426,14 +424,12 @@ ParsedRequest parse_request(std::string_view text, const Limits& limits) {
   } catch (const json::exception& e) {
     parsed.error = {ErrorKind::kBadRequest, e.what()};
   }
-  // Messages quote the request's bytes; what goes back to the client and into
-  // logs must be text.
+  // Messages quote the request's bytes; what goes back to the client and into logs must be text.
   if (!parsed.ok()) parsed.error.message = printable(parsed.error.message);
   return parsed;
 }
 
-// ---- Serialisation for clients
-// ----------------------------------------------------------------
+// ---- Serialisation for clients ----------------------------------------------------------------
 
 namespace {
 
@@ -481,7 +477,11 @@ std::string to_json(const Request& request, std::uint64_t id) {
   json j = std::visit(
       [](const auto& r) -> json {
         using T = std::decay_t<decltype(r)>;
-        if constexpr (std::is_same_v<T, Hello>) return {{"version", r.version}, {"client", r.client}};
+        if constexpr (std::is_same_v<T, Hello>) {
+          json h = {{"version", r.version}, {"client", r.client}};
+          if (!r.token.empty()) h["token"] = r.token;
+          return h;
+        }
         if constexpr (std::is_same_v<T, ModelInfo>) return {{"model", r.model}};
         if constexpr (std::is_same_v<T, Extract>) return extract_json(r);
         if constexpr (std::is_same_v<T, Gaze>) {

@@ -104,7 +104,8 @@ std::string to_json(const Reply& reply, std::optional<std::uint64_t> id) {
           return {{"version", r.version},
                   {"server", r.server},
                   {"limits", limits_json(r.limits)},
-                  {"instance", r.instance}};
+                  {"instance", r.instance},
+                  {"auth_required", r.auth_required}};
         } else if constexpr (std::is_same_v<T, ModelsReply>) {
           json models = json::array();
           for (const ModelSummary& m : r.models) models.push_back(summary_json(m));
@@ -161,7 +162,8 @@ Result<ParsedReply> parse_reply(std::string_view text) {
     const std::string type = j.value("type", "");
     if (type == "hello") {
       out.reply = HelloReply{j.value("version", 0), j.value("server", ""),
-                             limits_from(j.value("limits", json::object())), j.value("instance", "")};
+                             limits_from(j.value("limits", json::object())), j.value("instance", ""),
+                             j.value("auth_required", false)};
     } else if (type == "models") {
       ModelsReply r;
       const json models = j.value("models", json::array());

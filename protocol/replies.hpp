@@ -26,6 +26,8 @@ struct HelloReply {
   // Which server process answered: "<name>@<random hex>", new at every start, so a client behind a
   // load balancer can tell replicas, and a restarted replica from its previous run, apart.
   std::string instance;
+  // The server wants an access token in hello (mtlod-server --auth-tokens).
+  bool auth_required = false;
 };
 
 struct ModelSummary {

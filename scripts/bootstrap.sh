@@ -17,16 +17,18 @@ build_packages=(
   nlohmann-json3-dev libopenmesh-dev libdraco-dev draco libglm-dev
   libcli11-dev libspdlog-dev libfmt-dev libpng-dev
   libmeshoptimizer-dev                        # the evaluation's peer simplifier
+  libssl-dev                                  # TLS (Asio's SSL streams) and the access tokens' digests
 )
 test_packages=(
   libgtest-dev libgmock-dev libbenchmark-dev
   libopencv-dev                               # a peer measured in the benchmarks
   chromium                                    # the browser test drives the viewer headless
   haproxy                                     # the failover test runs replicas behind it
+  openssl                                     # the TLS tests make their certificates with it
   clang-format                                # the test suite checks the tree's formatting
 )
 # What the binaries load at run time (the -dev packages above depend on these).
-runtime_packages=(libdraco7 libopenmesh1 libspdlog1.10 libfmt9 libpng16-16 libmeshoptimizer2d)
+runtime_packages=(libdraco7 libopenmesh1 libspdlog1.10 libfmt9 libpng16-16 libmeshoptimizer2d libssl3)
 
 case "$profile" in
   all) wanted=("${build_packages[@]}" "${test_packages[@]}") ;;

@@ -75,7 +75,13 @@ void Connection::handle_frame(std::string_view json, std::int64_t received_ns) {
   try {
     const protocol::ParsedRequest parsed = protocol::parse_request(json, server_.config.limits);
     id = parsed.id;
-    if (!parsed.ok()) {
+    if (!authorised() && !(parsed.ok() && std::holds_alternative<protocol::Hello>(*parsed.request))) {
+      // Until a token is shown, nothing is served nor even checked beyond being a hello: a client
+      // without one learns no more than that it needs one.
+      if (parsed.ok()) server_.metrics.request(parsed.request->index());
+      reply_error(seq, protocol::ErrorKind::kUnauthorized,
+                  "this server needs an access token: send a hello with a valid 'token' first", parsed.id);
+    } else if (!parsed.ok()) {
       reply_error(seq, parsed.error.code, parsed.error.message, parsed.id);
     } else {
       server_.metrics.request(parsed.request->index());
@@ -147,18 +153,51 @@ void Connection::on_read_end() {
   flush();
 }
 
-void Connection::on_request(std::uint64_t seq, std::uint64_t id, const protocol::Hello&) {
-  replies_.fill(seq, make_frame(protocol::HelloReply{protocol::kProtocolVersion, "mtlod/0.1",
-                                                     server_.config.limits, server_.config.instance},
-                                id));
+void Connection::authorise(const Grant* grant) {
+  grant_ = grant;
+  if (grant)
+    spdlog::debug("conn={} authorised by the token on line {} of the tokens file", number_, grant->line);
+}
+
+const Model* Connection::visible_model(std::string_view name) const {
+  if (grant_ && !grant_->sees(name)) return nullptr;
+  return server_.models.find(name);
+}
+
+void Connection::on_request(std::uint64_t seq, std::uint64_t id, const protocol::Hello& request) {
+  const TokenTable* tokens = server_.config.tokens.get();
+  // A token in hello is checked even on a connection already authorised: a wrong one revokes the
+  // earlier grant, so a connection never holds more than its latest hello says.
+  if (tokens && (!request.token.empty() || !authorised())) {
+    const Grant* grant = request.token.empty() ? nullptr : tokens->find(request.token);
+    authorise(grant);
+    if (!grant) {
+      // Worth a line for whoever audits access, but one per connection: a client repeating its
+      // hello must not be able to fill the log.
+      spdlog::log(refusal_logged_ ? spdlog::level::debug : spdlog::level::info, "conn={} from {}: hello {}",
+                  number_, address_,
+                  request.token.empty() ? "without a token" : "with a token that is not valid");
+      refusal_logged_ = true;
+      return reply_error(seq, protocol::ErrorKind::kUnauthorized,
+                         request.token.empty() ? "this server needs an access token in hello's 'token'"
+                                               : "the access token is not valid",
+                         id);
+    }
+  }
+  protocol::HelloReply reply{protocol::kProtocolVersion, "mtlod/0.1", server_.config.limits,
+                             server_.config.instance};
+  reply.auth_required = tokens != nullptr;
+  replies_.fill(seq, make_frame(reply, id));
 }
 void Connection::on_request(std::uint64_t seq, std::uint64_t id, const protocol::ListModels&) {
   protocol::ModelsReply reply;
-  for (const auto& model : server_.models.models()) reply.models.push_back(model->summary());
+  for (const auto& model : server_.models.models()) {
+    if (visible_model(model->name)) reply.models.push_back(model->summary());
+  }
   replies_.fill(seq, make_frame(reply, id));
 }
 void Connection::on_request(std::uint64_t seq, std::uint64_t id, const protocol::ModelInfo& request) {
-  const Model* model = server_.models.find(request.model);
+  const Model* model = visible_model(request.model);
   if (!model) return reply_unknown_model(seq, id, request.model);
   replies_.fill(seq, make_frame(model->info(), id));
 }
@@ -178,7 +217,7 @@ void Connection::on_request(std::uint64_t seq, std::uint64_t id, const protocol:
   replies_.fill(seq, make_frame(protocol::CancelReply{request.target, job.has_value()}, id));
 }
 void Connection::on_request(std::uint64_t seq, std::uint64_t id, const protocol::Extract& request) {
-  if (!server_.models.find(request.model)) return reply_unknown_model(seq, id, request.model);
+  if (!visible_model(request.model)) return reply_unknown_model(seq, id, request.model);
   last_extract_ = request;
   enqueue(Job{seq, id, false, request, 0, received_ns_});
 }
@@ -187,6 +226,8 @@ void Connection::on_request(std::uint64_t seq, std::uint64_t id, const protocol:
     return reply_error(seq, protocol::ErrorKind::kNoView,
                        "gaze needs an earlier extract on this connection to know the view", id);
   }
+  // A later hello may have changed the token: the view's model must still be one it sees.
+  if (!visible_model(last_extract_->model)) return reply_unknown_model(seq, id, last_extract_->model);
   protocol::Extract request = *last_extract_;
   if (request.criteria.focus.empty()) request.criteria.focus.emplace_back();
   protocol::Focus& focus = request.criteria.focus.front();
@@ -305,7 +346,9 @@ void Connection::finish_reply(const Job& job, std::int64_t started_ns,
 
 void Connection::reply_unknown_model(std::uint64_t seq, std::uint64_t id, const std::string& name) {
   std::string known;
-  for (const auto& m : server_.models.models()) known += (known.empty() ? "" : ", ") + m->name;
+  for (const auto& m : server_.models.models()) {
+    if (visible_model(m->name)) known += (known.empty() ? "" : ", ") + m->name;
+  }
   reply_error(seq, protocol::ErrorKind::kUnknownModel,
               fmt::format("no model named '{}'; loaded: {}", name, known), id);
 }

@@ -20,6 +20,7 @@
 #include "protocol/frame.hpp"
 #include "protocol/messages.hpp"
 #include "server/admission.hpp"
+#include "server/auth.hpp"
 #include "server/engine.hpp"
 #include "server/metrics.hpp"
 #include "server/server.hpp"
@@ -78,6 +79,9 @@ class Connection : public std::enable_shared_from_this<Connection> {
   bool handle_message(bool text, std::string_view message, std::int64_t received_ns);
   // The stream cannot continue (bad frame header): answer `bad_frame`, then close.
   void bad_frame(const std::string& message);
+  // The connection has shown a valid access token outside the protocol (the WebSocket upgrade
+  // request): it is served as after a hello carrying it. `grant` comes from the server's tokens.
+  void authorise(const Grant* grant);
   // Runs a transport's completion handler so that no exception leaves it: a throw (an allocation
   // failure, a bug) is logged and closes this connection only, never the process.
   template <class F>
@@ -124,6 +128,10 @@ class Connection : public std::enable_shared_from_this<Connection> {
                   std::variant<ExtractOutcome, protocol::ProtocolError>& outcome);
   void finish_reply(const Job& job, std::int64_t started_ns,
                     std::variant<ExtractOutcome, protocol::ProtocolError>& outcome);
+  // Whether this connection may be served yet: true without access tokens, else once a token is shown.
+  bool authorised() const { return !server_.config.tokens || grant_ != nullptr; }
+  // The model of that name if this connection's token lets it see it, else nullptr.
+  const Model* visible_model(std::string_view name) const;
   void reply_unknown_model(std::uint64_t seq, std::uint64_t id, const std::string& name);
   void reply_error(std::uint64_t seq, protocol::ErrorKind code, const std::string& message,
                    std::optional<std::uint64_t> id);
@@ -143,6 +151,8 @@ class Connection : public std::enable_shared_from_this<Connection> {
   ReplyOrder replies_;
   JobQueue jobs_;
   SessionCut cut_;
+  const Grant* grant_ = nullptr;  // the access token shown (with --auth-tokens), owned by the server
+  bool refusal_logged_ = false;   // a hello's token was refused, and said so in the log
   std::optional<protocol::Extract> last_extract_;
   std::int64_t received_ns_ = 0;  // arrival of the request being handled
   std::vector<std::uint8_t> outgoing_;

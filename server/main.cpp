@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "CLI/CLI.hpp"
+#include "server/auth.hpp"
 #include "server/model_registry.hpp"
 #include "server/server.hpp"
 #include "spdlog/spdlog.h"
@@ -91,6 +92,17 @@ int main(int argc, char** argv) {
                 std::string::npos;
         return plain ? std::string() : "a name of 1 to 64 letters, digits, '.', '_' or '-'";
       });
+  app.add_option(
+      "--tls-cert", config.tls_cert_file,
+      "PEM certificate chain (leaf first): with --tls-key, the protocol and HTTP ports speak TLS only "
+      "(https, wss)");
+  app.add_option("--tls-key", config.tls_key_file, "PEM private key of --tls-cert (unencrypted)");
+  std::string tokens_file;
+  app.add_option(
+      "--auth-tokens", tokens_file,
+      "access tokens, one per line: TOKEN [model ...] (# comments); connections are served only after "
+      "a hello with a valid token (WebSocket: /ws?token=) and see only their token's models (all "
+      "when none is listed)");
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error or off")->capture_default_str();
   CLI11_PARSE(app, argc, argv);
 
@@ -126,6 +138,19 @@ int main(int argc, char** argv) {
     spdlog::error("no models: give MT files, --models DIR or --mesh FILE");
     return 1;
   }
+  if (!tokens_file.empty()) {
+    auto tokens = server::TokenTable::load(tokens_file);
+    if (!tokens) {
+      spdlog::error("{}", tokens.error().message);
+      return 1;
+    }
+    // A name no loaded model has is likely a typo; it may also be a model this replica lacks.
+    for (const std::string& name : tokens->listed_models()) {
+      if (!registry.find(name)) spdlog::warn("{}: model '{}' is not loaded here", tokens_file, name);
+    }
+    spdlog::info("access tokens: {} from {}", tokens->size(), tokens_file);
+    config.tokens = std::make_shared<const server::TokenTable>(std::move(*tokens));
+  }
   for (const auto& model : registry.models()) {
     const auto s = model->summary();
     spdlog::info(
@@ -139,11 +164,14 @@ int main(int argc, char** argv) {
 
   server::Server server(config, registry);
   check(server.listen());
-  spdlog::info("{} listening on {}:{} (protocol version {}); try: mtlod-client --port {} list",
-               config.instance, config.host, server.port(), protocol::kProtocolVersion, server.port());
+  const bool tls = !config.tls_cert_file.empty();
+  spdlog::info("{} listening on {}:{} (protocol version {}{}{}); try: mtlod-client --port {}{}{} list",
+               config.instance, config.host, server.port(), protocol::kProtocolVersion, tls ? ", TLS" : "",
+               config.tokens ? ", access tokens" : "", server.port(), tls ? " --tls" : "",
+               config.tokens ? " --token TOKEN" : "");
   if (config.http_port) {
-    spdlog::info("viewer: http://{}:{}/ (WebSocket at /ws, files from {})", config.host, server.http_port(),
-                 config.web_root);
+    spdlog::info("viewer: {}://{}:{}/{} (WebSocket at /ws, files from {})", tls ? "https" : "http",
+                 config.host, server.http_port(), config.tokens ? "?token=TOKEN" : "", config.web_root);
   }
   if (!port_file.empty()) {
     // Written to a temporary name and renamed, so a reader never sees a half-written port.

@@ -17,6 +17,7 @@
 #include "protocol/text.hpp"
 #include "server/connection.hpp"
 #include "server/tcp_session.hpp"
+#include "server/tls.hpp"
 #include "server/web_session.hpp"
 #include "spdlog/spdlog.h"
 
@@ -54,7 +55,8 @@ struct Server::Impl {
   std::atomic<std::uint64_t> next_connection{1};
   std::mutex connections_mutex;
   std::list<std::weak_ptr<Connection>> connections;
-  std::unique_ptr<WebServer> web;  // HTTP + WebSocket, when config.http_port is set
+  std::unique_ptr<WebServer> web;          // HTTP + WebSocket, when config.http_port is set
+  std::unique_ptr<net::ssl::context> tls;  // both listeners' TLS, when config names a certificate
 
   Impl(ServerConfig c, const ModelRegistry& m)
       : config(with_memory_limit(std::move(c))), models(m), engine(m) {}
@@ -99,7 +101,9 @@ AddressTable::Slot Server::Impl::admit(tcp::socket& socket, std::uint64_t number
   protocol::append_frame(
       protocol::to_json(protocol::ErrorReply{protocol::ErrorKind::kLimitExceeded, why}, std::nullopt), {},
       frame);
-  refuse_socket(std::move(socket), std::string(frame.begin(), frame.end()));
+  // Over TLS the frame could only go out after a handshake, which a refused client is not worth:
+  // it sees its connection close.
+  refuse_socket(std::move(socket), tls ? std::string() : std::string(frame.begin(), frame.end()));
   return slot;
 }
 
@@ -117,7 +121,7 @@ void Server::Impl::accept() {
     socket.set_option(tcp::no_delay(true), ignored);
     const std::uint64_t number = next_connection++;
     if (AddressTable::Slot slot = admit(socket, number)) {
-      track(start_tcp_session(*context, std::move(socket), number, std::move(slot)));
+      track(start_tcp_session(*context, std::move(socket), number, std::move(slot), tls.get()));
     }
     accept();
   });
@@ -159,6 +163,12 @@ Server::~Server() {
 }
 
 Status Server::listen() {
+  const ServerConfig& config = impl_->config;
+  if (!config.tls_cert_file.empty() || !config.tls_key_file.empty()) {
+    if (config.tls_cert_file.empty() || config.tls_key_file.empty())
+      return make_error(ErrorCode::kInvalidArgument, "TLS needs both --tls-cert and --tls-key");
+    MTLOD_TRY(impl_->tls, make_tls_context(config.tls_cert_file, config.tls_key_file));
+  }
   error_code ec;
   const auto address = net::ip::make_address(impl_->config.host, ec);
   if (ec)
@@ -175,7 +185,8 @@ Status Server::listen() {
                                                        impl_->config.port, ec.message()));
   }
   if (impl_->config.http_port) {
-    impl_->web = std::make_unique<WebServer>(impl_->ioc, impl_->control, WebConfig{impl_->config.web_root});
+    impl_->web = std::make_unique<WebServer>(impl_->ioc, impl_->control,
+                                             WebConfig{impl_->config.web_root, impl_->tls.get()});
     MTLOD_RETURN_IF_ERROR(impl_->web->listen(impl_->config.host, *impl_->config.http_port));
   }
   return Ok{};

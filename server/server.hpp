@@ -14,6 +14,8 @@
 
 namespace mtlod::server {
 
+class TokenTable;
+
 struct ServerConfig {
   std::string host = "127.0.0.1";
   std::uint16_t port = 7878;                // 0: let the OS choose (see Server::port)
@@ -26,6 +28,11 @@ struct ServerConfig {
   std::string web_root;  // repository root holding clients/web and scripts/node_modules/three
   // This process in hello replies and /health: "<name>@<random hex>" (see instance_id()).
   std::string instance = "mtlod";
+  // TLS on both listeners, from PEM files (server/tls.hpp); plain TCP and HTTP when both are empty.
+  std::string tls_cert_file, tls_key_file;
+  // Access tokens (server/auth.hpp): when set, a connection is served only once it has shown a
+  // valid token, and sees only its token's models.
+  std::shared_ptr<const TokenTable> tokens;
 };
 
 // "<name>@<8 hex digits>", random per call: a replica's identity for this run.
@@ -36,7 +43,8 @@ class Server {
   Server(ServerConfig config, const ModelRegistry& models);
   ~Server();
 
-  // Binds and listens; errors name the address.
+  // Loads the TLS certificate and key when configured, binds and listens; errors name the file or
+  // the address.
   Status listen();
   // The bound port (useful with port 0).
   std::uint16_t port() const;

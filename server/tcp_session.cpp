@@ -1,13 +1,17 @@
 // The TCP transport (see tcp_session.hpp). Shaped after Beast's async examples: do_read/on_read,
-// every error branch returns; a steady_timer enforces the idle and read timeouts.
+// every error branch returns; a steady_timer enforces the idle and read timeouts. One template
+// serves plain sockets and TLS streams: only the handshake and the socket under the stream differ.
 #include "server/tcp_session.hpp"
 
 #include <boost/asio/dispatch.hpp>
 #include <boost/asio/read.hpp>
+#include <boost/asio/ssl/error.hpp>
+#include <boost/asio/ssl/stream.hpp>
 #include <boost/asio/steady_timer.hpp>
 #include <boost/asio/write.hpp>
 
 #include <chrono>
+#include <type_traits>
 
 #include "protocol/frame.hpp"
 #include "spdlog/spdlog.h"
@@ -16,26 +20,64 @@ namespace mtlod::server {
 namespace {
 
 namespace net = boost::asio;
+namespace ssl = net::ssl;
 using tcp = net::ip::tcp;
 using boost::system::error_code;
 
+// Stream: tcp::socket, or ssl::stream<tcp::socket> for TLS.
+template <class Stream>
 class TcpSession final : public Connection {
  public:
-  TcpSession(ServerContext& server, tcp::socket socket, std::uint64_t number, AddressTable::Slot slot)
-      : Connection(server, socket.get_executor(), number, std::move(slot)),
-        socket_(std::move(socket)),
-        deadline_(socket_.get_executor()) {}
+  static constexpr bool kTls = !std::is_same_v<Stream, tcp::socket>;
+
+  TcpSession(ServerContext& server, Stream stream, std::uint64_t number, AddressTable::Slot slot)
+      : Connection(server, stream.get_executor(), number, std::move(slot)),
+        stream_(std::move(stream)),
+        deadline_(stream_.get_executor()) {}
 
   void start() {
     net::dispatch(strand(), [self = shared_self()] {
       self->opened();
-      self->do_read_header();
+      if constexpr (kTls) {
+        self->do_handshake();
+      } else {
+        self->do_read_header();
+      }
     });
   }
 
  private:
   std::shared_ptr<TcpSession> shared_self() {
     return std::static_pointer_cast<TcpSession>(shared_from_this());
+  }
+  tcp::socket& socket() {
+    if constexpr (kTls) {
+      return stream_.next_layer();
+    } else {
+      return stream_;
+    }
+  }
+
+  // TLS only. The handshake counts as the wait for the first frame: a client that never completes
+  // it holds its connection slot no longer than one that connects and sends nothing.
+  void do_handshake() {
+    reading_ = true;
+    arm_deadline(server_.config.limits.first_frame_timeout_ms, /*idle=*/true);
+    stream_.async_handshake(ssl::stream_base::server, [self = shared_self()](error_code ec) {
+      self->guarded("TLS handshake", [&] { self->on_handshake(ec); });
+    });
+  }
+
+  void on_handshake(error_code ec) {
+    reading_ = false;
+    if (ec) {
+      // A plain client, a port scanner or an untrusted certificate on the client's side: worth a
+      // line when debugging, never a warning that anyone can trigger at will.
+      spdlog::debug("conn={} from {}: TLS handshake failed: {}", number(), address(), ec.message());
+      return on_read_end();
+    }
+    if (ending()) return on_read_end();
+    do_read_header();
   }
 
   void do_read_header() {
@@ -45,7 +87,7 @@ class TcpSession final : public Connection {
     // connection slots of clients that would use them.
     const auto& limits = server_.config.limits;
     arm_deadline(got_request() ? limits.idle_timeout_ms : limits.first_frame_timeout_ms, /*idle=*/true);
-    net::async_read(socket_, net::buffer(header_), [self = shared_self()](error_code ec, std::size_t) {
+    net::async_read(stream_, net::buffer(header_), [self = shared_self()](error_code ec, std::size_t) {
       self->guarded("read header", [&] { self->on_header(ec); });
     });
   }
@@ -62,7 +104,7 @@ class TcpSession final : public Connection {
     json_bytes_ = header->json_bytes;
     reading_ = true;
     arm_deadline(server_.config.limits.read_timeout_ms, /*idle=*/false);
-    net::async_read(socket_, net::buffer(body_), [self = shared_self()](error_code ec, std::size_t n) {
+    net::async_read(stream_, net::buffer(body_), [self = shared_self()](error_code ec, std::size_t n) {
       self->guarded("read body", [&] { self->on_body(ec, n); });
     });
   }
@@ -78,7 +120,9 @@ class TcpSession final : public Connection {
   }
 
   void end(error_code ec, const char* what) {
-    if (ec != net::error::eof && ec != net::error::operation_aborted && ec != net::error::connection_reset) {
+    // Clients that hang up without TLS's close_notify end with stream_truncated: as common as EOF.
+    if (ec != net::error::eof && ec != net::error::operation_aborted && ec != net::error::connection_reset &&
+        ec != ssl::error::stream_truncated) {
       spdlog::debug("conn={} {} failed: {}", number(), what, ec.message());
     }
     on_read_end();
@@ -102,24 +146,27 @@ class TcpSession final : public Connection {
   }
 
   void write_frame(std::vector<std::uint8_t>& frame) override {
-    net::async_write(socket_, net::buffer(frame), [self = shared_self()](error_code ec, std::size_t n) {
+    net::async_write(stream_, net::buffer(frame), [self = shared_self()](error_code ec, std::size_t n) {
       if (ec) spdlog::debug("conn={} write failed: {}", self->number(), ec.message());
       self->guarded("write", [&] { self->on_written(!ec, n); });
     });
   }
+  // Over TLS too the socket's receiving side is shut: the pending read ends (stream_truncated), and
+  // replies still go out, as Asio's TLS engine never saw an end of stream to fail on.
   void stop_reading() override {
     error_code ignored;
-    socket_.shutdown(tcp::socket::shutdown_receive, ignored);  // completes the pending read with EOF
+    socket().shutdown(tcp::socket::shutdown_receive, ignored);  // completes the pending read with EOF
   }
   void resume_reading() override { do_read_header(); }
+  // No TLS close_notify: it would wait on the peer, and every reply owed has been written whole.
   void close_transport() override {
     error_code ignored;
     deadline_.cancel();
-    socket_.shutdown(tcp::socket::shutdown_both, ignored);
-    socket_.close(ignored);
+    socket().shutdown(tcp::socket::shutdown_both, ignored);
+    socket().close(ignored);
   }
 
-  tcp::socket socket_;
+  Stream stream_;
   net::steady_timer deadline_;
   std::array<std::uint8_t, protocol::kFrameHeaderBytes> header_{};
   std::vector<std::uint8_t> body_;
@@ -130,8 +177,16 @@ class TcpSession final : public Connection {
 }  // namespace
 
 std::shared_ptr<Connection> start_tcp_session(ServerContext& server, tcp::socket socket, std::uint64_t number,
-                                              AddressTable::Slot slot) {
-  auto session = std::make_shared<TcpSession>(server, std::move(socket), number, std::move(slot));
+                                              AddressTable::Slot slot, ssl::context* tls) {
+  if (tls) {
+    using Session = TcpSession<ssl::stream<tcp::socket>>;
+    auto session = std::make_shared<Session>(server, ssl::stream<tcp::socket>(std::move(socket), *tls),
+                                             number, std::move(slot));
+    session->start();
+    return session;
+  }
+  auto session =
+      std::make_shared<TcpSession<tcp::socket>>(server, std::move(socket), number, std::move(slot));
   session->start();
   return session;
 }

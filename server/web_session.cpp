@@ -1,7 +1,9 @@
-// The browser transport (see web_session.hpp), after Beast's example/advanced/server: an HTTP
-// session per accepted socket serves files and, on `GET /ws` with an upgrade, hands its socket to a
-// WebSocket session. Text messages are JSON requests; binary messages hold a whole frame (header
-// included). Replies without payload go out as text, mesh replies as binary whole frames.
+// The browser transport (see web_session.hpp), after Beast's example/advanced/server and
+// advanced_server_flex: an HTTP session per accepted socket (plain or TLS) serves files and, on
+// `GET /ws` with an upgrade, hands its stream to a WebSocket session. Text messages are JSON
+// requests; binary messages hold a whole frame (header included). Replies without payload go out
+// as text, mesh replies as binary whole frames. Sessions are templates over their stream, so plain
+// and TLS connections share every line but the handshake.
 #include "server/web_session.hpp"
 
 #include <boost/asio/dispatch.hpp>
@@ -11,7 +13,9 @@
 #include <boost/asio/strand.hpp>
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
+#include <boost/beast/ssl.hpp>
 #include <boost/beast/websocket.hpp>
+#include <boost/beast/websocket/ssl.hpp>
 
 #include <atomic>
 #include <cassert>
@@ -19,10 +23,12 @@
 #include <list>
 #include <mutex>
 #include <optional>
+#include <type_traits>
 
 #include "fmt/format.h"
 #include "protocol/frame.hpp"
 #include "protocol/text.hpp"
+#include "server/auth.hpp"
 #include "spdlog/spdlog.h"
 
 namespace mtlod::server {
@@ -32,7 +38,9 @@ namespace net = boost::asio;
 namespace beast = boost::beast;
 namespace http = beast::http;
 namespace websocket = beast::websocket;
+namespace ssl = net::ssl;
 using tcp = net::ip::tcp;
+using TlsStream = beast::ssl_stream<beast::tcp_stream>;
 using boost::system::error_code;
 using Request = http::request<http::string_body>;
 
@@ -81,20 +89,44 @@ std::optional<std::filesystem::path> resolve_target(std::string_view target,
   return root / "clients/web" / std::string(target.substr(1));
 }
 
+// The access token a WebSocket upgrade shows: `Authorization: Bearer TOKEN`, else the `token`
+// parameter of its query (browsers cannot set headers on a WebSocket). Tokens are made of
+// characters a URL carries as they are, so the value is taken without decoding.
+std::string_view upgrade_token(const Request& request) {
+  const auto field = request[http::field::authorization];
+  const std::string_view authorization(field.data(), field.size());
+  constexpr std::string_view kBearer = "Bearer ";
+  if (authorization.starts_with(kBearer)) return authorization.substr(kBearer.size());
+  std::string_view target(request.target().data(), request.target().size());
+  const std::size_t query = target.find('?');
+  if (query == std::string_view::npos) return {};
+  for (std::string_view rest = target.substr(query + 1); !rest.empty();) {
+    const std::size_t end = std::min(rest.find('&'), rest.size());
+    const std::string_view pair = rest.substr(0, end);
+    if (pair.starts_with("token=")) return pair.substr(6);
+    rest = rest.substr(std::min(end + 1, rest.size()));
+  }
+  return {};
+}
+
 // ---- WebSocket: a Connection whose frames are WebSocket messages ----
 
+// NextLayer: beast::tcp_stream, or TlsStream for wss.
+template <class NextLayer>
 class WebSocketSession final : public Connection {
  public:
-  WebSocketSession(ServerContext& server, tcp::socket socket, std::uint64_t number, AddressTable::Slot slot)
-      : Connection(server, socket.get_executor(), number, std::move(slot)),
-        ws_(std::move(socket)),
+  WebSocketSession(ServerContext& server, NextLayer stream, std::uint64_t number, AddressTable::Slot slot)
+      : Connection(server, stream.get_executor(), number, std::move(slot)),
+        ws_(std::move(stream)),
         deadline_(ws_.get_executor()) {}
 
-  // Answers the upgrade request (already read by the HTTP session) and starts reading.
-  void start(Request request) {
+  // Answers the upgrade request (already read by the HTTP session, its token already checked into
+  // `grant`) and starts reading.
+  void start(Request request, const Grant* grant) {
     request_ = std::move(request);
-    net::dispatch(strand(), [self = shared_self()] {
+    net::dispatch(strand(), [self = shared_self(), grant] {
       self->opened();
+      self->authorise(grant);
       auto& ws = self->ws_;
       beast::get_lowest_layer(ws).expires_never();  // the WebSocket's own timeouts apply instead
       ws.set_option(
@@ -138,7 +170,8 @@ class WebSocketSession final : public Connection {
     reading_ = false;
     if (ec) {
       read_failed_ = true;
-      if (ec != websocket::error::closed && ec != net::error::eof && ec != net::error::operation_aborted) {
+      if (ec != websocket::error::closed && ec != net::error::eof && ec != net::error::operation_aborted &&
+          ec != ssl::error::stream_truncated) {
         spdlog::debug("conn={} websocket read failed: {}", number(), ec.message());
       }
       return on_read_end();
@@ -210,7 +243,7 @@ class WebSocketSession final : public Connection {
     socket.close(ignored);
   }
 
-  websocket::stream<beast::tcp_stream> ws_;
+  websocket::stream<NextLayer> ws_;
   net::steady_timer deadline_;
   beast::flat_buffer buffer_;
   Request request_;
@@ -224,7 +257,13 @@ class WebSocketSession final : public Connection {
 
 // ---- HTTP ----
 
-class HttpSession;
+// What the listener needs of an HTTP session of either kind: closing it on shutdown.
+class HttpSessionBase {
+ public:
+  virtual ~HttpSessionBase() = default;
+  // From any thread: ends the session (server shutdown).
+  virtual void close() = 0;
+};
 
 struct WebServer::Impl : std::enable_shared_from_this<WebServer::Impl> {
   Impl(boost::asio::io_context& i, net::any_io_executor control, WebConfig c)
@@ -237,7 +276,9 @@ struct WebServer::Impl : std::enable_shared_from_this<WebServer::Impl> {
     context->metrics.connection_refused();
     return false;
   }
-  void upgrade(tcp::socket socket, Request request, AddressTable::Slot slot);
+  // Hands an HTTP session's stream, its upgrade request already read, to a new WebSocket session.
+  template <class Stream>
+  void upgrade(Stream stream, Request request, AddressTable::Slot slot, const Grant* grant);
 
   boost::asio::io_context& ioc;
   WebConfig config;
@@ -246,44 +287,75 @@ struct WebServer::Impl : std::enable_shared_from_this<WebServer::Impl> {
   WebHooks hooks;
   std::atomic<bool> stopping{false};
   std::mutex sessions_mutex;
-  std::list<std::weak_ptr<HttpSession>> sessions;
+  std::list<std::weak_ptr<HttpSessionBase>> sessions;
 };
 
-class HttpSession : public std::enable_shared_from_this<HttpSession> {
+// Stream: beast::tcp_stream, or TlsStream for https.
+template <class Stream>
+class HttpSession : public HttpSessionBase, public std::enable_shared_from_this<HttpSession<Stream>> {
  public:
-  HttpSession(tcp::socket socket, std::shared_ptr<WebServer::Impl> server, AddressTable::Slot slot)
-      : stream_(std::move(socket)), server_(std::move(server)), slot_(std::move(slot)) {}
+  static constexpr bool kTls = std::is_same_v<Stream, TlsStream>;
+
+  template <class... TlsContext>
+  HttpSession(tcp::socket socket, std::shared_ptr<WebServer::Impl> server, AddressTable::Slot slot,
+              TlsContext&... tls)
+      : executor_(socket.get_executor()),
+        stream_(std::move(socket), tls...),
+        server_(std::move(server)),
+        slot_(std::move(slot)) {}
 
   void start() {
-    net::dispatch(stream_.get_executor(), [self = shared_from_this()] { self->do_read(); });
+    net::dispatch(executor_, [self = this->shared_from_this()] {
+      if constexpr (kTls) {
+        self->do_handshake();
+      } else {
+        self->do_read();
+      }
+    });
   }
-  // From any thread: ends the session (server shutdown).
-  void close() {
-    net::post(stream_.get_executor(), [self = shared_from_this()] { self->close_socket(); });
+  void close() override {
+    net::post(executor_, [self = this->shared_from_this()] { self->close_socket(); });
   }
 
  private:
+  beast::tcp_stream& tcp() { return beast::get_lowest_layer(stream_); }
+
+  // HTTPS only: the handshake must end within the first-frame deadline, as the first request must.
+  void do_handshake() {
+    tcp().expires_after(std::chrono::milliseconds(server_->context->config.limits.first_frame_timeout_ms));
+    stream_.async_handshake(ssl::stream_base::server, [self = this->shared_from_this()](error_code ec) {
+      if (ec) {
+        spdlog::debug("https from {}: TLS handshake failed: {}", self->slot_.address(), ec.message());
+        return self->close_socket();
+      }
+      self->do_read();
+    });
+  }
+
   void do_read() {
     parser_.emplace();
     parser_->header_limit(kHttpRequestMaxBytes);
     parser_->body_limit(kHttpRequestMaxBytes);
     // Each request must arrive within the first-frame deadline: idle sockets hold no slot for long.
-    stream_.expires_after(std::chrono::milliseconds(server_->context->config.limits.first_frame_timeout_ms));
-    http::async_read(stream_, buffer_, *parser_, [self = shared_from_this()](error_code ec, std::size_t) {
-      // As for protocol connections: a throw while answering ends this HTTP connection only.
-      try {
-        self->on_read(ec);
-      } catch (const std::exception& e) {
-        spdlog::error("http request failed: {}; closing the connection", protocol::printable(e.what()));
-        self->close_socket();
-      }
-    });
+    tcp().expires_after(std::chrono::milliseconds(server_->context->config.limits.first_frame_timeout_ms));
+    http::async_read(
+        stream_, buffer_, *parser_, [self = this->shared_from_this()](error_code ec, std::size_t) {
+          // As for protocol connections: a throw while answering ends this HTTP
+          // connection only.
+          try {
+            self->on_read(ec);
+          } catch (const std::exception& e) {
+            spdlog::error("http request failed: {}; closing the connection", protocol::printable(e.what()));
+            self->close_socket();
+          }
+        });
   }
 
   void on_read(error_code ec) {
     if (ec == http::error::end_of_stream) return close_socket();
     if (ec) {
-      if (ec != net::error::operation_aborted && ec != beast::error::timeout) {
+      if (ec != net::error::operation_aborted && ec != beast::error::timeout &&
+          ec != ssl::error::stream_truncated) {
         spdlog::debug("http read failed: {}", ec.message());
       }
       return close_socket();
@@ -294,19 +366,33 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
       auto refuse = [&](http::status status, std::string text) {
         auto response = text_response(request, status, std::move(text));
         response.keep_alive(false);
+        if (status == http::status::unauthorized) response.set(http::field::www_authenticate, "Bearer");
         send(std::move(response));
       };
       const std::string_view target(request.target().data(), request.target().size());
       if (target.substr(0, target.find('?')) != "/ws")
         return refuse(http::status::not_found, "WebSocket endpoint is /ws\n");
       if (server_->stopping) return refuse(http::status::service_unavailable, "shutting down\n");
+      const Grant* grant = nullptr;
+      if (const TokenTable* tokens = server_->context->config.tokens.get()) {
+        const std::string_view token = upgrade_token(request);
+        grant = tokens->find(token);
+        if (!grant) {
+          server_->context->metrics.error(protocol::ErrorKind::kUnauthorized);
+          spdlog::info("http from {}: WebSocket upgrade refused: {}", slot_.address(),
+                       token.empty() ? "no token" : "a token that is not valid");
+          return refuse(http::status::unauthorized,
+                        "a valid access token is needed: /ws?token=TOKEN or Authorization: Bearer TOKEN\n");
+        }
+      }
       if (!server_->admit()) {
         return refuse(http::status::service_unavailable,
                       fmt::format("the server has {} connections, its limit\n",
                                   server_->context->config.limits.max_connections));
       }
-      stream_.expires_never();
-      return server_->upgrade(stream_.release_socket(), std::move(request), std::move(slot_));
+      tcp().expires_never();
+      upgraded_ = true;
+      return server_->upgrade(std::move(stream_), std::move(request), std::move(slot_), grant);
     }
     respond(request);
   }
@@ -318,7 +404,8 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     const std::string_view target(request.target().data(), request.target().size());
     if (target == "/health") {
       // For load balancers and orchestrators: this replica serves. While it drains, the HTTP
-      // listener is closed, so probes fail to connect and traffic moves elsewhere.
+      // listener is closed, so probes fail to connect and traffic moves elsewhere. It needs no
+      // token: probes carry none, and it tells nothing about the models' contents.
       const ServerContext& context = *server_->context;
       auto response =
           text_response(request, http::status::ok,
@@ -364,60 +451,77 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
   template <class Body>
   void send(http::response<Body>&& response) {
     auto message = std::make_shared<http::response<Body>>(std::move(response));
-    http::async_write(stream_, *message, [self = shared_from_this(), message](error_code ec, std::size_t) {
-      if (ec || !message->keep_alive()) return self->close_socket();
-      self->do_read();
-    });
+    http::async_write(stream_, *message,
+                      [self = this->shared_from_this(), message](error_code ec, std::size_t) {
+                        if (ec || !message->keep_alive()) return self->close_socket();
+                        self->do_read();
+                      });
   }
 
+  // No TLS close_notify: every response is written whole, and waiting on the peer's would hold the
+  // socket for nothing.
   void close_socket() {
+    if (upgraded_) return;  // the stream now belongs to the WebSocket session
     error_code ignored;
-    stream_.socket().shutdown(tcp::socket::shutdown_both, ignored);
-    stream_.close();
+    tcp().socket().shutdown(tcp::socket::shutdown_both, ignored);
+    tcp().close();
   }
 
-  beast::tcp_stream stream_;
+  net::any_io_executor executor_;  // the stream's strand, kept apart: the stream moves on an upgrade
+  Stream stream_;
   beast::flat_buffer buffer_;
   std::optional<http::request_parser<http::string_body>> parser_;
   std::shared_ptr<WebServer::Impl> server_;
   AddressTable::Slot slot_;  // moves to the WebSocket session on an upgrade
+  bool upgraded_ = false;
 };
 
 void WebServer::Impl::accept() {
-  acceptor.async_accept(
-      net::make_strand(ioc), [self = shared_from_this()](error_code ec, tcp::socket socket) {
-        if (ec) {
-          if (ec != net::error::operation_aborted) spdlog::warn("http accept failed: {}", ec.message());
-          if (!self->stopping && self->acceptor.is_open()) self->accept();
-          return;
-        }
-        if (self->stopping) return;
-        error_code ignored;
-        socket.set_option(tcp::no_delay(true), ignored);  // as for TCP sessions: no Nagle delay on replies
-        AddressTable::Slot slot = self->context->addresses.acquire(remote_address(socket));
-        if (!slot) {
-          self->context->metrics.connection_refused();
-          refuse_socket(std::move(socket),
-                        "HTTP/1.1 503 Service Unavailable\r\nConnection: close\r\n"
-                        "Content-Length: 0\r\n\r\n");
-          return self->accept();
-        }
-        auto session = std::make_shared<HttpSession>(std::move(socket), self, std::move(slot));
-        {
-          std::lock_guard lock(self->sessions_mutex);
-          self->sessions.remove_if([](const std::weak_ptr<HttpSession>& s) { return s.expired(); });
-          self->sessions.push_back(session);
-        }
-        session->start();
-        self->accept();
-      });
+  acceptor.async_accept(net::make_strand(ioc), [self = shared_from_this()](error_code ec,
+                                                                           tcp::socket socket) {
+    if (ec) {
+      if (ec != net::error::operation_aborted) spdlog::warn("http accept failed: {}", ec.message());
+      if (!self->stopping && self->acceptor.is_open()) self->accept();
+      return;
+    }
+    if (self->stopping) return;
+    error_code ignored;
+    socket.set_option(tcp::no_delay(true), ignored);  // as for TCP sessions: no Nagle delay on replies
+    AddressTable::Slot slot = self->context->addresses.acquire(remote_address(socket));
+    if (!slot) {
+      self->context->metrics.connection_refused();
+      // Over TLS a plain-text answer would only break the client's handshake: just close.
+      refuse_socket(std::move(socket), self->config.tls ? ""
+                                                        : "HTTP/1.1 503 Service Unavailable\r\n"
+                                                          "Connection: close\r\nContent-Length: 0\r\n\r\n");
+      return self->accept();
+    }
+    std::shared_ptr<HttpSessionBase> session;
+    if (self->config.tls) {
+      auto tls = std::make_shared<HttpSession<TlsStream>>(std::move(socket), self, std::move(slot),
+                                                          *self->config.tls);
+      tls->start();
+      session = std::move(tls);
+    } else {
+      auto plain = std::make_shared<HttpSession<beast::tcp_stream>>(std::move(socket), self, std::move(slot));
+      plain->start();
+      session = std::move(plain);
+    }
+    {
+      std::lock_guard lock(self->sessions_mutex);
+      self->sessions.remove_if([](const std::weak_ptr<HttpSessionBase>& s) { return s.expired(); });
+      self->sessions.push_back(session);
+    }
+    self->accept();
+  });
 }
 
-void WebServer::Impl::upgrade(tcp::socket socket, Request request, AddressTable::Slot slot) {
-  auto session =
-      std::make_shared<WebSocketSession>(*context, std::move(socket), hooks.next_number(), std::move(slot));
+template <class Stream>
+void WebServer::Impl::upgrade(Stream stream, Request request, AddressTable::Slot slot, const Grant* grant) {
+  auto session = std::make_shared<WebSocketSession<Stream>>(*context, std::move(stream), hooks.next_number(),
+                                                            std::move(slot));
   hooks.track(session);
-  session->start(std::move(request));
+  session->start(std::move(request), grant);
   // A shutdown that began while this upgrade was on its way has not seen the connection.
   if (stopping) session->shutdown();
 }

@@ -17,6 +17,10 @@
 #include "core/result.hpp"
 #include "server/connection.hpp"
 
+namespace boost::asio::ssl {
+class context;
+}
+
 namespace mtlod::server {
 
 // The files served over HTTP:
@@ -24,9 +28,11 @@ namespace mtlod::server {
 //   /<name>        → <root>/clients/web/<name>
 //   /three/<path>  → <root>/scripts/node_modules/three/<path>, only under build/ and examples/jsm/
 //   /health        → 200, JSON: status, instance, models, connections
-//   /ws            → WebSocket upgrade
+//   /ws            → WebSocket upgrade; with access tokens, only for a valid token (else 401)
 struct WebConfig {
   std::filesystem::path root;  // the repository root (or an install with the same two folders)
+  // HTTPS and wss only, with this context (server/tls.hpp); plain HTTP when null.
+  boost::asio::ssl::context* tls = nullptr;
 };
 
 // What the server lends the web listener for WebSocket connections.

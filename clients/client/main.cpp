@@ -1,6 +1,5 @@
-// mtlod-client: talks to mtlod-server from the command line: list models,
-// describe one, extract a view-dependent mesh with the same camera and criteria
-// flags as mtlod-extract.
+// mtlod-client: talks to mtlod-server from the command line: list models, describe one, extract a
+// view-dependent mesh with the same camera and criteria flags as mtlod-extract.
 #include <chrono>
 #include <cstdio>
 #include <fstream>
@@ -35,16 +34,15 @@ bool is_error(const clients::ReplyFrame& frame) {
 
 int main(int argc, char** argv) {
   CLI::App app{"mtlod-client: query mtlod-server and fetch view-dependent extractions."};
-  std::string host = "127.0.0.1", model, output;
-  std::uint16_t port = 7878;
-  app.add_option("--host", host, "server address")->capture_default_str();
-  app.add_option("--port", port, "server port")->capture_default_str();
+  std::string model, output;
+  clients::Endpoint endpoint;
+  clients::add_endpoint_flags(app, endpoint);
   clients::RetryPolicy retry;
   retry.attempts = 5;
-  app.add_option("--attempts", retry.attempts,
-                 "tries per request: a dropped connection or a draining server "
-                 "(shutting_down) makes the client "
-                 "reconnect with backoff and send the request again")
+  app.add_option(
+         "--attempts", retry.attempts,
+         "tries per request: a dropped connection or a draining server (shutting_down) makes the client "
+         "reconnect with backoff and send the request again")
       ->capture_default_str()
       ->check(CLI::Range(1u, 100u));
   app.require_subcommand(1);
@@ -59,9 +57,8 @@ int main(int argc, char** argv) {
   protocol::add_extract_flags(*extract, flags);
   CLI11_PARSE(app, argc, argv);
 
-  // Every request here is idempotent, so each is retried on a new connection
-  // when one drops.
-  clients::RetryingConnection c(host, port, "mtlod-client/0.1", retry);
+  // Every request here is idempotent, so each is retried on a new connection when one drops.
+  clients::RetryingConnection c(endpoint, "mtlod-client/0.1", retry);
 
   if (*list) {
     auto reply = c.call(protocol::ListModels{});
@@ -90,14 +87,11 @@ int main(int argc, char** argv) {
   if (is_error(*described)) return 1;
   const auto& m = std::get<protocol::ModelInfoReply>(described->header.reply);
   if (*info) {
+    fmt::print("{}: {} vertices, {} input triangles, {} root triangles, {} nodes, {:.1f} MiB\n", m.model.name,
+               m.model.vertices, m.model.input_triangles, m.model.root_triangles, m.model.nodes,
+               m.model.memory_bytes / 1048576.0);
     fmt::print(
-        "{}: {} vertices, {} input triangles, {} root triangles, {} "
-        "nodes, {:.1f} MiB\n",
-        m.model.name, m.model.vertices, m.model.input_triangles, m.model.root_triangles, m.model.nodes,
-        m.model.memory_bytes / 1048576.0);
-    fmt::print(
-        "bounds [{:.4g} {:.4g} {:.4g}] .. [{:.4g} {:.4g} {:.4g}], error "
-        "{:.4g} .. {:.4g}, normals {}, "
+        "bounds [{:.4g} {:.4g} {:.4g}] .. [{:.4g} {:.4g} {:.4g}], error {:.4g} .. {:.4g}, normals {}, "
         "colours {}\n",
         m.bounds_min[0], m.bounds_min[1], m.bounds_min[2], m.bounds_max[0], m.bounds_max[1], m.bounds_max[2],
         m.min_error, m.model.max_error, m.normals ? "yes" : "no", m.colors ? "yes" : "no");
@@ -114,35 +108,27 @@ int main(int argc, char** argv) {
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   const auto& mesh = std::get<protocol::MeshReply>(reply->header.reply);
   const auto& t = mesh.timings;
+  fmt::print("{}: {} triangles, {} vertices, {} bytes ({:.1f} bits/triangle), max error {:.4g}\n", mesh.model,
+             mesh.triangles, mesh.vertices, mesh.bytes,
+             8.0 * mesh.bytes / std::max<std::uint64_t>(1, mesh.triangles), mesh.max_error);
   fmt::print(
-      "{}: {} triangles, {} vertices, {} bytes ({:.1f} bits/triangle), "
-      "max error {:.4g}\n",
-      mesh.model, mesh.triangles, mesh.vertices, mesh.bytes,
-      8.0 * mesh.bytes / std::max<std::uint64_t>(1, mesh.triangles), mesh.max_error);
-  fmt::print(
-      "server µs: queue {} map {} occupancy {} dt {} labels {} refine "
-      "{} encode {} total {}; round trip "
+      "server µs: queue {} map {} occupancy {} dt {} labels {} refine {} encode {} total {}; round trip "
       "{:.2f} ms\n",
       t.queue_us, t.map_us, t.occupancy_us, t.dt_us, t.labels_us, t.refine_us, t.encode_us, t.total_us,
       round_trip_ms);
-  fmt::print(
-      "server memory: {:.1f} MiB for this connection's cut, {:.1f} MiB "
-      "of worker scratch\n",
-      mesh.session_bytes / 1048576.0, mesh.scratch_bytes / 1048576.0);
+  fmt::print("server memory: {:.1f} MiB for this connection's cut, {:.1f} MiB of worker scratch\n",
+             mesh.session_bytes / 1048576.0, mesh.scratch_bytes / 1048576.0);
   fmt::print("served by {}{}\n", c.hello().instance,
              c.retries() ? fmt::format(" after {} retr{}", c.retries(), c.retries() == 1 ? "y" : "ies") : "");
   if (!output.empty()) {
-    // A delta reply (--delta) starts from an empty mesh here: its Draco part is
-    // the whole cut.
+    // A delta reply (--delta) starts from an empty mesh here: its Draco part is the whole cut.
     std::span<const std::uint8_t> draco = reply->payload;
     if (mesh.delta) {
       auto parts = protocol::split_delta_payload(*mesh.delta, reply->payload);
       if (!parts) return fail(parts.error().message);
       draco = parts->draco;
-      fmt::print(
-          "delta: {} triangles added, {} removed (ids follow the Draco "
-          "bytes in the payload)\n",
-          mesh.delta->added, mesh.delta->removed);
+      fmt::print("delta: {} triangles added, {} removed (ids follow the Draco bytes in the payload)\n",
+                 mesh.delta->added, mesh.delta->removed);
     }
     const std::string ext = std::filesystem::path(output).extension().string();
     if (ext == ".drc") {

@@ -1,5 +1,6 @@
-// A blocking connection to mtlod-server for command-line clients and tests: connect, send a
-// request, read the reply frame (JSON header + payload). One request at a time or pipelined.
+// A blocking connection to mtlod-server for command-line clients and tests: connect (over TLS when
+// asked), send a request, read the reply frame (JSON header + payload). One request at a time or
+// pipelined.
 #pragma once
 
 #include <chrono>
@@ -20,6 +21,15 @@ struct ReplyFrame {
   std::vector<std::uint8_t> payload;  // Draco bytes for mesh replies
 };
 
+// TLS for a connection (mtlod-client, mtlod-load, mtlod-gaze: --tls, --tls-ca). The server's
+// certificate must be valid for the host connected to (a name or an IP address) and chain to a
+// trusted certificate.
+struct TlsOptions {
+  bool enabled = false;
+  std::string
+      ca_file;  // PEM certificates to trust instead of the system's (a private CA, a self-signed server)
+};
+
 class Connection {
  public:
   Connection();
@@ -27,9 +37,12 @@ class Connection {
   Connection(Connection&&) noexcept;
   Connection& operator=(Connection&&) noexcept;
 
-  // Connects within `timeout`. Errors name the address.
+  // Connects, and with tls.enabled completes the TLS handshake, within `timeout`. Errors name the
+  // address (and for TLS what failed: the handshake, or why the certificate was not trusted). An
+  // untrusted certificate or an unreadable tls.ca_file is kInvalidArgument: trying again will not help.
   static Result<Connection> open(const std::string& host, std::uint16_t port,
-                                 std::chrono::milliseconds timeout = std::chrono::seconds(5));
+                                 std::chrono::milliseconds timeout = std::chrono::seconds(5),
+                                 const TlsOptions& tls = {});
 
   // Sends one request frame. `id` is the request id.
   Status send(const protocol::Request& request, std::uint64_t id);

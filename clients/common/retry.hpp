@@ -1,6 +1,6 @@
 // Reconnecting with backoff, for clients of a server that may restart or sit behind a load
-// balancer that moves them to another replica: exponential backoff with jitter, a hello on every
-// new connection, and which replies ask for a request to be sent again.
+// balancer that moves them to another replica: exponential backoff with jitter, a hello (with the
+// access token) on every new connection, and which replies ask for a request to be sent again.
 #pragma once
 
 #include <atomic>
@@ -14,7 +14,23 @@
 #include "core/result.hpp"
 #include "protocol/replies.hpp"
 
+namespace CLI {
+class App;
+}
+
 namespace mtlod::clients {
+
+// Where a client's sessions go and what they show: the address, TLS and the access token.
+struct Endpoint {
+  std::string host = "127.0.0.1";
+  std::uint16_t port = 7878;
+  TlsOptions tls;
+  std::string token;  // sent in every hello (mtlod-server --auth-tokens); empty: none
+};
+
+// The flags every network client takes for its endpoint: --host, --port, --tls, --tls-ca and
+// --token (also read from the environment variable MTLOD_TOKEN, which other users cannot see).
+void add_endpoint_flags(CLI::App& app, Endpoint& endpoint);
 
 // Delays between connection attempts: initial × factor^attempt, capped at max, each shortened by
 // a random fraction up to `jitter` so that clients dropped together do not return together.
@@ -39,11 +55,17 @@ struct Session {
   protocol::HelloReply hello;
 };
 
-// Connects and says hello as `client`. A failed connect, a dropped connection or an error reply to
-// hello (a server at its connection limit answers one) counts as a failed attempt; after each, it
-// waits policy.backoff and tries again, up to policy.attempts attempts, and none once `give_up`
-// (when given) is set. `tries`, when given, receives the number of attempts made. Errors: the last
-// attempt's, with the count.
+// Connects and says hello as `client`, with the endpoint's token. A failed connect, a dropped
+// connection or an error reply to hello (a server at its connection limit answers one) counts as a
+// failed attempt; after each, it waits policy.backoff and tries again, up to policy.attempts
+// attempts, and none once `give_up` (when given) is set. An `unauthorized` reply or a server
+// certificate that is not trusted ends the attempts at once, as kInvalidArgument: trying again
+// would meet the same refusal. `tries`, when given, receives the number of attempts made. Errors:
+// the last attempt's, with the count.
+Result<Session> open_session(const Endpoint& endpoint, const std::string& client, const RetryPolicy& policy,
+                             std::mt19937_64& rng, unsigned* tries = nullptr,
+                             const std::atomic<bool>* give_up = nullptr);
+// The same for plain TCP without a token.
 Result<Session> open_session(const std::string& host, std::uint16_t port, const std::string& client,
                              const RetryPolicy& policy, std::mt19937_64& rng, unsigned* tries = nullptr,
                              const std::atomic<bool>* give_up = nullptr);
@@ -56,7 +78,7 @@ bool asks_for_retry(const ReplyFrame& frame);
 // idempotent (list, info, extract, stats, ping).
 class RetryingConnection {
  public:
-  RetryingConnection(std::string host, std::uint16_t port, std::string client, RetryPolicy policy,
+  RetryingConnection(Endpoint endpoint, std::string client, RetryPolicy policy,
                      std::uint64_t seed = std::random_device{}());
 
   // Sends `request` and returns its reply. When the connection drops, the reply does not come in
@@ -70,8 +92,7 @@ class RetryingConnection {
   std::uint64_t retries() const { return retries_; }
 
  private:
-  std::string host_;
-  std::uint16_t port_;
+  Endpoint endpoint_;
   std::string client_;
   RetryPolicy policy_;
   std::mt19937_64 rng_;

@@ -1,14 +1,12 @@
-// mtlod-gaze: replays eye-tracker gaze against mtlod-server (issue 6) and
-// measures gaze-to-mesh latency: from a sample's timestamp (its due time in the
-// replay, so a late send counts) to the arrival of the mesh reply that reflects
-// it. Gaze updates the server coalesced away are counted; each sample's wait
-// for a mesh showing it or a newer sample is reported too. With --delta each
-// stream applies its replies on a thread of its own, so decoding one reply
-// never delays the arrival time taken for the next; gaze-to-applied (the mesh
-// decoded into the client's copy) is reported too. A dropped connection is
-// reopened with backoff; the view's extract and the newest unanswered sample
-// are sent again (older samples are stale: the newest one supersedes them, as
-// the server's coalescing would).
+// mtlod-gaze: replays eye-tracker gaze against mtlod-server (issue 6) and measures gaze-to-mesh
+// latency: from a sample's timestamp (its due time in the replay, so a late send counts) to the
+// arrival of the mesh reply that reflects it. Gaze updates the server coalesced away are counted;
+// each sample's wait for a mesh showing it or a newer sample is reported too. With --delta each
+// stream applies its replies on a thread of its own, so decoding one reply never delays the arrival
+// time taken for the next; gaze-to-applied (the mesh decoded into the client's copy) is reported
+// too. A dropped connection is reopened with backoff; the view's extract and the newest unanswered
+// sample are sent again (older samples are stale: the newest one supersedes them, as the server's
+// coalescing would).
 #include <unistd.h>
 
 #include <atomic>
@@ -48,8 +46,7 @@ std::int64_t since(Clock::time_point start) {
 struct Totals {
   std::mutex mutex;
   clients::LatencyHistogram mesh_latency_us;     // per mesh reply: its sample's time → arrival
-  clients::LatencyHistogram sample_latency_us;   // per sample: its time → a mesh
-                                                 // showing it or a newer one
+  clients::LatencyHistogram sample_latency_us;   // per sample: its time → a mesh showing it or a newer one
   clients::LatencyHistogram applied_latency_us;  // per delta mesh reply: its sample's time → applied
   std::uint64_t sent = 0, meshes = 0, superseded = 0, superseded_counted = 0, errors = 0,
                 focus_mismatches = 0;
@@ -62,8 +59,7 @@ struct Totals {
 struct Stream {
   std::vector<clients::GazeSample> trace;
   protocol::Extract view;  // the extract that opened the stream's view
-  std::mutex send_mutex;   // held while sending and while the connection is
-                           // replaced (before `mutex`)
+  std::mutex send_mutex;   // held while sending and while the connection is replaced (before `mutex`)
   std::mutex mutex;        // guards what follows
   std::condition_variable changed;
   std::shared_ptr<clients::Connection> connection;
@@ -75,8 +71,8 @@ struct Stream {
   bool broken = false;
   std::mt19937_64 rng;      // backoff jitter
   clients::DeltaMesh mesh;  // with --delta: the mesh the replies build (apply thread only)
-  // Delta replies received and not yet applied, in arrival order, with their
-  // sample's time (ns; -1 for the view's extract); the apply thread takes them.
+  // Delta replies received and not yet applied, in arrival order, with their sample's time (ns;
+  // -1 for the view's extract); the apply thread takes them.
   struct Received {
     clients::ReplyFrame frame;
     std::int64_t sample_ns;
@@ -87,16 +83,14 @@ struct Stream {
 };
 
 struct Link {
-  const std::string& host;
-  std::uint16_t port;
+  const clients::Endpoint& endpoint;
   const clients::RetryPolicy& retry;
   Totals& totals;
   std::atomic<bool>& finished;
 };
 
-// Reopens a dropped connection (unless the other thread already did): the
-// view's extract (id 0, focused on the newest sample sent) and then the newest
-// unanswered sample again. False: gave up.
+// Reopens a dropped connection (unless the other thread already did): the view's extract (id 0,
+// focused on the newest sample sent) and then the newest unanswered sample again. False: gave up.
 bool reconnect(Stream& stream, const Link& link, std::uint64_t failed) {
   std::lock_guard send_lock(stream.send_mutex);
   {
@@ -104,8 +98,8 @@ bool reconnect(Stream& stream, const Link& link, std::uint64_t failed) {
     if (stream.generation != failed || stream.broken) return !stream.broken;
     stream.reconnecting = true;
   }
-  auto session = clients::open_session(link.host, link.port, "mtlod-gaze/0.1", link.retry, stream.rng,
-                                       nullptr, &link.finished);
+  auto session =
+      clients::open_session(link.endpoint, "mtlod-gaze/0.1", link.retry, stream.rng, nullptr, &link.finished);
   auto connection = session ? std::make_shared<clients::Connection>(std::move(session->connection)) : nullptr;
   std::size_t sent = 0, answered = 0;
   {
@@ -161,8 +155,7 @@ void receive_loop(Stream& stream, const Link& link, Clock::time_point start) {
     const std::size_t payload_bytes = frame->payload.size();
     const bool known_sample = id != 0 && id <= stream.trace.size();
     if (const auto* mesh = std::get_if<protocol::MeshReply>(&frame->header.reply); mesh && mesh->delta) {
-      // Every delta in arrival order, the view's re-extract after a reconnect
-      // (id 0) included.
+      // Every delta in arrival order, the view's re-extract after a reconnect (id 0) included.
       const std::int64_t sample_ns =
           known_sample ? static_cast<std::int64_t>(stream.trace[id - 1].time_ms * 1e6) : -1;
       clients::ReplyFrame copy;
@@ -198,8 +191,7 @@ void receive_loop(Stream& stream, const Link& link, Clock::time_point start) {
         totals.sample_latency_us.record(
             static_cast<std::uint64_t>(std::max<std::int64_t>(0, now - t) / 1000));
       }
-      // The reply must say it reflects this sample (JSON carries doubles
-      // exactly).
+      // The reply must say it reflects this sample (JSON carries doubles exactly).
       if (!mesh->focus || (*mesh->focus)[0] != sample.x || (*mesh->focus)[1] != sample.y)
         ++totals.focus_mismatches;
       totals.superseded_counted += mesh->superseded;
@@ -221,8 +213,7 @@ void receive_loop(Stream& stream, const Link& link, Clock::time_point start) {
   stream.changed.notify_all();
 }
 
-// Applies a stream's delta replies in arrival order until the receive loop is
-// done and none is left.
+// Applies a stream's delta replies in arrival order until the receive loop is done and none is left.
 void apply_loop(Stream& stream, Totals& totals, Clock::time_point start) {
   for (;;) {
     Stream::Received received;
@@ -261,17 +252,15 @@ nlohmann::ordered_json percentiles_ms(const clients::LatencyHistogram& h) {
 
 int main(int argc, char** argv) {
   CLI::App app{
-      "mtlod-gaze: replay a gaze trace (CSV time_ms,x,y) or a "
-      "synthetic one against mtlod-server and "
+      "mtlod-gaze: replay a gaze trace (CSV time_ms,x,y) or a synthetic one against mtlod-server and "
       "measure gaze-to-mesh latency."};
-  std::string host = "127.0.0.1", model = "bunny", trace_file, json_file;
-  std::uint16_t port = 7878;
+  std::string model = "bunny", trace_file, json_file;
+  clients::Endpoint endpoint;
   unsigned streams_count = 1;
   double drain_timeout_s = 10;
   bool quiet = false;
   clients::SynthesisOptions synthesis;
-  app.add_option("--host", host, "server address")->capture_default_str();
-  app.add_option("--port", port, "server port")->capture_default_str();
+  clients::add_endpoint_flags(app, endpoint);
   app.add_option("--model", model, "model name")->capture_default_str();
   app.add_option("--trace", trace_file,
                  "CSV trace: time_ms,x,y per line (x, y normalised, 0,0 top left); "
@@ -290,9 +279,9 @@ int main(int argc, char** argv) {
   app.add_option("--drain-timeout", drain_timeout_s, "seconds to wait for outstanding replies at the end")
       ->capture_default_str();
   clients::RetryPolicy retry;
-  app.add_option("--attempts", retry.attempts,
-                 "connection attempts, with exponential backoff, when a "
-                 "connection drops (1: give up at once)")
+  app.add_option(
+         "--attempts", retry.attempts,
+         "connection attempts, with exponential backoff, when a connection drops (1: give up at once)")
       ->capture_default_str()
       ->check(CLI::Range(1u, 1000u));
   app.add_option("--json", json_file, "write the report as JSON to this file");
@@ -328,8 +317,7 @@ int main(int argc, char** argv) {
     return 0;
   }
 
-  // Every stream opens its view with one extract first; that set-up is not
-  // measured.
+  // Every stream opens its view with one extract first; that set-up is not measured.
   std::vector<std::unique_ptr<Stream>> streams;
   for (unsigned k = 0; k < streams_count; ++k) {
     auto stream = std::make_unique<Stream>();
@@ -341,7 +329,7 @@ int main(int argc, char** argv) {
       stream->trace = file_trace;
     }
     stream->rng.seed(synthesis.seed * 7919 + k);
-    auto session = clients::open_session(host, port, "mtlod-gaze/0.1", retry, stream->rng);
+    auto session = clients::open_session(endpoint, "mtlod-gaze/0.1", retry, stream->rng);
     if (!session) return fail(session.error().message);
     auto connection = std::make_shared<clients::Connection>(std::move(session->connection));
     auto info = connection->call(protocol::ModelInfo{model}, 0);
@@ -367,7 +355,7 @@ int main(int argc, char** argv) {
 
   Totals totals;
   std::atomic<bool> finished{false};
-  const Link link{host, port, retry, totals, finished};
+  const Link link{endpoint, retry, totals, finished};
   std::atomic<unsigned> senders_done{0};
   const Clock::time_point start = Clock::now();
   std::vector<std::thread> threads;
@@ -395,8 +383,7 @@ int main(int argc, char** argv) {
           stream.sent = i + 1;
           connection = stream.connection;
         }
-        // A failed send is the receiver's to handle: it reconnects and sends
-        // the newest sample again.
+        // A failed send is the receiver's to handle: it reconnects and sends the newest sample again.
         (void)connection->send(protocol::Gaze{sample.x, sample.y, std::nullopt, std::nullopt}, i + 1);
         std::lock_guard lock(totals.mutex);
         ++totals.sent;
@@ -422,9 +409,7 @@ int main(int argc, char** argv) {
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
     if (progress) {
       std::lock_guard lock(totals.mutex);
-      fmt::print(stderr,
-                 "\r{:6.1f} s  samples {:>7}  meshes {:>7}  superseded {:>7}  "
-                 "p99 {:>7.2f} ms   ",
+      fmt::print(stderr, "\r{:6.1f} s  samples {:>7}  meshes {:>7}  superseded {:>7}  p99 {:>7.2f} ms   ",
                  since(start) / 1e9, totals.sent, totals.meshes, totals.superseded,
                  totals.mesh_latency_us.value_at_percentile(99) / 1e3);
     }
@@ -475,29 +460,22 @@ int main(int argc, char** argv) {
   };
   const auto& h = r.mesh_latency_us;
   fmt::print(
-      "{} stream(s) on {}: {} samples, {} meshes, {} superseded (server "
-      "counted {}), {} errors, {} lost\n",
+      "{} stream(s) on {}: {} samples, {} meshes, {} superseded (server counted {}), {} errors, {} lost\n",
       streams_count, model, r.sent, r.meshes, r.superseded, r.superseded_counted, r.errors, lost);
-  fmt::print(
-      "  gaze-to-mesh ms  p50 {:.2f}  p90 {:.2f}  p99 {:.2f}  p99.9 "
-      "{:.2f}  max {:.2f}\n",
-      h.value_at_percentile(50) / 1e3, h.value_at_percentile(90) / 1e3, h.value_at_percentile(99) / 1e3,
-      h.value_at_percentile(99.9) / 1e3, h.max() / 1e3);
+  fmt::print("  gaze-to-mesh ms  p50 {:.2f}  p90 {:.2f}  p99 {:.2f}  p99.9 {:.2f}  max {:.2f}\n",
+             h.value_at_percentile(50) / 1e3, h.value_at_percentile(90) / 1e3,
+             h.value_at_percentile(99) / 1e3, h.value_at_percentile(99.9) / 1e3, h.max() / 1e3);
   const auto& q = r.sample_latency_us;
-  fmt::print(
-      "  every sample until a mesh shows it or a newer one, ms  p50 "
-      "{:.2f}  p99 {:.2f}  max {:.2f}\n",
-      q.value_at_percentile(50) / 1e3, q.value_at_percentile(99) / 1e3, q.max() / 1e3);
+  fmt::print("  every sample until a mesh shows it or a newer one, ms  p50 {:.2f}  p99 {:.2f}  max {:.2f}\n",
+             q.value_at_percentile(50) / 1e3, q.value_at_percentile(99) / 1e3, q.max() / 1e3);
   if (flags.delta) {
     const auto& a = r.applied_latency_us;
     fmt::print(
-        "  gaze-to-applied (delta decoded into the client's mesh) ms  "
-        "p50 {:.2f}  p99 {:.2f}  max {:.2f}\n",
+        "  gaze-to-applied (delta decoded into the client's mesh) ms  p50 {:.2f}  p99 {:.2f}  max {:.2f}\n",
         a.value_at_percentile(50) / 1e3, a.value_at_percentile(99) / 1e3, a.max() / 1e3);
   }
   fmt::print(
-      "  {:.0f} triangles per mesh, {:.0f} bytes per mesh, server total "
-      "{:.0f} µs mean, focus mismatches "
+      "  {:.0f} triangles per mesh, {:.0f} bytes per mesh, server total {:.0f} µs mean, focus mismatches "
       "{}{}\n",
       r.triangles / per_mesh, static_cast<double>(r.bytes) / per_mesh, r.server_total_us / per_mesh,
       r.focus_mismatches, flags.delta ? fmt::format(", delta errors {}", r.delta_errors) : std::string());

@@ -1,12 +1,10 @@
-// mtlod-load: a load tester for mtlod-server (issue 6). Closed loop: N
-// connections, each sends its next request when the previous reply is in. Open
-// loop (--rate): requests are due on a fixed schedule whatever the server does,
-// and latency counts from the due time, so queueing shows. Each connection has
-// a sending and a receiving thread; replies come back in request order. When a
-// connection drops or its server drains (`shutting_down`), the stream
-// reconnects with backoff and sends its unanswered requests again, so a
-// failover shows as latency and retries, not as lost requests;
-// --reconnect-after recycles connections so a load balancer can rebalance.
+// mtlod-load: a load tester for mtlod-server (issue 6). Closed loop: N connections, each sends its
+// next request when the previous reply is in. Open loop (--rate): requests are due on a fixed
+// schedule whatever the server does, and latency counts from the due time, so queueing shows.
+// Each connection has a sending and a receiving thread; replies come back in request order.
+// When a connection drops or its server drains (`shutting_down`), the stream reconnects with
+// backoff and sends its unanswered requests again, so a failover shows as latency and retries,
+// not as lost requests; --reconnect-after recycles connections so a load balancer can rebalance.
 #include <unistd.h>
 
 #include <atomic>
@@ -38,16 +36,14 @@ using namespace mtlod;
 using Clock = std::chrono::steady_clock;
 
 struct Options {
-  std::string host = "127.0.0.1";
-  std::uint16_t port = 7878;
+  clients::Endpoint endpoint;
   std::vector<std::string> models{"bunny"};
   unsigned connections = 1;
   double duration_s = 10;
   std::uint64_t max_requests = 0;  // 0: bounded by duration only
   double rate = 0;                 // open loop: requests per second over all connections; 0: closed loop
   std::string arrivals = "uniform";
-  unsigned window = 0;             // open loop: unanswered requests per connection; 0: the
-                                   // server's max_in_flight
+  unsigned window = 0;  // open loop: unanswered requests per connection; 0: the server's max_in_flight
   std::string cameras = "random";  // random, fixed or a script file
   bool random_focus = true;
   std::string mix = "extract=1";
@@ -66,8 +62,7 @@ struct ModelView {
   protocol::Extract base;  // the flags' request for this model
 };
 
-// Everything the receivers record, under one mutex (a few thousand replies per
-// second at most).
+// Everything the receivers record, under one mutex (a few thousand replies per second at most).
 struct Totals {
   std::mutex mutex;
   clients::LatencyHistogram latency_us;       // mesh replies, from the due (open) or send (closed) time
@@ -91,12 +86,10 @@ struct Pending {
   bool setup = false;         // an extract re-sent to restore the view for gazes: not counted
 };
 
-// One logical connection: the sender thread fills `pending`, the receiver
-// thread empties it. The socket under it may be replaced (a drop, a draining
-// server, --reconnect-after).
+// One logical connection: the sender thread fills `pending`, the receiver thread empties it. The
+// socket under it may be replaced (a drop, a draining server, --reconnect-after).
 struct Stream {
-  std::mutex send_mutex;  // held while sending and while the connection is
-                          // replaced (before `mutex`)
+  std::mutex send_mutex;  // held while sending and while the connection is replaced (before `mutex`)
   std::mutex mutex;       // guards what follows
   std::condition_variable changed;
   std::shared_ptr<clients::Connection> connection;
@@ -128,10 +121,9 @@ int fail(const std::string& message) {
   return 1;
 }
 
-// Replaces the stream's connection, unless another thread already replaced
-// generation `failed`: closes it, reconnects with backoff, and sends every
-// unanswered request again in order (an extract first when gazes need their
-// view back). Returns false when the stream gave up.
+// Replaces the stream's connection, unless another thread already replaced generation `failed`:
+// closes it, reconnects with backoff, and sends every unanswered request again in order (an
+// extract first when gazes need their view back). Returns false when the stream gave up.
 bool reconnect(Stream& stream, const Link& link, std::uint64_t failed) {
   std::lock_guard send_lock(stream.send_mutex);
   std::shared_ptr<clients::Connection> old;
@@ -142,8 +134,8 @@ bool reconnect(Stream& stream, const Link& link, std::uint64_t failed) {
     old = stream.connection;
   }
   if (old) old->interrupt();
-  auto session = clients::open_session(link.options.host, link.options.port, "mtlod-load/0.1",
-                                       link.options.retry, stream.rng, nullptr, &link.finished);
+  auto session = clients::open_session(link.options.endpoint, "mtlod-load/0.1", link.options.retry,
+                                       stream.rng, nullptr, &link.finished);
   std::vector<Pending> resend;
   auto connection = session ? std::make_shared<clients::Connection>(std::move(session->connection)) : nullptr;
   {
@@ -204,8 +196,7 @@ void receive_loop(Stream& stream, const Link& link, Clock::time_point start) {
     if (!frame || clients::asks_for_retry(*frame)) {
       if (link.finished) break;
       {
-        // Replaced on purpose (--reconnect-after) or by the other thread: carry
-        // on with the new one.
+        // Replaced on purpose (--reconnect-after) or by the other thread: carry on with the new one.
         std::lock_guard lock(stream.mutex);
         if (stream.reconnecting || stream.generation != generation) continue;
       }
@@ -215,8 +206,7 @@ void receive_loop(Stream& stream, const Link& link, Clock::time_point start) {
     Pending pending{0, now, protocol::Ping{}};
     {
       std::lock_guard lock(stream.mutex);
-      // Replies come in request order; an unmatched id (a refusal without id)
-      // takes no request.
+      // Replies come in request order; an unmatched id (a refusal without id) takes no request.
       if (!stream.pending.empty() && frame->header.id == stream.pending.front().id) {
         pending = std::move(stream.pending.front());
         stream.pending.pop_front();
@@ -261,13 +251,10 @@ void receive_loop(Stream& stream, const Link& link, Clock::time_point start) {
 
 int main(int argc, char** argv) {
   CLI::App app{
-      "mtlod-load: load test for mtlod-server: closed loop (N "
-      "connections, each waits for its reply) "
-      "or open loop (--rate: a fixed arrival schedule, latency from "
-      "each request's due time)."};
+      "mtlod-load: load test for mtlod-server: closed loop (N connections, each waits for its reply) "
+      "or open loop (--rate: a fixed arrival schedule, latency from each request's due time)."};
   Options o;
-  app.add_option("--host", o.host, "server address")->capture_default_str();
-  app.add_option("--port", o.port, "server port")->capture_default_str();
+  clients::add_endpoint_flags(app, o.endpoint);
   app.add_option("--model", o.models, "model name; repeat to spread connections over several models")
       ->capture_default_str()
       ->take_all();
@@ -283,41 +270,39 @@ int main(int argc, char** argv) {
       ->capture_default_str()
       ->check(CLI::Range(0.0, 1e6));
   app.add_option("--arrivals", o.arrivals, "open loop schedule: uniform or poisson")->capture_default_str();
-  app.add_option("--window", o.window,
-                 "open loop: unanswered requests per connection before sending "
-                 "waits (0: the server's max_in_flight)")
+  app.add_option(
+         "--window", o.window,
+         "open loop: unanswered requests per connection before sending waits (0: the server's max_in_flight)")
       ->capture_default_str();
   app.add_option("--cameras", o.cameras,
-                 "random (orbits around the model), fixed (the camera flags) "
-                 "or a script file of "
+                 "random (orbits around the model), fixed (the camera flags) or a script file of "
                  "ex,ey,ez,tx,ty,tz[,fx,fy] lines, cycled")
       ->capture_default_str();
   app.add_option("--random-focus", o.random_focus, "each extract gets a random focus point (true/false)")
       ->capture_default_str();
   app.add_option("--mix", o.mix,
-                 "request kinds by weight: extract=W,gaze=W (a gaze moves the "
-                 "focus of the "
+                 "request kinds by weight: extract=W,gaze=W (a gaze moves the focus of the "
                  "connection's last extract)")
       ->capture_default_str();
-  app.add_option("--gaze-hz", o.gaze_hz,
-                 "gaze streams: every connection sends one extract, then gaze "
-                 "updates at this rate (sets --mix "
-                 "gaze=1 and --rate to connections × Hz)")
+  app.add_option(
+         "--gaze-hz", o.gaze_hz,
+         "gaze streams: every connection sends one extract, then gaze updates at this rate (sets --mix "
+         "gaze=1 and --rate to connections × Hz)")
       ->check(CLI::Range(0.0, 10000.0));
   app.add_option("--drain-timeout", o.drain_timeout_s, "seconds to wait for outstanding replies at the end")
       ->capture_default_str();
   app.add_option("--seed", o.seed, "random seed for cameras, foci, mix and Poisson arrivals")
       ->capture_default_str();
-  app.add_option("--attempts", o.retry.attempts,
-                 "connection attempts when a connection drops or its server "
-                 "drains, with exponential backoff; the "
-                 "unanswered requests are then sent again (1: give up at once)")
+  app.add_option(
+         "--attempts", o.retry.attempts,
+         "connection attempts when a connection drops or its server drains, with exponential backoff; the "
+         "unanswered requests are then sent again (1: give up at once)")
       ->capture_default_str()
       ->check(CLI::Range(1u, 1000u));
-  app.add_option("--reconnect-after", o.reconnect_after,
-                 "requests per connection: then it waits for its replies and "
-                 "reconnects, so a load balancer can "
-                 "move it (0: never)")
+  app.add_option(
+         "--reconnect-after", o.reconnect_after,
+         "requests per connection: then it waits for its replies and reconnects, so a load balancer can "
+         "move it (0: never)")
       ->capture_default_str();
   app.add_option("--json", o.json_file, "write the report as JSON to this file");
   app.add_flag("-q,--quiet", o.quiet, "no progress line");
@@ -353,7 +338,7 @@ int main(int argc, char** argv) {
   for (unsigned c = 0; c < o.connections; ++c) {
     auto stream = std::make_unique<Stream>();
     stream->rng.seed(o.seed * 7919 + c);
-    auto session = clients::open_session(o.host, o.port, "mtlod-load/0.1", o.retry, stream->rng);
+    auto session = clients::open_session(o.endpoint, "mtlod-load/0.1", o.retry, stream->rng);
     if (!session) return fail(session.error().message);
     server_window = session->hello.limits.max_in_flight;
     stream->instance = session->hello.instance;
@@ -412,8 +397,7 @@ int main(int argc, char** argv) {
           if (o.max_requests && issued.fetch_add(1) >= o.max_requests) break;
         }
         if (o.reconnect_after) {
-          // Recycle the connection once its replies are in, so a load balancer
-          // can place it anew.
+          // Recycle the connection once its replies are in, so a load balancer can place it anew.
           std::unique_lock lock(stream.mutex);
           if (stream.sent_on_connection >= o.reconnect_after) {
             const bool idle =
@@ -425,8 +409,7 @@ int main(int argc, char** argv) {
           }
         }
         {
-          // Wait for room in the window; past the end of the test, give up on
-          // the rest.
+          // Wait for room in the window; past the end of the test, give up on the rest.
           std::unique_lock lock(stream.mutex);
           const bool room =
               stream.changed.wait_until(lock, start + std::chrono::nanoseconds(duration_ns),
@@ -476,8 +459,7 @@ int main(int argc, char** argv) {
           ++stream.sent_on_connection;
           connection = stream.connection;
         }
-        // A failed send is the receiver's to handle: it reconnects and sends
-        // `pending` again.
+        // A failed send is the receiver's to handle: it reconnects and sends `pending` again.
         (void)connection->send(request, this_id);
         std::lock_guard lock(totals.mutex);
         ++totals.sent;
@@ -486,8 +468,8 @@ int main(int argc, char** argv) {
     });
   }
 
-  // Progress on a terminal, until every sender has finished and the replies are
-  // in (or the drain timeout passes).
+  // Progress on a terminal, until every sender has finished and the replies are in (or the drain
+  // timeout passes).
   const bool progress = !o.quiet && ::isatty(STDERR_FILENO);
   const auto drain_deadline = start + std::chrono::nanoseconds(duration_ns) +
                               std::chrono::milliseconds(static_cast<std::int64_t>(o.drain_timeout_s * 1000));
@@ -504,21 +486,20 @@ int main(int argc, char** argv) {
     if (progress) {
       const double t = since(start) / 1e9;
       std::lock_guard lock(totals.mutex);
-      fmt::print(stderr,
-                 "\r{:6.1f} s  sent {:>8}  mesh {:>8}  {:>8.1f}/s  p50 "
-                 "{:>7.2f} ms  p99 {:>7.2f} ms  errors {}  "
-                 "reconnects {}   ",
-                 t, totals.sent, totals.ok, totals.ok / std::max(t, 1e-3),
-                 totals.latency_us.value_at_percentile(50) / 1e3,
-                 totals.latency_us.value_at_percentile(99) / 1e3, totals.errors, totals.reconnects);
+      fmt::print(
+          stderr,
+          "\r{:6.1f} s  sent {:>8}  mesh {:>8}  {:>8.1f}/s  p50 {:>7.2f} ms  p99 {:>7.2f} ms  errors {}  "
+          "reconnects {}   ",
+          t, totals.sent, totals.ok, totals.ok / std::max(t, 1e-3),
+          totals.latency_us.value_at_percentile(50) / 1e3, totals.latency_us.value_at_percentile(99) / 1e3,
+          totals.errors, totals.reconnects);
     }
     if (senders_done == o.connections && outstanding() == 0) break;
     if (Clock::now() >= drain_deadline) break;
   }
   if (progress) fmt::print(stderr, "\n");
   finished = true;
-  // Senders may still wait on a window or a reconnect: end every receive, then
-  // wake them.
+  // Senders may still wait on a window or a reconnect: end every receive, then wake them.
   for (auto& s : streams) {
     std::lock_guard lock(s->mutex);
     s->broken = true;
@@ -591,10 +572,8 @@ int main(int argc, char** argv) {
   fmt::print("{} loop, {} connection(s), models {}, {:.1f} s{}\n", open_loop ? "open" : "closed",
              o.connections, fmt::join(o.models, ","), elapsed_s,
              open_loop ? fmt::format(", {:.0f} requests/s offered", o.rate) : "");
-  fmt::print(
-      "  requests  sent {}  mesh {}  errors {}  superseded {}  unsent "
-      "{}  lost {}\n",
-      r.sent, r.ok, r.errors, r.superseded, unsent, lost);
+  fmt::print("  requests  sent {}  mesh {}  errors {}  superseded {}  unsent {}  lost {}\n", r.sent, r.ok,
+             r.errors, r.superseded, unsent, lost);
   for (const auto& [code, n] : r.errors_by_code) fmt::print("    {:<20} {}\n", code, n);
   if (r.reconnects || r.gave_up) {
     fmt::print("  reconnects {}, requests sent again {}, streams that gave up {}\n", r.reconnects, r.retried,
@@ -606,18 +585,14 @@ int main(int argc, char** argv) {
                  i.last_ns / 1e9);
     }
   }
+  fmt::print("  throughput {:.1f} meshes/s, {:.2f} MB/s, {:.0f} triangles and {:.0f} bytes per mesh\n",
+             throughput, r.bytes / std::max(elapsed_s, 1e-9) / 1e6, r.triangles / mean_div,
+             r.bytes / mean_div);
+  fmt::print("  latency ms  p50 {:.2f}  p90 {:.2f}  p99 {:.2f}  p99.9 {:.2f}  max {:.2f}  mean {:.2f}\n",
+             ms(h.value_at_percentile(50)), ms(h.value_at_percentile(90)), ms(h.value_at_percentile(99)),
+             ms(h.value_at_percentile(99.9)), ms(h.max()), h.mean() / 1000.0);
   fmt::print(
-      "  throughput {:.1f} meshes/s, {:.2f} MB/s, {:.0f} triangles and "
-      "{:.0f} bytes per mesh\n",
-      throughput, r.bytes / std::max(elapsed_s, 1e-9) / 1e6, r.triangles / mean_div, r.bytes / mean_div);
-  fmt::print(
-      "  latency ms  p50 {:.2f}  p90 {:.2f}  p99 {:.2f}  p99.9 {:.2f}  "
-      "max {:.2f}  mean {:.2f}\n",
-      ms(h.value_at_percentile(50)), ms(h.value_at_percentile(90)), ms(h.value_at_percentile(99)),
-      ms(h.value_at_percentile(99.9)), ms(h.max()), h.mean() / 1000.0);
-  fmt::print(
-      "  server µs (mean)  queue {:.0f}  map {:.0f}  occupancy {:.0f}  "
-      "dt {:.0f}  labels {:.0f}  refine "
+      "  server µs (mean)  queue {:.0f}  map {:.0f}  occupancy {:.0f}  dt {:.0f}  labels {:.0f}  refine "
       "{:.0f}  "
       "encode {:.0f}  total {:.0f}\n",
       s.queue_us / mean_div, s.map_us / mean_div, s.occupancy_us / mean_div, s.dt_us / mean_div,

@@ -316,17 +316,22 @@ $('model').addEventListener('change', () => selectModel($('model').value));
 
 function connect() {
   // ?model= goes on to the WebSocket too: a load balancer in front of replicas can route by it
-  // (docker/haproxy.cfg), so each replica keeps its models hot.
-  const model = new URLSearchParams(location.search).get('model');
-  const query = model ? `?model=${encodeURIComponent(model)}` : '';
-  ws = new WebSocket(`${location.protocol === 'https:' ? 'wss' : 'ws'}://${location.host}/ws${query}`);
+  // (docker/haproxy.cfg), so each replica keeps its models hot. ?token= is the access token
+  // (mtlod-server --auth-tokens), checked in the upgrade: browsers cannot set headers on a WebSocket.
+  const page = new URLSearchParams(location.search);
+  const query = ['model', 'token'].filter((name) => page.get(name))
+    .map((name) => `${name}=${encodeURIComponent(page.get(name))}`).join('&');
+  ws = new WebSocket(`${location.protocol === 'https:' ? 'wss' : 'ws'}://${location.host}/ws${query ? `?${query}` : ''}`);
   ws.binaryType = 'arraybuffer';
   ws.onmessage = onMessage;
+  let opened = false;
   ws.onclose = () => {
     state.connected = false;
-    setStatus('disconnected', true);
+    // A refused upgrade (HTTP 401 for a missing or wrong token) shows only as a close before the open.
+    setStatus(opened ? 'disconnected' : 'no connection: the server is down or wants a valid ?token= in the URL', true);
   };
   ws.onopen = async () => {
+    opened = true;
     state.connected = true;
     await send({ type: 'hello', version: 1, client: 'mtlod-viewer/0.1' });
     const { json } = await send({ type: 'list_models' });

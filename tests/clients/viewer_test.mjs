@@ -5,8 +5,12 @@
 // index) equals the reply's `triangles`, and moving the mouse sends a gaze whose mesh reflects the
 // new focus. Saves a screenshot into --out.
 //
-// node viewer_test.mjs --server BIN --mesh bunny.ply --out DIR
-import { spawn } from 'node:child_process';
+// With --tls the server runs with a certificate made here by openssl and an access token
+// (--tls-cert, --tls-key, --auth-tokens): the page loads over https with ?token=, its WebSocket is
+// wss and carries the token, and it shows a mesh; a page without the token gets no connection.
+//
+// node viewer_test.mjs [--tls] --server BIN --mesh bunny.ply --out DIR
+import { spawn, spawnSync } from 'node:child_process';
 import fs from 'node:fs';
 import { createRequire } from 'node:module';
 import path from 'node:path';
@@ -15,7 +19,8 @@ import { fileURLToPath } from 'node:url';
 const root = path.resolve(path.dirname(fileURLToPath(import.meta.url)), '../..');
 const { chromium } = createRequire(path.join(root, 'scripts/package.json'))('playwright-core');
 
-const args = Object.fromEntries(process.argv.slice(2).reduce((pairs, a, i, all) =>
+const tls = process.argv.includes('--tls');
+const args = Object.fromEntries(process.argv.slice(2).filter((a) => a !== '--tls').reduce((pairs, a, i, all) =>
   (a.startsWith('--') ? [...pairs, [a.slice(2), all[i + 1]]] : pairs), []));
 for (const required of ['server', 'mesh', 'out']) {
   if (!args[required]) throw new Error(`missing --${required}`);
@@ -39,12 +44,26 @@ function check(condition, message) {
 
 const sleep = (ms) => new Promise((resolve) => setTimeout(resolve, ms));
 
+// With --tls: a certificate for 127.0.0.1 and a tokens file, both made for this run.
+const token = 'viewer-test-token-0123456789abcdef';
+const security = [];
+if (tls) {
+  const cert = path.join(args.out, 'viewer-cert.pem'), key = path.join(args.out, 'viewer-key.pem');
+  const made = spawnSync('openssl', ['req', '-x509', '-newkey', 'rsa:2048', '-nodes', '-days', '2', '-subj', '/CN=127.0.0.1',
+                                     '-addext', 'subjectAltName=IP:127.0.0.1', '-keyout', key, '-out', cert],
+                         { encoding: 'utf8' });
+  if (made.status !== 0) throw new Error(`openssl failed: ${made.error ?? made.stderr}`);
+  const tokens = path.join(args.out, 'viewer-tokens.txt');
+  fs.writeFileSync(tokens, `${token}\n`);
+  security.push('--tls-cert', cert, '--tls-key', key, '--auth-tokens', tokens);
+}
+
 // The server, with the port file telling both ports (protocol, then HTTP).
 const portFile = path.join(args.out, 'viewer-ports');
 fs.rmSync(portFile, { force: true });
 const serverLog = fs.openSync(path.join(args.out, 'viewer-server.log'), 'w');
 const server = spawn(args.server, ['--mesh', args.mesh, '--cache-dir', args.out, '--port', '0', '--http-port', '0',
-                                   '--port-file', portFile, '--workers', '2', '--log-level', 'info'],
+                                   '--port-file', portFile, '--workers', '2', '--log-level', 'info', ...security],
                      { stdio: ['ignore', serverLog, serverLog] });
 let serverExit = null;
 server.on('exit', (code, signal) => { serverExit = { code, signal }; });
@@ -68,16 +87,20 @@ try {
   browser = await chromium.launch({
     executablePath: chromiumPath,
     args: ['--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run', '--disable-background-networking',
-           '--disable-component-update', '--disable-sync', '--use-angle=swiftshader', '--enable-unsafe-swiftshader'],
+           '--disable-component-update', '--disable-sync', '--use-angle=swiftshader', '--enable-unsafe-swiftshader',
+           // The test's certificate is self-signed: no browser trusts it.
+           ...(tls ? ['--ignore-certificate-errors'] : [])],
   });
-  const page = await browser.newPage({ viewport: { width: 800, height: 600 } });
+  const page = await browser.newPage({ viewport: { width: 800, height: 600 }, ignoreHTTPSErrors: tls });
   page.on('console', (m) => { if (m.type() === 'error') console.log(`page console: ${m.text()}`); });
   page.on('pageerror', (e) => console.log(`page error: ${e.message}`));
 
   // The server's replies and the page's requests, read off the WebSocket.
   const meshReplies = [];
   const gazesSent = [];
+  const sockets = [];
   page.on('websocket', (ws) => {
+    sockets.push(ws.url());
     ws.on('framereceived', ({ payload }) => {
       if (typeof payload === 'string') {
         // JSON-only replies: hello, models, errors, and a delta that changed nothing.
@@ -95,7 +118,8 @@ try {
     });
   });
 
-  await page.goto(`http://127.0.0.1:${httpPort}/`);
+  const origin = `${tls ? 'https' : 'http'}://127.0.0.1:${httpPort}`;
+  await page.goto(tls ? `${origin}/?token=${token}` : `${origin}/`);
   await page.waitForFunction(() => window.mtlod && window.mtlod.meshes >= 1, null, { timeout: 30_000 });
   const first = await page.evaluate(() => ({ id: window.mtlod.lastReply.id, shown: document.getElementById('triangles').textContent,
                                            errors: window.mtlod.errors }));
@@ -108,43 +132,57 @@ try {
   check(meshReplies.length > 0 && meshReplies[0].json.delta && meshReplies[0].json.delta.reset,
         `delta updates are on by default: the first mesh starts the kept mesh (${JSON.stringify(meshReplies[0]?.json.delta)})`);
 
-  // The mouse is the focus: a gaze goes out and a mesh reflecting it comes back.
-  const target = [0.6, 0.45];  // clear of the control panel at the top left
-  const before = meshReplies.length;
-  await page.mouse.move(800 * target[0], 600 * target[1]);
-  await page.waitForFunction((want) => {
-    const r = window.mtlod.lastReply;
-    return r && r.focus && Math.abs(r.focus[0] - want[0]) < 0.01 && Math.abs(r.focus[1] - want[1]) < 0.01;
-  }, target, { timeout: 30_000 });
-  const second = await page.evaluate(() => ({ id: window.mtlod.lastReply.id, shown: document.getElementById('triangles').textContent,
-                                            focus: document.getElementById('focus-point').textContent }));
-  const secondReply = meshReplies.find((r) => r.json.id === second.id);
-  check(meshReplies.length > before, `a new mesh arrived after the mouse moved (${meshReplies.length - before})`);
-  check(gazesSent.some((g) => Math.abs(g.x - target[0]) < 0.01 && Math.abs(g.y - target[1]) < 0.01),
-        `a gaze at ${target} was sent (${JSON.stringify(gazesSent.at(-1))})`);
-  check(secondReply && secondReply.json.focus && Math.abs(secondReply.json.focus[0] - target[0]) < 0.01,
-        `the server's mesh reflects the new focus ${JSON.stringify(secondReply?.json.focus)}`);
-  check(secondReply && Number(second.shown) === secondReply.json.triangles,
-        `displayed triangles ${second.shown} = the reply's ${secondReply?.json.triangles}`);
-  check(second.focus === `${target[0].toFixed(3)}, ${target[1].toFixed(3)}`, `the overlay shows the focus (${second.focus})`);
-  check(secondReply && secondReply.json.delta && !secondReply.json.delta.reset &&
-        secondReply.json.delta.added < secondReply.json.triangles,
-        `the gaze's mesh came as a change to the kept one (${JSON.stringify(secondReply?.json.delta)}), and the page shows the server's count`);
+  // Over TLS, what TLS and the token change; in the clear, gazes, deltas and labels.
+  if (tls) {
+    check(sockets.length === 1 && sockets[0] === `wss://127.0.0.1:${httpPort}/ws?token=${token}`,
+          `the WebSocket is wss and carries the page's token (${sockets.join(', ')})`);
+    await page.screenshot({ path: path.join(args.out, 'viewer-https.png') });
+    // Without the token the upgrade is refused (401): the page says so and shows no mesh.
+    const refused = await browser.newPage({ viewport: { width: 800, height: 600 }, ignoreHTTPSErrors: true });
+    await refused.goto(`${origin}/`);
+    await refused.waitForFunction(() => window.mtlod && window.mtlod.errors.length > 0, null, { timeout: 30_000 });
+    const status = await refused.evaluate(() => ({ meshes: window.mtlod.meshes, text: document.getElementById('status').textContent }));
+    check(status.meshes === 0 && status.text.includes('token'), `without ?token= no connection, and the page says why (${status.text})`);
+    await refused.close();
+  } else {
+    // The mouse is the focus: a gaze goes out and a mesh reflecting it comes back.
+    const target = [0.6, 0.45];  // clear of the control panel at the top left
+    const before = meshReplies.length;
+    await page.mouse.move(800 * target[0], 600 * target[1]);
+    await page.waitForFunction((want) => {
+      const r = window.mtlod.lastReply;
+      return r && r.focus && Math.abs(r.focus[0] - want[0]) < 0.01 && Math.abs(r.focus[1] - want[1]) < 0.01;
+    }, target, { timeout: 30_000 });
+    const second = await page.evaluate(() => ({ id: window.mtlod.lastReply.id, shown: document.getElementById('triangles').textContent,
+                                              focus: document.getElementById('focus-point').textContent }));
+    const secondReply = meshReplies.find((r) => r.json.id === second.id);
+    check(meshReplies.length > before, `a new mesh arrived after the mouse moved (${meshReplies.length - before})`);
+    check(gazesSent.some((g) => Math.abs(g.x - target[0]) < 0.01 && Math.abs(g.y - target[1]) < 0.01),
+          `a gaze at ${target} was sent (${JSON.stringify(gazesSent.at(-1))})`);
+    check(secondReply && secondReply.json.focus && Math.abs(secondReply.json.focus[0] - target[0]) < 0.01,
+          `the server's mesh reflects the new focus ${JSON.stringify(secondReply?.json.focus)}`);
+    check(secondReply && Number(second.shown) === secondReply.json.triangles,
+          `displayed triangles ${second.shown} = the reply's ${secondReply?.json.triangles}`);
+    check(second.focus === `${target[0].toFixed(3)}, ${target[1].toFixed(3)}`, `the overlay shows the focus (${second.focus})`);
+    check(secondReply && secondReply.json.delta && !secondReply.json.delta.reset &&
+          secondReply.json.delta.added < secondReply.json.triangles,
+          `the gaze's mesh came as a change to the kept one (${JSON.stringify(secondReply?.json.delta)}), and the page shows the server's count`);
 
-  // The mesh kept from deltas, as shown.
-  await page.screenshot({ path: path.join(args.out, 'viewer-delta.png') });
+    // The mesh kept from deltas, as shown.
+    await page.screenshot({ path: path.join(args.out, 'viewer-delta.png') });
 
-  // Colouring by distance label: the page asks for labels and decodes the generic attribute.
-  await page.check('#labels');
-  await page.waitForFunction((id) => window.mtlod.lastReply.id > id, second.id, { timeout: 30_000 });
-  const labelled = await page.evaluate(() => window.mtlod.lastReplyHadLabels);
-  check(labelled === true, 'with labels on, the decoded mesh carries the label attribute');
-  const whole = await page.evaluate(() => window.mtlod.lastReply.delta === undefined);
-  check(whole, 'with labels on, whole meshes replace the kept one (labels would go stale in deltas)');
+    // Colouring by distance label: the page asks for labels and decodes the generic attribute.
+    await page.check('#labels');
+    await page.waitForFunction((id) => window.mtlod.lastReply.id > id, second.id, { timeout: 30_000 });
+    const labelled = await page.evaluate(() => window.mtlod.lastReplyHadLabels);
+    check(labelled === true, 'with labels on, the decoded mesh carries the label attribute');
+    const whole = await page.evaluate(() => window.mtlod.lastReply.delta === undefined);
+    check(whole, 'with labels on, whole meshes replace the kept one (labels would go stale in deltas)');
 
-  const screenshot = path.join(args.out, 'viewer.png');
-  await page.screenshot({ path: screenshot });
-  check(fs.statSync(screenshot).size > 1000, `screenshot saved to ${screenshot}`);
+    const screenshot = path.join(args.out, 'viewer.png');
+    await page.screenshot({ path: screenshot });
+    check(fs.statSync(screenshot).size > 1000, `screenshot saved to ${screenshot}`);
+  }
 } catch (error) {
   console.log(`FAIL ${error.stack ?? error}`);
   failures += 1;

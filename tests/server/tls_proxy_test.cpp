@@ -1,0 +1,132 @@
+// docker/haproxy.cfg's two TLS layouts, run: HAProxy in front of one replica (both of the file's
+// server lines point at it) on loopback ports, and clients that speak TLS to HAProxy with an
+// access token. MTLOD_TLS=terminate: HAProxy holds the certificate and the replica is plain;
+// MTLOD_TLS=passthrough: the replica holds it and HAProxy forwards the bytes (and checks /health
+// over TLS). In both the protocol client and a wss client get served, and the replica checks the
+// token.
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <thread>
+
+#include "clients/common/connection.hpp"
+#include "core/draco_decode.hpp"
+#include "protocol/camera.hpp"
+#include "tests/core/test_meshes.hpp"
+#include "tests/deploy/deploy_support.hpp"
+#include "tests/server/https_client.hpp"
+#include "tests/server/server_process.hpp"
+#include "tests/server/tls_support.hpp"
+
+namespace mtlod {
+namespace {
+
+using namespace std::chrono_literals;
+
+void run_layout(const std::string& mode) {
+  const auto bunny = test::models_dir() / "bunny.ply";
+  if (!std::filesystem::exists(bunny)) GTEST_SKIP() << "no " << bunny;
+#ifndef MTLOD_HAPROXY_BINARY
+  GTEST_SKIP() << "built without HAProxy (tests/server/tls.cmake)";
+#else
+  const auto dir = test::scratch_dir("tls-proxy-" + mode);
+  std::filesystem::copy_file(bunny, dir / "bunny.ply");
+  const test::Certificate certificate = test::make_certificate(dir);
+  const bool passthrough = mode == "passthrough";
+
+  std::vector<std::string> args = {
+      "--mesh",        (dir / "bunny.ply").string(),    "--cache-dir", dir.string(), "--http-port", "0",
+      "--auth-tokens", test::write_tokens(dir).string()};
+  if (passthrough) {
+    args.insert(args.end(), {"--tls-cert", certificate.cert.string(), "--tls-key", certificate.key.string()});
+  }
+  test::ServerProcess replica(args, dir);
+  ASSERT_TRUE(replica.running()) << replica.log();
+
+  // HAProxy wants the key in the certificate's file (or beside it as <file>.key).
+  const auto pem = dir / "haproxy.pem";
+  {
+    std::ofstream out(pem);
+    out << std::ifstream(certificate.cert).rdbuf() << std::ifstream(certificate.key).rdbuf();
+  }
+  const std::uint16_t lb_port = test::free_port(), lb_http_port = test::free_port(),
+                      stats_port = test::free_port();
+  const std::map<std::string, std::string> environment = {
+      {"MTLOD_BIND", "127.0.0.1"},
+      {"MTLOD_LB_PORT", std::to_string(lb_port)},
+      {"MTLOD_LB_HTTP_PORT", std::to_string(lb_http_port)},
+      {"MTLOD_LB_STATS_PORT", std::to_string(stats_port)},
+      {"MTLOD_REPLICA_1_HOST", "127.0.0.1"},
+      {"MTLOD_REPLICA_1_PORT", std::to_string(replica.port())},
+      {"MTLOD_REPLICA_1_HTTP_PORT", std::to_string(replica.http_port())},
+      {"MTLOD_REPLICA_2_HOST", "127.0.0.1"},
+      {"MTLOD_REPLICA_2_PORT", std::to_string(replica.port())},
+      {"MTLOD_REPLICA_2_HTTP_PORT", std::to_string(replica.http_port())},
+      {"MTLOD_TLS", mode},
+      {"MTLOD_TLS_CERT", pem.string()},
+  };
+  test::Child haproxy({MTLOD_HAPROXY_BINARY, "-db", "-f", MTLOD_SOURCE_DIR "/docker/haproxy.cfg"},
+                      environment, dir / "haproxy.log");
+
+  // The protocol through HAProxy, over TLS, once it listens and has checked the replica.
+  const clients::TlsOptions tls{true, certificate.cert.string()};
+  Result<clients::Connection> c = make_error(ErrorCode::kIoError, "not tried");
+  Result<clients::ReplyFrame> hello = make_error(ErrorCode::kIoError, "not tried");
+  for (auto deadline = std::chrono::steady_clock::now() + 20s; std::chrono::steady_clock::now() < deadline;) {
+    c = clients::Connection::open("127.0.0.1", lb_port, 2s, tls);
+    if (c.ok())
+      hello =
+          c->call(protocol::Hello{protocol::kProtocolVersion, "proxy-test", test::kEveryModelToken}, 1, 5s);
+    if (c.ok() && hello.ok()) break;
+    std::this_thread::sleep_for(200ms);
+  }
+  ASSERT_TRUE(c.ok() && hello.ok()) << (c.ok() ? hello.error().message : c.error().message) << "\n"
+                                    << haproxy.log() << replica.log();
+  ASSERT_TRUE(std::holds_alternative<protocol::HelloReply>(hello->header.reply)) << hello->json;
+  auto info = c->call(protocol::ModelInfo{"bunny"}, 2);
+  ASSERT_TRUE(info.ok()) << info.error().message;
+  const auto& model = std::get<protocol::ModelInfoReply>(info->header.reply);
+  protocol::Extract e;
+  e.model = "bunny";
+  protocol::look_at_camera(protocol::frame_bounds(model.bounds_min, model.bounds_max), 4.0 / 3.0, e.view,
+                           e.projection);
+  e.grid = {64, 48};
+  e.error = 2;
+  e.error_unit = protocol::ErrorUnit::kPixels;
+  auto mesh = c->call(e, 3, 60s);
+  ASSERT_TRUE(mesh.ok()) << mesh.error().message;
+  ASSERT_TRUE(std::holds_alternative<protocol::MeshReply>(mesh->header.reply)) << mesh->json;
+  EXPECT_TRUE(core::decode_draco(mesh->payload).ok());
+
+  // The token is the replica's to check, whichever side holds the certificate.
+  auto stranger = clients::Connection::open("127.0.0.1", lb_port, 5s, tls);
+  ASSERT_TRUE(stranger.ok()) << stranger.error().message;
+  auto refused = stranger->call(protocol::ListModels{}, 1);
+  ASSERT_TRUE(refused.ok()) << refused.error().message;
+  const auto* error = std::get_if<protocol::ErrorReply>(&refused->header.reply);
+  ASSERT_NE(error, nullptr) << refused->json;
+  EXPECT_EQ(error->code, protocol::ErrorKind::kUnauthorized);
+
+  // The viewer's side: wss through HAProxy, with and without the token.
+  EXPECT_EQ(test::upgrade_status(lb_http_port, certificate.cert,
+                                 std::string("/ws?model=bunny&token=") + test::kEveryModelToken),
+            101)
+      << haproxy.log();
+  EXPECT_EQ(
+      test::upgrade_status(lb_http_port, certificate.cert, "/ws?model=bunny&token=wrong-token-0123456789"),
+      401u);
+  // HAProxy's log keeps the path and leaves the token out (HTTP mode: terminate).
+  if (!passthrough) EXPECT_EQ(haproxy.log().find(test::kEveryModelToken), std::string::npos) << haproxy.log();
+#endif
+}
+
+TEST(TlsProxy, HaproxyTerminatesTlsInFrontOfAPlainReplica) {
+  run_layout("terminate");
+}
+
+TEST(TlsProxy, HaproxyPassesTlsThroughToAReplicaThatTerminatesIt) {
+  run_layout("passthrough");
+}
+
+}  // namespace
+}  // namespace mtlod
