@@ -36,6 +36,7 @@ class AddressTable {
     Slot(Slot&& other) noexcept { *this = std::move(other); }
     Slot& operator=(Slot&& other) noexcept;
     ~Slot() { reset(); }
+    // Gives the slot back; address() still names it.
     void reset();
     const std::string& address() const { return address_; }
     explicit operator bool() const { return table_ != nullptr; }

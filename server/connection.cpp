@@ -44,11 +44,7 @@ std::vector<std::uint8_t> error_frame(protocol::ErrorKind code, std::string mess
 
 Connection::Connection(ServerContext& server, net::any_io_executor strand, std::uint64_t number,
                        AddressTable::Slot slot)
-    : server_(server),
-      strand_(std::move(strand)),
-      number_(number),
-      slot_(std::move(slot)),
-      address_(slot_.address()) {}
+    : server_(server), strand_(std::move(strand)), number_(number), slot_(std::move(slot)) {}
 
 void Connection::opened() {
   server_.metrics.connection_opened();
@@ -75,16 +71,15 @@ void Connection::handle_frame(std::string_view json, std::int64_t received_ns) {
   try {
     const protocol::ParsedRequest parsed = protocol::parse_request(json, server_.config.limits);
     id = parsed.id;
+    if (parsed.ok()) server_.metrics.request(parsed.request->index());
     if (!authorised() && !(parsed.ok() && std::holds_alternative<protocol::Hello>(*parsed.request))) {
       // Until a token is shown, nothing is served nor even checked beyond being a hello: a client
       // without one learns no more than that it needs one.
-      if (parsed.ok()) server_.metrics.request(parsed.request->index());
       reply_error(seq, protocol::ErrorKind::kUnauthorized,
                   "this server needs an access token: send a hello with a valid 'token' first", parsed.id);
     } else if (!parsed.ok()) {
       reply_error(seq, parsed.error.code, parsed.error.message, parsed.id);
     } else {
-      server_.metrics.request(parsed.request->index());
       received_ns_ = received_ns;
       std::visit([&](const auto& request) { on_request(seq, *parsed.id, request); }, *parsed.request);
     }
@@ -175,7 +170,7 @@ void Connection::on_request(std::uint64_t seq, std::uint64_t id, const protocol:
       // Worth a line for whoever audits access, but one per connection: a client repeating its
       // hello must not be able to fill the log.
       spdlog::log(refusal_logged_ ? spdlog::level::debug : spdlog::level::info, "conn={} from {}: hello {}",
-                  number_, address_,
+                  number_, address(),
                   request.token.empty() ? "without a token" : "with a token that is not valid");
       refusal_logged_ = true;
       return reply_error(seq, protocol::ErrorKind::kUnauthorized,
@@ -276,7 +271,7 @@ void Connection::start_next_job() {
                     server_.memory.held() / 1048576.0, server_.memory.limit() / 1048576.0),
         job->id);
   }
-  server_.scheduler.submit(address_, [self = shared_from_this(), job = std::move(*job)]() mutable {
+  server_.scheduler.submit(address(), [self = shared_from_this(), job = std::move(*job)]() mutable {
     const std::int64_t started = now_ns();
     std::variant<ExtractOutcome, protocol::ProtocolError> outcome;
     try {

@@ -105,7 +105,7 @@ class Connection : public std::enable_shared_from_this<Connection> {
   bool waiting_on_server() const { return replies_.outstanding() > 0; }
   bool ending() const { return stopping_ || closed_; }
   std::uint64_t number() const { return number_; }
-  const std::string& address() const { return address_; }
+  const std::string& address() const { return slot_.address(); }
   // Whether a request has arrived yet: until then the first-frame deadline applies, not the idle one.
   bool got_request() const { return got_request_; }
   const boost::asio::any_io_executor& strand() const { return strand_; }
@@ -144,7 +144,6 @@ class Connection : public std::enable_shared_from_this<Connection> {
   boost::asio::any_io_executor strand_;
   std::uint64_t number_;
   AddressTable::Slot slot_;
-  std::string address_;
   bool got_request_ = false;
   std::uint64_t session_accounted_ = 0;  // the session's bytes as counted in the memory ceiling
   std::uint64_t reserved_ = 0;           // the running job's reservation in the memory ceiling

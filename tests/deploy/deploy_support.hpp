@@ -8,6 +8,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <array>
 #include <chrono>
 #include <cstdint>
 #include <filesystem>
@@ -32,6 +33,26 @@ inline std::uint16_t free_port() {
   ::getsockname(fd, reinterpret_cast<sockaddr*>(&address), &size);
   ::close(fd);
   return ntohs(address.sin_port);
+}
+
+// The environment docker/haproxy.cfg reads, for HAProxy on loopback ports in front of two replicas
+// (each a protocol port and an HTTP port; the same replica twice is allowed).
+struct HaproxyPorts {
+  std::uint16_t lb = 0, lb_http = 0, stats = 0;
+  std::array<std::pair<std::uint16_t, std::uint16_t>, 2> replicas{};  // protocol, HTTP
+};
+inline std::map<std::string, std::string> haproxy_environment(const HaproxyPorts& ports) {
+  std::map<std::string, std::string> environment = {{"MTLOD_BIND", "127.0.0.1"},
+                                                    {"MTLOD_LB_PORT", std::to_string(ports.lb)},
+                                                    {"MTLOD_LB_HTTP_PORT", std::to_string(ports.lb_http)},
+                                                    {"MTLOD_LB_STATS_PORT", std::to_string(ports.stats)}};
+  for (std::size_t i = 0; i < ports.replicas.size(); ++i) {
+    const std::string prefix = "MTLOD_REPLICA_" + std::to_string(i + 1);
+    environment[prefix + "_HOST"] = "127.0.0.1";
+    environment[prefix + "_PORT"] = std::to_string(ports.replicas[i].first);
+    environment[prefix + "_HTTP_PORT"] = std::to_string(ports.replicas[i].second);
+  }
+  return environment;
 }
 
 // A child process: argv, extra environment, output to a log file. Killed (SIGKILL) when destroyed

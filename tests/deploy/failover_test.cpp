@@ -107,18 +107,11 @@ TEST(Failover, LoadThroughHaproxySurvivesAKilledReplicaAndComesBackToItsRestart)
   }
   const std::uint16_t lb_port = test::free_port(), lb_http_port = test::free_port(),
                       stats_port = test::free_port();
-  const std::map<std::string, std::string> environment = {
-      {"MTLOD_BIND", "127.0.0.1"},
-      {"MTLOD_LB_PORT", std::to_string(lb_port)},
-      {"MTLOD_LB_HTTP_PORT", std::to_string(lb_http_port)},
-      {"MTLOD_LB_STATS_PORT", std::to_string(stats_port)},
-      {"MTLOD_REPLICA_1_HOST", "127.0.0.1"},
-      {"MTLOD_REPLICA_1_PORT", std::to_string(replicas[0].port)},
-      {"MTLOD_REPLICA_1_HTTP_PORT", std::to_string(replicas[0].http_port)},
-      {"MTLOD_REPLICA_2_HOST", "127.0.0.1"},
-      {"MTLOD_REPLICA_2_PORT", std::to_string(replicas[1].port)},
-      {"MTLOD_REPLICA_2_HTTP_PORT", std::to_string(replicas[1].http_port)},
-  };
+  const auto environment = test::haproxy_environment(
+      {lb_port,
+       lb_http_port,
+       stats_port,
+       {{{replicas[0].port, replicas[0].http_port}, {replicas[1].port, replicas[1].http_port}}}});
   test::Child haproxy({MTLOD_HAPROXY_BINARY, "-db", "-f", MTLOD_SOURCE_DIR "/docker/haproxy.cfg"},
                       environment, dir / "haproxy.log");
   ASSERT_TRUE(wait_until(

@@ -20,6 +20,7 @@
 #include "tests/core/test_meshes.hpp"
 #include "tests/server/http_client.hpp"
 #include "tests/server/server_process.hpp"
+#include "tests/server/test_requests.hpp"
 
 namespace mtlod {
 namespace {
@@ -79,14 +80,8 @@ class HostileInputTest : public testing::Test {
     ASSERT_TRUE(c.ok()) << c.error().message;
     auto info = c->call(protocol::ModelInfo{"bunny"}, 1);
     ASSERT_TRUE(info.ok()) << info.error().message;
-    const auto& model = std::get<protocol::ModelInfoReply>(info->header.reply);
-    protocol::Extract e;
-    e.model = "bunny";
-    protocol::look_at_camera(protocol::frame_bounds(model.bounds_min, model.bounds_max), 4.0 / 3.0, e.view,
-                             e.projection);
-    e.grid = {64, 48};
-    e.error = 2;
-    e.error_unit = protocol::ErrorUnit::kPixels;
+    const protocol::Extract e =
+        test::framing_extract("bunny", std::get<protocol::ModelInfoReply>(info->header.reply), {64, 48}, 2);
     g_extract = protocol::to_json(protocol::Request{e}, 7);
   }
   static void TearDownTestSuite() {
@@ -181,24 +176,7 @@ class WebSocketClient {
     beast::error_code ec;
     ws_.read(buffer, ec);
     if (ec) return make_error(ErrorCode::kIoError, ec.message());
-    const std::string message = beast::buffers_to_string(buffer.data());
-    ReplyFrame out;
-    if (ws_.got_text()) {
-      out.json = message;
-    } else {
-      if (message.size() < protocol::kFrameHeaderBytes) return make_error(ErrorCode::kCorrupt, "short frame");
-      const auto* bytes = reinterpret_cast<const std::uint8_t*>(message.data());
-      auto header = protocol::decode_frame_header(
-          std::span<const std::uint8_t, protocol::kFrameHeaderBytes>(bytes, protocol::kFrameHeaderBytes),
-          1u << 30);
-      if (!header) return header.error();
-      out.json = message.substr(protocol::kFrameHeaderBytes, header->json_bytes);
-      out.payload.assign(bytes + protocol::kFrameHeaderBytes + header->json_bytes, bytes + message.size());
-    }
-    auto parsed = protocol::parse_reply(out.json);
-    if (!parsed) return parsed.error();
-    out.header = std::move(*parsed);
-    return out;
+    return test::reply_from_message(ws_.got_text(), beast::buffers_to_string(buffer.data()));
   }
 
  private:

@@ -102,15 +102,21 @@ class RawClient {
     reply.parsed = std::move(*parsed);
     return reply;
   }
-  // True when the server closes the connection within `timeout` (reading and dropping any bytes).
-  bool closed_by_server(std::chrono::milliseconds timeout) const {
+  // Everything the server sends until it closes the connection, or nullopt when it has not closed
+  // it within `timeout` (each read waits that long at most).
+  std::optional<std::string> read_until_closed(std::chrono::milliseconds timeout) const {
     set_timeout(timeout);
+    std::string all;
     char buffer[4096];
     for (;;) {
       const ssize_t n = ::recv(fd_, buffer, sizeof buffer, 0);
-      if (n == 0) return true;
-      if (n < 0) return errno == ECONNRESET;
+      if (n == 0 || (n < 0 && errno == ECONNRESET)) return all;
+      if (n < 0) return std::nullopt;
+      all.append(buffer, static_cast<std::size_t>(n));
     }
+  }
+  bool closed_by_server(std::chrono::milliseconds timeout) const {
+    return read_until_closed(timeout).has_value();
   }
 
  private:

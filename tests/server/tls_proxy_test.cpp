@@ -16,6 +16,7 @@
 #include "tests/deploy/deploy_support.hpp"
 #include "tests/server/https_client.hpp"
 #include "tests/server/server_process.hpp"
+#include "tests/server/test_requests.hpp"
 #include "tests/server/tls_support.hpp"
 
 namespace mtlod {
@@ -51,20 +52,13 @@ void run_layout(const std::string& mode) {
   }
   const std::uint16_t lb_port = test::free_port(), lb_http_port = test::free_port(),
                       stats_port = test::free_port();
-  const std::map<std::string, std::string> environment = {
-      {"MTLOD_BIND", "127.0.0.1"},
-      {"MTLOD_LB_PORT", std::to_string(lb_port)},
-      {"MTLOD_LB_HTTP_PORT", std::to_string(lb_http_port)},
-      {"MTLOD_LB_STATS_PORT", std::to_string(stats_port)},
-      {"MTLOD_REPLICA_1_HOST", "127.0.0.1"},
-      {"MTLOD_REPLICA_1_PORT", std::to_string(replica.port())},
-      {"MTLOD_REPLICA_1_HTTP_PORT", std::to_string(replica.http_port())},
-      {"MTLOD_REPLICA_2_HOST", "127.0.0.1"},
-      {"MTLOD_REPLICA_2_PORT", std::to_string(replica.port())},
-      {"MTLOD_REPLICA_2_HTTP_PORT", std::to_string(replica.http_port())},
-      {"MTLOD_TLS", mode},
-      {"MTLOD_TLS_CERT", pem.string()},
-  };
+  auto environment = test::haproxy_environment(
+      {lb_port,
+       lb_http_port,
+       stats_port,
+       {{{replica.port(), replica.http_port()}, {replica.port(), replica.http_port()}}}});
+  environment["MTLOD_TLS"] = mode;
+  environment["MTLOD_TLS_CERT"] = pem.string();
   test::Child haproxy({MTLOD_HAPROXY_BINARY, "-db", "-f", MTLOD_SOURCE_DIR "/docker/haproxy.cfg"},
                       environment, dir / "haproxy.log");
 
@@ -85,14 +79,8 @@ void run_layout(const std::string& mode) {
   ASSERT_TRUE(std::holds_alternative<protocol::HelloReply>(hello->header.reply)) << hello->json;
   auto info = c->call(protocol::ModelInfo{"bunny"}, 2);
   ASSERT_TRUE(info.ok()) << info.error().message;
-  const auto& model = std::get<protocol::ModelInfoReply>(info->header.reply);
-  protocol::Extract e;
-  e.model = "bunny";
-  protocol::look_at_camera(protocol::frame_bounds(model.bounds_min, model.bounds_max), 4.0 / 3.0, e.view,
-                           e.projection);
-  e.grid = {64, 48};
-  e.error = 2;
-  e.error_unit = protocol::ErrorUnit::kPixels;
+  const protocol::Extract e =
+      test::framing_extract("bunny", std::get<protocol::ModelInfoReply>(info->header.reply), {64, 48}, 2);
   auto mesh = c->call(e, 3, 60s);
   ASSERT_TRUE(mesh.ok()) << mesh.error().message;
   ASSERT_TRUE(std::holds_alternative<protocol::MeshReply>(mesh->header.reply)) << mesh->json;

@@ -27,6 +27,7 @@
 #include "tests/server/https_client.hpp"
 #include "tests/server/raw_client.hpp"
 #include "tests/server/server_process.hpp"
+#include "tests/server/test_requests.hpp"
 #include "tests/server/tls_support.hpp"
 
 namespace mtlod {
@@ -97,18 +98,9 @@ class TlsTest : public testing::Test {
   static protocol::Extract extract_of(clients::Connection& c, const std::string& model) {
     auto info = c.call(protocol::ModelInfo{model}, 100);
     EXPECT_TRUE(info.ok()) << info.error().message;
-    protocol::Extract e;
-    e.model = model;
     const auto* m = info.ok() ? std::get_if<protocol::ModelInfoReply>(&info->header.reply) : nullptr;
     EXPECT_NE(m, nullptr) << (info.ok() ? info->json : "");
-    if (m) {
-      protocol::look_at_camera(protocol::frame_bounds(m->bounds_min, m->bounds_max), 4.0 / 3.0, e.view,
-                               e.projection);
-    }
-    e.grid = {64, 48};
-    e.error = 2;
-    e.error_unit = protocol::ErrorUnit::kPixels;
-    return e;
+    return test::framing_extract(model, m ? *m : protocol::ModelInfoReply{}, {64, 48}, 2);
   }
 
   static void expect_mesh(const Result<ReplyFrame>& reply) {
@@ -318,21 +310,7 @@ class WssClient {
     beast::error_code ec;
     ws_.read(buffer, ec);
     if (ec) return make_error(ErrorCode::kIoError, ec.message());
-    const std::string message = beast::buffers_to_string(buffer.data());
-    ReplyFrame out;
-    if (ws_.got_text()) {
-      out.json = message;
-    } else {
-      const auto* bytes = reinterpret_cast<const std::uint8_t*>(message.data());
-      auto header = protocol::decode_frame_header(
-          std::span<const std::uint8_t, protocol::kFrameHeaderBytes>(bytes, protocol::kFrameHeaderBytes),
-          1u << 30);
-      if (!header) return header.error();
-      out.json = message.substr(protocol::kFrameHeaderBytes, header->json_bytes);
-      out.payload.assign(bytes + protocol::kFrameHeaderBytes + header->json_bytes, bytes + message.size());
-    }
-    MTLOD_TRY(out.header, protocol::parse_reply(out.json));
-    return out;
+    return test::reply_from_message(ws_.got_text(), beast::buffers_to_string(buffer.data()));
   }
 
  private:
