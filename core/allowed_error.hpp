@@ -20,18 +20,12 @@
 #include <vector>
 
 #include "core/distance_transform.hpp"
+#include "core/falloff.hpp"
 #include "core/labels.hpp"
 #include "core/refine.hpp"
 #include "core/view_grid.hpp"
 
 namespace mtlod::core {
-
-enum class FalloffLaw : std::uint8_t {
-  kStep,        // the papers' two levels: factor inside the region, 1 outside
-  kLinear,      // factor up to distance_px, rising linearly to 1 over falloff_px
-  kSmoothstep,  // same ramp through smoothstep (C¹ at both ends)
-  kFoveal,  // factor·(1 + eccentricity/foveal_e2_deg), capped at 1: acuity falls linearly with eccentricity
-};
 
 // How one criterion (silhouette, focus or neglect) scales the allowed error with a label's distance.
 struct RegionLaw {
@@ -48,11 +42,6 @@ struct RegionLaw {
   float foveal_e2_deg = 2.3f;
 
   bool operator==(const RegionLaw&) const = default;
-};
-
-enum class ErrorUnits : std::uint8_t {
-  kModel,         // `error` is a distance in model units
-  kScreenPixels,  // `error` is in screen pixels, converted per vertex with its depth
 };
 
 struct AllowedErrorOptions {

@@ -24,6 +24,7 @@ enum class DistanceMetric : std::uint8_t {
   kChessboard,   // 8-neighbour steps of 1
   kEuclidean,    // exact; raw values are squared distances in cells²
 };
+inline constexpr std::size_t kDistanceMetricCount = 5;
 
 // One move of a chamfer mask: the neighbour at (x + dx, y + dy) offers its value + weight.
 struct ChamferStep {

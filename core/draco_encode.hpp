@@ -18,6 +18,7 @@ enum class DracoMethod : std::uint8_t {
   kEdgebreaker,  // best ratio (~6–10 bits per triangle), slower
   kSequential,   // fastest, ~80 bits per triangle
 };
+inline constexpr std::size_t kDracoMethodCount = 2;
 
 struct DracoOptions {
   DracoMethod method = DracoMethod::kEdgebreaker;

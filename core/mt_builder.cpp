@@ -45,7 +45,7 @@ constexpr std::uint32_t kMaxFan = 64;
 constexpr std::size_t kChunks = 16;
 constexpr std::size_t kMinChunk = 2048;
 // Collapse chunks: a collapse's fixed cost in moved-point equivalents, and the least work a chunk
-// of collapses gets (about 0.2 ms on the 2-core VM).
+// of collapses gets (about 0.2 ms of one core): less, and handing chunks out costs more than it saves.
 constexpr std::size_t kFanWork = 16;
 constexpr std::size_t kMinChunkWork = 4096;
 // How far ahead loops over scattered vertices prefetch.
@@ -937,8 +937,8 @@ void Builder::collapse(const Chosen& chosen, Scratch& scratch) {
     if (!(best <= floor2)) measured = std::max(measured, std::sqrt(best));
     m.new_face = best_face;
   }
-  // Each new face's run, in the chosen block of the pool: reversed order of arrival (the order
-  // the linked lists of earlier versions gave, so their MTs are reproduced exactly).
+  // Each new face's run, in the chosen block of the pool: reversed order of arrival, the order
+  // that keeps .mt files byte-identical to those already built and published.
   std::vector<std::uint32_t>& ends = scratch.new_face_ends;
   ends.assign(new_faces_.size(), 0);
   for (const Moving& m : moving) ++ends[m.new_face];

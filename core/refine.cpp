@@ -480,9 +480,9 @@ void Refiner::update(const AllowedError& allowed, std::span<const std::uint32_t>
   if (update_kept(allowed, changed_vertices, out)) out.assign(kept_view());
 }
 
-CutView Refiner::update_view(const AllowedError& allowed, std::span<const std::uint32_t> changed_vertices,
+CutSpan Refiner::update_view(const AllowedError& allowed, std::span<const std::uint32_t> changed_vertices,
                              CutMesh& scratch) {
-  return update_kept(allowed, changed_vertices, scratch) ? kept_view() : CutView::of(scratch);
+  return update_kept(allowed, changed_vertices, scratch) ? kept_view() : CutSpan::of(scratch);
 }
 
 bool Refiner::update_kept(const AllowedError& allowed, std::span<const std::uint32_t> changed_vertices,
@@ -671,7 +671,7 @@ void Refiner::rebuild_kept_mesh(std::size_t added) {
   mesh_valid_ = true;
 }
 
-CutView Refiner::kept_view() const {
+CutSpan Refiner::kept_view() const {
   return {mesh_corners_, mesh_triangles_, cut_.size(), kept_max_error(), true};
 }
 

@@ -73,7 +73,7 @@ class VertexErrorSource {
   ~VertexErrorSource() = default;
 };
 
-struct CutView;
+struct CutSpan;
 
 // A cut's mesh, ready for an encoder. Caller-owned and reused between calls.
 struct CutMesh {
@@ -86,12 +86,12 @@ struct CutMesh {
 
   std::size_t triangle_count() const { return triangles.size() / 3; }
   // Becomes a copy of `view` (which may be a view of this mesh).
-  void assign(const CutView& view);
+  void assign(const CutSpan& view);
 };
 
-// A read-only view of a cut, with CutMesh's fields: into a CutMesh, or into a refiner's kept mesh
+// A read-only span of a cut, with CutMesh's fields: into a CutMesh, or into a refiner's kept mesh
 // (valid until that refiner's next call).
-struct CutView {
+struct CutSpan {
   std::span<const std::uint32_t> triangles;
   std::span<const std::uint32_t> ids;
   std::size_t node_count = 0;
@@ -99,12 +99,12 @@ struct CutView {
   bool within_budget = true;
 
   std::size_t triangle_count() const { return triangles.size() / 3; }
-  static CutView of(const CutMesh& m) {
+  static CutSpan of(const CutMesh& m) {
     return {m.triangles, m.ids, m.node_count, m.max_error, m.within_budget};
   }
 };
 
-inline void CutMesh::assign(const CutView& view) {
+inline void CutMesh::assign(const CutSpan& view) {
   if (view.triangles.data() != triangles.data())
     triangles.assign(view.triangles.begin(), view.triangles.end());
   if (view.ids.data() != ids.data()) ids.assign(view.ids.begin(), view.ids.end());
@@ -148,7 +148,7 @@ class Refiner {
   void update(const AllowedError& allowed, std::span<const std::uint32_t> changed_vertices, CutMesh& out);
   // The same without copying the result out: a view of the refiner's kept mesh, or of `scratch`
   // when there was no kept cut to start from (scratch is written then).
-  CutView update_view(const AllowedError& allowed, std::span<const std::uint32_t> changed_vertices,
+  CutSpan update_view(const AllowedError& allowed, std::span<const std::uint32_t> changed_vertices,
                       CutMesh& scratch);
 
   // Budgeted dynamic refinement: the same cut as refine_budget(allowed, max_triangles) (worst
@@ -221,7 +221,7 @@ class Refiner {
   bool close_over(const AllowedError& allowed, std::size_t first, std::size_t max_nodes);
   void emit(CutMesh& out) const;
   // The kept mesh (maintained by move_cut) as a cut, and its largest error.
-  CutView kept_view() const;
+  CutSpan kept_view() const;
   float kept_max_error() const;
   void remember_field(const AllowedError& allowed);
   // Takes the mesh of the cut refine_forced left from its passing list: at the end of a restart, or

@@ -1,5 +1,7 @@
-// mtlod::Result<T>: a value or an Error{code, message}, for everything that reads untrusted bytes
-// (files, frames, JSON). Modelled on Draco's StatusOr; GCC 12 has no std::expected.
+// mtlod::Result<T, E>: a value or an error, the one shape of every fallible result in the tree. E is
+// Error{code, message} for everything that reads untrusted bytes (files, frames, JSON); the protocol
+// uses its own error (protocol/errors.hpp), whose codes are the wire's. Modelled on Draco's StatusOr;
+// GCC 12 has no std::expected.
 #pragma once
 
 #include <cstdint>
@@ -26,11 +28,11 @@ struct Error {
   std::string message;
 };
 
-template <class T>
+template <class T, class E = Error>
 class [[nodiscard]] Result {
  public:
-  Result(T value) : data_(std::move(value)) {}      // NOLINT: implicit by design, like StatusOr
-  Result(Error error) : data_(std::move(error)) {}  // NOLINT
+  Result(T value) : data_(std::move(value)) {}  // NOLINT: implicit by design, like StatusOr
+  Result(E error) : data_(std::move(error)) {}  // NOLINT
 
   bool ok() const { return data_.index() == 0; }
   explicit operator bool() const { return ok(); }
@@ -43,11 +45,11 @@ class [[nodiscard]] Result {
   T& operator*() & { return value(); }
   const T& operator*() const& { return value(); }
 
-  const Error& error() const { return std::get<1>(data_); }
-  Error&& take_error() { return std::get<1>(std::move(data_)); }
+  const E& error() const { return std::get<1>(data_); }
+  E&& take_error() { return std::get<1>(std::move(data_)); }
 
  private:
-  std::variant<T, Error> data_;
+  std::variant<T, E> data_;
 };
 
 // Result<void>: success or an Error.

@@ -31,14 +31,14 @@ ViewExtractor::ViewExtractor(const Mt& mt, const OccupancyLevels& levels) : mt_(
   radius_ = box.radius();
 }
 
-std::size_t ViewSession::memory_bytes() const {
+std::size_t ViewCache::memory_bytes() const {
   auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
   return bytes(allowed_error_) + bytes(silhouette_dt_) + bytes(neglect_dt_) + bytes(focus_factor_) +
          bytes(cell_start_) + bytes(cell_vertices_) + bytes(cell_vertex_clip_w_) + bytes(changed_) +
          bytes(neglect_) + bytes(focus_cells_);
 }
 
-bool ViewExtractor::same_view(const ViewSession& s, const ViewRequest& r) {
+bool ViewExtractor::same_view(const ViewCache& s, const ViewRequest& r) {
   return s.valid_ && s.camera_.model == r.camera.model && s.camera_.view == r.camera.view &&
          s.camera_.projection == r.camera.projection && s.grid_.width == r.grid.width &&
          s.grid_.height == r.grid.height && s.allowed_ == r.allowed && s.neglect_ == r.neglect &&
@@ -46,7 +46,7 @@ bool ViewExtractor::same_view(const ViewSession& s, const ViewRequest& r) {
          s.depth_jump_ == r.depth_jump;
 }
 
-void ViewExtractor::map(const ViewRequest& request, ViewSession* session) {
+void ViewExtractor::map(const ViewRequest& request, ViewCache* session) {
   assert(request.grid.valid());
   request_ = &request;
   session_ = session;
@@ -166,7 +166,7 @@ void ViewExtractor::allowed_error() {
     }
     return;
   }
-  ViewSession& s = *session_;
+  ViewCache& s = *session_;
   allowed_ = s.allowed_error_;
   if (!s.allowed_error_complete_) {
     // The view's first reuse after an on-demand refinement: every vertex now, for these foci.
@@ -226,19 +226,19 @@ void ViewExtractor::allowed_error() {
   if (!whole_grid) visit_boxes();  // around the new ones
 }
 
-void ViewExtractor::remember_focus_cells(ViewSession& s) const {
+void ViewExtractor::remember_focus_cells(ViewCache& s) const {
   s.focus_cells_.clear();
   for (const auto& p : request_->focus) s.focus_cells_.push_back(focus_cell(request_->grid, p[0], p[1]));
 }
 
-void ViewExtractor::remember_foci(ViewSession& s) const {
+void ViewExtractor::remember_foci(ViewCache& s) const {
   const std::size_t cells = request_->grid.cell_count();
   s.focus_factor_.resize(cells);
   for (std::uint32_t c = 0; c < cells; ++c) s.focus_factor_[c] = field_.focus_factor(c);
   remember_focus_cells(s);
 }
 
-void ViewExtractor::remember_view(ViewSession& s) const {
+void ViewExtractor::remember_view(ViewCache& s) const {
   const ViewRequest& r = *request_;
   s.valid_ = true;
   s.camera_ = r.camera;
@@ -255,7 +255,7 @@ void ViewExtractor::remember_view(ViewSession& s) const {
   s.changed_.clear();
 }
 
-void ViewExtractor::sort_vertices_by_cell(ViewSession& s) {
+void ViewExtractor::sort_vertices_by_cell(ViewCache& s) {
   // The cells compute_all saw (map_vertices is bit-identical to the per-vertex mapping).
   const std::size_t n = mt_.vertex_count(), cells = request_->grid.cell_count();
   vertex_cells_.resize(n);
@@ -281,9 +281,9 @@ void ViewExtractor::refine(Refiner& session, CutMesh& out) {
   out.assign(refine_view(session, out));
 }
 
-CutView ViewExtractor::refine_view(Refiner& session, CutMesh& scratch) {
+CutSpan ViewExtractor::refine_view(Refiner& session, CutMesh& scratch) {
   const AllowedError allowed = AllowedError::from_vertices(allowed_);
-  const CutView cut = [&] {
+  const CutSpan cut = [&] {
     const bool gaze = request_->dynamic && incremental_ && !field_completed_;
     if (request_->budget) {
       if (gaze) {
@@ -303,7 +303,7 @@ CutView ViewExtractor::refine_view(Refiner& session, CutMesh& scratch) {
     } else {
       session.refine(allowed, scratch);
     }
-    return CutView::of(scratch);  // taken once scratch holds the cut
+    return CutSpan::of(scratch);  // taken once scratch holds the cut
   }();
   if (request_->labels) {
     // Labels of the cut's vertices only: the silhouette distance when it was computed, else the focus's.

@@ -48,7 +48,7 @@ struct ViewRequest {
 // vertices in cells where the focus law's multiplier changed, and hands exactly those vertices to
 // the refinement. Owned by the session, filled by ViewExtractor; the result is the same as
 // computing every stage again (tests/core/view_extract_test.cpp holds it to that).
-class ViewSession {
+class ViewCache {
  public:
   // Whether the last request took the incremental path, and how many vertices it recomputed one
   // by one (0 on the view's first reuse after an on-demand refinement, which computes them all).
@@ -92,7 +92,7 @@ class ViewExtractor {
 
   // Stage 1: binds the request and builds the mapping. With a session, the stages below read and
   // update it, and take the incremental path when the view is the session's previous one.
-  void map(const ViewRequest& request, ViewSession* session = nullptr);
+  void map(const ViewRequest& request, ViewCache* session = nullptr);
   // Stage 2: rasterises the occupancy from a precomputed coarse cut sized to the grid cells the
   // model covers (see OccupancyLevels). Returns that cut's triangle count (0: reused the session's).
   std::size_t occupancy();
@@ -108,7 +108,7 @@ class ViewExtractor {
   void refine(Refiner& session, CutMesh& out);
   // The same without copying a gaze's cut out of the session's refiner: a view of its kept mesh
   // (valid until the refiner's next call), or of `scratch` when the cut was written there.
-  CutView refine_view(Refiner& session, CutMesh& scratch);
+  CutSpan refine_view(Refiner& session, CutMesh& scratch);
 
   // After the stages: the per-vertex labels (model vertex count entries; only the cut's vertices are
   // meaningful), the grids, and the occupancy cut, for encoders, tools and debug images.
@@ -131,19 +131,19 @@ class ViewExtractor {
  private:
   void transform(std::span<const std::uint8_t> image, std::span<std::uint16_t> out);
   // Whether the request has the session's view (everything but the focus points).
-  static bool same_view(const ViewSession& session, const ViewRequest& request);
-  void remember_view(ViewSession& session) const;
-  void remember_focus_cells(ViewSession& session) const;
+  static bool same_view(const ViewCache& session, const ViewRequest& request);
+  void remember_view(ViewCache& session) const;
+  void remember_focus_cells(ViewCache& session) const;
   // The focus multiplier of every cell and the foci, for the request's foci.
-  void remember_foci(ViewSession& session) const;
-  void sort_vertices_by_cell(ViewSession& session);
+  void remember_foci(ViewCache& session) const;
+  void sort_vertices_by_cell(ViewCache& session);
   void transform_from_cells(std::span<const std::uint32_t> cells, std::span<std::uint16_t> out);
 
   const Mt& mt_;
   std::array<float, 3> centre_{};
   float radius_ = 0.0f;
   const ViewRequest* request_ = nullptr;
-  ViewSession* session_ = nullptr;
+  ViewCache* session_ = nullptr;
   bool incremental_ = false;
   bool on_demand_ = false;        // stage 5 computes the allowed error it reads
   bool field_completed_ = false;  // stage 4 completed an on-demand field: the refiner compares it all

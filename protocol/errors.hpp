@@ -3,7 +3,9 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <string>
+#include <utility>
 
 namespace mtlod::protocol {
 
@@ -26,8 +28,15 @@ enum class ErrorKind : std::uint8_t {
 const char* to_string(ErrorKind kind);
 
 struct ProtocolError {
+  ProtocolError() = default;
+  ProtocolError(ErrorKind code, std::string message, std::optional<std::uint64_t> request_id = std::nullopt)
+      : code(code), message(std::move(message)), request_id(request_id) {}
+
   ErrorKind code = ErrorKind::kInternal;
   std::string message;
+  // The id of the request that failed, when it could be read: even a bad request's error reply
+  // carries it. parse_request sets it; later stages know the id and leave it empty.
+  std::optional<std::uint64_t> request_id;
 };
 
 }  // namespace mtlod::protocol

@@ -10,6 +10,10 @@
 #include <variant>
 #include <vector>
 
+#include "core/distance_transform.hpp"
+#include "core/draco_encode.hpp"
+#include "core/falloff.hpp"
+
 namespace mtlod::protocol {
 
 inline constexpr int kProtocolVersion = 1;
@@ -32,18 +36,20 @@ struct Limits {
 
 using Matrix4 = std::array<double, 16>;  // column-major, as OpenGL and GLM store them
 
-// Enumerations and their names on the wire, in enumerator order.
-enum class ErrorUnit : std::uint8_t { kModel, kPixels };
+// The names on the wire of the core enumerations a request chooses from, in enumerator order: adding
+// an enumerator in core fails these assertions until its name is added here.
 inline constexpr std::array<const char*, 2> kErrorUnitNames{"model", "pixels"};
-enum class Falloff : std::uint8_t { kStep, kLinear, kSmoothstep, kFoveal };
+static_assert(kErrorUnitNames.size() == core::kErrorUnitsCount);
 inline constexpr std::array<const char*, 4> kFalloffNames{"step", "linear", "smoothstep", "foveal"};
-enum class DistanceKind : std::uint8_t { kChamfer5711, kChamfer34, kCityBlock, kChessboard, kEuclidean };
-inline constexpr std::array<const char*, 5> kDistanceKindNames{"chamfer-5-7-11", "chamfer-3-4", "city-block",
-                                                               "chessboard", "euclidean"};
+static_assert(kFalloffNames.size() == core::kFalloffLawCount);
+inline constexpr std::array<const char*, 5> kDistanceMetricNames{"chamfer-5-7-11", "chamfer-3-4",
+                                                                 "city-block", "chessboard", "euclidean"};
+static_assert(kDistanceMetricNames.size() == core::kDistanceMetricCount);
+inline constexpr std::array<const char*, 2> kDracoMethodNames{"edgebreaker", "sequential"};
+static_assert(kDracoMethodNames.size() == core::kDracoMethodCount);
+// The unit of a request's distance thresholds exists on the wire only: core works in pixels.
 enum class DistanceUnit : std::uint8_t { kPixels, kChamfer };
 inline constexpr std::array<const char*, 2> kDistanceUnitNames{"pixels", "chamfer"};
-enum class DracoMethod : std::uint8_t { kEdgebreaker, kSequential };
-inline constexpr std::array<const char*, 2> kDracoMethodNames{"edgebreaker", "sequential"};
 
 // The enumerator named `name` in `names`, or nullopt.
 template <class Enum, std::size_t N>
@@ -75,8 +81,8 @@ struct Criteria {
   std::optional<Silhouette> silhouette;
   std::vector<Focus> focus;
   std::vector<Focus> neglect;
-  Falloff falloff = Falloff::kStep;
-  DistanceKind distance = DistanceKind::kChamfer5711;
+  core::FalloffLaw falloff = core::FalloffLaw::kStep;
+  core::DistanceMetric distance = core::DistanceMetric::kChamfer5711;
   DistanceUnit units = DistanceUnit::kPixels;
   bool internal_silhouettes = false;  // depth discontinuities seed the silhouette distance too
   double frustum_factor = 8;          // allowed error multiplier outside the view (1 = off)
@@ -86,7 +92,7 @@ struct Criteria {
 struct DracoSettings {
   // Unset: edgebreaker for extract (smallest payload), sequential for gaze (lowest latency), the
   // defaults chosen from tests/bench/bench_pipeline (tests/bench/BENCHMARKS.md, "Draco").
-  std::optional<DracoMethod> method;
+  std::optional<core::DracoMethod> method;
   int speed = 10;  // 0 best ratio .. 10 fastest; 10 is also no larger than 5-8 (bench_pipeline)
   int position_bits = 14;
   int normal_bits = 10;
@@ -111,7 +117,7 @@ struct Extract {
   std::array<std::uint32_t, 2> viewport{800, 600};  // pixels
   std::array<std::uint32_t, 2> grid{256, 256};      // distance-transform cells
   double error = 0;                                 // the bound e
-  ErrorUnit error_unit = ErrorUnit::kModel;
+  core::ErrorUnits error_unit = core::ErrorUnits::kModel;
   Criteria criteria;
   std::optional<std::uint32_t> budget;  // at most this many triangles
   bool normals = false;
@@ -137,7 +143,14 @@ struct Ping {};
 
 using Request = std::variant<Hello, ListModels, ModelInfo, Extract, Gaze, Cancel, Stats, Ping>;
 
-// The request type's name on the wire ("extract", ...).
-const char* request_type_name(const Request& request);
+// The request types' names on the wire, in the variant's order: parse.cpp, the server's counters and
+// the error message for an unknown type all read this table.
+inline constexpr std::array<const char*, 8> kRequestTypeNames{"hello", "list_models", "model_info", "extract",
+                                                              "gaze",  "cancel",      "stats",      "ping"};
+static_assert(kRequestTypeNames.size() == std::variant_size_v<Request>);
+
+inline const char* request_type_name(const Request& request) {
+  return kRequestTypeNames[request.index()];
+}
 
 }  // namespace mtlod::protocol

@@ -8,6 +8,7 @@
 #include <set>
 
 #include "fmt/format.h"
+#include "fmt/ranges.h"
 #include "nlohmann/json.hpp"
 #include "protocol/text.hpp"
 
@@ -249,8 +250,8 @@ Criteria read_criteria(const json& v, const Limits& limits) {
     fail(ErrorKind::kLimitExceeded, fmt::format("{} focus and neglect points exceed the server limit {}",
                                                 c.focus.size() + c.neglect.size(), limits.max_foci));
   }
-  c.falloff = static_cast<Falloff>(r.choice("falloff", kFalloffNames, 0));
-  c.distance = static_cast<DistanceKind>(r.choice("distance", kDistanceKindNames, 0));
+  c.falloff = static_cast<core::FalloffLaw>(r.choice("falloff", kFalloffNames, 0));
+  c.distance = static_cast<core::DistanceMetric>(r.choice("distance", kDistanceMetricNames, 0));
   c.units = static_cast<DistanceUnit>(r.choice("units", kDistanceUnitNames, 0));
   c.internal_silhouettes = r.boolean("internal_silhouettes", false);
   c.frustum_factor = r.number("frustum_factor", c.frustum_factor, 1, 1e6);
@@ -278,7 +279,7 @@ Extract read_extract(ObjectReader& r, const Limits& limits) {
   } else {
     ObjectReader er(error, "error");
     e.error = er.required_number("value", 0, 1e12);
-    e.error_unit = static_cast<ErrorUnit>(er.choice("unit", kErrorUnitNames, 0));
+    e.error_unit = static_cast<core::ErrorUnits>(er.choice("unit", kErrorUnitNames, 0));
     er.finish();
   }
   if (const json* c = r.find("criteria")) e.criteria = read_criteria(*c, limits);
@@ -300,7 +301,7 @@ Extract read_extract(ObjectReader& r, const Limits& limits) {
   if (const json* d = r.find("draco")) {
     ObjectReader dr(*d, "draco");
     if (dr.has("method"))
-      e.draco.method = static_cast<DracoMethod>(dr.choice("method", kDracoMethodNames, 0));
+      e.draco.method = static_cast<core::DracoMethod>(dr.choice("method", kDracoMethodNames, 0));
     e.draco.speed = static_cast<int>(dr.integer("speed", e.draco.speed, 0, 10));
     // Positions are floats (24-bit mantissa), and Draco's entropy coder's time and memory double with
     // each bit: 20 bits is finer than any model needs and still cheap. Its octahedral normal coding
@@ -310,7 +311,7 @@ Extract read_extract(ObjectReader& r, const Limits& limits) {
     if (dr.has("entropy_coding")) e.draco.entropy_coding = dr.boolean("entropy_coding", true);
     dr.finish();
   }
-  if (e.delta && e.draco.method == DracoMethod::kEdgebreaker) {
+  if (e.delta && e.draco.method == core::DracoMethod::kEdgebreaker) {
     fail(ErrorKind::kBadRequest, "'delta' needs draco.method 'sequential': edgebreaker reorders the faces");
   }
   if (e.delta && e.labels) {
@@ -347,11 +348,8 @@ Request read_request(ObjectReader& r, const std::string& type, const Limits& lim
   if (type == "cancel") return Cancel{r.integer("target", 0, 0, UINT64_MAX)};
   if (type == "stats") return Stats{};
   if (type == "ping") return Ping{};
-  fail(ErrorKind::kUnknownType,
-       fmt::format(
-           "unknown request type '{}'; expected hello, list_models, model_info, extract, gaze, cancel, stats "
-           "or ping",
-           type));
+  fail(ErrorKind::kUnknownType, fmt::format("unknown request type '{}'; expected one of {}", type,
+                                            fmt::join(kRequestTypeNames, ", ")));
 }
 
 }  // namespace
@@ -388,45 +386,34 @@ const char* to_string(ErrorKind kind) {
   return "internal";
 }
 
-const char* request_type_name(const Request& request) {
-  static constexpr const char* kNames[] = {"hello", "list_models", "model_info", "extract",
-                                           "gaze",  "cancel",      "stats",      "ping"};
-  return kNames[request.index()];
-}
-
-ParsedRequest parse_request(std::string_view text, const Limits& limits) {
-  ParsedRequest parsed;
+Result<ParsedRequest, ProtocolError> parse_request(std::string_view text, const Limits& limits) {
+  // Messages quote the request's bytes; what goes back to the client and into logs must be text.
   json doc;
   try {
     doc = json::parse(text.begin(), text.end());
   } catch (const json::parse_error& e) {
     // The parser's message quotes the bytes it last read, whatever they are.
-    parsed.error = {ErrorKind::kBadJson,
-                    printable(fmt::format("JSON does not parse at byte {}: {}", e.byte, e.what()))};
-    return parsed;
+    return ProtocolError{ErrorKind::kBadJson,
+                         printable(fmt::format("JSON does not parse at byte {}: {}", e.byte, e.what()))};
   } catch (const json::exception& e) {
-    parsed.error = {ErrorKind::kBadJson, printable(fmt::format("JSON does not parse: {}", e.what()))};
-    return parsed;
+    return ProtocolError{ErrorKind::kBadJson, printable(fmt::format("JSON does not parse: {}", e.what()))};
   }
+  std::optional<std::uint64_t> id;
   try {
     ObjectReader r(doc, "");
     // Read the id first so that even a bad request's error reply carries it.
-    if (const json* id = r.find("id"); id && id->is_number_unsigned()) parsed.id = id->get<std::uint64_t>();
+    if (const json* j = r.find("id"); j && j->is_number_unsigned()) id = j->get<std::uint64_t>();
     r.integer("id", 0, 0, UINT64_MAX);
-    if (!parsed.id)
-      fail(ErrorKind::kBadRequest, "'id' is required: a non-negative integer chosen by the client");
+    if (!id) fail(ErrorKind::kBadRequest, "'id' is required: a non-negative integer chosen by the client");
     const std::string type = r.string("type", 64);
     Request request = read_request(r, type, limits);
     r.finish();
-    parsed.request = std::move(request);
+    return ParsedRequest{*id, std::move(request)};
   } catch (const Failure& f) {
-    parsed.error = {f.code, f.message};
+    return ProtocolError{f.code, printable(f.message), id};
   } catch (const json::exception& e) {
-    parsed.error = {ErrorKind::kBadRequest, e.what()};
+    return ProtocolError{ErrorKind::kBadRequest, printable(e.what()), id};
   }
-  // Messages quote the request's bytes; what goes back to the client and into logs must be text.
-  if (!parsed.ok()) parsed.error.message = printable(parsed.error.message);
-  return parsed;
 }
 
 // ---- Serialisation for clients ----------------------------------------------------------------
@@ -454,7 +441,7 @@ json extract_json(const Extract& e) {
   if (!e.criteria.focus.empty()) c["focus"] = foci_json(e.criteria.focus);
   if (!e.criteria.neglect.empty()) c["neglect"] = foci_json(e.criteria.neglect);
   c["falloff"] = enum_name(kFalloffNames, e.criteria.falloff);
-  c["distance"] = enum_name(kDistanceKindNames, e.criteria.distance);
+  c["distance"] = enum_name(kDistanceMetricNames, e.criteria.distance);
   c["units"] = enum_name(kDistanceUnitNames, e.criteria.units);
   c["internal_silhouettes"] = e.criteria.internal_silhouettes;
   c["frustum_factor"] = e.criteria.frustum_factor;

@@ -7,21 +7,20 @@
 #include <string>
 #include <string_view>
 
+#include "core/result.hpp"
 #include "protocol/errors.hpp"
 #include "protocol/messages.hpp"
 
 namespace mtlod::protocol {
 
 struct ParsedRequest {
-  std::optional<std::uint64_t> id;  // the request id when it could be read, even if the rest is bad
-  std::optional<Request> request;   // set when valid
-  ProtocolError error;              // meaningful when `request` is empty
-  bool ok() const { return request.has_value(); }
+  std::uint64_t id = 0;
+  Request request;
 };
 
 // Parses one JSON request and checks it against `limits`. Unknown fields are errors (a typo must
-// not silently fall back to a default).
-ParsedRequest parse_request(std::string_view json, const Limits& limits);
+// not silently fall back to a default). The error carries the request's id when it could be read.
+Result<ParsedRequest, ProtocolError> parse_request(std::string_view json, const Limits& limits);
 
 // The JSON a client sends for `request` with id `id`; parse_request reads it back unchanged.
 std::string to_json(const Request& request, std::uint64_t id);

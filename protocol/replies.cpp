@@ -91,9 +91,7 @@ ErrorKind error_kind_from(const std::string& code) {
 }  // namespace
 
 const char* reply_type_name(const Reply& reply) {
-  static constexpr const char* kNames[] = {"hello", "models", "model_info", "mesh",
-                                           "error", "cancel", "stats",      "pong"};
-  return kNames[reply.index()];
+  return kReplyTypeNames[reply.index()];
 }
 
 std::string to_json(const Reply& reply, std::optional<std::uint64_t> id) {

@@ -120,6 +120,11 @@ struct Pong {};
 using Reply = std::variant<HelloReply, ModelsReply, ModelInfoReply, MeshReply, ErrorReply, CancelReply,
                            StatsReply, Pong>;
 
+// The reply types' names on the wire, in the variant's order.
+inline constexpr std::array<const char*, 8> kReplyTypeNames{"hello", "models", "model_info", "mesh",
+                                                            "error", "cancel", "stats",      "pong"};
+static_assert(kReplyTypeNames.size() == std::variant_size_v<Reply>);
+
 // The JSON header of a reply; `id` is the request's id (absent only when the request had none).
 std::string to_json(const Reply& reply, std::optional<std::uint64_t> id);
 

@@ -11,36 +11,6 @@ glm::mat4 to_glm(const Matrix4& m) {
   return out;
 }
 
-core::FalloffLaw to_core(Falloff f) {
-  switch (f) {
-    case Falloff::kStep:
-      return core::FalloffLaw::kStep;
-    case Falloff::kLinear:
-      return core::FalloffLaw::kLinear;
-    case Falloff::kSmoothstep:
-      return core::FalloffLaw::kSmoothstep;
-    case Falloff::kFoveal:
-      return core::FalloffLaw::kFoveal;
-  }
-  return core::FalloffLaw::kStep;
-}
-
-core::DistanceMetric to_core(DistanceKind d) {
-  switch (d) {
-    case DistanceKind::kChamfer5711:
-      return core::DistanceMetric::kChamfer5711;
-    case DistanceKind::kChamfer34:
-      return core::DistanceMetric::kChamfer34;
-    case DistanceKind::kCityBlock:
-      return core::DistanceMetric::kCityBlock;
-    case DistanceKind::kChessboard:
-      return core::DistanceMetric::kChessboard;
-    case DistanceKind::kEuclidean:
-      return core::DistanceMetric::kEuclidean;
-  }
-  return core::DistanceMetric::kChamfer5711;
-}
-
 }  // namespace
 
 core::ViewRequest to_view_request(const Extract& e, bool model_has_normals) {
@@ -50,15 +20,15 @@ core::ViewRequest to_view_request(const Extract& e, bool model_has_normals) {
   v.grid = {e.grid[0], e.grid[1]};
   core::AllowedErrorOptions& a = v.allowed;
   a.error = static_cast<float>(e.error);
-  a.units = e.error_unit == ErrorUnit::kModel ? core::ErrorUnits::kModel : core::ErrorUnits::kScreenPixels;
+  a.units = e.error_unit;
   a.viewport_height_px = static_cast<float>(e.viewport[1]);
-  a.metric = to_core(e.criteria.distance);
+  a.metric = e.criteria.distance;
   // Thresholds in raw units become pixels; exact Euclidean distances count fifths of a pixel.
   const float per_pixel = a.metric == core::DistanceMetric::kEuclidean
                               ? 5.0f
                               : static_cast<float>(core::units_per_pixel(a.metric));
   const float to_px = e.criteria.units == DistanceUnit::kChamfer ? 1.0f / per_pixel : 1.0f;
-  const core::FalloffLaw law = to_core(e.criteria.falloff);
+  const core::FalloffLaw law = e.criteria.falloff;
   if (e.criteria.silhouette) {
     a.use_silhouette = true;
     a.silhouette.law = law;

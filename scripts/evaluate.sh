@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Regenerates the evaluation report (issue #7): tests/evaluation/REPORT.md, results.csv and the PNG
+# Regenerates the evaluation report: tests/evaluation/REPORT.md, results.csv and the PNG
 # figures in tests/evaluation/figures/. Builds mtlod-eval (Release) into $MTLOD_EVAL_BUILD (default
 # build/release) with $JOBS compile jobs (default: all cores), prepares the built-in models, and runs
 # `mtlod-eval experiment` on the bunny, the 871k dragon and the shared real meshes (../shared/meshes,

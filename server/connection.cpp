@@ -69,19 +69,19 @@ void Connection::handle_frame(std::string_view json, std::int64_t received_ns) {
   const std::uint64_t seq = replies_.open();
   std::optional<std::uint64_t> id;
   try {
-    const protocol::ParsedRequest parsed = protocol::parse_request(json, server_.config.limits);
-    id = parsed.id;
-    if (parsed.ok()) server_.metrics.request(parsed.request->index());
-    if (!authorised() && !(parsed.ok() && std::holds_alternative<protocol::Hello>(*parsed.request))) {
+    const auto parsed = protocol::parse_request(json, server_.config.limits);
+    id = parsed ? parsed->id : parsed.error().request_id;
+    if (parsed) server_.metrics.request(parsed->request.index());
+    if (!authorised() && !(parsed && std::holds_alternative<protocol::Hello>(parsed->request))) {
       // Until a token is shown, nothing is served nor even checked beyond being a hello: a client
       // without one learns no more than that it needs one.
       reply_error(seq, protocol::ErrorKind::kUnauthorized,
-                  "this server needs an access token: send a hello with a valid 'token' first", parsed.id);
-    } else if (!parsed.ok()) {
-      reply_error(seq, parsed.error.code, parsed.error.message, parsed.id);
+                  "this server needs an access token: send a hello with a valid 'token' first", id);
+    } else if (!parsed) {
+      reply_error(seq, parsed.error().code, parsed.error().message, id);
     } else {
       received_ns_ = received_ns;
-      std::visit([&](const auto& request) { on_request(seq, *parsed.id, request); }, *parsed.request);
+      std::visit([&](const auto& request) { on_request(seq, parsed->id, request); }, parsed->request);
     }
   } catch (const std::exception& e) {
     // This request fails; the connection and every other one carry on.
@@ -273,25 +273,25 @@ void Connection::start_next_job() {
   }
   server_.scheduler.submit(address(), [self = shared_from_this(), job = std::move(*job)]() mutable {
     const std::int64_t started = now_ns();
-    std::variant<ExtractOutcome, protocol::ProtocolError> outcome;
-    try {
-      outcome = self->server_.engine.extract(job.extract, job.gaze, self->cut_);
-    } catch (const std::exception& e) {
-      // A throw on a worker thread would end the process. The session's cut may be half-updated:
-      // drop it, so the next extraction on this connection starts afresh.
-      spdlog::error("conn={} id={} extraction failed: {}", self->number_, job.id, e.what());
-      self->cut_ = SessionCut{};
-      outcome =
-          protocol::ProtocolError{protocol::ErrorKind::kInternal, "the server failed on this extraction"};
-    }
+    ExtractResult outcome = [&]() -> ExtractResult {
+      try {
+        return self->server_.engine.extract(job.extract, job.gaze, self->cut_);
+      } catch (const std::exception& e) {
+        // A throw on a worker thread would end the process. The session's cut may be half-updated:
+        // drop it, so the next extraction on this connection starts afresh.
+        spdlog::error("conn={} id={} extraction failed: {}", self->number_, job.id, e.what());
+        self->cut_ = ExtractionState{};
+        return protocol::ProtocolError{protocol::ErrorKind::kInternal,
+                                       "the server failed on this extraction"};
+      }
+    }();
     net::post(self->strand_, [self, job = std::move(job), started, outcome = std::move(outcome)]() mutable {
       self->finish_job(job, started, outcome);
     });
   });
 }
 
-void Connection::finish_job(const Job& job, std::int64_t started_ns,
-                            std::variant<ExtractOutcome, protocol::ProtocolError>& outcome) {
+void Connection::finish_job(const Job& job, std::int64_t started_ns, ExtractResult& outcome) {
   jobs_.finish();
   // The reservation gives way to what the extraction really left in its session.
   server_.memory.release(std::exchange(reserved_, 0));
@@ -312,12 +312,11 @@ void Connection::finish_job(const Job& job, std::int64_t started_ns,
   flush();
 }
 
-void Connection::finish_reply(const Job& job, std::int64_t started_ns,
-                              std::variant<ExtractOutcome, protocol::ProtocolError>& outcome) {
-  if (auto* error = std::get_if<protocol::ProtocolError>(&outcome)) {
-    reply_error(job.seq, error->code, error->message, job.id);
+void Connection::finish_reply(const Job& job, std::int64_t started_ns, ExtractResult& outcome) {
+  if (!outcome) {
+    reply_error(job.seq, outcome.error().code, outcome.error().message, job.id);
   } else {
-    ExtractOutcome& result = std::get<ExtractOutcome>(outcome);
+    ExtractOutcome& result = *outcome;
     protocol::MeshReply& reply = result.reply;
     reply.timings.queue_us =
         static_cast<std::uint64_t>(std::max<std::int64_t>(0, started_ns - job.received_ns) / 1000);
@@ -409,7 +408,7 @@ bool Connection::may_read() {
 
 void Connection::release_session() {
   server_.memory.release(std::exchange(session_accounted_, 0));
-  cut_ = SessionCut{};
+  cut_ = ExtractionState{};
 }
 
 void Connection::close() {

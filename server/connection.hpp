@@ -124,10 +124,8 @@ class Connection : public std::enable_shared_from_this<Connection> {
   void failed(const char* what, const char* reason) noexcept;
   void enqueue(Job job);
   void start_next_job();
-  void finish_job(const Job& job, std::int64_t started_ns,
-                  std::variant<ExtractOutcome, protocol::ProtocolError>& outcome);
-  void finish_reply(const Job& job, std::int64_t started_ns,
-                    std::variant<ExtractOutcome, protocol::ProtocolError>& outcome);
+  void finish_job(const Job& job, std::int64_t started_ns, ExtractResult& outcome);
+  void finish_reply(const Job& job, std::int64_t started_ns, ExtractResult& outcome);
   // Whether this connection may be served yet: true without access tokens, else once a token is shown.
   bool authorised() const { return !server_.config.tokens || grant_ != nullptr; }
   // The model of that name if this connection's token lets it see it, else nullptr.
@@ -149,7 +147,7 @@ class Connection : public std::enable_shared_from_this<Connection> {
   std::uint64_t reserved_ = 0;           // the running job's reservation in the memory ceiling
   ReplyOrder replies_;
   JobQueue jobs_;
-  SessionCut cut_;
+  ExtractionState cut_;
   const Grant* grant_ = nullptr;  // the access token shown (with --auth-tokens), owned by the server
   bool refusal_logged_ = false;   // a hello's token was refused, and said so in the log
   std::optional<protocol::Extract> last_extract_;

@@ -15,17 +15,17 @@
 
 namespace mtlod::server {
 
-struct SessionCut::State {
+struct ExtractionState::State {
   const Model* model = nullptr;
   std::unique_ptr<core::Refiner> refiner;
-  core::ViewSession view;  // lets a gaze (same view, new foci) reuse the view's stages
-  core::CutDelta sent;     // the client's mesh, when it asked for delta replies
+  core::ViewCache view;  // lets a gaze (same view, new foci) reuse the view's stages
+  core::CutDelta sent;   // the client's mesh, when it asked for delta replies
 };
 
-SessionCut::SessionCut() = default;
-SessionCut::~SessionCut() = default;
-SessionCut::SessionCut(SessionCut&&) noexcept = default;
-SessionCut& SessionCut::operator=(SessionCut&&) noexcept = default;
+ExtractionState::ExtractionState() = default;
+ExtractionState::~ExtractionState() = default;
+ExtractionState::ExtractionState(ExtractionState&&) noexcept = default;
+ExtractionState& ExtractionState::operator=(ExtractionState&&) noexcept = default;
 
 namespace {
 
@@ -67,7 +67,7 @@ constexpr std::uint64_t kSessionPerCell = 16, kSessionPerVertex = 24, kSessionPe
 
 }  // namespace
 
-std::uint64_t SessionCut::memory_bytes() const {
+std::uint64_t ExtractionState::memory_bytes() const {
   if (!state || !state->refiner) return 0;
   return state->refiner->memory_bytes() + state->view.memory_bytes() + state->sent.memory_bytes();
 }
@@ -92,8 +92,7 @@ std::int64_t Engine::settle_worker_scratch() {
   return change;
 }
 
-std::variant<ExtractOutcome, protocol::ProtocolError> Engine::extract(const protocol::Extract& request,
-                                                                      bool gaze, SessionCut& session) {
+ExtractResult Engine::extract(const protocol::Extract& request, bool gaze, ExtractionState& session) {
   const Model* model = models_.find(request.model);
   if (!model)
     return protocol::ProtocolError{protocol::ErrorKind::kUnknownModel,
@@ -107,8 +106,8 @@ std::variant<ExtractOutcome, protocol::ProtocolError> Engine::extract(const prot
   auto& extractor = worker.extractors[model];
   if (!extractor) extractor = std::make_unique<core::ViewExtractor>(model->mt, *model->occupancy);
 
-  if (!session.state) session.state = std::make_unique<SessionCut::State>();
-  SessionCut::State& state = *session.state;
+  if (!session.state) session.state = std::make_unique<ExtractionState::State>();
+  ExtractionState::State& state = *session.state;
   if (state.model != model) {
     state.model = model;
     state.refiner = std::make_unique<core::Refiner>(model->mt);
@@ -129,15 +128,13 @@ std::variant<ExtractOutcome, protocol::ProtocolError> Engine::extract(const prot
   extractor->allowed_error();
   t.labels_us = elapsed_us(clock);
   // A gaze's cut is read in place from the session's refiner (no copy of the whole mesh).
-  const core::CutView cut = extractor->refine_view(*state.refiner, worker.cut);
+  const core::CutSpan cut = extractor->refine_view(*state.refiner, worker.cut);
   t.refine_us = elapsed_us(clock);
 
   core::DracoOptions draco;
   // Deltas are sequential (the parser refuses them with an explicit edgebreaker).
-  const protocol::DracoMethod method = request.draco.method.value_or(
-      gaze || request.delta ? protocol::DracoMethod::kSequential : protocol::DracoMethod::kEdgebreaker);
-  draco.method = method == protocol::DracoMethod::kEdgebreaker ? core::DracoMethod::kEdgebreaker
-                                                               : core::DracoMethod::kSequential;
+  draco.method = request.draco.method.value_or(gaze || request.delta ? core::DracoMethod::kSequential
+                                                                     : core::DracoMethod::kEdgebreaker);
   draco.speed = request.draco.speed;
   draco.position_bits = request.draco.position_bits;
   draco.normal_bits = request.draco.normal_bits;

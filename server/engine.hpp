@@ -1,13 +1,13 @@
 // The request pipeline behind the sockets (DESIGN.md §4): an extract request becomes grid mapping,
 // distance transforms, labels, refinement of the session's cut and Draco encoding. Runs on worker
-// threads; per-worker scratch memory lives in the engine, per-session state in SessionCut.
+// threads; per-worker scratch memory lives in the engine, per-session state in ExtractionState.
 #pragma once
 
 #include <cstdint>
 #include <memory>
-#include <variant>
 #include <vector>
 
+#include "core/result.hpp"
 #include "protocol/errors.hpp"
 #include "protocol/messages.hpp"
 #include "protocol/replies.hpp"
@@ -16,12 +16,12 @@
 namespace mtlod::server {
 
 // What a connection keeps between its extractions: the last cut, for dynamic refinement.
-class SessionCut {
+class ExtractionState {
  public:
-  SessionCut();
-  ~SessionCut();
-  SessionCut(SessionCut&&) noexcept;
-  SessionCut& operator=(SessionCut&&) noexcept;
+  ExtractionState();
+  ~ExtractionState();
+  ExtractionState(ExtractionState&&) noexcept;
+  ExtractionState& operator=(ExtractionState&&) noexcept;
   // Bytes the session holds (its refiner, kept view and delta state).
   std::uint64_t memory_bytes() const;
   struct State;
@@ -32,15 +32,15 @@ struct ExtractOutcome {
   protocol::MeshReply reply;          // counts, max error and stage timings (queue and total left 0)
   std::vector<std::uint8_t> payload;  // Draco bytes
 };
+using ExtractResult = Result<ExtractOutcome, protocol::ProtocolError>;
 
 class Engine {
  public:
   explicit Engine(const ModelRegistry& models) : models_(models) {}
 
-  // Thread-safe for distinct sessions; one call at a time per SessionCut.
+  // Thread-safe for distinct sessions; one call at a time per ExtractionState.
   // gaze: the request comes from a gaze update (it picks the gaze defaults, e.g. Draco's method).
-  std::variant<ExtractOutcome, protocol::ProtocolError> extract(const protocol::Extract& request, bool gaze,
-                                                                SessionCut& session);
+  ExtractResult extract(const protocol::Extract& request, bool gaze, ExtractionState& session);
 
   // An upper bound on the memory `request` may add: scratch for its grid and model on the worker
   // that runs it, and a session's cut of the whole model. Zero for an unknown model.

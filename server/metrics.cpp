@@ -33,10 +33,8 @@ std::vector<std::pair<std::string, double>> Metrics::snapshot() const {
                                                      {"refine_us_total", get(refine_us_)},
                                                      {"encode_us_total", get(encode_us_)},
                                                      {"extract_us_total", get(total_us_)}};
-  static constexpr const char* kTypes[] = {"hello", "list_models", "model_info", "extract",
-                                           "gaze",  "cancel",      "stats",      "ping"};
   for (std::size_t i = 0; i < kRequestTypes; ++i)
-    out.emplace_back(std::string("requests_") + kTypes[i], get(requests_[i]));
+    out.emplace_back(std::string("requests_") + protocol::kRequestTypeNames[i], get(requests_[i]));
   for (std::size_t i = 0; i < kErrorKinds; ++i) {
     out.emplace_back(std::string("errors_") + protocol::to_string(static_cast<protocol::ErrorKind>(i)),
                      get(errors_[i]));

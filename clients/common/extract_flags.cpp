@@ -8,6 +8,7 @@
 
 #include "CLI/CLI.hpp"
 #include "fmt/format.h"
+#include "fmt/ranges.h"
 #include "protocol/camera.hpp"
 #include "protocol/parse.hpp"
 
@@ -73,8 +74,11 @@ void add_extract_flags(CLI::App& app, ExtractFlags& f) {
                  "X,Y,D,F: region of neglect, e·F (F ≥ 1) within D pixels; repeatable")
       ->take_all();
   app.add_option("--budget", f.budget, "at most this many triangles (worst first)");
-  app.add_option("--falloff", f.falloff, "step, linear, smoothstep or foveal")->capture_default_str();
-  app.add_option("--distance", f.distance, "chamfer-5-7-11, chamfer-3-4, city-block, chessboard or euclidean")
+  // The choices come from the protocol's tables, so a new law or metric shows up here by itself.
+  app.add_option("--falloff", f.falloff, fmt::format("falloff law: {}", fmt::join(kFalloffNames, ", ")))
+      ->capture_default_str();
+  app.add_option("--distance", f.distance,
+                 fmt::format("distance transform: {}", fmt::join(kDistanceMetricNames, ", ")))
       ->capture_default_str();
   app.add_option("--units", f.units, "distances D in pixels or raw chamfer units")->capture_default_str();
   app.add_flag("--internal-silhouettes", f.internal_silhouettes,
@@ -123,7 +127,7 @@ Result<Extract> make_extract(const ExtractFlags& f, const std::string& model,
                       "give exactly one of --error (model units) and --error-px (pixels)");
   }
   e.error = f.error ? *f.error : *f.error_px;
-  e.error_unit = f.error ? ErrorUnit::kModel : ErrorUnit::kPixels;
+  e.error_unit = f.error ? core::ErrorUnits::kModel : core::ErrorUnits::kScreenPixels;
   std::vector<double> v;
   if (!f.silhouette.empty()) {
     if (!parse_numbers(f.silhouette, 2, v))
@@ -162,17 +166,17 @@ Result<Extract> make_extract(const ExtractFlags& f, const std::string& model,
     return Ok{};
   };
   MTLOD_RETURN_IF_ERROR(named(e.criteria.falloff, kFalloffNames, f.falloff, "--falloff"));
-  MTLOD_RETURN_IF_ERROR(named(e.criteria.distance, kDistanceKindNames, f.distance, "--distance"));
+  MTLOD_RETURN_IF_ERROR(named(e.criteria.distance, kDistanceMetricNames, f.distance, "--distance"));
   MTLOD_RETURN_IF_ERROR(named(e.criteria.units, kDistanceUnitNames, f.units, "--units"));
   if (!f.draco_method.empty()) {
-    DracoMethod method{};
+    core::DracoMethod method{};
     MTLOD_RETURN_IF_ERROR(named(method, kDracoMethodNames, f.draco_method, "--draco"));
     e.draco.method = method;
   }
   // The same checks the server applies (ranges, singular matrices), with the same messages.
-  ParsedRequest parsed = parse_request(to_json(e, 0), Limits{});
-  if (!parsed.ok()) return make_error(ErrorCode::kInvalidArgument, parsed.error.message);
-  return std::get<Extract>(std::move(*parsed.request));
+  auto parsed = parse_request(to_json(e, 0), Limits{});
+  if (!parsed) return make_error(ErrorCode::kInvalidArgument, parsed.error().message);
+  return std::get<Extract>(std::move(parsed->request));
 }
 
 }  // namespace mtlod::protocol

@@ -80,10 +80,7 @@ Status write_output(const std::string& path, const Mt& mt, const CutMesh& cut,
     return io::save_mesh(path, compact(mt, cut.triangles));
   DracoOptions draco;
   if (request) {
-    draco.method = request->draco.method.value_or(mtlod::protocol::DracoMethod::kEdgebreaker) ==
-                           mtlod::protocol::DracoMethod::kSequential
-                       ? DracoMethod::kSequential
-                       : DracoMethod::kEdgebreaker;
+    draco.method = request->draco.method.value_or(DracoMethod::kEdgebreaker);
     draco.speed = request->draco.speed;
     draco.position_bits = request->draco.position_bits;
     draco.normals = request->normals && mt.has_normals();

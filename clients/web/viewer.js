@@ -1,4 +1,4 @@
-// mtlod viewer (issue 6): orbit the model, and the server sends a view-dependent cut refined near
+// mtlod viewer: orbit the model, and the server sends a view-dependent cut refined near
 // the silhouette and around the mouse (the gaze/focus point of the attention-driven papers). Speaks
 // protocol/PROTOCOL.md over the /ws WebSocket: text messages are JSON, binary messages are whole
 // frames (8-byte header, JSON, Draco payload).

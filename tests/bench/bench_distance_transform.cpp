@@ -385,7 +385,7 @@ void BM_GridPipelineDragon256(benchmark::State& state) {
 }
 BENCHMARK(BM_GridPipelineDragon256)->Unit(benchmark::kMicrosecond);
 
-// The whole per-request pipeline before encoding (issue 4): 871k dragon at 256², occupancy of the
+// The whole per-request pipeline before encoding: 871k dragon at 256², occupancy of the
 // 16k-triangle occupancy level (the one a request takes here), silhouette 5-7-11, labels and allowed
 // error for every vertex (step law, d = 2 px, f = 0.25), and static refinement with a reused Refiner.
 // The error bound is tuned once so that the cut has about 50k triangles. (BM_Request in

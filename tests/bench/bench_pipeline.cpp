@@ -72,7 +72,7 @@ protocol::Extract request_for(const Model& m, double error_px) {
   protocol::look_at_camera(protocol::frame_bounds(m.lo, m.hi), 800.0 / 600.0, e.view, e.projection);
   e.grid = {256, 256};
   e.error = error_px;
-  e.error_unit = protocol::ErrorUnit::kPixels;
+  e.error_unit = core::ErrorUnits::kScreenPixels;
   e.criteria.silhouette = protocol::Silhouette{2, 0.1};
   e.criteria.focus = {protocol::Focus{0.5, 0.5, 40, 0.25}};
   return e;
@@ -234,7 +234,7 @@ BENCHMARK(BM_BudgetNewView)->Arg(0)->Arg(1)->ArgName("kept")->Unit(benchmark::kM
 
 // A gaze stream on the dragon (cut of about 50k triangles): fixations that drift by a fraction of a
 // percent of the screen, and a saccade to a random point one sample in ten. session:0 runs every
-// stage again per gaze (refining the kept cut dynamically); session:1 keeps a core::ViewSession, as
+// stage again per gaze (refining the kept cut dynamically); session:1 keeps a core::ViewCache, as
 // the server does per connection: the view's stages are reused and only the vertices whose focus
 // multiplier changed are recomputed and handed to the refinement. Gazes use Draco sequential;
 // raw:1 stores attribute values without Draco's entropy coding, as the server's gaze replies do.
@@ -252,7 +252,7 @@ void BM_GazeStream(benchmark::State& state) {
   if (budget) e.budget = 50'000;
   std::vector<double> gaze_us;
   core::ViewExtractor x(m->mt, *m->levels);
-  core::ViewSession session;
+  core::ViewCache session;
   core::Refiner refiner(m->mt);
   core::CutMesh cut;
   core::DracoEncoder encoder;

@@ -1,4 +1,4 @@
-// Browser test of the viewer (issue 6): starts the real mtlod-server with HTTP on an OS-chosen port,
+// Browser test of the viewer: starts the real mtlod-server with HTTP on an OS-chosen port,
 // drives clients/web/ in headless Debian Chromium through playwright-core, and checks what the page
 // shows against the server's replies as they crossed the WebSocket (read here from the frames, not
 // from the page): a mesh arrives, the displayed triangle count (counted from the decoded Draco

@@ -66,7 +66,7 @@ Camera front_camera(const Mesh& m, float aspect) {
 }
 
 void run(ViewExtractor& x, const ViewRequest& r, Refiner& refiner, CutMesh& cut,
-         ViewSession* session = nullptr) {
+         ViewCache* session = nullptr) {
   x.map(r, session);
   x.occupancy();
   x.distance_transforms();
@@ -364,7 +364,7 @@ TEST(ViewExtract, SessionGazePathEqualsAFreshExtractionEveryTime) {
           r.allowed.use_focus = true;
           r.allowed.focus = RegionLaw{law, 8.0f, 0.1f, 16.0f};
           ViewExtractor session_extractor(b->mt, *b->levels), fresh_extractor(b->mt, *b->levels);
-          ViewSession session;
+          ViewCache session;
           Refiner kept(b->mt);
           CutMesh cut, expected;
           std::size_t reused = 0, recomputed = 0;
@@ -424,7 +424,7 @@ TEST(ViewExtract, SessionBudgetedGazesEqualBudgetedRefinementFromTheRoot) {
   r.allowed.use_focus = true;
   r.allowed.focus = RegionLaw{FalloffLaw::kSmoothstep, 8.0f, 0.1f, 16.0f};
   ViewExtractor session_extractor(b->mt, *b->levels), fresh_extractor(b->mt, *b->levels);
-  ViewSession session;
+  ViewCache session;
   Refiner kept(b->mt);
   CutMesh cut, expected, unbounded;
   std::size_t binding = 0;

@@ -8,13 +8,13 @@
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   using namespace mtlod::protocol;
-  const ParsedRequest parsed =
-      parse_request(std::string_view(reinterpret_cast<const char*>(data), size), Limits{});
-  if (!parsed.ok()) {
-    if (parsed.error.message.empty()) __builtin_trap();
+  const auto parsed = parse_request(std::string_view(reinterpret_cast<const char*>(data), size), Limits{});
+  if (!parsed) {
+    if (parsed.error().message.empty()) __builtin_trap();
     return 0;
   }
-  const ParsedRequest again = parse_request(to_json(*parsed.request, *parsed.id), Limits{});
-  if (!again.ok() || again.request->index() != parsed.request->index()) __builtin_trap();
+  const auto again = parse_request(to_json(parsed->request, parsed->id), Limits{});
+  if (!again || again->request.index() != parsed->request.index() || again->id != parsed->id)
+    __builtin_trap();
   return 0;
 }

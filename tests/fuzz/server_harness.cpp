@@ -85,11 +85,11 @@ Transcript::Transcript(const protocol::Limits& limits, std::size_t model_triangl
 
 void Transcript::expect_request(std::string_view json) {
   if (kTrace) std::fprintf(stderr, "-> %s\n", protocol::printable(json).c_str());
-  const protocol::ParsedRequest parsed = protocol::parse_request(json, limits_);
-  if (parsed.ok()) {
-    expected_.push_back(Expected{parsed.id, std::nullopt, reply_type_for(*parsed.request)});
+  const auto parsed = protocol::parse_request(json, limits_);
+  if (parsed) {
+    expected_.push_back(Expected{parsed->id, std::nullopt, reply_type_for(parsed->request)});
   } else {
-    expected_.push_back(Expected{parsed.id, parsed.error.code, nullptr});
+    expected_.push_back(Expected{parsed.error().request_id, parsed.error().code, nullptr});
   }
 }
 

@@ -21,12 +21,12 @@ Extract sample_extract() {
   e.viewport = {1024, 768};
   e.grid = {512, 384};
   e.error = 0.5;
-  e.error_unit = ErrorUnit::kPixels;
+  e.error_unit = core::ErrorUnits::kScreenPixels;
   e.criteria.silhouette = Silhouette{3, 0.1};
   e.criteria.focus = {{0.25, 0.75, 15, 0.2}, {0.5, 0.5, 5, 0}};
   e.criteria.neglect = {{0.9, 0.1, 40, 3}};
-  e.criteria.falloff = Falloff::kFoveal;
-  e.criteria.distance = DistanceKind::kEuclidean;
+  e.criteria.falloff = core::FalloffLaw::kFoveal;
+  e.criteria.distance = core::DistanceMetric::kEuclidean;
   e.criteria.units = DistanceUnit::kChamfer;
   e.criteria.internal_silhouettes = true;
   e.criteria.frustum_factor = 4;
@@ -34,16 +34,16 @@ Extract sample_extract() {
   e.budget = 50'000;
   e.normals = true;
   e.labels = true;
-  e.draco = {DracoMethod::kSequential, 3, 12, 8, false};
+  e.draco = {core::DracoMethod::kSequential, 3, 12, 8, false};
   return e;
 }
 
 TEST(ParseRequest, ReadsBackEveryFieldAClientWrote) {
   const Extract e = sample_extract();
-  const ParsedRequest parsed = parse_request(to_json(e, 42), Limits{});
-  ASSERT_TRUE(parsed.ok()) << parsed.error.message;
-  EXPECT_EQ(parsed.id, 42u);
-  const auto& got = std::get<Extract>(*parsed.request);
+  const auto parsed = parse_request(to_json(e, 42), Limits{});
+  ASSERT_TRUE(parsed.ok()) << parsed.error().message;
+  EXPECT_EQ(parsed->id, 42u);
+  const auto& got = std::get<Extract>(parsed->request);
   EXPECT_EQ(got.model, e.model);
   EXPECT_EQ(got.view, e.view);
   EXPECT_EQ(got.projection, e.projection);
@@ -59,14 +59,14 @@ TEST(ParseRequest, ReadsBackEveryFieldAClientWrote) {
   EXPECT_EQ(got.criteria.focus[1].factor, 0);
   ASSERT_EQ(got.criteria.neglect.size(), 1u);
   EXPECT_EQ(got.criteria.neglect[0].factor, 3);
-  EXPECT_EQ(got.criteria.falloff, Falloff::kFoveal);
-  EXPECT_EQ(got.criteria.distance, DistanceKind::kEuclidean);
+  EXPECT_EQ(got.criteria.falloff, core::FalloffLaw::kFoveal);
+  EXPECT_EQ(got.criteria.distance, core::DistanceMetric::kEuclidean);
   EXPECT_EQ(got.criteria.units, DistanceUnit::kChamfer);
   EXPECT_TRUE(got.criteria.internal_silhouettes);
   EXPECT_EQ(got.criteria.backface_factor, 2);
   EXPECT_EQ(got.budget, 50'000u);
   EXPECT_TRUE(got.normals && got.labels);
-  EXPECT_EQ(got.draco.method, DracoMethod::kSequential);
+  EXPECT_EQ(got.draco.method, core::DracoMethod::kSequential);
   EXPECT_EQ(got.draco.speed, 3);
   EXPECT_EQ(got.draco.position_bits, 12);
   EXPECT_EQ(got.draco.entropy_coding, false);
@@ -78,26 +78,26 @@ TEST(ParseRequest, EveryOtherRequestTypeRoundTrips) {
       Hello{1, "test"}, ListModels{}, ModelInfo{"dragon"}, Gaze{0.1, 0.9, 12.0, 0.5}, Cancel{77},
       Stats{},          Ping{}};
   for (const Request& r : requests) {
-    const ParsedRequest parsed = parse_request(to_json(r, 5), limits);
-    ASSERT_TRUE(parsed.ok()) << request_type_name(r) << ": " << parsed.error.message;
-    EXPECT_EQ(parsed.request->index(), r.index());
+    const auto parsed = parse_request(to_json(r, 5), limits);
+    ASSERT_TRUE(parsed.ok()) << request_type_name(r) << ": " << parsed.error().message;
+    EXPECT_EQ(parsed->request.index(), r.index());
   }
-  const auto gaze = std::get<Gaze>(*parse_request(to_json(Gaze{0.1, 0.9, 12.0, 0.5}, 5), limits).request);
+  const auto gaze = std::get<Gaze>(parse_request(to_json(Gaze{0.1, 0.9, 12.0, 0.5}, 5), limits)->request);
   EXPECT_EQ(gaze.x, 0.1);
   EXPECT_EQ(gaze.distance, 12.0);
-  EXPECT_EQ(std::get<Cancel>(*parse_request(to_json(Cancel{77}, 5), limits).request).target, 77u);
+  EXPECT_EQ(std::get<Cancel>(parse_request(to_json(Cancel{77}, 5), limits)->request).target, 77u);
 }
 
 TEST(ParseRequest, DefaultsFillWhatAMinimalExtractLeavesOut) {
-  const ParsedRequest parsed = parse_request(
+  const auto parsed = parse_request(
       R"({"type":"extract","id":1,"model":"bunny","error":0.01,
           "camera":{"view":[1,0,0,0,0,1,0,0,0,0,1,0,0,0,-3,1],"projection":[1,0,0,0,0,1,0,0,0,0,-1,-1,0,0,-0.2,0]}})",
       Limits{});
-  ASSERT_TRUE(parsed.ok()) << parsed.error.message;
-  const auto& e = std::get<Extract>(*parsed.request);
+  ASSERT_TRUE(parsed.ok()) << parsed.error().message;
+  const auto& e = std::get<Extract>(parsed->request);
   const Extract defaults;
   EXPECT_EQ(e.grid, defaults.grid);
-  EXPECT_EQ(e.error_unit, ErrorUnit::kModel);
+  EXPECT_EQ(e.error_unit, core::ErrorUnits::kModel);
   EXPECT_FALSE(e.criteria.silhouette);
   EXPECT_FALSE(e.budget);
   EXPECT_FALSE(e.draco.method);
@@ -109,26 +109,26 @@ TEST(ParseRequest, LimitsComeFromTheServerConfiguration) {
   e.grid = {600, 600};
   Limits limits;
   limits.max_grid = 512;
-  const ParsedRequest parsed = parse_request(to_json(e, 9), limits);
+  const auto parsed = parse_request(to_json(e, 9), limits);
   ASSERT_FALSE(parsed.ok());
-  EXPECT_EQ(parsed.error.code, ErrorKind::kLimitExceeded);
-  EXPECT_EQ(parsed.error.message, "grid[0] 600 exceeds the server limit 512");
-  EXPECT_EQ(parsed.id, 9u);
+  EXPECT_EQ(parsed.error().code, ErrorKind::kLimitExceeded);
+  EXPECT_EQ(parsed.error().message, "grid[0] 600 exceeds the server limit 512");
+  EXPECT_EQ(parsed.error().request_id, 9u);
 }
 
 TEST(ParseRequest, EveryMalformedCaseInTheDocumentGetsItsCode) {
   const std::vector<test::MalformedCase> cases = test::malformed_cases();
   ASSERT_GE(cases.size(), 15u) << "PROTOCOL.md's table of malformed requests was not found";
   for (const test::MalformedCase& c : cases) {
-    const ParsedRequest parsed = parse_request(c.json, Limits{});
+    const auto parsed = parse_request(c.json, Limits{});
     if (c.code == "unknown_model" || c.code == "no_view") {
       EXPECT_TRUE(parsed.ok()) << c.json << " should parse: the server rejects it";
       continue;
     }
     ASSERT_FALSE(parsed.ok()) << c.json;
-    EXPECT_EQ(to_string(parsed.error.code), c.code) << c.json << " -> " << parsed.error.message;
-    EXPECT_NE(parsed.error.message.find(c.message_contains), std::string::npos)
-        << c.json << " -> '" << parsed.error.message << "' lacks '" << c.message_contains << "'";
+    EXPECT_EQ(to_string(parsed.error().code), c.code) << c.json << " -> " << parsed.error().message;
+    EXPECT_NE(parsed.error().message.find(c.message_contains), std::string::npos)
+        << c.json << " -> '" << parsed.error().message << "' lacks '" << c.message_contains << "'";
   }
 }
 
@@ -139,8 +139,8 @@ TEST(ParseRequest, RandomBytesNeverThrowOrCrash) {
     std::string text = valid;
     const int edits = 1 + rng() % 4;
     for (int k = 0; k < edits; ++k) text[rng() % text.size()] = static_cast<char>(rng() % 256);
-    const ParsedRequest parsed = parse_request(text, Limits{});
-    EXPECT_TRUE(parsed.ok() || !parsed.error.message.empty());
+    const auto parsed = parse_request(text, Limits{});
+    EXPECT_TRUE(parsed.ok() || !parsed.error().message.empty());
   }
 }
 

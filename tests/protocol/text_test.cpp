@@ -60,14 +60,15 @@ TEST(ClientBytes, ParseErrorsOfInvalidUtf8SerialiseAndReadBack) {
         "{\"type\":\"ping\",\"id\":\"a\xC3\xA9\xC3\xA9\xC3\xA9\xC3\xA9\xC3\xA9\xC3\xA9\xC3\xA9"
         "\xC3\xA9\xC3\xA9\xC3\xA9\xC3\xA9\xC3\xA9\xC3\xA9\xC3\xA9\xC3\xA9\xC3\xA9\xC3\xA9\xC3\xA9\xC3\xA9\"}",
         "\x01\x02\x80"}) {
-    const ParsedRequest parsed = parse_request(request, Limits{});
+    const auto parsed = parse_request(request, Limits{});
     ASSERT_FALSE(parsed.ok());
-    EXPECT_EQ(printable(parsed.error.message), parsed.error.message);
+    EXPECT_EQ(printable(parsed.error().message), parsed.error().message);
     std::string json;
-    ASSERT_NO_THROW(json = to_json(ErrorReply{parsed.error.code, parsed.error.message}, parsed.id));
+    ASSERT_NO_THROW(
+        json = to_json(ErrorReply{parsed.error().code, parsed.error().message}, parsed.error().request_id));
     auto back = parse_reply(json);
     ASSERT_TRUE(back.ok()) << back.error().message;
-    EXPECT_EQ(std::get<ErrorReply>(back->reply).message, parsed.error.message);
+    EXPECT_EQ(std::get<ErrorReply>(back->reply).message, parsed.error().message);
   }
 }
 

@@ -39,21 +39,21 @@ TEST(MemoryEstimate, BoundsSessionAndScratchOfExtremeRequests) {
       protocol::Extract e = base;
       e.grid = {side, side};
       e.error = 0;  // every triangle: the largest cut
-      e.error_unit = protocol::ErrorUnit::kModel;
+      e.error_unit = core::ErrorUnits::kModel;
       e.delta = delta;
       requests.push_back(e);
       e.error = 1;
-      e.error_unit = protocol::ErrorUnit::kPixels;
+      e.error_unit = core::ErrorUnits::kScreenPixels;
       e.criteria.silhouette = protocol::Silhouette{2, 0};
       e.criteria.focus = {protocol::Focus{0.5, 0.5, 20, 0.1}};
       requests.push_back(e);
     }
   }
-  SessionCut session;  // one session through all of them, as a connection would keep it
+  ExtractionState session;  // one session through all of them, as a connection would keep it
   for (const auto& request : requests) {
     auto outcome = engine.extract(request, false, session);
-    ASSERT_TRUE(std::holds_alternative<ExtractOutcome>(outcome));
-    const auto& reply = std::get<ExtractOutcome>(outcome).reply;
+    ASSERT_TRUE(outcome) << outcome.error().message;
+    const auto& reply = outcome->reply;
     const std::uint64_t estimate = engine.estimate_bytes(request);
     EXPECT_LE(reply.session_bytes + reply.scratch_bytes, estimate)
         << "grid " << request.grid[0] << " error " << request.error << " delta " << request.delta
@@ -67,8 +67,8 @@ TEST(MemoryEstimate, BoundsSessionAndScratchOfExtremeRequests) {
   protocol::Extract huge = requests.back();  // silhouette and focus transforms
   huge.grid = {4096, 4096};
   auto outcome = engine.extract(huge, false, session);
-  ASSERT_TRUE(std::holds_alternative<ExtractOutcome>(outcome));
-  const std::uint64_t used = std::get<ExtractOutcome>(outcome).reply.scratch_bytes;
+  ASSERT_TRUE(outcome) << outcome.error().message;
+  const std::uint64_t used = outcome->reply.scratch_bytes;
   ASSERT_GT(used, Engine::kRetainedScratchBytes) << "the request does not exercise the release";
   EXPECT_LT(Engine::settle_worker_scratch(), 0)
       << "the 4096² grid's " << used << " bytes of scratch were kept";

@@ -92,7 +92,7 @@ class ServerTest : public testing::Test {
                              4.0 / 3.0, e.view, e.projection);
     e.grid = {128, 96};
     e.error = 2;
-    e.error_unit = protocol::ErrorUnit::kPixels;
+    e.error_unit = core::ErrorUnits::kScreenPixels;
     e.criteria.silhouette = protocol::Silhouette{2, 0};
     e.criteria.focus = {protocol::Focus{focus_x, focus_y, 10, 0.2}};
     return e;
@@ -134,7 +134,7 @@ TEST_F(ServerTest, ExtractDecodesToTheInProcessCut) {
   // The same request computed here, from the same MT file, with a fresh session cut.
   core::ViewExtractor extractor(g_fixture->mt, *g_fixture->levels);
   core::Refiner refiner(g_fixture->mt);
-  core::ViewSession session;
+  core::ViewCache session;
   core::CutMesh cut;
   const core::ViewRequest view = protocol::to_view_request(request, g_fixture->mt.has_normals());
   extractor.map(view, &session);
@@ -165,7 +165,7 @@ TEST_F(ServerTest, ExtractDecodesToTheInProcessCut) {
 TEST_F(ServerTest, GooglesDracoDecoderReadsAServerPayload) {
   Connection c = connect();
   protocol::Extract request = extract_request();
-  request.draco.method = protocol::DracoMethod::kSequential;
+  request.draco.method = core::DracoMethod::kSequential;
   auto reply = c.call(request, 1);
   ASSERT_TRUE(reply.ok()) << reply.error().message;
   ASSERT_NE(as_mesh(*reply), nullptr) << reply->json;

@@ -8,7 +8,7 @@
 #include <string>
 #include <string_view>
 
-#include "clients/common/connection.hpp"
+#include "clients/common/server_connection.hpp"
 #include "protocol/camera.hpp"
 #include "protocol/frame.hpp"
 #include "protocol/replies.hpp"
@@ -24,7 +24,7 @@ inline protocol::Extract framing_extract(const std::string& name, const protocol
                            e.projection);
   e.grid = grid;
   e.error = error_px;
-  e.error_unit = protocol::ErrorUnit::kPixels;
+  e.error_unit = core::ErrorUnits::kScreenPixels;
   return e;
 }
 
