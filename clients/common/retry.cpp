@@ -51,7 +51,7 @@ Result<Session> open_session(const Endpoint& endpoint, const std::string& client
     made = attempt + 1;
     if (tries) *tries = made;
     if (attempt > 0) std::this_thread::sleep_for(policy.backoff.delay(attempt - 1, rng));
-    auto connection = Connection::open(host, port, std::chrono::seconds(5), endpoint.tls);
+    auto connection = ServerConnection::open(host, port, std::chrono::seconds(5), endpoint.tls);
     if (!connection) {
       last_error = connection.error().message;
       if (connection.error().code == ErrorCode::kInvalidArgument) {

@@ -10,7 +10,7 @@
 #include <random>
 #include <string>
 
-#include "clients/common/connection.hpp"
+#include "clients/common/server_connection.hpp"
 #include "core/result.hpp"
 #include "protocol/replies.hpp"
 
@@ -51,7 +51,7 @@ struct RetryPolicy {
 
 // A connection that has said hello.
 struct Session {
-  Connection connection;
+  ServerConnection connection;
   protocol::HelloReply hello;
 };
 
@@ -96,7 +96,7 @@ class RetryingConnection {
   std::string client_;
   RetryPolicy policy_;
   std::mt19937_64 rng_;
-  std::optional<Connection> connection_;
+  std::optional<ServerConnection> connection_;
   protocol::HelloReply hello_;
   std::uint64_t next_id_ = 1;
   std::uint64_t retries_ = 0;

@@ -83,4 +83,39 @@ void random_orbit_camera(const std::array<double, 3>& bounds_min, const std::arr
   protocol::look_at_camera(camera, aspect, request.view, request.projection);
 }
 
+RequestSequence::RequestSequence(const ModelView& model, const RequestSettings& settings, std::uint64_t seed,
+                                 std::size_t first_camera)
+    : model_(model),
+      settings_(settings),
+      rng_(seed),
+      pick_(0, settings.mix.extract + settings.mix.gaze),
+      script_index_(first_camera) {}
+
+protocol::Request RequestSequence::next() {
+  // A gaze needs an extract before it on the connection: its view and focus.
+  if (has_view_ && pick_(rng_) >= settings_.mix.extract)
+    return protocol::Gaze{unit_(rng_), unit_(rng_), std::nullopt, std::nullopt};
+  protocol::Extract e = model_.base;
+  const std::vector<ScriptedCamera>& script = settings_.script;
+  if (settings_.random_cameras) {
+    random_orbit_camera(model_.bounds_min, model_.bounds_max, settings_.fov_deg, rng_, e);
+  } else if (!script.empty()) {
+    const ScriptedCamera& s = script[script_index_++ % script.size()];
+    protocol::LookAt look{s.eye, s.target, {0, 1, 0}, settings_.fov_deg};
+    protocol::look_at_camera(look, static_cast<double>(e.viewport[0]) / e.viewport[1], e.view, e.projection);
+    if (s.has_focus) {
+      if (e.criteria.focus.empty()) e.criteria.focus.emplace_back();
+      e.criteria.focus.front().x = s.focus[0];
+      e.criteria.focus.front().y = s.focus[1];
+    }
+  }
+  if (settings_.random_focus && script.empty()) {
+    if (e.criteria.focus.empty()) e.criteria.focus.emplace_back();
+    e.criteria.focus.front().x = unit_(rng_);
+    e.criteria.focus.front().y = unit_(rng_);
+  }
+  has_view_ = true;
+  return e;
+}
+
 }  // namespace mtlod::clients

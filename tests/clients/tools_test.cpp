@@ -6,7 +6,7 @@
 #include <fstream>
 #include <map>
 
-#include "clients/common/connection.hpp"
+#include "clients/common/server_connection.hpp"
 #include "core/eval/mesh_gen.hpp"
 #include "core/io/mesh_io.hpp"
 #include "fmt/format.h"
@@ -64,7 +64,7 @@ class ToolsTest : public testing::Test {
 
   // The server's counters by name.
   std::map<std::string, double> server_counters() {
-    auto c = clients::Connection::open("127.0.0.1", server_->port());
+    auto c = clients::ServerConnection::open("127.0.0.1", server_->port());
     EXPECT_TRUE(c.ok());
     auto reply = c->call(protocol::Stats{}, 1);
     EXPECT_TRUE(reply.ok());

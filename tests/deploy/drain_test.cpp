@@ -5,7 +5,7 @@
 
 #include <atomic>
 
-#include "clients/common/connection.hpp"
+#include "clients/common/server_connection.hpp"
 #include "core/draco_decode.hpp"
 #include "core/eval/mesh_gen.hpp"
 #include "core/io/mt_file.hpp"
@@ -19,7 +19,7 @@
 namespace mtlod {
 namespace {
 
-using clients::Connection;
+using clients::ServerConnection;
 using namespace std::chrono_literals;
 using Clock = std::chrono::steady_clock;
 
@@ -60,7 +60,7 @@ TEST(Drain, SigtermRefusesNewConnectionsFinishesInFlightAndExitsWithinTheBound) 
 
   // A client that stops reading: its replies (model_info, a few hundred bytes each) fill the socket
   // buffers, so the server can never finish writing to it and only the drain bound ends it.
-  auto stuck = Connection::open("127.0.0.1", server.port());
+  auto stuck = ServerConnection::open("127.0.0.1", server.port());
   ASSERT_TRUE(stuck.ok());
   std::vector<std::uint8_t> flood;
   constexpr std::uint64_t kFlood = 100'000;  // ~40 MB of replies: far more than socket buffers hold
@@ -73,7 +73,7 @@ TEST(Drain, SigtermRefusesNewConnectionsFinishesInFlightAndExitsWithinTheBound) 
   double read = -1;
   for (int i = 0; i < 300; ++i) {
     std::this_thread::sleep_for(200ms);
-    auto probe = Connection::open("127.0.0.1", server.port());
+    auto probe = ServerConnection::open("127.0.0.1", server.port());
     ASSERT_TRUE(probe.ok());
     auto stats = probe->call(protocol::Stats{}, 1);
     ASSERT_TRUE(stats.ok());
@@ -87,7 +87,7 @@ TEST(Drain, SigtermRefusesNewConnectionsFinishesInFlightAndExitsWithinTheBound) 
   ASSERT_GT(read, 0);
   ASSERT_LT(read, static_cast<double>(kFlood)) << "the server read the whole flood: nothing is stuck";
 
-  auto working = Connection::open("127.0.0.1", server.port());
+  auto working = ServerConnection::open("127.0.0.1", server.port());
   ASSERT_TRUE(working.ok());
   ASSERT_TRUE(working->send(full_resolution(), 1).ok());
   std::this_thread::sleep_for(50ms);
@@ -97,7 +97,7 @@ TEST(Drain, SigtermRefusesNewConnectionsFinishesInFlightAndExitsWithinTheBound) 
 
   // New connections are refused while the server still drains.
   std::this_thread::sleep_for(100ms);
-  EXPECT_FALSE(Connection::open("127.0.0.1", server.port(), 500ms).ok())
+  EXPECT_FALSE(ServerConnection::open("127.0.0.1", server.port(), 500ms).ok())
       << "a draining server accepts nothing new";
   EXPECT_TRUE(server.running()) << "the stuck client keeps the drain going until its bound\n" << server.log();
 
@@ -127,9 +127,9 @@ TEST(Drain, IdleConnectionsAreClosedAndTheServerExitsAtOnce) {
   const auto model = write_sphere(dir, 2000);
   test::ServerProcess server({model.string(), "--drain-timeout-ms", "20000", "--log-level", "info"}, dir);
   ASSERT_TRUE(server.running()) << server.log();
-  std::vector<Connection> idle;
+  std::vector<ServerConnection> idle;
   for (int i = 0; i < 3; ++i) {
-    auto c = Connection::open("127.0.0.1", server.port());
+    auto c = ServerConnection::open("127.0.0.1", server.port());
     ASSERT_TRUE(c.ok());
     ASSERT_TRUE(c->call(protocol::Ping{}, 1).ok());
     idle.push_back(std::move(*c));
@@ -140,7 +140,7 @@ TEST(Drain, IdleConnectionsAreClosedAndTheServerExitsAtOnce) {
   ASSERT_TRUE(WIFEXITED(status)) << server.log();
   EXPECT_EQ(WEXITSTATUS(status), 0);
   EXPECT_LT(exit_ms, 5000) << "nothing was owed, so nothing waits for the 20 s bound\n" << server.log();
-  for (Connection& c : idle) EXPECT_FALSE(c.receive(2s).ok()) << "the server closed every connection";
+  for (ServerConnection& c : idle) EXPECT_FALSE(c.receive(2s).ok()) << "the server closed every connection";
 }
 
 }  // namespace

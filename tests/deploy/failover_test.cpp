@@ -9,7 +9,7 @@
 #include <memory>
 #include <sstream>
 
-#include "clients/common/connection.hpp"
+#include "clients/common/server_connection.hpp"
 #include "core/eval/mesh_gen.hpp"
 #include "core/io/mt_file.hpp"
 #include "core/mt_builder.hpp"
@@ -193,7 +193,7 @@ TEST(Health, ReportsTheInstanceTheProtocolReports) {
   const json health = json::parse(response.body);
   EXPECT_EQ(health.at("status"), "ok");
   EXPECT_EQ(health.at("models"), 1);
-  auto c = clients::Connection::open("127.0.0.1", server.port());
+  auto c = clients::ServerConnection::open("127.0.0.1", server.port());
   ASSERT_TRUE(c.ok());
   auto hello = c->call(protocol::Hello{protocol::kProtocolVersion, "test"}, 1);
   ASSERT_TRUE(hello.ok());

@@ -13,7 +13,7 @@
 #include <random>
 #include <thread>
 
-#include "clients/common/connection.hpp"
+#include "clients/common/server_connection.hpp"
 #include "core/draco_decode.hpp"
 #include "protocol/camera.hpp"
 #include "protocol/text.hpp"
@@ -43,7 +43,7 @@ struct Served {
     args.insert(args.end(), flags.begin(), flags.end());
     server = std::make_unique<test::ServerProcess>(args, dir);
     if (!server->running()) return;
-    auto c = clients::Connection::open("127.0.0.1", server->port());
+    auto c = clients::ServerConnection::open("127.0.0.1", server->port());
     if (!c) return;
     auto info = c->call(protocol::ModelInfo{"bunny"}, 1);
     if (!info) return;
@@ -56,7 +56,7 @@ struct Served {
 
   std::map<std::string, double> stats() const {
     std::map<std::string, double> out;
-    auto c = clients::Connection::open("127.0.0.1", server->port());
+    auto c = clients::ServerConnection::open("127.0.0.1", server->port());
     if (!c) return out;
     auto reply = c->call(protocol::Stats{}, 1);
     if (!reply) return out;
@@ -180,7 +180,7 @@ TEST(Abuse, MemoryCeilingRefusesWorkThatWouldPassItAndFreesClosedSessions) {
   Served s("memory", {"--workers", "1", "--max-memory", "48M"});
   SKIP_WITHOUT_SERVER(s);
   {
-    auto c = clients::Connection::open("127.0.0.1", s.port());
+    auto c = clients::ServerConnection::open("127.0.0.1", s.port());
     ASSERT_TRUE(c.ok());
     auto hello = c->call(protocol::Hello{1, "test"}, 1);
     ASSERT_TRUE(hello.ok());
@@ -331,7 +331,7 @@ TEST(Abuse, HostileTrafficBesideANormalLoadLeavesTheServerAsItWas) {
     std::vector<std::thread> clients;
     for (int i = 0; i < 3; ++i) {
       clients.emplace_back([&, i] {
-        auto c = clients::Connection::open("127.0.0.1", s.port());
+        auto c = clients::ServerConnection::open("127.0.0.1", s.port());
         if (!c) return void(++failures);
         for (int r = 0; r < rounds; ++r) {
           auto mesh = c->call(s.extract, 2 * r);

@@ -11,7 +11,7 @@
 
 #include <random>
 
-#include "clients/common/connection.hpp"
+#include "clients/common/server_connection.hpp"
 #include "core/draco_decode.hpp"
 #include "protocol/camera.hpp"
 #include "protocol/frame.hpp"
@@ -76,7 +76,7 @@ class HostileInputTest : public testing::Test {
         {"--mesh", bunny.string(), "--cache-dir", dir.string(), "--http-port", "0", "--log-level", "debug"},
         dir);
     if (!server_->running()) return;
-    auto c = clients::Connection::open("127.0.0.1", server_->port());
+    auto c = clients::ServerConnection::open("127.0.0.1", server_->port());
     ASSERT_TRUE(c.ok()) << c.error().message;
     auto info = c->call(protocol::ModelInfo{"bunny"}, 1);
     ASSERT_TRUE(info.ok()) << info.error().message;
@@ -93,15 +93,15 @@ class HostileInputTest : public testing::Test {
     ASSERT_TRUE(server_->running()) << server_->log();
   }
 
-  static clients::Connection connect() {
-    auto c = clients::Connection::open("127.0.0.1", server_->port());
+  static clients::ServerConnection connect() {
+    auto c = clients::ServerConnection::open("127.0.0.1", server_->port());
     EXPECT_TRUE(c.ok()) << c.error().message;
     return std::move(*c);
   }
 
   // The server still serves: a fresh TCP connection gets a mesh that decodes.
   static void expect_extract_served() {
-    clients::Connection c = connect();
+    clients::ServerConnection c = connect();
     ASSERT_TRUE(c.send_raw(frame_of(g_extract)).ok());
     auto reply = c.receive(std::chrono::seconds(60));
     ASSERT_TRUE(reply.ok()) << reply.error().message << "\n" << server_->log();
@@ -120,7 +120,7 @@ void expect_text(const std::string& json) {
 }
 
 TEST_F(HostileInputTest, InvalidUtf8OverTcpGetsErrorRepliesInValidText) {
-  clients::Connection c = connect();
+  clients::ServerConnection c = connect();
   for (const std::string& request : hostile_requests()) {
     ASSERT_TRUE(c.send_raw(frame_of(request)).ok());
     auto reply = c.receive(std::chrono::seconds(60));
@@ -143,7 +143,7 @@ TEST_F(HostileInputTest, InvalidUtf8OverTcpGetsErrorRepliesInValidText) {
 }
 
 TEST_F(HostileInputTest, TheReportedFrameGetsBadJsonQuotingNoRawBytes) {
-  clients::Connection c = connect();
+  clients::ServerConnection c = connect();
   ASSERT_TRUE(c.send_raw(frame_of("{\"type\":\"model_info\",\"id\":1,\"model\":\"\xff\xfe\"}")).ok());
   auto reply = c.receive(std::chrono::seconds(60));
   ASSERT_TRUE(reply.ok()) << reply.error().message << "\n" << server_->log();

@@ -7,8 +7,8 @@
 #include <random>
 #include <thread>
 
-#include "clients/common/connection.hpp"
 #include "clients/common/delta_mesh.hpp"
+#include "clients/common/server_connection.hpp"
 #include "core/bounds.hpp"
 #include "core/draco_decode.hpp"
 #include "core/eval/mesh_gen.hpp"
@@ -30,8 +30,8 @@
 namespace mtlod {
 namespace {
 
-using clients::Connection;
 using clients::ReplyFrame;
+using clients::ServerConnection;
 
 // The model served: the built-in bunny (or a generated sphere when models are not prepared),
 // saved as bunny.mt in a scratch folder.
@@ -77,8 +77,8 @@ class ServerTest : public testing::Test {
     ASSERT_TRUE(g_fixture->server->running()) << g_fixture->server->log();
   }
 
-  static Connection connect() {
-    auto c = Connection::open("127.0.0.1", g_fixture->server->port());
+  static ServerConnection connect() {
+    auto c = ServerConnection::open("127.0.0.1", g_fixture->server->port());
     EXPECT_TRUE(c.ok()) << c.error().message;
     return std::move(*c);
   }
@@ -107,7 +107,7 @@ const protocol::ErrorReply* as_error(const ReplyFrame& f) {
 }
 
 TEST_F(ServerTest, HelloStatesVersionAndLimits) {
-  Connection c = connect();
+  ServerConnection c = connect();
   auto reply = c.call(protocol::Hello{1, "test"}, 1);
   ASSERT_TRUE(reply.ok()) << reply.error().message;
   const auto& hello = std::get<protocol::HelloReply>(reply->header.reply);
@@ -124,7 +124,7 @@ TEST_F(ServerTest, HelloStatesVersionAndLimits) {
 
 TEST_F(ServerTest, ExtractDecodesToTheInProcessCut) {
   const protocol::Extract request = extract_request(0.3, 0.4);
-  Connection c = connect();
+  ServerConnection c = connect();
   auto reply = c.call(request, 7);
   ASSERT_TRUE(reply.ok()) << reply.error().message;
   const auto* mesh = as_mesh(*reply);
@@ -163,7 +163,7 @@ TEST_F(ServerTest, ExtractDecodesToTheInProcessCut) {
 }
 
 TEST_F(ServerTest, GooglesDracoDecoderReadsAServerPayload) {
-  Connection c = connect();
+  ServerConnection c = connect();
   protocol::Extract request = extract_request();
   request.draco.method = core::DracoMethod::kSequential;
   auto reply = c.call(request, 1);
@@ -180,7 +180,7 @@ TEST_F(ServerTest, DeltaRepliesRebuildTheCutAFreshConnectionGets) {
   // new connection gets for the same focus.
   protocol::Extract request = extract_request(0.3, 0.4);
   request.delta = true;
-  Connection c = connect();
+  ServerConnection c = connect();
   clients::DeltaMesh kept;
   auto first = c.call(request, 1);
   ASSERT_TRUE(first.ok()) << first.error().message;
@@ -225,7 +225,7 @@ TEST_F(ServerTest, DeltaRepliesRebuildTheCutAFreshConnectionGets) {
 
     protocol::Extract fresh = request;
     fresh.criteria.focus[0].x = x, fresh.criteria.focus[0].y = y;
-    Connection other = connect();
+    ServerConnection other = connect();
     auto whole = other.call(fresh, 1);
     ASSERT_TRUE(whole.ok()) << whole.error().message;
     ASSERT_NE(as_mesh(*whole), nullptr) << whole->json;
@@ -252,7 +252,7 @@ TEST_F(ServerTest, ThirtyTwoConcurrentClientsMixingExtractAndGaze) {
   std::vector<std::thread> threads;
   for (int client = 0; client < kClients; ++client) {
     threads.emplace_back([&, client] {
-      auto c = Connection::open("127.0.0.1", g_fixture->server->port());
+      auto c = ServerConnection::open("127.0.0.1", g_fixture->server->port());
       if (!c.ok()) return void(++failures);
       std::uint64_t id = 1;
       for (int round = 0; round < kRounds; ++round) {
@@ -276,8 +276,8 @@ TEST_F(ServerTest, ThirtyTwoConcurrentClientsMixingExtractAndGaze) {
 TEST_F(ServerTest, EveryDocumentedMalformedRequestGetsItsCodeWhileOthersAreServed) {
   const auto cases = test::malformed_cases();
   ASSERT_GE(cases.size(), 15u);
-  Connection bad = connect();
-  Connection good = connect();
+  ServerConnection bad = connect();
+  ServerConnection good = connect();
   std::uint64_t good_id = 100;
   for (const auto& c : cases) {
     std::vector<std::uint8_t> frame;
@@ -302,7 +302,7 @@ TEST_F(ServerTest, EveryDocumentedMalformedRequestGetsItsCodeWhileOthersAreServe
 }
 
 TEST_F(ServerTest, GazeBurstIsCoalescedAndTheLastReplyReflectsTheLastGaze) {
-  Connection c = connect();
+  ServerConnection c = connect();
   auto first = c.call(extract_request(), 1);
   ASSERT_TRUE(first.ok() && as_mesh(*first));
   constexpr int kGazes = 200;
@@ -341,8 +341,8 @@ TEST_F(ServerTest, GazeBurstIsCoalescedAndTheLastReplyReflectsTheLastGaze) {
 }
 
 TEST_F(ServerTest, OversizedFrameClosesOnlyThatConnection) {
-  Connection bad = connect();
-  Connection good = connect();
+  ServerConnection bad = connect();
+  ServerConnection good = connect();
   const auto header = protocol::encode_frame_header({1u << 30, 0});
   ASSERT_TRUE(bad.send_raw({header.begin(), header.end()}).ok());
   auto reply = bad.receive(std::chrono::seconds(10));
@@ -355,9 +355,9 @@ TEST_F(ServerTest, OversizedFrameClosesOnlyThatConnection) {
 }
 
 TEST_F(ServerTest, AbruptDisconnectsMidFrameAndMidRequestLoseNothingForOthers) {
-  Connection good = connect();
+  ServerConnection good = connect();
   for (int i = 0; i < 10; ++i) {
-    Connection gone = connect();
+    ServerConnection gone = connect();
     std::vector<std::uint8_t> frame;
     protocol::append_frame(protocol::to_json(protocol::Request(extract_request()), 1), {}, frame);
     if (i % 2 == 0) frame.resize(frame.size() / 2);  // half a frame, then gone
@@ -377,7 +377,7 @@ TEST_F(ServerTest, AbruptDisconnectsMidFrameAndMidRequestLoseNothingForOthers) {
 }
 
 TEST_F(ServerTest, CancelAnswersTheCancelledRequestOrSaysItHadStarted) {
-  Connection c = connect();
+  ServerConnection c = connect();
   for (std::uint64_t id = 1; id <= 4; ++id) ASSERT_TRUE(c.send(extract_request(0.1 * id, 0.5), id).ok());
   ASSERT_TRUE(c.send(protocol::Cancel{4}, 5).ok());
   std::vector<ReplyFrame> replies;
@@ -405,7 +405,7 @@ TEST(ServerShutdown, SigtermFinishesInFlightWorkThenExits) {
   ASSERT_TRUE(core::io::write_mt_file(dir / "sphere.mt", *mt).ok());
   test::ServerProcess server({(dir / "sphere.mt").string(), "--workers", "1", "--log-level", "info"}, dir);
   ASSERT_TRUE(server.running()) << server.log();
-  auto c = Connection::open("127.0.0.1", server.port());
+  auto c = ServerConnection::open("127.0.0.1", server.port());
   ASSERT_TRUE(c.ok());
   protocol::Extract e;
   e.model = "sphere";
@@ -431,7 +431,7 @@ TEST(ServerShutdown, SigtermFinishesInFlightWorkThenExits) {
   EXPECT_GE(meshes, 1) << "the running extraction must finish";
   EXPECT_EQ(meshes + shutting_down, 3);
   EXPECT_NE(server.log().find("stopped"), std::string::npos) << server.log();
-  EXPECT_FALSE(Connection::open("127.0.0.1", server.port(), std::chrono::milliseconds(500)).ok())
+  EXPECT_FALSE(ServerConnection::open("127.0.0.1", server.port(), std::chrono::milliseconds(500)).ok())
       << "a stopped server accepts no connection";
 }
 

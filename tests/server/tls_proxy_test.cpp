@@ -9,7 +9,7 @@
 #include <fstream>
 #include <thread>
 
-#include "clients/common/connection.hpp"
+#include "clients/common/server_connection.hpp"
 #include "core/draco_decode.hpp"
 #include "protocol/camera.hpp"
 #include "tests/core/test_meshes.hpp"
@@ -64,10 +64,10 @@ void run_layout(const std::string& mode) {
 
   // The protocol through HAProxy, over TLS, once it listens and has checked the replica.
   const clients::TlsOptions tls{true, certificate.cert.string()};
-  Result<clients::Connection> c = make_error(ErrorCode::kIoError, "not tried");
+  Result<clients::ServerConnection> c = make_error(ErrorCode::kIoError, "not tried");
   Result<clients::ReplyFrame> hello = make_error(ErrorCode::kIoError, "not tried");
   for (auto deadline = std::chrono::steady_clock::now() + 20s; std::chrono::steady_clock::now() < deadline;) {
-    c = clients::Connection::open("127.0.0.1", lb_port, 2s, tls);
+    c = clients::ServerConnection::open("127.0.0.1", lb_port, 2s, tls);
     if (c.ok())
       hello =
           c->call(protocol::Hello{protocol::kProtocolVersion, "proxy-test", test::kEveryModelToken}, 1, 5s);
@@ -87,7 +87,7 @@ void run_layout(const std::string& mode) {
   EXPECT_TRUE(core::decode_draco(mesh->payload).ok());
 
   // The token is the replica's to check, whichever side holds the certificate.
-  auto stranger = clients::Connection::open("127.0.0.1", lb_port, 5s, tls);
+  auto stranger = clients::ServerConnection::open("127.0.0.1", lb_port, 5s, tls);
   ASSERT_TRUE(stranger.ok()) << stranger.error().message;
   auto refused = stranger->call(protocol::ListModels{}, 1);
   ASSERT_TRUE(refused.ok()) << refused.error().message;

@@ -16,8 +16,8 @@
 #include <boost/beast/websocket.hpp>
 #include <boost/beast/websocket/ssl.hpp>
 
-#include "clients/common/connection.hpp"
 #include "clients/common/retry.hpp"
+#include "clients/common/server_connection.hpp"
 #include "core/draco_decode.hpp"
 #include "protocol/camera.hpp"
 #include "protocol/frame.hpp"
@@ -82,8 +82,8 @@ class TlsTest : public testing::Test {
   static clients::TlsOptions tls() { return {true, g_fixture->certificate.cert.string()}; }
 
   // A TLS connection that has said hello with `token` (empty: no hello at all).
-  static clients::Connection open(const std::string& token) {
-    auto c = clients::Connection::open("127.0.0.1", server().port(), 5s, tls());
+  static clients::ServerConnection open(const std::string& token) {
+    auto c = clients::ServerConnection::open("127.0.0.1", server().port(), 5s, tls());
     EXPECT_TRUE(c.ok()) << c.error().message << "\n" << server().log();
     if (!c.ok()) return {};
     if (!token.empty()) {
@@ -95,7 +95,7 @@ class TlsTest : public testing::Test {
   }
 
   // An extract of `model` framed by its bounds, as the connection's token allows it to ask.
-  static protocol::Extract extract_of(clients::Connection& c, const std::string& model) {
+  static protocol::Extract extract_of(clients::ServerConnection& c, const std::string& model) {
     auto info = c.call(protocol::ModelInfo{model}, 100);
     EXPECT_TRUE(info.ok()) << info.error().message;
     const auto* m = info.ok() ? std::get_if<protocol::ModelInfoReply>(&info->header.reply) : nullptr;
@@ -124,13 +124,13 @@ class TlsTest : public testing::Test {
 
   // The server still serves a TLS client with a token.
   static void expect_served() {
-    clients::Connection c = open(test::kEveryModelToken);
+    clients::ServerConnection c = open(test::kEveryModelToken);
     expect_mesh(c.call(extract_of(c, "bunny"), 1, 60s));
   }
 };
 
 TEST_F(TlsTest, ClientOverTlsWithATokenGetsAnExtractThatDecodes) {
-  clients::Connection c = open("");
+  clients::ServerConnection c = open("");
   auto hello = c.call(protocol::Hello{protocol::kProtocolVersion, "tls-test", test::kEveryModelToken}, 1);
   ASSERT_TRUE(hello.ok()) << hello.error().message;
   const auto* reply = std::get_if<protocol::HelloReply>(&hello->header.reply);
@@ -159,7 +159,7 @@ TEST_F(TlsTest, ASessionOpensWithTheEndpointsTokenAndAWrongOneFailsAtOnce) {
 }
 
 TEST_F(TlsTest, WithoutATokenEveryRequestIsUnauthorized) {
-  clients::Connection c = open("");
+  clients::ServerConnection c = open("");
   protocol::Extract extract;
   extract.model = "bunny";
   protocol::look_at_camera(protocol::frame_bounds({-1, -1, -1}, {1, 1, 1}), 4.0 / 3.0, extract.view,
@@ -197,7 +197,7 @@ TEST_F(TlsTest, WithoutATokenEveryRequestIsUnauthorized) {
 }
 
 TEST_F(TlsTest, AWrongTokenIsUnauthorizedAndRevokesAnEarlierOne) {
-  clients::Connection c = open("");
+  clients::ServerConnection c = open("");
   expect_error(c.call(protocol::Hello{protocol::kProtocolVersion, "tls-test", "wrong-token-0123456789"}, 1),
                protocol::ErrorKind::kUnauthorized, "not valid");
   expect_error(c.call(protocol::ListModels{}, 2), protocol::ErrorKind::kUnauthorized, "access token");
@@ -212,7 +212,7 @@ TEST_F(TlsTest, AWrongTokenIsUnauthorizedAndRevokesAnEarlierOne) {
 }
 
 TEST_F(TlsTest, ATokenForOneModelSeesNoOther) {
-  clients::Connection c = open(test::kHareOnlyToken);
+  clients::ServerConnection c = open(test::kHareOnlyToken);
   auto models = c.call(protocol::ListModels{}, 1);
   ASSERT_TRUE(models.ok()) << models.error().message;
   const auto& listed = std::get<protocol::ModelsReply>(models->header.reply).models;
@@ -227,7 +227,7 @@ TEST_F(TlsTest, ATokenForOneModelSeesNoOther) {
   expect_mesh(c.call(extract_of(c, "hare"), 4, 60s));
 
   // The token for every model sees both.
-  clients::Connection every = open(test::kEveryModelToken);
+  clients::ServerConnection every = open(test::kEveryModelToken);
   auto both = every.call(protocol::ListModels{}, 1);
   ASSERT_TRUE(both.ok());
   EXPECT_EQ(std::get<protocol::ModelsReply>(both->header.reply).models.size(), 2u) << both->json;
@@ -244,7 +244,7 @@ TEST_F(TlsTest, APlainClientFailsItsHandshakeAndTheServerServesOn) {
   // Plain HTTP to the HTTPS port: no HTTP answer.
   EXPECT_EQ(test::http_get(server().http_port(), "/health").status, 0);
   // The mtlod client without --tls says what went wrong.
-  auto c = clients::Connection::open("127.0.0.1", server().port(), 5s);
+  auto c = clients::ServerConnection::open("127.0.0.1", server().port(), 5s);
   ASSERT_TRUE(c.ok());
   EXPECT_FALSE(c->call(protocol::Ping{}, 1, 5s).ok());
   expect_served();
@@ -267,11 +267,11 @@ TEST_F(TlsTest, AConnectionThatNeverHandshakesIsClosedAtTheFirstFrameDeadline) {
 TEST_F(TlsTest, AClientThatDoesNotTrustTheCertificateRefusesTheServer) {
   // Another self-signed certificate as the only trusted one: the server's does not chain to it.
   const test::Certificate other = test::make_certificate(g_fixture->dir, "other");
-  auto c = clients::Connection::open("127.0.0.1", server().port(), 5s, {true, other.cert.string()});
+  auto c = clients::ServerConnection::open("127.0.0.1", server().port(), 5s, {true, other.cert.string()});
   ASSERT_FALSE(c.ok());
   EXPECT_NE(c.error().message.find("not trusted"), std::string::npos) << c.error().message;
   // The certificate names 127.0.0.1, not localhost: a client that dialled "localhost" refuses it.
-  auto named = clients::Connection::open("localhost", server().port(), 5s, tls());
+  auto named = clients::ServerConnection::open("localhost", server().port(), 5s, tls());
   if (named.ok()) {
     ADD_FAILURE() << "a certificate for 127.0.0.1 was accepted for localhost";
   } else {
@@ -326,7 +326,7 @@ TEST_F(TlsTest, WebSocketOverTlsWithATokenGetsAnExtract) {
   auto hello = ws.call(protocol::Hello{protocol::kProtocolVersion, "wss-test", ""}, 1);
   ASSERT_TRUE(hello.ok()) << hello.error().message;
   ASSERT_TRUE(std::holds_alternative<protocol::HelloReply>(hello->header.reply)) << hello->json;
-  clients::Connection tcp = open(test::kEveryModelToken);
+  clients::ServerConnection tcp = open(test::kEveryModelToken);
   expect_mesh(ws.call(extract_of(tcp, "bunny"), 2));
 
   // A program's way: Authorization: Bearer, with the token limited to the hare.

@@ -30,19 +30,19 @@ struct TlsOptions {
       ca_file;  // PEM certificates to trust instead of the system's (a private CA, a self-signed server)
 };
 
-class Connection {
+class ServerConnection {
  public:
-  Connection();
-  ~Connection();
-  Connection(Connection&&) noexcept;
-  Connection& operator=(Connection&&) noexcept;
+  ServerConnection();
+  ~ServerConnection();
+  ServerConnection(ServerConnection&&) noexcept;
+  ServerConnection& operator=(ServerConnection&&) noexcept;
 
   // Connects, and with tls.enabled completes the TLS handshake, within `timeout`. Errors name the
   // address (and for TLS what failed: the handshake, or why the certificate was not trusted). An
   // untrusted certificate or an unreadable tls.ca_file is kInvalidArgument: trying again will not help.
-  static Result<Connection> open(const std::string& host, std::uint16_t port,
-                                 std::chrono::milliseconds timeout = std::chrono::seconds(5),
-                                 const TlsOptions& tls = {});
+  static Result<ServerConnection> open(const std::string& host, std::uint16_t port,
+                                       std::chrono::milliseconds timeout = std::chrono::seconds(5),
+                                       const TlsOptions& tls = {});
 
   // Sends one request frame. `id` is the request id.
   Status send(const protocol::Request& request, std::uint64_t id);

@@ -1,8 +1,8 @@
-// Blocking client connection (see connection.hpp). Plain POSIX sockets with poll() for timeouts:
+// Blocking client connection (see server_connection.hpp). Plain POSIX sockets with poll() for timeouts:
 // a command-line client needs neither an event loop nor threads. TLS runs OpenSSL on the same
 // non-blocking socket: each OpenSSL call returns at once, asking to wait for the socket to become
 // readable or writable, and the wait is the plain path's poll() with its deadline.
-#include "clients/common/connection.hpp"
+#include "clients/common/server_connection.hpp"
 
 #include <arpa/inet.h>
 #include <netdb.h>
@@ -98,7 +98,7 @@ bool wait_for(int fd, short events, std::chrono::steady_clock::time_point deadli
 
 }  // namespace
 
-struct Connection::Impl {
+struct ServerConnection::Impl {
   int fd = -1;
   std::string peer;
   std::unique_ptr<SSL_CTX, TlsFree> tls_context;
@@ -225,13 +225,13 @@ struct Connection::Impl {
   }
 };
 
-Connection::Connection() = default;
-Connection::~Connection() = default;
-Connection::Connection(Connection&&) noexcept = default;
-Connection& Connection::operator=(Connection&&) noexcept = default;
+ServerConnection::ServerConnection() = default;
+ServerConnection::~ServerConnection() = default;
+ServerConnection::ServerConnection(ServerConnection&&) noexcept = default;
+ServerConnection& ServerConnection::operator=(ServerConnection&&) noexcept = default;
 
-Result<Connection> Connection::open(const std::string& host, std::uint16_t port,
-                                    std::chrono::milliseconds timeout, const TlsOptions& tls) {
+Result<ServerConnection> ServerConnection::open(const std::string& host, std::uint16_t port,
+                                                std::chrono::milliseconds timeout, const TlsOptions& tls) {
   const std::string peer = fmt::format("{}:{}", host, port);
   addrinfo hints{};
   hints.ai_family = AF_UNSPEC;
@@ -261,7 +261,7 @@ Result<Connection> Connection::open(const std::string& host, std::uint16_t port,
       const int one = 1;
       ::setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
       ::freeaddrinfo(found);
-      Connection c;
+      ServerConnection c;
       c.impl_ = std::make_unique<Impl>();
       c.impl_->fd = fd;
       c.impl_->peer = peer;
@@ -275,7 +275,7 @@ Result<Connection> Connection::open(const std::string& host, std::uint16_t port,
   return make_error(ErrorCode::kIoError, fmt::format("cannot connect to {}: {}", peer, last_error));
 }
 
-Status Connection::send_raw(const std::vector<std::uint8_t>& bytes) {
+Status ServerConnection::send_raw(const std::vector<std::uint8_t>& bytes) {
   if (!impl_ || impl_->fd < 0) return make_error(ErrorCode::kIoError, "connection is closed");
   std::size_t sent = 0;
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
@@ -295,13 +295,13 @@ Status Connection::send_raw(const std::vector<std::uint8_t>& bytes) {
   return Ok{};
 }
 
-Status Connection::send(const protocol::Request& request, std::uint64_t id) {
+Status ServerConnection::send(const protocol::Request& request, std::uint64_t id) {
   std::vector<std::uint8_t> frame;
   protocol::append_frame(protocol::to_json(request, id), {}, frame);
   return send_raw(frame);
 }
 
-Result<ReplyFrame> Connection::receive(std::chrono::milliseconds timeout) {
+Result<ReplyFrame> ServerConnection::receive(std::chrono::milliseconds timeout) {
   if (!impl_ || impl_->fd < 0) return make_error(ErrorCode::kIoError, "connection is closed");
   const auto deadline = std::chrono::steady_clock::now() + timeout;
   auto read_exact = [&](std::uint8_t* out, std::size_t size) -> Status {
@@ -338,8 +338,8 @@ Result<ReplyFrame> Connection::receive(std::chrono::milliseconds timeout) {
   return frame;
 }
 
-Result<ReplyFrame> Connection::call(const protocol::Request& request, std::uint64_t id,
-                                    std::chrono::milliseconds timeout) {
+Result<ReplyFrame> ServerConnection::call(const protocol::Request& request, std::uint64_t id,
+                                          std::chrono::milliseconds timeout) {
   MTLOD_RETURN_IF_ERROR(send(request, id));
   for (;;) {
     MTLOD_TRY(ReplyFrame frame, receive(timeout));
@@ -347,11 +347,11 @@ Result<ReplyFrame> Connection::call(const protocol::Request& request, std::uint6
   }
 }
 
-void Connection::close() {
+void ServerConnection::close() {
   impl_.reset();
 }
 
-void Connection::interrupt() {
+void ServerConnection::interrupt() {
   if (impl_ && impl_->fd >= 0) ::shutdown(impl_->fd, SHUT_RDWR);
 }
 

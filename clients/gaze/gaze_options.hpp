@@ -1,0 +1,36 @@
+// mtlod-gaze's command line: the flags, and the criteria it defaults to.
+#pragma once
+
+#include <string>
+
+#include "clients/common/extract_flags.hpp"
+#include "clients/common/retry.hpp"
+#include "clients/gaze/trace.hpp"
+
+namespace CLI {
+class App;
+}
+
+namespace mtlod::clients {
+
+struct GazeOptions {
+  Endpoint endpoint;
+  std::string model = "bunny";
+  std::string trace_file;       // CSV time_ms,x,y; empty: each stream synthesises one
+  SynthesisOptions synthesis;   // stream k uses seed + k
+  unsigned streams = 1;         // concurrent gaze streams, one connection each
+  double drain_timeout_s = 10;  // after the trace's end, for the outstanding replies
+  RetryPolicy retry;
+  std::string json_file;
+  bool quiet = false;
+  std::string write_trace;  // write the first stream's trace as CSV to this file and exit
+};
+
+// Registers mtlod-gaze's flags on `app`, writing into `options` and `flags`.
+void add_gaze_flags(CLI::App& app, GazeOptions& options, protocol::ExtractFlags& flags);
+
+// After parsing: mtlod-gaze's criteria where the flags leave them open (1 px, silhouette 2,0, and
+// full detail within 20 px of the gaze).
+void complete_gaze_flags(protocol::ExtractFlags& flags);
+
+}  // namespace mtlod::clients

@@ -1,0 +1,173 @@
+// One gaze stream of mtlod-gaze (see gaze_stream.hpp).
+#include "clients/gaze/gaze_stream.hpp"
+
+#include <algorithm>
+#include <cstdio>
+#include <thread>
+#include <utility>
+
+#include "fmt/format.h"
+
+namespace mtlod::clients {
+namespace {
+
+std::uint64_t microseconds_from(std::int64_t from_ns, std::int64_t to_ns) {
+  return static_cast<std::uint64_t>(std::max<std::int64_t>(0, to_ns - from_ns) / 1000);
+}
+
+}  // namespace
+
+GazeStream::GazeStream(GazeReplay& replay, unsigned index, std::vector<GazeSample> trace)
+    : replay_(replay),
+      trace_(std::move(trace)),
+      session_(*this, replay.options.endpoint, "mtlod-gaze/0.1", replay.options.retry,
+               replay.options.synthesis.seed * 7919 + index, replay.finished) {}
+
+Status GazeStream::open_view(const protocol::ExtractFlags& flags) {
+  const std::string& model = replay_.options.model;
+  MTLOD_RETURN_IF_ERROR(session_.connect());
+  ServerConnection& connection = session_.connection();
+  MTLOD_TRY(const ReplyFrame info, connection.call(protocol::ModelInfo{model}, 0));
+  const auto* m = std::get_if<protocol::ModelInfoReply>(&info.header.reply);
+  if (!m) return make_error(ErrorCode::kNotFound, fmt::format("model '{}' is not served", model));
+  MTLOD_TRY(protocol::Extract request, protocol::make_extract(flags, model, m->bounds_min, m->bounds_max));
+  request.criteria.focus.front().x = trace_.front().x;
+  request.criteria.focus.front().y = trace_.front().y;
+  MTLOD_TRY(const ReplyFrame first, connection.call(request, 0, std::chrono::seconds(120)));
+  if (const auto* e = std::get_if<protocol::ErrorReply>(&first.header.reply))
+    return make_error(ErrorCode::kInvalidArgument, "extract: " + e->message);
+  if (const auto* mesh = std::get_if<protocol::MeshReply>(&first.header.reply); mesh && mesh->delta) {
+    MTLOD_RETURN_IF_ERROR(mesh_.apply(*mesh, first.payload));
+  }
+  view_ = std::move(request);
+  return Ok{};
+}
+
+void GazeStream::send_samples() {
+  for (std::size_t i = 0; i < trace_.size(); ++i) {
+    const GazeSample& sample = trace_[i];
+    std::this_thread::sleep_until(replay_.start + std::chrono::nanoseconds(sample_ns(sample)));
+    const bool sent = session_.send([&] {
+      sent_ = i + 1;
+      return OutgoingRequest{protocol::Gaze{sample.x, sample.y, std::nullopt, std::nullopt}, i + 1};
+    });
+    if (!sent) break;
+    std::lock_guard lock(replay_.totals.mutex);
+    ++replay_.totals.sent;
+  }
+  ++replay_.senders_done;
+}
+
+void GazeStream::receive_replies() {
+  session_.receive_replies();
+  {
+    std::lock_guard lock(apply_mutex_);
+    receiving_done_ = true;
+  }
+  apply_changed_.notify_all();
+}
+
+void GazeStream::apply_deltas() {
+  for (;;) {
+    Received received;
+    {
+      std::unique_lock lock(apply_mutex_);
+      apply_changed_.wait(lock, [&] { return !to_apply_.empty() || receiving_done_; });
+      if (to_apply_.empty()) return;
+      received = std::move(to_apply_.front());
+      to_apply_.pop_front();
+    }
+    const auto& mesh = std::get<protocol::MeshReply>(received.frame.header.reply);
+    auto applied = mesh_.apply(mesh, received.frame.payload);
+    const std::int64_t now = nanoseconds_between(replay_.start, Clock::now());
+    GazeTotals& totals = replay_.totals;
+    std::lock_guard lock(totals.mutex);
+    if (!applied) {
+      if (totals.delta_errors++ == 0) fmt::print(stderr, "mtlod-gaze: {}\n", applied.error().message);
+    } else if (received.sample_ns >= 0) {
+      totals.applied_latency_us.record(microseconds_from(received.sample_ns, now));
+    }
+  }
+}
+
+std::size_t GazeStream::outstanding() {
+  StreamSession::Locked locked = session_.lock();
+  return locked.closed() ? 0 : sent_ - answered_;
+}
+
+void GazeStream::choose_resend(std::vector<OutgoingRequest>& resend) {
+  // The view's extract first, focused on the newest sample sent; then that sample, if unanswered.
+  protocol::Extract view = view_;
+  if (sent_ > 0) {
+    view.criteria.focus.front().x = trace_[sent_ - 1].x;
+    view.criteria.focus.front().y = trace_[sent_ - 1].y;
+  }
+  resend.push_back(OutgoingRequest{std::move(view), 0, true});
+  if (sent_ > answered_) {
+    const GazeSample& newest = trace_[sent_ - 1];
+    resend.push_back(OutgoingRequest{protocol::Gaze{newest.x, newest.y, std::nullopt, std::nullopt}, sent_});
+  }
+}
+
+void GazeStream::queue_delta(ReplyFrame& frame, std::int64_t sample_time_ns) {
+  ReplyFrame copy;
+  copy.header = frame.header;
+  copy.payload = std::move(frame.payload);
+  {
+    std::lock_guard lock(apply_mutex_);
+    to_apply_.push_back({std::move(copy), sample_time_ns});
+  }
+  apply_changed_.notify_one();
+}
+
+void GazeStream::on_reply(ReplyFrame& frame, Clock::time_point arrival, const std::string&) {
+  const std::int64_t now = nanoseconds_between(replay_.start, arrival);
+  const std::uint64_t id = frame.header.id.value_or(0);
+  const bool known_sample = id != 0 && id <= trace_.size();
+  const std::size_t payload_bytes = frame.payload.size();  // before a delta's payload moves on
+  if (const auto* mesh = std::get_if<protocol::MeshReply>(&frame.header.reply); mesh && mesh->delta) {
+    // Every delta in arrival order, the view's re-extract after a reconnect (id 0) included.
+    queue_delta(frame, known_sample ? sample_ns(trace_[id - 1]) : -1);
+  }
+  if (!known_sample) return;
+  const std::size_t index = id - 1;
+  std::size_t newly_from = 0, newly_to = 0;
+  {
+    StreamSession::Locked locked = session_.lock();
+    answered_ = std::max(answered_, index + 1);
+    if (std::holds_alternative<protocol::MeshReply>(frame.header.reply) && reflected_ <= index) {
+      newly_from = reflected_;
+      newly_to = index + 1;
+      reflected_ = index + 1;
+    }
+  }
+  record_reply(frame.header.reply, payload_bytes, index, now, newly_from, newly_to);
+}
+
+void GazeStream::record_reply(const protocol::Reply& reply, std::size_t payload_bytes, std::size_t index,
+                              std::int64_t now, std::size_t newly_from, std::size_t newly_to) {
+  const GazeSample& sample = trace_[index];
+  GazeTotals& totals = replay_.totals;
+  std::lock_guard lock(totals.mutex);
+  if (const auto* mesh = std::get_if<protocol::MeshReply>(&reply)) {
+    ++totals.meshes;
+    totals.mesh_latency_us.record(microseconds_from(sample_ns(sample), now));
+    for (std::size_t i = newly_from; i < newly_to; ++i)
+      totals.sample_latency_us.record(microseconds_from(sample_ns(trace_[i]), now));
+    // The reply must say it reflects this sample (JSON carries doubles exactly).
+    if (!mesh->focus || (*mesh->focus)[0] != sample.x || (*mesh->focus)[1] != sample.y)
+      ++totals.focus_mismatches;
+    totals.superseded_counted += mesh->superseded;
+    totals.bytes += payload_bytes;
+    totals.triangles += mesh->triangles;
+    totals.server_total_us += mesh->timings.total_us;
+  } else if (const auto* error = std::get_if<protocol::ErrorReply>(&reply)) {
+    ++totals.errors_by_code[protocol::to_string(error->code)];
+    if (error->code == protocol::ErrorKind::kSuperseded)
+      ++totals.superseded;
+    else
+      ++totals.errors;
+  }
+}
+
+}  // namespace mtlod::clients
