@@ -26,6 +26,7 @@ test_packages=(
   haproxy                                     # the failover test runs replicas behind it
   openssl                                     # the TLS tests make their certificates with it
   clang-format                                # the test suite checks the tree's formatting
+  prometheus                                  # its promtool checks the server's /metrics
 )
 # What the binaries load at run time (the -dev packages above depend on these).
 runtime_packages=(libdraco7 libopenmesh1 libspdlog1.10 libfmt9 libpng16-16 libmeshoptimizer2d libssl3)

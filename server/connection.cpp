@@ -296,8 +296,10 @@ void Connection::finish_job(const Job& job, std::int64_t started_ns, ExtractResu
   // The reservation gives way to what the extraction really left in its session.
   server_.memory.release(std::exchange(reserved_, 0));
   const std::uint64_t session_bytes = cut_.memory_bytes();
-  server_.memory.adjust(static_cast<std::int64_t>(session_bytes) -
-                        static_cast<std::int64_t>(session_accounted_));
+  const std::int64_t session_growth =
+      static_cast<std::int64_t>(session_bytes) - static_cast<std::int64_t>(session_accounted_);
+  server_.memory.adjust(session_growth);
+  server_.metrics.session_bytes(session_growth);
   session_accounted_ = session_bytes;
   if (closed_) release_session();
   try {
@@ -333,7 +335,7 @@ void Connection::finish_reply(const Job& job, std::int64_t started_ns, ExtractRe
         number_, job.id, job.gaze ? "gaze" : "extract", reply.model, reply.triangles, reply.bytes,
         reply.max_error, t.queue_us, t.map_us, t.occupancy_us, t.dt_us, t.labels_us, t.refine_us, t.encode_us,
         t.total_us);
-    server_.metrics.extraction(t, reply.triangles);
+    server_.metrics.extraction(t, reply.triangles, job.gaze);
     replies_.fill(job.seq, make_frame(reply, job.id, result.payload));
   }
 }
@@ -407,6 +409,7 @@ bool Connection::may_read() {
 }
 
 void Connection::release_session() {
+  server_.metrics.session_bytes(-static_cast<std::int64_t>(session_accounted_));
   server_.memory.release(std::exchange(session_accounted_, 0));
   cut_ = ExtractionState{};
 }

@@ -1,9 +1,28 @@
-// Server counters (see metrics.hpp).
+// Server counters and their Prometheus rendering (see metrics.hpp).
 #include "server/metrics.hpp"
+
+#include <algorithm>
+#include <iterator>
+
+#include "fmt/format.h"
 
 namespace mtlod::server {
 
-void Metrics::extraction(const protocol::StageTimings& t, std::uint64_t triangles) {
+void PrometheusHistogram::observe(std::uint64_t us) {
+  const auto bound = std::lower_bound(kBoundsUs.begin(), kBoundsUs.end(), us);
+  buckets_[static_cast<std::size_t>(bound - kBoundsUs.begin())].fetch_add(1, std::memory_order_relaxed);
+  sum_us_.fetch_add(us, std::memory_order_relaxed);
+}
+
+std::array<std::uint64_t, PrometheusHistogram::kBoundsUs.size() + 1> PrometheusHistogram::cumulative() const {
+  std::array<std::uint64_t, kBoundsUs.size() + 1> out{};
+  std::uint64_t running = 0;
+  for (std::size_t i = 0; i < out.size(); ++i)
+    out[i] = running += buckets_[i].load(std::memory_order_relaxed);
+  return out;
+}
+
+void Metrics::extraction(const protocol::StageTimings& t, std::uint64_t triangles, bool gaze) {
   add(extractions_);
   add(triangles_out_, triangles);
   add(queue_us_, t.queue_us);
@@ -14,6 +33,10 @@ void Metrics::extraction(const protocol::StageTimings& t, std::uint64_t triangle
   add(refine_us_, t.refine_us);
   add(encode_us_, t.encode_us);
   add(total_us_, t.total_us);
+  const std::array<std::uint64_t, kStages.size()> stages{
+      t.queue_us, t.map_us, t.occupancy_us, t.dt_us, t.labels_us, t.refine_us, t.encode_us, t.total_us};
+  auto& histograms = stage_histograms_[gaze ? 1 : 0];
+  for (std::size_t s = 0; s < stages.size(); ++s) histograms[s].observe(stages[s]);
 }
 
 std::vector<std::pair<std::string, double>> Metrics::snapshot() const {
@@ -39,6 +62,80 @@ std::vector<std::pair<std::string, double>> Metrics::snapshot() const {
     out.emplace_back(std::string("errors_") + protocol::to_string(static_cast<protocol::ErrorKind>(i)),
                      get(errors_[i]));
   }
+  return out;
+}
+
+std::string Metrics::prometheus_text(const MetricsGauges& gauges) const {
+  // Names and units after https://prometheus.io/docs/practices/naming/: a mtlod_ prefix, base
+  // units (seconds, bytes), _total on counters.
+  std::string out;
+  auto family = [&out](const char* name, const char* type, const char* help) {
+    fmt::format_to(std::back_inserter(out), "# HELP {} {}\n# TYPE {} {}\n", name, help, name, type);
+  };
+  auto sample = [&out](const char* name, std::uint64_t value, const std::string& labels = {}) {
+    if (labels.empty()) {
+      fmt::format_to(std::back_inserter(out), "{} {}\n", name, value);
+    } else {
+      fmt::format_to(std::back_inserter(out), "{}{{{}}} {}\n", name, labels, value);
+    }
+  };
+  auto get = [](const Counter& c) { return c.load(std::memory_order_relaxed); };
+
+  family("mtlod_connections_accepted_total", "counter", "Connections accepted on both ports.");
+  sample("mtlod_connections_accepted_total", get(connections_total_));
+  family("mtlod_connections_refused_total", "counter", "Connections refused by the connection limits.");
+  sample("mtlod_connections_refused_total", get(connections_refused_));
+  family("mtlod_connections_open", "gauge", "Connections open now (protocol and WebSocket).");
+  sample("mtlod_connections_open", get(connections_open_));
+  family("mtlod_requests_total", "counter", "Requests that parsed, by type.");
+  for (std::size_t i = 0; i < kRequestTypes; ++i)
+    sample("mtlod_requests_total", get(requests_[i]),
+           fmt::format("type=\"{}\"", protocol::kRequestTypeNames[i]));
+  family("mtlod_errors_total", "counter", "Error replies, by code.");
+  for (std::size_t i = 0; i < kErrorKinds; ++i) {
+    sample("mtlod_errors_total", get(errors_[i]),
+           fmt::format("code=\"{}\"", protocol::to_string(static_cast<protocol::ErrorKind>(i))));
+  }
+  family("mtlod_received_bytes_total", "counter", "Bytes of request frames received.");
+  sample("mtlod_received_bytes_total", get(bytes_in_));
+  family("mtlod_sent_bytes_total", "counter", "Bytes of reply frames sent.");
+  sample("mtlod_sent_bytes_total", get(bytes_out_));
+  family("mtlod_sent_triangles_total", "counter", "Triangles of the cuts sent.");
+  sample("mtlod_sent_triangles_total", get(triangles_out_));
+
+  family("mtlod_extraction_duration_seconds", "histogram",
+         "Extractions by request type and stage; stage total runs from the request's arrival to its reply.");
+  for (std::size_t type = 0; type < stage_histograms_.size(); ++type) {
+    for (std::size_t s = 0; s < kStages.size(); ++s) {
+      const PrometheusHistogram& h = stage_histograms_[type][s];
+      const std::string labels =
+          fmt::format("type=\"{}\",stage=\"{}\"", type ? "gaze" : "extract", kStages[s]);
+      const auto counts = h.cumulative();
+      for (std::size_t b = 0; b < counts.size(); ++b) {
+        const std::string le = b < PrometheusHistogram::kBoundsUs.size()
+                                   ? fmt::format("{}", PrometheusHistogram::kBoundsUs[b] / 1e6)
+                                   : std::string("+Inf");
+        sample("mtlod_extraction_duration_seconds_bucket", counts[b],
+               fmt::format("{},le=\"{}\"", labels, le));
+      }
+      fmt::format_to(std::back_inserter(out), "mtlod_extraction_duration_seconds_sum{{{}}} {}\n", labels,
+                     static_cast<double>(h.sum_us()) / 1e6);
+      sample("mtlod_extraction_duration_seconds_count", counts.back(), labels);
+    }
+  }
+
+  family("mtlod_session_memory_bytes", "gauge",
+         "Bytes the connections' sessions hold (cuts, views, deltas).");
+  sample("mtlod_session_memory_bytes", get(session_bytes_));
+  family("mtlod_memory_held_bytes", "gauge",
+         "Worker scratch plus sessions, as the memory ceiling counts them.");
+  sample("mtlod_memory_held_bytes", gauges.memory_held_bytes);
+  family("mtlod_memory_limit_bytes", "gauge", "The memory ceiling (--max-memory).");
+  sample("mtlod_memory_limit_bytes", gauges.memory_limit_bytes);
+  family("mtlod_models", "gauge", "Models served.");
+  sample("mtlod_models", gauges.models);
+  family("mtlod_model_memory_bytes", "gauge", "Resident bytes of every model's arrays.");
+  sample("mtlod_model_memory_bytes", gauges.model_bytes);
   return out;
 }
 

@@ -1,5 +1,6 @@
-// Server counters (requests by type, errors by code, bytes, connections, stage times). Lock-free:
-// relaxed atomics are enough for monotonically growing statistics read by `stats` and the logs.
+// Server counters (requests by type, errors by code, bytes, connections, stage times) and latency
+// histograms, read by the `stats` reply and by `GET /metrics` in Prometheus' text format. Lock-free:
+// relaxed atomics are enough for monotonically growing statistics read while they change.
 #pragma once
 
 #include <array>
@@ -14,10 +15,40 @@
 
 namespace mtlod::server {
 
+// Durations in fixed buckets, as a Prometheus histogram (cumulative when rendered).
+class PrometheusHistogram {
+ public:
+  // Upper bounds in microseconds: finer around a 60–120 Hz frame (8–16 ms), where gaze latency is
+  // judged, and up to a few seconds for huge grids and budgets.
+  static constexpr std::array<std::uint64_t, 14> kBoundsUs{
+      250, 500, 1000, 2000, 4000, 8000, 12000, 16000, 25000, 50000, 100000, 250000, 1000000, 2500000};
+
+  void observe(std::uint64_t us);
+  // Observations at or below each bound, then the count of all (the +Inf bucket).
+  std::array<std::uint64_t, kBoundsUs.size() + 1> cumulative() const;
+  std::uint64_t sum_us() const { return sum_us_.load(std::memory_order_relaxed); }
+
+ private:
+  std::array<std::atomic<std::uint64_t>, kBoundsUs.size() + 1> buckets_{};  // the last: above every bound
+  std::atomic<std::uint64_t> sum_us_{0};
+};
+
+// Values the server holds elsewhere, sampled when /metrics is scraped.
+struct MetricsGauges {
+  std::uint64_t memory_held_bytes = 0;   // worker scratch plus sessions, as the memory ceiling counts
+  std::uint64_t memory_limit_bytes = 0;  // --max-memory
+  std::uint64_t models = 0;
+  std::uint64_t model_bytes = 0;  // resident size of every model's arrays
+};
+
 class Metrics {
  public:
   static constexpr std::size_t kRequestTypes = std::variant_size_v<protocol::Request>;
   static constexpr std::size_t kErrorKinds = static_cast<std::size_t>(protocol::ErrorKind::kInternal) + 1;
+  // The stages of an extraction as StageTimings reports them; "total" runs from the request's
+  // arrival to its reply.
+  static constexpr std::array<const char*, 8> kStages{"queue",  "map",    "occupancy", "dt",
+                                                      "labels", "refine", "encode",    "total"};
 
   void connection_opened() { add(connections_total_), add(connections_open_); }
   void connection_closed() { connections_open_.fetch_sub(1, std::memory_order_relaxed); }
@@ -26,11 +57,16 @@ class Metrics {
   void error(protocol::ErrorKind kind) { add(errors_[static_cast<std::size_t>(kind)]); }
   void bytes_in(std::uint64_t n) { add(bytes_in_, n); }
   void bytes_out(std::uint64_t n) { add(bytes_out_, n); }
-  void extraction(const protocol::StageTimings& t, std::uint64_t triangles);
+  // gaze: the extraction answered a gaze (else an extract).
+  void extraction(const protocol::StageTimings& t, std::uint64_t triangles, bool gaze);
+  // A connection's session now holds `delta` bytes more (or fewer).
+  void session_bytes(std::int64_t delta) { session_bytes_.fetch_add(static_cast<std::uint64_t>(delta)); }
 
   std::uint64_t open_connections() const { return connections_open_.load(std::memory_order_relaxed); }
   // Named values, for the `stats` reply.
   std::vector<std::pair<std::string, double>> snapshot() const;
+  // Everything, in Prometheus' text exposition format (version 0.0.4).
+  std::string prometheus_text(const MetricsGauges& gauges) const;
 
  private:
   using Counter = std::atomic<std::uint64_t>;
@@ -41,8 +77,11 @@ class Metrics {
   std::array<Counter, kErrorKinds> errors_{};
   Counter bytes_in_{0}, bytes_out_{0};
   Counter extractions_{0}, triangles_out_{0};
+  Counter session_bytes_{0};  // wraps through negative deltas; the sum is what sessions hold
   Counter queue_us_{0}, map_us_{0}, occupancy_us_{0}, dt_us_{0}, labels_us_{0}, refine_us_{0}, encode_us_{0},
       total_us_{0};
+  // [extract, gaze][stage]
+  std::array<std::array<PrometheusHistogram, kStages.size()>, 2> stage_histograms_{};
 };
 
 }  // namespace mtlod::server
