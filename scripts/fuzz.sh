@@ -19,7 +19,8 @@ found=$build/corpus/$target  # everything this run finds; merged into $corpus at
 export CCACHE_BASEDIR="$root" CCACHE_NOHASHDIR=true
 CXX=clang++ cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DMTLOD_FUZZ=ON \
   -DMTLOD_SANITIZE="$sanitize" -DMTLOD_BENCHMARKS=OFF >/dev/null
-cmake --build "$build" --target "mtlod_fuzz_$target" -j "$(nproc)"
+# Campaigns of both server targets start together: one builds while the other waits for it.
+flock "$build/.build-lock" cmake --build "$build" --target "mtlod_fuzz_$target" -j "$(nproc)"
 mkdir -p "$corpus" "$found" "$build/crashes"
 dict=()
 case $target in server_* | request) dict=(-dict="$root/tests/fuzz/server.dict") ;; esac
