@@ -17,10 +17,15 @@ binary=$build/tests/mtlod_fuzz_$target
 corpus=$root/tests/fuzz/corpus/$target
 found=$build/corpus/$target  # everything this run finds; merged into $corpus at the end
 export CCACHE_BASEDIR="$root" CCACHE_NOHASHDIR=true
-CXX=clang++ cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DMTLOD_FUZZ=ON \
-  -DMTLOD_SANITIZE="$sanitize" -DMTLOD_BENCHMARKS=OFF >/dev/null
-# Campaigns of both server targets start together: one builds while the other waits for it.
-flock "$build/.build-lock" cmake --build "$build" --target "mtlod_fuzz_$target" -j "$(nproc)"
+# Campaigns of both server targets may start together: one configures and builds while the other
+# waits for it (the lock file sits beside the build directory, which may not exist yet).
+mkdir -p "$(dirname "$build")"
+(
+  flock 9
+  CXX=clang++ cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DMTLOD_FUZZ=ON \
+    -DMTLOD_SANITIZE="$sanitize" -DMTLOD_BENCHMARKS=OFF >/dev/null
+  cmake --build "$build" --target "mtlod_fuzz_$target" -j "$(nproc)"
+) 9>"$build.lock"
 mkdir -p "$corpus" "$found" "$build/crashes"
 dict=()
 case $target in server_* | request) dict=(-dict="$root/tests/fuzz/server.dict") ;; esac
