@@ -23,16 +23,7 @@ std::array<std::uint64_t, PrometheusHistogram::kBoundsUs.size() + 1> PrometheusH
 }
 
 void Metrics::extraction(const protocol::StageTimings& t, std::uint64_t triangles, bool gaze) {
-  add(extractions_);
   add(triangles_out_, triangles);
-  add(queue_us_, t.queue_us);
-  add(map_us_, t.map_us);
-  add(occupancy_us_, t.occupancy_us);
-  add(dt_us_, t.dt_us);
-  add(labels_us_, t.labels_us);
-  add(refine_us_, t.refine_us);
-  add(encode_us_, t.encode_us);
-  add(total_us_, t.total_us);
   const std::array<std::uint64_t, kStages.size()> stages{
       t.queue_us, t.map_us, t.occupancy_us, t.dt_us, t.labels_us, t.refine_us, t.encode_us, t.total_us};
   auto& histograms = stage_histograms_[gaze ? 1 : 0];
@@ -41,21 +32,22 @@ void Metrics::extraction(const protocol::StageTimings& t, std::uint64_t triangle
 
 std::vector<std::pair<std::string, double>> Metrics::snapshot() const {
   auto get = [](const Counter& c) { return static_cast<double>(c.load(std::memory_order_relaxed)); };
+  // Extraction counts and stage sums come from the histograms, extract and gaze together.
+  std::uint64_t extractions = 0;
+  for (const auto& histograms : stage_histograms_) extractions += histograms.back().cumulative().back();
   std::vector<std::pair<std::string, double>> out = {{"connections_total", get(connections_total_)},
                                                      {"connections_open", get(connections_open_)},
                                                      {"connections_refused", get(connections_refused_)},
                                                      {"bytes_in", get(bytes_in_)},
                                                      {"bytes_out", get(bytes_out_)},
-                                                     {"extractions", get(extractions_)},
-                                                     {"triangles_out", get(triangles_out_)},
-                                                     {"queue_us_total", get(queue_us_)},
-                                                     {"map_us_total", get(map_us_)},
-                                                     {"occupancy_us_total", get(occupancy_us_)},
-                                                     {"dt_us_total", get(dt_us_)},
-                                                     {"labels_us_total", get(labels_us_)},
-                                                     {"refine_us_total", get(refine_us_)},
-                                                     {"encode_us_total", get(encode_us_)},
-                                                     {"extract_us_total", get(total_us_)}};
+                                                     {"extractions", static_cast<double>(extractions)},
+                                                     {"triangles_out", get(triangles_out_)}};
+  for (std::size_t s = 0; s < kStages.size(); ++s) {
+    std::uint64_t sum_us = 0;
+    for (const auto& histograms : stage_histograms_) sum_us += histograms[s].sum_us();
+    const std::string stage = s + 1 == kStages.size() ? "extract" : kStages[s];  // the stats name of "total"
+    out.emplace_back(stage + "_us_total", static_cast<double>(sum_us));
+  }
   for (std::size_t i = 0; i < kRequestTypes; ++i)
     out.emplace_back(std::string("requests_") + protocol::kRequestTypeNames[i], get(requests_[i]));
   for (std::size_t i = 0; i < kErrorKinds; ++i) {

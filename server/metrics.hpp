@@ -76,10 +76,8 @@ class Metrics {
   std::array<Counter, kRequestTypes> requests_{};
   std::array<Counter, kErrorKinds> errors_{};
   Counter bytes_in_{0}, bytes_out_{0};
-  Counter extractions_{0}, triangles_out_{0};
+  Counter triangles_out_{0};
   Counter session_bytes_{0};  // wraps through negative deltas; the sum is what sessions hold
-  Counter queue_us_{0}, map_us_{0}, occupancy_us_{0}, dt_us_{0}, labels_us_{0}, refine_us_{0}, encode_us_{0},
-      total_us_{0};
   // [extract, gaze][stage]
   std::array<std::array<PrometheusHistogram, kStages.size()>, 2> stage_histograms_{};
 };
