@@ -11,11 +11,12 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <cstring>
 #include <fstream>
+#include <span>
 #include <string>
 #include <system_error>
 
+#include "core/io/ply_stream.hpp"
 #include "fmt/format.h"
 
 namespace mtlod::core::io {
@@ -313,46 +314,15 @@ Result<LoadedMesh> load_mesh(const std::filesystem::path& path, const LoadOption
 
 namespace {
 
+// One PLY writer in the tree: PlyWriter, given the whole mesh at once.
 Status write_ply(const std::filesystem::path& path, const Mesh& mesh) {
-  std::FILE* f = std::fopen(path.string().c_str(), "wb");
-  if (!f) return make_error(ErrorCode::kIoError, fmt::format("{}: cannot open for writing", path.string()));
-  std::string header = fmt::format(
-      "ply\nformat binary_little_endian 1.0\ncomment written by mtlod\n"
-      "element vertex {}\nproperty float x\nproperty float y\nproperty float z\n",
-      mesh.vertex_count());
-  if (mesh.has_normals()) header += "property float nx\nproperty float ny\nproperty float nz\n";
-  if (mesh.has_colors()) header += "property uchar red\nproperty uchar green\nproperty uchar blue\n";
-  header += fmt::format("element face {}\nproperty list uchar uint vertex_indices\nend_header\n",
-                        mesh.triangle_count());
-  bool ok = std::fwrite(header.data(), 1, header.size(), f) == header.size();
-  // Records are interleaved per vertex; x86 and ARM are little-endian, which the format states.
-  std::vector<unsigned char> record;
   const std::size_t n = mesh.vertex_count();
-  const std::size_t vertex_bytes = 12 + (mesh.has_normals() ? 12 : 0) + (mesh.has_colors() ? 3 : 0);
-  record.resize(vertex_bytes * std::min<std::size_t>(n, 65536));
-  for (std::size_t start = 0; start < n && ok; start += 65536) {
-    const std::size_t count = std::min<std::size_t>(65536, n - start);
-    unsigned char* out = record.data();
-    for (std::size_t v = start; v < start + count; ++v) {
-      std::memcpy(out, &mesh.positions[3 * v], 12), out += 12;
-      if (mesh.has_normals()) std::memcpy(out, &mesh.normals[3 * v], 12), out += 12;
-      if (mesh.has_colors()) std::memcpy(out, &mesh.colors[3 * v], 3), out += 3;
-    }
-    ok = std::fwrite(record.data(), 1, count * vertex_bytes, f) == count * vertex_bytes;
-  }
-  std::vector<unsigned char> faces(13 * std::min<std::size_t>(mesh.triangle_count(), 65536));
-  for (std::size_t start = 0; start < mesh.triangle_count() && ok; start += 65536) {
-    const std::size_t count = std::min<std::size_t>(65536, mesh.triangle_count() - start);
-    unsigned char* out = faces.data();
-    for (std::size_t t = start; t < start + count; ++t) {
-      *out++ = 3;
-      std::memcpy(out, &mesh.triangles[3 * t], 12), out += 12;
-    }
-    ok = std::fwrite(faces.data(), 1, 13 * count, f) == 13 * count;
-  }
-  ok = (std::fclose(f) == 0) && ok;
-  if (!ok) return make_error(ErrorCode::kIoError, fmt::format("{}: write failed", path.string()));
-  return Ok{};
+  const std::size_t t = mesh.triangle_count();
+  MTLOD_TRY(PlyWriter writer, PlyWriter::create(path, n, t, mesh.has_normals(), mesh.has_colors()));
+  MTLOD_RETURN_IF_ERROR(
+      writer.write_vertices(std::span(mesh.positions).first(3 * n), mesh.normals, mesh.colors));
+  MTLOD_RETURN_IF_ERROR(writer.write_triangles(std::span(mesh.triangles).first(3 * t)));
+  return writer.close();
 }
 
 Status write_obj(const std::filesystem::path& path, const Mesh& mesh) {
