@@ -320,4 +320,8 @@ CleanupSummary clean_mesh(Mesh& mesh, const CleanupOptions& options) {
   return s;
 }
 
+bool is_degenerate_triangle(std::span<const float> positions, const std::uint32_t* t) {
+  return is_degenerate(positions, t);
+}
+
 }  // namespace mtlod::core

@@ -40,6 +40,10 @@ struct TopologyReport {
 // positions: x,y,z per vertex; triangles: three ids per triangle, each < positions.size()/3.
 TopologyReport analyze_topology(std::span<const float> positions, std::span<const std::uint32_t> triangles);
 
+// Whether triangle t (three ids into positions) is degenerate as clean_mesh drops it: a repeated
+// vertex id, or zero area in double precision.
+bool is_degenerate_triangle(std::span<const float> positions, const std::uint32_t* t);
+
 struct CleanupOptions {
   bool weld_duplicate_positions = false;  // on for STL, which stores every corner separately
   bool drop_degenerate_triangles = true;  // repeated vertex id or zero area

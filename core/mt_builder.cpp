@@ -32,11 +32,14 @@
 #include <vector>
 
 #include "core/bounds.hpp"
+#include "core/grow_only_vector.hpp"
+#include "core/radix_sort.hpp"
 
 namespace mtlod::core {
 namespace {
 
-enum VertexKind : std::uint8_t { kUnused = 0, kInterior = 1, kBoundary = 2, kComplex = 3 };
+// kLocked: a block's border vertex in an out-of-core build, kept as it is (simplify_block).
+enum VertexKind : std::uint8_t { kUnused = 0, kInterior = 1, kBoundary = 2, kComplex = 3, kLocked = 4 };
 
 // Fans larger than this are treated as complex: they never occur on scans except at defects.
 constexpr std::uint32_t kMaxFan = 64;
@@ -52,26 +55,11 @@ constexpr std::size_t kMinChunkWork = 4096;
 constexpr std::size_t kPrefetchAhead = 8;
 // How far ahead of the chooser the guesser starts when it falls behind.
 constexpr std::size_t kGuessLead = 16;
-
-// An allocator whose resize leaves new elements uninitialised (default-initialised), for arrays
-// whose new slots are all written right after growing.
-template <class T>
-struct DefaultInitAllocator : std::allocator<T> {
-  template <class U>
-  struct rebind {
-    using other = DefaultInitAllocator<U>;
-  };
-  template <class U>
-  void construct(U* p) noexcept {
-    ::new (static_cast<void*>(p)) U;
-  }
-  template <class U, class... Args>
-  void construct(U* p, Args&&... args) {
-    ::new (static_cast<void*>(p)) U(std::forward<Args>(args)...);
-  }
-};
-template <class T>
-using GrowOnlyVector = std::vector<T, DefaultInitAllocator<T>>;
+// The assigned points' pool is compacted once it holds more than this many times the points that
+// can be assigned at once: more slack means fewer compactions, less means less memory (a block of an
+// out-of-core build may carry most of the model's points).
+constexpr std::size_t kPoolSlack = 5;
+constexpr std::size_t kBlockPoolSlack = 2;
 
 // Zero when value-initialised (Quadric{}); left unset by default so big arrays of them are not
 // filled on one thread before the concurrent loop that writes them.
@@ -203,33 +191,6 @@ struct Candidate {
   std::uint32_t v;
 };
 
-// Stable LSD radix sort of `items` by a 32-bit key, 11 bits per pass: equal keys keep their order.
-template <class Vector, class Key>
-void radix_sort(Vector& items, Vector& scratch, const Key& key) {
-  using T = typename Vector::value_type;
-  constexpr int kBits = 11;
-  constexpr std::uint32_t kBuckets = 1u << kBits;
-  scratch.resize(items.size());
-  constexpr int kPasses = (32 + kBits - 1) / kBits;
-  // Every pass's counts from one read of the items (the passes only permute them).
-  std::array<std::array<std::uint32_t, kBuckets>, kPasses> counts{};
-  for (const T& x : items) {
-    const std::uint32_t k = key(x);
-    for (int pass = 0; pass < kPasses; ++pass) ++counts[pass][(k >> (pass * kBits)) & (kBuckets - 1)];
-  }
-  for (int pass = 0; pass < kPasses; ++pass) {
-    // A digit all items share leaves the order as it is.
-    if (std::find(counts[pass].begin(), counts[pass].end(), std::uint32_t(items.size())) !=
-        counts[pass].end())
-      continue;
-    std::uint32_t sum = 0;
-    for (std::uint32_t& n : counts[pass]) sum += std::exchange(n, sum);
-    const int shift = pass * kBits;
-    for (const T& x : items) scratch[counts[pass][(key(x) >> shift) & (kBuckets - 1)]++] = x;
-    items.swap(scratch);
-  }
-}
-
 // By cost, stably, so equal costs keep vertex order and the build stays deterministic.
 void sort_by_cost(GrowOnlyVector<Candidate>& items, GrowOnlyVector<Candidate>& scratch) {
   radix_sort(items, scratch, [](const Candidate& c) {
@@ -241,11 +202,23 @@ void sort_by_cost(GrowOnlyVector<Candidate>& items, GrowOnlyVector<Candidate>& s
 
 class Builder {
  public:
-  Builder(const Mesh& mesh, const BuildOptions& options) : mesh_(mesh), options_(options) {}
+  Builder(const Mesh& mesh, const BuildOptions& options, BlockInput* block = nullptr)
+      : mesh_(mesh), options_(options), block_(block) {}
 
   Result<Mt> run(BuildStats* stats, std::vector<std::uint32_t>* vertex_ids);
+  Result<BlockOutput> run_block(std::size_t target_triangles);
 
  private:
+  Status prepare();
+  Status check_block() const;
+  // The pass loop and its steps, in order.
+  void simplify();
+  void classify_vertices();
+  std::size_t collect_candidates();  // returns how many vertices have a partner
+  std::size_t pass_quota();
+  void place_collapses();  // tags, MT triangles, pool blocks and work chunks of the chosen collapses
+  void run_collapses();
+
   const float* position(std::uint32_t v) const { return &mesh_.positions[3 * std::size_t{v}]; }
 
   void init_quadrics();
@@ -328,9 +301,12 @@ class Builder {
     __builtin_prefetch(&adjacency_[adjacency_begin_[chosen.u]]);
   }
   Mt assemble(std::vector<std::uint32_t>* vertex_ids);
+  BlockOutput export_block();
 
   const Mesh& mesh_;
   BuildOptions options_;
+  BlockInput* block_;
+  std::size_t target_triangles_ = 0;  // stop once at most this many faces are alive
   std::size_t vertex_count_ = 0;
   std::size_t face_count_ = 0;
   std::size_t alive_faces_ = 0;
@@ -391,10 +367,15 @@ class Builder {
   GrowOnlyVector<float> points_;
   GrowOnlyVector<float> points_scratch_;
   std::size_t used_vertices_ = 0;
+  // At most this many points are assigned at any time: the block's carried points and every used
+  // vertex (each is assigned once it is removed).
+  std::size_t points_bound_ = 0;
   std::vector<Scratch> scratch_;
   std::vector<Chosen> chosen_;
   std::vector<Chosen> chosen_scratch_;
   std::vector<std::size_t> collapse_chunk_begin_;  // chunk k of the pass's collapses starts here
+  std::size_t collapse_work_ = 0;                  // the pass's collapses' work, in moved points
+  std::vector<std::uint32_t> boundary_ends_;       // per vertex: its boundary neighbours, when a boundary one
   std::size_t complex_vertices_ = 0;
 };
 
@@ -827,7 +808,7 @@ void Builder::choose_collapses(std::size_t quota) {
           ++triangle;
       }
       ++ordered;
-      if (alive_faces_ <= options_.min_triangles) break;
+      if (alive_faces_ <= target_triangles_) break;
     }
     chosen_triangles_end_ = triangle;
     chooser_done.store(true, std::memory_order_relaxed);
@@ -937,8 +918,9 @@ void Builder::collapse(const Chosen& chosen, Scratch& scratch) {
     if (!(best <= floor2)) measured = std::max(measured, std::sqrt(best));
     m.new_face = best_face;
   }
-  // Each new face's run, in the chosen block of the pool: reversed order of arrival, the order
-  // that keeps .mt files byte-identical to those already built and published.
+  // Each new face's run, in the chosen block of the pool, in reversed order of arrival. The order
+  // decides which faces later collapses try first for each point, and so the errors: another
+  // order gives other (equally valid) .mt files.
   std::vector<std::uint32_t>& ends = scratch.new_face_ends;
   ends.assign(new_faces_.size(), 0);
   for (const Moving& m : moving) ++ends[m.new_face];
@@ -966,7 +948,7 @@ void Builder::grow_pool(std::size_t size) {
     points_.resize(size);
     return;
   }
-  // The copy and the first touch of the new pages were ~25 ms on one thread per dragon build.
+  // A big pool's copy and the first touch of its new pages are worth doing on every thread.
   GrowOnlyVector<float> bigger;
   bigger.reserve(std::max(size, 2 * points_.capacity()));
   bigger.resize(size);
@@ -1009,22 +991,8 @@ Mt Builder::assemble(std::vector<std::uint32_t>* vertex_ids) {
   const std::uint32_t k = std::uint32_t(collapse_u_.size());
   const std::size_t node_count = std::size_t{k} + 1;
   const std::size_t mt_count = removing_collapse_.size();
-  // Nodes by decreasing error, ties by reverse collapse order. This is a topological order (a
-  // parent's error is at least its child's, and on a tie the parent collapsed later), and it makes
-  // the static cut for a uniform threshold e a prefix: the root and every node with error > e. Cuts
-  // then walk the arrays front to back instead of jumping around. A stable sort by decreasing error
-  // of the collapses listed coarsest first gives exactly that order.
-  std::vector<std::uint32_t> order(k), order_scratch;
-  for (std::uint32_t c = 0; c < k; ++c) order[c] = k - 1 - c;  // coarsest collapse first
-  radix_sort(order, order_scratch, [&](std::uint32_t c) {
-    // Errors are never negative, so their bits order like them (-0 taken as 0).
-    const float e = collapse_error_[c];
-    std::uint32_t bits = 0;
-    if (e > 0) std::memcpy(&bits, &e, sizeof bits);
-    return ~bits;
-  });
-  std::vector<std::uint32_t> node_of(k);
-  for (std::uint32_t i = 0; i < k; ++i) node_of[order[i]] = i + 1;
+  // Cuts walk the node arrays front to back instead of jumping around (number_nodes).
+  const std::vector<std::uint32_t> node_of = number_nodes(collapse_error_);
   // Creator and remover node of every triangle, looked up once.
   GrowOnlyVector<std::uint32_t> creators(mt_count), removers(mt_count);  // written below
   for_chunks(mt_count, [&](std::size_t, std::size_t begin, std::size_t end) {
@@ -1147,7 +1115,7 @@ Mt Builder::assemble(std::vector<std::uint32_t>* vertex_ids) {
   return mt;
 }
 
-Result<Mt> Builder::run(BuildStats* stats, std::vector<std::uint32_t>* vertex_ids) {
+Status Builder::prepare() {
   vertex_count_ = mesh_.vertex_count();
   face_count_ = mesh_.triangle_count();
   if (mesh_.positions.size() % 3 != 0 || mesh_.triangles.size() % 3 != 0)
@@ -1169,6 +1137,7 @@ Result<Mt> Builder::run(BuildStats* stats, std::vector<std::uint32_t>* vertex_id
       return make_error(ErrorCode::kInvalidArgument, "triangle " + std::to_string(i / 3) + " has vertex id " +
                                                          std::to_string(mesh_.triangles[i]) +
                                                          " >= vertex count " + std::to_string(vertex_count_));
+  if (block_) MTLOD_RETURN_IF_ERROR(check_block());
 
   alive_faces_ = face_count_;
   // Three independent groups of arrays (each first touched here), filled concurrently.
@@ -1183,13 +1152,23 @@ Result<Mt> Builder::run(BuildStats* stats, std::vector<std::uint32_t>* vertex_id
       std::iota(face_mt_.begin(), face_mt_.end(), 0u);
       alive_face_list_.resize(face_count_);
       std::iota(alive_face_list_.begin(), alive_face_list_.end(), 0u);
-      face_error_.assign(face_count_, 0.0f);
+      if (block_ && !block_->face_error.empty()) {
+        face_error_ = block_->face_error;
+      } else {
+        face_error_.assign(face_count_, 0.0f);
+      }
       removing_collapse_.reserve(3 * face_count_);
       creating_collapse_.reserve(3 * face_count_);
       removing_collapse_.assign(face_count_, 0);
       creating_collapse_.assign(face_count_, 0);
       face_first_point_.assign(face_count_, 0);
       face_points_.assign(face_count_, 0);
+      if (block_ && !block_->face_points.empty()) {
+        face_points_ = block_->face_points;
+        std::uint32_t first = 0;
+        for (std::size_t f = 0; f < face_count_; ++f) face_first_point_[f] = first, first += face_points_[f];
+        points_ = std::move(block_->points);
+      }
     } else {
       // Vertices no face uses never enter the lists.
       std::vector<std::uint8_t> used(vertex_count_, 0);
@@ -1211,121 +1190,204 @@ Result<Mt> Builder::run(BuildStats* stats, std::vector<std::uint32_t>* vertex_id
     }
   });
   scratch_.resize(kChunks);
+  points_bound_ = points_.size() / 3 + used_vertices_;
+  if (block_) {
+    for (std::uint32_t v = 0; v < vertex_count_; ++v)
+      if (block_->locked[v]) kind_[v] = kLocked;
+  }
+  return Ok{};
+}
 
+void Builder::simplify() {
   build_adjacency();
   init_quadrics();
-
-  std::vector<std::uint32_t> boundary_ends(2 * vertex_count_);
+  boundary_ends_.resize(2 * vertex_count_);
   const double initial_faces = double(std::max<std::size_t>(face_count_, 1));
   for (;;) {
     ++pass_;
     if (pass_ > 1) build_adjacency();
-    // A vertex's kind only changes when its fan does, i.e. when the last pass touched it. An
-    // interior vertex touched only as a corner of one collapse stays interior: its cycle of
-    // neighbours had u replaced by v, or lost u next to v, and the link condition kept v out of
-    // the rest of the cycle.
-    for_chunks(alive_vertex_list_.size(), [&](std::size_t, std::size_t begin, std::size_t end) {
-      for (std::size_t i = begin; i < end; ++i) {
-        const std::uint32_t u = alive_vertex_list_[i];
-        if (pass_ == 1 ||
-            (touched_[u] == pass_ - 1 && (kind_[u] != kInterior || ring_target_[u] == kNoVertex)))
-          kind_[u] = classify(u, boundary_ends[2 * u], boundary_ends[2 * u + 1]);
-      }
-    });
-    // Each chunk of vertices counts its candidates, then places them after the earlier chunks':
-    // the candidates are in vertex order before the sort.
-    const std::size_t vertices = alive_vertex_list_.size();
-    chunk_complex_.resize(chunk_count(vertices));
-    const std::size_t total =
-        chunk_starts(vertices, [&](std::size_t chunk, std::size_t begin, std::size_t end) {
-          std::size_t found = 0, complex = 0;
-          for (std::size_t i = begin; i < end; ++i) {
-            const std::uint32_t u = alive_vertex_list_[i];
-            find_partner(u, boundary_ends.data());
-            found += best_[u].v != u;
-            complex += kind_[u] == kComplex;
-          }
-          chunk_complex_[chunk] = complex;
-          return found;
-        });
-    complex_vertices_ = std::accumulate(chunk_complex_.begin(), chunk_complex_.end(), std::size_t{0});
-    if (total == 0) break;
-    candidates_.resize(total);
-    for_chunks(vertices, [&](std::size_t chunk, std::size_t begin, std::size_t end) {
-      std::size_t next = chunk_counts_[chunk];
-      for (std::size_t i = begin; i < end; ++i)
-        if (const std::uint32_t u = alive_vertex_list_[i]; best_[u].v != u) candidates_[next++] = best_[u];
-    });
-    sort_by_cost(candidates_, candidate_scratch_);
-
-    // Choose in cost order; the quota counts candidates that took part in the order (chosen, or
-    // blocked by an earlier choice of this pass); invalid ones are skipped without using it up.
-    // A chosen collapse changes u's fan, so its corners are marked touched; a later choice never
-    // writes a face it wrote, and can_collapse's answer from the pass's start still holds (see
-    // choose_collapses).
-    const std::size_t quota =
-        std::max<std::size_t>(1, std::size_t(double(candidates_.size()) * options_.pass_fraction));
-    // Each pass moves every assigned point at most once; room for that keeps the pool's indices
-    // valid while chunks append to their chosen blocks.
-    if (points_.size() / 3 + used_vertices_ > 5 * used_vertices_) compact_assigned_points();
-    std::uint32_t point = std::uint32_t(points_.size() / 3);
-    choose_collapses(quota);
-    const std::uint32_t tag = std::uint32_t(collapse_u_.size() + chosen_.size()) + 1;
-    const std::uint32_t triangle = chosen_triangles_end_;
+    classify_vertices();
+    if (collect_candidates() == 0) break;
+    choose_collapses(pass_quota());
     const std::size_t collapses = chosen_.size();
-    // Run the collapses in vertex order: neighbouring collapses then share cache lines, and the
-    // pool's blocks follow the mesh. Tags and triangles keep the cost order. (A vertex is u of
-    // at most one collapse.)
-    radix_sort(chosen_, chosen_scratch_, [](const Chosen& c) { return c.u; });
-    // The points each collapse moves are counted here, concurrently (in the serial chooser each
-    // count was a cache miss per face).
-    for_chunks(chosen_.size(), [&](std::size_t, std::size_t begin, std::size_t end) {
-      for (std::size_t i = begin; i < end; ++i) {
-        Chosen& c = chosen_[i];
-        for (std::uint32_t j = adjacency_begin_[c.u]; j < adjacency_end_[c.u]; ++j)
-          c.first_point += face_points_[adjacency_[j].face];
-      }
-    });
-    // Collapses are chunked by work, not by count: the late passes make a few hundred collapses
-    // that each move thousands of assigned points. A collapse costs about as much as moving
-    // kFanWork points, besides the points it moves. Each gets its block of the pool meanwhile.
-    std::size_t total_work = 0;
-    for (const Chosen& c : chosen_) total_work += c.first_point + kFanWork;
-    const std::size_t chunks = std::clamp<std::size_t>(total_work / kMinChunkWork, 1, kChunks);
-    collapse_chunk_begin_.assign(1, 0);
-    std::size_t work = 0;
-    for (std::size_t i = 0; i < chosen_.size(); ++i) {
-      Chosen& c = chosen_[i];
-      work += c.first_point + kFanWork;
-      if (collapse_chunk_begin_.size() < chunks && work * chunks >= collapse_chunk_begin_.size() * total_work)
-        collapse_chunk_begin_.push_back(i + 1);
-      const std::uint32_t count = c.first_point;
-      c.first_point = point;
-      point += count;
-    }
-    collapse_chunk_begin_.push_back(chosen_.size());
-    collapse_u_.resize(tag - 1);
-    collapse_error_.resize(tag - 1);
-    mt_vertices_.resize(3 * std::size_t{triangle});
-    removing_collapse_.resize(triangle);
-    creating_collapse_.resize(triangle);
-    grow_pool(3 * std::size_t{point});
-    for_ranges(collapse_chunk_begin_.size() - 1, total_work, [&](std::size_t chunk) {
-      const std::size_t begin = collapse_chunk_begin_[chunk], end = collapse_chunk_begin_[chunk + 1];
-      for (std::size_t i = begin; i < end; ++i) {
-        // The collapses' data is scattered: ask for the next ones' early, in stages that each
-        // read what the stage before fetched.
-        if (i + 3 * kPrefetchAhead < end) prefetch_collapse(chosen_[i + 3 * kPrefetchAhead]);
-        if (i + 2 * kPrefetchAhead < end) prefetch_fan(chosen_[i + 2 * kPrefetchAhead].u);
-        if (i + kPrefetchAhead < end) prefetch_fan_data(chosen_[i + kPrefetchAhead].u);
-        collapse(chosen_[i], scratch_[chunk]);
-      }
-    });
+    place_collapses();
+    run_collapses();
     if (options_.progress)
       options_.progress(options_.progress_user, 1.0 - double(alive_faces_) / initial_faces);
-    if (collapses == 0 || alive_faces_ <= options_.min_triangles) break;
+    if (collapses == 0 || alive_faces_ <= target_triangles_) break;
   }
+}
 
+void Builder::classify_vertices() {
+  // A vertex's kind only changes when its fan does, i.e. when the last pass touched it. An
+  // interior vertex touched only as a corner of one collapse stays interior: its cycle of
+  // neighbours had u replaced by v, or lost u next to v, and the link condition kept v out of
+  // the rest of the cycle.
+  for_chunks(alive_vertex_list_.size(), [&](std::size_t, std::size_t begin, std::size_t end) {
+    for (std::size_t i = begin; i < end; ++i) {
+      const std::uint32_t u = alive_vertex_list_[i];
+      if (kind_[u] == kLocked) continue;
+      if (pass_ == 1 || (touched_[u] == pass_ - 1 && (kind_[u] != kInterior || ring_target_[u] == kNoVertex)))
+        kind_[u] = classify(u, boundary_ends_[2 * u], boundary_ends_[2 * u + 1]);
+    }
+  });
+}
+
+std::size_t Builder::collect_candidates() {
+  // Each chunk of vertices counts its candidates, then places them after the earlier chunks':
+  // the candidates are in vertex order before the sort.
+  const std::size_t vertices = alive_vertex_list_.size();
+  chunk_complex_.resize(chunk_count(vertices));
+  const std::size_t total =
+      chunk_starts(vertices, [&](std::size_t chunk, std::size_t begin, std::size_t end) {
+        std::size_t found = 0, complex = 0;
+        for (std::size_t i = begin; i < end; ++i) {
+          const std::uint32_t u = alive_vertex_list_[i];
+          find_partner(u, boundary_ends_.data());
+          found += best_[u].v != u;
+          complex += kind_[u] == kComplex;
+        }
+        chunk_complex_[chunk] = complex;
+        return found;
+      });
+  complex_vertices_ = std::accumulate(chunk_complex_.begin(), chunk_complex_.end(), std::size_t{0});
+  if (total == 0) return 0;
+  candidates_.resize(total);
+  for_chunks(vertices, [&](std::size_t chunk, std::size_t begin, std::size_t end) {
+    std::size_t next = chunk_counts_[chunk];
+    for (std::size_t i = begin; i < end; ++i)
+      if (const std::uint32_t u = alive_vertex_list_[i]; best_[u].v != u) candidates_[next++] = best_[u];
+  });
+  sort_by_cost(candidates_, candidate_scratch_);
+  return total;
+}
+
+std::size_t Builder::pass_quota() {
+  // Choose in cost order; the quota counts candidates that took part in the order (chosen, or
+  // blocked by an earlier choice of this pass); invalid ones are skipped without using it up.
+  // A chosen collapse changes u's fan, so its corners are marked touched; a later choice never
+  // writes a face it wrote, and can_collapse's answer from the pass's start still holds (see
+  // choose_collapses).
+  return std::max<std::size_t>(1, std::size_t(double(candidates_.size()) * options_.pass_fraction));
+}
+
+void Builder::place_collapses() {
+  // Each pass moves every assigned point at most once; room for that keeps the pool's indices
+  // valid while chunks append to their chosen blocks.
+  if (points_.size() / 3 + points_bound_ > (block_ ? kBlockPoolSlack : kPoolSlack) * points_bound_)
+    compact_assigned_points();
+  std::uint32_t point = std::uint32_t(points_.size() / 3);
+  const std::uint32_t tag = std::uint32_t(collapse_u_.size() + chosen_.size()) + 1;
+  const std::uint32_t triangle = chosen_triangles_end_;
+  // Run the collapses in vertex order: neighbouring collapses then share cache lines, and the
+  // pool's blocks follow the mesh. Tags and triangles keep the cost order. (A vertex is u of
+  // at most one collapse.)
+  radix_sort(chosen_, chosen_scratch_, [](const Chosen& c) { return c.u; });
+  // The points each collapse moves, counted concurrently.
+  for_chunks(chosen_.size(), [&](std::size_t, std::size_t begin, std::size_t end) {
+    for (std::size_t i = begin; i < end; ++i) {
+      Chosen& c = chosen_[i];
+      for (std::uint32_t j = adjacency_begin_[c.u]; j < adjacency_end_[c.u]; ++j)
+        c.first_point += face_points_[adjacency_[j].face];
+    }
+  });
+  // Collapses are chunked by work, not by count: the late passes make a few hundred collapses
+  // that each move thousands of assigned points. A collapse costs about as much as moving
+  // kFanWork points, besides the points it moves. Each gets its block of the pool meanwhile.
+  collapse_work_ = 0;
+  for (const Chosen& c : chosen_) collapse_work_ += c.first_point + kFanWork;
+  const std::size_t chunks = std::clamp<std::size_t>(collapse_work_ / kMinChunkWork, 1, kChunks);
+  collapse_chunk_begin_.assign(1, 0);
+  std::size_t work = 0;
+  for (std::size_t i = 0; i < chosen_.size(); ++i) {
+    Chosen& c = chosen_[i];
+    work += c.first_point + kFanWork;
+    if (collapse_chunk_begin_.size() < chunks &&
+        work * chunks >= collapse_chunk_begin_.size() * collapse_work_)
+      collapse_chunk_begin_.push_back(i + 1);
+    const std::uint32_t count = c.first_point;
+    c.first_point = point;
+    point += count;
+  }
+  collapse_chunk_begin_.push_back(chosen_.size());
+  collapse_u_.resize(tag - 1);
+  collapse_error_.resize(tag - 1);
+  mt_vertices_.resize(3 * std::size_t{triangle});
+  removing_collapse_.resize(triangle);
+  creating_collapse_.resize(triangle);
+  grow_pool(3 * std::size_t{point});
+}
+
+void Builder::run_collapses() {
+  for_ranges(collapse_chunk_begin_.size() - 1, collapse_work_, [&](std::size_t chunk) {
+    const std::size_t begin = collapse_chunk_begin_[chunk], end = collapse_chunk_begin_[chunk + 1];
+    for (std::size_t i = begin; i < end; ++i) {
+      // The collapses' data is scattered: ask for the next ones' early, in stages that each
+      // read what the stage before fetched.
+      if (i + 3 * kPrefetchAhead < end) prefetch_collapse(chosen_[i + 3 * kPrefetchAhead]);
+      if (i + 2 * kPrefetchAhead < end) prefetch_fan(chosen_[i + 2 * kPrefetchAhead].u);
+      if (i + kPrefetchAhead < end) prefetch_fan_data(chosen_[i + kPrefetchAhead].u);
+      collapse(chosen_[i], scratch_[chunk]);
+    }
+  });
+}
+
+Status Builder::check_block() const {
+  const BlockInput& block = *block_;
+  auto invalid = [](const std::string& what) {
+    return make_error(ErrorCode::kInvalidArgument, "block: " + what);
+  };
+  if (block.locked.size() != vertex_count_) return invalid("locked flags do not match the vertex count");
+  if (!block.face_error.empty()) {
+    if (block.face_error.size() != face_count_) return invalid("face errors do not match the face count");
+    for (const float e : block.face_error)
+      if (!(e >= 0 && std::isfinite(e))) return invalid("a face error is negative or not finite");
+  }
+  std::uint64_t points = 0;
+  if (!block.face_points.empty()) {
+    if (block.face_points.size() != face_count_) return invalid("point counts do not match the face count");
+    for (const std::uint32_t n : block.face_points) points += n;
+  }
+  if (3 * points != block.points.size()) return invalid("points do not match their counts");
+  if (points + vertex_count_ >= kNoVertex) return invalid("too many points for 32-bit ids");
+  for (const float x : block.points)
+    if (!std::isfinite(x)) return invalid("a point has a non-finite coordinate");
+  return Ok{};
+}
+
+BlockOutput Builder::export_block() {
+  BlockOutput out;
+  out.collapse_u = std::move(collapse_u_);
+  out.collapse_error = std::move(collapse_error_);
+  out.made_triangles.assign(mt_vertices_.begin() + 3 * std::ptrdiff_t(face_count_), mt_vertices_.end());
+  out.made_by.assign(removing_collapse_.begin() + std::ptrdiff_t(face_count_), removing_collapse_.end());
+  out.taken_by.assign(creating_collapse_.begin(), creating_collapse_.end());
+  for (std::size_t f = 0; f < face_count_; ++f) {
+    if (!face_alive_[f]) continue;
+    out.remaining.push_back(face_mt_[f]);
+    out.remaining_error.push_back(face_error_[f]);
+    out.remaining_points.push_back(face_points_[f]);
+  }
+  // Compacted, the pool holds the alive faces' runs in face order (the dead ones hold none).
+  compact_assigned_points();
+  GrowOnlyVector<float>().swap(points_scratch_);
+  out.points = std::move(points_);
+  out.passes = pass_;
+  out.complex_vertices = complex_vertices_;
+  return out;
+}
+
+Result<BlockOutput> Builder::run_block(std::size_t target_triangles) {
+  target_triangles_ = target_triangles;
+  MTLOD_RETURN_IF_ERROR(prepare());
+  simplify();
+  return export_block();
+}
+
+Result<Mt> Builder::run(BuildStats* stats, std::vector<std::uint32_t>* vertex_ids) {
+  target_triangles_ = options_.min_triangles;
+  MTLOD_RETURN_IF_ERROR(prepare());
+  simplify();
   Mt mt = assemble(vertex_ids);
   if (stats) {
     stats->input_triangles = face_count_;
@@ -1347,6 +1409,28 @@ Result<Mt> build_mt(const Mesh& mesh, const BuildOptions& options, BuildStats* s
                     std::vector<std::uint32_t>* vertex_ids) {
   Builder builder(mesh, options);
   return builder.run(stats, vertex_ids);
+}
+
+std::vector<std::uint32_t> number_nodes(std::span<const float> collapse_error) {
+  const std::uint32_t k = std::uint32_t(collapse_error.size());
+  std::vector<std::uint32_t> order(k), order_scratch;
+  for (std::uint32_t c = 0; c < k; ++c) order[c] = k - 1 - c;  // coarsest collapse first
+  radix_sort(order, order_scratch, [&](std::uint32_t c) {
+    // Errors are never negative, so their bits order like them (-0 taken as 0).
+    const float e = collapse_error[c];
+    std::uint32_t bits = 0;
+    if (e > 0) std::memcpy(&bits, &e, sizeof bits);
+    return ~bits;
+  });
+  std::vector<std::uint32_t> node_of(k);
+  for (std::uint32_t i = 0; i < k; ++i) node_of[order[i]] = i + 1;
+  return node_of;
+}
+
+Result<BlockOutput> simplify_block(BlockInput&& input, std::size_t target_triangles,
+                                   const BuildOptions& options) {
+  Builder builder(input.mesh, options, &input);
+  return builder.run_block(target_triangles);
 }
 
 }  // namespace mtlod::core

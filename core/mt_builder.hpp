@@ -5,8 +5,10 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <span>
 #include <vector>
 
+#include "core/grow_only_vector.hpp"
 #include "core/mesh.hpp"
 #include "core/mt.hpp"
 #include "core/result.hpp"
@@ -61,5 +63,48 @@ struct BuildStats {
 // the MT id of every input vertex.
 Result<Mt> build_mt(const Mesh& mesh, const BuildOptions& options = {}, BuildStats* stats = nullptr,
                     std::vector<std::uint32_t>* vertex_ids = nullptr);
+
+// The MT node of each collapse, given the collapses' errors in the order they were made (fine →
+// coarse): nodes by decreasing error, ties by reverse collapse order. This is a topological order
+// (a parent's error is at least its child's, and on a tie the parent collapsed later), and it makes
+// the static cut for a uniform threshold e a prefix: the root and every node with error > e.
+std::vector<std::uint32_t> number_nodes(std::span<const float> collapse_error);
+
+// One block of an out-of-core build (core/io/large_build.hpp, core/io/LARGE_BUILD.md): a part of
+// the working mesh, simplified by the same collapses as build_mt with its border vertices locked,
+// starting from the state earlier blocks left its faces in.
+struct BlockInput {
+  Mesh mesh;                               // the block's faces over its own vertex ids
+  std::vector<std::uint8_t> locked;        // per vertex, 1: never collapsed and never a collapse's target
+  std::vector<float> face_error;           // per face, the error of the collapse that made it; empty: 0
+  std::vector<std::uint32_t> face_points;  // per face, how many removed input vertices it carries
+  GrowOnlyVector<float> points;            // their positions (x, y, z), face after face; empty: none
+};
+
+// The simplification sequence of one block and the state it leaves. The block's input faces are its
+// triangles 0 … F−1, and the collapses make triangles F, F+1, … in order. A collapse is named by
+// its tag, its index + 1 (0: none). In MT terms collapse c's node removes the triangles c made and
+// creates those c took away.
+struct BlockOutput {
+  std::vector<std::uint32_t> collapse_u;      // the vertex each collapse removed (block ids)
+  std::vector<float> collapse_error;          // global error of each collapse, model units
+  std::vector<std::uint32_t> made_triangles;  // 3 block vertex ids per triangle the collapses made
+  std::vector<std::uint32_t> made_by;         // per made triangle, the tag of the collapse that made it
+  std::vector<std::uint32_t> taken_by;        // per triangle (input, then made), the tag that took it away
+  // The faces left, as triangle indices, with their errors and carried points (as in BlockInput).
+  std::vector<std::uint32_t> remaining;
+  std::vector<float> remaining_error;
+  std::vector<std::uint32_t> remaining_points;
+  GrowOnlyVector<float> points;
+  std::size_t passes = 0;
+  std::size_t complex_vertices = 0;
+};
+
+// Simplifies input until at most target_triangles faces remain or no collapse is valid
+// (options.min_triangles is not used). Fails as build_mt does, and with kInvalidArgument when the
+// block's arrays do not match its mesh. The points move into the builder and on to the output: a
+// block near the top of a large build carries most of the model's removed vertices.
+Result<BlockOutput> simplify_block(BlockInput&& input, std::size_t target_triangles,
+                                   const BuildOptions& options = {});
 
 }  // namespace mtlod::core

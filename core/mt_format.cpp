@@ -18,7 +18,7 @@ constexpr char kMagic[8] = {'M', 'T', 'L', 'O', 'D', 'M', 'T', '\0'};
 constexpr std::uint32_t kFlagNormals = 1u << 0;
 constexpr std::uint32_t kFlagColors = 1u << 1;
 // The checksum field sits inside the checksummed bytes and is read as zero, so writers fill it last.
-constexpr std::uint64_t kChecksumOffset = 48;
+constexpr std::uint64_t kChecksumOffset = kMtChecksumOffset;
 constexpr std::uint64_t kFnvPrime = 0x100000001b3ull;
 
 // Every array starts 4-byte aligned so a memory map can be read as u32/f32 arrays in place.
@@ -176,16 +176,43 @@ std::uint64_t mt_checksum(std::span<const std::uint8_t> bytes, std::uint64_t see
   return h;
 }
 
-void serialize_mt(const Mt& mt, std::vector<std::uint8_t>& out) {
-  out.clear();
+namespace {
+
+Counts counts_of(const MtCounts& m) {
   Counts c;
-  c.flags = (mt.has_normals() ? kFlagNormals : 0) | (mt.has_colors() ? kFlagColors : 0);
-  c.vertices = std::uint32_t(mt.vertex_count());
-  c.nodes = std::uint32_t(mt.node_count());
-  c.triangles = std::uint32_t(mt.triangle_count());
-  c.root_triangles = std::uint32_t(mt.root_triangle_count());
-  c.parents = std::uint32_t(mt.node_parents.size());
-  out.reserve(kMtHeaderBytes + payload_bytes(c));
+  c.flags = (m.normals ? kFlagNormals : 0) | (m.colors ? kFlagColors : 0);
+  c.vertices = m.vertices;
+  c.nodes = m.nodes;
+  c.triangles = m.triangles;
+  c.root_triangles = m.root_triangles;
+  c.parents = m.parents;
+  return c;
+}
+
+}  // namespace
+
+MtLayout mt_layout(const MtCounts& counts) {
+  const Counts c = counts_of(counts);
+  const std::uint64_t v = c.vertices, n = c.nodes, t = c.triangles;
+  MtLayout l{};
+  l.positions = kMtHeaderBytes;
+  l.normals = l.positions + 12 * v;
+  l.colors = l.normals + (counts.normals ? 12 * v : 0);
+  l.node_vertex = l.colors + (counts.colors ? pad4(3 * v) : 0);
+  l.node_error = l.node_vertex + 4 * n;
+  l.node_triangle_offsets = l.node_error + 4 * n;
+  l.node_parent_offsets = l.node_triangle_offsets + 4 * (n + 1);
+  l.node_parents = l.node_parent_offsets + 4 * (n + 1);
+  l.triangle_corners = l.node_parents + 4 * std::uint64_t{c.parents};
+  l.root_first_corner = l.triangle_corners + 8 * t;
+  l.triangle_remover = l.root_first_corner + 4 * std::uint64_t{c.root_triangles};
+  l.end = l.triangle_remover + 4 * t;
+  return l;
+}
+
+std::array<std::uint8_t, kMtHeaderBytes> mt_header(const MtCounts& counts) {
+  const Counts c = counts_of(counts);
+  std::vector<std::uint8_t> out;
   out.resize(8);
   std::memcpy(out.data(), kMagic, 8);
   put32(out, kMtFormatVersion);
@@ -197,8 +224,27 @@ void serialize_mt(const Mt& mt, std::vector<std::uint8_t>& out) {
   put32(out, c.parents);
   put32(out, 0);  // reserved
   put64(out, payload_bytes(c));
-  put64(out, 0);  // checksum, filled below
+  put64(out, 0);  // checksum, filled last
   put64(out, 0);  // reserved
+  std::array<std::uint8_t, kMtHeaderBytes> header;
+  std::copy(out.begin(), out.end(), header.begin());
+  return header;
+}
+
+void serialize_mt(const Mt& mt, std::vector<std::uint8_t>& out) {
+  MtCounts counts;
+  counts.normals = mt.has_normals();
+  counts.colors = mt.has_colors();
+  counts.vertices = std::uint32_t(mt.vertex_count());
+  counts.nodes = std::uint32_t(mt.node_count());
+  counts.triangles = std::uint32_t(mt.triangle_count());
+  counts.root_triangles = std::uint32_t(mt.root_triangle_count());
+  counts.parents = std::uint32_t(mt.node_parents.size());
+  const Counts c = counts_of(counts);
+  const auto header = mt_header(counts);
+  out.clear();
+  out.reserve(kMtHeaderBytes + payload_bytes(c));
+  out.assign(header.begin(), header.end());
   put_array(out, mt.positions);
   if (c.flags & kFlagNormals) put_array(out, mt.normals);
   if (c.flags & kFlagColors) put_array(out, mt.colors);
