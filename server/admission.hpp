@@ -83,10 +83,6 @@ class MemoryCeiling {
   std::atomic<std::uint64_t> held_{0};
 };
 
-// Half the memory this process may use: the machine's RAM or the cgroup's limit (a container's),
-// whichever is smaller. The rest is left to the models, the allocator and the system.
-std::uint64_t default_memory_limit();
-
 class FairScheduler {
  public:
   // Runs at most `slots` jobs at once on `pool`.

@@ -11,6 +11,7 @@
 #include <random>
 #include <thread>
 
+#include "core/io/memory_limit.hpp"
 #include "fmt/format.h"
 #include "protocol/frame.hpp"
 #include "protocol/replies.hpp"
@@ -61,7 +62,7 @@ struct Server::Impl {
   Impl(ServerConfig c, const ModelRegistry& m)
       : config(with_memory_limit(std::move(c))), models(m), engine(m) {}
   static ServerConfig with_memory_limit(ServerConfig c) {
-    if (c.limits.max_memory_bytes == 0) c.limits.max_memory_bytes = default_memory_limit();
+    if (c.limits.max_memory_bytes == 0) c.limits.max_memory_bytes = core::io::default_memory_limit();
     return c;
   }
 

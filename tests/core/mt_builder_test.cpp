@@ -150,6 +150,11 @@ TEST(MtBuilder, AllNodesReproduceTheInputAndTheRootIsAConformingCoarsestMesh) {
   for (const char* file :
        {"bunny-npm-3k.ply", "dragon-vrip-res4-11k.ply", "bunny-zipper-69k.ply", "armadillo-52k.ply"})
     if (const MtCase* c = test::scan_case(file)) cases.push_back(c);
+  // Built out of core in blocks (core/io/large_build.hpp): the same guarantees.
+  cases.push_back(test::large_case(
+      "shell-8k/1000", generate_mesh({.shape = Shape::kShell, .target_triangles = 8'000}), 1'000));
+  for (const char* file : {"dragon-vrip-res4-11k.ply", "armadillo-52k.ply"})
+    if (const MtCase* c = test::large_scan_case(file, 3'000)) cases.push_back(c);
   for (const MtCase* c : cases) {
     ASSERT_NE(c, nullptr);
     expect_valid_dag(c->mt);

@@ -9,7 +9,9 @@
 #include <vector>
 
 #include "core/eval/mesh_gen.hpp"
+#include "core/io/large_build.hpp"
 #include "core/io/mesh_io.hpp"
+#include "core/io/mt_file.hpp"
 #include "core/mt_builder.hpp"
 #include "tests/core/cut_validator.hpp"
 #include "tests/core/test_meshes.hpp"
@@ -64,6 +66,35 @@ inline const MtCase* build_case(const std::string& key, core::Mesh mesh) {
   return slot.get();
 }
 
+// The same mesh built out of core (core/io/large_build.hpp) in leaf blocks of block_triangles, through
+// a PLY file and an .mt file; mesh is kept numbered as the MT numbers its vertices.
+inline const MtCase* large_case(const std::string& key, core::Mesh mesh, std::size_t block_triangles) {
+  static std::map<std::string, std::unique_ptr<MtCase>> cache;
+  auto& slot = cache[key];
+  if (!slot) {
+    const auto dir = scratch_dir("large-case");
+    const auto ply = dir / "input.ply", mt_path = dir / "output.mt";
+    EXPECT_TRUE(core::io::save_mesh(ply, mesh).ok()) << key;
+    std::vector<std::uint32_t> ids;
+    core::io::LargeBuildOptions options;
+    options.block_triangles = block_triangles;
+    options.vertex_ids = &ids;
+    const auto built = core::io::build_mt_file(ply, mt_path, options);
+    EXPECT_TRUE(built.ok()) << key << ": " << (built.ok() ? "" : built.error().message);
+    if (!built.ok()) return nullptr;
+    auto mt = core::io::read_mt_file(mt_path);
+    EXPECT_TRUE(mt.ok()) << key << ": " << (mt.ok() ? "" : mt.error().message);
+    if (!mt.ok()) return nullptr;
+    auto c = std::make_unique<MtCase>();
+    c->mesh = std::move(mesh);
+    renumber_like_mt(c->mesh, ids);
+    c->mt = std::move(mt).value();
+    c->reference = make_reference(c->mesh);
+    slot = std::move(c);
+  }
+  return slot.get();
+}
+
 // A shared scan, loaded with the default clean-up (as mtlod-build does); null when absent.
 inline const MtCase* scan_case(const std::string& file) {
   const auto path = shared_meshes_dir() / file;
@@ -72,6 +103,16 @@ inline const MtCase* scan_case(const std::string& file) {
   EXPECT_TRUE(loaded.ok()) << file;
   if (!loaded.ok()) return nullptr;
   return build_case(file, std::move(loaded->mesh));
+}
+
+// A shared scan (cleaned as scan_case does) built out of core in blocks; null when absent.
+inline const MtCase* large_scan_case(const std::string& file, std::size_t block_triangles) {
+  const auto path = shared_meshes_dir() / file;
+  if (!std::filesystem::exists(path)) return nullptr;
+  auto loaded = core::io::load_mesh(path);
+  EXPECT_TRUE(loaded.ok()) << file;
+  if (!loaded.ok()) return nullptr;
+  return large_case(file + "/" + std::to_string(block_triangles), std::move(loaded->mesh), block_triangles);
 }
 
 // A synthetic shape of about the given size.

@@ -10,6 +10,8 @@
 #include <limits>
 #include <random>
 #include <set>
+#include <string>
+#include <string_view>
 #include <vector>
 
 #include "core/cut_delta.hpp"
@@ -84,6 +86,14 @@ std::vector<float> focus_field(const Mesh& mesh, std::mt19937& rng, float fine, 
     field[v] = fine + (coarse - fine) * std::min(1.0f, d / radius);
   }
   return field;
+}
+
+// "FILE": a shared scan built by build_mt; "large:FILE": the same scan built out of core in blocks of
+// 3,000 triangles (core/io/large_build.hpp). Null when the file is absent.
+const MtCase* scan_or_large_case(std::string_view name) {
+  constexpr std::string_view kLarge = "large:";
+  if (name.starts_with(kLarge)) return test::large_scan_case(std::string(name.substr(kLarge.size())), 3'000);
+  return test::scan_case(std::string(name));
 }
 
 // Independent per-vertex noise: the harshest case for dynamic refinement (no spatial coherence).
@@ -239,9 +249,11 @@ TEST(Refine, UniformStaticEqualsTheNaiveFixpoint) {
 TEST(Refine, RandomThresholdsGiveConformingCutsOnRealScans) {
   std::mt19937 rng(11);
   int meshes = 0;
-  for (const char* file : {"bunny-npm-3k.ply", "dragon-vrip-res4-11k.ply", "lucy-15k.ply",
-                           "armadillo-52k.ply", "bunny-zipper-69k.ply"}) {
-    const MtCase* c = test::scan_case(file);
+  for (const char* name :
+       {"bunny-npm-3k.ply", "dragon-vrip-res4-11k.ply", "lucy-15k.ply", "armadillo-52k.ply",
+        "bunny-zipper-69k.ply", "large:dragon-vrip-res4-11k.ply", "large:armadillo-52k.ply"}) {
+    const MtCase* c = scan_or_large_case(name);
+    const char* file = name;
     if (!c) continue;
     ++meshes;
     const float top = max_node_error(c->mt);
@@ -268,9 +280,10 @@ TEST(Refine, RandomThresholdsGiveConformingCutsOnRealScans) {
 // distances). The 1e-5 relative slack covers float rounding of positions inside the distance.
 TEST(Refine, EveryInputVertexIsWithinTheThresholdOfTheCut) {
   int meshes = 0;
-  for (const char* file : {"bunny-npm-3k.ply", "lucy-15k.ply", "armadillo-52k.ply", "bunny-zipper-69k.ply",
-                           "dragon-vrip-res4-11k.ply"}) {
-    const MtCase* c = test::scan_case(file);
+  for (const char* file :
+       {"bunny-npm-3k.ply", "lucy-15k.ply", "armadillo-52k.ply", "bunny-zipper-69k.ply",
+        "dragon-vrip-res4-11k.ply", "large:dragon-vrip-res4-11k.ply", "large:armadillo-52k.ply"}) {
+    const MtCase* c = scan_or_large_case(file);
     if (!c) continue;
     ++meshes;
     const float diagonal = bbox_diagonal(c->mesh);
@@ -447,8 +460,9 @@ void expect_dynamic_matches_static(const MtCase* c, std::uint32_t seed, int step
 
 TEST(Refine, DynamicEqualsStaticAfterRandomSequences) {
   int meshes = 0;
-  for (const char* file : {"bunny-npm-3k.ply", "dragon-vrip-res4-11k.ply", "armadillo-52k.ply"}) {
-    if (const MtCase* c = test::scan_case(file)) {
+  for (const char* file : {"bunny-npm-3k.ply", "dragon-vrip-res4-11k.ply", "armadillo-52k.ply",
+                           "large:dragon-vrip-res4-11k.ply"}) {
+    if (const MtCase* c = scan_or_large_case(file)) {
       ++meshes;
       expect_dynamic_matches_static(c, 17, 40);
     }

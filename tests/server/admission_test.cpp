@@ -8,6 +8,8 @@
 #include <condition_variable>
 #include <thread>
 
+#include "core/io/memory_limit.hpp"
+
 namespace mtlod::server {
 namespace {
 
@@ -112,7 +114,7 @@ TEST(MemoryCeiling, ReservesUpToTheLimitAndNoFurther) {
 }
 
 TEST(MemoryCeiling, DefaultIsHalfOfWhatTheProcessMayUse) {
-  const std::uint64_t limit = default_memory_limit();
+  const std::uint64_t limit = core::io::default_memory_limit();
   EXPECT_GT(limit, std::uint64_t{64} << 20);
   const long pages = ::sysconf(_SC_PHYS_PAGES), page = ::sysconf(_SC_PAGE_SIZE);
   EXPECT_LE(limit, std::uint64_t(pages) * std::uint64_t(page) / 2);
