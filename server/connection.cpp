@@ -13,6 +13,7 @@
 #include "protocol/parse.hpp"
 #include "protocol/replies.hpp"
 #include "protocol/text.hpp"
+#include "server/log.hpp"
 #include "spdlog/spdlog.h"
 
 namespace mtlod::server {
@@ -328,14 +329,8 @@ void Connection::finish_reply(const Job& job, std::int64_t started_ns, ExtractRe
       reply.focus =
           std::array<double, 2>{job.extract.criteria.focus.front().x, job.extract.criteria.focus.front().y};
     }
-    const auto& t = reply.timings;
-    spdlog::info(
-        "conn={} id={} {} model={} triangles={} bytes={} max_error={:.4g} us: queue={} map={} occupancy={} "
-        "dt={} labels={} refine={} encode={} total={}",
-        number_, job.id, job.gaze ? "gaze" : "extract", reply.model, reply.triangles, reply.bytes,
-        reply.max_error, t.queue_us, t.map_us, t.occupancy_us, t.dt_us, t.labels_us, t.refine_us, t.encode_us,
-        t.total_us);
-    server_.metrics.extraction(t, reply.triangles, job.gaze);
+    log_extraction(number_, job.id, job.gaze, reply);
+    server_.metrics.extraction(reply.timings, reply.triangles, job.gaze);
     replies_.fill(job.seq, make_frame(reply, job.id, result.payload));
   }
 }

@@ -10,6 +10,7 @@
 
 #include "CLI/CLI.hpp"
 #include "server/auth.hpp"
+#include "server/log.hpp"
 #include "server/model_registry.hpp"
 #include "server/server.hpp"
 #include "spdlog/spdlog.h"
@@ -104,9 +105,18 @@ int main(int argc, char** argv) {
       "a hello with a valid token (WebSocket: /ws?token=) and see only their token's models (all "
       "when none is listed)");
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error or off")->capture_default_str();
+  std::string log_format = "text";
+  app.add_option("--log-format", log_format,
+                 "text, or json: one JSON object per line (time, level, msg; extraction lines carry their "
+                 "fields as members)")
+      ->check(CLI::IsMember({"text", "json"}))
+      ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
 
   spdlog::set_level(spdlog::level::from_str(log_level));
+  server::LogFormat format = server::LogFormat::kText;
+  server::parse_log_format(log_format, format);
+  server::setup_logging(format);
   if (name.empty()) {
     char host[256] = {};
     name = ::gethostname(host, sizeof host - 1) == 0 ? host : "mtlod";
@@ -119,7 +129,6 @@ int main(int argc, char** argv) {
     if (name.empty()) name = "mtlod";
   }
   config.instance = server::instance_id(name);
-  spdlog::set_pattern("%Y-%m-%dT%H:%M:%S.%e %^%l%$ %v");
 
   server::ModelRegistry registry;
   auto check = [](const Status& status) {
