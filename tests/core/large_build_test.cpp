@@ -30,8 +30,8 @@ using core::io::LargeBuildOptions;
 using core::io::LargeBuildStats;
 
 std::vector<std::uint8_t> file_bytes(const std::filesystem::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+  const std::string bytes = test::read_file(path);
+  return {bytes.begin(), bytes.end()};
 }
 
 // The file build_mt_file writes for mesh (saved as PLY first) with these options.

@@ -4,6 +4,8 @@
 #include <unistd.h>
 
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <string>
 #include <vector>
 
@@ -37,6 +39,15 @@ inline std::filesystem::path scratch_dir(const std::string& name) {
   static Cleanup cleanup;
   cleanup.dirs.push_back(dir);
   return dir;
+}
+
+// A file's bytes, and a file written with given bytes (test inputs made by hand).
+inline std::string read_file(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+inline void write_file(const std::filesystem::path& path, const std::string& bytes) {
+  std::ofstream(path, std::ios::binary) << bytes;
 }
 
 // Regular tetrahedron, outward: closed 2-manifold, V=4 E=6 F=4, Euler characteristic 2.
