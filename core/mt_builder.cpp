@@ -60,6 +60,7 @@ constexpr std::size_t kGuessLead = 16;
 // out-of-core build may carry most of the model's points).
 constexpr std::size_t kPoolSlack = 5;
 constexpr std::size_t kBlockPoolSlack = 2;
+constexpr std::size_t kKeptMovingPoints = std::size_t{1} << 16;
 
 // Zero when value-initialised (Quadric{}); left unset by default so big arrays of them are not
 // filled on one thread before the concurrent loop that writes them.
@@ -980,6 +981,9 @@ void Builder::compact_assigned_points() {
     }
   });
   points_.swap(points_scratch_);
+  // A block of an out-of-core build may carry most of the model's points: it gives the old pool
+  // back rather than keep it for the next compaction (peak: the pool, its slack and one copy).
+  if (block_) GrowOnlyVector<float>().swap(points_scratch_);
 }
 
 Mt Builder::assemble(std::vector<std::uint32_t>* vertex_ids) {
@@ -1330,6 +1334,11 @@ void Builder::run_collapses() {
       collapse(chosen_[i], scratch_[chunk]);
     }
   });
+  // Near the top of a large build one collapse can move millions of points; a block does not keep
+  // that much scratch per chunk for the passes after.
+  if (block_)
+    for (Scratch& scratch : scratch_)
+      if (scratch.moving.capacity() > kKeptMovingPoints) std::vector<Moving>().swap(scratch.moving);
 }
 
 Status Builder::check_block() const {

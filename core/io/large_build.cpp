@@ -42,24 +42,30 @@ namespace {
 namespace fs = std::filesystem;
 
 // Estimated peak bytes: per face of a stage (the builder's arrays, the block's input and output),
-// per vertex of the model while blocks are simplified (leaf ranges, mapped positions), per point a
-// stage carries (input, pool with its slack, output), and per vertex while the MT is assembled.
-// Measured against peak RSS in tests/bench/BENCHMARKS.md, "Out-of-core build".
-constexpr std::uint64_t kStageBytesPerFace = 400;
+// per vertex of the model while blocks are simplified (leaf ranges), per point a stage carries (the
+// pool with its slack and a compaction's copy), and per vertex while the MT is assembled. Checked
+// against peak RSS under several limits (tests/bench/BENCHMARKS.md, "Scaling").
+constexpr std::uint64_t kStageBytesPerFace = 450;
 constexpr std::uint64_t kBytesPerVertex = 8;
-constexpr std::uint64_t kBytesPerPoint = 36;
+constexpr std::uint64_t kBytesPerPoint = 48;
+// The process itself: code, libraries, chunk buffers, allocator slack and huge-page rounding.
+constexpr std::uint64_t kFixedBytes = std::uint64_t{128} << 20;
 constexpr std::uint64_t kAssemblyBytesPerVertex = 48;
 // The least and most faces a leaf block gets when derived from the memory limit.
 constexpr std::uint64_t kMinBlockTriangles = 4096;
 constexpr std::uint64_t kMaxBlockTriangles = std::uint64_t{1} << 20;
-// Centroid cells: 2^8 per axis, numbered in Morton order (24 bits).
-constexpr int kCellBits = 8;
+// Centroid cells: 2^7 per axis, numbered in Morton order (21 bits): fine enough for blocks of a
+// few thousand faces, and the two per-cell arrays take 16 MiB.
+constexpr int kCellBits = 7;
 constexpr std::size_t kCells = std::size_t{1} << (3 * kCellBits);
 // Leaf files written at once by one pass over the faces (each with its own buffer).
 constexpr std::size_t kLeavesPerPass = 256;
 constexpr std::size_t kChunkTriangles = std::size_t{1} << 20;
-// Triangles per bucket of the placement pass: 16 bytes each on disk, 12 in memory when written.
-constexpr std::uint64_t kBucketTriangles = std::uint64_t{16} << 20;
+// Triangles per bucket of the placement pass: 16 bytes each on disk and in memory when read back,
+// and 12 more when written; as many as the memory limit leaves room for, within these bounds.
+constexpr std::uint64_t kBucketBytesPerTriangle = 28;
+constexpr std::uint64_t kMinBucketTriangles = std::uint64_t{1} << 20;
+constexpr std::uint64_t kMaxBucketTriangles = std::uint64_t{16} << 20;
 // A stage below the root leaves this fraction of its faces to its parent: a merge then takes half
 // of what its two children took, so each level has half the faces of the one below and all levels
 // together simplify about twice the input (halving would make every level as big as the first).
@@ -196,11 +202,12 @@ Status pwrite_all(int fd, const fs::path& path, const void* data, std::uint64_t 
   return Ok{};
 }
 
-// A read-only map of a file of floats (the positions); the kernel pages it in on use, and
-// release() drops the pages from this process so that the model's positions do not stay resident.
-class MappedFloats {
+// A read-only map of a file (the positions as floats; normals and colours as bytes). The kernel
+// pages it in on use, and release() drops the pages from this process so that the model's vertex
+// arrays do not stay resident.
+class MappedFile {
  public:
-  static Result<MappedFloats> open(const fs::path& path) {
+  static Result<MappedFile> open(const fs::path& path) {
     const int fd = ::open(path.string().c_str(), O_RDONLY | O_CLOEXEC);
     if (fd < 0) return io_error(path, "open");
     std::error_code ec;
@@ -208,27 +215,28 @@ class MappedFloats {
     void* p = bytes == 0 ? nullptr : ::mmap(nullptr, bytes, PROT_READ, MAP_SHARED, fd, 0);
     ::close(fd);
     if (p == MAP_FAILED) return io_error(path, "map");
-    return MappedFloats(static_cast<const float*>(p), bytes);
+    return MappedFile(static_cast<const float*>(p), bytes);
   }
-  MappedFloats(MappedFloats&& other) noexcept
+  MappedFile(MappedFile&& other) noexcept
       : data_(std::exchange(other.data_, nullptr)), bytes_(std::exchange(other.bytes_, 0)) {}
-  MappedFloats& operator=(MappedFloats&&) = delete;
-  ~MappedFloats() {
+  MappedFile& operator=(MappedFile&&) = delete;
+  ~MappedFile() {
     if (data_) ::munmap(const_cast<float*>(data_), bytes_);
   }
   const float* data() const { return data_; }
+  const std::uint8_t* bytes() const { return reinterpret_cast<const std::uint8_t*>(data_); }
   void release() const {
     if (data_) ::madvise(const_cast<float*>(data_), bytes_, MADV_DONTNEED);
   }
 
  private:
-  MappedFloats(const float* data, std::uint64_t bytes) : data_(data), bytes_(bytes) {}
+  MappedFile(const float* data, std::uint64_t bytes) : data_(data), bytes_(bytes) {}
   const float* data_;
   std::uint64_t bytes_;
 };
 
 std::uint32_t spread_bits(std::uint32_t x) {
-  // 8 bits to every third bit of 24.
+  // Up to 8 bits to every third bit of 24.
   x &= 0xff;
   x = (x | (x << 8)) & 0x0f00f;
   x = (x | (x << 4)) & 0x0c30c3;
@@ -318,11 +326,12 @@ class LargeBuilder {
   TempDir& temp_;
   LargeBuildStats* stats_ = nullptr;
 
+  std::uint64_t limit_ = 0;  // bytes
   std::uint64_t vertex_count_ = 0;
   bool normals_ = false, colors_ = false;
   std::array<float, 3> lo_{}, hi_{};
   float scale_ = 1;  // cells per model unit
-  std::optional<MappedFloats> positions_;
+  std::optional<MappedFile> positions_;
   std::uint64_t faces_ = 0;  // kept after dropping degenerate ones
   std::vector<std::uint32_t> cell_count_;
   std::vector<std::uint32_t> leaf_of_cell_;
@@ -379,7 +388,7 @@ Status LargeBuilder::read_vertices(PlyReader& reader) {
   float extent = 0;
   for (int k = 0; k < 3; ++k) extent = std::max(extent, hi_[k] - lo_[k]);
   scale_ = extent > 0 ? float(1 << kCellBits) / extent : 1.0f;
-  MTLOD_TRY(MappedFloats mapped, MappedFloats::open(file("positions")));
+  MTLOD_TRY(MappedFile mapped, MappedFile::open(file("positions")));
   positions_.emplace(std::move(mapped));
   return Ok{};
 }
@@ -423,8 +432,8 @@ Status LargeBuilder::read_faces(PlyReader& reader) {
 Status LargeBuilder::choose_leaves() {
   // Memory while blocks are simplified: per vertex (leaf ranges, positions) and, at the top levels,
   // every removed vertex carried as a point; what is left goes to the stages running at once.
-  const std::uint64_t limit = options_.memory_limit ? options_.memory_limit : default_memory_limit();
-  const std::uint64_t fixed = vertex_count_ * (kBytesPerVertex + kBytesPerPoint);
+  const std::uint64_t limit = limit_;
+  const std::uint64_t fixed = kFixedBytes + vertex_count_ * (kBytesPerVertex + kBytesPerPoint);
   const std::uint64_t threads = std::max<std::size_t>(options_.threads, 1);
   std::uint64_t block = options_.block_triangles;
   if (block == 0) {
@@ -786,7 +795,7 @@ Status LargeBuilder::assemble() {
       std::memcpy(&collapse_error[collapse_base[s] + c], &records[2 * c + 1], 4);
     }
   }
-  const std::vector<std::uint32_t> node_of = number_nodes(collapse_error);
+  std::vector<std::uint32_t> node_of = number_nodes(collapse_error);
   auto node_of_ref = [&](std::uint64_t ref) -> std::uint32_t {
     return ref == kPending ? 0u : node_of[collapse_base[ref_stage(ref)] + ref_index(ref) - 1];
   };
@@ -875,6 +884,10 @@ Status LargeBuilder::assemble() {
   // split vertex, into buckets of ids; parents straight into their array.
   std::vector<std::uint32_t> node_parents(counts.parents);
   std::vector<std::uint32_t> root_first_corner(counts.root_triangles);
+  const std::uint64_t assembly = kFixedBytes + vertex_count_ * kAssemblyBytesPerVertex;
+  const std::uint64_t kBucketTriangles =
+      std::clamp((limit_ > assembly ? limit_ - assembly : 0) / kBucketBytesPerTriangle, kMinBucketTriangles,
+                 kMaxBucketTriangles);
   const std::uint64_t buckets =
       std::max<std::uint64_t>(1, (triangles + kBucketTriangles - 1) / kBucketTriangles);
   {
@@ -941,6 +954,17 @@ Status LargeBuilder::assemble() {
   };
   const auto header = mt_header(counts);
   MTLOD_RETURN_IF_ERROR(put(header, 0));
+  // The node arrays first, so that their memory is free for the vertex arrays and the buckets.
+  MTLOD_RETURN_IF_ERROR(put(node_vertex, layout.node_vertex));
+  MTLOD_RETURN_IF_ERROR(put(node_error, layout.node_error));
+  MTLOD_RETURN_IF_ERROR(put(triangle_offsets, layout.node_triangle_offsets));
+  MTLOD_RETURN_IF_ERROR(put(parent_offsets, layout.node_parent_offsets));
+  MTLOD_RETURN_IF_ERROR(put(node_parents, layout.node_parents));
+  MTLOD_RETURN_IF_ERROR(put(root_first_corner, layout.root_first_corner));
+  for (auto* array : {&node_vertex, &triangle_offsets, &parent_offsets, &node_parents, &root_first_corner})
+    std::vector<std::uint32_t>().swap(*array);
+  std::vector<float>().swap(node_error);
+  std::vector<std::uint32_t>().swap(node_of);
   {
     // Vertex arrays in the new order: gather from the input order, a chunk of new ids at a time.
     std::vector<std::uint32_t> old_of(used_vertices);
@@ -948,7 +972,8 @@ Status LargeBuilder::assemble() {
       if (vertex_id[v] != kNoVertex) old_of[vertex_id[v]] = v;
     std::vector<std::uint32_t>().swap(vertex_id);
     auto permute = [&](const char* name, std::size_t bytes_per_vertex, std::uint64_t offset) -> Status {
-      MTLOD_TRY(const auto values, read_array<std::uint8_t>(file(name)));
+      MTLOD_TRY(const MappedFile mapped, MappedFile::open(file(name)));
+      const std::uint8_t* values = mapped.bytes();
       std::vector<std::uint8_t> out(bytes_per_vertex *
                                     std::min<std::uint64_t>(used_vertices, kChunkTriangles));
       for (std::uint64_t begin = 0; begin < used_vertices; begin += kChunkTriangles) {
@@ -958,6 +983,7 @@ Status LargeBuilder::assemble() {
                       bytes_per_vertex);
         MTLOD_RETURN_IF_ERROR(pwrite_all(fd, partial, out.data(), (end - begin) * bytes_per_vertex,
                                          offset + begin * bytes_per_vertex));
+        mapped.release();
       }
       std::error_code ec;
       fs::remove(file(name), ec);
@@ -969,12 +995,6 @@ Status LargeBuilder::assemble() {
     if (colors_) MTLOD_RETURN_IF_ERROR(permute("colors", 3, layout.colors));
   }
   progress("writing", 0.2);
-  MTLOD_RETURN_IF_ERROR(put(node_vertex, layout.node_vertex));
-  MTLOD_RETURN_IF_ERROR(put(node_error, layout.node_error));
-  MTLOD_RETURN_IF_ERROR(put(triangle_offsets, layout.node_triangle_offsets));
-  MTLOD_RETURN_IF_ERROR(put(parent_offsets, layout.node_parent_offsets));
-  MTLOD_RETURN_IF_ERROR(put(node_parents, layout.node_parents));
-  MTLOD_RETURN_IF_ERROR(put(root_first_corner, layout.root_first_corner));
   for (std::uint64_t b = 0; b < buckets; ++b) {
     MTLOD_TRY(const auto placed, read_array<Placed>(file(fmt::format("bucket{}", b))));
     const std::uint64_t first = b * kBucketTriangles;
@@ -1016,6 +1036,7 @@ Status LargeBuilder::assemble() {
 
 Status LargeBuilder::run(LargeBuildStats& stats) {
   stats_ = &stats;
+  limit_ = options_.memory_limit ? options_.memory_limit : default_memory_limit();
   MTLOD_TRY(PlyReader reader, PlyReader::open(input_));
   MTLOD_RETURN_IF_ERROR(read_vertices(reader));
   stats.vertices = vertex_count_;
