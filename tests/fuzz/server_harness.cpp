@@ -12,6 +12,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <ctime>
 #include <filesystem>
 #include <future>
 #include <string>
@@ -37,8 +38,17 @@ namespace net = boost::asio;
 constexpr std::uint64_t kMemoryLimitBytes = std::uint64_t{256} << 20;
 
 // How long a connection whose input has ended may take to write its replies and close: far longer
-// than any input's extractions should take, so only a stuck or runaway connection reaches it.
+// than any input's extractions should take, so only a stuck or runaway connection reaches it. It
+// counts the process's CPU time, not the wall clock, so a campaign paused (SIGSTOP, to measure
+// something else on the machine) or starved by other work does not look like a stuck connection.
 constexpr auto kCloseDeadline = std::chrono::seconds(10);
+constexpr auto kCloseCheck = std::chrono::milliseconds(50);
+
+std::chrono::nanoseconds process_cpu_time() {
+  timespec t{};
+  ::clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+  return std::chrono::seconds(t.tv_sec) + std::chrono::nanoseconds(t.tv_nsec);
+}
 
 // The reply each request type gets when it does not fail (PROTOCOL.md, "Requests").
 constexpr std::pair<std::string_view, const char*> kReplyTypes[] = {
@@ -326,8 +336,11 @@ bool FuzzServer::run(const Factory& make, bool patient) {
     alive = connection;
     connection->start();
   }  // from here its own pending handlers keep it, as in the server
-  io_.restart();
-  io_.run_for(kCloseDeadline);
+  const auto cpu_start = process_cpu_time();
+  while (!closed_ && process_cpu_time() - cpu_start < kCloseDeadline) {
+    io_.restart();
+    io_.run_for(kCloseCheck);
+  }
   if (!closed_) fail("the connection did not close after its input ended");
   // An extraction may still be on the worker, or its closure (holding the connection) not yet
   // destroyed; what it posts back runs here.
