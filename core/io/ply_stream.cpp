@@ -93,48 +93,39 @@ T load(const unsigned char* p, bool swap) {
   return v;
 }
 
-// Every PLY scalar converts exactly to double, so positions and normals of any type round once, to
-// float, as a direct conversion would.
-double load_number(const unsigned char* p, Type t, bool swap) {
+// A scalar of type t as R. Every PLY scalar converts exactly to double, so positions and normals of
+// any type round once, to float, as a direct conversion would; list counts and indices are
+// integers (the header admits no other list types).
+template <class R>
+R load_as(const unsigned char* p, Type t, bool swap) {
   switch (t) {
     case Type::kInt8:
-      return load<std::int8_t>(p, swap);
+      return R(load<std::int8_t>(p, swap));
     case Type::kUint8:
-      return load<std::uint8_t>(p, swap);
+      return R(load<std::uint8_t>(p, swap));
     case Type::kInt16:
-      return load<std::int16_t>(p, swap);
+      return R(load<std::int16_t>(p, swap));
     case Type::kUint16:
-      return load<std::uint16_t>(p, swap);
+      return R(load<std::uint16_t>(p, swap));
     case Type::kInt32:
-      return load<std::int32_t>(p, swap);
+      return R(load<std::int32_t>(p, swap));
     case Type::kUint32:
-      return load<std::uint32_t>(p, swap);
+      return R(load<std::uint32_t>(p, swap));
     case Type::kFloat32:
-      return load<float>(p, swap);
+      return R(load<float>(p, swap));
     case Type::kFloat64:
-      return load<double>(p, swap);
+      return R(load<double>(p, swap));
   }
-  return 0;
+  return R(0);
+}
+
+double load_number(const unsigned char* p, Type t, bool swap) {
+  return load_as<double>(p, t, swap);
 }
 
 std::int64_t load_integer(const unsigned char* p, Type t, bool swap) {
-  switch (t) {
-    case Type::kInt8:
-      return load<std::int8_t>(p, swap);
-    case Type::kUint8:
-      return load<std::uint8_t>(p, swap);
-    case Type::kInt16:
-      return load<std::int16_t>(p, swap);
-    case Type::kUint16:
-      return load<std::uint16_t>(p, swap);
-    case Type::kInt32:
-      return load<std::int32_t>(p, swap);
-    case Type::kUint32:
-      return load<std::uint32_t>(p, swap);
-    default:
-      assert(false && "the header admits integer list types only");
-      return 0;
-  }
+  assert(t != Type::kFloat32 && t != Type::kFloat64 && "the header admits integer list types only");
+  return load_as<std::int64_t>(p, t, swap);
 }
 
 // Colours as load_mesh stores them: floats in [0, 1] scaled (in the file's precision, as OpenMesh's
