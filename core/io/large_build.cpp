@@ -422,7 +422,9 @@ Status LargeBuilder::read_faces(PlyReader& reader) {
   }
   stats_->polygons_triangulated = reader.polygons_triangulated();
   MTLOD_RETURN_IF_ERROR(faces.close());
-  if (faces_ * 15 >= kNoFace)
+  // The MT holds every input triangle and those the collapses make (about twice as many more); the
+  // exact count is checked once the stages have run.
+  if (faces_ >= kNoFace / 2)
     return make_error(ErrorCode::kLimitExceeded,
                       fmt::format("{}: {} triangles exceed 32-bit MT ids", input_.string(), faces_));
   note_temp();
@@ -430,8 +432,8 @@ Status LargeBuilder::read_faces(PlyReader& reader) {
 }
 
 Status LargeBuilder::choose_leaves() {
-  // Memory while blocks are simplified: per vertex (leaf ranges, positions) and, at the top levels,
-  // every removed vertex carried as a point; what is left goes to the stages running at once.
+  // Memory while blocks are simplified: the process, per vertex (leaf ranges) and, at the top
+  // levels, every removed vertex carried as a point; what is left goes to the stages running at once.
   const std::uint64_t limit = limit_;
   const std::uint64_t fixed = kFixedBytes + vertex_count_ * (kBytesPerVertex + kBytesPerPoint);
   const std::uint64_t threads = std::max<std::size_t>(options_.threads, 1);
