@@ -6,6 +6,44 @@
 
 namespace mtlod::core {
 
+Mt::Mt(MtArrays arrays) {
+  auto owned = std::make_shared<const MtArrays>(std::move(arrays));
+  const MtArrays& a = *owned;
+  positions = a.positions;
+  normals = a.normals;
+  colors = a.colors;
+  node_vertex = a.node_vertex;
+  node_error = a.node_error;
+  node_triangle_offsets = a.node_triangle_offsets;
+  node_parent_offsets = a.node_parent_offsets;
+  node_parents = a.node_parents;
+  triangle_corners = a.triangle_corners;
+  root_first_corner = a.root_first_corner;
+  triangle_remover = a.triangle_remover;
+  bounds = bounds_of(positions);
+  input_triangles = std::uint32_t(std::count(triangle_remover.begin(), triangle_remover.end(), kNoNode));
+  storage_ = std::move(owned);
+}
+
+MtArrays Mt::arrays() const {
+  auto copy = [](auto span) {
+    return std::vector<typename decltype(span)::value_type>(span.begin(), span.end());
+  };
+  MtArrays a;
+  a.positions = copy(positions);
+  a.normals = copy(normals);
+  a.colors = copy(colors);
+  a.node_vertex = copy(node_vertex);
+  a.node_error = copy(node_error);
+  a.node_triangle_offsets = copy(node_triangle_offsets);
+  a.node_parent_offsets = copy(node_parent_offsets);
+  a.node_parents = copy(node_parents);
+  a.triangle_corners = copy(triangle_corners);
+  a.root_first_corner = copy(root_first_corner);
+  a.triangle_remover = copy(triangle_remover);
+  return a;
+}
+
 std::uint32_t Mt::triangle_creator(std::uint32_t t) const {
   assert(t < triangle_count());
   // The first offset greater than t ends the creator's range.
@@ -26,7 +64,7 @@ bool Mt::vertices_in_node_order() const {
   return true;
 }
 
-std::size_t Mt::memory_bytes() const {
+std::size_t Mt::array_bytes() const {
   auto bytes = [](const auto& v) { return v.size() * sizeof(v[0]); };
   return bytes(positions) + bytes(normals) + bytes(colors) + bytes(node_vertex) + bytes(node_error) +
          bytes(node_triangle_offsets) + bytes(node_parent_offsets) + bytes(node_parents) +

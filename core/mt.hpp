@@ -1,4 +1,4 @@
-// The in-memory Multi-Tessellation (DESIGN.md §2): nodes in topological order (node 0 = root, which
+// The Multi-Tessellation (DESIGN.md §2): nodes in topological order (node 0 = root, which
 // creates the coarsest mesh), triangles grouped by creating node, per-triangle remover, DAG arcs in
 // CSR. Struct-of-arrays with 32-bit ids, as stored in the .mt file (core/FORMAT.md).
 //
@@ -11,11 +11,16 @@
 //   removed).
 #pragma once
 
+#include <atomic>
 #include <cstddef>
 #include <cstdint>
 #include <limits>
+#include <memory>
 #include <span>
+#include <stdexcept>
 #include <vector>
+
+#include "core/bounds.hpp"
 
 namespace mtlod::core {
 
@@ -32,25 +37,87 @@ struct TriangleId {
   std::uint32_t value = 0;
 };
 
+// The arrays of an MT, owned: what a builder fills and what tests alter. Mt views them.
+struct MtArrays {
+  std::vector<float> positions;
+  std::vector<float> normals;
+  std::vector<std::uint8_t> colors;
+  std::vector<std::uint32_t> node_vertex;
+  std::vector<float> node_error;
+  std::vector<std::uint32_t> node_triangle_offsets;
+  std::vector<std::uint32_t> node_parent_offsets;
+  std::vector<std::uint32_t> node_parents;
+  std::vector<std::uint32_t> triangle_corners;
+  std::vector<std::uint32_t> root_first_corner;
+  std::vector<std::uint32_t> triangle_remover;
+};
+
+// A node block of a memory-mapped file failed its check on first use (core/io/mt_map.hpp). Thrown
+// from deep inside a refinement; the request fails and the model is marked corrupt.
+struct CorruptMt : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+// Checks a mapped file's node blocks (nodes [b·kMtBlockNodes, (b+1)·kMtBlockNodes), with their
+// triangles, parents and split vertices) the first time a refinement reaches them.
+inline constexpr std::uint32_t kMtBlockShift = 12;
+inline constexpr std::uint32_t kMtBlockNodes = 1u << kMtBlockShift;
+class MtBlockCheck {
+ public:
+  virtual ~MtBlockCheck() = default;
+  // Returns when node n's block is valid; throws CorruptMt when it is not.
+  void require(std::uint32_t node) const {
+    const std::uint32_t b = node >> kMtBlockShift;
+    if (b >= block_count_ || state_[b].load(std::memory_order_acquire) != kValid) check_block(b);
+  }
+
+ protected:
+  static constexpr std::uint8_t kValid = 1;
+  explicit MtBlockCheck(std::uint32_t blocks)
+      : block_count_(blocks), state_(std::make_unique<std::atomic<std::uint8_t>[]>(blocks)) {}
+  // Validates block b (idempotent: two threads may both do it) and stores kValid, or throws.
+  virtual void check_block(std::uint32_t b) const = 0;
+  std::uint32_t block_count_;
+  std::unique_ptr<std::atomic<std::uint8_t>[]> state_;
+};
+
+// The Multi-Tessellation as read-only arrays: views of MtArrays it owns, or of a memory-mapped file
+// (core/io/mt_map.hpp) whose blocks are checked on first use. Copies share the storage.
 struct Mt {
   // Vertices: every vertex of the input. build_mt numbers them as the nodes reach them (the root
-  // mesh's R vertices first, then node n's split vertex as R + n − 1, then any vertex no triangle
-  // uses) and reports each input vertex's id; nothing here relies on that order (FORMAT.md).
-  std::vector<float> positions;      // x, y, z per vertex
-  std::vector<float> normals;        // empty, or x, y, z per vertex
-  std::vector<std::uint8_t> colors;  // empty, or r, g, b per vertex
+  // mesh's vertices first, then node n's split vertex as root vertices + n − 1, then any vertex no
+  // triangle uses) and reports each input vertex's id. Files of format 1 may number them otherwise.
+  std::span<const float> positions;      // x, y, z per vertex
+  std::span<const float> normals;        // empty, or x, y, z per vertex
+  std::span<const std::uint8_t> colors;  // empty, or r, g, b per vertex
 
   // Nodes (node_count() of them), topological order: every parent has a smaller id.
-  std::vector<std::uint32_t> node_vertex;            // split vertex of node n ≥ 1; kNoVertex for the root
-  std::vector<float> node_error;                     // error of the triangles node n removes (model units)
-  std::vector<std::uint32_t> node_triangle_offsets;  // node_count()+1: node n creates [off[n], off[n+1])
-  std::vector<std::uint32_t> node_parent_offsets;    // node_count()+1, CSR into node_parents
-  std::vector<std::uint32_t> node_parents;           // distinct creators of the triangles node n removes
+  std::span<const std::uint32_t> node_vertex;  // split vertex of node n ≥ 1; kNoVertex for the root
+  std::span<const float> node_error;           // error of the triangles node n removes (model units)
+  std::span<const std::uint32_t> node_triangle_offsets;  // node_count()+1: node n creates [off[n], off[n+1])
+  std::span<const std::uint32_t> node_parent_offsets;    // node_count()+1, CSR into node_parents
+  std::span<const std::uint32_t> node_parents;           // distinct creators of the triangles node n removes
 
   // Triangles (triangle_count() of them), grouped by creating node.
-  std::vector<std::uint32_t> triangle_corners;   // 2 per triangle: corners after the first, CCW
-  std::vector<std::uint32_t> root_first_corner;  // first corner of each root triangle
-  std::vector<std::uint32_t> triangle_remover;   // node that removes it, or kNoNode
+  std::span<const std::uint32_t> triangle_corners;   // 2 per triangle: corners after the first, CCW
+  std::span<const std::uint32_t> root_first_corner;  // first corner of each root triangle
+  std::span<const std::uint32_t> triangle_remover;   // node that removes it, or kNoNode
+
+  // Summary, stored in the file so that a mapped model is described without reading its arrays.
+  Bounds bounds;                      // of every vertex
+  std::uint32_t input_triangles = 0;  // triangles no node removes: the full-resolution mesh
+
+  Mt() = default;
+  // Owns the arrays.
+  explicit Mt(MtArrays arrays);
+  // Makes this MT (whose spans and summary the caller set) keep `storage`, which holds the arrays,
+  // alive, and have `check` check their blocks on first use.
+  void adopt(std::shared_ptr<const void> storage, std::shared_ptr<const MtBlockCheck> check) {
+    storage_ = std::move(storage);
+    check_ = std::move(check);
+  }
+  // A copy of the arrays, for tests and tools that alter an MT.
+  MtArrays arrays() const;
 
   std::size_t vertex_count() const { return positions.size() / 3; }
   std::size_t node_count() const { return node_vertex.size(); }
@@ -58,6 +125,14 @@ struct Mt {
   std::size_t root_triangle_count() const { return root_first_corner.size(); }
   bool has_normals() const { return !normals.empty(); }
   bool has_colors() const { return !colors.empty(); }
+  // Whether the arrays live in a mapped file (read on demand) rather than in this process's memory.
+  bool mapped() const { return check_ != nullptr; }
+
+  // Makes sure node n's block is valid before a refinement reads its node, triangles and split
+  // vertex: free for MTs in memory (validated whole when read); throws CorruptMt.
+  void require_node(std::uint32_t n) const {
+    if (check_) check_->require(n);
+  }
 
   // Error of triangle t in model units: its remover's error, or 0 for an input triangle.
   float triangle_error(std::uint32_t t) const {
@@ -73,11 +148,18 @@ struct Mt {
   // Writes the three vertex ids of triangle t (counter-clockwise) to out.
   void triangle_vertices(std::uint32_t t, std::uint32_t out[3]) const;
 
-  // Bytes held by all arrays (sizes, not capacities): the loaded footprint.
-  std::size_t memory_bytes() const;
+  // Bytes of the arrays (sizes, not capacities): held in memory, or mapped from the file (of which
+  // only the pages in use are resident, in the page cache).
+  std::size_t array_bytes() const;
+  std::size_t memory_bytes() const { return mapped() ? 0 : array_bytes(); }
+  std::size_t mapped_bytes() const { return mapped() ? array_bytes() : 0; }
   // Whether the split vertices are numbered in node order (node n + 1's is node n's plus one), as
   // build_mt numbers them; files written before it did are valid but refine more slowly.
   bool vertices_in_node_order() const;
+
+ private:
+  std::shared_ptr<const void> storage_;
+  std::shared_ptr<const MtBlockCheck> check_;
 };
 
 }  // namespace mtlod::core

@@ -987,7 +987,7 @@ void Builder::compact_assigned_points() {
 }
 
 Mt Builder::assemble(std::vector<std::uint32_t>* vertex_ids) {
-  Mt mt;
+  MtArrays mt;
   mt.positions = mesh_.positions;
   mt.normals = mesh_.normals;
   mt.colors = mesh_.colors;
@@ -1116,7 +1116,7 @@ Mt Builder::assemble(std::vector<std::uint32_t>* vertex_ids) {
     }
   });
   if (vertex_ids) *vertex_ids = std::move(vertex_id);
-  return mt;
+  return Mt(std::move(mt));
 }
 
 Status Builder::prepare() {

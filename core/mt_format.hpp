@@ -2,9 +2,10 @@
 // and from bytes. Pure: no file access (core/io/mt_file.hpp reads and writes files).
 #pragma once
 
-#include <array>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
+#include <memory>
 #include <span>
 #include <vector>
 
@@ -13,8 +14,12 @@
 
 namespace mtlod::core {
 
-inline constexpr std::uint32_t kMtFormatVersion = 1;
-inline constexpr std::size_t kMtHeaderBytes = 64;
+// Version 2 is written (a block table: files are mapped and checked block by block); version 1
+// (one checksum over the whole file) is still read, whole.
+inline constexpr std::uint32_t kMtFormatVersion = 2;
+inline constexpr std::size_t kMtHeaderBytes = 256;   // version 2
+inline constexpr std::size_t kMtHeaderBytesV1 = 64;  // version 1
+inline constexpr std::size_t kMtBlockEntryBytes = 16;
 
 // 64-bit checksum over bytes: FNV-1a style mixing of little-endian 8-byte words, then the tail
 // bytes. Any change to a single word changes the result (each step is a bijection of the state).
@@ -30,26 +35,50 @@ struct MtCounts {
   std::uint32_t triangles = 0;
   std::uint32_t root_triangles = 0;
   std::uint32_t parents = 0;
+  // Vertices of the root mesh: node n ≥ 1's split vertex is root_vertices + n − 1 (version 2
+  // requires vertices numbered in node order).
+  std::uint32_t root_vertices = 0;
 };
-// Byte offset of each array in the file (core/FORMAT.md, "Payload"); end is the file size.
+// Byte offset of each array in a version-2 file (core/FORMAT.md, "Payload"), of the block table
+// after them, and the file size.
 struct MtLayout {
   std::uint64_t positions, normals, colors, node_vertex, node_error, node_triangle_offsets,
-      node_parent_offsets, node_parents, triangle_corners, root_first_corner, triangle_remover, end;
+      node_parent_offsets, node_parents, triangle_corners, root_first_corner, triangle_remover, block_table,
+      end;
 };
 MtLayout mt_layout(const MtCounts& counts);
-// The header for counts, with its checksum field zero: the checksum of the whole file with this
-// header goes at kMtChecksumOffset.
-inline constexpr std::size_t kMtChecksumOffset = 48;
-std::array<std::uint8_t, kMtHeaderBytes> mt_header(const MtCounts& counts);
+// Node blocks of kMtBlockNodes nodes (the last one shorter).
+std::uint32_t mt_block_count(std::uint32_t nodes);
+
+// Reads out.size() bytes at a file offset (from a buffer, or with pread).
+using MtReadAt = std::function<Status(std::uint64_t offset, std::span<std::uint8_t> out)>;
+// The header and block table of a version-2 file whose arrays are in place at mt_layout(counts)'s
+// offsets, read back through read_at: each block's first triangle and parent and its checksum, and
+// the bounds of the positions. Writers put them at offset 0 and at layout.block_table.
+struct MtSeal {
+  std::vector<std::uint8_t> header;
+  std::vector<std::uint8_t> block_table;
+};
+Result<MtSeal> seal_mt(const MtCounts& counts, const MtReadAt& read_at);
 
 // Appends the file image of mt to out (cleared first). mt must be valid (as build_mt makes it).
+// Version 2 when its vertices are in node order, else version 1.
 void serialize_mt(const Mt& mt, std::vector<std::uint8_t>& out);
 
-// Parses and validates a file image: magic, version, flags, every size against the byte count, the
-// checksum, every vertex/node/triangle index, the DAG order (parents precede children, a
-// triangle's remover comes after its creator and lists it as a parent) and finite, non-negative
-// errors. Never reads outside bytes. Errors: kCorrupt (with the field and offending value),
-// kUnsupported (another version).
+// Parses and validates a whole file image into memory: magic, version, flags, every size against
+// the byte count, the checksums, every vertex/node/triangle index, the DAG order (parents precede
+// children, a triangle's remover comes after its creator and lists it as a parent) and finite,
+// non-negative errors. Never reads outside bytes. Errors: kCorrupt (with the field and offending
+// value), kUnsupported (another version).
 Result<Mt> deserialize_mt(std::span<const std::uint8_t> bytes);
+
+// The version an image's header states (0: too short or not an MT file).
+std::uint32_t mt_file_version(std::span<const std::uint8_t> bytes);
+
+// A version-2 image used in place, kept alive by `storage` (a memory map): checks the header, the
+// block table, the size and the root's block now, every other node block when a refinement first
+// reaches it (Mt::require_node throws CorruptMt then). Errors as deserialize_mt's; kUnsupported
+// for version 1, which is read whole.
+Result<Mt> view_mt(std::span<const std::uint8_t> bytes, std::shared_ptr<const void> storage);
 
 }  // namespace mtlod::core

@@ -129,6 +129,8 @@ Refiner::HeapEntry Refiner::heap_entry(std::uint32_t t, std::uint32_t creator,
   const float a = allowed.of_triangle(mt_.first_corner(TriangleId{t}, NodeId{creator}),
                                       mt_.triangle_corners[2 * std::size_t{t}],
                                       mt_.triangle_corners[2 * std::size_t{t} + 1]);
+  // The remover's error orders the heap: its block is checked first (the plain test only compares).
+  mt_.require_node(mt_.triangle_remover[t]);
   const Rank rank = rank_of(mt_.node_error[mt_.triangle_remover[t]], a);
   return {rank.tier, rank.key, t, creator};
 }
@@ -156,6 +158,7 @@ void Refiner::add_node(std::uint32_t x, std::uint32_t witness_triangle, std::uin
   // Nodes are added with the kept mesh set aside (refine_forced and refine_budget emit at the end,
   // move_cut rebuilds the mesh once for all its additions).
   assert(!mesh_valid_);
+  mt_.require_node(x);
   in_cut_[x] = kIn;
   cut_.push_back(x);
   // The witness's corners were just read to find it failing: cheap to keep now.
@@ -167,6 +170,8 @@ void Refiner::add_node(std::uint32_t x, std::uint32_t witness_triangle, std::uin
 }
 
 void Refiner::force(std::uint32_t r, std::uint32_t witness_triangle, std::uint32_t witness_creator) {
+  // Every node whose parents are read is checked first (a mapped file's block on first use).
+  mt_.require_node(r);
   const std::uint32_t* offsets = mt_.node_parent_offsets.data();
   const std::uint32_t* parents = mt_.node_parents.data();
   // Usual case: every parent is already in the cut.
@@ -186,6 +191,7 @@ void Refiner::force(std::uint32_t r, std::uint32_t witness_triangle, std::uint32
       stack_[top + 1] = i + 1;
       const std::uint32_t p = parents[i];
       if (in_cut_[p] == kOut || in_cut_[p] == kDropped) {
+        mt_.require_node(p);
         in_cut_[p] = kAdding;
         stack_.push_back(p);
         stack_.push_back(offsets[p]);
@@ -297,6 +303,7 @@ void Refiner::refine_prefix(std::uint32_t end, CutMesh& out) {
   // The cut of nodes [0, end) (every prefix is a cut: parents come first); its mesh is read off the
   // prefix of the triangle array in one sequential pass.
   const float* errors = mt_.node_error.data();
+  for (std::uint32_t n = 0; n < end; n += kMtBlockNodes) mt_.require_node(n);
   for (const std::uint32_t n : cut_) in_cut_[n] = kOut;
   cut_.resize(end);
   witnesses_.clear();  // none recorded (see below)
@@ -902,6 +909,7 @@ void Refiner::update_budget(const AllowedError& allowed, std::span<const std::ui
     const float a = allowed.of_triangle(corners[0], corners[1], corners[2]);
     const float error = mesh_errors_[i];
     if (!(error > a)) continue;
+    mt_.require_node(mesh_removers_[i]);  // its error orders the heap (see heap_entry)
     const Rank rank = rank_of(error, a);
     heap_.push_back({rank.tier, rank.key, mesh_triangles_[i], mesh_creators_[i]});
   }

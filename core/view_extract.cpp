@@ -26,7 +26,7 @@ void to_fifths_of_pixel(std::span<const std::uint32_t> squared, std::span<std::u
 
 ViewExtractor::ViewExtractor(const Mt& mt, const OccupancyLevels& levels) : mt_(mt), levels_(levels) {
   // Bounding sphere (box centre and half diagonal): enough to pick the occupancy cut's error.
-  const Bounds box = bounds_of(mt.positions);
+  const Bounds& box = mt.bounds;
   centre_ = box.centre();
   radius_ = box.radius();
 }

@@ -12,6 +12,7 @@
 #include "core/view_extract.hpp"
 #include "fmt/format.h"
 #include "protocol/view_request.hpp"
+#include "spdlog/spdlog.h"
 
 namespace mtlod::server {
 
@@ -101,7 +102,21 @@ ExtractResult Engine::extract(const protocol::Extract& request, bool gaze, Extra
     return protocol::ProtocolError{protocol::ErrorKind::kBadRequest,
                                    fmt::format("model '{}' has no normals to send", request.model)};
   }
+  try {
+    return run(*model, request, gaze, session);
+  } catch (const core::CorruptMt& e) {
+    // A block of the model's mapped file failed its check on first use. Every request that reaches
+    // it fails the same way; the others are served. The session's cut may be half-updated.
+    spdlog::error("model {}: {}", model->name, e.what());
+    session.state.reset();
+    return protocol::ProtocolError{protocol::ErrorKind::kInternal,
+                                   fmt::format("model '{}' is damaged: {}", model->name, e.what())};
+  }
+}
 
+ExtractResult Engine::run(const Model& model_ref, const protocol::Extract& request, bool gaze,
+                          ExtractionState& session) {
+  const Model* model = &model_ref;
   Worker& worker = this_worker();
   auto& extractor = worker.extractors[model];
   if (!extractor) extractor = std::make_unique<core::ViewExtractor>(model->mt, *model->occupancy);

@@ -54,6 +54,8 @@ class Engine {
   const ModelRegistry& models() const { return models_; }
 
  private:
+  ExtractResult run(const Model& model, const protocol::Extract& request, bool gaze,
+                    ExtractionState& session);
   const ModelRegistry& models_;
 };
 

@@ -162,13 +162,17 @@ int main(int argc, char** argv) {
   }
   for (const auto& model : registry.models()) {
     const auto s = model->summary();
+    const std::size_t mapped = model->mt.mapped_bytes();
     spdlog::info(
-        "model {}: {} vertices, {} input triangles, {} root triangles, {} nodes, {:.1f} MiB ({:.1f} bytes "
-        "per "
-        "input triangle)",
+        "model {}: {} vertices, {} input triangles, {} root triangles, {} nodes, {:.1f} MiB in memory{}",
         s.name, s.vertices, s.input_triangles, s.root_triangles, s.nodes, s.memory_bytes / 1048576.0,
-        static_cast<double>(s.memory_bytes) /
-            static_cast<double>(std::max<std::uint64_t>(1, s.input_triangles)));
+        mapped ? fmt::format(", {:.1f} MiB mapped from {} ({:.1f} bytes per input triangle)",
+                             mapped / 1048576.0, model->path.string(),
+                             static_cast<double>(mapped) /
+                                 static_cast<double>(std::max<std::uint64_t>(1, s.input_triangles)))
+               : fmt::format(" ({:.1f} bytes per input triangle)",
+                             static_cast<double>(s.memory_bytes) /
+                                 static_cast<double>(std::max<std::uint64_t>(1, s.input_triangles))));
   }
 
   server::Server server(config, registry);

@@ -126,8 +126,11 @@ std::string Metrics::prometheus_text(const MetricsGauges& gauges) const {
   sample("mtlod_memory_limit_bytes", gauges.memory_limit_bytes);
   family("mtlod_models", "gauge", "Models served.");
   sample("mtlod_models", gauges.models);
-  family("mtlod_model_memory_bytes", "gauge", "Resident bytes of every model's arrays.");
+  family("mtlod_model_memory_bytes", "gauge", "Bytes every model holds in memory.");
   sample("mtlod_model_memory_bytes", gauges.model_bytes);
+  family("mtlod_model_mapped_bytes", "gauge",
+         "Bytes of the model files mapped in place (resident only as far as requests read them).");
+  sample("mtlod_model_mapped_bytes", gauges.model_mapped_bytes);
   return out;
 }
 

@@ -38,7 +38,8 @@ struct MetricsGauges {
   std::uint64_t memory_held_bytes = 0;   // worker scratch plus sessions, as the memory ceiling counts
   std::uint64_t memory_limit_bytes = 0;  // --max-memory
   std::uint64_t models = 0;
-  std::uint64_t model_bytes = 0;  // resident size of every model's arrays
+  std::uint64_t model_bytes = 0;         // held in memory by every model
+  std::uint64_t model_mapped_bytes = 0;  // of the model files mapped in place
 };
 
 class Metrics {

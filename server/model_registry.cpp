@@ -41,16 +41,16 @@ std::unique_ptr<Model> describe(std::string name, fs::path path, core::Mt mt) {
   const core::Mt& m = model->mt;
   model->occupancy = std::make_unique<core::OccupancyLevels>(m);
   model->memory_bytes = m.memory_bytes() + model->occupancy->memory_bytes();
-  const core::Bounds box = core::bounds_of(m.positions);
-  model->bounds_min = box.lo;
-  model->bounds_max = box.hi;
-  // The full-resolution mesh is the set of triangles no node removes.
-  model->input_triangles = static_cast<std::size_t>(
-      std::count(m.triangle_remover.begin(), m.triangle_remover.end(), core::kNoNode));
+  model->bounds_min = m.bounds.lo;
+  model->bounds_max = m.bounds.hi;
+  model->input_triangles = m.input_triangles;
+  // Nodes are sorted by decreasing error: node 1 has the largest, the last positive the smallest.
+  const auto errors = m.node_error.subspan(std::min<std::size_t>(1, m.node_count()));
   model->min_error = INFINITY;
-  for (float e : m.node_error) {
-    model->max_error = std::max(model->max_error, e);
-    if (e > 0) model->min_error = std::min(model->min_error, e);
+  if (!errors.empty()) {
+    model->max_error = errors.front();
+    const auto positive = std::partition_point(errors.begin(), errors.end(), [](float e) { return e > 0; });
+    if (positive != errors.begin()) model->min_error = *(positive - 1);
   }
   if (!std::isfinite(model->min_error)) model->min_error = 0;
   return model;
@@ -74,7 +74,12 @@ Status ModelRegistry::add(const fs::path& path, core::Mt mt) {
   if (find(name))
     return make_error(ErrorCode::kInvalidArgument,
                       fmt::format("{}: a model named '{}' is already loaded", path.string(), name));
-  models_.push_back(describe(name, path, std::move(mt)));
+  try {
+    models_.push_back(describe(name, path, std::move(mt)));
+  } catch (const core::CorruptMt& e) {
+    // A mapped file's block failed its check while the coarse cuts were read.
+    return make_error(ErrorCode::kCorrupt, fmt::format("{}: {}", path.string(), e.what()));
+  }
   return Ok{};
 }
 

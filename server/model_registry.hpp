@@ -20,7 +20,7 @@ struct Model {
   std::filesystem::path path;
   core::Mt mt;
   std::unique_ptr<core::OccupancyLevels> occupancy;  // coarse cuts for the occupancy stage
-  std::size_t memory_bytes = 0;                      // resident size of the arrays
+  std::size_t memory_bytes = 0;                      // held in memory: arrays read whole, coarse cuts
   std::size_t input_triangles = 0;
   float max_error = 0;  // largest triangle error
   float min_error = 0;  // smallest non-zero triangle error

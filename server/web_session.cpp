@@ -420,7 +420,10 @@ class HttpSession : public HttpSessionBase, public std::enable_shared_from_this<
       // Prometheus scrapes this, with no token as /health: counts and timings only, no model names.
       const ServerContext& context = *server_->context;
       MetricsGauges gauges{context.memory.held(), context.memory.limit(), context.models.models().size(), 0};
-      for (const auto& model : context.models.models()) gauges.model_bytes += model->memory_bytes;
+      for (const auto& model : context.models.models()) {
+        gauges.model_bytes += model->memory_bytes;
+        gauges.model_mapped_bytes += model->mt.mapped_bytes();
+      }
       auto response = text_response(request, http::status::ok, context.metrics.prometheus_text(gauges));
       response.set(http::field::content_type, "text/plain; version=0.0.4; charset=utf-8");
       return send(std::move(response));

@@ -99,7 +99,7 @@ Status write_output(const std::string& path, const Mt& mt, const CutMesh& cut,
 
 }  // namespace
 
-int main(int argc, char** argv) {
+int run(int argc, char** argv) {
   using namespace mtlod::core;
   CLI::App app{
       "Extract a level of detail from a Multi-Tessellation: uniform (--error, --budget) or "
@@ -128,7 +128,7 @@ int main(int argc, char** argv) {
   std::unique_ptr<ViewExtractor> extractor;
   double refine_s = 0;
   if (view) {
-    const Bounds box = bounds_of(mt->positions);
+    const Bounds& box = mt->bounds;
     auto made =
         mtlod::protocol::make_extract(options.view, options.model, to_double(box.lo), to_double(box.hi));
     if (!made) {
@@ -199,4 +199,14 @@ int main(int argc, char** argv) {
       load_s, view ? "extracted (map, occupancy, distance transforms, allowed error, refinement)" : "refined",
       refine_s * 1e3, options.output);
   return 0;
+}
+
+int main(int argc, char** argv) {
+  try {
+    return run(argc, argv);
+  } catch (const mtlod::core::CorruptMt& e) {
+    // A block of the mapped file failed its check when the refinement reached it.
+    fmt::print(stderr, "mtlod-extract: {}\n", e.what());
+    return 1;
+  }
 }

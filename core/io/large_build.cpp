@@ -805,7 +805,7 @@ Status LargeBuilder::assemble() {
   // Vertex ids as build_mt gives them: the root mesh's vertices by input id, then node n's split
   // vertex as R + n − 1, then the vertices no triangle uses.
   std::vector<std::uint32_t> vertex_id(vertex_count_, kNoVertex);
-  std::uint32_t used_vertices = 0;
+  std::uint32_t used_vertices = 0, root_vertices = 0;
   std::vector<std::uint32_t> node_vertex(node_count, kNoVertex);
   std::vector<float> node_error(node_count, 0.0f);
   {
@@ -813,7 +813,7 @@ Status LargeBuilder::assemble() {
     std::uint32_t next = 0;
     for (std::uint64_t v = 0; v < vertex_count_; ++v)
       if (leaf_lo_[v] != kNoVertex && vertex_id[v] == kNoVertex) vertex_id[v] = next++;
-    const std::uint32_t root_vertices = next;
+    root_vertices = next;
     for (std::uint64_t c = 0; c < k; ++c) {
       vertex_id[collapse_u[c]] = root_vertices + node_of[c] - 1;
       node_vertex[node_of[c]] = vertex_id[collapse_u[c]];
@@ -877,6 +877,7 @@ Status LargeBuilder::assemble() {
   counts.triangles = std::uint32_t(triangles);
   counts.root_triangles = triangle_offsets[1];
   counts.parents = parent_offsets[node_count];
+  counts.root_vertices = root_vertices;
   const MtLayout layout = mt_layout(counts);
   stats_->nodes = node_count;
   stats_->mt_triangles = triangles;
@@ -954,8 +955,6 @@ Status LargeBuilder::assemble() {
   auto put = [&](const auto& values, std::uint64_t offset) {
     return pwrite_all(fd, partial, values.data(), values.size() * sizeof(values[0]), offset);
   };
-  const auto header = mt_header(counts);
-  MTLOD_RETURN_IF_ERROR(put(header, 0));
   // The node arrays first, so that their memory is free for the vertex arrays and the buckets.
   MTLOD_RETURN_IF_ERROR(put(node_vertex, layout.node_vertex));
   MTLOD_RETURN_IF_ERROR(put(node_error, layout.node_error));
@@ -1014,18 +1013,16 @@ Status LargeBuilder::assemble() {
     progress("writing", 0.2 + 0.5 * double(b + 1) / double(buckets));
   }
   {
-    // Whole 8-byte words at a time, as mt_checksum chains them.
-    std::vector<std::uint8_t> chunk(std::size_t{8} << 20);
-    std::uint64_t sum = 0xcbf29ce484222325ull;
-    for (std::uint64_t offset = 0; offset < layout.end;) {
-      const std::size_t want = std::size_t(std::min<std::uint64_t>(chunk.size(), layout.end - offset));
-      const ssize_t n = ::pread(fd, chunk.data(), want, off_t(offset));
-      if (n != ssize_t(want)) return io_error(partial, "read back");
-      sum = mt_checksum(std::span<const std::uint8_t>(chunk.data(), want), sum);
-      offset += want;
-      progress("writing", 0.7 + 0.3 * double(offset) / double(layout.end));
-    }
-    MTLOD_RETURN_IF_ERROR(pwrite_all(fd, partial, &sum, 8, kMtChecksumOffset));
+    // The header and the block table last: each block's checksum reads its slices back.
+    progress("writing", 0.7);
+    auto seal = seal_mt(counts, [&](std::uint64_t offset, std::span<std::uint8_t> out) -> Status {
+      const ssize_t n = ::pread(fd, out.data(), out.size(), off_t(offset));
+      if (n != ssize_t(out.size())) return io_error(partial, "read back");
+      return Ok{};
+    });
+    if (!seal.ok()) return seal.take_error();
+    MTLOD_RETURN_IF_ERROR(put(seal->block_table, layout.block_table));
+    MTLOD_RETURN_IF_ERROR(put(seal->header, 0));
   }
   std::error_code ec;
   fs::rename(partial, output_, ec);

@@ -1,10 +1,17 @@
-// .mt file reading and writing: one read, one write; parsing lives in core/mt_format.cpp.
+// .mt file reading and writing: a memory map or one read, one write; parsing lives in
+// core/mt_format.cpp.
 #include "core/io/mt_file.hpp"
+
+#include <fcntl.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
 #include <memory>
+#include <span>
 #include <string>
 #include <system_error>
 #include <vector>
@@ -19,9 +26,56 @@ struct FileCloser {
 };
 using File = std::unique_ptr<std::FILE, FileCloser>;
 
+// A read-only shared mapping of a whole file: the pages come from the page cache as they are read,
+// and the kernel can drop them again under memory pressure.
+class Mapping {
+ public:
+  Mapping(const void* data, std::size_t size) : data_(data), size_(size) {}
+  Mapping(const Mapping&) = delete;
+  Mapping& operator=(const Mapping&) = delete;
+  ~Mapping() { ::munmap(const_cast<void*>(data_), size_); }
+  std::span<const std::uint8_t> bytes() const { return {static_cast<const std::uint8_t*>(data_), size_}; }
+
+ private:
+  const void* data_;
+  std::size_t size_;
+};
+
+Error named(const std::filesystem::path& path, Error error) {
+  error.message = path.string() + ": " + error.message;
+  return error;
+}
+
 }  // namespace
 
-Result<Mt> read_mt_file(const std::filesystem::path& path) {
+Result<Mt> read_mt_file(const std::filesystem::path& path, MtLoad load) {
+  if (load == MtLoad::kMap) {
+    const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+    if (fd < 0 && errno == ENOENT)
+      return make_error(ErrorCode::kNotFound, "MT file " + path.string() + " does not exist");
+    if (fd < 0)
+      return make_error(ErrorCode::kIoError, "cannot open " + path.string() + ": " + std::strerror(errno));
+    struct stat st {};
+    const bool stat_ok = ::fstat(fd, &st) == 0;
+    const std::size_t size = stat_ok ? std::size_t(st.st_size) : 0;
+    void* data = size >= kMtHeaderBytes ? ::mmap(nullptr, size, PROT_READ, MAP_SHARED, fd, 0) : MAP_FAILED;
+    const int map_errno = errno;
+    ::close(fd);  // the mapping keeps the file
+    if (!stat_ok) return make_error(ErrorCode::kIoError, "cannot stat " + path.string());
+    if (data == MAP_FAILED && size >= kMtHeaderBytes)
+      return make_error(ErrorCode::kIoError, "cannot map " + path.string() + ": " + std::strerror(map_errno));
+    if (data != MAP_FAILED) {
+      auto mapping = std::make_shared<const Mapping>(data, size);
+      if (mt_file_version(mapping->bytes()) == kMtFormatVersion) {
+        // Refinements jump between blocks: no read-ahead beyond the pages they touch.
+        ::madvise(data, size, MADV_RANDOM);
+        auto mt = view_mt(mapping->bytes(), mapping);
+        if (!mt.ok()) return named(path, mt.take_error());
+        return mt;
+      }
+    }
+    // Version 1 (or too short to be anything): read whole, which reports what is wrong.
+  }
   std::error_code ec;
   if (!std::filesystem::exists(path, ec))
     return make_error(ErrorCode::kNotFound, "MT file " + path.string() + " does not exist");
@@ -34,22 +88,30 @@ Result<Mt> read_mt_file(const std::filesystem::path& path) {
   if (size != 0 && std::fread(bytes.data(), 1, size, file.get()) != size)
     return make_error(ErrorCode::kIoError, "short read of " + path.string());
   auto mt = deserialize_mt(bytes);
-  if (!mt.ok()) {
-    Error error = mt.take_error();
-    error.message = path.string() + ": " + error.message;
-    return error;
-  }
+  if (!mt.ok()) return named(path, mt.take_error());
   return mt;
 }
 
 Result<std::uint64_t> write_mt_file(const std::filesystem::path& path, const Mt& mt) {
   std::vector<std::uint8_t> bytes;
   serialize_mt(mt, bytes);
-  File file(std::fopen(path.c_str(), "wb"));
-  if (!file)
-    return make_error(ErrorCode::kIoError, "cannot create " + path.string() + ": " + std::strerror(errno));
-  if (std::fwrite(bytes.data(), 1, bytes.size(), file.get()) != bytes.size() || std::fflush(file.get()) != 0)
-    return make_error(ErrorCode::kIoError, "cannot write " + path.string() + ": " + std::strerror(errno));
+  // Written beside and renamed over: a server may have the old file mapped, and rewriting a mapped
+  // file in place would pull pages out from under it.
+  std::filesystem::path partial = path;
+  partial += ".partial";
+  {
+    File file(std::fopen(partial.c_str(), "wb"));
+    if (!file)
+      return make_error(ErrorCode::kIoError,
+                        "cannot create " + partial.string() + ": " + std::strerror(errno));
+    if (std::fwrite(bytes.data(), 1, bytes.size(), file.get()) != bytes.size() ||
+        std::fflush(file.get()) != 0)
+      return make_error(ErrorCode::kIoError,
+                        "cannot write " + partial.string() + ": " + std::strerror(errno));
+  }
+  std::error_code ec;
+  std::filesystem::rename(partial, path, ec);
+  if (ec) return make_error(ErrorCode::kIoError, "cannot rename " + partial.string() + ": " + ec.message());
   return std::uint64_t{bytes.size()};
 }
 

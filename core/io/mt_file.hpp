@@ -1,5 +1,6 @@
-// Reading and writing .mt files (DESIGN.md §2 "Storage", layout in core/FORMAT.md). The file is read
-// with one read into memory and parsed by core/mt_format, which validates everything.
+// Reading and writing .mt files (DESIGN.md §2 "Storage", layout in core/FORMAT.md). Version-2 files
+// are memory-mapped and checked block by block as they are used; version-1 files, or any file with
+// MtLoad::kRead, are read whole with one read and validated at once (core/mt_format).
 #pragma once
 
 #include <filesystem>
@@ -9,9 +10,15 @@
 
 namespace mtlod::core::io {
 
-// Reads and validates an .mt file. Errors name the file: kNotFound, kIoError, and the parser's
-// kCorrupt / kUnsupported.
-Result<Mt> read_mt_file(const std::filesystem::path& path);
+enum class MtLoad {
+  kMap,   // version 2 mapped: start-up reads the header, the block table and the root's block
+  kRead,  // read into memory and validated whole
+};
+
+// Opens an .mt file. Errors name the file: kNotFound, kIoError, and the parser's kCorrupt /
+// kUnsupported. A mapped file must not be truncated or rewritten in place while it is in use
+// (replace it by renaming a new file over it, as mtlod-build does).
+Result<Mt> read_mt_file(const std::filesystem::path& path, MtLoad load = MtLoad::kMap);
 
 // Writes mt as an .mt file (replacing it). Returns the file size in bytes.
 Result<std::uint64_t> write_mt_file(const std::filesystem::path& path, const Mt& mt);

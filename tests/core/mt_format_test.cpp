@@ -42,25 +42,66 @@ std::vector<std::uint8_t> bytes_of(const Mt& mt) {
   return bytes;
 }
 
-// Rewrites the checksum so a deliberate change reaches the content checks.
+std::uint32_t word_at(const std::vector<std::uint8_t>& bytes, std::size_t at) {
+  std::uint32_t x;
+  std::memcpy(&x, bytes.data() + at, 4);
+  return x;
+}
+
+// The counts a version-2 header states (core/FORMAT.md).
+MtCounts counts_of(const std::vector<std::uint8_t>& bytes) {
+  MtCounts c;
+  const std::uint32_t flags = word_at(bytes, 12);
+  c.normals = flags & 1;
+  c.colors = flags & 2;
+  c.vertices = word_at(bytes, 16);
+  c.nodes = word_at(bytes, 20);
+  c.triangles = word_at(bytes, 24);
+  c.root_triangles = word_at(bytes, 28);
+  c.parents = word_at(bytes, 32);
+  c.root_vertices = word_at(bytes, 36);
+  return c;
+}
+
+// Rewrites the checksums so a deliberate change to the arrays reaches the content checks.
 void reseal(std::vector<std::uint8_t>& bytes) {
-  std::memset(bytes.data() + 48, 0, 8);
-  const std::uint64_t sum = mt_checksum(bytes);
-  std::memcpy(bytes.data() + 48, &sum, 8);
+  if (word_at(bytes, 8) == 1) {
+    std::memset(bytes.data() + 48, 0, 8);
+    const std::uint64_t sum = mt_checksum(bytes);
+    std::memcpy(bytes.data() + 48, &sum, 8);
+    return;
+  }
+  const MtCounts counts = counts_of(bytes);
+  auto seal = seal_mt(counts, [&](std::uint64_t offset, std::span<std::uint8_t> out) -> Status {
+    std::memcpy(out.data(), bytes.data() + offset, out.size());
+    return Ok{};
+  });
+  ASSERT_TRUE(seal.ok());
+  std::copy(seal->header.begin(), seal->header.end(), bytes.begin());
+  std::copy(seal->block_table.begin(), seal->block_table.end(),
+            bytes.begin() + std::ptrdiff_t(mt_layout(counts).block_table));
+}
+
+template <class T>
+void expect_equal(std::span<const T> a, std::span<const T> b, const char* name) {
+  EXPECT_TRUE(std::ranges::equal(a, b)) << name;
 }
 
 void expect_same(const Mt& a, const Mt& b) {
-  EXPECT_EQ(a.positions, b.positions);
-  EXPECT_EQ(a.normals, b.normals);
-  EXPECT_EQ(a.colors, b.colors);
-  EXPECT_EQ(a.node_vertex, b.node_vertex);
-  EXPECT_EQ(a.node_error, b.node_error);
-  EXPECT_EQ(a.node_triangle_offsets, b.node_triangle_offsets);
-  EXPECT_EQ(a.node_parent_offsets, b.node_parent_offsets);
-  EXPECT_EQ(a.node_parents, b.node_parents);
-  EXPECT_EQ(a.triangle_corners, b.triangle_corners);
-  EXPECT_EQ(a.root_first_corner, b.root_first_corner);
-  EXPECT_EQ(a.triangle_remover, b.triangle_remover);
+  expect_equal(a.positions, b.positions, "positions");
+  expect_equal(a.normals, b.normals, "normals");
+  expect_equal(a.colors, b.colors, "colors");
+  expect_equal(a.node_vertex, b.node_vertex, "node_vertex");
+  expect_equal(a.node_error, b.node_error, "node_error");
+  expect_equal(a.node_triangle_offsets, b.node_triangle_offsets, "node_triangle_offsets");
+  expect_equal(a.node_parent_offsets, b.node_parent_offsets, "node_parent_offsets");
+  expect_equal(a.node_parents, b.node_parents, "node_parents");
+  expect_equal(a.triangle_corners, b.triangle_corners, "triangle_corners");
+  expect_equal(a.root_first_corner, b.root_first_corner, "root_first_corner");
+  expect_equal(a.triangle_remover, b.triangle_remover, "triangle_remover");
+  EXPECT_EQ(a.bounds.lo, b.bounds.lo);
+  EXPECT_EQ(a.bounds.hi, b.bounds.hi);
+  EXPECT_EQ(a.input_triangles, b.input_triangles);
 }
 
 TEST(MtFormat, RoundTripIsBitExact) {
@@ -128,67 +169,83 @@ TEST(MtFormat, ContentErrorsBehindAValidChecksumAreNamed) {
   const Mt& good = small_mt();
   struct Case {
     const char* expect;  // substring of the error message
-    void (*mutate)(Mt&);
+    void (*mutate)(MtArrays&);
   };
   const Case cases[] = {
-      {"node_vertex[0]", [](Mt& m) { m.node_vertex[0] = 0; }},
-      {"node_vertex[", [](Mt& m) { m.node_vertex[1] = std::uint32_t(m.vertex_count()); }},
-      {"node_error", [](Mt& m) { m.node_error[1] = std::nanf(""); }},
-      {"node_error", [](Mt& m) { m.node_error[2] = -1.0f; }},
-      {"decreasing error", [](Mt& m) { m.node_error[1] = 0.0f; }},
+      {"node_vertex[0]", [](MtArrays& m) { m.node_vertex[0] = 0; }},
+      {"node_vertex[", [](MtArrays& m) { m.node_vertex[1] = std::uint32_t(m.positions.size() / 3); }},
+      {"node_error", [](MtArrays& m) { m.node_error[1] = std::nanf(""); }},
+      {"node_error", [](MtArrays& m) { m.node_error[2] = -1.0f; }},
+      {"decreasing error", [](MtArrays& m) { m.node_error[1] = 0.0f; }},
       {"node_triangle_offsets",
-       [](Mt& m) { std::swap(m.node_triangle_offsets[2], m.node_triangle_offsets[3]); }},
-      {"parent", [](Mt& m) { m.node_parents[m.node_parent_offsets[1]] = 1; }},
-      {"triangle_corners", [](Mt& m) { m.triangle_corners[5] = 1u << 30; }},
-      {"root_first_corner", [](Mt& m) { m.root_first_corner[0] = std::uint32_t(m.vertex_count()); }},
-      {"remover", [](Mt& m) { m.triangle_remover[m.node_triangle_offsets[1]] = 0; }},
-      {"remover", [](Mt& m) { m.triangle_remover[0] = std::uint32_t(m.node_count()); }},
-      {"positions", [](Mt& m) { m.positions[4] = std::numeric_limits<float>::infinity(); }},
+       [](MtArrays& m) { std::swap(m.node_triangle_offsets[2], m.node_triangle_offsets[3]); }},
+      {"parent", [](MtArrays& m) { m.node_parents[m.node_parent_offsets[1]] = 1; }},
+      {"triangle_corners", [](MtArrays& m) { m.triangle_corners[5] = 1u << 30; }},
+      {"root_first_corner",
+       [](MtArrays& m) { m.root_first_corner[0] = std::uint32_t(m.positions.size() / 3); }},
+      {"remover", [](MtArrays& m) { m.triangle_remover[m.node_triangle_offsets[1]] = 0; }},
+      {"remover", [](MtArrays& m) { m.triangle_remover[0] = std::uint32_t(m.node_vertex.size()); }},
+      {"positions", [](MtArrays& m) { m.positions[4] = std::numeric_limits<float>::infinity(); }},
   };
   for (const Case& c : cases) {
-    Mt bad = good;
+    MtArrays bad = good.arrays();
     c.mutate(bad);
-    auto mt = deserialize_mt(bytes_of(bad));
+    auto mt = deserialize_mt(bytes_of(Mt(std::move(bad))));
     ASSERT_FALSE(mt.ok()) << c.expect;
     EXPECT_EQ(mt.error().code, ErrorCode::kCorrupt);
     EXPECT_NE(mt.error().message.find(c.expect), std::string::npos) << mt.error().message;
   }
+  // Version and magic are read before any checksum.
   std::vector<std::uint8_t> bytes = bytes_of(good);
-  bytes[8] = 2;  // version
-  reseal(bytes);
+  bytes[8] = 3;  // version
   auto mt = deserialize_mt(bytes);
   ASSERT_FALSE(mt.ok());
   EXPECT_EQ(mt.error().code, ErrorCode::kUnsupported);
   bytes = bytes_of(good);
   bytes[0] = 'X';
-  reseal(bytes);
   EXPECT_NE(deserialize_mt(bytes).error().message.find("magic"), std::string::npos);
 }
 
 TEST(MtFormat, ResealedRandomWordsAreRejectedOrRefineSafely) {
-  // A random 32-bit word behind a valid checksum either fails validation or gives an MT the refiner
-  // walks without leaving its arrays (this runs under ASan/UBSan in CI).
+  // A random 32-bit word of the arrays behind valid checksums either fails validation or gives an
+  // MT the refiner walks without leaving its arrays (this runs under ASan/UBSan in CI); read whole
+  // or viewed in place with its blocks checked on first use.
   const std::vector<std::uint8_t> bytes = bytes_of(small_mt());
+  const std::size_t table = mt_layout(counts_of(bytes)).block_table;
   std::mt19937 rng(9);
-  std::uniform_int_distribution<std::size_t> word(0, bytes.size() / 4 - 1);
-  int accepted = 0;
-  for (int i = 0; i < 1000; ++i) {
-    std::vector<std::uint8_t> bad = bytes;
-    const std::size_t at = 4 * word(rng);
-    if (at == 48 || at == 52) continue;  // the checksum itself
-    const std::uint32_t value = rng() % 4 == 0 ? std::uint32_t(rng() % 64) : std::uint32_t(rng());
-    std::memcpy(bad.data() + at, &value, 4);
-    reseal(bad);
-    auto mt = deserialize_mt(bad);
-    if (!mt.ok()) continue;
-    ++accepted;
+  std::uniform_int_distribution<std::size_t> word(kMtHeaderBytes / 4, table / 4 - 1);
+  int accepted = 0, viewed = 0;
+  auto walk = [](const Mt& mt) {
     CutMesh out;
-    Refiner refiner(*mt);
+    Refiner refiner(mt);
     refiner.refine(AllowedError::everywhere(-1.0f), out);
     refiner.refine_budget(AllowedError::everywhere(0.0f), 100, out);
     refiner.update(AllowedError::everywhere(0.01f), out);
-    for (const std::uint32_t v : out.triangles) ASSERT_LT(v, mt->vertex_count());
+    for (const std::uint32_t v : out.triangles) ASSERT_LT(v, mt.vertex_count());
+  };
+  for (int i = 0; i < 1000; ++i) {
+    std::vector<std::uint8_t> bad = bytes;
+    const std::size_t at = 4 * word(rng);
+    const std::uint32_t value = rng() % 4 == 0 ? std::uint32_t(rng() % 64) : std::uint32_t(rng());
+    std::memcpy(bad.data() + at, &value, 4);
+    reseal(bad);
+    auto view = view_mt(bad, nullptr);
+    auto mt = deserialize_mt(bad);
+    if (view.ok()) {
+      ++viewed;
+      try {
+        walk(*view);
+      } catch (const CorruptMt&) {
+        EXPECT_FALSE(mt.ok()) << "a block of a valid file failed its check";
+      }
+    } else {
+      EXPECT_FALSE(mt.ok()) << "the view refused what the whole read accepts: " << view.error().message;
+    }
+    if (!mt.ok()) continue;
+    ++accepted;
+    walk(*mt);
   }
+  EXPECT_GE(viewed, accepted);
   // Positions, normals, colours and errors accept most values, so some files must pass.
   EXPECT_GT(accepted, 0);
 }

@@ -1,0 +1,230 @@
+// Mapped .mt files (format 2, core/FORMAT.md): the same cuts as the file read whole, node blocks
+// checked the first time a refinement reaches them, and damaged or truncated files refused at open
+// or at first use with an error naming what is wrong, never undefined behaviour (ASan/UBSan).
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <filesystem>
+#include <functional>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "core/eval/mesh_gen.hpp"
+#include "core/io/mt_file.hpp"
+#include "core/mt_builder.hpp"
+#include "core/mt_format.hpp"
+#include "core/occupancy_levels.hpp"
+#include "core/refine.hpp"
+#include "tests/core/test_meshes.hpp"
+
+namespace mtlod::core {
+namespace {
+
+namespace fs = std::filesystem;
+
+// A model of several node blocks, written once.
+struct Model {
+  fs::path dir, path;
+  Mt built;
+  std::string bytes;
+};
+
+const Model& model() {
+  static const Model m = [] {
+    Model m;
+    GenerateOptions options;
+    options.shape = Shape::kShell;
+    options.target_triangles = 40000;
+    auto built = build_mt(generate_mesh(options));
+    EXPECT_TRUE(built.ok());
+    m.built = std::move(built).value();
+    m.dir = test::scratch_dir("mt-map");
+    m.path = m.dir / "shell.mt";
+    EXPECT_TRUE(io::write_mt_file(m.path, m.built).ok());
+    m.bytes = test::read_file(m.path);
+    return m;
+  }();
+  return m;
+}
+
+// The model's file with `change` applied to its bytes, written beside it.
+fs::path altered(const std::string& name, const std::function<void(std::string&)>& change) {
+  std::string bytes = model().bytes;
+  change(bytes);
+  const fs::path path = model().dir / name;
+  test::write_file(path, bytes);
+  return path;
+}
+
+std::uint32_t block_of(std::uint32_t node) {
+  return node >> kMtBlockShift;
+}
+
+void expect_same_cut(const CutMesh& a, const CutMesh& b, const std::string& what) {
+  EXPECT_EQ(a.triangles, b.triangles) << what;
+  EXPECT_EQ(a.ids, b.ids) << what;
+  EXPECT_EQ(a.node_count, b.node_count) << what;
+  EXPECT_EQ(a.max_error, b.max_error) << what;
+}
+
+TEST(MtMap, OpensInPlace) {
+  const Model& m = model();
+  ASSERT_GE(mt_block_count(std::uint32_t(m.built.node_count())), 4u) << "the test needs several blocks";
+  auto mapped = io::read_mt_file(m.path);
+  ASSERT_TRUE(mapped.ok()) << mapped.error().message;
+  EXPECT_TRUE(mapped->mapped());
+  EXPECT_EQ(mapped->memory_bytes(), 0u);
+  EXPECT_EQ(mapped->mapped_bytes(), m.built.array_bytes());
+  // The summary comes from the header, equal to what the arrays give.
+  EXPECT_EQ(mapped->bounds.lo, m.built.bounds.lo);
+  EXPECT_EQ(mapped->bounds.hi, m.built.bounds.hi);
+  EXPECT_EQ(mapped->input_triangles, m.built.input_triangles);
+  auto read = io::read_mt_file(m.path, io::MtLoad::kRead);
+  ASSERT_TRUE(read.ok());
+  EXPECT_FALSE(read->mapped());
+  EXPECT_EQ(read->memory_bytes(), m.built.array_bytes());
+}
+
+TEST(MtMap, CutsEqualThoseOfTheFileReadWhole) {
+  const Model& m = model();
+  auto mapped = io::read_mt_file(m.path);
+  auto read = io::read_mt_file(m.path, io::MtLoad::kRead);
+  ASSERT_TRUE(mapped.ok() && read.ok());
+  Refiner a(*mapped), b(*read);
+  CutMesh ca, cb;
+  const float top = m.built.node_error[1];
+  for (const float fraction : {1.0f, 0.3f, 0.05f, 0.01f, 0.0f}) {
+    a.refine(AllowedError::everywhere(top * fraction), ca);
+    b.refine(AllowedError::everywhere(top * fraction), cb);
+    expect_same_cut(ca, cb, "uniform " + std::to_string(fraction));
+  }
+  for (const std::size_t budget : {500, 5000, 30000}) {
+    a.refine_budget(AllowedError::everywhere(0.0f), budget, ca);
+    b.refine_budget(AllowedError::everywhere(0.0f), budget, cb);
+    expect_same_cut(ca, cb, "budget " + std::to_string(budget));
+  }
+  // Per-vertex fields moved by dynamic updates, as a gaze moves them.
+  std::mt19937 rng(5);
+  std::vector<float> field(m.built.vertex_count());
+  for (int step = 0; step < 4; ++step) {
+    const float centre = std::uniform_real_distribution<float>(-1, 1)(rng);
+    for (std::size_t v = 0; v < field.size(); ++v)
+      field[v] = top * 0.02f * (0.05f + std::abs(m.built.positions[3 * v] - centre));
+    a.update(AllowedError::from_vertices(field), ca);
+    b.update(AllowedError::from_vertices(field), cb);
+    expect_same_cut(ca, cb, "update " + std::to_string(step));
+  }
+  // The occupancy stage's coarse cuts too.
+  const OccupancyLevels la(*mapped), lb(*read);
+  ASSERT_EQ(la.levels().size(), lb.levels().size());
+  for (std::size_t i = 0; i < la.levels().size(); ++i) {
+    EXPECT_EQ(la.levels()[i].triangles, lb.levels()[i].triangles);
+    EXPECT_EQ(la.levels()[i].positions, lb.levels()[i].positions);
+  }
+}
+
+TEST(MtMap, ADamagedBlockFailsAtFirstUseOnly) {
+  const Model& m = model();
+  const std::uint32_t last_block = mt_block_count(std::uint32_t(m.built.node_count())) - 1;
+  // A removed-by entry of a triangle created in the last block, not resealed.
+  MtCounts counts;
+  counts.normals = m.built.has_normals();
+  counts.colors = m.built.has_colors();
+  counts.vertices = std::uint32_t(m.built.vertex_count());
+  counts.nodes = std::uint32_t(m.built.node_count());
+  counts.triangles = std::uint32_t(m.built.triangle_count());
+  counts.root_triangles = std::uint32_t(m.built.root_triangle_count());
+  counts.parents = std::uint32_t(m.built.node_parents.size());
+  const std::uint32_t first_triangle =
+      m.built.node_triangle_offsets[std::size_t{last_block} << kMtBlockShift];
+  const std::uint64_t at = mt_layout(counts).triangle_remover + 4 * std::uint64_t{first_triangle};
+  const fs::path path = altered("damaged-block.mt", [&](std::string& bytes) { bytes[at] ^= 0x40; });
+
+  auto read = io::read_mt_file(path, io::MtLoad::kRead);
+  ASSERT_FALSE(read.ok());
+  EXPECT_EQ(read.error().code, ErrorCode::kCorrupt);
+  EXPECT_NE(read.error().message.find("block " + std::to_string(last_block)), std::string::npos)
+      << read.error().message;
+
+  auto mapped = io::read_mt_file(path);
+  ASSERT_TRUE(mapped.ok()) << "only the root's block is checked at open: " << mapped.error().message;
+  Refiner refiner(*mapped);
+  CutMesh cut;
+  refiner.refine(AllowedError::everywhere(m.built.node_error[1]), cut);  // the root alone
+  EXPECT_EQ(cut.node_count, 1u);
+  try {
+    refiner.refine(AllowedError::everywhere(0.0f), cut);  // every node
+    ADD_FAILURE() << "the damaged block was used without a complaint";
+  } catch (const CorruptMt& e) {
+    EXPECT_NE(std::string(e.what()).find("block " + std::to_string(last_block)), std::string::npos)
+        << e.what();
+  }
+  // The same MT keeps serving the cuts that do not reach the block, and keeps refusing those that do.
+  Refiner fresh(*mapped);
+  fresh.refine(AllowedError::everywhere(m.built.node_error[1] * 0.5f), cut);
+  EXPECT_GT(cut.node_count, 1u);
+  EXPECT_THROW(fresh.refine(AllowedError::everywhere(0.0f), cut), CorruptMt);
+}
+
+TEST(MtMap, TruncatedOrDamagedHeadersAreRefusedAtOpen) {
+  const Model& m = model();
+  const std::size_t size = m.bytes.size();
+  for (const std::size_t length : {std::size_t{0}, std::size_t{100}, std::size_t{300}, size / 2, size - 1}) {
+    const fs::path path =
+        altered("truncated-" + std::to_string(length) + ".mt", [&](std::string& b) { b.resize(length); });
+    auto mt = io::read_mt_file(path);
+    ASSERT_FALSE(mt.ok()) << length;
+    EXPECT_EQ(mt.error().code, ErrorCode::kCorrupt) << length;
+    EXPECT_NE(mt.error().message.find(path.string()), std::string::npos) << mt.error().message;
+  }
+  struct Case {
+    const char* name;
+    std::size_t at;
+    const char* expect;
+  };
+  const std::size_t table = size - kMtBlockEntryBytes * mt_block_count(std::uint32_t(m.built.node_count()));
+  const Case cases[] = {
+      {"bounds", 64, "header checksum"},
+      {"block-table", table + 3, "header checksum"},
+      {"root-block", kMtHeaderBytes + 5, "block 0"},  // a position of a root vertex
+      {"reserved", 200, "reserved"},
+  };
+  for (const Case& c : cases) {
+    const fs::path path = altered(std::string(c.name) + ".mt", [&](std::string& b) { b[c.at] ^= 0x11; });
+    auto mt = io::read_mt_file(path);
+    ASSERT_FALSE(mt.ok()) << c.name;
+    EXPECT_NE(mt.error().message.find(c.expect), std::string::npos) << c.name << ": " << mt.error().message;
+  }
+}
+
+TEST(MtMap, FormatOneFilesAreReadWhole) {
+  // An MT whose vertices are not in node order is written as version 1 and read whole.
+  MtArrays arrays = model().built.arrays();
+  const std::uint32_t v = arrays.node_vertex[1], w = arrays.node_vertex[2];
+  arrays.node_vertex[1] = w;
+  arrays.node_vertex[2] = v;
+  for (std::uint32_t& c : arrays.triangle_corners) c = c == v ? w : c == w ? v : c;
+  for (std::uint32_t& c : arrays.root_first_corner) c = c == v ? w : c == w ? v : c;
+  for (int k = 0; k < 3; ++k) {
+    std::swap(arrays.positions[3 * v + k], arrays.positions[3 * w + k]);
+    if (!arrays.normals.empty()) std::swap(arrays.normals[3 * v + k], arrays.normals[3 * w + k]);
+    if (!arrays.colors.empty()) std::swap(arrays.colors[3 * v + k], arrays.colors[3 * w + k]);
+  }
+  const Mt swapped(std::move(arrays));
+  ASSERT_FALSE(swapped.vertices_in_node_order());
+  const fs::path path = model().dir / "v1.mt";
+  ASSERT_TRUE(io::write_mt_file(path, swapped).ok());
+  EXPECT_EQ(test::read_file(path).substr(8, 1), std::string(1, '\1'));
+  auto mt = io::read_mt_file(path);
+  ASSERT_TRUE(mt.ok()) << mt.error().message;
+  EXPECT_FALSE(mt->mapped());
+  Refiner a(*mt), b(swapped);
+  CutMesh ca, cb;
+  a.refine(AllowedError::everywhere(0.0f), ca);
+  b.refine(AllowedError::everywhere(0.0f), cb);
+  expect_same_cut(ca, cb, "version 1");
+}
+
+}  // namespace
+}  // namespace mtlod::core
