@@ -331,10 +331,8 @@ void Refiner::refine_prefix(std::uint32_t end, CutMesh& out) {
   out.within_budget = true;
 }
 
-void Refiner::refine_on_demand(const VertexErrorSource& source, std::span<float> field, CutMesh& out) {
-  assert(field.size() == mt_.vertex_count());
-  // The root's vertices first (each once: a vertex has about six root triangles); the nodes' split
-  // vertices as the refinement reaches them.
+void Refiner::fill_root_vertices(const OnDemand& on_demand) {
+  // Each once: a vertex has about six root triangles.
   if (root_vertices_.empty()) {
     for (std::uint32_t t = 0; t < mt_.node_triangle_offsets[1]; ++t) {
       root_vertices_.push_back(mt_.root_first_corner[t]);
@@ -344,8 +342,20 @@ void Refiner::refine_on_demand(const VertexErrorSource& source, std::span<float>
     std::sort(root_vertices_.begin(), root_vertices_.end());
     root_vertices_.erase(std::unique(root_vertices_.begin(), root_vertices_.end()), root_vertices_.end());
   }
-  source.fill(root_vertices_, field);
+  on_demand.source.fill(root_vertices_, on_demand.field);
+}
+
+void Refiner::fill_split_vertices(const OnDemand& on_demand, std::size_t first) {
+  batch_.clear();
+  for (std::size_t i = first; i < cut_.size(); ++i) batch_.push_back(mt_.node_vertex[cut_[i]]);
+  on_demand.source.fill(batch_, on_demand.field);
+}
+
+void Refiner::refine_on_demand(const VertexErrorSource& source, std::span<float> field, CutMesh& out) {
+  assert(field.size() == mt_.vertex_count());
+  // The root's vertices first; the nodes' split vertices as the refinement reaches them.
   const OnDemand on_demand{source, field};
+  fill_root_vertices(on_demand);
   refine_forced(AllowedError::from_vertices(field), &out, &on_demand);
 }
 
@@ -728,14 +738,32 @@ void Refiner::refine_budget(const AllowedError& allowed, std::size_t max_triangl
     out.within_budget = out.triangle_count() <= max_triangles;
     return;
   }
+  Rank level;
+  budget_from_root(allowed, max_triangles, 0, nullptr, level, out);
+}
+
+void Refiner::refine_budget_on_demand(const VertexErrorSource& source, std::span<float> field,
+                                      std::size_t max_triangles, CutMesh& out) {
+  assert(field.size() == mt_.vertex_count());
+  mesh_valid_ = false;
+  dynamic_ready_ = false;
+  const OnDemand on_demand{source, field};
+  Rank level;
+  budget_from_root(AllowedError::from_vertices(field), max_triangles, 0, &on_demand, level, out);
+}
+
+std::size_t Refiner::budget_from_root(const AllowedError& allowed, std::size_t max_triangles,
+                                      std::size_t target, const OnDemand* on_demand, Rank& level,
+                                      CutMesh& out) {
   reset_to_root();
   heap_.clear();
+  if (on_demand) fill_root_vertices(*on_demand);
   push_failing(0, allowed);
-  Rank level;
   std::size_t level_end = 0;
-  fill_budget(allowed, mt_.root_triangle_count(), max_triangles, 0, level, level_end);
+  fill_budget(allowed, mt_.root_triangle_count(), max_triangles, target, level, level_end, on_demand);
   emit(out);
   out.within_budget = out.triangle_count() <= max_triangles;
+  return level_end;
 }
 
 bool Refiner::heap_less(const HeapEntry& x, const HeapEntry& y) {
@@ -755,7 +783,8 @@ void Refiner::push_failing(std::uint32_t n, const AllowedError& allowed) {
 }
 
 void Refiner::fill_budget(const AllowedError& allowed, std::size_t count, std::size_t max_triangles,
-                          std::size_t target, Rank& level, std::size_t& level_end) {
+                          std::size_t target, Rank& level, std::size_t& level_end,
+                          const OnDemand* on_demand) {
   // The ratios popped fall, but not steadily: refining a triangle can uncover worse ones, which are
   // popped next. Clipped to the smallest ratio popped so far they do fall steadily (a max-min path
   // search from the root), and when that smallest ratio first reaches ℓ every node whose forcing
@@ -787,6 +816,8 @@ void Refiner::fill_budget(const AllowedError& allowed, std::size_t count, std::s
       return;
     }
     count = count + added - removed;
+    // Every corner of a new node's triangles is its split vertex or an older one's.
+    if (on_demand) fill_split_vertices(*on_demand, first_new);
     for (std::size_t i = first_new; i < cut_.size(); ++i) push_failing(cut_[i], allowed);
   }
   // Nothing fails: the minimal cut of threshold 1.
@@ -843,19 +874,25 @@ std::size_t Refiner::budget_target(std::size_t max_triangles) const {
 
 void Refiner::start_budget(const AllowedError& allowed, std::size_t max_triangles, CutMesh& out) {
   assert(!allowed.per_vertex.empty() && allowed.threshold == Rank{});
+  start_budget_from(allowed, max_triangles, nullptr, out);
+}
+
+void Refiner::start_budget_on_demand(const VertexErrorSource& source, std::span<float> field,
+                                     std::size_t max_triangles, CutMesh& out) {
+  assert(field.size() == mt_.vertex_count());
+  const OnDemand on_demand{source, field};
+  start_budget_from(AllowedError::from_vertices(field), max_triangles, &on_demand, out);
+}
+
+void Refiner::start_budget_from(const AllowedError& allowed, std::size_t max_triangles,
+                                const OnDemand* on_demand, CutMesh& out) {
   ++budget_starts_;
   mesh_valid_ = false;
   dynamic_ready_ = false;
   budget_threshold_.reset();
-  reset_to_root();
-  heap_.clear();
-  push_failing(0, allowed);
   Rank level;
-  std::size_t level_end = 0;
-  fill_budget(allowed, mt_.root_triangle_count(), max_triangles, budget_target(max_triangles), level,
-              level_end);
-  emit(out);
-  out.within_budget = out.triangle_count() <= max_triangles;
+  const std::size_t level_end =
+      budget_from_root(allowed, max_triangles, budget_target(max_triangles), on_demand, level, out);
   if (level_end == 0) return;  // no threshold's cut fits: the next update starts from the root too
   // Keep the cut the refinement passed through at that threshold. Its mesh is built, and the new
   // field compared in full, only when an update follows (an extraction may have no gazes after it).

@@ -163,6 +163,12 @@ class Refiner {
   // start_budget refines from the root (a new view); update_budget takes the vertices whose
   // allowed error changed, as update does, and starts from the root when there is no kept cut.
   void start_budget(const AllowedError& allowed, std::size_t max_triangles, CutMesh& out);
+  // refine_budget and start_budget with the allowed error asked of `source` only for the vertices
+  // they read (as refine_on_demand): the same cuts.
+  void refine_budget_on_demand(const VertexErrorSource& source, std::span<float> field,
+                               std::size_t max_triangles, CutMesh& out);
+  void start_budget_on_demand(const VertexErrorSource& source, std::span<float> field,
+                              std::size_t max_triangles, CutMesh& out);
   void update_budget(const AllowedError& allowed, std::span<const std::uint32_t> changed_vertices,
                      std::size_t max_triangles, CutMesh& out);
   // The threshold of the kept cut after a budgeted update (none when no threshold's cut fitted).
@@ -201,6 +207,9 @@ class Refiner {
     const VertexErrorSource& source;
     std::span<float> field;
   };
+  // The root mesh's vertices, and the split vertices of cut_ from position `first` on.
+  void fill_root_vertices(const OnDemand& on_demand);
+  void fill_split_vertices(const OnDemand& on_demand, std::size_t first);
   // Static refinement by forcing from the root; records witnesses so update can start from it.
   // from_cut: start from the nodes in cut_ instead (a subset of the new minimal cut, with their
   // witnesses, parents and witness creators before them); never on demand.
@@ -293,7 +302,14 @@ class Refiner {
   // threshold ℓ: the last such ℓ whose cut had at most `target` triangles, and the cut's length
   // then, are written to level and level_end (left as they were when there is none).
   void fill_budget(const AllowedError& allowed, std::size_t count, std::size_t max_triangles,
-                   std::size_t target, Rank& level, std::size_t& level_end);
+                   std::size_t target, Rank& level, std::size_t& level_end,
+                   const OnDemand* on_demand = nullptr);
+  // Worst first from the root (fill_budget); returns level_end and sets level. on_demand: the
+  // field is filled as nodes are added.
+  std::size_t budget_from_root(const AllowedError& allowed, std::size_t max_triangles, std::size_t target,
+                               const OnDemand* on_demand, Rank& level, CutMesh& out);
+  void start_budget_from(const AllowedError& allowed, std::size_t max_triangles, const OnDemand* on_demand,
+                         CutMesh& out);
   // The size a changed threshold's cut aims at: a little below the budget.
   std::size_t budget_target(std::size_t max_triangles) const;
   // The threshold at which at least `nodes` of the cut's nodes lose their witness.

@@ -158,7 +158,7 @@ void ViewExtractor::allowed_error() {
     // From the root anyway: a static request, or a session's new view (the session's field is
     // completed on the view's first reuse). Without a session a dynamic request moves the
     // refiner's cut, which compares every vertex's value.
-    on_demand_ = r.allowed_error_on_demand && !r.budget && (!r.dynamic || session_ != nullptr);
+    on_demand_ = r.allowed_error_on_demand && (!r.dynamic || session_ != nullptr);
     if (!on_demand_) field_.compute_all(allowed_);
     if (session_) {
       remember_view(*session_);
@@ -286,10 +286,19 @@ CutSpan ViewExtractor::refine_view(Refiner& session, CutMesh& scratch) {
   const CutSpan cut = [&] {
     const bool gaze = request_->dynamic && incremental_ && !field_completed_;
     if (request_->budget) {
-      if (gaze) {
+      // After the view's field was completed every vertex counts as changed (the kept cut of an
+      // on-demand start knows no field), so the kept cut moves as after any gaze.
+      if (request_->dynamic && incremental_) {
         session.update_budget(allowed, session_->changed_, *request_->budget, scratch);
       } else if (request_->dynamic && session_) {
-        session.start_budget(allowed, *request_->budget, scratch);  // kept for the gazes that follow
+        // Kept for the gazes that follow.
+        if (on_demand_) {
+          session.start_budget_on_demand(field_, allowed_, *request_->budget, scratch);
+        } else {
+          session.start_budget(allowed, *request_->budget, scratch);
+        }
+      } else if (on_demand_) {
+        session.refine_budget_on_demand(field_, allowed_, *request_->budget, scratch);
       } else {
         session.refine_budget(allowed, *request_->budget, scratch);
       }

@@ -224,6 +224,67 @@ TEST(Refine, OnDemandEqualsTheFullFieldAndAsksOnlyForTheCutsVertices) {
   }
 }
 
+// Budgeted on demand (a new view with a budget): the same cut as with every vertex's value, worst
+// first from the root and kept for gazes, asking for each vertex at most once and for every vertex
+// of the cut.
+TEST(Refine, BudgetOnDemandEqualsTheFullField) {
+  class Counter final : public VertexErrorSource {
+   public:
+    explicit Counter(const std::vector<float>& field) : field_(field), asked_(field.size(), 0) {}
+    float vertex_allowed_error(std::uint32_t v) const override {
+      ++asked_[v];
+      return field_[v];
+    }
+    std::vector<int>& asked() const { return asked_; }
+
+   private:
+    const std::vector<float>& field_;
+    mutable std::vector<int> asked_;
+  };
+  std::mt19937 rng(8);
+  for (const MtCase* c : {test::shape_case(Shape::kSphere, 8'000), test::scan_case("armadillo-52k.ply")}) {
+    if (!c) continue;
+    const float top = max_node_error(c->mt);
+    for (int round = 0; round < 4; ++round) {
+      const std::vector<float> field =
+          round % 2 ? focus_field(c->mesh, rng, top * 1e-3f, top * 0.3f)
+                    : noise_field(c->mesh.vertex_count(), rng, top * 1e-3f, top * 0.5f);
+      const std::size_t budget = 500 + 1500 * std::size_t(round);
+      for (const bool keep : {false, true}) {
+        Refiner full(c->mt), lazy(c->mt);
+        CutMesh expected, out;
+        const Counter source(field);
+        std::vector<float> written(field.size(), -1.0f);
+        if (keep) {
+          full.start_budget(AllowedError::from_vertices(field), budget, expected);
+          lazy.start_budget_on_demand(source, written, budget, out);
+          EXPECT_EQ(lazy.budget_threshold(), full.budget_threshold());
+        } else {
+          full.refine_budget(AllowedError::from_vertices(field), budget, expected);
+          lazy.refine_budget_on_demand(source, written, budget, out);
+        }
+        EXPECT_EQ(test::triangle_set(out.triangles), test::triangle_set(expected.triangles)) << round;
+        EXPECT_EQ(out.max_error, expected.max_error);
+        std::size_t asked = 0;
+        for (std::uint32_t v = 0; v < field.size(); ++v) {
+          ASSERT_LE(source.asked()[v], 1) << "vertex " << v;
+          asked += source.asked()[v];
+          if (source.asked()[v]) ASSERT_EQ(written[v], field[v]);
+        }
+        for (const std::uint32_t v : out.triangles) ASSERT_EQ(source.asked()[v], 1) << "vertex " << v;
+        EXPECT_LT(asked, field.size() / 2) << "a budgeted cut asks for a fraction of the vertices";
+        // A gaze after a kept start moves the cut as with the full field.
+        if (keep) {
+          std::vector<float> moved = focus_field(c->mesh, rng, top * 1e-3f, top * 0.3f);
+          full.update_budget(AllowedError::from_vertices(moved), {}, budget, expected);
+          lazy.update_budget(AllowedError::from_vertices(moved), {}, budget, out);
+          EXPECT_EQ(test::triangle_set(out.triangles), test::triangle_set(expected.triangles)) << round;
+        }
+      }
+    }
+  }
+}
+
 TEST(Refine, UniformStaticEqualsTheNaiveFixpoint) {
   // The uniform case reads the cut off a prefix of the node order; the reference forces from the root.
   for (const MtCase* c :
