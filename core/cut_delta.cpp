@@ -1,5 +1,6 @@
 // Differences between consecutive cuts by id (see cut_delta.hpp). Two bit arrays over the MT's
-// triangles (about 210 KB each for the 871k dragon) keep every step O(cut), with no sorting.
+// triangles keep every step O(cut), with no sorting; only the pages of the cut's ids are resident
+// (ZeroedArray), however large the model.
 #include "core/cut_delta.hpp"
 
 #include <algorithm>
@@ -8,13 +9,13 @@
 namespace mtlod::core {
 namespace {
 
-bool test(const std::vector<std::uint64_t>& bits, std::uint32_t id) {
+bool test(const ZeroedArray<std::uint64_t>& bits, std::uint32_t id) {
   return (bits[id >> 6] >> (id & 63)) & 1;
 }
-void set(std::vector<std::uint64_t>& bits, std::uint32_t id) {
+void set(ZeroedArray<std::uint64_t>& bits, std::uint32_t id) {
   bits[id >> 6] |= std::uint64_t{1} << (id & 63);
 }
-void clear(std::vector<std::uint64_t>& bits, std::uint32_t id) {
+void clear(ZeroedArray<std::uint64_t>& bits, std::uint32_t id) {
   bits[id >> 6] &= ~(std::uint64_t{1} << (id & 63));
 }
 
@@ -24,8 +25,8 @@ bool CutDelta::update(std::span<const std::uint32_t> ids, std::size_t triangle_c
                       std::vector<std::uint32_t>& added, std::vector<std::uint32_t>& removed) {
   if (triangle_count != triangle_count_) {
     triangle_count_ = triangle_count;
-    sent_bits_.assign((triangle_count + 63) / 64, 0);
-    next_bits_.assign(sent_bits_.size(), 0);
+    sent_bits_.reset((triangle_count + 63) / 64);
+    next_bits_.reset(sent_bits_.size());
     sent_.clear();
     empty_ = true;
   }

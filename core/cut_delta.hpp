@@ -8,6 +8,8 @@
 #include <span>
 #include <vector>
 
+#include "core/zeroed_array.hpp"
+
 namespace mtlod::core {
 
 class CutDelta {
@@ -24,13 +26,13 @@ class CutDelta {
   void reset();
 
   std::size_t memory_bytes() const {
-    return (sent_bits_.capacity() + next_bits_.capacity()) * sizeof(std::uint64_t) +
+    return sent_bits_.resident_bytes() + next_bits_.resident_bytes() +
            sent_.capacity() * sizeof(std::uint32_t);
   }
 
  private:
-  std::vector<std::uint64_t> sent_bits_;  // one bit per MT triangle: in the client's mesh
-  std::vector<std::uint64_t> next_bits_;  // scratch: in the new cut (all clear between calls)
+  ZeroedArray<std::uint64_t> sent_bits_;  // one bit per MT triangle: in the client's mesh
+  ZeroedArray<std::uint64_t> next_bits_;  // scratch: in the new cut (all clear between calls)
   std::vector<std::uint32_t> sent_;       // the client's ids, in the order received
   std::size_t triangle_count_ = 0;        // of the MT the ids belong to
   bool empty_ = true;                     // the client has no mesh yet

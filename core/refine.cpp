@@ -99,16 +99,19 @@ float write_created(const Mt& mt, const std::uint8_t* in_cut, std::span<const st
 }
 
 // One bit per node (Refiner::node_changed_).
-void set_bit(std::vector<std::uint64_t>& bits, std::uint32_t n) {
+void set_bit(ZeroedArray<std::uint64_t>& bits, std::uint32_t n) {
   bits[n >> 6] |= std::uint64_t{1} << (n & 63);
 }
-bool bit(const std::vector<std::uint64_t>& bits, std::uint32_t n) {
+bool bit(const ZeroedArray<std::uint64_t>& bits, std::uint32_t n) {
   return (bits[n >> 6] >> (n & 63)) & 1;
 }
 
 }  // namespace
 
-Refiner::Refiner(const Mt& mt) : mt_(mt), in_cut_(mt.node_count(), kOut) {
+// A fresh refiner's state is all kOut, as a fresh mapping is all zero.
+static_assert(kOut == 0);
+
+Refiner::Refiner(const Mt& mt) : mt_(mt), in_cut_(mt.node_count()) {
   assert(mt.node_count() > 0);
 }
 
@@ -653,7 +656,7 @@ void Refiner::rebuild_kept_mesh(std::size_t added) {
   // no node of the cut removes. Every old mesh triangle was created by a node of the old cut and removed by
   // none: it stays unless its creator dropped (and perhaps came back: added nodes' triangles are pushed
   // below) or its remover was added. Those nodes are marked in a bitmap 8 times denser than in_cut_.
-  if (node_changed_.empty()) node_changed_.assign((mt_.node_count() + 63) / 64, 0);
+  if (node_changed_.empty()) node_changed_.reset((mt_.node_count() + 63) / 64);
   for (const std::uint32_t n : dropped_) set_bit(node_changed_, n);
   for (std::size_t i = added; i < cut_.size(); ++i) set_bit(node_changed_, cut_[i]);
   const std::size_t mesh_size = mesh_triangles_.size();
@@ -842,7 +845,7 @@ Rank Refiner::threshold_dropping(const AllowedError& allowed, std::size_t nodes)
 void Refiner::write_refined(std::size_t added, std::size_t max_triangles, CutMesh& out) {
   // The kept mesh less what the nodes from `added` on remove, then what they create and no node of
   // the cut removes.
-  if (node_changed_.empty()) node_changed_.assign((mt_.node_count() + 63) / 64, 0);
+  if (node_changed_.empty()) node_changed_.reset((mt_.node_count() + 63) / 64);
   const std::span<const std::uint32_t> nodes = std::span<const std::uint32_t>(cut_).subspan(added);
   for (const std::uint32_t x : nodes) set_bit(node_changed_, x);
   MeshWriter writer(mt_, out, mesh_triangles_.size() + created_by(mt_, nodes));
@@ -985,10 +988,11 @@ void refine_budget(const Mt& mt, const AllowedError& allowed, std::size_t max_tr
 
 std::size_t Refiner::memory_bytes() const {
   auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
-  return bytes(in_cut_) + bytes(cut_) + bytes(witnesses_) + bytes(mesh_errors_) + bytes(stack_) +
-         bytes(previous_field_) + bytes(mesh_triangles_) + bytes(mesh_creators_) + bytes(mesh_removers_) +
-         bytes(mesh_corners_) + bytes(changed_bits_) + bytes(dropped_) + bytes(seeds_) + bytes(passing_) +
-         bytes(heap_) + bytes(ranks_) + bytes(root_vertices_) + bytes(batch_) + bytes(node_changed_);
+  return in_cut_.resident_bytes() + node_changed_.resident_bytes() + bytes(cut_) + bytes(witnesses_) +
+         bytes(mesh_errors_) + bytes(stack_) + bytes(previous_field_) + bytes(mesh_triangles_) +
+         bytes(mesh_creators_) + bytes(mesh_removers_) + bytes(mesh_corners_) + bytes(changed_bits_) +
+         bytes(dropped_) + bytes(seeds_) + bytes(passing_) + bytes(heap_) + bytes(ranks_) +
+         bytes(root_vertices_) + bytes(batch_);
 }
 
 }  // namespace mtlod::core

@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "core/mt.hpp"
+#include "core/zeroed_array.hpp"
 
 namespace mtlod::core {
 
@@ -249,7 +250,7 @@ class Refiner {
   bool vertex_changed(std::uint32_t v) const { return (changed_bits_[v >> 6] >> (v & 63)) & 1; }
 
   const Mt& mt_;
-  std::vector<std::uint8_t> in_cut_;  // per node: 0 out, 1 in, 2 being added, 3 dropped
+  ZeroedArray<std::uint8_t> in_cut_;  // per node: 0 out, 1 in, 2 being added, 3 dropped
   std::vector<std::uint32_t> cut_;    // nodes in the cut, in the order added
   // Per entry of cut_ (same index): the failing triangle that forced the node, its creator and its
   // three corners, so moving the cut reads them in one sequential pass.
@@ -279,7 +280,7 @@ class Refiner {
   std::vector<std::uint64_t> changed_bits_;  // per vertex, during update
   std::vector<std::uint32_t> dropped_;       // nodes dropped during one update
   std::vector<std::uint32_t> seeds_;         // uncovered triangle, creator pairs of one update
-  std::vector<std::uint64_t> node_changed_;  // per node: dropped or added by the update (clear between)
+  ZeroedArray<std::uint64_t> node_changed_;  // per node: dropped or added by the update (clear between)
   // Triangles seen passing in refine_forced, with what the output needs of them.
   struct Passing {
     std::uint32_t triangle, creator, remover, corners[3];

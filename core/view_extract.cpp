@@ -33,7 +33,7 @@ ViewExtractor::ViewExtractor(const Mt& mt, const OccupancyLevels& levels) : mt_(
 
 std::size_t ViewCache::memory_bytes() const {
   auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
-  return bytes(allowed_error_) + bytes(silhouette_dt_) + bytes(neglect_dt_) + bytes(focus_factor_) +
+  return allowed_error_.resident_bytes() + bytes(silhouette_dt_) + bytes(neglect_dt_) + bytes(focus_factor_) +
          bytes(cell_start_) + bytes(cell_vertices_) + bytes(cell_vertex_clip_w_) + bytes(changed_) +
          bytes(neglect_) + bytes(focus_cells_);
 }
@@ -152,8 +152,9 @@ void ViewExtractor::allowed_error() {
   options.use_neglect = options.use_neglect && !neglect_.empty();
   field_.bind(mapping_, options, {silhouette_, focus_dt_, neglect_, mt_.positions, mt_.normals});
   if (!incremental_) {
-    std::vector<float>& field = session_ ? session_->allowed_error_ : vertex_allowed_error_;
-    field.resize(mt_.vertex_count());
+    ZeroedArray<float>& field = session_ ? session_->allowed_error_ : vertex_allowed_error_;
+    // Only the entries written are read: on demand, the pages of the cut's vertices.
+    if (field.size() != mt_.vertex_count()) field.reset(mt_.vertex_count());
     allowed_ = field;
     // From the root anyway: a static request, or a session's new view (the session's field is
     // completed on the view's first reuse). Without a session a dynamic request moves the
@@ -329,8 +330,8 @@ std::size_t ViewExtractor::memory_bytes() const {
   auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
   return transformer_.memory_bytes() + bytes(occupancy_) + bytes(seeds_image_) + bytes(depth_) +
          bytes(silhouette_dt_) + bytes(focus_dt_) + bytes(neglect_dt_) + bytes(euclidean_) + bytes(cells_) +
-         bytes(vertex_allowed_error_) + bytes(vertex_labels_) + bytes(projected_) + bytes(vertex_cells_) +
-         bytes(vertex_clip_w_) + field_.memory_bytes();
+         vertex_allowed_error_.resident_bytes() + bytes(vertex_labels_) + bytes(projected_) +
+         bytes(vertex_cells_) + bytes(vertex_clip_w_) + field_.memory_bytes();
 }
 
 }  // namespace mtlod::core

@@ -18,6 +18,7 @@
 #include "core/occupancy_levels.hpp"
 #include "core/refine.hpp"
 #include "core/view_grid.hpp"
+#include "core/zeroed_array.hpp"
 
 namespace mtlod::core {
 
@@ -71,7 +72,7 @@ class ViewCache {
   bool has_focus_ = false;
   bool internal_silhouettes_ = false;
   float depth_jump_ = 0.0f;
-  std::vector<float> allowed_error_;          // per vertex, for the session's last request
+  ZeroedArray<float> allowed_error_;          // per vertex, for the session's last request
   bool allowed_error_complete_ = false;       // false: only the last cut's vertices (on demand)
   std::vector<std::uint16_t> silhouette_dt_;  // of the view
   std::vector<std::uint16_t> neglect_dt_;
@@ -159,7 +160,7 @@ class ViewExtractor {
   std::vector<float> depth_;
   std::vector<std::uint16_t> silhouette_dt_, focus_dt_, neglect_dt_;
   std::vector<std::uint32_t> euclidean_, cells_;
-  std::vector<float> vertex_allowed_error_;
+  ZeroedArray<float> vertex_allowed_error_;
   std::vector<std::uint32_t> vertex_labels_;
   std::vector<ProjectedCorner> projected_;   // occupancy scratch
   std::vector<std::uint32_t> vertex_cells_;  // sort_vertices_by_cell scratch

@@ -78,8 +78,11 @@ std::uint64_t Engine::estimate_bytes(const protocol::Extract& request) const {
   if (!model) return 0;
   const std::uint64_t cells = std::uint64_t{request.grid[0]} * request.grid[1];
   const std::uint64_t vertices = model->mt.vertex_count();
+  // A budget bounds the cut; without one it may be the whole input.
+  const std::uint64_t cut =
+      std::min<std::uint64_t>(model->input_triangles, request.budget.value_or(UINT32_MAX));
   return kScratchPerCell * cells + kScratchPerVertex * vertices + kSessionPerCell * cells +
-         kSessionPerVertex * vertices + kSessionPerCutTriangle * model->input_triangles +
+         kSessionPerVertex * vertices + kSessionPerCutTriangle * cut +
          kSessionPerMtTriangle * model->mt.triangle_count();
 }
 

@@ -1,0 +1,72 @@
+// An array of zeros whose memory comes straight from the kernel (an anonymous mapping): making one
+// writes nothing, and only the pages a caller writes become resident. For per-node and per-vertex
+// state of a client session, whose length follows the model while the entries in use follow the
+// cut: a fresh session of a 100M-triangle model then costs what its cut touches, not 50M zeros.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <span>
+#include <type_traits>
+#include <utility>
+
+namespace mtlod::core {
+
+namespace zeroed_detail {
+void* map(std::size_t bytes);  // zero-filled, never null (throws std::bad_alloc)
+void unmap(void* data, std::size_t bytes);
+std::size_t resident(const void* data, std::size_t bytes);  // bytes of the pages in memory
+}  // namespace zeroed_detail
+
+template <class T>
+class ZeroedArray {
+  // All-zero bytes must be the value zero (true of integers and IEEE floats).
+  static_assert(std::is_trivially_copyable_v<T> && std::is_arithmetic_v<T>);
+
+ public:
+  ZeroedArray() = default;
+  explicit ZeroedArray(std::size_t n) { reset(n); }
+  ZeroedArray(ZeroedArray&& o) noexcept
+      : data_(std::exchange(o.data_, nullptr)), size_(std::exchange(o.size_, 0)) {}
+  ZeroedArray& operator=(ZeroedArray&& o) noexcept {
+    std::swap(data_, o.data_);
+    std::swap(size_, o.size_);
+    return *this;
+  }
+  ZeroedArray(const ZeroedArray&) = delete;
+  ZeroedArray& operator=(const ZeroedArray&) = delete;
+  ~ZeroedArray() { release(); }
+
+  // Becomes n zeros: a fresh mapping (the old pages go back to the kernel).
+  void reset(std::size_t n) {
+    release();
+    if (n == 0) return;
+    data_ = static_cast<T*>(zeroed_detail::map(n * sizeof(T)));
+    size_ = n;
+  }
+
+  T& operator[](std::size_t i) { return data_[i]; }
+  const T& operator[](std::size_t i) const { return data_[i]; }
+  T* data() { return data_; }
+  const T* data() const { return data_; }
+  T* begin() { return data_; }
+  T* end() { return data_ + size_; }
+  std::size_t size() const { return size_; }
+  bool empty() const { return size_ == 0; }
+  operator std::span<T>() { return {data_, size_}; }
+  operator std::span<const T>() const { return {data_, size_}; }
+
+  // Bytes of its pages that are in memory: what the array really costs.
+  std::size_t resident_bytes() const { return data_ ? zeroed_detail::resident(data_, size_ * sizeof(T)) : 0; }
+
+ private:
+  void release() {
+    if (data_) zeroed_detail::unmap(data_, size_ * sizeof(T));
+    data_ = nullptr;
+    size_ = 0;
+  }
+  T* data_ = nullptr;
+  std::size_t size_ = 0;
+};
+
+}  // namespace mtlod::core
