@@ -59,6 +59,7 @@ void Mt::triangle_vertices(std::uint32_t t, std::uint32_t out[3]) const {
 }
 
 bool Mt::vertices_in_node_order() const {
+  if (mapped()) return true;  // format 2 requires it, and each block is checked for it
   for (std::size_t n = 2; n < node_count(); ++n)
     if (node_vertex[n] != node_vertex[n - 1] + 1) return false;
   return true;
