@@ -66,6 +66,18 @@ void put64(std::vector<std::uint8_t>& out, std::uint64_t x) {
   out.resize(at + 8);
   std::memcpy(out.data() + at, &x, 8);
 }
+// Magic, version and counts: the first 36 bytes of the header in both versions.
+void put_counts(std::vector<std::uint8_t>& out, std::uint32_t version, const MtCounts& c) {
+  out.resize(8);
+  std::memcpy(out.data(), kMagic, 8);
+  put32(out, version);
+  put32(out, flags_of(c));
+  put32(out, c.vertices);
+  put32(out, c.nodes);
+  put32(out, c.triangles);
+  put32(out, c.root_triangles);
+  put32(out, c.parents);
+}
 void put_float(std::vector<std::uint8_t>& out, float x) {
   put32(out, std::bit_cast<std::uint32_t>(x));
 }
@@ -470,6 +482,17 @@ Result<MtSeal> seal_mt(const MtCounts& c, const MtReadAt& read_at) {
     MTLOD_RETURN_IF_ERROR(
         read_at(l.node_parent_offsets + 4 * n0, {table.data() + kMtBlockEntryBytes * b + 4, 4}));
   }
+  // The offsets are the caller's arrays: a block table out of order would send the slices below
+  // outside them.
+  std::uint32_t previous_t = 0, previous_p = 0;
+  for (std::uint32_t b = 0; b < blocks; ++b) {
+    const std::uint32_t t = get32(table.data() + kMtBlockEntryBytes * b);
+    const std::uint32_t q = get32(table.data() + kMtBlockEntryBytes * b + 4);
+    if (t < previous_t || q < previous_p || t > c.triangles || q > c.parents)
+      return corrupt("node offsets out of order at block " + std::to_string(b));
+    previous_t = t;
+    previous_p = q;
+  }
   Bounds bounds;
   std::uint32_t input_triangles = 0;
   std::vector<std::uint8_t> buffer;
@@ -498,15 +521,7 @@ Result<MtSeal> seal_mt(const MtCounts& c, const MtReadAt& read_at) {
   }
 
   std::vector<std::uint8_t>& out = seal.header;
-  out.resize(8);
-  std::memcpy(out.data(), kMagic, 8);
-  put32(out, 2);
-  put32(out, flags_of(c));
-  put32(out, c.vertices);
-  put32(out, c.nodes);
-  put32(out, c.triangles);
-  put32(out, c.root_triangles);
-  put32(out, c.parents);
+  put_counts(out, 2, c);
   put32(out, c.root_vertices);
   put64(out, l.end);
   put64(out, 0);  // checksum, filled last
@@ -523,28 +538,12 @@ Result<MtSeal> seal_mt(const MtCounts& c, const MtReadAt& read_at) {
 namespace {
 
 // Version 1, for MTs whose vertices are not in node order.
-void serialize_v1(const Mt& mt, std::vector<std::uint8_t>& out) {
-  MtCounts c;
-  c.normals = mt.has_normals();
-  c.colors = mt.has_colors();
-  c.vertices = std::uint32_t(mt.vertex_count());
-  c.nodes = std::uint32_t(mt.node_count());
-  c.triangles = std::uint32_t(mt.triangle_count());
-  c.root_triangles = std::uint32_t(mt.root_triangle_count());
-  c.parents = std::uint32_t(mt.node_parents.size());
+void serialize_v1(const MtCounts& c, std::vector<std::uint8_t>& out) {
   const MtLayout l = layout_after(c, kMtHeaderBytesV1);
   const std::uint64_t end = l.triangle_remover + 4 * std::uint64_t{c.triangles};
   out.clear();
   out.reserve(end);
-  out.resize(8);
-  std::memcpy(out.data(), kMagic, 8);
-  put32(out, 1);
-  put32(out, flags_of(c));
-  put32(out, c.vertices);
-  put32(out, c.nodes);
-  put32(out, c.triangles);
-  put32(out, c.root_triangles);
-  put32(out, c.parents);
+  put_counts(out, 1, c);
   put32(out, 0);  // reserved
   put64(out, end - kMtHeaderBytesV1);
   put64(out, 0);  // checksum, filled last
@@ -553,8 +552,7 @@ void serialize_v1(const Mt& mt, std::vector<std::uint8_t>& out) {
 
 }  // namespace
 
-void serialize_mt(const Mt& mt, std::vector<std::uint8_t>& out) {
-  const bool v2 = mt.vertices_in_node_order();
+MtCounts mt_counts(const Mt& mt) {
   MtCounts c;
   c.normals = mt.has_normals();
   c.colors = mt.has_colors();
@@ -564,12 +562,18 @@ void serialize_mt(const Mt& mt, std::vector<std::uint8_t>& out) {
   c.root_triangles = std::uint32_t(mt.root_triangle_count());
   c.parents = std::uint32_t(mt.node_parents.size());
   c.root_vertices = mt.node_count() > 1 ? mt.node_vertex[1] : c.vertices;
+  return c;
+}
+
+void serialize_mt(const Mt& mt, std::vector<std::uint8_t>& out) {
+  const bool v2 = mt.vertices_in_node_order();
+  const MtCounts c = mt_counts(mt);
   if (v2) {
     out.clear();
     out.reserve(mt_layout(c).end);
     out.resize(kMtHeaderBytes, 0);  // sealed below
   } else {
-    serialize_v1(mt, out);
+    serialize_v1(c, out);
   }
   put_array(out, mt.positions);
   if (c.normals) put_array(out, mt.normals);
@@ -599,12 +603,19 @@ void serialize_mt(const Mt& mt, std::vector<std::uint8_t>& out) {
             out.begin() + std::ptrdiff_t(l.block_table));
 }
 
+Result<MtCounts> mt_header_counts(std::span<const std::uint8_t> bytes) {
+  MTLOD_TRY(const Header h, parse_header(bytes));
+  return h.counts;
+}
+
 std::uint32_t mt_file_version(std::span<const std::uint8_t> bytes) {
   if (bytes.size() < 12 || std::memcmp(bytes.data(), kMagic, 8) != 0) return 0;
   return get32(bytes.data() + 8);
 }
 
 Result<Mt> view_mt(std::span<const std::uint8_t> bytes, std::shared_ptr<const void> storage) {
+  if (reinterpret_cast<std::uintptr_t>(bytes.data()) % 4 != 0)
+    return make_error(ErrorCode::kInvalidArgument, "an MT image viewed in place must be 4-byte aligned");
   MTLOD_TRY(Header h, parse_header(bytes));
   if (h.version != 2)
     return make_error(ErrorCode::kUnsupported, "MT file version " + std::to_string(h.version) +
@@ -620,6 +631,11 @@ Result<Mt> view_mt(std::span<const std::uint8_t> bytes, std::shared_ptr<const vo
 
 Result<Mt> deserialize_mt(std::span<const std::uint8_t> bytes) {
   MTLOD_TRY(Header h, parse_header(bytes));
+  std::vector<std::uint8_t> aligned;  // version 2 is checked through views that read u32/f32 in place
+  if (h.version == 2 && reinterpret_cast<std::uintptr_t>(bytes.data()) % 4 != 0) {
+    aligned.assign(bytes.begin(), bytes.end());
+    bytes = aligned;
+  }
   if (h.version == 2) {
     MTLOD_RETURN_IF_ERROR(check_table(h, bytes));
     const Mt view = view_of(h, bytes);

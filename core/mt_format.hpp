@@ -47,6 +47,8 @@ struct MtLayout {
       end;
 };
 MtLayout mt_layout(const MtCounts& counts);
+// The counts of an MT in memory (root_vertices as node order numbers them).
+MtCounts mt_counts(const Mt& mt);
 // Node blocks of kMtBlockNodes nodes (the last one shorter).
 std::uint32_t mt_block_count(std::uint32_t nodes);
 
@@ -72,11 +74,15 @@ void serialize_mt(const Mt& mt, std::vector<std::uint8_t>& out);
 // value), kUnsupported (another version).
 Result<Mt> deserialize_mt(std::span<const std::uint8_t> bytes);
 
+// The counts an image's header states, when the header is well formed and the image as long as
+// they say (its checksums are not checked: for tests and tools that reseal an altered image).
+Result<MtCounts> mt_header_counts(std::span<const std::uint8_t> bytes);
+
 // The version an image's header states (0: too short or not an MT file).
 std::uint32_t mt_file_version(std::span<const std::uint8_t> bytes);
 
-// A version-2 image used in place, kept alive by `storage` (a memory map): checks the header, the
-// block table, the size and the root's block now, every other node block when a refinement first
+// A version-2 image used in place (4-byte aligned, as a memory map is), kept alive by `storage`: checks the
+// header, the block table, the size and the root's block now, every other node block when a refinement first
 // reaches it (Mt::require_node throws CorruptMt then). Errors as deserialize_mt's; kUnsupported
 // for version 1, which is read whole.
 Result<Mt> view_mt(std::span<const std::uint8_t> bytes, std::shared_ptr<const void> storage);

@@ -48,21 +48,6 @@ std::uint32_t word_at(const std::vector<std::uint8_t>& bytes, std::size_t at) {
   return x;
 }
 
-// The counts a version-2 header states (core/FORMAT.md).
-MtCounts counts_of(const std::vector<std::uint8_t>& bytes) {
-  MtCounts c;
-  const std::uint32_t flags = word_at(bytes, 12);
-  c.normals = flags & 1;
-  c.colors = flags & 2;
-  c.vertices = word_at(bytes, 16);
-  c.nodes = word_at(bytes, 20);
-  c.triangles = word_at(bytes, 24);
-  c.root_triangles = word_at(bytes, 28);
-  c.parents = word_at(bytes, 32);
-  c.root_vertices = word_at(bytes, 36);
-  return c;
-}
-
 // Rewrites the checksums so a deliberate change to the arrays reaches the content checks.
 void reseal(std::vector<std::uint8_t>& bytes) {
   if (word_at(bytes, 8) == 1) {
@@ -71,7 +56,9 @@ void reseal(std::vector<std::uint8_t>& bytes) {
     std::memcpy(bytes.data() + 48, &sum, 8);
     return;
   }
-  const MtCounts counts = counts_of(bytes);
+  auto counts_read = mt_header_counts(bytes);
+  ASSERT_TRUE(counts_read.ok()) << counts_read.error().message;
+  const MtCounts counts = *counts_read;
   auto seal = seal_mt(counts, [&](std::uint64_t offset, std::span<std::uint8_t> out) -> Status {
     std::memcpy(out.data(), bytes.data() + offset, out.size());
     return Ok{};
@@ -211,7 +198,7 @@ TEST(MtFormat, ResealedRandomWordsAreRejectedOrRefineSafely) {
   // MT the refiner walks without leaving its arrays (this runs under ASan/UBSan in CI); read whole
   // or viewed in place with its blocks checked on first use.
   const std::vector<std::uint8_t> bytes = bytes_of(small_mt());
-  const std::size_t table = mt_layout(counts_of(bytes)).block_table;
+  const std::size_t table = mt_layout(*mt_header_counts(bytes)).block_table;
   std::mt19937 rng(9);
   std::uniform_int_distribution<std::size_t> word(kMtHeaderBytes / 4, table / 4 - 1);
   int accepted = 0, viewed = 0;

@@ -128,14 +128,7 @@ TEST(MtMap, ADamagedBlockFailsAtFirstUseOnly) {
   const Model& m = model();
   const std::uint32_t last_block = mt_block_count(std::uint32_t(m.built.node_count())) - 1;
   // A removed-by entry of a triangle created in the last block, not resealed.
-  MtCounts counts;
-  counts.normals = m.built.has_normals();
-  counts.colors = m.built.has_colors();
-  counts.vertices = std::uint32_t(m.built.vertex_count());
-  counts.nodes = std::uint32_t(m.built.node_count());
-  counts.triangles = std::uint32_t(m.built.triangle_count());
-  counts.root_triangles = std::uint32_t(m.built.root_triangle_count());
-  counts.parents = std::uint32_t(m.built.node_parents.size());
+  const MtCounts counts = mt_counts(m.built);
   const std::uint32_t first_triangle =
       m.built.node_triangle_offsets[std::size_t{last_block} << kMtBlockShift];
   const std::uint64_t at = mt_layout(counts).triangle_remover + 4 * std::uint64_t{first_triangle};

@@ -43,14 +43,7 @@ Damaged build_shell(std::size_t triangles) {
   const auto path = test::scratch_dir("mapped-model") / "built.mt";
   EXPECT_TRUE(core::io::write_mt_file(path, *mt).ok());
   d.bytes = test::read_file(path);
-  core::MtCounts counts;
-  counts.normals = mt->has_normals();
-  counts.colors = mt->has_colors();
-  counts.vertices = std::uint32_t(mt->vertex_count());
-  counts.nodes = std::uint32_t(mt->node_count());
-  counts.triangles = std::uint32_t(mt->triangle_count());
-  counts.root_triangles = std::uint32_t(mt->root_triangle_count());
-  counts.parents = std::uint32_t(mt->node_parents.size());
+  const core::MtCounts counts = core::mt_counts(*mt);
   d.last_block = core::mt_block_count(counts.nodes) - 1;
   const std::uint32_t first = mt->node_triangle_offsets[std::size_t{d.last_block} << core::kMtBlockShift];
   d.last_block_byte = core::mt_layout(counts).triangle_remover + 4 * std::size_t{first};
