@@ -52,8 +52,9 @@ struct MtArrays {
   std::vector<std::uint32_t> triangle_remover;
 };
 
-// A node block of a memory-mapped file failed its check on first use (core/io/mt_map.hpp). Thrown
-// from deep inside a refinement; the request fails and the model is marked corrupt.
+// A node block of a memory-mapped file failed its check on first use (core/io/mt_file.hpp). Thrown
+// from deep inside a refinement; the request fails, and so does every later one that reaches the
+// block.
 struct CorruptMt : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
@@ -82,7 +83,7 @@ class MtBlockCheck {
 };
 
 // The Multi-Tessellation as read-only arrays: views of MtArrays it owns, or of a memory-mapped file
-// (core/io/mt_map.hpp) whose blocks are checked on first use. Copies share the storage.
+// (core/io/mt_file.hpp) whose blocks are checked on first use. Copies share the storage.
 struct Mt {
   // Vertices: every vertex of the input. build_mt numbers them as the nodes reach them (the root
   // mesh's vertices first, then node n's split vertex as root vertices + n − 1, then any vertex no

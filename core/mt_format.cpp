@@ -361,14 +361,9 @@ std::uint64_t checksum_without_field(std::span<const std::uint8_t> bytes, std::u
   return mt_checksum(bytes.subspan(kChecksumOffset + 8), sum);
 }
 
-// Version 2: the header checksum (header and block table) and the table's own consistency.
-Status check_table(const Header& h, std::span<const std::uint8_t> bytes) {
-  const MtCounts& c = h.counts;
-  const auto table = bytes.subspan(h.layout.block_table);
-  std::uint64_t sum = checksum_without_field(bytes.subspan(0, kMtHeaderBytes));
-  sum = mt_checksum(table, sum);
-  if (sum != get64(bytes.data() + kChecksumOffset))
-    return corrupt("header checksum mismatch (the header or the block table was altered or damaged)");
+// The block table's order: block 0 starts at 0, the first triangles and parents never decrease and
+// stay within the counts, so every block's slices lie inside the arrays.
+Status check_table_order(const MtCounts& c, std::span<const std::uint8_t> table) {
   const std::uint32_t blocks = mt_block_count(c.nodes);
   std::uint32_t previous_t = 0, previous_p = 0;
   for (std::uint32_t b = 0; b < blocks; ++b) {
@@ -381,6 +376,16 @@ Status check_table(const Header& h, std::span<const std::uint8_t> bytes) {
     previous_p = q;
   }
   return Ok{};
+}
+
+// Version 2: the header checksum (header and block table) and the table's order.
+Status check_table(const Header& h, std::span<const std::uint8_t> bytes) {
+  const auto table = bytes.subspan(h.layout.block_table);
+  std::uint64_t sum = checksum_without_field(bytes.subspan(0, kMtHeaderBytes));
+  sum = mt_checksum(table, sum);
+  if (sum != get64(bytes.data() + kChecksumOffset))
+    return corrupt("header checksum mismatch (the header or the block table was altered or damaged)");
+  return check_table_order(h.counts, table);
 }
 
 // The spans of an image laid out as h says.
@@ -484,15 +489,7 @@ Result<MtSeal> seal_mt(const MtCounts& c, const MtReadAt& read_at) {
   }
   // The offsets are the caller's arrays: a block table out of order would send the slices below
   // outside them.
-  std::uint32_t previous_t = 0, previous_p = 0;
-  for (std::uint32_t b = 0; b < blocks; ++b) {
-    const std::uint32_t t = get32(table.data() + kMtBlockEntryBytes * b);
-    const std::uint32_t q = get32(table.data() + kMtBlockEntryBytes * b + 4);
-    if (t < previous_t || q < previous_p || t > c.triangles || q > c.parents)
-      return corrupt("node offsets out of order at block " + std::to_string(b));
-    previous_t = t;
-    previous_p = q;
-  }
+  MTLOD_RETURN_IF_ERROR(check_table_order(c, table));
   Bounds bounds;
   std::uint32_t input_triangles = 0;
   std::vector<std::uint8_t> buffer;

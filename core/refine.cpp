@@ -161,7 +161,6 @@ void Refiner::add_node(std::uint32_t x, std::uint32_t witness_triangle, std::uin
   // Nodes are added with the kept mesh set aside (refine_forced and refine_budget emit at the end,
   // move_cut rebuilds the mesh once for all its additions).
   assert(!mesh_valid_);
-  mt_.require_node(x);
   in_cut_[x] = kIn;
   cut_.push_back(x);
   // The witness's corners were just read to find it failing: cheap to keep now.
@@ -173,7 +172,8 @@ void Refiner::add_node(std::uint32_t x, std::uint32_t witness_triangle, std::uin
 }
 
 void Refiner::force(std::uint32_t r, std::uint32_t witness_triangle, std::uint32_t witness_creator) {
-  // Every node whose parents are read is checked first (a mapped file's block on first use).
+  // Every node whose parents are read is checked first (a mapped file's block on first use); so
+  // is every node add_node gets.
   mt_.require_node(r);
   const std::uint32_t* offsets = mt_.node_parent_offsets.data();
   const std::uint32_t* parents = mt_.node_parents.data();
@@ -748,8 +748,6 @@ void Refiner::refine_budget(const AllowedError& allowed, std::size_t max_triangl
 void Refiner::refine_budget_on_demand(const VertexErrorSource& source, std::span<float> field,
                                       std::size_t max_triangles, CutMesh& out) {
   assert(field.size() == mt_.vertex_count());
-  mesh_valid_ = false;
-  dynamic_ready_ = false;
   const OnDemand on_demand{source, field};
   Rank level;
   budget_from_root(AllowedError::from_vertices(field), max_triangles, 0, &on_demand, level, out);
@@ -758,6 +756,8 @@ void Refiner::refine_budget_on_demand(const VertexErrorSource& source, std::span
 std::size_t Refiner::budget_from_root(const AllowedError& allowed, std::size_t max_triangles,
                                       std::size_t target, const OnDemand* on_demand, Rank& level,
                                       CutMesh& out) {
+  mesh_valid_ = false;
+  dynamic_ready_ = false;
   reset_to_root();
   heap_.clear();
   if (on_demand) fill_root_vertices(*on_demand);
@@ -890,8 +890,6 @@ void Refiner::start_budget_on_demand(const VertexErrorSource& source, std::span<
 void Refiner::start_budget_from(const AllowedError& allowed, std::size_t max_triangles,
                                 const OnDemand* on_demand, CutMesh& out) {
   ++budget_starts_;
-  mesh_valid_ = false;
-  dynamic_ready_ = false;
   budget_threshold_.reset();
   Rank level;
   const std::size_t level_end =

@@ -66,15 +66,15 @@ Result<Mt> read_mt_file(const std::filesystem::path& path, MtLoad load) {
       return make_error(ErrorCode::kIoError, "cannot map " + path.string() + ": " + std::strerror(map_errno));
     if (data != MAP_FAILED) {
       auto mapping = std::make_shared<const Mapping>(data, size);
-      if (mt_file_version(mapping->bytes()) == kMtFormatVersion) {
-        // Refinements jump between blocks: no read-ahead beyond the pages they touch.
-        ::madvise(data, size, MADV_RANDOM);
-        auto mt = view_mt(mapping->bytes(), mapping);
-        if (!mt.ok()) return named(path, mt.take_error());
-        return mt;
-      }
+      const bool in_place = mt_file_version(mapping->bytes()) == kMtFormatVersion;
+      // Refinements jump between blocks: no read-ahead beyond the pages they touch. Version 1 is
+      // copied out of the mapping whole.
+      if (in_place) ::madvise(data, size, MADV_RANDOM);
+      auto mt = in_place ? view_mt(mapping->bytes(), mapping) : deserialize_mt(mapping->bytes());
+      if (!mt.ok()) return named(path, mt.take_error());
+      return mt;
     }
-    // Version 1 (or too short to be anything): read whole, which reports what is wrong.
+    // Too short to be mapped: read, which reports what is wrong.
   }
   std::error_code ec;
   if (!std::filesystem::exists(path, ec))

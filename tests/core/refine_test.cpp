@@ -170,22 +170,24 @@ TEST(Refine, StaticEqualsTheNaiveFixpointOnRandomFields) {
   }
 }
 
+// A field's values, counting how often each vertex is asked for.
+class Recorder final : public VertexErrorSource {
+ public:
+  explicit Recorder(const std::vector<float>& field) : field_(field), asked_(field.size(), 0) {}
+  float vertex_allowed_error(std::uint32_t v) const override {
+    ++asked_[v];
+    return field_[v];
+  }
+  const std::vector<int>& asked() const { return asked_; }
+
+ private:
+  const std::vector<float>& field_;
+  mutable std::vector<int> asked_;
+};
+
 // On demand: the same cut as with every vertex's value, asking only for the root's vertices and
 // the cut's split vertices, each once, and writing exactly those entries.
 TEST(Refine, OnDemandEqualsTheFullFieldAndAsksOnlyForTheCutsVertices) {
-  class Recorder final : public VertexErrorSource {
-   public:
-    explicit Recorder(const std::vector<float>& field) : field_(field), asked_(field.size(), 0) {}
-    float vertex_allowed_error(std::uint32_t v) const override {
-      ++asked_[v];
-      return field_[v];
-    }
-    const std::vector<int>& asked() const { return asked_; }
-
-   private:
-    const std::vector<float>& field_;
-    mutable std::vector<int> asked_;
-  };
   std::mt19937 rng(5);
   for (const MtCase* c :
        {test::shape_case(Shape::kSphere, 8'000), test::scan_case("bunny-npm-3k.ply"),
@@ -228,19 +230,6 @@ TEST(Refine, OnDemandEqualsTheFullFieldAndAsksOnlyForTheCutsVertices) {
 // first from the root and kept for gazes, asking for each vertex at most once and for every vertex
 // of the cut.
 TEST(Refine, BudgetOnDemandEqualsTheFullField) {
-  class Counter final : public VertexErrorSource {
-   public:
-    explicit Counter(const std::vector<float>& field) : field_(field), asked_(field.size(), 0) {}
-    float vertex_allowed_error(std::uint32_t v) const override {
-      ++asked_[v];
-      return field_[v];
-    }
-    std::vector<int>& asked() const { return asked_; }
-
-   private:
-    const std::vector<float>& field_;
-    mutable std::vector<int> asked_;
-  };
   std::mt19937 rng(8);
   for (const MtCase* c : {test::shape_case(Shape::kSphere, 8'000), test::scan_case("armadillo-52k.ply")}) {
     if (!c) continue;
@@ -253,7 +242,7 @@ TEST(Refine, BudgetOnDemandEqualsTheFullField) {
       for (const bool keep : {false, true}) {
         Refiner full(c->mt), lazy(c->mt);
         CutMesh expected, out;
-        const Counter source(field);
+        const Recorder source(field);
         std::vector<float> written(field.size(), -1.0f);
         if (keep) {
           full.start_budget(AllowedError::from_vertices(field), budget, expected);

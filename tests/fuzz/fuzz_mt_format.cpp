@@ -75,9 +75,7 @@ void reseal(std::vector<std::uint8_t>& bytes) {
     return mtlod::Ok{};
   });
   if (!seal.ok()) return;
-  // Keep the input's own header fields other than the checksum (reserved bytes, bounds): only the
-  // checksums are the writer's.
-  std::memcpy(bytes.data() + kChecksumOffset, seal->header.data() + kChecksumOffset, 8);
+  // The input's own header fields stay (reserved bytes, bounds): only the checksums are the writer's.
   std::memcpy(bytes.data() + mt_layout(c).block_table, seal->block_table.data(), seal->block_table.size());
   // The header checksum covers the header as the input has it.
   std::memset(bytes.data() + kChecksumOffset, 0, 8);
