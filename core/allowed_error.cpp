@@ -167,10 +167,20 @@ float AllowedErrorField::vertex_allowed_error(std::uint32_t vertex) const {
 }
 
 void AllowedErrorField::fill(std::span<const std::uint32_t> vertices, std::span<float> field) const {
-  assert(mapping_ != nullptr);
   constexpr std::size_t kBatch = 16;
-  float positions[3 * kBatch], clip_w[kBatch];
   std::uint32_t cells[kBatch];
+  float clip_w[kBatch];
+  for (std::size_t first = 0; first < vertices.size(); first += kBatch) {
+    const std::size_t count = std::min(kBatch, vertices.size() - first);
+    fill_mapped(vertices.subspan(first, count), field, std::span(cells, count), std::span(clip_w, count));
+  }
+}
+
+void AllowedErrorField::fill_mapped(std::span<const std::uint32_t> vertices, std::span<float> field,
+                                    std::span<std::uint32_t> cells, std::span<float> clip_w) const {
+  assert(mapping_ != nullptr && cells.size() == vertices.size() && clip_w.size() == vertices.size());
+  constexpr std::size_t kBatch = 16;
+  float positions[3 * kBatch];
   for (std::size_t first = 0; first < vertices.size(); first += kBatch) {
     const std::size_t count = std::min(kBatch, vertices.size() - first);
     for (std::size_t k = 0; k < count; ++k) {
@@ -178,11 +188,12 @@ void AllowedErrorField::fill(std::span<const std::uint32_t> vertices, std::span<
       std::copy_n(p, 3, positions + 3 * k);
     }
     // map_vertices gives the cells and clip.w of map_point, bit for bit.
-    map_vertices(*mapping_, std::span<const float>(positions, 3 * count), std::span(cells, count),
-                 std::span(clip_w, count));
+    const std::span<std::uint32_t> batch_cells = cells.subspan(first, count);
+    const std::span<float> batch_w = clip_w.subspan(first, count);
+    map_vertices(*mapping_, std::span<const float>(positions, 3 * count), batch_cells, batch_w);
     for (std::size_t k = 0; k < count; ++k) {
       const std::uint32_t v = vertices[first + k];
-      field[v] = finish(cell_multiplier(cells[k]), cells[k] != kNoCell, clip_w[k], v);
+      field[v] = finish(cell_multiplier(batch_cells[k]), batch_cells[k] != kNoCell, batch_w[k], v);
     }
   }
 }

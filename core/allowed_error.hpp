@@ -115,6 +115,11 @@ class AllowedErrorField final : public VertexErrorSource {
   float vertex_allowed_error(std::uint32_t vertex) const override;
   // The same for a batch, projected together up to 16 at a time (bit for bit the same values).
   void fill(std::span<const std::uint32_t> vertices, std::span<float> field) const override;
+  // The same, also writing each vertex's grid cell (kNoCell off the grid) and clip-space w: what
+  // vertex_allowed_error_in_cell takes when only the cell's labels change (cells and clip_w: one
+  // entry per entry of `vertices`).
+  void fill_mapped(std::span<const std::uint32_t> vertices, std::span<float> field,
+                   std::span<std::uint32_t> cells, std::span<float> clip_w) const;
   // The same value for a vertex already known to lie in a grid cell with this clip-space w (as
   // map_point or map_vertices give them), with multiplier = cell_multiplier(cell).
   float vertex_allowed_error_in_cell(float multiplier, float clip_w, std::uint32_t vertex) const {

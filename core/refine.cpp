@@ -139,7 +139,7 @@ Refiner::HeapEntry Refiner::heap_entry(std::uint32_t t, std::uint32_t creator,
 }
 
 void Refiner::reset_to_root() {
-  kept_mesh_pending_ = false;
+  kept_ = Kept::kNone;
   for (const std::uint32_t n : cut_) in_cut_[n] = kOut;
   cut_.clear();
   witnesses_.clear();
@@ -160,7 +160,7 @@ void Refiner::for_each_removed(std::uint32_t x, F&& f) const {
 void Refiner::add_node(std::uint32_t x, std::uint32_t witness_triangle, std::uint32_t witness_creator) {
   // Nodes are added with the kept mesh set aside (refine_forced and refine_budget emit at the end,
   // move_cut rebuilds the mesh once for all its additions).
-  assert(!mesh_valid_);
+  assert(kept_ != Kept::kMesh);
   in_cut_[x] = kIn;
   cut_.push_back(x);
   // The witness's corners were just read to find it failing: cheap to keep now.
@@ -262,8 +262,14 @@ void Refiner::examine(std::uint32_t n, const AllowedError& allowed) {
 bool Refiner::close_over(const AllowedError& allowed, std::size_t first, std::size_t max_nodes) {
   // cut_ grows while we walk it: every added node gets its own triangles examined.
   const bool uniform = allowed.per_vertex.empty();
+  std::size_t filled = first;  // on demand: positions of cut_ whose split vertex has its value
   for (std::size_t i = first; i < cut_.size(); ++i) {
     if (cut_.size() > max_nodes) return false;
+    if (filling_ && filled <= i) {
+      // Everything added since the last fill, before any of its triangles is read.
+      fill_split_vertices(*filling_, filled);
+      filled = cut_.size();
+    }
     if (!uniform) fetch_ahead(i, allowed.per_vertex.data(), false);
     examine(cut_[i], allowed);
   }
@@ -276,17 +282,15 @@ void Refiner::emit(CutMesh& out) const {
   writer.finish(cut_.size(), write_created(mt_, in_cut_.data(), cut_, writer));
 }
 
-void Refiner::remember_field(const AllowedError& allowed) {
-  field_known_ = true;
-  previous_is_uniform_ = allowed.per_vertex.empty();
+void Refiner::remember_field(const AllowedError& allowed, bool copy) {
+  field_ = allowed.per_vertex.empty() ? Field::kUniform : copy ? Field::kCopied : Field::kListed;
   previous_uniform_ = allowed.uniform;
   previous_threshold_ = allowed.threshold;
-  if (!previous_is_uniform_) previous_field_.assign(allowed.per_vertex.begin(), allowed.per_vertex.end());
+  if (field_ == Field::kCopied) previous_field_.assign(allowed.per_vertex.begin(), allowed.per_vertex.end());
 }
 
 void Refiner::refine(const AllowedError& allowed, CutMesh& out) {
   assert(allowed.per_vertex.empty() || allowed.per_vertex.size() == mt_.vertex_count());
-  mesh_valid_ = false;  // static refinement emits at the end instead of tracking the mesh
   if (allowed.per_vertex.empty()) return refine_uniform(allowed.uniform, out);
   refine_forced(allowed, &out);
 }
@@ -313,8 +317,7 @@ void Refiner::refine_prefix(std::uint32_t end, CutMesh& out) {
   for (std::uint32_t n = 0; n < end; ++n) cut_[n] = n;
   std::fill(in_cut_.begin(), in_cut_.begin() + end, kIn);
   // No witnesses were recorded: the next update starts with a forced refinement.
-  dynamic_ready_ = false;
-  kept_mesh_pending_ = false;
+  kept_ = Kept::kNone;
 
   MeshWriter writer(mt_, out, mt_.node_triangle_offsets[end]);
   const std::uint32_t* remover = mt_.triangle_remover.data();
@@ -334,7 +337,7 @@ void Refiner::refine_prefix(std::uint32_t end, CutMesh& out) {
   out.within_budget = true;
 }
 
-void Refiner::fill_root_vertices(const OnDemand& on_demand) {
+void Refiner::find_root_vertices() {
   // Each once: a vertex has about six root triangles.
   if (root_vertices_.empty()) {
     for (std::uint32_t t = 0; t < mt_.node_triangle_offsets[1]; ++t) {
@@ -345,6 +348,10 @@ void Refiner::fill_root_vertices(const OnDemand& on_demand) {
     std::sort(root_vertices_.begin(), root_vertices_.end());
     root_vertices_.erase(std::unique(root_vertices_.begin(), root_vertices_.end()), root_vertices_.end());
   }
+}
+
+void Refiner::fill_root_vertices(const OnDemand& on_demand) {
+  find_root_vertices();
   on_demand.source.fill(root_vertices_, on_demand.field);
 }
 
@@ -356,16 +363,19 @@ void Refiner::fill_split_vertices(const OnDemand& on_demand, std::size_t first) 
 
 void Refiner::refine_on_demand(const VertexErrorSource& source, std::span<float> field, CutMesh& out) {
   assert(field.size() == mt_.vertex_count());
-  // The root's vertices first; the nodes' split vertices as the refinement reaches them.
   const OnDemand on_demand{source, field};
-  fill_root_vertices(on_demand);
-  refine_forced(AllowedError::from_vertices(field), &out, &on_demand);
+  refine_from_root(AllowedError::from_vertices(field), out, &on_demand);
+}
+
+void Refiner::refine_from_root(const AllowedError& allowed, CutMesh& out, const OnDemand* on_demand) {
+  // On demand, the root's vertices first; the nodes' split vertices as the refinement reaches them.
+  if (on_demand) fill_root_vertices(*on_demand);
+  refine_forced(allowed, &out, on_demand);
 }
 
 void Refiner::refine_forced(const AllowedError& allowed, CutMesh* out, const OnDemand* on_demand,
                             bool from_cut) {
-  assert(!(on_demand && from_cut));
-  mesh_valid_ = false;
+  kept_ = Kept::kNone;  // until the new cut is complete
   if (!from_cut) reset_to_root();
   // Like close_over, but remembering every passing triangle: the final mesh is among them (a
   // triangle examined while its remover was out either failed, forcing the remover in, or passed),
@@ -379,7 +389,8 @@ void Refiner::refine_forced(const AllowedError& allowed, CutMesh* out, const OnD
   // On demand, the split vertices of the nodes at positions up to i + 3 have their values before
   // position i is examined, computed in batches of about eight (up to i + 11, or the queue's end):
   // after all their ancestors', which come earlier in cut_, and before any triangle that has one
-  // as a corner is read.
+  // as a corner is read. From a cut, the nodes already in it are asked again (a source may know
+  // them); the root's vertices are known either way.
   std::size_t computed = 1;  // positions of cut_ whose split vertex has its value (the root: its vertices)
   for (std::size_t i = 0; i < cut_.size(); ++i) {
     if (!uniform) fetch_ahead(i, field, on_demand != nullptr);
@@ -406,7 +417,7 @@ void Refiner::refine_forced(const AllowedError& allowed, CutMesh* out, const OnD
       }
     }
   }
-  dynamic_ready_ = true;
+  kept_ = Kept::kPassing;
   if (!out) return take_kept_mesh();
   MeshWriter writer(mt_, *out, passing_.size());
   float max_error = 0.0f;
@@ -419,7 +430,7 @@ void Refiner::refine_forced(const AllowedError& allowed, CutMesh* out, const OnD
   out->within_budget = true;
   // The field is not copied here, to keep static refinement free of O(vertices) work; the next
   // update treats every vertex as changed.
-  field_known_ = false;
+  field_ = Field::kUnknown;
 }
 
 // --- dynamic refinement -------------------------------------------------------------------------
@@ -443,32 +454,32 @@ void Refiner::resize_kept_mesh(std::size_t triangles) {
 
 void Refiner::take_kept_mesh() {
   // The kept mesh is set aside only by refine_forced (a move leaves it in place; the other
-  // refinements clear dynamic_ready_, so no move follows them): its passing list still holds the
+  // refinements keep no cut to move, so no move follows them): its passing list still holds the
   // mesh's triangles (those not refined since), creators, removers, corners and errors. Called at the
   // end of a restart (no node dropped), or after move_cut's witness pass, whose nodes are now kIn
   // (kept) or kDropped: either way a passing triangle whose remover is kIn or kDropped is not in it.
-  assert(dynamic_ready_ && !mesh_valid_);
+  assert(kept_ == Kept::kPassing);
   resize_kept_mesh(0);
   for (const Passing& p : passing_) {
     if (p.remover != kNoNode && (in_cut_[p.remover] == kIn || in_cut_[p.remover] == kDropped)) continue;
     mesh_push(p.triangle, p.creator, p.remover, p.corners, p.error);
   }
-  mesh_valid_ = true;
+  kept_ = Kept::kMesh;
 }
 
 void Refiner::update(const AllowedError& allowed, CutMesh& out) {
   assert(allowed.per_vertex.empty() || allowed.per_vertex.size() == mt_.vertex_count());
-  if (!dynamic_ready_) return refine_forced(allowed, &out);
-  bool all_changed = !field_known_ || allowed.per_vertex.empty() || previous_is_uniform_;
-  if (all_changed && field_known_ && allowed.per_vertex.empty() && previous_is_uniform_ &&
+  if (kept_ == Kept::kNone) return refine_forced(allowed, &out);
+  if (changed_bits_.size() != (mt_.vertex_count() + 63) / 64)
+    changed_bits_.reset((mt_.vertex_count() + 63) / 64);
+  bool all_changed = allowed.per_vertex.empty() || field_ != Field::kCopied;
+  if (field_ == Field::kUniform && allowed.per_vertex.empty() &&
       std::memcmp(&allowed.uniform, &previous_uniform_, sizeof(float)) == 0) {
     all_changed = false;  // the same uniform value: nothing changed
-    changed_bits_.assign((mt_.vertex_count() + 63) / 64, 0);
   } else if (!all_changed) {
     // Bitwise comparison with the kept copy (NaN equals itself, -0 differs from +0: both harmless),
     // 64 vertices per word, copying the new values as we go.
     const std::size_t count = allowed.per_vertex.size();
-    changed_bits_.assign((count + 63) / 64, 0);
     const float* now = allowed.per_vertex.data();
     float* before = previous_field_.data();
     for (std::size_t base = 0; base < count; base += 64) {
@@ -490,7 +501,7 @@ void Refiner::update(const AllowedError& allowed, CutMesh& out) {
   all_changed = all_changed || !(allowed.threshold == previous_threshold_);  // every triangle
   move_cut(allowed, all_changed);
   out.assign(kept_view());
-  if (field_all_changed) remember_field(allowed);
+  if (field_all_changed) remember_field(allowed, true);
   previous_threshold_ = allowed.threshold;
   std::fill(changed_bits_.begin(), changed_bits_.end(), 0);  // the list overload expects it clear
 }
@@ -498,6 +509,14 @@ void Refiner::update(const AllowedError& allowed, CutMesh& out) {
 void Refiner::update(const AllowedError& allowed, std::span<const std::uint32_t> changed_vertices,
                      CutMesh& out) {
   if (update_kept(allowed, changed_vertices, out)) out.assign(kept_view());
+}
+
+CutSpan Refiner::update_view_on_demand(const VertexErrorSource& source, std::span<float> field,
+                                       std::span<const std::uint32_t> changed_vertices, CutMesh& scratch) {
+  assert(field.size() == mt_.vertex_count());
+  const OnDemand on_demand{source, field};
+  const Filling filling(filling_, on_demand);
+  return update_view(AllowedError::from_vertices(field), changed_vertices, scratch);
 }
 
 CutSpan Refiner::update_view(const AllowedError& allowed, std::span<const std::uint32_t> changed_vertices,
@@ -508,28 +527,31 @@ CutSpan Refiner::update_view(const AllowedError& allowed, std::span<const std::u
 bool Refiner::update_kept(const AllowedError& allowed, std::span<const std::uint32_t> changed_vertices,
                           CutMesh& out) {
   assert(allowed.per_vertex.empty() || allowed.per_vertex.size() == mt_.vertex_count());
-  if (!dynamic_ready_) {
-    refine_forced(allowed, &out);
+  if (kept_ == Kept::kNone) {
+    refine_from_root(allowed, out, filling_);
     return false;
   }
-  const bool field_all_changed = !field_known_ || allowed.per_vertex.empty() || previous_is_uniform_;
+  const bool field_all_changed =
+      allowed.per_vertex.empty() || field_ == Field::kUnknown || field_ == Field::kUniform;
   const bool all_changed = field_all_changed || !(allowed.threshold == previous_threshold_);
-  if (!all_changed && changed_vertices.empty() && mesh_valid_) {
+  if (!all_changed && changed_vertices.empty() && kept_ == Kept::kMesh) {
     // The same field: the kept cut is its minimal cut already (a gaze within the same cells).
     ++unchanged_;
     return true;
   }
   if (!field_all_changed) {
-    changed_bits_.resize((mt_.vertex_count() + 63) / 64);
+    if (changed_bits_.size() != (mt_.vertex_count() + 63) / 64)
+      changed_bits_.reset((mt_.vertex_count() + 63) / 64);
     for (const std::uint32_t v : changed_vertices) {
       assert(v < mt_.vertex_count());
       changed_bits_[v >> 6] |= std::uint64_t{1} << (v & 63);
-      previous_field_[v] = allowed.per_vertex[v];
+      if (field_ == Field::kCopied) previous_field_[v] = allowed.per_vertex[v];
     }
   }
   move_cut(allowed, all_changed);
   if (field_all_changed) {
-    remember_field(allowed);
+    // No copy: the callers that list their changes never need one (update without a list makes it).
+    remember_field(allowed, false);
   } else {
     for (const std::uint32_t v : changed_vertices) changed_bits_[v >> 6] = 0;  // leave the bitmap clear
     previous_threshold_ = allowed.threshold;
@@ -538,9 +560,9 @@ bool Refiner::update_kept(const AllowedError& allowed, std::span<const std::uint
 }
 
 void Refiner::move_cut(const AllowedError& allowed, bool all_changed) {
-  if (kept_mesh_pending_) kept_mesh_from_cut();
-  if (changed_bits_.size() < (mt_.vertex_count() + 63) / 64)
-    changed_bits_.assign((mt_.vertex_count() + 63) / 64, 0);
+  if (kept_ == Kept::kThreshold) kept_mesh_from_cut();
+  if (changed_bits_.size() != (mt_.vertex_count() + 63) / 64)
+    changed_bits_.reset((mt_.vertex_count() + 63) / 64);
   auto changed = [&](std::uint32_t v) { return all_changed || vertex_changed(v); };
 
   // 1. Keep the nodes whose witness still holds (cut_[0] is the root, always kept).
@@ -587,13 +609,9 @@ void Refiner::move_cut(const AllowedError& allowed, bool all_changed) {
   // followed by as large an addition (a saccade, a new view): when a quarter of the cut's nodes
   // drop, the cut is refined afresh instead, forcing as refine_forced does from the root but from
   // the kept nodes. They lie in the new minimal cut, so forcing from them reaches it, and only the
-  // added nodes are forced. (BM_GazeStream with mtlod-gaze's criteria: the slowest of 300 gazes
-  // 16.3 ms when restarting from the root past half dropped, 11.6–12.0 ms past a quarter or a
-  // ninth; refining from the kept nodes instead of the root then took the mean refinement from 1.87
-  // to 1.62 ms and the 90th percentile of the work before encoding from 5.7 to 4.6 ms, restarting
-  // past a quarter, a seventh or a thirteenth alike. With the mesh filtered instead of edited
-  // through a slot table, restarting past a half or all of the cut made the slowest gazes slower.)
-  // Dropped nodes not forced back in are out once the new cut is known.
+  // added nodes are forced. The quarter was measured with BM_GazeStream: restarting from the kept
+  // nodes past a quarter, a seventh or a thirteenth dropped costs alike; past a half, the slowest
+  // gazes are slower. Dropped nodes not forced back in are out once the new cut is known.
   auto release_dropped = [&] {
     for (const std::uint32_t n : dropped_)
       if (in_cut_[n] == kDropped) in_cut_[n] = kOut;
@@ -601,14 +619,14 @@ void Refiner::move_cut(const AllowedError& allowed, bool all_changed) {
   // The result becomes the kept mesh, as a move's does.
   auto refine_afresh = [&] {
     release_dropped();
-    refine_forced(allowed, nullptr, nullptr, true);
+    refine_forced(allowed, nullptr, filling_, true);
     ++restarts_;
   };
   if (3 * dropped_.size() > kept) return refine_afresh();
 
   // The kept mesh is taken from the passing list only now, when the cut is moved rather than
   // refined afresh (after a refinement from the root the next move takes it).
-  if (!mesh_valid_) take_kept_mesh();
+  if (kept_ == Kept::kPassing) take_kept_mesh();
 
   // 2. Undo the dropped nodes: what they removed from kept nodes is uncovered and must be tested
   // (what they created leaves the mesh in step 5, by its creator's state).
@@ -624,7 +642,7 @@ void Refiner::move_cut(const AllowedError& allowed, bool all_changed) {
   // 3. Force the removers of what fails now: the uncovered triangles, and mesh triangles of kept
   // nodes with a changed corner; every other such triangle passed before and still does. (A
   // dropped node forced back in has all its triangles examined in step 4.)
-  mesh_valid_ = false;  // nodes are added with the mesh set aside; step 5 rebuilds it
+  kept_ = Kept::kAdding;  // step 5 rebuilds the mesh
   for (std::size_t i = 0; i < seeds_.size(); i += 2) {
     const std::uint32_t t = seeds_[i], r = mt_.triangle_remover[t];
     if (in_cut_[r] != kIn && fails(t, seeds_[i + 1], allowed)) force(r, t, seeds_[i + 1]);
@@ -688,7 +706,7 @@ void Refiner::rebuild_kept_mesh(std::size_t added) {
     for (std::uint32_t t = mt_.node_triangle_offsets[x]; t < mt_.node_triangle_offsets[x + 1]; ++t)
       push(t, x);
   }
-  mesh_valid_ = true;
+  kept_ = Kept::kMesh;
 }
 
 CutSpan Refiner::kept_view() const {
@@ -719,8 +737,6 @@ std::size_t Refiner::removed_count(std::uint32_t x) const {
 
 void Refiner::refine_budget(const AllowedError& allowed, std::size_t max_triangles, CutMesh& out) {
   assert(allowed.per_vertex.empty() || allowed.per_vertex.size() == mt_.vertex_count());
-  mesh_valid_ = false;
-  dynamic_ready_ = false;
   if (allowed.per_vertex.empty()) {
     // Uniform: worst ratio first is largest error first, which is node order, and every node's
     // parents come before it. So the result is the longest prefix of failing nodes that fits.
@@ -756,9 +772,7 @@ void Refiner::refine_budget_on_demand(const VertexErrorSource& source, std::span
 std::size_t Refiner::budget_from_root(const AllowedError& allowed, std::size_t max_triangles,
                                       std::size_t target, const OnDemand* on_demand, Rank& level,
                                       CutMesh& out) {
-  mesh_valid_ = false;
-  dynamic_ready_ = false;
-  reset_to_root();
+  reset_to_root();  // keeps no cut to move (start_budget_from keeps one)
   heap_.clear();
   if (on_demand) fill_root_vertices(*on_demand);
   push_failing(0, allowed);
@@ -900,16 +914,14 @@ void Refiner::start_budget_from(const AllowedError& allowed, std::size_t max_tri
   for (std::size_t i = level_end; i < cut_.size(); ++i) in_cut_[cut_[i]] = kOut;
   cut_.resize(level_end);
   witnesses_.resize(level_end);
-  kept_mesh_pending_ = true;
-  field_known_ = false;  // the next update compares every vertex, at any threshold
-  dynamic_ready_ = true;
+  kept_ = Kept::kThreshold;
+  field_ = Field::kUnknown;  // the next update retests every triangle, at any threshold
   budget_threshold_ = level;
   budget_max_ = max_triangles;
 }
 
 void Refiner::kept_mesh_from_cut() {
   // Every node of the cut counts as added to an empty mesh.
-  kept_mesh_pending_ = false;
   resize_kept_mesh(0);
   dropped_.clear();
   seeds_.clear();
@@ -919,8 +931,8 @@ void Refiner::kept_mesh_from_cut() {
 void Refiner::update_budget(const AllowedError& allowed, std::span<const std::uint32_t> changed_vertices,
                             std::size_t max_triangles, CutMesh& out) {
   assert(!allowed.per_vertex.empty() && allowed.threshold == Rank{});
-  if (!dynamic_ready_ || !budget_threshold_ || budget_max_ != max_triangles)
-    return start_budget(allowed, max_triangles, out);
+  if (kept_ == Kept::kNone || !budget_threshold_ || budget_max_ != max_triangles)
+    return start_budget_from(allowed, max_triangles, filling_, out);
   const std::size_t target = budget_target(max_triangles);
   const std::size_t low = max_triangles - max_triangles / kBudgetLow;  // below the target
   // The new field's cut at the kept threshold; past the budget, raise the threshold until it fits
@@ -932,7 +944,7 @@ void Refiner::update_budget(const AllowedError& allowed, std::span<const std::ui
   for (int raises = 0; count > max_triangles; ++raises) {
     const Rank threshold = threshold_dropping(allowed, (count - target) / 2 + 1);
     if (raises == 3 || !(at.threshold < threshold) || threshold.tier == 2)
-      return start_budget(allowed, max_triangles, out);
+      return start_budget_from(allowed, max_triangles, filling_, out);
     ++budget_raises_;
     at.threshold = threshold;
     update_kept(at, {}, out);
@@ -952,11 +964,11 @@ void Refiner::update_budget(const AllowedError& allowed, std::span<const std::ui
     heap_.push_back({rank.tier, rank.key, mesh_triangles_[i], mesh_creators_[i]});
   }
   std::make_heap(heap_.begin(), heap_.end(), heap_less);
-  mesh_valid_ = false;  // nodes are added with the mesh set aside
+  kept_ = Kept::kAdding;
   const std::size_t base = cut_.size();
   Rank level = at.threshold;
   std::size_t level_end = base;
-  fill_budget(allowed, count, max_triangles, target, level, level_end);
+  fill_budget(allowed, count, max_triangles, target, level, level_end, filling_);
   write_refined(base, max_triangles, out);
   // Far below the budget, keep the cut the refinement passed through nearest the target instead.
   const std::size_t keep = count < low ? level_end : base;
@@ -970,8 +982,17 @@ void Refiner::update_budget(const AllowedError& allowed, std::span<const std::ui
     budget_threshold_ = level;
     previous_threshold_ = level;
   } else {
-    mesh_valid_ = true;
+    kept_ = Kept::kMesh;
   }
+}
+
+void Refiner::update_budget_on_demand(const VertexErrorSource& source, std::span<float> field,
+                                      std::span<const std::uint32_t> changed_vertices,
+                                      std::size_t max_triangles, CutMesh& out) {
+  assert(field.size() == mt_.vertex_count());
+  const OnDemand on_demand{source, field};
+  const Filling filling(filling_, on_demand);
+  update_budget(AllowedError::from_vertices(field), changed_vertices, max_triangles, out);
 }
 
 void refine_static(const Mt& mt, const AllowedError& allowed, CutMesh& out) {
@@ -988,9 +1009,9 @@ std::size_t Refiner::memory_bytes() const {
   auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
   return in_cut_.resident_bytes() + node_changed_.resident_bytes() + bytes(cut_) + bytes(witnesses_) +
          bytes(mesh_errors_) + bytes(stack_) + bytes(previous_field_) + bytes(mesh_triangles_) +
-         bytes(mesh_creators_) + bytes(mesh_removers_) + bytes(mesh_corners_) + bytes(changed_bits_) +
-         bytes(dropped_) + bytes(seeds_) + bytes(passing_) + bytes(heap_) + bytes(ranks_) +
-         bytes(root_vertices_) + bytes(batch_);
+         bytes(mesh_creators_) + bytes(mesh_removers_) + bytes(mesh_corners_) +
+         changed_bits_.resident_bytes() + bytes(dropped_) + bytes(seeds_) + bytes(passing_) + bytes(heap_) +
+         bytes(ranks_) + bytes(root_vertices_) + bytes(batch_);
 }
 
 }  // namespace mtlod::core

@@ -151,6 +151,14 @@ class Refiner {
   // when there was no kept cut to start from (scratch is written then).
   CutSpan update_view(const AllowedError& allowed, std::span<const std::uint32_t> changed_vertices,
                       CutMesh& scratch);
+  // update_view with the allowed error asked of `source` as nodes join the cut (their split
+  // vertices, before any of their triangles is read; from the root, the root's vertices too), as
+  // refine_on_demand does. `field` must hold the values of every vertex read since the cut was
+  // started from the root (by refine_on_demand, start_budget_on_demand or an update), updated to
+  // the new view, and changed_vertices must list those that changed: then no other entry is read,
+  // and the cost follows the cut and the change, not the model.
+  CutSpan update_view_on_demand(const VertexErrorSource& source, std::span<float> field,
+                                std::span<const std::uint32_t> changed_vertices, CutMesh& scratch);
 
   // Budgeted dynamic refinement: the same cut as refine_budget(allowed, max_triangles) (worst
   // error/allowed ratio first from the root, stopping before the budget would be exceeded), found
@@ -172,6 +180,10 @@ class Refiner {
                               std::size_t max_triangles, CutMesh& out);
   void update_budget(const AllowedError& allowed, std::span<const std::uint32_t> changed_vertices,
                      std::size_t max_triangles, CutMesh& out);
+  // update_budget asking `source` as update_view_on_demand does.
+  void update_budget_on_demand(const VertexErrorSource& source, std::span<float> field,
+                               std::span<const std::uint32_t> changed_vertices, std::size_t max_triangles,
+                               CutMesh& out);
   // The threshold of the kept cut after a budgeted update (none when no threshold's cut fitted).
   std::optional<Rank> budget_threshold() const { return budget_threshold_; }
   // Budgeted updates that raised the threshold to fit the budget, and that refined from the root.
@@ -180,6 +192,15 @@ class Refiner {
 
   // Nodes of the kept cut, in the order they were added (parents before children).
   std::span<const std::uint32_t> cut_nodes() const { return cut_; }
+  // Calls f(v) for every vertex whose allowed error the kept cut depends on (what its on-demand
+  // refinement asks for): the root's vertices, then the split vertices of the cut's other nodes.
+  template <class F>
+  void for_each_cut_vertex(F&& f) {
+    find_root_vertices();
+    for (const std::uint32_t v : root_vertices_) f(v);
+    for (const std::uint32_t n : cut_)
+      if (n != 0) f(mt_.node_vertex[n]);
+  }
 
   // Updates that found it cheaper to refine afresh than to move the kept cut (a quarter of the cut's
   // nodes dropped, or the nodes a move added outnumbered a third of those kept): forcing from the
@@ -208,12 +229,28 @@ class Refiner {
     const VertexErrorSource& source;
     std::span<float> field;
   };
-  // The root mesh's vertices, and the split vertices of cut_ from position `first` on.
+  // The source of an on-demand update, for the duration of the call (also when it throws).
+  class Filling {
+   public:
+    Filling(const OnDemand*& slot, const OnDemand& on_demand) : slot_(slot) { slot_ = &on_demand; }
+    ~Filling() { slot_ = nullptr; }
+    Filling(const Filling&) = delete;
+    Filling& operator=(const Filling&) = delete;
+
+   private:
+    const OnDemand*& slot_;
+  };
+  const OnDemand* filling_ = nullptr;
+  // refine_forced from the root, on demand when on_demand is set.
+  void refine_from_root(const AllowedError& allowed, CutMesh& out, const OnDemand* on_demand);
+  // The root mesh's vertices (listed in root_vertices_ on first use), and the split vertices of
+  // cut_ from position `first` on.
+  void find_root_vertices();
   void fill_root_vertices(const OnDemand& on_demand);
   void fill_split_vertices(const OnDemand& on_demand, std::size_t first);
   // Static refinement by forcing from the root; records witnesses so update can start from it.
   // from_cut: start from the nodes in cut_ instead (a subset of the new minimal cut, with their
-  // witnesses, parents and witness creators before them); never on demand.
+  // witnesses, parents and witness creators before them).
   // out null: the result becomes the kept mesh (from_cut only), the field stays known.
   void refine_forced(const AllowedError& allowed, CutMesh* out, const OnDemand* on_demand = nullptr,
                      bool from_cut = false);
@@ -226,14 +263,17 @@ class Refiner {
   void force(std::uint32_t r, std::uint32_t witness_triangle, std::uint32_t witness_creator);
   void add_node(std::uint32_t x, std::uint32_t witness_triangle, std::uint32_t witness_creator);
   void examine(std::uint32_t n, const AllowedError& allowed);
-  // Examines cut_ from position first on, forcing what fails; false, leaving the rest unexamined,
-  // once cut_ holds more than max_nodes.
+  // Examines cut_ from position first on, forcing what fails (asking filling_ for the split
+  // vertices of those nodes first); false, leaving the rest unexamined, once cut_ holds more than
+  // max_nodes.
   bool close_over(const AllowedError& allowed, std::size_t first, std::size_t max_nodes);
   void emit(CutMesh& out) const;
   // The kept mesh (maintained by move_cut) as a cut, and its largest error.
   CutSpan kept_view() const;
   float kept_max_error() const;
-  void remember_field(const AllowedError& allowed);
+  // The field of the kept cut: its kind and threshold, and with `copy` its values (for update
+  // without a list of changes).
+  void remember_field(const AllowedError& allowed, bool copy);
   // Takes the mesh of the cut refine_forced left from its passing list: at the end of a restart, or
   // once move_cut's witness pass has run (kept nodes kIn, dropped kDropped).
   void take_kept_mesh();
@@ -261,23 +301,38 @@ class Refiner {
   std::vector<std::uint32_t> batch_;          // split vertices computed together (on demand)
   std::vector<std::uint32_t> root_vertices_;  // distinct corners of the root's triangles (on demand)
   std::vector<std::uint32_t> stack_;          // DFS over missing ancestors: node, next parent index
-  std::vector<float> previous_field_;         // allowed error of the last update, per vertex
+  // What the refiner keeps between calls: which cut, and where its mesh is. It says where the
+  // next update starts.
+  enum class Kept : std::uint8_t {
+    kNone,       // no cut to move (none yet, or one without witnesses): the next update refines
+                 // from the root
+    kPassing,    // a forced refinement's minimal cut, with witnesses; its mesh is among passing_
+    kThreshold,  // start_budget's cut of a threshold, with witnesses; its mesh not built yet
+    kMesh,       // a minimal cut with witnesses, and its mesh in mesh_*
+    kAdding,     // within a move: nodes are being added; mesh_* is the cut's mesh before them
+  };
+  Kept kept_ = Kept::kNone;
+  // What the refiner knows of the field its kept cut is minimal for (at previous_threshold_).
+  enum class Field : std::uint8_t {
+    kUnknown,  // nothing: the next update retests every triangle of the cut
+    kUniform,  // one value, previous_uniform_
+    kListed,   // per vertex; the caller lists the vertices that change
+    kCopied,   // per vertex, with its values in previous_field_ (update without a list compares)
+  };
+  Field field_ = Field::kUnknown;
+  std::vector<float> previous_field_;
   float previous_uniform_ = 0.0f;
-  bool previous_is_uniform_ = true;
-  bool field_known_ = false;    // previous_* describe the field of the kept cut
-  bool dynamic_ready_ = false;  // cut_ is the minimal cut of the previous field
   std::size_t restarts_ = 0;
   std::size_t moves_ = 0;
   std::size_t unchanged_ = 0;
   // The kept cut's mesh, maintained by update: per triangle its id, creator, remover (kNoNode for
   // an input triangle), corners and error (for the cut's max error).
-  bool mesh_valid_ = false;
   std::vector<std::uint32_t> mesh_triangles_;
   std::vector<std::uint32_t> mesh_creators_;
   std::vector<std::uint32_t> mesh_removers_;
   std::vector<std::uint32_t> mesh_corners_;
   std::vector<float> mesh_errors_;
-  std::vector<std::uint64_t> changed_bits_;  // per vertex, during update
+  ZeroedArray<std::uint64_t> changed_bits_;  // per vertex, during update (clear between)
   std::vector<std::uint32_t> dropped_;       // nodes dropped during one update
   std::vector<std::uint32_t> seeds_;         // uncovered triangle, creator pairs of one update
   ZeroedArray<std::uint64_t> node_changed_;  // per node: dropped or added by the update (clear between)
@@ -322,14 +377,13 @@ class Refiner {
   void rebuild_kept_mesh(std::size_t added);
   // The kept mesh of the whole cut (after start_budget, before the next move).
   void kept_mesh_from_cut();
-  bool kept_mesh_pending_ = false;
   std::vector<HeapEntry> heap_;
   std::vector<Rank> ranks_;               // threshold_dropping's scratch
   std::optional<Rank> budget_threshold_;  // the kept cut's threshold for budget_max_
   std::size_t budget_max_ = 0;
   std::size_t budget_raises_ = 0;
   std::size_t budget_starts_ = 0;
-  Rank previous_threshold_;  // the threshold of the kept cut (field_known_)
+  Rank previous_threshold_;  // the threshold of the kept cut (unless field_ is kUnknown)
 };
 
 // One-off static refinement (allocates a Refiner).

@@ -22,7 +22,33 @@ void to_fifths_of_pixel(std::span<const std::uint32_t> squared, std::span<std::u
   }
 }
 
+void set_bit(ZeroedArray<std::uint64_t>& bits, std::uint32_t v) {
+  bits[v >> 6] |= std::uint64_t{1} << (v & 63);
+}
+void clear_bit(ZeroedArray<std::uint64_t>& bits, std::uint32_t v) {
+  bits[v >> 6] &= ~(std::uint64_t{1} << (v & 63));
+}
+bool bit(const ZeroedArray<std::uint64_t>& bits, std::uint32_t v) {
+  return (bits[v >> 6] >> (v & 63)) & 1;
+}
+
 }  // namespace
+
+// What the refiner asks for in a session: forwarded to ViewExtractor::fill_known.
+class ViewExtractor::KnownSource final : public VertexErrorSource {
+ public:
+  explicit KnownSource(ViewExtractor& extractor) : extractor_(extractor) {}
+  float vertex_allowed_error(std::uint32_t vertex) const override {
+    extractor_.fill_known(std::span(&vertex, 1), extractor_.allowed_);
+    return extractor_.allowed_[vertex];
+  }
+  void fill(std::span<const std::uint32_t> vertices, std::span<float> field) const override {
+    extractor_.fill_known(vertices, field);
+  }
+
+ private:
+  ViewExtractor& extractor_;
+};
 
 ViewExtractor::ViewExtractor(const Mt& mt, const OccupancyLevels& levels) : mt_(mt), levels_(levels) {
   // Bounding sphere (box centre and half diagonal): enough to pick the occupancy cut's error.
@@ -33,9 +59,10 @@ ViewExtractor::ViewExtractor(const Mt& mt, const OccupancyLevels& levels) : mt_(
 
 std::size_t ViewCache::memory_bytes() const {
   auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
-  return allowed_error_.resident_bytes() + bytes(silhouette_dt_) + bytes(neglect_dt_) + bytes(focus_factor_) +
-         bytes(cell_start_) + bytes(cell_vertices_) + bytes(cell_vertex_clip_w_) + bytes(changed_) +
-         bytes(neglect_) + bytes(focus_cells_);
+  return allowed_error_.resident_bytes() + known_bits_.resident_bytes() + bytes(silhouette_dt_) +
+         bytes(neglect_dt_) + bytes(focus_factor_) + bytes(known_vertices_) + bytes(known_cells_) +
+         bytes(known_clip_w_) + bytes(cell_changed_) + bytes(cell_multiplier_) + bytes(changed_cells_) +
+         bytes(changed_) + bytes(neglect_) + bytes(focus_cells_);
 }
 
 bool ViewExtractor::same_view(const ViewCache& s, const ViewRequest& r) {
@@ -143,7 +170,6 @@ void ViewExtractor::distance_transforms() {
 void ViewExtractor::allowed_error() {
   const ViewRequest& r = *request_;
   on_demand_ = false;
-  field_completed_ = false;
   AllowedErrorOptions options = r.allowed;
   if (options.metric == DistanceMetric::kEuclidean)
     options.metric = DistanceMetric::kChamfer5711;  // see transform()
@@ -156,44 +182,31 @@ void ViewExtractor::allowed_error() {
     // Only the entries written are read: on demand, the pages of the cut's vertices.
     if (field.size() != mt_.vertex_count()) field.reset(mt_.vertex_count());
     allowed_ = field;
-    // From the root anyway: a static request, or a session's new view (the session's field is
-    // completed on the view's first reuse). Without a session a dynamic request moves the
-    // refiner's cut, which compares every vertex's value.
+    // From the root anyway: a static request, or a session's new view. Without a session a
+    // dynamic request moves the refiner's cut, which compares every vertex's value.
     on_demand_ = r.allowed_error_on_demand && (!r.dynamic || session_ != nullptr);
     if (!on_demand_) field_.compute_all(allowed_);
     if (session_) {
       remember_view(*session_);
+      forget_known(*session_);
       session_->allowed_error_complete_ = !on_demand_;
     }
     return;
   }
   ViewCache& s = *session_;
   allowed_ = s.allowed_error_;
-  if (!s.allowed_error_complete_) {
-    // The view's first reuse after an on-demand refinement: every vertex now, for these foci.
-    field_.compute_all(allowed_);
-    s.allowed_error_complete_ = true;
-    field_completed_ = true;
-    remember_foci(s);
-    s.changed_.clear();
-    return;
-  }
+  on_demand_ = !s.allowed_error_complete_;
+  if (s.allowed_error_complete_ && !s.known_all_) list_all_vertices(s);
   // Only the foci moved: a vertex's allowed error changes only where its cell's focus multiplier did.
-  if (s.cell_start_.empty()) sort_vertices_by_cell(s);
   s.changed_.clear();
+  s.changed_cells_.clear();
   auto visit = [&](std::uint32_t c) {
     const float factor = field_.focus_factor(c);
     if (factor == s.focus_factor_[c]) return;
     s.focus_factor_[c] = factor;
-    // The cell's labels give one multiplier for all its vertices, and each vertex's depth was kept
-    // when they were sorted by cell: no vertex is projected again (same values as
-    // field_.vertex_allowed_error(v), which maps the vertex to this cell and depth).
-    const float multiplier = field_.cell_multiplier(c);
-    for (std::uint32_t k = s.cell_start_[c]; k < s.cell_start_[c + 1]; ++k) {
-      const std::uint32_t v = s.cell_vertices_[k];
-      allowed_[v] = field_.vertex_allowed_error_in_cell(multiplier, s.cell_vertex_clip_w_[k], v);
-      s.changed_.push_back(v);
-    }
+    if (s.cell_changed_[c]) return;
+    s.cell_changed_[c] = 1;
+    s.changed_cells_.push_back(c);
   };
   // The focus multiplier is 1 from the label focus_reach() on, and a label below it lies within
   // reach / units cells (Chebyshev) of a focus: a pixel step costs at least `units` in every
@@ -225,6 +238,20 @@ void ViewExtractor::allowed_error() {
   }
   remember_focus_cells(s);
   if (!whole_grid) visit_boxes();  // around the new ones
+  if (s.changed_cells_.empty()) return;
+  // The cell's labels give one multiplier for all its vertices, and each known vertex's depth was
+  // kept with it: no vertex is projected again (the same values as field_.vertex_allowed_error(v),
+  // which maps the vertex to this cell and depth).
+  for (const std::uint32_t c : s.changed_cells_) s.cell_multiplier_[c] = field_.cell_multiplier(c);
+  for (std::size_t k = 0; k < s.known_vertices_.size(); ++k) {
+    const std::uint32_t c = s.known_cells_[k];
+    if (c == kNoCell || !s.cell_changed_[c]) continue;
+    const std::uint32_t v = s.known_vertices_[k];
+    allowed_[v] = field_.vertex_allowed_error_in_cell(s.cell_multiplier_[c], s.known_clip_w_[k], v);
+    s.changed_.push_back(v);
+  }
+  for (const std::uint32_t c : s.changed_cells_) s.cell_changed_[c] = 0;
+  vertices_computed_ += s.changed_.size();
 }
 
 void ViewExtractor::remember_focus_cells(ViewCache& s) const {
@@ -236,6 +263,8 @@ void ViewExtractor::remember_foci(ViewCache& s) const {
   const std::size_t cells = request_->grid.cell_count();
   s.focus_factor_.resize(cells);
   for (std::uint32_t c = 0; c < cells; ++c) s.focus_factor_[c] = field_.focus_factor(c);
+  s.cell_changed_.assign(cells, 0);
+  s.cell_multiplier_.resize(cells);
   remember_focus_cells(s);
 }
 
@@ -252,30 +281,74 @@ void ViewExtractor::remember_view(ViewCache& s) const {
   s.silhouette_dt_.assign(silhouette_.begin(), silhouette_.end());
   s.neglect_dt_.assign(neglect_.begin(), neglect_.end());
   remember_foci(s);
-  s.cell_start_.clear();  // sorted again on the view's first reuse
   s.changed_.clear();
 }
 
-void ViewExtractor::sort_vertices_by_cell(ViewCache& s) {
+void ViewExtractor::list_all_vertices(ViewCache& s) {
   // The cells compute_all saw (map_vertices is bit-identical to the per-vertex mapping).
-  const std::size_t n = mt_.vertex_count(), cells = request_->grid.cell_count();
-  vertex_cells_.resize(n);
-  vertex_clip_w_.resize(n);
-  map_vertices(mapping_, mt_.positions, vertex_cells_, vertex_clip_w_);
-  s.cell_start_.assign(cells + 1, 0);
-  for (const std::uint32_t c : vertex_cells_) {
-    if (c != kNoCell) ++s.cell_start_[c + 1];
+  const std::size_t n = mt_.vertex_count();
+  s.known_vertices_.resize(n);
+  s.known_cells_.resize(n);
+  s.known_clip_w_.resize(n);
+  for (std::uint32_t v = 0; v < n; ++v) s.known_vertices_[v] = v;
+  map_vertices(mapping_, mt_.positions, s.known_cells_, s.known_clip_w_);
+  s.known_all_ = true;
+}
+
+void ViewExtractor::forget_known(ViewCache& s) {
+  if (!s.known_all_)
+    for (const std::uint32_t v : s.known_vertices_) clear_bit(s.known_bits_, v);
+  s.known_all_ = false;
+  s.known_vertices_.clear();
+  s.known_cells_.clear();
+  s.known_clip_w_.clear();
+}
+
+void ViewExtractor::fill_known(std::span<const std::uint32_t> vertices, std::span<float> field) {
+  ViewCache& s = *session_;
+  const std::size_t words = (mt_.vertex_count() + 63) / 64;
+  if (s.known_bits_.size() != words) s.known_bits_.reset(words);
+  unknown_.clear();
+  for (const std::uint32_t v : vertices) {
+    if (bit(s.known_bits_, v)) continue;  // up to date: computed for this view, changed by its gazes
+    set_bit(s.known_bits_, v);
+    unknown_.push_back(v);
   }
-  for (std::size_t c = 0; c < cells; ++c) s.cell_start_[c + 1] += s.cell_start_[c];
-  s.cell_vertices_.resize(s.cell_start_[cells]);
-  cells_.assign(s.cell_start_.begin(), s.cell_start_.end() - 1);  // next free slot per cell
-  s.cell_vertex_clip_w_.resize(s.cell_vertices_.size());
-  for (std::uint32_t v = 0; v < n; ++v) {
-    const std::uint32_t c = vertex_cells_[v];
-    if (c == kNoCell) continue;
-    s.cell_vertex_clip_w_[cells_[c]] = vertex_clip_w_[v];
-    s.cell_vertices_[cells_[c]++] = v;
+  if (unknown_.empty()) return;
+  const std::size_t first = s.known_vertices_.size(), count = unknown_.size();
+  s.known_vertices_.insert(s.known_vertices_.end(), unknown_.begin(), unknown_.end());
+  s.known_cells_.resize(first + count);
+  s.known_clip_w_.resize(first + count);
+  field_.fill_mapped(unknown_, field, std::span(s.known_cells_).subspan(first),
+                     std::span(s.known_clip_w_).subspan(first));
+  vertices_computed_ += count;
+}
+
+void ViewExtractor::forget_unread(Refiner& refiner) {
+  // Known vertices are updated at every gaze, so those of cuts long gone cost time until forgotten.
+  // They are forgotten in one pass once they are four times those the cut reads: the cut's own
+  // stay known, and a vertex forgotten is asked for again should a later cut read it.
+  ViewCache& s = *session_;
+  const std::size_t read = refiner.cut_nodes().size() + mt_.root_triangle_count();  // about, from above
+  if (s.known_vertices_.size() <= 4 * read) return;
+  ++s.forgets_;
+  for (const std::uint32_t v : s.known_vertices_) clear_bit(s.known_bits_, v);
+  refiner.for_each_cut_vertex([&](std::uint32_t v) { set_bit(s.known_bits_, v); });
+  std::size_t kept = 0;
+  for (std::size_t k = 0; k < s.known_vertices_.size(); ++k) {
+    const std::uint32_t v = s.known_vertices_[k];
+    if (!bit(s.known_bits_, v)) continue;
+    s.known_vertices_[kept] = v;
+    s.known_cells_[kept] = s.known_cells_[k];
+    s.known_clip_w_[kept] = s.known_clip_w_[k];
+    ++kept;
   }
+  s.known_vertices_.resize(kept);
+  s.known_cells_.resize(kept);
+  s.known_clip_w_.resize(kept);
+  // Every vertex the cut reads was asked for, so it is among those kept; the bits are now exactly theirs.
+  refiner.for_each_cut_vertex([&](std::uint32_t v) { clear_bit(s.known_bits_, v); });
+  for (const std::uint32_t v : s.known_vertices_) set_bit(s.known_bits_, v);
 }
 
 void ViewExtractor::refine(Refiner& session, CutMesh& out) {
@@ -284,30 +357,39 @@ void ViewExtractor::refine(Refiner& session, CutMesh& out) {
 
 CutSpan ViewExtractor::refine_view(Refiner& session, CutMesh& scratch) {
   const AllowedError allowed = AllowedError::from_vertices(allowed_);
+  // In a session, what the refinement asks for becomes known to the view's gazes.
+  const KnownSource known(*this);
+  const VertexErrorSource& source = session_ ? static_cast<const VertexErrorSource&>(known) : field_;
+  const bool gaze = request_->dynamic && incremental_;
+  const std::span<const std::uint32_t> changed =
+      session_ ? session_->changed_ : std::span<const std::uint32_t>();
   const CutSpan cut = [&] {
-    const bool gaze = request_->dynamic && incremental_ && !field_completed_;
     if (request_->budget) {
-      // After the view's field was completed every vertex counts as changed (the kept cut of an
-      // on-demand start knows no field), so the kept cut moves as after any gaze.
-      if (request_->dynamic && incremental_) {
-        session.update_budget(allowed, session_->changed_, *request_->budget, scratch);
+      const std::size_t budget = *request_->budget;
+      if (gaze) {
+        if (on_demand_) {
+          session.update_budget_on_demand(source, allowed_, changed, budget, scratch);
+        } else {
+          session.update_budget(allowed, changed, budget, scratch);
+        }
       } else if (request_->dynamic && session_) {
         // Kept for the gazes that follow.
         if (on_demand_) {
-          session.start_budget_on_demand(field_, allowed_, *request_->budget, scratch);
+          session.start_budget_on_demand(source, allowed_, budget, scratch);
         } else {
-          session.start_budget(allowed, *request_->budget, scratch);
+          session.start_budget(allowed, budget, scratch);
         }
       } else if (on_demand_) {
-        session.refine_budget_on_demand(field_, allowed_, *request_->budget, scratch);
+        session.refine_budget_on_demand(source, allowed_, budget, scratch);
       } else {
-        session.refine_budget(allowed, *request_->budget, scratch);
+        session.refine_budget(allowed, budget, scratch);
       }
-    } else if (on_demand_) {
-      session.refine_on_demand(field_, allowed_, scratch);
     } else if (gaze) {
-      return session.update_view(allowed, session_->changed_,
-                                 scratch);  // even after a saccade: cheaper than from the root
+      // Even after a saccade: cheaper than from the root.
+      return on_demand_ ? session.update_view_on_demand(source, allowed_, changed, scratch)
+                        : session.update_view(allowed, changed, scratch);
+    } else if (on_demand_) {
+      session.refine_on_demand(source, allowed_, scratch);
     } else if (request_->dynamic) {
       session.update(allowed, scratch);
     } else {
@@ -315,11 +397,12 @@ CutSpan ViewExtractor::refine_view(Refiner& session, CutMesh& scratch) {
     }
     return CutSpan::of(scratch);  // taken once scratch holds the cut
   }();
+  if (session_ && on_demand_) forget_unread(session);
   if (request_->labels) {
     // Labels of the cut's vertices only: the silhouette distance when it was computed, else the focus's.
     const std::span<const std::uint16_t> dt =
         !silhouette_.empty() ? silhouette_ : std::span<const std::uint16_t>(focus_dt_);
-    vertex_labels_.resize(mt_.vertex_count());
+    if (vertex_labels_.size() != mt_.vertex_count()) vertex_labels_.reset(mt_.vertex_count());
     for (std::uint32_t v : cut.triangles)
       vertex_labels_[v] = dt.empty() ? 0 : vertex_label(mapping_, mt_.positions, v, dt);
   }
@@ -330,8 +413,8 @@ std::size_t ViewExtractor::memory_bytes() const {
   auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
   return transformer_.memory_bytes() + bytes(occupancy_) + bytes(seeds_image_) + bytes(depth_) +
          bytes(silhouette_dt_) + bytes(focus_dt_) + bytes(neglect_dt_) + bytes(euclidean_) + bytes(cells_) +
-         vertex_allowed_error_.resident_bytes() + bytes(vertex_labels_) + bytes(projected_) +
-         bytes(vertex_cells_) + bytes(vertex_clip_w_) + field_.memory_bytes();
+         vertex_allowed_error_.resident_bytes() + vertex_labels_.resident_bytes() + bytes(projected_) +
+         bytes(unknown_) + field_.memory_bytes();
 }
 
 }  // namespace mtlod::core

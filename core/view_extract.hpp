@@ -46,17 +46,25 @@ struct ViewRequest {
 // What one client session keeps between its requests, so that a request with the same view as the
 // session's previous one — same camera, grid and criteria, only the focus points moved: a gaze —
 // skips the occupancy and the silhouette transform, recomputes the allowed error only for the
-// vertices in cells where the focus law's multiplier changed, and hands exactly those vertices to
-// the refinement. Owned by the session, filled by ViewExtractor; the result is the same as
-// computing every stage again (tests/core/view_extract_test.cpp holds it to that).
+// known vertices in cells where the focus law's multiplier changed, and hands exactly those
+// vertices to the refinement. Owned by the session, filled by ViewExtractor; the result is the
+// same as computing every stage again (tests/core/view_extract_test.cpp holds it to that).
+//
+// Known vertices: on demand (the default), those whose allowed error the view's refinements asked
+// for, each with its grid cell and depth — the vertices of the cuts since the view began, and
+// never many more than the current cut reads (the others are forgotten); every vertex when the
+// whole field was computed. So a gaze costs what the cut and the moved foci cost, whatever the
+// model's size.
 class ViewCache {
  public:
-  // Whether the last request took the incremental path, and how many vertices it recomputed one
-  // by one (0 on the view's first reuse after an on-demand refinement, which computes them all).
+  // Whether the last request took the incremental path, and how many vertices it recomputed.
   bool reused() const { return reused_; }
   std::size_t changed_vertices() const { return changed_.size(); }
-  // Bytes held: per vertex 12 (the field, the vertices sorted by cell and their depths), per cell
-  // about 10.
+  // Vertices whose allowed error the session knows for its view (see above).
+  std::size_t known_vertices() const { return known_vertices_.size(); }
+  // How often the session forgot the known vertices its cut no longer read.
+  std::size_t forgets() const { return forgets_; }
+  // Bytes held: 12 per known vertex, per cell about 14, and the field's pages that were written.
   std::size_t memory_bytes() const;
   // Forget everything (another model, say).
   void reset() { valid_ = false; }
@@ -72,16 +80,24 @@ class ViewCache {
   bool has_focus_ = false;
   bool internal_silhouettes_ = false;
   float depth_jump_ = 0.0f;
-  ZeroedArray<float> allowed_error_;          // per vertex, for the session's last request
-  bool allowed_error_complete_ = false;       // false: only the last cut's vertices (on demand)
+  ZeroedArray<float> allowed_error_;          // per vertex: right for the known ones
+  bool allowed_error_complete_ = false;       // every vertex's was computed (else on demand)
   std::vector<std::uint16_t> silhouette_dt_;  // of the view
   std::vector<std::uint16_t> neglect_dt_;
   std::vector<float> focus_factor_;         // per cell, for the last request's foci
   std::vector<std::uint32_t> focus_cells_;  // the last request's foci (kNoCell off the grid)
-  std::vector<std::uint32_t> cell_start_;   // vertices by cell (counting sort), built on first reuse
-  std::vector<std::uint32_t> cell_vertices_;
-  std::vector<float> cell_vertex_clip_w_;  // clip-space w of each entry of cell_vertices_
-  std::vector<std::uint32_t> changed_;     // vertices recomputed by the last request
+  // The known vertices, their cells (kNoCell off the grid) and clip-space w. With a complete field
+  // they are listed on the view's first reuse; on demand, known_bits_ marks them.
+  std::vector<std::uint32_t> known_vertices_;
+  std::vector<std::uint32_t> known_cells_;
+  std::vector<float> known_clip_w_;
+  bool known_all_ = false;                  // known_vertices_ lists every vertex (complete field)
+  ZeroedArray<std::uint64_t> known_bits_;   // on demand: one bit per model vertex
+  std::vector<std::uint8_t> cell_changed_;  // per cell, during a gaze: its focus multiplier changed
+  std::vector<float> cell_multiplier_;      // per cell, for the changed ones: its label multiplier
+  std::vector<std::uint32_t> changed_cells_;
+  std::vector<std::uint32_t> changed_;  // vertices recomputed by the last request
+  std::size_t forgets_ = 0;
 };
 
 class ViewExtractor {
@@ -99,10 +115,10 @@ class ViewExtractor {
   std::size_t occupancy();
   // Stage 3: the silhouette, focus and neglect transforms the request uses.
   void distance_transforms();
-  // Stage 4: per-vertex allowed error (and labels when asked): every vertex, or on the incremental
-  // path only those in cells whose focus multiplier changed; on a new view with
-  // allowed_error_on_demand, none yet: stage 5 asks for those it reads (the first reuse of the view
-  // then computes every vertex's).
+  // Stage 4: per-vertex allowed error: every vertex, or on the incremental path only the session's
+  // known vertices in cells whose focus multiplier changed; on a new view with
+  // allowed_error_on_demand, none yet: stage 5 asks for those it reads (and, in a session, so do the
+  // view's gazes).
   void allowed_error();
   // Stage 5: refines `session` (dynamic unless `dynamic` is off; with a budget, dynamic on the
   // session's gazes) and writes the cut to `out`.
@@ -114,6 +130,9 @@ class ViewExtractor {
   // After the stages: the per-vertex labels (model vertex count entries; only the cut's vertices are
   // meaningful), the grids, and the occupancy cut, for encoders, tools and debug images.
   std::span<const std::uint32_t> vertex_labels() const { return vertex_labels_; }
+  // Vertices whose allowed error this extractor computed one by one for sessions (asked for on
+  // demand, or changed by a gaze), since it was made.
+  std::size_t vertices_computed() const { return vertices_computed_; }
   std::span<const std::uint8_t> occupancy_grid() const { return occupancy_; }
   std::span<const std::uint16_t> silhouette_dt() const { return silhouette_; }
   std::span<const std::uint16_t> focus_dt() const { return focus_dt_; }
@@ -137,7 +156,16 @@ class ViewExtractor {
   void remember_focus_cells(ViewCache& session) const;
   // The focus multiplier of every cell and the foci, for the request's foci.
   void remember_foci(ViewCache& session) const;
-  void sort_vertices_by_cell(ViewCache& session);
+  // A complete field's known vertices: every vertex, with its cell and clip-space w.
+  void list_all_vertices(ViewCache& session);
+  // The session's known vertices become none (a new view).
+  static void forget_known(ViewCache& session);
+  // The session's on-demand allowed error: field_'s values for vertices the session does not know
+  // yet, which become known (KnownSource forwards the refiner's requests here).
+  void fill_known(std::span<const std::uint32_t> vertices, std::span<float> field);
+  class KnownSource;
+  // Forgets the known vertices the session's cut does not read once they far outnumber those it does.
+  void forget_unread(Refiner& refiner);
   void transform_from_cells(std::span<const std::uint32_t> cells, std::span<std::uint16_t> out);
 
   const Mt& mt_;
@@ -146,8 +174,7 @@ class ViewExtractor {
   const ViewRequest* request_ = nullptr;
   ViewCache* session_ = nullptr;
   bool incremental_ = false;
-  bool on_demand_ = false;        // stage 5 computes the allowed error it reads
-  bool field_completed_ = false;  // stage 4 completed an on-demand field: the refiner compares it all
+  bool on_demand_ = false;  // stage 5 computes the allowed error it reads
   // The transforms and field in use: this extractor's buffers or the session's.
   std::span<const std::uint16_t> silhouette_, neglect_;
   std::span<float> allowed_;
@@ -161,10 +188,10 @@ class ViewExtractor {
   std::vector<std::uint16_t> silhouette_dt_, focus_dt_, neglect_dt_;
   std::vector<std::uint32_t> euclidean_, cells_;
   ZeroedArray<float> vertex_allowed_error_;
-  std::vector<std::uint32_t> vertex_labels_;
-  std::vector<ProjectedCorner> projected_;   // occupancy scratch
-  std::vector<std::uint32_t> vertex_cells_;  // sort_vertices_by_cell scratch
-  std::vector<float> vertex_clip_w_;
+  ZeroedArray<std::uint32_t> vertex_labels_;  // written for the cut's vertices only
+  std::vector<ProjectedCorner> projected_;    // occupancy scratch
+  std::vector<std::uint32_t> unknown_;        // fill_known scratch
+  std::size_t vertices_computed_ = 0;
 };
 
 }  // namespace mtlod::core

@@ -508,6 +508,92 @@ void expect_dynamic_matches_static(const MtCase* c, std::uint32_t seed, int step
   EXPECT_GT(dynamic.unchanged_updates(), 0u);  // and returning the kept cut when nothing changed
 }
 
+// What a session does with an on-demand field (core/view_extract.cpp): values for the vertices asked
+// for, which become known; at each new field the known vertices whose value changed are updated
+// and listed; at times everything but the cut's vertices is forgotten. Unknown entries hold -1,
+// which fails every triangle: a refinement that read one would refine more than the reference.
+class KnownField final : public VertexErrorSource {
+ public:
+  explicit KnownField(std::size_t n) : field(n, -1.0f), known_(n, 0) {}
+  float vertex_allowed_error(std::uint32_t v) const override {
+    known_[v] = 1;
+    ++asked;
+    return (*current_)[v];
+  }
+  // The next field: updates the known vertices and lists those that changed.
+  void set(const std::vector<float>& next, std::vector<std::uint32_t>& changed) {
+    current_ = &next;
+    changed.clear();
+    for (std::uint32_t v = 0; v < field.size(); ++v) {
+      if (!known_[v] || field[v] == next[v]) continue;
+      field[v] = next[v];
+      changed.push_back(v);
+    }
+  }
+  void forget_all_but_the_cut(Refiner& refiner) {
+    std::vector<std::uint8_t> read(field.size(), 0);
+    refiner.for_each_cut_vertex([&](std::uint32_t v) { read[v] = 1; });
+    for (std::uint32_t v = 0; v < field.size(); ++v) {
+      ASSERT_TRUE(!read[v] || known_[v]) << "the cut reads vertex " << v << ", never asked for";
+      if (!read[v]) known_[v] = 0, field[v] = -1.0f;
+    }
+  }
+  std::vector<float> field;
+  mutable std::size_t asked = 0;
+
+ private:
+  const std::vector<float>* current_ = nullptr;
+  mutable std::vector<std::uint8_t> known_;
+};
+
+// On-demand updates (a session's gazes) give the cuts of the full field while reading only values
+// they asked for since the view began, with or without a budget, whatever was forgotten meanwhile.
+TEST(Refine, OnDemandUpdatesEqualTheFullFieldAndReadOnlyWhatWasAskedFor) {
+  std::mt19937 rng(19);
+  for (const MtCase* c : {test::shape_case(Shape::kSphere, 8'000), test::scan_case("armadillo-52k.ply")}) {
+    if (!c) continue;
+    const Mt& mt = c->mt;
+    const float top = max_node_error(mt);
+    for (const bool budgeted : {false, true}) {
+      Refiner lazy(mt), full(mt);
+      KnownField known(mt.vertex_count());
+      CutMesh out, expected;
+      std::vector<std::uint32_t> changed;
+      std::vector<float> field;
+      const std::size_t budget = 3'000;
+      for (int step = 0; step < 30; ++step) {
+        // Mostly small moves of a focus, a jump now and then.
+        field = focus_field(c->mesh, rng, top * 1e-3f, top * 0.3f);
+        known.set(field, changed);
+        CutSpan cut;
+        if (step == 0) {
+          if (budgeted) {
+            lazy.start_budget_on_demand(known, known.field, budget, out);
+          } else {
+            lazy.refine_on_demand(known, known.field, out);
+          }
+          cut = CutSpan::of(out);
+        } else if (budgeted) {
+          lazy.update_budget_on_demand(known, known.field, changed, budget, out);
+          cut = CutSpan::of(out);
+        } else {
+          cut = lazy.update_view_on_demand(known, known.field, changed, out);
+        }
+        if (budgeted) {
+          full.refine_budget(AllowedError::from_vertices(field), budget, expected);
+        } else {
+          full.refine(AllowedError::from_vertices(field), expected);
+        }
+        ASSERT_EQ(test::triangle_set(cut.triangles), test::triangle_set(expected.triangles))
+            << "step " << step << (budgeted ? ", budgeted" : "");
+        if (step % 4 == 3) known.forget_all_but_the_cut(lazy);
+      }
+      EXPECT_GT(lazy.moves() + lazy.restarts(), 0u);
+      EXPECT_LT(known.asked, 30 * mt.vertex_count() / 4) << "asked for a fraction of the vertices each step";
+    }
+  }
+}
+
 TEST(Refine, DynamicEqualsStaticAfterRandomSequences) {
   int meshes = 0;
   for (const char* file : {"bunny-npm-3k.ply", "dragon-vrip-res4-11k.ply", "armadillo-52k.ply",

@@ -383,17 +383,16 @@ TEST(ViewExtract, SessionGazePathEqualsAFreshExtractionEveryTime) {
             const auto a = session_extractor.vertex_allowed_error(),
                        e = fresh_extractor.vertex_allowed_error();
             ASSERT_EQ(a.size(), e.size());
-            if (session.reused()) {
-              ASSERT_EQ(std::memcmp(a.data(), e.data(), a.size() * sizeof(float)), 0)
-                  << "allowed error differs at step " << step << ", law " << int(law) << ", metric "
-                  << int(metric);
-            } else {
-              // A new view asked for the cut's vertices only.
-              for (const std::uint32_t v : cut.triangles)
-                ASSERT_EQ(std::memcmp(&a[v], &e[v], sizeof(float)), 0)
-                    << "vertex " << v << " at step " << step;
-            }
+            // The session knows the allowed error of every vertex its cut reads (new views and gazes
+            // ask for those only), and knows it right.
+            kept.for_each_cut_vertex([&](std::uint32_t v) {
+              ASSERT_EQ(std::memcmp(&a[v], &e[v], sizeof(float)), 0)
+                  << "allowed error of vertex " << v << " differs at step " << step << ", law " << int(law)
+                  << ", metric " << int(metric);
+            });
             ASSERT_EQ(triangle_set(cut), triangle_set(expected)) << "step " << step << ", law " << int(law);
+            // No more than four times as many as the cut reads (a few more vertices than nodes).
+            EXPECT_LE(session.known_vertices(), 4 * (kept.cut_nodes().size() + b->mt.root_triangle_count()));
           }
           EXPECT_EQ(reused, 10u);
           // The step law changes only cells near the old and new foci: far fewer vertices than all.
@@ -404,6 +403,45 @@ TEST(ViewExtract, SessionGazePathEqualsAFreshExtractionEveryTime) {
       }
     }
   }
+}
+
+TEST(ViewExtract, SessionForgetsWhatItsCutNoLongerReadsAndStaysExact) {
+  // A session's gazes sweep a small fine region across the screen: each cut reads vertices the
+  // last ones did not, so what the session knows would grow with every gaze. It stays within four
+  // times what the cut reads (the rest is forgotten, and asked for again when a later cut reads it),
+  // and every cut equals a fresh extraction's.
+  const auto [b, camera, other] = session_scene();
+  ASSERT_NE(b, nullptr);
+  ViewRequest r;
+  r.camera = camera;
+  r.grid = {128, 128};
+  r.allowed.units = ErrorUnits::kScreenPixels;
+  r.allowed.error = 8.0f;
+  r.allowed.use_focus = true;
+  r.allowed.focus = RegionLaw{FalloffLaw::kStep, 6.0f, 0.02f};
+  ViewExtractor session_extractor(b->mt, *b->levels), fresh_extractor(b->mt, *b->levels);
+  ViewCache session;
+  Refiner kept(b->mt);
+  CutMesh cut, expected;
+  std::size_t most_known = 0;
+  for (int step = 0; step < 60; ++step) {
+    // Left to right and back, row by row.
+    const float t = static_cast<float>(step % 20) / 19.0f;
+    r.focus = {{0.15f + 0.7f * (step / 20 % 2 ? 1.0f - t : t), 0.3f + 0.2f * static_cast<float>(step / 20)}};
+    run(session_extractor, r, kept, cut, &session);
+    EXPECT_EQ(session.reused(), step != 0);
+    Refiner fresh(b->mt);
+    ViewRequest static_request = r;
+    static_request.dynamic = false;
+    static_request.allowed_error_on_demand = false;
+    run(fresh_extractor, static_request, fresh, expected);
+    ASSERT_EQ(triangle_set(cut), triangle_set(expected)) << "step " << step;
+    EXPECT_LE(session.known_vertices(), 4 * (kept.cut_nodes().size() + b->mt.root_triangle_count()));
+    most_known = std::max(most_known, session.known_vertices());
+  }
+  EXPECT_GT(session.forgets(), 0u);
+  EXPECT_LT(most_known, b->mt.vertex_count() / 2);
+  EXPECT_GT(session_extractor.vertices_computed(), 0u);
 }
 
 TEST(ViewExtract, SessionBudgetedGazesEqualBudgetedRefinementFromTheRoot) {
