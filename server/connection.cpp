@@ -258,7 +258,7 @@ void Connection::start_next_job() {
   for (;;) {
     job = jobs_.start_next();
     if (!job) return;
-    const std::uint64_t need = server_.engine.estimate_bytes(job->extract);
+    const std::uint64_t need = server_.engine.estimate_bytes(job->extract, &cut_);
     if (server_.memory.reserve(need)) {
       reserved_ = need;
       break;

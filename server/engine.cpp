@@ -19,8 +19,9 @@ namespace mtlod::server {
 struct ExtractionState::State {
   const Model* model = nullptr;
   std::unique_ptr<core::Refiner> refiner;
-  core::ViewCache view;  // lets a gaze (same view, new foci) reuse the view's stages
-  core::CutDelta sent;   // the client's mesh, when it asked for delta replies
+  core::ViewCache view;               // lets a gaze (same view, new foci) reuse the view's stages
+  core::CutDelta sent;                // the client's mesh, when it asked for delta replies
+  std::uint64_t error_bound_cut = 0;  // triangles of the last cut, when it had no budget
 };
 
 ExtractionState::ExtractionState() = default;
@@ -59,12 +60,15 @@ Worker& this_worker() {
   return worker;
 }
 
-// Bytes per grid cell and per model vertex of a worker's extractor; per grid cell, per vertex, per
-// input triangle (the largest cut) and per MT triangle (delta state) of a session. Upper bounds
-// with headroom, checked against the real figures by tests/server/memory_test.cpp.
-constexpr std::uint64_t kScratchPerCell = 16, kScratchPerVertex = 48;
-constexpr std::uint64_t kSessionPerCell = 16, kSessionPerVertex = 24, kSessionPerCutTriangle = 80,
-                        kSessionPerMtTriangle = 1;
+// Bytes per grid cell of a worker's extractor and of a session; per cut triangle of a session's
+// kept mesh and delta state. Arrays indexed by vertex, node or MT triangle (the allowed error, the
+// cut's membership, the delta's sent set, the labels) are mapped zeroed and cost only the pages a
+// request writes: bounded by the whole arrays (kPerVertex, kPerMtTriangle) and, as each vertex,
+// node or triangle read touches at most a page of each, in practice far below that by
+// kPagedPerCutTriangle per triangle of the cut (its neighbours' ids lie close together). Upper
+// bounds with headroom, checked against the real figures by tests/server/memory_test.cpp.
+constexpr std::uint64_t kScratchPerCell = 16, kSessionPerCell = 16, kSessionPerCutTriangle = 128;
+constexpr std::uint64_t kPerVertex = 24, kPerMtTriangle = 1, kPagedPerCutTriangle = 2048;
 
 }  // namespace
 
@@ -73,17 +77,21 @@ std::uint64_t ExtractionState::memory_bytes() const {
   return state->refiner->memory_bytes() + state->view.memory_bytes() + state->sent.memory_bytes();
 }
 
-std::uint64_t Engine::estimate_bytes(const protocol::Extract& request) const {
+std::uint64_t Engine::estimate_bytes(const protocol::Extract& request, const ExtractionState* session) const {
   const Model* model = models_.find(request.model);
   if (!model) return 0;
   const std::uint64_t cells = std::uint64_t{request.grid[0]} * request.grid[1];
-  const std::uint64_t vertices = model->mt.vertex_count();
-  // A budget bounds the cut; without one it may be the whole input.
-  const std::uint64_t cut =
-      std::min<std::uint64_t>(model->input_triangles, request.budget.value_or(UINT32_MAX));
-  return kScratchPerCell * cells + kScratchPerVertex * vertices + kSessionPerCell * cells +
-         kSessionPerVertex * vertices + kSessionPerCutTriangle * cut +
-         kSessionPerMtTriangle * model->mt.triangle_count();
+  // A budget bounds the cut; without one it may be the whole input, or for a session whose last
+  // cut of the model had no budget either, twice that cut.
+  std::uint64_t cut = std::min<std::uint64_t>(model->input_triangles, request.budget.value_or(UINT64_MAX));
+  if (!request.budget && session && session->state && session->state->model == model &&
+      session->state->error_bound_cut > 0)
+    cut = std::min(cut, 2 * session->state->error_bound_cut);
+  cut = std::max<std::uint64_t>(cut, model->mt.root_triangle_count());  // never below the root
+  const std::uint64_t paged =
+      std::min(kPerVertex * model->mt.vertex_count() + kPerMtTriangle * model->mt.triangle_count(),
+               kPagedPerCutTriangle * cut);
+  return (kScratchPerCell + kSessionPerCell) * cells + kSessionPerCutTriangle * cut + paged;
 }
 
 std::int64_t Engine::settle_worker_scratch() {
@@ -148,6 +156,7 @@ ExtractResult Engine::run(const Model& model_ref, const protocol::Extract& reque
   // A gaze's cut is read in place from the session's refiner (no copy of the whole mesh).
   const core::CutSpan cut = extractor->refine_view(*state.refiner, worker.cut);
   t.refine_us = elapsed_us(clock);
+  state.error_bound_cut = request.budget ? 0 : cut.triangle_count();
 
   core::DracoOptions draco;
   // Deltas are sequential (the parser refuses them with an explicit edgebreaker).

@@ -42,9 +42,14 @@ class Engine {
   // gaze: the request comes from a gaze update (it picks the gaze defaults, e.g. Draco's method).
   ExtractResult extract(const protocol::Extract& request, bool gaze, ExtractionState& session);
 
-  // An upper bound on the memory `request` may add: scratch for its grid and model on the worker
-  // that runs it, and a session's cut of the whole model. Zero for an unknown model.
-  std::uint64_t estimate_bytes(const protocol::Extract& request) const;
+  // The memory `request` may add: scratch for its grid on the worker that runs it, and a
+  // session's state for the largest cut it may ask for: its budget, else the whole model. With
+  // `session` (the one it will run in) and no budget, a session whose last cut of the model had no
+  // budget either is taken to move to at most twice that cut, as views and gazes move cuts: an estimate then,
+  // not a bound (the server replaces the reservation by the real figure once the work has run). Zero for an
+  // unknown model.
+  std::uint64_t estimate_bytes(const protocol::Extract& request,
+                               const ExtractionState* session = nullptr) const;
 
   // On a worker thread after its extraction: by how much this worker's scratch grew (or shrank).
   // Scratch above kRetainedScratchBytes for one model (a huge grid) is freed here, not kept.

@@ -3,6 +3,8 @@
 // and the worker's scratch, as the engine itself measures them.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include "core/eval/mesh_gen.hpp"
 #include "core/io/mt_file.hpp"
 #include "core/mt_builder.hpp"
@@ -72,6 +74,60 @@ TEST(MemoryEstimate, BoundsSessionAndScratchOfExtremeRequests) {
   ASSERT_GT(used, Engine::kRetainedScratchBytes) << "the request does not exercise the release";
   EXPECT_LT(Engine::settle_worker_scratch(), 0)
       << "the 4096² grid's " << used << " bytes of scratch were kept";
+}
+
+// A budgeted session on a model many times its cut: the estimate follows the budget, not the
+// model, and still bounds what a new view and the gazes that follow really hold.
+TEST(MemoryEstimate, FollowsTheBudgetOnAModelManyTimesTheCut) {
+  const auto dir = test::scratch_dir("memory-estimate-budget");
+  core::GenerateOptions shape;
+  shape.shape = core::Shape::kShell;
+  shape.target_triangles = 200000;
+  auto mt = core::build_mt(core::generate_mesh(shape));
+  ASSERT_TRUE(mt.ok()) << mt.error().message;
+  ASSERT_TRUE(core::io::write_mt_file(dir / "big.mt", *mt).ok());
+  ModelRegistry models;
+  ASSERT_TRUE(models.add_file(dir / "big.mt").ok());
+  const Model& model = *models.find("big");
+  Engine engine(models);
+  protocol::Extract e;
+  e.model = "big";
+  protocol::look_at_camera(
+      protocol::frame_bounds({model.bounds_min[0], model.bounds_min[1], model.bounds_min[2]},
+                             {model.bounds_max[0], model.bounds_max[1], model.bounds_max[2]}),
+      1.0, e.view, e.projection);
+  e.grid = {256, 256};
+  e.error = 0.25;
+  e.error_unit = core::ErrorUnits::kScreenPixels;
+  e.criteria.silhouette = protocol::Silhouette{2, 0.25};
+  e.budget = 4000;
+  e.delta = true;
+  ExtractionState session;
+  std::uint64_t most = 0;
+  for (int gaze = 0; gaze < 20; ++gaze) {
+    // Sweeps of the focus across the screen: the cut moves to new vertices at every gaze.
+    e.criteria.focus = {protocol::Focus{0.1 + 0.04 * gaze, 0.3 + 0.02 * gaze, 20, 0.1}};
+    auto outcome = engine.extract(e, gaze > 0, session);
+    ASSERT_TRUE(outcome) << outcome.error().message;
+    const std::uint64_t held = outcome->reply.session_bytes + outcome->reply.scratch_bytes;
+    EXPECT_LE(held, engine.estimate_bytes(e)) << "gaze " << gaze;
+    most = std::max(most, held);
+  }
+  // A fraction of the same request's estimate without the budget (a cut of the whole model).
+  protocol::Extract unbounded = e;
+  unbounded.budget.reset();
+  EXPECT_LT(4 * engine.estimate_bytes(e), engine.estimate_bytes(unbounded));
+  EXPECT_LT(engine.estimate_bytes(e), 8 * most + (std::uint64_t{4} << 20)) << "held at most " << most;
+  // Error-bound gazes: the session's estimate follows its last cut (the server estimates before
+  // each run, with the session it will run in).
+  for (int gaze = 0; gaze < 10; ++gaze) {
+    unbounded.criteria.focus = {protocol::Focus{0.8 - 0.05 * gaze, 0.5, 20, 0.1}};
+    const std::uint64_t estimate = engine.estimate_bytes(unbounded, &session);
+    auto outcome = engine.extract(unbounded, gaze > 0, session);
+    ASSERT_TRUE(outcome) << outcome.error().message;
+    EXPECT_LE(outcome->reply.session_bytes + outcome->reply.scratch_bytes, estimate) << "gaze " << gaze;
+    if (gaze > 0) EXPECT_LT(estimate, engine.estimate_bytes(unbounded));
+  }
 }
 
 }  // namespace
