@@ -3,7 +3,8 @@
 # triangles, builds each with mtlod-build under a memory limit and prints one Markdown row per input:
 # build wall time, rate, peak RSS, bytes per input triangle at the peak, .mt size, temporary files.
 # Then it serves each .mt with the Release mtlod-server and prints a second table, one row per
-# input: start-up, server RSS, extraction stages at a fixed cut size and at an error bound, gaze p99.
+# input: start-up, server RSS, extraction stages at a fixed cut size and at an error bound, an
+# orbiting camera on one connection, gaze p99.
 # Inputs are generated into WORK (default build/scale) and deleted after their row unless KEEP=1.
 #   Usage: tests/bench/scale.sh [SIZES...]   sizes: 1M 4M 16M 64M (shells) and dragon105M (the
 #          871k dragon split 11 × 11 with noise); default all of them. MEMORY_LIMIT=4G by default.
@@ -11,17 +12,19 @@
 #          (a run with KEEP=1 leaves them in WORK; the 100M build alone takes minutes). SERVE=0: only
 #          the build table. Both tables need an otherwise idle machine: the stages are a few ms.
 #   Serving knobs: REQUESTS=50 extracts of each kind (so 100 before the RSS column), GAZE_SECONDS=10,
-#   SERVER_FLAGS="--max-memory 16G" (more mtlod-server flags).
+#   ORBIT_REQUESTS=300 views per orbit, SERVER_FLAGS="--max-memory 16G" (more mtlod-server flags).
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
 tools=$root/build/release/clients/tools
 server=$root/build/release/server/mtlod-server
 client=$root/build/release/clients/client/mtlod-client
 gaze=$root/build/release/clients/gaze/mtlod-gaze
+load=$root/build/release/clients/load/mtlod-load
 work=${WORK:-$root/build/scale}
 limit=${MEMORY_LIMIT:-4G}
 requests=${REQUESTS:-50}
 gaze_seconds=${GAZE_SECONDS:-10}
+orbit_requests=${ORBIT_REQUESTS:-300}
 # The two extractions, from the front view mtlod-client frames when given no --eye. The budgeted one
 # has the load table's criteria (mtlod-load's defaults): the full-resolution silhouette band alone
 # passes 10k triangles, so the budget binds and every model gets a cut of the same size. The
@@ -151,6 +154,24 @@ serve_row() {
   session=$(awk '/^server memory:/ { print $3 }' "$out/budget.txt" | sort -g |
     awk '{ v[NR] = $1 } END { if (NR) printf "%.1f MiB", NR % 2 ? v[(NR + 1) / 2] : (v[NR / 2] + v[NR / 2 + 1]) / 2; else printf "–" }')
 
+  # An orbiting camera on one connection: mtlod-load's random cameras around the model, a new view
+  # per request, delta replies; the cost of a new view once the connection's session exists. The
+  # same views are run twice and the second run is measured: the first checks the mapped blocks
+  # they reach (a model's first views pay for that, as the first-extract column shows). Mean cut
+  # and mean server time before encoding (map, occupancy, transforms, allowed error, refine).
+  orbit() {
+    "$load" --port "$port" --model "$name" -c 1 -n "$orbit_requests" -d 600 -q --delta "$@" \
+      >/dev/null 2>>"$out/errors.txt" &&
+      "$load" --port "$port" --model "$name" -c 1 -n "$orbit_requests" -d 600 -q --delta "$@" \
+        --json "$out/orbit.json" >"$out/orbit.txt" 2>>"$out/errors.txt" &&
+      jq -r '[.mean_triangles, (.server_us | .map + .occupancy + .dt + .labels + .refine) / 1000,
+              .errors + .lost] | @tsv' "$out/orbit.json" |
+      awk '{ printf "%.0f: %.2f ms", $1, $2; if ($3 > 0) printf " (%d failed)", $3 }' || printf "–"
+  }
+  local orbit_error orbit_budget
+  orbit_error=$(orbit "${error_flags[@]}")
+  orbit_budget=$(orbit "${budget_flags[@]}")
+
   # Gaze streams as README's mtlod-gaze example and BENCHMARKS.md's gaze table: 4 × 120 Hz, deltas.
   local gaze_cells="– | –" gaze_failed=all
   if "$gaze" --port "$port" --model "$name" --streams 4 --hz 120 --duration "$((gaze_seconds * 1000))" \
@@ -169,9 +190,9 @@ serve_row() {
   local budget_cells error_cells
   budget_cells=$(stage_medians "$out/budget.txt")
   error_cells=$(stage_medians "$out/error.txt")
-  serve_rows+=("$(printf '| %s | %s | %s / %s ms | %s MiB | %s MiB | %s | %s | %s | %s | %s | %s / %s MiB | %s / %s |' \
+  serve_rows+=("$(printf '| %s | %s | %s / %s ms | %s MiB | %s MiB | %s | %s | %s | %s | %s | %s | %s | %s / %s MiB | %s / %s |' \
     "$name" "$triangles" "$listen_ms" "$start_ms" "$rss_start" "$rss_after" "$first_ms" "$budget_cells" "$session" \
-    "$error_cells" "$gaze_cells" "$rss_gaze" "$peak" "$failed" "$gaze_failed")")
+    "$error_cells" "$orbit_error" "$orbit_budget" "$gaze_cells" "$rss_gaze" "$peak" "$failed" "$gaze_failed")")
 }
 
 serve_rows=()
@@ -205,7 +226,7 @@ for mt in "${serve_files[@]}"; do serve_row "$mt"; done
 
 if [ ${#serve_rows[@]} -gt 0 ]; then
   [ ${#sizes[@]} -eq 0 ] || echo
-  echo "| input | triangles | start: listening / first reply | RSS at start | RSS after $((2 * requests)) extracts | first extract (server total) | 10k budget: cut | before encoding ms | map / occupancy / DT / allowed error / refine / encode ms | untimed ms | connection's session | 0.5 px: cut | before encoding ms | map / occupancy / DT / allowed error / refine / encode ms | untimed ms | gaze-to-mesh p99 ms | gaze cut | RSS after gaze / peak | failed extracts / gazes |"
-  echo "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"
+  echo "| input | triangles | start: listening / first reply | RSS at start | RSS after $((2 * requests)) extracts | first extract (server total) | 10k budget: cut | before encoding ms | map / occupancy / DT / allowed error / refine / encode ms | untimed ms | connection's session | 0.5 px: cut | before encoding ms | map / occupancy / DT / allowed error / refine / encode ms | untimed ms | orbit 0.5 px: cut, before encoding | orbit 10k budget: cut, before encoding | gaze-to-mesh p99 ms | gaze cut | RSS after gaze / peak | failed extracts / gazes |"
+  echo "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"
   printf '%s\n' "${serve_rows[@]}"
 fi
