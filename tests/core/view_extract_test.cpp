@@ -74,6 +74,15 @@ void run(ViewExtractor& x, const ViewRequest& r, Refiner& refiner, CutMesh& cut,
   x.refine(refiner, cut);
 }
 
+// What the session tests compare with: a static extraction from nothing that computes every
+// vertex's allowed error (with r's budget, if any), in a fresh refiner.
+void run_fresh(ViewExtractor& x, const Mt& mt, ViewRequest r, CutMesh& cut) {
+  Refiner fresh(mt);
+  r.dynamic = false;
+  r.allowed_error_on_demand = false;
+  run(x, r, fresh, cut);
+}
+
 // Shared by the dragon tests: one MT build per process.
 const Built* dragon() {
   static std::unique_ptr<Built> built = [] {
@@ -375,11 +384,7 @@ TEST(ViewExtract, SessionGazePathEqualsAFreshExtractionEveryTime) {
             EXPECT_EQ(session.reused(), step != 0 && step != 5) << "step " << step;
             if (session.reused()) ++reused, recomputed += session.changed_vertices();
 
-            Refiner fresh(b->mt);
-            ViewRequest static_request = r;
-            static_request.dynamic = false;
-            static_request.allowed_error_on_demand = false;  // every vertex's, to compare with
-            run(fresh_extractor, static_request, fresh, expected);
+            run_fresh(fresh_extractor, b->mt, r, expected);
             const auto a = session_extractor.vertex_allowed_error(),
                        e = fresh_extractor.vertex_allowed_error();
             ASSERT_EQ(a.size(), e.size());
@@ -430,11 +435,7 @@ TEST(ViewExtract, SessionForgetsWhatItsCutNoLongerReadsAndStaysExact) {
     r.focus = {{0.15f + 0.7f * (step / 20 % 2 ? 1.0f - t : t), 0.3f + 0.2f * static_cast<float>(step / 20)}};
     run(session_extractor, r, kept, cut, &session);
     EXPECT_EQ(session.reused(), step != 0);
-    Refiner fresh(b->mt);
-    ViewRequest static_request = r;
-    static_request.dynamic = false;
-    static_request.allowed_error_on_demand = false;
-    run(fresh_extractor, static_request, fresh, expected);
+    run_fresh(fresh_extractor, b->mt, r, expected);
     ASSERT_EQ(triangle_set(cut), triangle_set(expected)) << "step " << step;
     EXPECT_LE(session.known_vertices(), 4 * (kept.cut_nodes().size() + b->mt.root_triangle_count()));
     most_known = std::max(most_known, session.known_vertices());
@@ -479,15 +480,12 @@ TEST(ViewExtract, SessionBudgetedGazesEqualBudgetedRefinementFromTheRoot) {
 
     // The fresh extraction computes every vertex's allowed error; the session's new views ask
     // for those they read.
-    Refiner fresh(b->mt);
-    ViewRequest static_request = r;
-    static_request.dynamic = false;
-    static_request.allowed_error_on_demand = false;
-    run(fresh_extractor, static_request, fresh, expected);
+    run_fresh(fresh_extractor, b->mt, r, expected);
     ASSERT_EQ(triangle_set(cut), triangle_set(expected)) << "step " << step;
     EXPECT_LE(cut.triangle_count(), *r.budget);
-    static_request.budget.reset();
-    run(fresh_extractor, static_request, fresh, unbounded);
+    ViewRequest error_bound = r;
+    error_bound.budget.reset();
+    run_fresh(fresh_extractor, b->mt, error_bound, unbounded);
     binding += unbounded.triangle_count() > *r.budget;
   }
   EXPECT_EQ(binding, 16u);              // every gaze's error-bound cut was larger than the budget

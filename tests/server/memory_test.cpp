@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <string>
 
 #include "core/eval/mesh_gen.hpp"
 #include "core/io/mt_file.hpp"
@@ -16,25 +17,34 @@
 namespace mtlod::server {
 namespace {
 
-TEST(MemoryEstimate, BoundsSessionAndScratchOfExtremeRequests) {
-  const auto dir = test::scratch_dir("memory-estimate");
+// A generated shell of about `triangles` triangles written as NAME.mt and served from a registry,
+// with a request for it framed from the front.
+struct ShellModel {
+  ModelRegistry models;
+  protocol::Extract front;
+};
+void serve_shell(const std::string& name, std::uint32_t triangles, ShellModel& out) {
+  const auto dir = test::scratch_dir("memory-estimate-" + name);
   core::GenerateOptions shape;
   shape.shape = core::Shape::kShell;
-  shape.target_triangles = 20000;
+  shape.target_triangles = triangles;
   auto mt = core::build_mt(core::generate_mesh(shape));
   ASSERT_TRUE(mt.ok()) << mt.error().message;
-  ASSERT_TRUE(core::io::write_mt_file(dir / "shell.mt", *mt).ok());
-  ModelRegistry models;
-  ASSERT_TRUE(models.add_file(dir / "shell.mt").ok());
-  const Model& model = *models.find("shell");
-  Engine engine(models);
-
-  protocol::Extract base;
-  base.model = "shell";
+  ASSERT_TRUE(core::io::write_mt_file(dir / (name + ".mt"), *mt).ok());
+  ASSERT_TRUE(out.models.add_file(dir / (name + ".mt")).ok());
+  const Model& model = *out.models.find(name);
+  out.front.model = name;
   protocol::look_at_camera(
       protocol::frame_bounds({model.bounds_min[0], model.bounds_min[1], model.bounds_min[2]},
                              {model.bounds_max[0], model.bounds_max[1], model.bounds_max[2]}),
-      1.0, base.view, base.projection);
+      1.0, out.front.view, out.front.projection);
+}
+
+TEST(MemoryEstimate, BoundsSessionAndScratchOfExtremeRequests) {
+  ShellModel shell;
+  ASSERT_NO_FATAL_FAILURE(serve_shell("shell", 20000, shell));
+  Engine engine(shell.models);
+  const protocol::Extract& base = shell.front;
   std::vector<protocol::Extract> requests;
   for (const std::uint32_t side : {16u, 256u, 1024u, 2048u}) {
     for (const bool delta : {false, true}) {
@@ -79,23 +89,10 @@ TEST(MemoryEstimate, BoundsSessionAndScratchOfExtremeRequests) {
 // A budgeted session on a model many times its cut: the estimate follows the budget, not the
 // model, and still bounds what a new view and the gazes that follow really hold.
 TEST(MemoryEstimate, FollowsTheBudgetOnAModelManyTimesTheCut) {
-  const auto dir = test::scratch_dir("memory-estimate-budget");
-  core::GenerateOptions shape;
-  shape.shape = core::Shape::kShell;
-  shape.target_triangles = 200000;
-  auto mt = core::build_mt(core::generate_mesh(shape));
-  ASSERT_TRUE(mt.ok()) << mt.error().message;
-  ASSERT_TRUE(core::io::write_mt_file(dir / "big.mt", *mt).ok());
-  ModelRegistry models;
-  ASSERT_TRUE(models.add_file(dir / "big.mt").ok());
-  const Model& model = *models.find("big");
-  Engine engine(models);
-  protocol::Extract e;
-  e.model = "big";
-  protocol::look_at_camera(
-      protocol::frame_bounds({model.bounds_min[0], model.bounds_min[1], model.bounds_min[2]},
-                             {model.bounds_max[0], model.bounds_max[1], model.bounds_max[2]}),
-      1.0, e.view, e.projection);
+  ShellModel big;
+  ASSERT_NO_FATAL_FAILURE(serve_shell("big", 200000, big));
+  Engine engine(big.models);
+  protocol::Extract e = big.front;
   e.grid = {256, 256};
   e.error = 0.25;
   e.error_unit = core::ErrorUnits::kScreenPixels;
