@@ -79,8 +79,8 @@ std::size_t created_by(const Mt& mt, std::span<const std::uint32_t> nodes) {
 
 // Writes what `nodes` create and no node of the cut (in_cut == kIn) removes; returns their largest
 // error.
-float write_created(const Mt& mt, const std::uint8_t* in_cut, std::span<const std::uint32_t> nodes,
-                    MeshWriter& writer) {
+float write_created(const Mt& mt, const PagedArray<std::uint8_t>& in_cut,
+                    std::span<const std::uint32_t> nodes, MeshWriter& writer) {
   const std::uint32_t* remover = mt.triangle_remover.data();
   float max_error = 0.0f;
   for (const std::uint32_t n : nodes) {
@@ -140,10 +140,10 @@ Refiner::HeapEntry Refiner::heap_entry(std::uint32_t t, std::uint32_t creator,
 
 void Refiner::reset_to_root() {
   kept_ = Kept::kNone;
-  for (const std::uint32_t n : cut_) in_cut_[n] = kOut;
+  for (const std::uint32_t n : cut_) in_cut_.set(n, kOut);
   cut_.clear();
   witnesses_.clear();
-  in_cut_[0] = kIn;
+  in_cut_.set(0, kIn);
   cut_.push_back(0);
   witnesses_.push_back({kNoNode, kNoNode, {kNoNode, kNoNode, kNoNode}});  // the root needs none
 }
@@ -161,7 +161,7 @@ void Refiner::add_node(std::uint32_t x, std::uint32_t witness_triangle, std::uin
   // Nodes are added with the kept mesh set aside (refine_forced and refine_budget emit at the end,
   // move_cut rebuilds the mesh once for all its additions).
   assert(kept_ != Kept::kMesh);
-  in_cut_[x] = kIn;
+  in_cut_.set(x, kIn);
   cut_.push_back(x);
   // The witness's corners were just read to find it failing: cheap to keep now.
   witnesses_.push_back({witness_triangle,
@@ -185,7 +185,7 @@ void Refiner::force(std::uint32_t r, std::uint32_t witness_triangle, std::uint32
   stack_.clear();
   stack_.push_back(r);
   stack_.push_back(offsets[r]);
-  in_cut_[r] = kAdding;
+  in_cut_.set(r, kAdding);
   while (!stack_.empty()) {
     const std::size_t top = stack_.size() - 2;
     const std::uint32_t x = stack_[top];
@@ -195,7 +195,7 @@ void Refiner::force(std::uint32_t r, std::uint32_t witness_triangle, std::uint32
       const std::uint32_t p = parents[i];
       if (in_cut_[p] == kOut || in_cut_[p] == kDropped) {
         mt_.require_node(p);
-        in_cut_[p] = kAdding;
+        in_cut_.set(p, kAdding);
         stack_.push_back(p);
         stack_.push_back(offsets[p]);
       }
@@ -241,7 +241,7 @@ void Refiner::force(std::uint32_t r, std::uint32_t witness_triangle, std::uint32
     for (std::uint32_t t = offsets[ahead]; t < offsets[ahead + 1]; ++t) {
       const std::uint32_t r = removers[t];
       if (r == kNoNode) continue;
-      __builtin_prefetch(in_cut_.data() + r);
+      __builtin_prefetch(in_cut_.address(r));
       __builtin_prefetch(mt_.node_error.data() + r);
       __builtin_prefetch(mt_.node_parent_offsets.data() + r);  // for force()
       __builtin_prefetch(field + corners[2 * std::size_t{t}]);
@@ -279,7 +279,7 @@ bool Refiner::close_over(const AllowedError& allowed, std::size_t first, std::si
 void Refiner::emit(CutMesh& out) const {
   // Upper bound first (everything the cut's nodes create), then one unchecked write per corner.
   MeshWriter writer(mt_, out, created_by(mt_, cut_));
-  writer.finish(cut_.size(), write_created(mt_, in_cut_.data(), cut_, writer));
+  writer.finish(cut_.size(), write_created(mt_, in_cut_, cut_, writer));
 }
 
 void Refiner::remember_field(const AllowedError& allowed, bool copy) {
@@ -311,11 +311,11 @@ void Refiner::refine_prefix(std::uint32_t end, CutMesh& out) {
   // prefix of the triangle array in one sequential pass.
   const float* errors = mt_.node_error.data();
   for (std::uint32_t n = 0; n < end; n += kMtBlockNodes) mt_.require_node(n);
-  for (const std::uint32_t n : cut_) in_cut_[n] = kOut;
+  for (const std::uint32_t n : cut_) in_cut_.set(n, kOut);
   cut_.resize(end);
   witnesses_.clear();  // none recorded (see below)
   for (std::uint32_t n = 0; n < end; ++n) cut_[n] = n;
-  std::fill(in_cut_.begin(), in_cut_.begin() + end, kIn);
+  in_cut_.fill_prefix(end, kIn);
   // No witnesses were recorded: the next update starts with a forced refinement.
   kept_ = Kept::kNone;
 
@@ -574,14 +574,14 @@ void Refiner::move_cut(const AllowedError& allowed, bool all_changed) {
   for (std::size_t i = 1; i < count; ++i) {
     // What the nodes ahead will read, in stages as in fetch_ahead (cut_ and witnesses_ are read
     // in order; only the rest is scattered).
-    if (i + 16 < count) __builtin_prefetch(in_cut_.data() + witnesses_[i + 16].creator);
+    if (i + 16 < count) __builtin_prefetch(in_cut_.address(witnesses_[i + 16].creator));
     if (!dropped_.empty()) {  // parents are read once something was dropped
       if (i + 16 < count) __builtin_prefetch(parent_offsets + cut_[i + 16]);
       if (i + 8 < count) __builtin_prefetch(parents + parent_offsets[cut_[i + 8]]);
       if (i + 4 < count) {
         const std::uint32_t ahead = cut_[i + 4];
         for (std::uint32_t j = parent_offsets[ahead]; j < parent_offsets[ahead + 1]; ++j)
-          __builtin_prefetch(in_cut_.data() + parents[j]);
+          __builtin_prefetch(in_cut_.address(parents[j]));
       }
     }
     const std::uint32_t n = cut_[i];
@@ -597,7 +597,7 @@ void Refiner::move_cut(const AllowedError& allowed, bool all_changed) {
       witnesses_[kept] = w;
       cut_[kept++] = n;
     } else {
-      in_cut_[n] = kDropped;
+      in_cut_.set(n, kDropped);
       dropped_.push_back(n);
     }
   }
@@ -614,7 +614,7 @@ void Refiner::move_cut(const AllowedError& allowed, bool all_changed) {
   // gazes are slower. Dropped nodes not forced back in are out once the new cut is known.
   auto release_dropped = [&] {
     for (const std::uint32_t n : dropped_)
-      if (in_cut_[n] == kDropped) in_cut_[n] = kOut;
+      if (in_cut_[n] == kDropped) in_cut_.set(n, kOut);
   };
   // The result becomes the kept mesh, as a move's does.
   auto refine_afresh = [&] {
@@ -827,7 +827,7 @@ void Refiner::fill_budget(const AllowedError& allowed, std::size_t count, std::s
       removed += removed_count(x);
     }
     if (count + added - removed > max_triangles) {
-      for (std::size_t i = first_new; i < cut_.size(); ++i) in_cut_[cut_[i]] = kOut;
+      for (std::size_t i = first_new; i < cut_.size(); ++i) in_cut_.set(cut_[i], kOut);
       cut_.resize(first_new);
       witnesses_.resize(first_new);
       return;
@@ -871,7 +871,7 @@ void Refiner::write_refined(std::size_t added, std::size_t max_triangles, CutMes
     max_error = std::max(max_error, mesh_errors_[i]);
   }
   for (const std::uint32_t x : nodes) node_changed_[x >> 6] = 0;
-  max_error = std::max(max_error, write_created(mt_, in_cut_.data(), nodes, writer));
+  max_error = std::max(max_error, write_created(mt_, in_cut_, nodes, writer));
   writer.finish(cut_.size(), max_error);
   out.within_budget = out.triangle_count() <= max_triangles;
 }
@@ -911,7 +911,7 @@ void Refiner::start_budget_from(const AllowedError& allowed, std::size_t max_tri
   if (level_end == 0) return;  // no threshold's cut fits: the next update starts from the root too
   // Keep the cut the refinement passed through at that threshold. Its mesh is built, and the new
   // field compared in full, only when an update follows (an extraction may have no gazes after it).
-  for (std::size_t i = level_end; i < cut_.size(); ++i) in_cut_[cut_[i]] = kOut;
+  for (std::size_t i = level_end; i < cut_.size(); ++i) in_cut_.set(cut_[i], kOut);
   cut_.resize(level_end);
   witnesses_.resize(level_end);
   kept_ = Kept::kThreshold;
@@ -972,7 +972,7 @@ void Refiner::update_budget(const AllowedError& allowed, std::span<const std::ui
   write_refined(base, max_triangles, out);
   // Far below the budget, keep the cut the refinement passed through nearest the target instead.
   const std::size_t keep = count < low ? level_end : base;
-  for (std::size_t i = keep; i < cut_.size(); ++i) in_cut_[cut_[i]] = kOut;
+  for (std::size_t i = keep; i < cut_.size(); ++i) in_cut_.set(cut_[i], kOut);
   cut_.resize(keep);
   witnesses_.resize(keep);
   if (keep > base) {

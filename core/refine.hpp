@@ -290,8 +290,8 @@ class Refiner {
   bool vertex_changed(std::uint32_t v) const { return (changed_bits_[v >> 6] >> (v & 63)) & 1; }
 
   const Mt& mt_;
-  ZeroedArray<std::uint8_t> in_cut_;  // per node: 0 out, 1 in, 2 being added, 3 dropped
-  std::vector<std::uint32_t> cut_;    // nodes in the cut, in the order added
+  PagedArray<std::uint8_t> in_cut_;  // per node: 0 out, 1 in, 2 being added, 3 dropped
+  std::vector<std::uint32_t> cut_;   // nodes in the cut, in the order added
   // Per entry of cut_ (same index): the failing triangle that forced the node, its creator and its
   // three corners, so moving the cut reads them in one sequential pass.
   struct Witness {

@@ -4,11 +4,13 @@
 // cut: a fresh session of a 100M-triangle model then costs what its cut touches, not 50M zeros.
 #pragma once
 
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <span>
 #include <type_traits>
 #include <utility>
+#include <vector>
 
 namespace mtlod::core {
 
@@ -67,6 +69,47 @@ class ZeroedArray {
   }
   T* data_ = nullptr;
   std::size_t size_ = 0;
+};
+
+// A ZeroedArray read through a bitmap of the pages written: an entry of a page never written reads
+// as zero without the page being touched. Reading spread entries of a fresh mapping otherwise maps
+// a page per entry, a fault each (and another when the page is first written): the per-node state
+// of a fresh session on a large model, read for every node its cut's triangles name, is mostly
+// such reads. The bitmap, a bit per 4 KiB page, stays in the caches (1.6 KB for 52M entries of a
+// byte).
+template <class T>
+class PagedArray {
+ public:
+  PagedArray() = default;
+  explicit PagedArray(std::size_t n) : values_(n), written_((pages(n) + 63) / 64, 0) {}
+
+  T operator[](std::size_t i) const {
+    const std::size_t page = i / kPerPage;
+    return (written_[page >> 6] >> (page & 63)) & 1 ? values_[i] : T{};
+  }
+  void set(std::size_t i, T value) {
+    const std::size_t page = i / kPerPage;
+    written_[page >> 6] |= std::uint64_t{1} << (page & 63);
+    values_[i] = value;
+  }
+  // Entries [0, n) become `value`.
+  void fill_prefix(std::size_t n, T value) {
+    for (std::size_t page = 0; page < pages(n); ++page)
+      written_[page >> 6] |= std::uint64_t{1} << (page & 63);
+    std::fill(values_.begin(), values_.begin() + n, value);
+  }
+  // Where entry i lives, for prefetching (a page never written is not touched by a prefetch).
+  const T* address(std::size_t i) const { return values_.data() + i; }
+  std::size_t size() const { return values_.size(); }
+  std::size_t resident_bytes() const {
+    return values_.resident_bytes() + written_.capacity() * sizeof(std::uint64_t);
+  }
+
+ private:
+  static constexpr std::size_t kPerPage = 4096 / sizeof(T);
+  static std::size_t pages(std::size_t n) { return (n + kPerPage - 1) / kPerPage; }
+  ZeroedArray<T> values_;
+  std::vector<std::uint64_t> written_;  // a bit per page of values_
 };
 
 }  // namespace mtlod::core

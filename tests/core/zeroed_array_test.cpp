@@ -33,5 +33,34 @@ TEST(ZeroedArray, ReadsZeroAndOnlyWrittenPagesAreResident) {
   EXPECT_TRUE(moved.empty());
 }
 
+TEST(PagedArray, ReadsOfPagesNeverWrittenTouchNothing) {
+  const std::size_t page = static_cast<std::size_t>(::sysconf(_SC_PAGESIZE));
+  if (page != 4096) GTEST_SKIP() << "pages of " << page << " bytes";
+  constexpr std::size_t kCount = std::size_t{64} << 20;  // 64 MiB of bytes
+  PagedArray<std::uint8_t> a(kCount);
+  ASSERT_EQ(a.size(), kCount);
+  const std::size_t bitmap = a.resident_bytes();  // the bitmap alone
+  EXPECT_LT(bitmap, std::size_t{4096});
+  // Reads everywhere: zeros, and not a page of the values mapped.
+  std::size_t sum = 0;
+  for (std::size_t i = 7; i < kCount; i += 4099) sum += a[i];
+  EXPECT_EQ(sum, 0u);
+  EXPECT_EQ(a.resident_bytes(), bitmap);
+  // Writes make their pages resident and readable; their neighbours on the page read as written.
+  a.set(5 * 4096 + 17, 3);
+  a.set(kCount - 1, 9);
+  EXPECT_EQ(a[5 * 4096 + 17], 3);
+  EXPECT_EQ(a[5 * 4096 + 18], 0);
+  EXPECT_EQ(a[kCount - 1], 9);
+  EXPECT_EQ(a[6 * 4096], 0);
+  EXPECT_EQ(a.resident_bytes(), bitmap + 2 * page);
+  // A prefix, across a page boundary.
+  a.fill_prefix(4096 + 10, 1);
+  EXPECT_EQ(a[0], 1);
+  EXPECT_EQ(a[4096 + 9], 1);
+  EXPECT_EQ(a[4096 + 10], 0);
+  EXPECT_EQ(a.resident_bytes(), bitmap + 4 * page);
+}
+
 }  // namespace
 }  // namespace mtlod::core
