@@ -79,20 +79,37 @@ Result<DracoStats> DracoEncoder::encode(const DracoInput& input, const DracoOpti
     return make_error(ErrorCode::kInvalidArgument, "the cut has no triangles to encode");
   }
 
-  // Renumber the used vertices: mark, rank, list.
+  // Renumber the used vertices: mark, rank, list. Only the words the cut's vertices fall in are
+  // visited (sorted, so ids keep the model's order), and cleared again once the faces are written:
+  // the cost follows the cut, not the model's vertex count.
   const std::size_t words = (model_vertices + 63) / 64;
-  used_bits_.assign(words, 0);
+  if (used_bits_.size() != words) {
+    used_bits_.assign(words, 0);
+    rank_.assign(words, 0);
+  }
+  touched_words_.clear();
+  // All zero again for the next cut, even when the encoding below throws.
+  struct ClearTouched {
+    std::vector<std::uint64_t>& bits;
+    const std::vector<std::uint32_t>& words;
+    ~ClearTouched() {
+      for (const std::uint32_t w : words) bits[w] = 0;
+    }
+  } clear_touched{used_bits_, touched_words_};
   for (std::uint32_t v : input.triangles) {
     assert(v < model_vertices);
-    used_bits_[v >> 6] |= std::uint64_t{1} << (v & 63);
+    std::uint64_t& word = used_bits_[v >> 6];
+    if (word == 0) touched_words_.push_back(v >> 6);
+    word |= std::uint64_t{1} << (v & 63);
   }
-  rank_.resize(words);
+  std::sort(touched_words_.begin(), touched_words_.end());
   used_.clear();
   std::uint32_t count = 0;
-  for (std::size_t w = 0; w < words; ++w) {
+  for (const std::uint32_t w : touched_words_) {
     rank_[w] = count;
     for (std::uint64_t bits = used_bits_[w]; bits != 0; bits &= bits - 1) {
-      used_.push_back(static_cast<std::uint32_t>(64 * w + static_cast<unsigned>(std::countr_zero(bits))));
+      used_.push_back(
+          static_cast<std::uint32_t>(64 * std::size_t{w} + static_cast<unsigned>(std::countr_zero(bits))));
     }
     count += static_cast<std::uint32_t>(std::popcount(used_bits_[w]));
   }

@@ -62,10 +62,11 @@ class DracoEncoder {
                             std::vector<std::uint8_t>& out);
 
  private:
-  std::vector<std::uint64_t> used_bits_;  // one bit per model vertex: used by the cut
-  std::vector<std::uint32_t> rank_;       // per 64-bit word: used vertices in the words before it
-  std::vector<std::uint32_t> used_;       // encoded id -> model vertex id
-  std::vector<float> scratch_;            // compacted attribute values
+  std::vector<std::uint64_t> used_bits_;      // one bit per model vertex: used by the cut (zero between)
+  std::vector<std::uint32_t> rank_;           // per touched 64-bit word: used vertices in the words before it
+  std::vector<std::uint32_t> touched_words_;  // words of used_bits_ the cut's vertices fall in
+  std::vector<std::uint32_t> used_;           // encoded id -> model vertex id
+  std::vector<float> scratch_;                // compacted attribute values
 };
 
 }  // namespace mtlod::core

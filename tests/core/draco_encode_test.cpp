@@ -110,6 +110,15 @@ TEST(DracoEncoder, ReusedEncoderGivesTheSameBytesAsAFreshOne) {
   ASSERT_TRUE(reused.encode({b.positions, {}, {}, b.triangles}, {}, second).ok());
   ASSERT_TRUE(DracoEncoder().encode({b.positions, {}, {}, b.triangles}, {}, fresh).ok());
   EXPECT_EQ(second, fresh);
+  // Partial cuts of one model in turn: nothing of the previous cut's vertices is left behind.
+  for (const std::size_t step : {3u, 2u, 5u}) {
+    std::vector<std::uint32_t> cut;
+    for (std::size_t t = 0; t < a.triangle_count(); t += step)
+      cut.insert(cut.end(), &a.triangles[3 * t], &a.triangles[3 * t] + 3);
+    ASSERT_TRUE(reused.encode({a.positions, {}, {}, cut}, {}, second).ok());
+    ASSERT_TRUE(DracoEncoder().encode({a.positions, {}, {}, cut}, {}, fresh).ok());
+    EXPECT_EQ(second, fresh) << "every " << step << "th triangle";
+  }
 }
 
 TEST(DracoEncoder, AFixedGridDecodesAVertexToTheSameFloatsInEveryPayload) {
