@@ -268,7 +268,7 @@ Status check_nodes(const Mt& mt, const NodeRange& r, std::optional<std::uint32_t
           if (first < p_total) __builtin_prefetch(mt.node_parents.data() + first);
         }
       }
-      const std::uint32_t rm = mt.triangle_remover[k];
+      const std::uint32_t rm = removers[k];
       if (rm == kNoNode) continue;
       if (rm >= n || rm <= c)
         return corrupt("triangle " + std::to_string(k) + " of node " + std::to_string(c) + " has remover " +

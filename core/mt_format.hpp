@@ -81,10 +81,10 @@ Result<MtCounts> mt_header_counts(std::span<const std::uint8_t> bytes);
 // The version an image's header states (0: too short or not an MT file).
 std::uint32_t mt_file_version(std::span<const std::uint8_t> bytes);
 
-// A version-2 image used in place (4-byte aligned, as a memory map is), kept alive by `storage`: checks the
-// header, the block table, the size and the root's block now, every other node block when a refinement first
-// reaches it (Mt::require_node throws CorruptMt then). Errors as deserialize_mt's; kUnsupported
-// for version 1, which is read whole.
+// A version-2 image used in place (4-byte aligned, as a memory map is), kept alive by `storage`:
+// checks the header, the block table, the size and the root's block now, every other node block
+// when a refinement first reaches it (Mt::require_node throws CorruptMt then). Errors as deserialize_mt's;
+// kUnsupported for version 1, which is read whole.
 Result<Mt> view_mt(std::span<const std::uint8_t> bytes, std::shared_ptr<const void> storage);
 
 }  // namespace mtlod::core

@@ -98,20 +98,16 @@ float write_created(const Mt& mt, const PagedArray<std::uint8_t>& in_cut,
   return max_error;
 }
 
-// One bit per node (Refiner::node_changed_).
-void set_bit(ZeroedArray<std::uint64_t>& bits, std::uint32_t n) {
-  bits[n >> 6] |= std::uint64_t{1} << (n & 63);
-}
-bool bit(const ZeroedArray<std::uint64_t>& bits, std::uint32_t n) {
-  return (bits[n >> 6] >> (n & 63)) & 1;
-}
-
 }  // namespace
 
 // A fresh refiner's state is all kOut, as a fresh mapping is all zero.
 static_assert(kOut == 0);
 
-Refiner::Refiner(const Mt& mt) : mt_(mt), in_cut_(mt.node_count()) {
+Refiner::Refiner(const Mt& mt)
+    : mt_(mt),
+      in_cut_(mt.node_count()),
+      changed_bits_((mt.vertex_count() + 63) / 64),
+      node_changed_((mt.node_count() + 63) / 64) {
   assert(mt.node_count() > 0);
 }
 
@@ -136,6 +132,12 @@ Refiner::HeapEntry Refiner::heap_entry(std::uint32_t t, std::uint32_t creator,
   mt_.require_node(mt_.triangle_remover[t]);
   const Rank rank = rank_of(mt_.node_error[mt_.triangle_remover[t]], a);
   return {rank.tier, rank.key, t, creator};
+}
+
+void Refiner::truncate_cut(std::size_t length) {
+  for (std::size_t i = length; i < cut_.size(); ++i) in_cut_.set(cut_[i], kOut);
+  cut_.resize(length);
+  witnesses_.resize(length);
 }
 
 void Refiner::reset_to_root() {
@@ -470,8 +472,6 @@ void Refiner::take_kept_mesh() {
 void Refiner::update(const AllowedError& allowed, CutMesh& out) {
   assert(allowed.per_vertex.empty() || allowed.per_vertex.size() == mt_.vertex_count());
   if (kept_ == Kept::kNone) return refine_forced(allowed, &out);
-  if (changed_bits_.size() != (mt_.vertex_count() + 63) / 64)
-    changed_bits_.reset((mt_.vertex_count() + 63) / 64);
   bool all_changed = allowed.per_vertex.empty() || field_ != Field::kCopied;
   if (field_ == Field::kUniform && allowed.per_vertex.empty() &&
       std::memcmp(&allowed.uniform, &previous_uniform_, sizeof(float)) == 0) {
@@ -540,8 +540,6 @@ bool Refiner::update_kept(const AllowedError& allowed, std::span<const std::uint
     return true;
   }
   if (!field_all_changed) {
-    if (changed_bits_.size() != (mt_.vertex_count() + 63) / 64)
-      changed_bits_.reset((mt_.vertex_count() + 63) / 64);
     for (const std::uint32_t v : changed_vertices) {
       assert(v < mt_.vertex_count());
       changed_bits_[v >> 6] |= std::uint64_t{1} << (v & 63);
@@ -561,8 +559,6 @@ bool Refiner::update_kept(const AllowedError& allowed, std::span<const std::uint
 
 void Refiner::move_cut(const AllowedError& allowed, bool all_changed) {
   if (kept_ == Kept::kThreshold) kept_mesh_from_cut();
-  if (changed_bits_.size() != (mt_.vertex_count() + 63) / 64)
-    changed_bits_.reset((mt_.vertex_count() + 63) / 64);
   auto changed = [&](std::uint32_t v) { return all_changed || vertex_changed(v); };
 
   // 1. Keep the nodes whose witness still holds (cut_[0] is the root, always kept).
@@ -674,14 +670,13 @@ void Refiner::rebuild_kept_mesh(std::size_t added) {
   // no node of the cut removes. Every old mesh triangle was created by a node of the old cut and removed by
   // none: it stays unless its creator dropped (and perhaps came back: added nodes' triangles are pushed
   // below) or its remover was added. Those nodes are marked in a bitmap 8 times denser than in_cut_.
-  if (node_changed_.empty()) node_changed_.reset((mt_.node_count() + 63) / 64);
   for (const std::uint32_t n : dropped_) set_bit(node_changed_, n);
   for (std::size_t i = added; i < cut_.size(); ++i) set_bit(node_changed_, cut_[i]);
   const std::size_t mesh_size = mesh_triangles_.size();
   std::size_t write = 0;
   for (std::size_t i = 0; i < mesh_size; ++i) {
     const std::uint32_t r = mesh_removers_[i];
-    if (bit(node_changed_, mesh_creators_[i]) || (r != kNoNode && bit(node_changed_, r))) continue;
+    if (test_bit(node_changed_, mesh_creators_[i]) || (r != kNoNode && test_bit(node_changed_, r))) continue;
     mesh_triangles_[write] = mesh_triangles_[i];
     mesh_creators_[write] = mesh_creators_[i];
     mesh_removers_[write] = r;
@@ -827,9 +822,7 @@ void Refiner::fill_budget(const AllowedError& allowed, std::size_t count, std::s
       removed += removed_count(x);
     }
     if (count + added - removed > max_triangles) {
-      for (std::size_t i = first_new; i < cut_.size(); ++i) in_cut_.set(cut_[i], kOut);
-      cut_.resize(first_new);
-      witnesses_.resize(first_new);
+      truncate_cut(first_new);
       return;
     }
     count = count + added - removed;
@@ -859,14 +852,13 @@ Rank Refiner::threshold_dropping(const AllowedError& allowed, std::size_t nodes)
 void Refiner::write_refined(std::size_t added, std::size_t max_triangles, CutMesh& out) {
   // The kept mesh less what the nodes from `added` on remove, then what they create and no node of
   // the cut removes.
-  if (node_changed_.empty()) node_changed_.reset((mt_.node_count() + 63) / 64);
   const std::span<const std::uint32_t> nodes = std::span<const std::uint32_t>(cut_).subspan(added);
   for (const std::uint32_t x : nodes) set_bit(node_changed_, x);
   MeshWriter writer(mt_, out, mesh_triangles_.size() + created_by(mt_, nodes));
   float max_error = 0.0f;
   for (std::size_t i = 0; i < mesh_triangles_.size(); ++i) {
     const std::uint32_t r = mesh_removers_[i];
-    if (r != kNoNode && bit(node_changed_, r)) continue;
+    if (r != kNoNode && test_bit(node_changed_, r)) continue;
     writer.add(mesh_triangles_[i], &mesh_corners_[3 * i]);
     max_error = std::max(max_error, mesh_errors_[i]);
   }
@@ -911,9 +903,7 @@ void Refiner::start_budget_from(const AllowedError& allowed, std::size_t max_tri
   if (level_end == 0) return;  // no threshold's cut fits: the next update starts from the root too
   // Keep the cut the refinement passed through at that threshold. Its mesh is built, and the new
   // field compared in full, only when an update follows (an extraction may have no gazes after it).
-  for (std::size_t i = level_end; i < cut_.size(); ++i) in_cut_.set(cut_[i], kOut);
-  cut_.resize(level_end);
-  witnesses_.resize(level_end);
+  truncate_cut(level_end);
   kept_ = Kept::kThreshold;
   field_ = Field::kUnknown;  // the next update retests every triangle, at any threshold
   budget_threshold_ = level;
@@ -972,9 +962,7 @@ void Refiner::update_budget(const AllowedError& allowed, std::span<const std::ui
   write_refined(base, max_triangles, out);
   // Far below the budget, keep the cut the refinement passed through nearest the target instead.
   const std::size_t keep = count < low ? level_end : base;
-  for (std::size_t i = keep; i < cut_.size(); ++i) in_cut_.set(cut_[i], kOut);
-  cut_.resize(keep);
-  witnesses_.resize(keep);
+  truncate_cut(keep);
   if (keep > base) {
     dropped_.clear();
     seeds_.clear();

@@ -259,6 +259,8 @@ class Refiner {
   bool fails(std::uint32_t t, std::uint32_t creator, const AllowedError& allowed) const;
   bool fails_at(std::uint32_t remover, const std::uint32_t* corners, const AllowedError& allowed) const;
   void reset_to_root();
+  // Takes the nodes from position `length` of cut_ on out of the cut (the last ones added).
+  void truncate_cut(std::size_t length);
   // Adds node r and its missing ancestors, parents first; witness_triangle forced r.
   void force(std::uint32_t r, std::uint32_t witness_triangle, std::uint32_t witness_creator);
   void add_node(std::uint32_t x, std::uint32_t witness_triangle, std::uint32_t witness_creator);
@@ -287,7 +289,7 @@ class Refiner {
   // a static refinement wrote `out`, there being no kept cut to move).
   bool update_kept(const AllowedError& allowed, std::span<const std::uint32_t> changed_vertices,
                    CutMesh& out);
-  bool vertex_changed(std::uint32_t v) const { return (changed_bits_[v >> 6] >> (v & 63)) & 1; }
+  bool vertex_changed(std::uint32_t v) const { return test_bit(changed_bits_, v); }
 
   const Mt& mt_;
   PagedArray<std::uint8_t> in_cut_;  // per node: 0 out, 1 in, 2 being added, 3 dropped

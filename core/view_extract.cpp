@@ -22,16 +22,6 @@ void to_fifths_of_pixel(std::span<const std::uint32_t> squared, std::span<std::u
   }
 }
 
-void set_bit(ZeroedArray<std::uint64_t>& bits, std::uint32_t v) {
-  bits[v >> 6] |= std::uint64_t{1} << (v & 63);
-}
-void clear_bit(ZeroedArray<std::uint64_t>& bits, std::uint32_t v) {
-  bits[v >> 6] &= ~(std::uint64_t{1} << (v & 63));
-}
-bool bit(const ZeroedArray<std::uint64_t>& bits, std::uint32_t v) {
-  return (bits[v >> 6] >> (v & 63)) & 1;
-}
-
 }  // namespace
 
 // What the refiner asks for in a session: forwarded to ViewExtractor::fill_known.
@@ -310,7 +300,7 @@ void ViewExtractor::fill_known(std::span<const std::uint32_t> vertices, std::spa
   if (s.known_bits_.size() != words) s.known_bits_.reset(words);
   unknown_.clear();
   for (const std::uint32_t v : vertices) {
-    if (bit(s.known_bits_, v)) continue;  // up to date: computed for this view, changed by its gazes
+    if (test_bit(s.known_bits_, v)) continue;  // up to date: computed for this view, changed by its gazes
     set_bit(s.known_bits_, v);
     unknown_.push_back(v);
   }
@@ -337,7 +327,7 @@ void ViewExtractor::forget_unread(Refiner& refiner) {
   std::size_t kept = 0;
   for (std::size_t k = 0; k < s.known_vertices_.size(); ++k) {
     const std::uint32_t v = s.known_vertices_[k];
-    if (!bit(s.known_bits_, v)) continue;
+    if (!test_bit(s.known_bits_, v)) continue;
     s.known_vertices_[kept] = v;
     s.known_cells_[kept] = s.known_cells_[k];
     s.known_clip_w_[kept] = s.known_clip_w_[k];
@@ -346,9 +336,8 @@ void ViewExtractor::forget_unread(Refiner& refiner) {
   s.known_vertices_.resize(kept);
   s.known_cells_.resize(kept);
   s.known_clip_w_.resize(kept);
-  // Every vertex the cut reads was asked for, so it is among those kept; the bits are now exactly theirs.
-  refiner.for_each_cut_vertex([&](std::uint32_t v) { clear_bit(s.known_bits_, v); });
-  for (const std::uint32_t v : s.known_vertices_) set_bit(s.known_bits_, v);
+  // Every vertex the cut reads was asked for (fill_known), so the bits set above are exactly those
+  // of the entries kept.
 }
 
 void ViewExtractor::refine(Refiner& session, CutMesh& out) {

@@ -71,6 +71,17 @@ class ZeroedArray {
   std::size_t size_ = 0;
 };
 
+// Bit i of a bitmap held as 64-bit words (a ZeroedArray<std::uint64_t> of (n + 63) / 64 words).
+inline void set_bit(ZeroedArray<std::uint64_t>& bits, std::size_t i) {
+  bits[i >> 6] |= std::uint64_t{1} << (i & 63);
+}
+inline void clear_bit(ZeroedArray<std::uint64_t>& bits, std::size_t i) {
+  bits[i >> 6] &= ~(std::uint64_t{1} << (i & 63));
+}
+inline bool test_bit(const ZeroedArray<std::uint64_t>& bits, std::size_t i) {
+  return (bits[i >> 6] >> (i & 63)) & 1;
+}
+
 // A ZeroedArray read through a bitmap of the pages written: an entry of a page never written reads
 // as zero without the page being touched. Reading spread entries of a fresh mapping otherwise maps
 // a page per entry, a fault each (and another when the page is first written): the per-node state

@@ -45,9 +45,9 @@ class Engine {
   // The memory `request` may add: scratch for its grid on the worker that runs it, and a
   // session's state for the largest cut it may ask for: its budget, else the whole model. With
   // `session` (the one it will run in) and no budget, a session whose last cut of the model had no
-  // budget either is taken to move to at most twice that cut, as views and gazes move cuts: an estimate then,
-  // not a bound (the server replaces the reservation by the real figure once the work has run). Zero for an
-  // unknown model.
+  // budget either is taken to move to at most twice that cut, as views and gazes move cuts: an
+  // estimate then, not a bound (the server replaces the reservation by the real figure once the
+  // work has run). Zero for an unknown model.
   std::uint64_t estimate_bytes(const protocol::Extract& request,
                                const ExtractionState* session = nullptr) const;
 

@@ -14,6 +14,7 @@
 #include "core/io/mt_file.hpp"
 #include "core/refine.hpp"
 #include "tests/core/mt_fixtures.hpp"
+#include "tests/core/mt_reseal.hpp"
 
 namespace mtlod::core {
 namespace {
@@ -40,33 +41,6 @@ std::vector<std::uint8_t> bytes_of(const Mt& mt) {
   std::vector<std::uint8_t> bytes;
   serialize_mt(mt, bytes);
   return bytes;
-}
-
-std::uint32_t word_at(const std::vector<std::uint8_t>& bytes, std::size_t at) {
-  std::uint32_t x;
-  std::memcpy(&x, bytes.data() + at, 4);
-  return x;
-}
-
-// Rewrites the checksums so a deliberate change to the arrays reaches the content checks.
-void reseal(std::vector<std::uint8_t>& bytes) {
-  if (word_at(bytes, 8) == 1) {
-    std::memset(bytes.data() + 48, 0, 8);
-    const std::uint64_t sum = mt_checksum(bytes);
-    std::memcpy(bytes.data() + 48, &sum, 8);
-    return;
-  }
-  auto counts_read = mt_header_counts(bytes);
-  ASSERT_TRUE(counts_read.ok()) << counts_read.error().message;
-  const MtCounts counts = *counts_read;
-  auto seal = seal_mt(counts, [&](std::uint64_t offset, std::span<std::uint8_t> out) -> Status {
-    std::memcpy(out.data(), bytes.data() + offset, out.size());
-    return Ok{};
-  });
-  ASSERT_TRUE(seal.ok());
-  std::copy(seal->header.begin(), seal->header.end(), bytes.begin());
-  std::copy(seal->block_table.begin(), seal->block_table.end(),
-            bytes.begin() + std::ptrdiff_t(mt_layout(counts).block_table));
 }
 
 template <class T>
@@ -215,7 +189,7 @@ TEST(MtFormat, ResealedRandomWordsAreRejectedOrRefineSafely) {
     const std::size_t at = 4 * word(rng);
     const std::uint32_t value = rng() % 4 == 0 ? std::uint32_t(rng() % 64) : std::uint32_t(rng());
     std::memcpy(bad.data() + at, &value, 4);
-    reseal(bad);
+    ASSERT_TRUE(test::reseal_mt_image(bad));
     auto view = view_mt(bad, nullptr);
     auto mt = deserialize_mt(bad);
     if (view.ok()) {

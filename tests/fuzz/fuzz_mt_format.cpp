@@ -11,6 +11,7 @@
 
 #include "core/mt_format.hpp"
 #include "core/refine.hpp"
+#include "tests/core/mt_reseal.hpp"
 
 namespace {
 
@@ -49,48 +50,12 @@ void check(std::span<const std::uint8_t> bytes) {
   }
 }
 
-std::uint32_t word(const std::vector<std::uint8_t>& bytes, std::size_t at) {
-  std::uint32_t x;
-  std::memcpy(&x, bytes.data() + at, 4);
-  return x;
-}
-
-// Recomputes the checksums as a writer would: version 1 over the whole file, version 2 the blocks'
-// and the header's (from the counts the header states, when the file is as long as they say).
-void reseal(std::vector<std::uint8_t>& bytes) {
-  constexpr std::size_t kChecksumOffset = 48;
-  if (bytes.size() >= kMtHeaderBytesV1 && word(bytes, 8) == 1) {
-    std::memset(bytes.data() + kChecksumOffset, 0, 8);
-    const std::uint64_t sum = mt_checksum(bytes);
-    std::memcpy(bytes.data() + kChecksumOffset, &sum, 8);
-    return;
-  }
-  if (bytes.size() < kMtHeaderBytes || word(bytes, 8) != 2) return;
-  auto counts = mt_header_counts(bytes);
-  if (!counts.ok()) return;
-  const MtCounts c = *counts;
-  auto seal = seal_mt(c, [&](std::uint64_t offset, std::span<std::uint8_t> out) -> mtlod::Status {
-    if (offset > bytes.size() || out.size() > bytes.size() - offset) __builtin_trap();  // seal_mt's contract
-    std::memcpy(out.data(), bytes.data() + offset, out.size());
-    return mtlod::Ok{};
-  });
-  if (!seal.ok()) return;
-  // The input's own header fields stay (reserved bytes, bounds): only the checksums are the writer's.
-  std::memcpy(bytes.data() + mt_layout(c).block_table, seal->block_table.data(), seal->block_table.size());
-  // The header checksum covers the header as the input has it.
-  std::memset(bytes.data() + kChecksumOffset, 0, 8);
-  std::uint64_t sum = mt_checksum(std::span<const std::uint8_t>(bytes.data(), kMtHeaderBytes));
-  sum = mt_checksum(
-      std::span<const std::uint8_t>(bytes.data() + mt_layout(c).block_table, seal->block_table.size()), sum);
-  std::memcpy(bytes.data() + kChecksumOffset, &sum, 8);
-}
-
 }  // namespace
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   check(std::span<const std::uint8_t>(data, size));
   std::vector<std::uint8_t> fixed(data, data + size);
-  reseal(fixed);
+  mtlod::test::reseal_mt_image(fixed);  // when it is an MT image at all
   check(fixed);
   return 0;
 }
