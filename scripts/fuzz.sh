@@ -30,8 +30,11 @@ mkdir -p "$corpus" "$found" "$build/crashes"
 dict=()
 case $target in server_* | request) dict=(-dict="$root/tests/fuzz/server.dict") ;; esac
 # Crashes land in build/fuzz/crashes; replay one with: $binary FILE
+# SIGINT (kill -INT) ends a campaign early and still merges what it found; SIGSTOP does not pause
+# one, since libFuzzer counts the stopped time against the unit and reports a timeout.
+status=0
 "$binary" "$found" "$corpus" "${dict[@]}" -max_total_time="$seconds" -runs="$runs" -timeout=20 -print_final_stats=1 \
-  -artifact_prefix="$build/crashes/$target-"
+  -artifact_prefix="$build/crashes/$target-" || status=$?
 before=$(ls "$corpus" | wc -l)
 # Edges only (no hit counts): the committed corpus keeps one input per new branch and stays small.
 "$binary" -merge=1 -use_counters=0 "$corpus" "$found" 2>&1 | tail -1
@@ -42,3 +45,4 @@ have an extension and stay; libFuzzer's finds are bare hashes):
   mkdir $corpus.min && cp $corpus/*.* $corpus.min/
   $binary -merge=1 -use_counters=0 $corpus.min $corpus && rm -r $corpus && mv $corpus.min $corpus
 MSG
+exit "$status"
