@@ -128,8 +128,10 @@ Refiner::HeapEntry Refiner::heap_entry(std::uint32_t t, std::uint32_t creator,
   const float a = allowed.of_triangle(mt_.first_corner(TriangleId{t}, NodeId{creator}),
                                       mt_.triangle_corners[2 * std::size_t{t}],
                                       mt_.triangle_corners[2 * std::size_t{t} + 1]);
-  // The remover's error orders the heap: its block is checked first (the plain test only compares).
-  mt_.require_node(mt_.triangle_remover[t]);
+  // The remover's block is not checked here: only failing triangles enter the heap, so its error
+  // is a number (NaN fails nothing) and the order is total whatever a damaged block holds. The block
+  // is checked when the node is forced. Checking it here would check, on a large model's first
+  // view, the blocks of every root triangle's remover: nearly the whole file.
   const Rank rank = rank_of(mt_.node_error[mt_.triangle_remover[t]], a);
   return {rank.tier, rank.key, t, creator};
 }
@@ -949,7 +951,7 @@ void Refiner::update_budget(const AllowedError& allowed, std::span<const std::ui
     const float a = allowed.of_triangle(corners[0], corners[1], corners[2]);
     const float error = mesh_errors_[i];
     if (!(error > a)) continue;
-    mt_.require_node(mesh_removers_[i]);  // its error orders the heap (see heap_entry)
+    // Not checked before it is forced (see heap_entry).
     const Rank rank = rank_of(error, a);
     heap_.push_back({rank.tier, rank.key, mesh_triangles_[i], mesh_creators_[i]});
   }

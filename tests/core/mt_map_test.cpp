@@ -3,6 +3,7 @@
 // or at first use with an error naming what is wrong, never undefined behaviour (ASan/UBSan).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstring>
 #include <filesystem>
 #include <functional>
@@ -158,6 +159,50 @@ TEST(MtMap, ADamagedBlockFailsAtFirstUseOnly) {
   fresh.refine(AllowedError::everywhere(m.built.node_error[1] * 0.5f), cut);
   EXPECT_GT(cut.node_count, 1u);
   EXPECT_THROW(fresh.refine(AllowedError::everywhere(0.0f), cut), CorruptMt);
+}
+
+// A budgeted view orders its heap by the errors of the nodes that would refine its mesh (on a large
+// model, the removers of the root's triangles lie all over the file); it checks only the blocks of
+// the nodes it forces.
+TEST(MtMap, ABudgetedViewChecksOnlyTheBlocksItForces) {
+  const Model& m = model();
+  // A budget whose cut lies in blocks before the block of one of its mesh's removers, `far`. The
+  // cut's largest node has no child in the cut, so it creates triangles of the mesh.
+  // Allowed errors that vary from vertex to vertex (a uniform one refines in node order, no heap).
+  std::vector<float> field(m.built.vertex_count());
+  for (std::size_t v = 0; v < field.size(); ++v) field[v] = 1e-6f * float(1 + v % 5);
+  const AllowedError everywhere = AllowedError::from_vertices(field);
+  std::size_t budget = 0;
+  std::uint32_t far = 0;
+  CutMesh intact;
+  for (std::size_t extra = 10; extra < m.built.triangle_count() && budget == 0; extra *= 2) {
+    Refiner(m.built).refine_budget(everywhere, m.built.root_triangle_count() + extra, intact);
+    std::uint32_t last_in_cut = 0;
+    far = 0;
+    for (const std::uint32_t t : intact.ids) {
+      last_in_cut = std::max(last_in_cut, m.built.triangle_creator(t));
+      if (m.built.triangle_remover[t] != kNoNode) far = std::max(far, m.built.triangle_remover[t]);
+    }
+    if (block_of(far) > block_of(last_in_cut)) budget = m.built.root_triangle_count() + extra;
+  }
+  ASSERT_GT(budget, 0u) << "no budget reads the error of a node beyond its cut's blocks";
+  const std::uint64_t at =
+      mt_layout(mt_counts(m.built)).triangle_remover + 4 * std::uint64_t{m.built.node_triangle_offsets[far]};
+  const fs::path path = altered("damaged-far-block.mt", [&](std::string& bytes) { bytes[at] ^= 0x40; });
+  auto mapped = io::read_mt_file(path);
+  ASSERT_TRUE(mapped.ok()) << mapped.error().message;
+
+  CutMesh cut;
+  Refiner(*mapped).refine_budget(everywhere, budget, cut);
+  EXPECT_GT(cut.node_count, 1u);
+  expect_same_cut(cut, intact, "budget of " + std::to_string(budget));
+  try {
+    Refiner(*mapped).refine_budget(everywhere, m.built.triangle_count(), cut);
+    ADD_FAILURE() << "the damaged block was used without a complaint";
+  } catch (const CorruptMt& e) {
+    EXPECT_NE(std::string(e.what()).find("block " + std::to_string(block_of(far))), std::string::npos)
+        << e.what();
+  }
 }
 
 TEST(MtMap, TruncatedOrDamagedHeadersAreRefusedAtOpen) {
