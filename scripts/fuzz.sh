@@ -27,6 +27,9 @@ mkdir -p "$(dirname "$build")"
   cmake --build "$build" --target "mtlod_fuzz_$target" -j "$(nproc)"
 ) 9>"$build.lock"
 mkdir -p "$corpus" "$found" "$build/crashes"
+# Under `nice`, yield to builds even when started in a session of its own (setsid): the scheduler
+# shares the CPU between sessions first (autogroups), whatever the nice value inside each.
+[[ $(nice) == 0 ]] || echo "$(nice)" >/proc/self/autogroup 2>/dev/null || true
 dict=()
 case $target in server_* | request) dict=(-dict="$root/tests/fuzz/server.dict") ;; esac
 # Crashes land in build/fuzz/crashes; replay one with: $binary FILE
