@@ -3,6 +3,9 @@
 
 #include <draco/compression/decode.h>
 
+#include <algorithm>
+#include <cmath>
+
 #include "fmt/format.h"
 
 namespace mtlod::core {
@@ -22,6 +25,7 @@ Result<DecodedMesh> decode_draco(std::span<const std::uint8_t> bytes) {
     return make_error(ErrorCode::kCorrupt, "Draco mesh has no 3-component positions");
   }
   DecodedMesh out;
+  out.attribute_ids.position = static_cast<int>(position->unique_id());
   const std::size_t n = in.num_points();
   out.mesh.positions.resize(3 * n);
   for (draco::PointIndex i(0); i < in.num_points(); ++i) {
@@ -29,13 +33,35 @@ Result<DecodedMesh> decode_draco(std::span<const std::uint8_t> bytes) {
   }
   if (const auto* normal = in.GetNamedAttribute(draco::GeometryAttribute::NORMAL);
       normal && normal->num_components() == 3) {
+    out.attribute_ids.normal = static_cast<int>(normal->unique_id());
     out.mesh.normals.resize(3 * n);
     for (draco::PointIndex i(0); i < in.num_points(); ++i) {
       normal->ConvertValue<float, 3>(normal->mapped_index(i), &out.mesh.normals[3 * i.value()]);
     }
   }
+  if (const auto* color = in.GetNamedAttribute(draco::GeometryAttribute::COLOR);
+      color && (color->num_components() == 3 || color->num_components() == 4)) {
+    out.attribute_ids.color = static_cast<int>(color->unique_id());
+    out.mesh.colors.resize(3 * n);
+    // Bytes as they are; other types are read as 0..1 (and RGBA loses its alpha).
+    const bool bytes = color->data_type() == draco::DT_UINT8;
+    for (draco::PointIndex i(0); i < in.num_points(); ++i) {
+      float value[4] = {};
+      std::uint8_t byte[4] = {};
+      if (bytes)
+        color->ConvertValue<std::uint8_t>(color->mapped_index(i), byte);
+      else
+        color->ConvertValue<float>(color->mapped_index(i), value);
+      for (int k = 0; k < 3; ++k) {
+        out.mesh.colors[3 * i.value() + k] =
+            bytes ? byte[k]
+                  : static_cast<std::uint8_t>(std::lround(std::clamp(value[k], 0.0f, 1.0f) * 255.0f));
+      }
+    }
+  }
   if (const auto* label = in.GetNamedAttribute(draco::GeometryAttribute::GENERIC);
       label && label->num_components() == 1) {
+    out.attribute_ids.label = static_cast<int>(label->unique_id());
     out.labels.resize(n);
     for (draco::PointIndex i(0); i < in.num_points(); ++i) {
       label->ConvertValue<std::uint16_t, 1>(label->mapped_index(i), &out.labels[i.value()]);

@@ -1,4 +1,4 @@
-// Decoding a Draco payload back into a Mesh (positions, normals when present) plus the per-vertex
+// Decoding a Draco payload back into a Mesh (positions, normals and colours when present) plus the per-vertex
 // labels the server may attach. For clients writing PLY/OBJ and for tests. Safe on any bytes.
 #pragma once
 
@@ -11,9 +11,19 @@
 
 namespace mtlod::core {
 
+// The Draco unique ids of a payload's attributes, -1 for those it lacks: what glTF's
+// KHR_draco_mesh_compression names them by.
+struct DracoAttributeIds {
+  int position = -1;
+  int normal = -1;
+  int color = -1;
+  int label = -1;
+};
+
 struct DecodedMesh {
-  Mesh mesh;
+  Mesh mesh;                          // positions; normals and colours (r, g, b) when present
   std::vector<std::uint16_t> labels;  // empty, or one per vertex (the generic attribute "label")
+  DracoAttributeIds attribute_ids;
 };
 
 // Errors: kCorrupt with Draco's reason when the bytes are not a Draco triangle mesh.

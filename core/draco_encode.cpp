@@ -21,9 +21,10 @@ namespace {
 
 // Adds an attribute with one value per point (identity mapping) and copies `bytes` into it.
 int add_attribute(draco::Mesh& mesh, draco::GeometryAttribute::Type type, int components,
-                  draco::DataType data_type, int component_bytes, const void* values) {
+                  draco::DataType data_type, int component_bytes, const void* values,
+                  bool normalized = false) {
   draco::GeometryAttribute attribute;
-  attribute.Init(type, nullptr, static_cast<std::uint8_t>(components), data_type, false,
+  attribute.Init(type, nullptr, static_cast<std::uint8_t>(components), data_type, normalized,
                  components * component_bytes, 0);
   const int id = mesh.AddAttribute(attribute, true, mesh.num_points());
   mesh.attribute(id)->buffer()->Write(0, values,
@@ -70,6 +71,9 @@ Result<DracoStats> DracoEncoder::encode(const DracoInput& input, const DracoOpti
   }
   if (options.normals && input.normals.size() != input.positions.size()) {
     return make_error(ErrorCode::kInvalidArgument, "normals requested but the model has none");
+  }
+  if (options.colors && input.colors.size() != 3 * model_vertices) {
+    return make_error(ErrorCode::kInvalidArgument, "colours requested but the model has none");
   }
   if (options.labels && input.labels.size() != model_vertices) {
     return make_error(ErrorCode::kInvalidArgument,
@@ -133,6 +137,13 @@ Result<DracoStats> DracoEncoder::encode(const DracoInput& input, const DracoOpti
   add_attribute(mesh, draco::GeometryAttribute::POSITION, 3, draco::DT_FLOAT32, 4, gather3(input.positions));
   if (options.normals) {
     add_attribute(mesh, draco::GeometryAttribute::NORMAL, 3, draco::DT_FLOAT32, 4, gather3(input.normals));
+  }
+  if (options.colors) {
+    colors_.resize(3 * n);
+    for (std::size_t i = 0; i < n; ++i)
+      std::memcpy(&colors_[3 * i], &input.colors[3 * std::size_t{used_[i]}], 3);
+    // Normalized: glTF's COLOR_0 and three.js read 255 as 1.0.
+    add_attribute(mesh, draco::GeometryAttribute::COLOR, 3, draco::DT_UINT8, 1, colors_.data(), true);
   }
   if (options.labels) {
     std::vector<std::uint16_t> labels(n);

@@ -1,5 +1,5 @@
-// Draco compression of an extracted cut (DESIGN.md §4, "encoding"): positions, optional normals of
-// the original vertices and an optional per-vertex distance label as a generic attribute. Draco's
+// Draco compression of an extracted cut (DESIGN.md §4, "encoding"): positions, optional normals and
+// colours of the original vertices and an optional per-vertex distance label as a generic attribute. Draco's
 // headers stay inside draco_encode.cpp; callers see byte vectors only.
 #pragma once
 
@@ -26,6 +26,7 @@ struct DracoOptions {
   int position_bits = 14;      // quantization of positions, 1..30 (0 = lossless float)
   int normal_bits = 10;        // quantization of normals, 1..30
   bool normals = false;        // encode the original vertices' normals (needs them in the input)
+  bool colors = false;         // encode the vertices' colours as COLOR, 3 normalized uint8 (lossless)
   bool labels = false;         // encode per-vertex labels as a generic uint16 attribute "label"
   bool entropy_coding = true;  // false: attribute values stored as raw quantized integers (faster, larger)
   // Quantize positions on this fixed grid (the model's bounding box: origin and largest side)
@@ -45,6 +46,7 @@ struct DracoInput {
   std::span<const float> normals;            // empty, or x, y, z per model vertex
   std::span<const std::uint32_t> labels;     // empty, or one per model vertex (saturated to 65535)
   std::span<const std::uint32_t> triangles;  // three model vertex ids per triangle
+  std::span<const std::uint8_t> colors;      // empty, or r, g, b per model vertex
 };
 
 struct DracoStats {
@@ -67,6 +69,7 @@ class DracoEncoder {
   std::vector<std::uint32_t> touched_words_;  // words of used_bits_ the cut's vertices fall in
   std::vector<std::uint32_t> used_;           // encoded id -> model vertex id
   std::vector<float> scratch_;                // compacted attribute values
+  std::vector<std::uint8_t> colors_;          // compacted colours
 };
 
 }  // namespace mtlod::core

@@ -121,6 +121,7 @@ struct Extract {
   Criteria criteria;
   std::optional<std::uint32_t> budget;  // at most this many triangles
   bool normals = false;
+  bool colors = false;
   bool labels = false;
   DracoSettings draco;
   // Replies (this one and the gazes that follow) carry what changed since the connection's previous

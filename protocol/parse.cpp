@@ -294,6 +294,7 @@ Extract read_extract(ObjectReader& r, const Limits& limits) {
   if (const json* a = r.find("attributes")) {
     ObjectReader ar(*a, "attributes");
     e.normals = ar.boolean("normals", false);
+    e.colors = ar.boolean("colors", false);
     e.labels = ar.boolean("labels", false);
     ar.finish();
   }
@@ -448,7 +449,7 @@ json extract_json(const Extract& e) {
   c["backface_factor"] = e.criteria.backface_factor;
   j["criteria"] = c;
   if (e.budget) j["budget"] = *e.budget;
-  j["attributes"] = {{"normals", e.normals}, {"labels", e.labels}};
+  j["attributes"] = {{"normals", e.normals}, {"colors", e.colors}, {"labels", e.labels}};
   if (e.delta) j["delta"] = true;
   j["draco"] = {{"speed", e.draco.speed},
                 {"position_bits", e.draco.position_bits},

@@ -113,6 +113,10 @@ ExtractResult Engine::extract(const protocol::Extract& request, bool gaze, Extra
     return protocol::ProtocolError{protocol::ErrorKind::kBadRequest,
                                    fmt::format("model '{}' has no normals to send", request.model)};
   }
+  if (request.colors && !model->mt.has_colors()) {
+    return protocol::ProtocolError{protocol::ErrorKind::kBadRequest,
+                                   fmt::format("model '{}' has no colours to send", request.model)};
+  }
   try {
     return run(*model, request, gaze, session);
   } catch (const core::CorruptMt& e) {
@@ -176,6 +180,7 @@ ExtractResult Engine::run(const Model& model_ref, const protocol::Extract& reque
     draco.position_grid = grid;
   }
   draco.normals = request.normals;
+  draco.colors = request.colors;
   draco.labels = request.labels;
   std::span<const std::uint32_t> triangles = cut.triangles;
   if (request.delta) {
@@ -198,7 +203,8 @@ ExtractResult Engine::run(const Model& model_ref, const protocol::Extract& reque
   if (!triangles.empty() || !request.delta) {  // a full reply always goes through the encoder's checks
     const core::DracoInput input{
         model->mt.positions, model->mt.normals,
-        request.labels ? extractor->vertex_labels() : std::span<const std::uint32_t>(), triangles};
+        request.labels ? extractor->vertex_labels() : std::span<const std::uint32_t>(), triangles,
+        model->mt.colors};
     auto encoded = worker.encoder.encode(input, draco, outcome.payload);
     if (!encoded) {
       state.sent.reset();  // this change never reaches the client: the next delta starts afresh

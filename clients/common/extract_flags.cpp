@@ -99,6 +99,7 @@ void add_extract_flags(CLI::App& app, ExtractFlags& f) {
       ->check(CLI::Range(1, 20))
       ->capture_default_str();
   app.add_flag("--normals", f.normals, "send vertex normals");
+  app.add_flag("--colors", f.colors, "send vertex colours (models built from coloured PLY files)");
   app.add_flag("--labels", f.labels, "send per-vertex distance labels");
   app.add_flag("--delta", f.delta,
                "replies carry what changed since the previous mesh (by triangle id; sequential Draco)");
@@ -145,6 +146,7 @@ Result<Extract> make_extract(const ExtractFlags& f, const std::string& model,
   }
   e.budget = f.budget;
   e.normals = f.normals;
+  e.colors = f.colors;
   e.labels = f.labels;
   e.draco.speed = f.draco_speed;
   e.draco.position_bits = f.position_bits;

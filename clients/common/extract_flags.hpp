@@ -33,7 +33,7 @@ struct ExtractFlags {
   std::string draco_method;  // empty: the server's default for the request type
   int draco_speed = 10, position_bits = 14;
   std::optional<bool> draco_entropy;  // unset: the server's default for the request type
-  bool normals = false, labels = false;
+  bool normals = false, colors = false, labels = false;
   bool delta = false;  // replies carry changes since the previous mesh (sequential Draco)
 };
 

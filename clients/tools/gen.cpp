@@ -118,6 +118,8 @@ int main(int argc, char** argv) {
                  "the input")
       ->check(CLI::Range(0.0f, 0.5f))
       ->capture_default_str();
+  app.add_flag("--colors", options.colors, "give the shape vertex colours (red, green, blue along x, y, z)")
+      ->excludes(from_option);
   app.add_option("-o,--output", output, "output file (.ply or .obj; .ply with --from)")->required();
   CLI11_PARSE(app, argc, argv);
 

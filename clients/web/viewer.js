@@ -21,7 +21,7 @@ const camera = new THREE.PerspectiveCamera(45, 1, 0.01, 100);
 const controls = new OrbitControls(camera, renderer.domElement);
 
 const material = new THREE.MeshStandardMaterial({ color: 0xc8c0b0, flatShading: true, roughness: 0.8 });
-const labelMaterial = new THREE.MeshStandardMaterial({ vertexColors: true, flatShading: true, roughness: 0.8 });
+const vertexColourMaterial = new THREE.MeshStandardMaterial({ vertexColors: true, flatShading: true, roughness: 0.8 });
 const mesh = new THREE.Mesh(new THREE.BufferGeometry(), material);
 scene.add(mesh);
 
@@ -40,6 +40,8 @@ const state = {
   meshes: 0,            // mesh replies decoded and shown
   lastReply: null,      // JSON of the last mesh reply
   lastReplyHadLabels: false,  // its Draco data carried the `label` attribute
+  lastReplyHadColors: false,  // the mesh shown has the model's vertex colours
+  colors: false,        // the model has vertex colours: they are asked for and shown
   displayedTriangles: 0,
   focus: [0.5, 0.5],
   errors: [],
@@ -109,7 +111,7 @@ function extractRequest() {
     grid: [Math.min(512, Math.round(width / 2)), Math.min(512, Math.round(height / 2))],
     error: { value: Number($('error').value), unit: 'pixels' },
     criteria,
-    attributes: { labels: $('labels').checked },
+    attributes: { labels: $('labels').checked, colors: state.colors },
   };
   // Delta replies send only what changed, named by triangle id; labels would go stale on kept triangles.
   // After a delta that did not apply, one whole mesh puts the kept mesh right again.
@@ -156,9 +158,10 @@ function colourByLabel(geometry) {
   return true;
 }
 
-// The mesh kept across delta replies (PROTOCOL.md, "Delta replies"): 9 floats per triangle, keyed
-// by the triangle's id in the model's Multi-Tessellation; removal swaps in the last triangle.
-const kept = { ids: [], slot: new Map(), positions: new Float32Array(9 * 1024) };
+// The mesh kept across delta replies (PROTOCOL.md, "Delta replies"): 9 floats per triangle (and 9
+// for its corners' colours), keyed by the triangle's id in the model's Multi-Tessellation; removal
+// swaps in the last triangle.
+const kept = { ids: [], slot: new Map(), positions: new Float32Array(9 * 1024), colors: new Float32Array(9 * 1024) };
 
 function keptRemove(id) {
   const slot = kept.slot.get(id);
@@ -168,20 +171,24 @@ function keptRemove(id) {
   if (slot !== last) {
     kept.ids[slot] = kept.ids[last];
     kept.positions.copyWithin(9 * slot, 9 * last, 9 * last + 9);
+    kept.colors.copyWithin(9 * slot, 9 * last, 9 * last + 9);
     kept.slot.set(kept.ids[slot], slot);
   }
   kept.ids.pop();
 }
 
-function keptAdd(id, corners) {
+function keptAdd(id, corners, colours) {
   if (kept.slot.has(id)) throw new Error(`the delta adds triangle ${id}, which the mesh already holds`);
   const slot = kept.ids.length;
   if (9 * (slot + 1) > kept.positions.length) {
-    const grown = new Float32Array(2 * kept.positions.length);
-    grown.set(kept.positions);
-    kept.positions = grown;
+    for (const key of ['positions', 'colors']) {
+      const grown = new Float32Array(2 * kept[key].length);
+      grown.set(kept[key]);
+      kept[key] = grown;
+    }
   }
   kept.positions.set(corners, 9 * slot);
+  if (colours) kept.colors.set(colours, 9 * slot);
   kept.ids.push(id);
   kept.slot.set(id, slot);
 }
@@ -198,21 +205,23 @@ async function applyDelta(delta, payload) {
   if (delta.added > 0) {
     // The decoder takes its buffer away (it is transferred to a worker): hand it a copy.
     const added = await new Promise((resolve, reject) => draco.parse(payload.slice(0, delta.draco_bytes), resolve, reject));
-    const index = added.index.array, position = added.getAttribute('position');
-    const corners = new Float32Array(9);
+    const index = added.index.array, position = added.getAttribute('position'), color = added.getAttribute('color');
+    const corners = new Float32Array(9), colours = color ? new Float32Array(9) : null;
     for (let f = 0; f < delta.added; ++f) {
       for (let k = 0; k < 3; ++k) {
         const v = index[3 * f + k];
         corners[3 * k] = position.getX(v);
         corners[3 * k + 1] = position.getY(v);
         corners[3 * k + 2] = position.getZ(v);
+        if (color) colours.set([color.getX(v), color.getY(v), color.getZ(v)], 3 * k);
       }
-      keptAdd(ids.getUint32(4 * f, true), corners);
+      keptAdd(ids.getUint32(4 * f, true), corners, colours);
     }
     added.dispose();
   }
   const geometry = new THREE.BufferGeometry();
   geometry.setAttribute('position', new THREE.BufferAttribute(kept.positions.slice(0, 9 * kept.ids.length), 3));
+  if (state.colors) geometry.setAttribute('color', new THREE.BufferAttribute(kept.colors.slice(0, 9 * kept.ids.length), 3));
   return geometry;
 }
 
@@ -241,11 +250,14 @@ async function showReply({ json, payload, latencyMs }) {
   const labelled = $('labels').checked && colourByLabel(geometry);
   mesh.geometry.dispose();
   mesh.geometry = geometry;
-  mesh.material = labelled ? labelMaterial : material;
+  // Label colours (colourByLabel) replace the model's own while labels are shown.
+  const coloured = labelled || geometry.getAttribute('color') !== undefined;
+  mesh.material = coloured ? vertexColourMaterial : material;
   mesh.material.wireframe = $('wireframe').checked;
   state.displayedTriangles = geometry.index ? geometry.index.count / 3 : geometry.getAttribute('position').count / 3;
   state.lastReply = json;
   state.lastReplyHadLabels = geometry.getAttribute('label') !== undefined;
+  state.lastReplyHadColors = geometry.getAttribute('color') !== undefined && !labelled;
   state.meshes += 1;
   $('triangles').textContent = String(state.displayedTriangles);
   $('vertices').textContent = json.delta ? `${json.vertices} new` : String(geometry.getAttribute('position').count);
@@ -261,6 +273,7 @@ async function selectModel(name) {
   const { json } = await send({ type: 'model_info', model: name });
   if (json.type !== 'model_info') return setStatus(`model_info: ${json.message}`, true);
   state.model = name;
+  state.colors = json.colors === true;
   const lo = new THREE.Vector3(...json.bounds_min), hi = new THREE.Vector3(...json.bounds_max);
   const centre = lo.clone().add(hi).multiplyScalar(0.5);
   const radius = hi.clone().sub(lo).length() / 2;

@@ -180,7 +180,24 @@ bool parse_shape(std::string_view name, Shape& shape) {
   return true;
 }
 
-Mesh generate_mesh(const GenerateOptions& options) {
+namespace {
+
+// Each channel follows one axis across the bounding box: smooth, and different at every vertex.
+void colour_by_position(Mesh& mesh) {
+  float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+  for (std::size_t i = 0; i < mesh.positions.size(); ++i) {
+    lo[i % 3] = std::min(lo[i % 3], mesh.positions[i]);
+    hi[i % 3] = std::max(hi[i % 3], mesh.positions[i]);
+  }
+  mesh.colors.resize(mesh.positions.size());
+  for (std::size_t i = 0; i < mesh.positions.size(); ++i) {
+    const int k = static_cast<int>(i % 3);
+    const float t = hi[k] > lo[k] ? (mesh.positions[i] - lo[k]) / (hi[k] - lo[k]) : 0.5f;
+    mesh.colors[i] = static_cast<std::uint8_t>(std::lround(255.0f * t));
+  }
+}
+
+Mesh generate_shape(const GenerateOptions& options) {
   switch (options.shape) {
     case Shape::kSphere:
       return generate_sphere(options);
@@ -191,6 +208,14 @@ Mesh generate_mesh(const GenerateOptions& options) {
   }
   assert(false && "unknown shape");
   return {};
+}
+
+}  // namespace
+
+Mesh generate_mesh(const GenerateOptions& options) {
+  Mesh mesh = generate_shape(options);
+  if (options.colors) colour_by_position(mesh);
+  return mesh;
 }
 
 }  // namespace mtlod::core

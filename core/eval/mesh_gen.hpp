@@ -25,10 +25,11 @@ struct GenerateOptions {
   std::size_t target_triangles = 100'000;  // the result lands within a few percent of this
   std::uint32_t seed = 1;                  // noise phase; same seed, same mesh
   float noise = 0.05f;                     // relative amplitude of the surface noise, 0 for none
+  bool colors = false;                     // vertex colours: red, green, blue grow along x, y, z
 };
 
-// Generates the shape with outward (counter-clockwise seen from outside) triangles.
-// Positions lie within the unit cube scaled to about 1 unit radius.
+// Generates the shape with outward (counter-clockwise seen from outside) triangles, coloured on
+// request. Positions lie within the unit cube scaled to about 1 unit radius.
 Mesh generate_mesh(const GenerateOptions& options);
 
 }  // namespace mtlod::core

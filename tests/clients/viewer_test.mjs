@@ -5,11 +5,14 @@
 // index) equals the reply's `triangles`, and moving the mouse sends a gaze whose mesh reflects the
 // new focus. Saves a screenshot into --out.
 //
+// With --painted PLY the server also serves that coloured mesh: the page asks for its colours and
+// shows them, through delta replies too.
+//
 // With --tls the server runs with a certificate made here by openssl and an access token
 // (--tls-cert, --tls-key, --auth-tokens): the page loads over https with ?token=, its WebSocket is
 // wss and carries the token, and it shows a mesh; a page without the token gets no connection.
 //
-// node viewer_test.mjs [--tls] --server BIN --mesh bunny.ply --out DIR
+// node viewer_test.mjs [--tls] --server BIN --mesh bunny.ply [--painted painted.ply] --out DIR
 import { spawn, spawnSync } from 'node:child_process';
 import fs from 'node:fs';
 import { createRequire } from 'node:module';
@@ -62,7 +65,8 @@ if (tls) {
 const portFile = path.join(args.out, 'viewer-ports');
 fs.rmSync(portFile, { force: true });
 const serverLog = fs.openSync(path.join(args.out, 'viewer-server.log'), 'w');
-const server = spawn(args.server, ['--mesh', args.mesh, '--cache-dir', args.out, '--port', '0', '--http-port', '0',
+const painted = args.painted ? ['--mesh', args.painted] : [];
+const server = spawn(args.server, ['--mesh', args.mesh, ...painted, '--cache-dir', args.out, '--port', '0', '--http-port', '0',
                                    '--port-file', portFile, '--workers', '2', '--log-level', 'info', ...security],
                      { stdio: ['ignore', serverLog, serverLog] });
 let serverExit = null;
@@ -99,6 +103,7 @@ try {
   const meshReplies = [];
   const gazesSent = [];
   const sockets = [];
+  const extractsSent = [];
   page.on('websocket', (ws) => {
     sockets.push(ws.url());
     ws.on('framereceived', ({ payload }) => {
@@ -115,6 +120,7 @@ try {
     ws.on('framesent', ({ payload }) => {
       const json = JSON.parse(typeof payload === 'string' ? payload : payload.toString('utf8'));
       if (json.type === 'gaze') gazesSent.push(json);
+      if (json.type === 'extract') extractsSent.push(json);
     });
   });
 
@@ -182,6 +188,22 @@ try {
     const screenshot = path.join(args.out, 'viewer.png');
     await page.screenshot({ path: screenshot });
     check(fs.statSync(screenshot).size > 1000, `screenshot saved to ${screenshot}`);
+
+    if (args.painted) {
+      // A coloured model: its colours come in the Draco payload (COLOR) and are what the page shows.
+      await page.uncheck('#labels');
+      const before = await page.evaluate(() => window.mtlod.lastReply.id);
+      await page.selectOption('#model', 'painted');
+      await page.waitForFunction((id) => window.mtlod.lastReply.id > id && window.mtlod.lastReply.model === 'painted',
+                                 before, { timeout: 30_000 });
+      const shown = await page.evaluate(() => ({ colours: window.mtlod.lastReplyHadColors, delta: window.mtlod.lastReply.delta,
+                                                 errors: window.mtlod.errors.length }));
+      const asked = extractsSent.filter((e) => e.model === 'painted');
+      check(asked.length > 0 && asked.every((e) => e.attributes.colors === true), 'the page asks for the painted model\'s colours');
+      check(shown.colours === true, 'the mesh shown carries the model\'s vertex colours');
+      check(shown.delta !== undefined, `they came in a delta reply (${JSON.stringify(shown.delta)})`);
+      await page.screenshot({ path: path.join(args.out, 'viewer-colours.png') });
+    }
   }
 } catch (error) {
   console.log(`FAIL ${error.stack ?? error}`);

@@ -1,5 +1,6 @@
 // Draco payloads decode (with the Draco library, and with Google's draco_decoder command) to the
-// cut that was encoded: same triangles over the same vertices, positions within quantization.
+// cut that was encoded: same triangles over the same vertices, positions within quantization,
+// colours exact.
 #include "core/draco_encode.hpp"
 
 #include <gtest/gtest.h>
@@ -8,6 +9,7 @@
 #include <array>
 #include <cmath>
 #include <map>
+#include <set>
 #include <unordered_map>
 
 #include "core/bounds.hpp"
@@ -19,6 +21,13 @@
 
 namespace mtlod::core {
 namespace {
+
+// Colours that differ from vertex to vertex and cover the whole byte range.
+std::vector<std::uint8_t> colours_of(std::size_t vertices) {
+  std::vector<std::uint8_t> colours(3 * vertices);
+  for (std::size_t i = 0; i < colours.size(); ++i) colours[i] = static_cast<std::uint8_t>(i * 37 % 256);
+  return colours;
+}
 
 Mesh sphere(std::size_t triangles) {
   GenerateOptions o;
@@ -164,27 +173,40 @@ TEST(DracoEncoder, AFixedGridDecodesAVertexToTheSameFloatsInEveryPayload) {
 
 class DracoAttributes : public testing::TestWithParam<bool> {};
 
-TEST_P(DracoAttributes, NormalsAndLabelsSurviveTheRoundTrip) {
+TEST_P(DracoAttributes, NormalsColoursAndLabelsSurviveTheRoundTrip) {
   const Mesh m = sphere(2'000);
+  const std::vector<std::uint8_t> colours = colours_of(m.vertex_count());
   std::vector<std::uint32_t> labels(m.vertex_count());
   for (std::size_t v = 0; v < labels.size(); ++v) labels[v] = static_cast<std::uint32_t>(v * 7 % 70'000);
   DracoOptions options;
   options.normals = true;
+  options.colors = true;
   options.labels = true;
   options.method = DracoMethod::kSequential;
   options.entropy_coding = GetParam();
   std::vector<std::uint8_t> bytes;
-  ASSERT_TRUE(DracoEncoder().encode({m.positions, m.normals, labels, m.triangles}, options, bytes).ok());
+  ASSERT_TRUE(
+      DracoEncoder().encode({m.positions, m.normals, labels, m.triangles, colours}, options, bytes).ok());
   auto decoded = decode_draco(bytes);
   ASSERT_TRUE(decoded.ok()) << decoded.error().message;
+  // Four distinct attributes, each named by its own id.
+  const DracoAttributeIds& ids = decoded->attribute_ids;
+  EXPECT_GE(ids.position, 0);
+  EXPECT_GE(ids.normal, 0);
+  EXPECT_GE(ids.color, 0);
+  EXPECT_GE(ids.label, 0);
+  EXPECT_EQ(std::set<int>({ids.position, ids.normal, ids.color, ids.label}).size(), 4u);
   const float tolerance =
       test::draco_tolerance(test::used_extent(m.positions, m.triangles), options.position_bits);
   const auto match =
       test::match_vertices(decoded->mesh.positions, m.positions, m.triangles, 4 * tolerance, tolerance);
   ASSERT_EQ(decoded->mesh.normals.size(), decoded->mesh.positions.size());
   ASSERT_EQ(decoded->labels.size(), decoded->mesh.vertex_count());
+  ASSERT_EQ(decoded->mesh.colors.size(), decoded->mesh.positions.size());
   for (std::size_t i = 0; i < match.size(); ++i) {
     const std::uint32_t v = match[i];
+    for (int k = 0; k < 3; ++k)
+      EXPECT_EQ(decoded->mesh.colors[3 * i + k], colours[3 * v + k]) << i;  // lossless
     const float* n = &decoded->mesh.normals[3 * i];
     // 10-bit octahedral quantization keeps directions within about 0.1 degree: cos > 0.9999.
     EXPECT_GT(n[0] * m.normals[3 * v] + n[1] * m.normals[3 * v + 1] + n[2] * m.normals[3 * v + 2], 0.9999f);
@@ -203,6 +225,9 @@ TEST(DracoEncoder, RejectsBadOptionsAndMissingAttributes) {
   DracoOptions want_normals;
   want_normals.normals = true;
   EXPECT_FALSE(encoder.encode({m.positions, {}, {}, m.triangles}, want_normals, bytes).ok());
+  DracoOptions want_colours;
+  want_colours.colors = true;
+  EXPECT_FALSE(encoder.encode({m.positions, {}, {}, m.triangles}, want_colours, bytes).ok());
   EXPECT_FALSE(encoder.encode({m.positions, {}, {}, {}}, {}, bytes).ok());
 }
 
@@ -215,12 +240,22 @@ TEST_P(GooglesDecoder, ReadsThePayload) {
   std::vector<std::uint8_t> bytes;
   DracoOptions options;
   if (!GetParam()) options.method = DracoMethod::kSequential, options.entropy_coding = false;
-  ASSERT_TRUE(DracoEncoder().encode({m.positions, {}, {}, m.triangles}, options, bytes).ok());
+  options.colors = true;
+  const std::vector<std::uint8_t> colours = colours_of(m.vertex_count());
+  ASSERT_TRUE(DracoEncoder().encode({m.positions, {}, {}, m.triangles, colours}, options, bytes).ok());
   auto loaded =
       test::googles_draco_decode(bytes, test::scratch_dir("draco-cli"), GetParam() ? "coded" : "raw");
   ASSERT_TRUE(loaded.ok()) << loaded.error().message;
   EXPECT_EQ(loaded->triangle_count(), m.triangle_count());
-  EXPECT_EQ(loaded->vertex_count(), m.vertex_count());
+  ASSERT_EQ(loaded->vertex_count(), m.vertex_count());
+  // Each vertex keeps its colour: matched by position (the encoder keeps every vertex here).
+  const float tolerance =
+      test::draco_tolerance(test::used_extent(m.positions, m.triangles), options.position_bits);
+  const auto match =
+      test::match_vertices(loaded->positions, m.positions, m.triangles, 4 * tolerance, tolerance);
+  ASSERT_EQ(loaded->colors.size(), loaded->positions.size()) << "draco_decoder's PLY has no colours";
+  for (std::size_t i = 0; i < match.size(); ++i)
+    for (int k = 0; k < 3; ++k) EXPECT_EQ(loaded->colors[3 * i + k], colours[3 * match[i] + k]) << i;
 }
 INSTANTIATE_TEST_SUITE_P(EntropyCoding, GooglesDecoder, testing::Bool());
 

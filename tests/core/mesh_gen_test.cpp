@@ -4,7 +4,10 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <utility>
+#include <vector>
 
 #include "core/mesh_cleanup.hpp"
 
@@ -73,6 +76,29 @@ TEST(GenerateMesh, SameSeedSameMeshOtherSeedOtherSurface) {
   EXPECT_EQ(a.positions, b.positions);
   EXPECT_EQ(a.triangles, c.triangles);
   EXPECT_NE(a.positions, c.positions);
+}
+
+TEST(GenerateMesh, ColoursGrowAlongTheAxesOverTheWholeByteRange) {
+  GenerateOptions o;
+  o.shape = Shape::kShell;
+  o.target_triangles = 5'000;
+  const Mesh plain = generate_mesh(o);
+  o.colors = true;
+  const Mesh painted = generate_mesh(o);
+  EXPECT_FALSE(plain.has_colors());
+  ASSERT_EQ(painted.positions, plain.positions);  // the same surface, coloured
+  ASSERT_EQ(painted.colors.size(), painted.positions.size());
+  for (int k = 0; k < 3; ++k) {
+    // Channel k never falls as coordinate k grows, and spans 0..255 (the box's two faces).
+    std::vector<std::pair<float, int>> by_coordinate;
+    for (std::size_t v = 0; v < painted.vertex_count(); ++v)
+      by_coordinate.emplace_back(painted.positions[3 * v + k], painted.colors[3 * v + k]);
+    std::sort(by_coordinate.begin(), by_coordinate.end());
+    EXPECT_EQ(by_coordinate.front().second, 0) << k;
+    EXPECT_EQ(by_coordinate.back().second, 255) << k;
+    for (std::size_t i = 1; i < by_coordinate.size(); ++i)
+      ASSERT_LE(by_coordinate[i - 1].second, by_coordinate[i].second) << "channel " << k << " at " << i;
+  }
 }
 
 TEST(GenerateMesh, MillionTriangleShellIsClosedManifold) {
