@@ -16,6 +16,7 @@ build_packages=(
   libboost-dev libboost-program-options-dev   # Asio and Beast are header-only in libboost-dev
   nlohmann-json3-dev libopenmesh-dev libdraco-dev draco libglm-dev
   libcli11-dev libspdlog-dev libfmt-dev libpng-dev
+  libtinygltf-dev                             # .glb output (header-only here: compiled into core/io)
   libmeshoptimizer-dev                        # the evaluation's peer simplifier
   libssl-dev                                  # TLS (Asio's SSL streams) and the access tokens' digests
 )
@@ -60,7 +61,7 @@ if ((${#missing[@]})); then
 fi
 [ "$profile" = runtime ] && exit 0
 
-# npm packages (built-in models; three.js for the viewer; playwright-core drives Chromium in tests). --ignore-scripts: the dragon package's build hook is not needed.
+# npm packages (built-in models; three.js for the viewer; playwright-core drives Chromium in tests; gltf-validator checks the tools' .glb files). --ignore-scripts: the dragon package's build hook is not needed.
 if ! (cd "$root/scripts" && npm ls --silent >/dev/null 2>&1); then
   echo "bootstrap: installing npm packages into scripts/node_modules"
   (cd "$root/scripts" && npm ci --ignore-scripts --no-audit --no-fund --loglevel=error)

@@ -9,6 +9,7 @@
 #include "clients/common/extract_flags.hpp"
 #include "clients/common/retry.hpp"
 #include "core/draco_decode.hpp"
+#include "core/io/gltf.hpp"
 #include "core/io/mesh_io.hpp"
 #include "fmt/format.h"
 
@@ -52,7 +53,16 @@ int main(int argc, char** argv) {
   auto* stats = app.add_subcommand("stats", "print the server's counters");
   auto* extract = app.add_subcommand("extract", "fetch a view-dependent extraction");
   extract->add_option("model", model, "model name")->required();
-  extract->add_option("-o,--output", output, "write the mesh: .drc (as received), .ply or .obj (decoded)");
+  extract->add_option("-o,--output", output,
+                      "write the mesh: .drc (as received), .ply or .obj (decoded), or .glb (binary glTF 2.0 "
+                      "with the normals and colours the reply carries: --normals, --colors)");
+  std::string gltf_draco = "on";
+  extract
+      ->add_option("--gltf-draco", gltf_draco,
+                   "on: the .glb embeds the Draco bytes as received (KHR_draco_mesh_compression); off: "
+                   "decoded into plain arrays, for readers without Draco")
+      ->check(CLI::IsMember({"on", "off"}))
+      ->capture_default_str();
   protocol::ExtractFlags flags;
   protocol::add_extract_flags(*extract, flags);
   CLI11_PARSE(app, argc, argv);
@@ -135,10 +145,14 @@ int main(int argc, char** argv) {
       std::ofstream out(output, std::ios::binary);
       out.write(reinterpret_cast<const char*>(draco.data()), static_cast<std::streamsize>(draco.size()));
       if (!out) return fail(fmt::format("{}: write failed", output));
+    } else if (ext == ".glb" && gltf_draco == "on") {
+      if (auto saved = core::io::write_glb_draco(output, draco); !saved) return fail(saved.error().message);
     } else {
       auto decoded = core::decode_draco(draco);
       if (!decoded) return fail(decoded.error().message);
-      if (auto saved = core::io::save_mesh(output, decoded->mesh); !saved) return fail(saved.error().message);
+      auto saved = ext == ".glb" ? core::io::write_glb(output, decoded->mesh)
+                                 : core::io::save_mesh(output, decoded->mesh);
+      if (!saved) return fail(saved.error().message);
     }
     fmt::print("wrote {}\n", output);
   }

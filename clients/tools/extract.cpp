@@ -13,6 +13,7 @@
 #include "clients/common/extract_flags.hpp"
 #include "core/bounds.hpp"
 #include "core/draco_encode.hpp"
+#include "core/io/gltf.hpp"
 #include "core/io/image_io.hpp"
 #include "core/io/mesh_io.hpp"
 #include "core/io/mt_file.hpp"
@@ -26,7 +27,8 @@ namespace {
 
 struct ExtractOptions {
   std::string model;                   // .mt file to read
-  std::string output;                  // mesh to write (.ply, .obj or .drc)
+  std::string output;                  // mesh to write (.ply, .obj, .drc or .glb)
+  std::string gltf_draco = "on";       // .glb: Draco-compressed (KHR_draco_mesh_compression) or plain
   std::string dump_dt;                 // PNG of the silhouette (else focus) distance transform
   std::string dump_occupancy;          // PNG of the occupancy grid
   mtlod::protocol::ExtractFlags view;  // --error, --budget, camera, criteria, grid, Draco
@@ -34,7 +36,15 @@ struct ExtractOptions {
 
 void add_extract_options(CLI::App& app, ExtractOptions& o) {
   app.add_option("model", o.model, "MT file written by mtlod-build")->required();
-  app.add_option("-o,--output", o.output, "mesh to write: .ply (binary), .obj, or .drc (Draco)")->required();
+  app.add_option("-o,--output", o.output,
+                 "mesh to write: .ply (binary), .obj, .drc (Draco), or .glb (binary glTF 2.0 with the "
+                 "model's normals and colours)")
+      ->required();
+  app.add_option("--gltf-draco", o.gltf_draco,
+                 "on: the .glb holds the cut as Draco (KHR_draco_mesh_compression); off: plain arrays, for "
+                 "readers without Draco")
+      ->check(CLI::IsMember({"on", "off"}))
+      ->capture_default_str();
   app.add_option("--dump-dt", o.dump_dt, "write the distance transform as PNG (view-dependent mode)");
   app.add_option("--dump-occupancy", o.dump_occupancy,
                  "write the occupancy grid as PNG (view-dependent mode)");
@@ -73,22 +83,33 @@ mtlod::core::Mesh compact(const mtlod::core::Mt& mt, const std::vector<std::uint
 using namespace mtlod;
 using namespace mtlod::core;
 
-// Writes the cut as a mesh file, or as the Draco payload the server would send for the request.
-Status write_output(const std::string& path, const Mt& mt, const CutMesh& cut,
+// Writes the cut as a mesh file, or as the Draco payload the server would send for the request (in
+// a .glb with the model's normals and colours, and no labels: glTF has no meaning for them).
+Status write_output(const std::string& path, bool gltf_draco, const Mt& mt, const CutMesh& cut,
                     const protocol::Extract* request, std::span<const std::uint32_t> labels) {
-  if (std::filesystem::path(path).extension() != ".drc")
-    return io::save_mesh(path, compact(mt, cut.triangles));
+  const auto extension = std::filesystem::path(path).extension();
+  const bool glb = extension == ".glb";
+  if (glb && !gltf_draco) return io::write_glb(path, compact(mt, cut.triangles));
+  if (!glb && extension != ".drc") return io::save_mesh(path, compact(mt, cut.triangles));
   DracoOptions draco;
   if (request) {
     draco.method = request->draco.method.value_or(DracoMethod::kEdgebreaker);
     draco.speed = request->draco.speed;
     draco.position_bits = request->draco.position_bits;
     draco.normals = request->normals && mt.has_normals();
+    draco.colors = request->colors && mt.has_colors();
     draco.labels = request->labels && !labels.empty();
   }
+  if (glb) {
+    draco.normals = mt.has_normals();
+    draco.colors = mt.has_colors();
+    draco.labels = false;
+  }
   std::vector<std::uint8_t> bytes;
-  MTLOD_TRY(DracoStats stats,
-            DracoEncoder().encode({mt.positions, mt.normals, labels, cut.triangles}, draco, bytes));
+  MTLOD_TRY(
+      DracoStats stats,
+      DracoEncoder().encode({mt.positions, mt.normals, labels, cut.triangles, mt.colors}, draco, bytes));
+  if (glb) return io::write_glb_draco(path, bytes);
   std::FILE* f = std::fopen(path.c_str(), "wb");
   const bool ok = f && std::fwrite(bytes.data(), 1, bytes.size(), f) == bytes.size();
   if (f) std::fclose(f);
@@ -185,7 +206,9 @@ int run(int argc, char** argv) {
 
   const std::span<const std::uint32_t> labels =
       extractor ? extractor->vertex_labels() : std::span<const std::uint32_t>();
-  if (auto saved = write_output(options.output, *mt, cut, request ? &*request : nullptr, labels); !saved) {
+  if (auto saved = write_output(options.output, options.gltf_draco == "on", *mt, cut,
+                                request ? &*request : nullptr, labels);
+      !saved) {
     fmt::print(stderr, "mtlod-extract: {}\n", saved.error().message);
     return 1;
   }

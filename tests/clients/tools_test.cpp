@@ -1,12 +1,17 @@
 // End to end: mtlod-load and mtlod-gaze run for a few seconds against the real mtlod-server, and
-// their JSON reports are checked against the server's own counters (the `stats` request).
+// their JSON reports are checked against the server's own counters (the `stats` request);
+// mtlod-client's .glb output holds the Draco bytes the server sent.
 #include <gtest/gtest.h>
 
+#include <sys/wait.h>
+
 #include <cstdlib>
+#include <cstring>
 #include <fstream>
 #include <map>
 
 #include "clients/common/server_connection.hpp"
+#include "core/draco_decode.hpp"
 #include "core/eval/mesh_gen.hpp"
 #include "core/io/mesh_io.hpp"
 #include "fmt/format.h"
@@ -187,6 +192,69 @@ TEST_F(ToolsTest, GazeReplayWithDeltasKeepsTheServersCutInFewerBytes) {
   const double whole_per_mesh = whole.at("bytes").get<double>() / whole.at("meshes").get<double>();
   const double delta_per_mesh = delta.at("bytes").get<double>() / delta.at("meshes").get<double>();
   EXPECT_LT(delta_per_mesh, whole_per_mesh);
+}
+
+TEST_F(ToolsTest, ClientGlbEmbedsTheDracoBytesItReceived) {
+  // One request three times on fresh connections, which the server answers with the same bytes: as
+  // .drc (the payload as received), as .glb (that payload as the Draco buffer view, unchanged) and
+  // as a plain .glb (decoded: as many triangles and vertices as the payload holds).
+  const auto client = [&](const std::string& args) {
+    const std::string command =
+        fmt::format("{} --port {} extract bunny --error-px 0.5 --budget 2000 {} > {} 2>&1",
+                    MTLOD_CLIENT_BINARY, server_->port(), args, (*dir_ / "client.log").string());
+    EXPECT_EQ(std::system(command.c_str()), 0) << command << "\n" << test::read_file(*dir_ / "client.log");
+  };
+  client("-o " + (*dir_ / "cut.drc").string());
+  client("-o " + (*dir_ / "cut.glb").string());
+  client("--gltf-draco off -o " + (*dir_ / "cut-plain.glb").string());
+  const std::string drc = test::read_file(*dir_ / "cut.drc");
+  ASSERT_GT(drc.size(), 0u);
+
+  // A GLB's JSON and BIN chunks, read by hand (a 12-byte header, then length, type, data).
+  const auto chunks = [](const std::string& glb) {
+    std::pair<json, std::string> out;
+    EXPECT_EQ(glb.substr(0, 4), "glTF");
+    for (std::size_t at = 12; at + 8 <= glb.size();) {
+      std::uint32_t length;
+      std::memcpy(&length, glb.data() + at, 4);
+      if (glb.compare(at + 4, 4, "JSON") == 0) out.first = json::parse(glb.substr(at + 8, length));
+      if (glb.compare(at + 4, 4, std::string("BIN\0", 4)) == 0) out.second = glb.substr(at + 8, length);
+      at += 8 + length;
+    }
+    return out;
+  };
+  const auto [gltf, bin] = chunks(test::read_file(*dir_ / "cut.glb"));
+  const json& primitive = gltf.at("meshes")[0].at("primitives")[0];
+  const json& view = gltf.at("bufferViews")
+                         .at(primitive.at("extensions")
+                                 .at("KHR_draco_mesh_compression")
+                                 .at("bufferView")
+                                 .get<std::size_t>());
+  const std::size_t offset = view.value("byteOffset", 0u), length = view.at("byteLength");
+  ASSERT_LE(offset + length, bin.size());
+  EXPECT_EQ(bin.substr(offset, length), drc);
+
+  const auto decoded =
+      core::decode_draco(std::span(reinterpret_cast<const std::uint8_t*>(drc.data()), drc.size()));
+  ASSERT_TRUE(decoded.ok()) << decoded.error().message;
+  const auto [plain, plain_bin] = chunks(test::read_file(*dir_ / "cut-plain.glb"));
+  const json& p = plain.at("meshes")[0].at("primitives")[0];
+  EXPECT_FALSE(plain.contains("extensionsRequired"));
+  EXPECT_EQ(plain.at("accessors").at(p.at("indices").get<std::size_t>()).at("count"),
+            decoded->mesh.triangles.size());
+  EXPECT_EQ(plain.at("accessors").at(p.at("attributes").at("POSITION").get<std::size_t>()).at("count"),
+            decoded->mesh.vertex_count());
+
+#ifdef MTLOD_NODE_BINARY
+  // Both files pass the Khronos validator with no error and no warning (77: it is not installed).
+  const std::string command = fmt::format(
+      "{} {}/tests/core/gltf_validate.mjs {} {} > {} 2>&1", MTLOD_NODE_BINARY, MTLOD_SOURCE_DIR,
+      (*dir_ / "cut.glb").string(), (*dir_ / "cut-plain.glb").string(), (*dir_ / "validator.log").string());
+  const int status = std::system(command.c_str());
+  const std::string report = test::read_file(*dir_ / "validator.log");
+  if (WIFEXITED(status) && WEXITSTATUS(status) == 77) GTEST_SKIP() << report;
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << report;
+#endif
 }
 
 }  // namespace

@@ -1,0 +1,223 @@
+// .glb writing (see gltf.hpp) with tinygltf, compiled here from Debian's header over the system
+// nlohmann-json and without its image code (the TINYGLTF_NO_* switches come with mtlod_tinygltf in
+// core/CMakeLists.txt, so that tests reading files back see the same declarations): the binaries
+// load no tinygltf library at run time.
+#include "core/io/gltf.hpp"
+
+#define TINYGLTF_IMPLEMENTATION
+#include <tiny_gltf.h>
+
+#include <algorithm>
+#include <cassert>
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <limits>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "core/draco_decode.hpp"
+#include "fmt/format.h"
+
+namespace mtlod::core::io {
+namespace {
+
+constexpr const char* kDracoExtension = "KHR_draco_mesh_compression";
+
+// Appends `bytes` to the binary buffer as a view of its own. glTF wants vertex data on 4-byte
+// boundaries: plain arrays here are all multiples of 4 bytes long, and a Draco payload is the only view.
+int add_view(tinygltf::Model& model, std::span<const std::uint8_t> bytes, int target, std::size_t stride) {
+  auto& data = model.buffers[0].data;
+  tinygltf::BufferView view;
+  view.buffer = 0;
+  view.byteOffset = data.size();
+  view.byteLength = bytes.size();
+  view.byteStride = stride;
+  view.target = target;
+  data.insert(data.end(), bytes.begin(), bytes.end());
+  model.bufferViews.push_back(std::move(view));
+  return static_cast<int>(model.bufferViews.size() - 1);
+}
+
+int add_accessor(tinygltf::Model& model, int view, int component_type, int type, std::size_t count,
+                 bool normalized = false) {
+  tinygltf::Accessor accessor;
+  accessor.bufferView = view;
+  accessor.componentType = component_type;
+  accessor.type = type;
+  accessor.count = count;
+  accessor.normalized = normalized;
+  model.accessors.push_back(std::move(accessor));
+  return static_cast<int>(model.accessors.size() - 1);
+}
+
+template <class T>
+std::span<const std::uint8_t> as_bytes(std::span<const T> values) {
+  return {reinterpret_cast<const std::uint8_t*>(values.data()), values.size_bytes()};
+}
+
+// The model around one primitive: scene, node, mesh, a plain material and the buffer. The default
+// material is fully metallic and renders black in most viewers without an environment map.
+tinygltf::Model make_model() {
+  tinygltf::Model model;
+  model.asset.version = "2.0";
+  model.asset.generator = "mtlod";
+  model.buffers.resize(1);
+  tinygltf::Material material;
+  material.pbrMetallicRoughness.metallicFactor = 0.0;
+  material.doubleSided = true;  // cuts of scans have holes through which back faces show
+  model.materials.push_back(std::move(material));
+  tinygltf::Mesh mesh;
+  mesh.primitives.resize(1);
+  mesh.primitives[0].mode = TINYGLTF_MODE_TRIANGLES;
+  mesh.primitives[0].material = 0;
+  model.meshes.push_back(std::move(mesh));
+  tinygltf::Node node;
+  node.mesh = 0;
+  model.nodes.push_back(std::move(node));
+  tinygltf::Scene scene;
+  scene.nodes = {0};
+  model.scenes.push_back(std::move(scene));
+  model.defaultScene = 0;
+  return model;
+}
+
+// POSITION needs its bounds in the accessor (glTF 2.0 §3.7.2.1); they must be exactly the data's.
+Status set_position_bounds(tinygltf::Accessor& accessor, std::span<const float> positions) {
+  std::vector<double> lo(3, std::numeric_limits<double>::infinity());
+  std::vector<double> hi(3, -std::numeric_limits<double>::infinity());
+  for (std::size_t i = 0; i < positions.size(); ++i) {
+    if (!std::isfinite(positions[i])) {
+      return make_error(ErrorCode::kInvalidArgument,
+                        fmt::format("vertex {} has a non-finite coordinate", i / 3));
+    }
+    lo[i % 3] = std::min(lo[i % 3], double{positions[i]});
+    hi[i % 3] = std::max(hi[i % 3], double{positions[i]});
+  }
+  accessor.minValues = std::move(lo);
+  accessor.maxValues = std::move(hi);
+  return Ok{};
+}
+
+Status check_triangles(std::span<const std::uint32_t> triangles, std::size_t vertices) {
+  if (triangles.empty()) return make_error(ErrorCode::kInvalidArgument, "the mesh has no triangles");
+  for (std::size_t i = 0; i < triangles.size(); ++i) {
+    if (triangles[i] >= vertices) {
+      return make_error(ErrorCode::kInvalidArgument,
+                        fmt::format("triangle {} refers to vertex {}, but the mesh has {} vertices", i / 3,
+                                    triangles[i], vertices));
+    }
+  }
+  return Ok{};
+}
+
+// Serialises the model as GLB and writes it; the file is only opened once the bytes exist.
+Status write_model(const std::filesystem::path& path, const tinygltf::Model& model) {
+  std::ostringstream glb;
+  tinygltf::TinyGLTF writer;
+  if (!writer.WriteGltfSceneToStream(&model, glb, /*prettyPrint=*/false, /*writeBinary=*/true) || !glb) {
+    return make_error(ErrorCode::kInternal,
+                      fmt::format("{}: tinygltf could not serialise the mesh", path.string()));
+  }
+  const std::string bytes = std::move(glb).str();
+  std::FILE* f = std::fopen(path.string().c_str(), "wb");
+  if (!f) {
+    return make_error(ErrorCode::kIoError,
+                      fmt::format("{}: cannot open for writing: {}", path.string(), std::strerror(errno)));
+  }
+  bool ok = std::fwrite(bytes.data(), 1, bytes.size(), f) == bytes.size();
+  ok = (std::fclose(f) == 0) && ok;
+  if (!ok) return make_error(ErrorCode::kIoError, fmt::format("{}: write failed", path.string()));
+  return Ok{};
+}
+
+}  // namespace
+
+Status write_glb(const std::filesystem::path& path, const Mesh& mesh) {
+  const std::size_t n = mesh.vertex_count();
+  assert(mesh.normals.empty() || mesh.normals.size() == 3 * n);
+  assert(mesh.colors.empty() || mesh.colors.size() == 3 * n);
+  MTLOD_RETURN_IF_ERROR(check_triangles(mesh.triangles, n));
+  tinygltf::Model model = make_model();
+  auto& attributes = model.meshes[0].primitives[0].attributes;
+
+  const int position = add_accessor(
+      model, add_view(model, as_bytes(std::span(mesh.positions)), TINYGLTF_TARGET_ARRAY_BUFFER, 0),
+      TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, n);
+  MTLOD_RETURN_IF_ERROR(set_position_bounds(model.accessors[position], mesh.positions));
+  attributes["POSITION"] = position;
+
+  if (mesh.has_normals()) {
+    std::vector<float> unit(mesh.normals.size());
+    for (std::size_t v = 0; v < n; ++v) {
+      const float* in = &mesh.normals[3 * v];
+      const float length = std::sqrt(in[0] * in[0] + in[1] * in[1] + in[2] * in[2]);
+      float* out = &unit[3 * v];
+      if (length > 0 && std::isfinite(length)) {
+        for (int c = 0; c < 3; ++c) out[c] = in[c] / length;
+      } else {
+        out[0] = 0, out[1] = 0, out[2] = 1;
+      }
+    }
+    attributes["NORMAL"] = add_accessor(
+        model, add_view(model, as_bytes(std::span<const float>(unit)), TINYGLTF_TARGET_ARRAY_BUFFER, 0),
+        TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, n);
+  }
+
+  if (mesh.has_colors()) {
+    // Three bytes per vertex padded to four: vertex attributes must start on 4-byte boundaries.
+    std::vector<std::uint8_t> rgbx(4 * n, 0);
+    for (std::size_t v = 0; v < n; ++v) std::copy_n(&mesh.colors[3 * v], 3, &rgbx[4 * v]);
+    attributes["COLOR_0"] = add_accessor(
+        model, add_view(model, std::span<const std::uint8_t>(rgbx), TINYGLTF_TARGET_ARRAY_BUFFER, 4),
+        TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE, TINYGLTF_TYPE_VEC3, n, /*normalized=*/true);
+  }
+
+  model.meshes[0].primitives[0].indices = add_accessor(
+      model, add_view(model, as_bytes(std::span(mesh.triangles)), TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER, 0),
+      TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT, TINYGLTF_TYPE_SCALAR, mesh.triangles.size());
+  return write_model(path, model);
+}
+
+Status write_glb_draco(const std::filesystem::path& path, std::span<const std::uint8_t> draco) {
+  MTLOD_TRY(DecodedMesh decoded, decode_draco(draco));
+  const Mesh& mesh = decoded.mesh;
+  const std::size_t n = mesh.vertex_count();
+  MTLOD_RETURN_IF_ERROR(check_triangles(mesh.triangles, n));
+  tinygltf::Model model = make_model();
+  tinygltf::Primitive& primitive = model.meshes[0].primitives[0];
+
+  // Accessors without views: KHR_draco_mesh_compression gives their data, and they give its shape
+  // (the types here are those Draco decodes to, which decoders such as three.js ask Draco for).
+  tinygltf::Value::Object ids;
+  const int position = add_accessor(model, -1, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, n);
+  MTLOD_RETURN_IF_ERROR(set_position_bounds(model.accessors[position], mesh.positions));
+  primitive.attributes["POSITION"] = position;
+  ids["POSITION"] = tinygltf::Value(decoded.attribute_ids.position);
+  if (mesh.has_normals()) {
+    primitive.attributes["NORMAL"] =
+        add_accessor(model, -1, TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_TYPE_VEC3, n);
+    ids["NORMAL"] = tinygltf::Value(decoded.attribute_ids.normal);
+  }
+  if (mesh.has_colors()) {
+    primitive.attributes["COLOR_0"] = add_accessor(model, -1, TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE,
+                                                   TINYGLTF_TYPE_VEC3, n, /*normalized=*/true);
+    ids["COLOR_0"] = tinygltf::Value(decoded.attribute_ids.color);
+  }
+  primitive.indices = add_accessor(model, -1, TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT, TINYGLTF_TYPE_SCALAR,
+                                   mesh.triangles.size());
+
+  // The payload is the buffer's one view (tinygltf pads the GLB chunk to four bytes).
+  const int view = add_view(model, draco, /*target=*/0, /*stride=*/0);
+  tinygltf::Value::Object extension;
+  extension["bufferView"] = tinygltf::Value(view);
+  extension["attributes"] = tinygltf::Value(std::move(ids));
+  primitive.extensions[kDracoExtension] = tinygltf::Value(std::move(extension));
+  model.extensionsUsed = {kDracoExtension};
+  model.extensionsRequired = {kDracoExtension};
+  return write_model(path, model);
+}
+
+}  // namespace mtlod::core::io

@@ -1,0 +1,220 @@
+// .glb files from mtlod-extract, as a viewer reads them: a UV sphere with normals and colours made
+// here (normal = the unit position, colour = a function of the position) is built into an MT with
+// mtlod-build and extracted with a budget into a Draco-compressed and a plain .glb. Both must pass
+// the Khronos validator with no error and no warning (tests/core/gltf_validate.mjs), then load in
+// headless Chromium with three.js's GLTFLoader + DRACOLoader: as many triangles and vertices as the
+// file's accessors say (and as mtlod-extract printed), normals and colours present and equal to what
+// the sphere's formula gives at each decoded position (so the Draco attribute ids name the right data).
+//
+// node gltf_three_test.mjs --build BIN --extract BIN --out DIR
+import { spawnSync } from 'node:child_process';
+import fs from 'node:fs';
+import http from 'node:http';
+import { createRequire } from 'node:module';
+import path from 'node:path';
+import { fileURLToPath } from 'node:url';
+
+const root = path.resolve(path.dirname(fileURLToPath(import.meta.url)), '../..');
+const { chromium } = createRequire(path.join(root, 'scripts/package.json'))('playwright-core');
+
+const args = Object.fromEntries(process.argv.slice(2).reduce((pairs, a, i, all) =>
+  (a.startsWith('--') ? [...pairs, [a.slice(2), all[i + 1]]] : pairs), []));
+for (const required of ['build', 'extract', 'out']) {
+  if (!args[required]) throw new Error(`missing --${required}`);
+}
+fs.mkdirSync(args.out, { recursive: true });
+const chromiumPath = process.env.MTLOD_CHROMIUM ?? '/usr/bin/chromium';
+if (!fs.existsSync(chromiumPath)) {
+  console.log(`skipped: ${chromiumPath} is not installed (scripts/bootstrap.sh installs Debian's chromium)`);
+  process.exit(77);
+}
+
+let failures = 0;
+function check(condition, message) {
+  console.log(`${condition ? 'ok  ' : 'FAIL'} ${message}`);
+  if (!condition) failures += 1;
+}
+
+function run(binary, argv) {
+  const r = spawnSync(binary, argv, { encoding: 'utf8' });
+  if (r.status !== 0) throw new Error(`${path.basename(binary)} ${argv.join(' ')} failed (${r.status}): ${r.stdout}${r.stderr}`);
+  return r.stdout;
+}
+
+// The sphere's colour at a point: each channel follows one coordinate from -1 (0) to 1 (255).
+const colorAt = (x, y, z) => [x, y, z].map((c) => Math.round(255 * Math.min(1, Math.max(0, (c + 1) / 2))));
+
+// A UV sphere of radius 1 (rings × segments, one vertex per pole), outward triangles, as ASCII PLY.
+function writeSphere(file, rings, segments) {
+  const vertices = [[0, 0, 1]];
+  for (let r = 1; r < rings; ++r) {
+    const theta = Math.PI * r / rings;
+    for (let s = 0; s < segments; ++s) {
+      const phi = 2 * Math.PI * s / segments;
+      vertices.push([Math.sin(theta) * Math.cos(phi), Math.sin(theta) * Math.sin(phi), Math.cos(theta)]);
+    }
+  }
+  vertices.push([0, 0, -1]);
+  const ring = (r, s) => 1 + (r - 1) * segments + (s % segments);
+  const faces = [];
+  for (let s = 0; s < segments; ++s) {
+    faces.push([0, ring(1, s), ring(1, s + 1)]);
+    for (let r = 1; r + 1 < rings; ++r) {
+      faces.push([ring(r, s), ring(r + 1, s), ring(r + 1, s + 1)], [ring(r, s), ring(r + 1, s + 1), ring(r, s + 1)]);
+    }
+    faces.push([ring(rings - 1, s), vertices.length - 1, ring(rings - 1, s + 1)]);
+  }
+  const lines = ['ply', 'format ascii 1.0', `element vertex ${vertices.length}`, 'property float x', 'property float y',
+                 'property float z', 'property float nx', 'property float ny', 'property float nz', 'property uchar red',
+                 'property uchar green', 'property uchar blue', `element face ${faces.length}`,
+                 'property list uchar int vertex_indices', 'end_header'];
+  for (const [x, y, z] of vertices) lines.push(`${x} ${y} ${z} ${x} ${y} ${z} ${colorAt(x, y, z).join(' ')}`);
+  for (const f of faces) lines.push(`3 ${f.join(' ')}`);
+  fs.writeFileSync(file, `${lines.join('\n')}\n`);
+  return faces.length;
+}
+
+// What a .glb's JSON says: triangles (indices / 3) and vertices (POSITION count) over its triangle
+// primitives, and the attribute names of the first.
+function fileCounts(file) {
+  const bytes = fs.readFileSync(file);
+  if (bytes.toString('latin1', 0, 4) !== 'glTF') throw new Error(`${file} is not a GLB`);
+  const jsonLength = bytes.readUInt32LE(12);
+  const gltf = JSON.parse(bytes.toString('utf8', 20, 20 + jsonLength));
+  let triangles = 0, vertices = 0;
+  for (const mesh of gltf.meshes) {
+    for (const p of mesh.primitives) {
+      if ((p.mode ?? 4) !== 4) throw new Error(`${file}: a primitive is not triangles`);
+      triangles += gltf.accessors[p.indices].count / 3;
+      vertices += gltf.accessors[p.attributes.POSITION].count;
+    }
+  }
+  return { triangles, vertices, attributes: Object.keys(gltf.meshes[0].primitives[0].attributes).sort(),
+           draco: (gltf.extensionsRequired ?? []).includes('KHR_draco_mesh_compression') };
+}
+
+const ply = path.join(args.out, 'coloured-sphere.ply'), mt = path.join(args.out, 'coloured-sphere.mt');
+const inputTriangles = writeSphere(ply, 48, 96);
+run(args.build, [ply, '-o', mt]);
+const files = { draco: path.join(args.out, 'sphere-draco.glb'), plain: path.join(args.out, 'sphere-plain.glb') };
+const printed = {};
+for (const [name, file] of Object.entries(files)) {
+  const out = run(args.extract, [mt, '--budget', '3000', '-o', file, ...(name === 'plain' ? ['--gltf-draco', 'off'] : [])]);
+  printed[name] = Number(/: (\d+) triangles/.exec(out)?.[1]);
+}
+check(printed.draco === printed.plain && printed.draco > 1000 && printed.draco <= 3000 && printed.draco < inputTriangles,
+      `mtlod-extract cut ${printed.draco} (Draco) and ${printed.plain} (plain) of ${inputTriangles} triangles, within the budget of 3000`);
+
+const validation = spawnSync(process.execPath, [path.join(root, 'tests/core/gltf_validate.mjs'), files.draco, files.plain],
+                             { encoding: 'utf8' });
+console.log(validation.stdout.trimEnd().replace(/^/gm, '  '));
+if (validation.status === 77) {
+  console.log('skipped: npm gltf-validator is not installed');
+  process.exit(77);
+}
+check(validation.status === 0, 'the Khronos validator finds no error and no warning in either file');
+
+// The page: three.js from scripts/node_modules, the files, and a function that loads one and reports
+// what three.js made of it.
+const page = `<!doctype html><html><body>
+<script type="importmap">{ "imports": { "three": "/three/build/three.module.js", "three/addons/": "/three/examples/jsm/" } }</script>
+<script type="module">
+import { GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
+import { DRACOLoader } from 'three/addons/loaders/DRACOLoader.js';
+const draco = new DRACOLoader();
+draco.setDecoderPath('/three/examples/jsm/libs/draco/');
+const loader = new GLTFLoader();
+loader.setDRACOLoader(draco);
+window.loadGlb = async (url) => {
+  const gltf = await loader.loadAsync(url);
+  let triangles = 0, vertices = 0, attributes = null, worstColor = 0, worstNormalDot = 1;
+  gltf.scene.traverse((o) => {
+    if (!o.isMesh) return;
+    const g = o.geometry;
+    triangles += (g.index ? g.index.count : g.attributes.position.count) / 3;
+    vertices += g.attributes.position.count;
+    attributes ??= Object.keys(g.attributes).sort();
+    const p = g.attributes.position, n = g.attributes.normal, c = g.attributes.color;
+    for (let i = 0; i < p.count; ++i) {
+      const x = p.getX(i), y = p.getY(i), z = p.getZ(i);
+      const want = [x, y, z].map((v) => Math.round(255 * Math.min(1, Math.max(0, (v + 1) / 2))));
+      if (c) worstColor = Math.max(worstColor, Math.abs(255 * c.getX(i) - want[0]), Math.abs(255 * c.getY(i) - want[1]),
+                                   Math.abs(255 * c.getZ(i) - want[2]));
+      if (n) {
+        const len = Math.hypot(x, y, z);
+        worstNormalDot = Math.min(worstNormalDot, (n.getX(i) * x + n.getY(i) * y + n.getZ(i) * z) / len);
+      }
+    }
+  });
+  return { triangles, vertices, attributes, worstColor, worstNormalDot };
+};
+window.ready = true;
+</script></body></html>`;
+
+const served = { '/sphere-draco.glb': files.draco, '/sphere-plain.glb': files.plain };
+const types = { '.js': 'text/javascript', '.wasm': 'application/wasm', '.glb': 'model/gltf-binary' };
+const server = http.createServer((req, res) => {
+  const url = new URL(req.url, 'http://localhost').pathname;
+  let file = served[url];
+  if (!file && url.startsWith('/three/')) {
+    const three = path.join(root, 'scripts/node_modules/three');
+    file = path.join(three, path.normalize(url.slice('/three/'.length)));
+    if (!file.startsWith(three)) file = undefined;
+  }
+  if (url === '/favicon.ico') {
+    res.writeHead(204);
+    res.end();
+  } else if (url === '/') {
+    res.writeHead(200, { 'content-type': 'text/html' });
+    res.end(page);
+  } else if (file && fs.existsSync(file)) {
+    res.writeHead(200, { 'content-type': types[path.extname(file)] ?? 'application/octet-stream' });
+    res.end(fs.readFileSync(file));
+  } else {
+    res.writeHead(404);
+    res.end();
+  }
+});
+await new Promise((resolve) => server.listen(0, '127.0.0.1', resolve));
+
+let browser = null;
+const deadline = setTimeout(() => {
+  console.log('FAIL the test did not finish within 90 s');
+  process.exit(1);
+}, 90_000);
+try {
+  browser = await chromium.launch({
+    executablePath: chromiumPath,
+    args: ['--no-sandbox', '--disable-gpu', '--no-first-run', '--disable-background-networking',
+           '--disable-component-update', '--disable-sync'],
+  });
+  const tab = await browser.newPage();
+  tab.on('console', (m) => { if (m.type() === 'error') console.log(`page console: ${m.text()}`); });
+  tab.on('pageerror', (e) => console.log(`page error: ${e.message}`));
+  await tab.goto(`http://127.0.0.1:${server.address().port}/`);
+  await tab.waitForFunction(() => window.ready === true, null, { timeout: 30_000 });
+  for (const [name, file] of Object.entries(files)) {
+    const want = fileCounts(file);
+    const got = await tab.evaluate((url) => window.loadGlb(url), `/${path.basename(file)}`);
+    check(want.draco === (name === 'draco'), `${name}: KHR_draco_mesh_compression is ${want.draco ? '' : 'not '}required`);
+    check(got.triangles === want.triangles && got.triangles === printed[name],
+          `${name}: three.js shows ${got.triangles} triangles, the file's indices say ${want.triangles}, mtlod-extract ${printed[name]}`);
+    check(got.vertices === want.vertices, `${name}: three.js has ${got.vertices} vertices, the file's POSITION ${want.vertices}`);
+    check(JSON.stringify(want.attributes) === JSON.stringify(['COLOR_0', 'NORMAL', 'POSITION']) &&
+          JSON.stringify(got.attributes) === JSON.stringify(['color', 'normal', 'position']),
+          `${name}: attributes ${want.attributes} in the file, ${got.attributes} in three.js`);
+    // Colours: the formula at the decoded position, within one unit (14-bit Draco positions move a
+    // coordinate by up to 1.2e-4, a channel by 0.02, and the rounding may fall either side).
+    check(got.worstColor <= 1.02, `${name}: every colour matches its position (worst ${got.worstColor.toFixed(3)} of 255)`);
+    // Normals: the unit position, within Draco's 10-bit quantization (float32 exactly for plain).
+    check(got.worstNormalDot > 0.999, `${name}: every normal points along its position (worst cosine ${got.worstNormalDot.toFixed(6)})`);
+  }
+} catch (error) {
+  console.log(`FAIL ${error.stack ?? error}`);
+  failures += 1;
+} finally {
+  if (browser) await browser.close();
+  server.close();
+  clearTimeout(deadline);
+}
+process.exit(failures ? 1 : 0);
