@@ -10,30 +10,11 @@
 import { spawnSync } from 'node:child_process';
 import fs from 'node:fs';
 import http from 'node:http';
-import { createRequire } from 'node:module';
 import path from 'node:path';
-import { fileURLToPath } from 'node:url';
+import { check, chromium, chromiumOrSkip, parseArgs, results, root } from './browser_support.mjs';
 
-const root = path.resolve(path.dirname(fileURLToPath(import.meta.url)), '../..');
-const { chromium } = createRequire(path.join(root, 'scripts/package.json'))('playwright-core');
-
-const args = Object.fromEntries(process.argv.slice(2).reduce((pairs, a, i, all) =>
-  (a.startsWith('--') ? [...pairs, [a.slice(2), all[i + 1]]] : pairs), []));
-for (const required of ['build', 'extract', 'out']) {
-  if (!args[required]) throw new Error(`missing --${required}`);
-}
-fs.mkdirSync(args.out, { recursive: true });
-const chromiumPath = process.env.MTLOD_CHROMIUM ?? '/usr/bin/chromium';
-if (!fs.existsSync(chromiumPath)) {
-  console.log(`skipped: ${chromiumPath} is not installed (scripts/bootstrap.sh installs Debian's chromium)`);
-  process.exit(77);
-}
-
-let failures = 0;
-function check(condition, message) {
-  console.log(`${condition ? 'ok  ' : 'FAIL'} ${message}`);
-  if (!condition) failures += 1;
-}
+const args = parseArgs(process.argv.slice(2), ['build', 'extract', 'out']);
+const chromiumPath = chromiumOrSkip();
 
 function run(binary, argv) {
   const r = spawnSync(binary, argv, { encoding: 'utf8' });
@@ -211,10 +192,10 @@ try {
   }
 } catch (error) {
   console.log(`FAIL ${error.stack ?? error}`);
-  failures += 1;
+  results.failures += 1;
 } finally {
   if (browser) await browser.close();
   server.close();
   clearTimeout(deadline);
 }
-process.exit(failures ? 1 : 0);
+process.exit(results.failures ? 1 : 0);

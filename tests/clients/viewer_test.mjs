@@ -15,34 +15,15 @@
 // node viewer_test.mjs [--tls] --server BIN --mesh bunny.ply [--painted painted.ply] --out DIR
 import { spawn, spawnSync } from 'node:child_process';
 import fs from 'node:fs';
-import { createRequire } from 'node:module';
 import path from 'node:path';
-import { fileURLToPath } from 'node:url';
-
-const root = path.resolve(path.dirname(fileURLToPath(import.meta.url)), '../..');
-const { chromium } = createRequire(path.join(root, 'scripts/package.json'))('playwright-core');
+import { check, chromium, chromiumOrSkip, parseArgs, results } from './browser_support.mjs';
 
 const tls = process.argv.includes('--tls');
-const args = Object.fromEntries(process.argv.slice(2).filter((a) => a !== '--tls').reduce((pairs, a, i, all) =>
-  (a.startsWith('--') ? [...pairs, [a.slice(2), all[i + 1]]] : pairs), []));
-for (const required of ['server', 'mesh', 'out']) {
-  if (!args[required]) throw new Error(`missing --${required}`);
-}
-fs.mkdirSync(args.out, { recursive: true });
-const chromiumPath = process.env.MTLOD_CHROMIUM ?? '/usr/bin/chromium';
-if (!fs.existsSync(chromiumPath)) {
-  console.log(`skipped: ${chromiumPath} is not installed (scripts/bootstrap.sh installs Debian's chromium)`);
-  process.exit(77);
-}
+const args = parseArgs(process.argv.slice(2), ['server', 'mesh', 'out'], ['--tls']);
+const chromiumPath = chromiumOrSkip();
 if (!fs.existsSync(args.mesh)) {
   console.log(`skipped: ${args.mesh} is missing (scripts/prepare-models.sh writes it)`);
   process.exit(77);
-}
-
-let failures = 0;
-function check(condition, message) {
-  console.log(`${condition ? 'ok  ' : 'FAIL'} ${message}`);
-  if (!condition) failures += 1;
 }
 
 const sleep = (ms) => new Promise((resolve) => setTimeout(resolve, ms));
@@ -207,7 +188,7 @@ try {
   }
 } catch (error) {
   console.log(`FAIL ${error.stack ?? error}`);
-  failures += 1;
+  results.failures += 1;
 } finally {
   if (browser) await browser.close();
   if (!serverExit) {
@@ -218,4 +199,4 @@ try {
   if (!serverExit) server.kill('SIGKILL');
   clearTimeout(deadline);
 }
-process.exit(failures ? 1 : 0);
+process.exit(results.failures ? 1 : 0);

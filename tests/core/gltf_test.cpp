@@ -38,6 +38,15 @@ std::string name_of(const Variant& v) {
   return std::string(v.normals ? "normals" : "no-normals") + (v.colors ? "-colors" : "-no-colors");
 }
 
+// Both writers with and without each optional attribute; gtest names may not contain '-'.
+const auto kEveryVariant =
+    testing::Values(Variant{false, false}, Variant{true, false}, Variant{false, true}, Variant{true, true});
+std::string test_name(const testing::TestParamInfo<Variant>& info) {
+  std::string name = name_of(info.param);
+  std::erase(name, '-');
+  return name;
+}
+
 // A noisy sphere with distinct colours per vertex and, when asked, normals of every length: the
 // normalised position scaled by 1, 2 or 3, except vertex 0 whose normal is zero.
 Mesh test_mesh(const Variant& variant) {
@@ -225,14 +234,7 @@ TEST_P(GltfPlain, ReadsBackAsTheSameMesh) {
   }
 }
 
-INSTANTIATE_TEST_SUITE_P(Attributes, GltfPlain,
-                         testing::Values(Variant{false, false}, Variant{true, false}, Variant{false, true},
-                                         Variant{true, true}),
-                         [](const auto& info) {
-                           std::string name = name_of(info.param);
-                           std::erase(name, '-');
-                           return name;
-                         });
+INSTANTIATE_TEST_SUITE_P(Attributes, GltfPlain, kEveryVariant, test_name);
 
 class GltfDraco : public testing::TestWithParam<Variant> {};
 
@@ -354,14 +356,7 @@ TEST_P(GltfDraco, EmbedsThePayloadUnchangedAndItDecodesToTheMesh) {
   EXPECT_EQ(indices.at("type"), "SCALAR");
 }
 
-INSTANTIATE_TEST_SUITE_P(Attributes, GltfDraco,
-                         testing::Values(Variant{false, false}, Variant{true, false}, Variant{false, true},
-                                         Variant{true, true}),
-                         [](const auto& info) {
-                           std::string name = name_of(info.param);
-                           std::erase(name, '-');
-                           return name;
-                         });
+INSTANTIATE_TEST_SUITE_P(Attributes, GltfDraco, kEveryVariant, test_name);
 
 TEST(GltfGlb, BadInputIsNamed) {
   const auto dir = test::scratch_dir("gltf-bad");
