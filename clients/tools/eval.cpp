@@ -2,6 +2,8 @@
 // papers/002 §4). Subcommands:
 //   compare A B              object-space Hausdorff / mean / RMS, both directions (Metro-style)
 //   silhouette A B --eye ... silhouette XOR and contour distances from one camera
+//   image A B --eye ...      both rendered from one camera, shaded with A's normals: SSIM, mean
+//                            absolute error and their foveated variants, coverage, depth
 //   experiment --mesh N=P... uniform vs silhouette-DT vs focus-DT budgeted refinement at equal
 //                            triangle counts, plus meshoptimizer's meshopt_simplify as a peer, over
 //                            several meshes, cameras and budgets; writes REPORT.md, results.csv, PNGs
@@ -12,6 +14,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <map>
 #include <memory>
@@ -26,6 +29,7 @@
 
 #include "CLI/CLI.hpp"
 #include "core/bounds.hpp"
+#include "core/eval/image_metrics.hpp"
 #include "core/eval/render.hpp"
 #include "core/eval/silhouette_metrics.hpp"
 #include "core/eval/surface_metrics.hpp"
@@ -51,9 +55,11 @@ double seconds_since(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
 }
 
-// A perspective camera; fails on a degenerate or non-finite setup with a message naming the flag.
+// A perspective camera for a viewport of the given aspect (width / height); fails on a degenerate or
+// non-finite setup with a message naming the flag.
 Result<Camera> make_camera(const std::array<double, 3>& eye, const std::array<double, 3>& target,
-                           const std::array<double, 3>& up, double fov_deg, double near, double far) {
+                           const std::array<double, 3>& up, double fov_deg, double near, double far,
+                           double aspect = 1.0) {
   const glm::vec3 e(eye[0], eye[1], eye[2]), t(target[0], target[1], target[2]), u(up[0], up[1], up[2]);
   for (int c = 0; c < 3; ++c)
     if (!std::isfinite(e[c]) || !std::isfinite(t[c]) || !std::isfinite(u[c]))
@@ -70,7 +76,7 @@ Result<Camera> make_camera(const std::array<double, 3>& eye, const std::array<do
                       fmt::format("camera: near {} / far {} planes invalid", near, far));
   Camera camera;
   camera.view = glm::lookAt(e, t, u);
-  camera.projection = glm::perspective(glm::radians(float(fov_deg)), 1.0f, float(near), float(far));
+  camera.projection = glm::perspective(glm::radians(float(fov_deg)), float(aspect), float(near), float(far));
   return camera;
 }
 
@@ -140,15 +146,21 @@ struct CameraFlags {
   std::uint32_t size = 512;
 };
 
-int run_silhouette(const std::string& a_path, const std::string& b_path, const CameraFlags& f,
-                   const std::string& png) {
-  auto a = load(a_path);
-  if (!a) return fmt::print(stderr, "mtlod-eval: {}\n", a.error().message), 1;
-  auto b = load(b_path);
-  if (!b) return fmt::print(stderr, "mtlod-eval: {}\n", b.error().message), 1;
-  if (f.size == 0 || f.size > kMaxGridSide)
-    return fmt::print(stderr, "mtlod-eval: --size {} is outside [1, {}]\n", f.size, kMaxGridSide), 2;
-  const Bounds bounds = bounds_of(a->positions);
+// The camera flags shared by the subcommands that render (--size is the silhouette's own).
+void add_camera_flags(CLI::App& app, CameraFlags& camera) {
+  app.add_option("--eye", camera.eye, "X,Y,Z (default: in front of A along +z)")->delimiter(',')->expected(3);
+  app.add_option("--target", camera.target, "X,Y,Z (default: A's bounding-box centre)")
+      ->delimiter(',')
+      ->expected(3);
+  app.add_option("--up", camera.up, "X,Y,Z")->delimiter(',')->expected(3);
+  app.add_option("--fov", camera.fov, "vertical field of view, degrees");
+  app.add_option("--near", camera.near, "near plane (default: distance/100)");
+  app.add_option("--far", camera.far, "far plane (default: distance·100)");
+}
+
+// The camera of the flags for a model with these bounds: without --eye, in front of the model
+// along +z, far enough that its bounding sphere fills about 90 % of the field of view.
+Result<Camera> camera_from_flags(const Bounds& bounds, const CameraFlags& f, double aspect) {
   std::array<double, 3> eye, target = to_double(bounds.centre()), up{f.up[0], f.up[1], f.up[2]};
   if (f.eye.empty()) {
     const double d = bounds.radius() / std::sin(glm::radians(f.fov / 2)) / 0.9;
@@ -158,8 +170,19 @@ int run_silhouette(const std::string& a_path, const std::string& b_path, const C
   }
   if (!f.target.empty()) target = {f.target[0], f.target[1], f.target[2]};
   const double distance = std::hypot(eye[0] - target[0], eye[1] - target[1], eye[2] - target[2]);
-  auto camera = make_camera(eye, target, up, f.fov, f.near > 0 ? f.near : distance / 100,
-                            f.far > 0 ? f.far : distance * 100);
+  return make_camera(eye, target, up, f.fov, f.near > 0 ? f.near : distance / 100,
+                     f.far > 0 ? f.far : distance * 100, aspect);
+}
+
+int run_silhouette(const std::string& a_path, const std::string& b_path, const CameraFlags& f,
+                   const std::string& png) {
+  auto a = load(a_path);
+  if (!a) return fmt::print(stderr, "mtlod-eval: {}\n", a.error().message), 1;
+  auto b = load(b_path);
+  if (!b) return fmt::print(stderr, "mtlod-eval: {}\n", b.error().message), 1;
+  if (f.size == 0 || f.size > kMaxGridSide)
+    return fmt::print(stderr, "mtlod-eval: --size {} is outside [1, {}]\n", f.size, kMaxGridSide), 2;
+  auto camera = camera_from_flags(bounds_of(a->positions), f, 1.0);
   if (!camera) return fmt::print(stderr, "mtlod-eval: {}\n", camera.error().message), 2;
   const GridSize grid{f.size, f.size};
   const ViewMapping mapping(*camera, grid);
@@ -180,6 +203,94 @@ int run_silhouette(const std::string& a_path, const std::string& b_path, const C
       return fmt::print(stderr, "mtlod-eval: {}\n", s.error().message), 1;
   }
   return 0;
+}
+
+// ---------------------------------------------------------------------------------------------
+// image-space metrics: the helpers the image subcommand and the experiment share
+
+// One shaded rendering: the RGB image, its luminance (core/eval/image_metrics) and the eye-space depth
+// of every pixel (+inf on the background).
+struct ShadedView {
+  std::vector<std::uint8_t> rgb;
+  std::vector<float> luminance, depth;
+  std::size_t covered_px = 0;
+};
+
+// Renders (positions, triangles) through mapping, shaded smoothly with normals (per vertex, indexed
+// like positions; empty: flat shading), the figures' colours on a white background.
+void render_shaded(const ViewMapping& mapping, std::span<const float> positions,
+                   std::span<const std::uint32_t> triangles, std::span<const float> normals,
+                   ShadedView& out) {
+  const std::size_t n = mapping.grid().cell_count();
+  out.rgb.resize(3 * n), out.luminance.resize(n), out.depth.resize(n);
+  RenderOptions options;
+  options.vertex_normals = normals;
+  out.covered_px = render_mesh(mapping, positions, triangles, {}, options, out.rgb, out.depth);
+  luminance_from_rgb(out.rgb, out.luminance);
+}
+
+// Image-space difference of a simplification's rendering from the original's, both from one mapping:
+// the metrics of core/eval/image_metrics (covered = either rendering covers the pixel), and from the
+// depth, the silhouette XOR and the depth difference where both cover a pixel.
+struct ImageMeasure {
+  ImageComparison image;
+  std::size_t xor_px = 0;                // covered by exactly one
+  std::size_t both_px = 0;               // covered by both
+  double depth_mean = 0, depth_max = 0;  // |depth a − depth b| over both_px, model units
+};
+
+// Scratch reused between calls (one per thread).
+struct ImageScratch {
+  std::vector<std::uint8_t> covered;
+  std::vector<float> map;
+};
+
+ImageMeasure measure_image(const ShadedView& a, const ShadedView& b, GridSize grid,
+                           std::span<const float> acuity_weights, ImageScratch& scratch) {
+  ImageMeasure m;
+  scratch.covered.resize(grid.cell_count());
+  double depth_sum = 0;
+  for (std::size_t c = 0; c < grid.cell_count(); ++c) {
+    const bool in_a = std::isfinite(a.depth[c]), in_b = std::isfinite(b.depth[c]);
+    scratch.covered[c] = in_a || in_b;
+    m.xor_px += in_a != in_b;
+    if (in_a && in_b) {
+      const double d = std::abs(double(a.depth[c]) - double(b.depth[c]));
+      depth_sum += d, m.depth_max = std::max(m.depth_max, d), ++m.both_px;
+    }
+  }
+  m.depth_mean = m.both_px ? depth_sum / double(m.both_px) : 0.0;
+  scratch.map.resize(ssim_map_size(grid).cell_count());
+  m.image = compare_images(a.luminance, b.luminance, grid, scratch.covered, acuity_weights, scratch.map);
+  return m;
+}
+
+// Normals for a simplification B of mesh A from A's: each vertex of B takes the normal of A's vertex
+// at exactly the same position (a cut's vertices are the model's, copied bit for bit, whatever their
+// numbering in B's file); the others get B's own area-weighted normal. Returns how many matched.
+std::size_t normals_from_original(std::span<const float> a_positions, std::span<const float> a_normals,
+                                  std::span<const float> b_positions,
+                                  std::span<const std::uint32_t> b_triangles, std::vector<float>& b_normals) {
+  const auto key = [](std::span<const float> p, std::size_t v) {
+    std::array<std::uint32_t, 3> k;
+    std::memcpy(k.data(), &p[3 * v], sizeof k);
+    return k;
+  };
+  std::vector<std::pair<std::array<std::uint32_t, 3>, std::uint32_t>> by_position(a_positions.size() / 3);
+  for (std::size_t v = 0; v < by_position.size(); ++v)
+    by_position[v] = {key(a_positions, v), std::uint32_t(v)};
+  std::sort(by_position.begin(), by_position.end());
+  b_normals.resize(b_positions.size());
+  area_weighted_normals(b_positions, b_triangles, b_normals);
+  std::size_t matched = 0;
+  for (std::size_t v = 0; v < b_positions.size() / 3; ++v) {
+    const auto k = key(b_positions, v);
+    const auto it = std::lower_bound(by_position.begin(), by_position.end(), std::pair{k, std::uint32_t{0}});
+    if (it == by_position.end() || it->first != k) continue;
+    std::copy_n(&a_normals[3 * std::size_t{it->second}], 3, &b_normals[3 * v]);
+    ++matched;
+  }
+  return matched;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -757,6 +868,127 @@ std::string report_markdown(const ExperimentOptions& o, const std::vector<Row>& 
   return md;
 }
 
+// ---------------------------------------------------------------------------------------------
+// image subcommand
+
+struct ImageFlags {
+  CameraFlags camera;
+  std::string viewport = "512x512";
+  std::vector<double> focus;       // normalised viewport coordinates; empty: the centroid of A's image
+  double viewing_distance_px = 0;  // 0: the camera's centre of projection
+  double e2_deg = 2.3;
+  bool flat = false;
+  std::string diff_png, renders_prefix;
+  double diff_scale = 0.25;
+};
+
+// "WxH" or "N" (square).
+bool parse_viewport(const std::string& text, GridSize& out) {
+  unsigned w = 0, h = 0;
+  char x = 0, rest = 0;
+  const int n = std::sscanf(text.c_str(), "%u%c%u%c", &w, &x, &h, &rest);
+  if (n == 1)
+    h = w;
+  else if (!(n == 3 && (x == 'x' || x == 'X')))
+    return false;
+  out = {w, h};
+  return true;
+}
+
+int run_image(const std::string& a_path, const std::string& b_path, const ImageFlags& f) {
+  auto a = load(a_path);
+  if (!a) return fmt::print(stderr, "mtlod-eval: {}\n", a.error().message), 1;
+  auto b = load(b_path);
+  if (!b) return fmt::print(stderr, "mtlod-eval: {}\n", b.error().message), 1;
+  GridSize grid;
+  const std::uint32_t min_side = 2 * SsimOptions{}.window_radius + 1;
+  if (!parse_viewport(f.viewport, grid) || grid.width < min_side || grid.height < min_side ||
+      grid.width > kMaxGridSide || grid.height > kMaxGridSide)
+    return fmt::print(stderr, "mtlod-eval: --viewport '{}' is not WxH with sides in [{}, {}]\n", f.viewport,
+                      min_side, kMaxGridSide),
+           2;
+  if (!f.focus.empty() && !(f.focus[0] >= 0 && f.focus[0] <= 1 && f.focus[1] >= 0 && f.focus[1] <= 1))
+    return fmt::print(stderr, "mtlod-eval: --focus {},{} is outside [0, 1]²\n", f.focus[0], f.focus[1]), 2;
+  if (!(f.viewing_distance_px >= 0) || !(f.e2_deg > 0) || !(f.diff_scale > 0))
+    return fmt::print(stderr, "mtlod-eval: --viewing-distance-px, --e2 and --diff-scale must be positive\n"),
+           2;
+  const Bounds bounds = bounds_of(a->positions);
+  auto camera = camera_from_flags(bounds, f.camera, double(grid.width) / grid.height);
+  if (!camera) return fmt::print(stderr, "mtlod-eval: {}\n", camera.error().message), 2;
+  const ViewMapping mapping(*camera, grid);
+
+  // "Shaded with the original normals": A's own (from its file, else area-weighted), handed to B's
+  // vertices by position.
+  std::vector<float> a_normals = a->normals, b_normals;
+  if (a_normals.empty()) {
+    a_normals.resize(a->positions.size());
+    area_weighted_normals(a->positions, a->triangles, a_normals);
+  }
+  const std::size_t matched =
+      normals_from_original(a->positions, a_normals, b->positions, b->triangles, b_normals);
+  ShadedView va, vb;
+  render_shaded(mapping, a->positions, a->triangles, f.flat ? std::span<const float>{} : a_normals, va);
+  render_shaded(mapping, b->positions, b->triangles, f.flat ? std::span<const float>{} : b_normals, vb);
+
+  std::vector<std::uint8_t> mask_a(grid.cell_count());
+  for (std::size_t c = 0; c < mask_a.size(); ++c) mask_a[c] = std::isfinite(va.depth[c]);
+  const std::array<float, 2> focus01 = f.focus.empty()
+                                           ? focus_point(mask_a, grid)
+                                           : std::array<float, 2>{float(f.focus[0]), float(f.focus[1])};
+  Foveation foveation;
+  foveation.focus_x_px = focus01[0] * float(grid.width);
+  foveation.focus_y_px = focus01[1] * float(grid.height);
+  foveation.focal_px =
+      f.viewing_distance_px > 0 ? f.viewing_distance_px : focal_px_from_fov(grid.height, f.camera.fov);
+  foveation.e2_deg = f.e2_deg;
+  std::vector<float> weights(grid.cell_count());
+  foveation_weights(grid, foveation, weights);
+  ImageScratch scratch;
+  const ImageMeasure m = measure_image(va, vb, grid, weights, scratch);
+
+  const double diagonal = bounds.diagonal();
+  if (f.flat)
+    fmt::print("A = {} ({} triangles), B = {} ({} triangles), flat shading\n", a_path, a->triangle_count(),
+               b_path, b->triangle_count());
+  else
+    fmt::print(
+        "A = {} ({} triangles), B = {} ({} triangles; {} of its {} vertices shaded with A's normals)\n",
+        a_path, a->triangle_count(), b_path, b->triangle_count(), matched, b->vertex_count());
+  fmt::print(
+      "{}x{} image, {}° vertical field of view, eye {:.1f} px from the image ({:.1f} px/degree at the "
+      "centre); focus ({:.3f}, {:.3f}) = pixel ({:.1f}, {:.1f}){}, e2 = {}°\n",
+      grid.width, grid.height, f.camera.fov, foveation.focal_px, foveation.focal_px * M_PI / 180, focus01[0],
+      focus01[1], foveation.focus_x_px, foveation.focus_y_px,
+      f.focus.empty() ? " (centroid of A's image)" : "", f.e2_deg);
+  fmt::print(
+      "  coverage: A {} px, B {} px, either {} px, XOR {} px; depth where both cover: mean |dz| {:.6g} "
+      "({:.4f} % of A's diagonal), max {:.6g} ({:.3f} %)\n",
+      va.covered_px, vb.covered_px, m.image.covered_pixels, m.xor_px, m.depth_mean,
+      100 * m.depth_mean / diagonal, m.depth_max, 100 * m.depth_max / diagonal);
+  fmt::print("  SSIM {:.5f} (covered pixels {:.5f}, foveated {:.5f})\n", m.image.ssim, m.image.ssim_covered,
+             m.image.foveated_ssim);
+  fmt::print("  MAE  {:.5f} (covered pixels {:.5f}, foveated {:.5f}); luminance in [0, 1]\n", m.image.mae,
+             m.image.mae_covered, m.image.foveated_mae);
+
+  if (!f.diff_png.empty()) {
+    // |ΔY| on the figures' ramp, blue = 0 to red = diff_scale; white where neither covers.
+    std::vector<std::uint8_t> rgb(3 * grid.cell_count(), 255);
+    for (std::size_t c = 0; c < grid.cell_count(); ++c) {
+      if (!scratch.covered[c]) continue;
+      const auto colour = ramp_color(float(std::abs(va.luminance[c] - vb.luminance[c]) / f.diff_scale));
+      std::copy(colour.begin(), colour.end(), &rgb[3 * c]);
+    }
+    if (auto s = io::write_png_rgb(f.diff_png, rgb, grid); !s)
+      return fmt::print(stderr, "mtlod-eval: {}\n", s.error().message), 1;
+  }
+  if (!f.renders_prefix.empty()) {
+    for (const auto& [suffix, view] : {std::pair{"-a.png", &va}, std::pair{"-b.png", &vb}})
+      if (auto s = io::write_png_rgb(f.renders_prefix + suffix, view->rgb, grid); !s)
+        return fmt::print(stderr, "mtlod-eval: {}\n", s.error().message), 1;
+  }
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -777,19 +1009,33 @@ int main(int argc, char** argv) {
   auto* silhouette = app.add_subcommand("silhouette", "silhouette XOR and contour distances from one camera");
   silhouette->add_option("a", a, "original mesh")->required();
   silhouette->add_option("b", b, "simplified mesh")->required();
-  silhouette->add_option("--eye", camera.eye, "X,Y,Z (default: in front of A along +z)")
-      ->delimiter(',')
-      ->expected(3);
-  silhouette->add_option("--target", camera.target, "X,Y,Z (default: A's bounding-box centre)")
-      ->delimiter(',')
-      ->expected(3);
-  silhouette->add_option("--up", camera.up, "X,Y,Z")->delimiter(',')->expected(3);
-  silhouette->add_option("--fov", camera.fov, "vertical field of view, degrees");
-  silhouette->add_option("--near", camera.near, "near plane (default: distance/100)");
-  silhouette->add_option("--far", camera.far, "far plane (default: distance·100)");
+  add_camera_flags(*silhouette, camera);
   silhouette->add_option("--size", camera.size, "image side in pixels");
   silhouette->add_option("--xor-png", xor_png,
                          "write the two masks as PNG (grey both, red B only, blue A only)");
+
+  ImageFlags image_flags;
+  auto* image = app.add_subcommand(
+      "image", "render A and B from one camera, shaded with A's normals: SSIM, MAE, foveated SSIM/MAE");
+  image->add_option("a", a, "original mesh")->required();
+  image->add_option("b", b, "simplified mesh (its vertices A's, in any order)")->required();
+  add_camera_flags(*image, image_flags.camera);
+  image->add_option("--viewport", image_flags.viewport, "image size WxH in pixels (the camera's aspect)")
+      ->capture_default_str();
+  image
+      ->add_option("--focus", image_flags.focus,
+                   "X,Y in normalised viewport coordinates (default: A's centroid)")
+      ->delimiter(',')
+      ->expected(2);
+  image->add_option("--viewing-distance-px", image_flags.viewing_distance_px,
+                    "eye to image in pixels, for eccentricity (default: the camera's, (H/2)/tan(fov/2))");
+  image->add_option("--e2", image_flags.e2_deg, "eccentricity in degrees at which acuity halves")
+      ->capture_default_str();
+  image->add_flag("--flat", image_flags.flat, "flat shading from the faces instead of A's vertex normals");
+  image->add_option("--dump-diff", image_flags.diff_png, "write |luminance difference| as PNG (ramp)");
+  image->add_option("--diff-scale", image_flags.diff_scale, "luminance difference drawn red in --dump-diff")
+      ->capture_default_str();
+  image->add_option("--dump-renders", image_flags.renders_prefix, "write PREFIX-a.png and PREFIX-b.png");
 
   ExperimentOptions ex;
   auto* experiment =
@@ -815,6 +1061,7 @@ int main(int argc, char** argv) {
 
   if (compare->parsed()) return run_compare(a, b, samples);
   if (silhouette->parsed()) return run_silhouette(a, b, camera, xor_png);
+  if (image->parsed()) return run_image(a, b, image_flags);
   std::string command = "mtlod-eval";
   for (int i = 1; i < argc; ++i) command += std::string(" ") + argv[i];
   return run_experiment(ex, command);

@@ -2,6 +2,9 @@
 // through a view mapping, flat (headlight Lambert) shading, an optional wireframe overlay that the
 // z-buffer hides like the surface, and colours per vertex or per triangle (the papers' figure 2
 // labels, figure 5 Hausdorff colour map). Writes an RGB byte image; core/io/image_io makes the PNG.
+// For the image-space metrics (core/eval/image_metrics) it also shades smoothly from given vertex
+// normals, so that a cut, whose vertices are the model's, is lit with the model's own normals, and
+// it hands out the depth of every pixel.
 #pragma once
 
 #include <array>
@@ -20,6 +23,10 @@ struct RenderOptions {
   bool wireframe = false;      // draw the visible triangle edges
   float wire_width_px = 0.5f;  // half width of a wire line, pixels
   std::array<std::uint8_t, 3> wire_color{40, 40, 40};
+  // Smooth shading: x, y, z per vertex (indexed like positions; any length, zero gives the dark
+  // 0.25). The normal and the view ray are interpolated perspective-correctly to each pixel and the
+  // same headlight law applied there. Empty: flat shading from the face normal.
+  std::span<const float> vertex_normals;
 };
 
 // Optional colours: per_vertex (3 bytes per vertex, interpolated across the triangle) or
@@ -32,10 +39,19 @@ struct RenderColors {
 // Renders (positions, triangles) through mapping into rgb (3·mapping.grid().cell_count() bytes, row
 // major, top row first), nearest surface wins. A pixel is drawn when its centre lies in a projected
 // triangle; triangles with a corner at or behind the eye plane are skipped. Returns the number of
-// pixels the mesh covers.
+// pixels the mesh covers. depth, when not empty (one float per pixel), receives the eye-space depth
+// of the visible surface (−z_eye in the camera's units, ViewMapping::eye_depth_from_ndc_z) and +inf
+// where no triangle covers the pixel.
 std::size_t render_mesh(const ViewMapping& mapping, std::span<const float> positions,
                         std::span<const std::uint32_t> triangles, const RenderColors& colors,
-                        const RenderOptions& options, std::span<std::uint8_t> rgb);
+                        const RenderOptions& options, std::span<std::uint8_t> rgb,
+                        std::span<float> depth = {});
+
+// Area-weighted vertex normals of (positions, triangles): the sum of the (unnormalised, so
+// area-weighted) face normals around each vertex, scaled to unit length; a vertex on no triangle, or
+// whose faces cancel, gets (0, 0, 0). normals holds positions.size() floats.
+void area_weighted_normals(std::span<const float> positions, std::span<const std::uint32_t> triangles,
+                           std::span<float> normals);
 
 // The colour ramp of the figures for t in [0, 1] (clamped): blue → cyan → green → yellow → red, the
 // usual Hausdorff-distance palette (MESH, Metro). NaN gives grey.
