@@ -286,6 +286,9 @@ void Connection::start_next_job() {
                                        "the server failed on this extraction"};
       }
     }();
+    // This worker's scratch: a huge grid's is freed now rather than kept for the next request (the
+    // reservation counted it while the extraction ran).
+    self->server_.metrics.scratch_bytes(Engine::settle_worker_scratch());
     net::post(self->strand_, [self, job = std::move(job), started, outcome = std::move(outcome)]() mutable {
       self->finish_job(job, started, outcome);
     });

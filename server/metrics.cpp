@@ -41,7 +41,8 @@ std::vector<std::pair<std::string, double>> Metrics::snapshot() const {
                                                      {"bytes_in", get(bytes_in_)},
                                                      {"bytes_out", get(bytes_out_)},
                                                      {"extractions", static_cast<double>(extractions)},
-                                                     {"triangles_out", get(triangles_out_)}};
+                                                     {"triangles_out", get(triangles_out_)},
+                                                     {"worker_scratch_bytes", get(scratch_bytes_)}};
   for (std::size_t s = 0; s < kStages.size(); ++s) {
     std::uint64_t sum_us = 0;
     for (const auto& histograms : stage_histograms_) sum_us += histograms[s].sum_us();
@@ -119,8 +120,11 @@ std::string Metrics::prometheus_text(const MetricsGauges& gauges) const {
   family("mtlod_session_memory_bytes", "gauge",
          "Bytes the connections' sessions hold (cuts, views, deltas).");
   sample("mtlod_session_memory_bytes", get(session_bytes_));
+  family("mtlod_worker_scratch_bytes", "gauge",
+         "Bytes the workers keep between extractions (grids, per model; at most 64 MiB each).");
+  sample("mtlod_worker_scratch_bytes", get(scratch_bytes_));
   family("mtlod_memory_held_bytes", "gauge",
-         "Worker scratch plus sessions, as the memory ceiling counts them.");
+         "Sessions plus the running extractions' reservations, as the memory ceiling counts them.");
   sample("mtlod_memory_held_bytes", gauges.memory_held_bytes);
   family("mtlod_memory_limit_bytes", "gauge", "The memory ceiling (--max-memory).");
   sample("mtlod_memory_limit_bytes", gauges.memory_limit_bytes);

@@ -35,7 +35,7 @@ class PrometheusHistogram {
 
 // Values the server holds elsewhere, sampled when /metrics is scraped.
 struct MetricsGauges {
-  std::uint64_t memory_held_bytes = 0;   // worker scratch plus sessions, as the memory ceiling counts
+  std::uint64_t memory_held_bytes = 0;   // sessions plus running extractions' reservations
   std::uint64_t memory_limit_bytes = 0;  // --max-memory
   std::uint64_t models = 0;
   std::uint64_t model_bytes = 0;         // held in memory by every model
@@ -62,6 +62,8 @@ class Metrics {
   void extraction(const protocol::StageTimings& t, std::uint64_t triangles, bool gaze);
   // A connection's session now holds `delta` bytes more (or fewer).
   void session_bytes(std::int64_t delta) { session_bytes_.fetch_add(static_cast<std::uint64_t>(delta)); }
+  // The workers' scratch kept between extractions now holds `delta` bytes more (or fewer).
+  void scratch_bytes(std::int64_t delta) { scratch_bytes_.fetch_add(static_cast<std::uint64_t>(delta)); }
 
   std::uint64_t open_connections() const { return connections_open_.load(std::memory_order_relaxed); }
   // Named values, for the `stats` reply.
@@ -79,6 +81,7 @@ class Metrics {
   Counter bytes_in_{0}, bytes_out_{0};
   Counter triangles_out_{0};
   Counter session_bytes_{0};  // wraps through negative deltas; the sum is what sessions hold
+  Counter scratch_bytes_{0};  // likewise, what the workers keep
   // [extract, gaze][stage]
   std::array<std::array<PrometheusHistogram, kStages.size()>, 2> stage_histograms_{};
 };

@@ -17,6 +17,7 @@
 #include "core/draco_decode.hpp"
 #include "protocol/camera.hpp"
 #include "protocol/text.hpp"
+#include "server/engine.hpp"
 #include "tests/core/test_meshes.hpp"
 #include "tests/server/http_client.hpp"
 #include "tests/server/raw_client.hpp"
@@ -238,8 +239,6 @@ TEST(Abuse, MemoryCeilingRefusesWorkThatWouldPassItAndFreesClosedSessions) {
   EXPECT_NE(as_mesh(*reply), nullptr) << reply->json;
 }
 
-// ---- Hostile traffic beside a normal load --------------------------------------------------
-
 std::uint64_t rss_bytes(pid_t pid) {
   std::ifstream in("/proc/" + std::to_string(pid) + "/status");
   std::string key;
@@ -253,6 +252,36 @@ std::uint64_t rss_bytes(pid_t pid) {
   }
   return 0;
 }
+
+// The ceiling counts a request's grid while it runs; a worker keeps modest grids for the next
+// request and frees a huge one's once it is done, so clients asking for the largest grid cannot
+// leave hundreds of MiB behind in every worker. (The connection's own view of that grid is its
+// session's, freed when it closes.)
+TEST(Abuse, AHugeGridsScratchIsFreedOnceItsExtractionEnds) {
+  Served s("scratch", {"--workers", "1"});
+  SKIP_WITHOUT_SERVER(s);
+  RawClient c("127.0.0.1", s.port());
+  ASSERT_TRUE(c.send_request(s.extract, 1));  // the worker's modest scratch, kept
+  auto first = c.receive(60s);
+  ASSERT_TRUE(first.has_value() && as_mesh(*first)) << s.server->log();
+  const double kept = s.stats().at("worker_scratch_bytes");
+  EXPECT_GE(kept, double(as_mesh(*first)->scratch_bytes));
+  EXPECT_LE(kept, double(server::Engine::kRetainedScratchBytes));
+
+  protocol::Extract huge = s.extract;
+  huge.grid = {4096, 4096};
+  ASSERT_TRUE(c.send_request(huge, 2));
+  auto reply = c.receive(120s);
+  ASSERT_TRUE(reply.has_value()) << s.server->log();
+  const auto* mesh = as_mesh(*reply);
+  ASSERT_NE(mesh, nullptr) << reply->json;
+  ASSERT_GT(mesh->scratch_bytes, server::Engine::kRetainedScratchBytes)
+      << "the grid does not exercise the release";
+  EXPECT_LE(s.stats().at("worker_scratch_bytes"), double(server::Engine::kRetainedScratchBytes))
+      << "the grid's " << mesh->scratch_bytes << " bytes of scratch were kept";
+}
+
+// ---- Hostile traffic beside a normal load --------------------------------------------------
 
 int open_fds(pid_t pid) {
   int count = 0;
