@@ -28,6 +28,8 @@ test_packages=(
   openssl                                     # the TLS tests make their certificates with it
   clang-format                                # the test suite checks the tree's formatting
   prometheus                                  # its promtool checks the server's /metrics
+  # tests/deploy/container_test.sh builds docker/Dockerfile and runs docker/compose.yaml with these:
+  podman runc netavark aardvark-dns iptables debootstrap podman-compose curl
 )
 # What the binaries load at run time (the -dev packages above depend on these).
 runtime_packages=(libdraco7 libopenmesh1 libspdlog1.10 libfmt9 libpng16-16 libmeshoptimizer2d libssl3)
