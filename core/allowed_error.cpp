@@ -36,10 +36,11 @@ float law_factor(const RegionLaw& law, float distance_px, float tan_per_px) {
       return f + (1.0f - f) * t;
     }
     case FalloffLaw::kFoveal: {
-      // Acuity falls linearly with eccentricity (MAR grows as 1 + e/e2), and so may the error; it never
-      // exceeds the base error when f ≤ 1.
+      // Acuity falls linearly with eccentricity (MAR grows as 1 + e/e2), and so may the error. f < 1
+      // refines around the focus and never exceeds the base error; f ≥ 1 makes the base error (times f)
+      // the bound at the focus, growing without a cap (tests/evaluation/FIDELITY.md's default, f = 1).
       const float grown = f * (1.0f + eccentricity_deg(distance_px, tan_per_px) / law.foveal_e2_deg);
-      return f <= 1.0f ? std::min(grown, 1.0f) : grown;
+      return f < 1.0f ? std::min(grown, 1.0f) : grown;
     }
   }
   return 1.0f;
@@ -94,10 +95,12 @@ void AllowedErrorField::tabulate(const RegionLaw& law, DistanceMetric metric, fl
 float AllowedErrorField::label_multiplier(std::uint32_t silhouette_label, std::uint32_t focus_label,
                                           std::uint32_t neglect_label) const {
   const AllowedErrorOptions& o = options_;
-  float m = 1.0f;
-  // Silhouette and focus: the stricter (smaller) multiplier wins.
-  if (o.use_silhouette) m = std::min(m, lookup(silhouette_table_, silhouette_label));
+  // Silhouette and focus: the stricter (smaller) multiplier wins. A focus law may grow past 1 (foveal
+  // with f ≥ 1: the bound holds at the focus and grows outwards), which a silhouette law caps at its 1.
+  float m = kInfinity;
+  if (o.use_silhouette) m = lookup(silhouette_table_, silhouette_label);
   if (o.use_focus) m = std::min(m, lookup(focus_table_, focus_label));
+  if (m == kInfinity) m = 1.0f;
   if (o.use_neglect) m *= lookup(neglect_table_, neglect_label);
   return m;
 }

@@ -12,7 +12,8 @@ enum class FalloffLaw : std::uint8_t {
   kStep,        // the papers' two levels: factor inside the region, 1 outside
   kLinear,      // factor up to distance_px, rising linearly to 1 over falloff_px
   kSmoothstep,  // same ramp through smoothstep (C¹ at both ends)
-  kFoveal,  // factor·(1 + eccentricity/foveal_e2_deg), capped at 1: acuity falls linearly with eccentricity
+  kFoveal,  // factor·(1 + eccentricity/foveal_e2_deg), capped at 1 when factor < 1: acuity falls linearly
+            // with eccentricity
 };
 inline constexpr std::size_t kFalloffLawCount = 4;  // tables indexed by a law are sized by it
 

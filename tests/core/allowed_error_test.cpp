@@ -54,6 +54,18 @@ TEST(LawFactor, FovealGrowsLinearlyWithEccentricity) {
   EXPECT_EQ(law_factor(foveal, 1000.0f, tan_per_px), 1.0f);  // capped at the base error
 }
 
+TEST(LawFactor, FovealFromTheBaseErrorGrowsWithoutACap) {
+  // f = 1: the base error is the bound at the focus, and it grows as the minimum angle of resolution
+  // does, 1 + e/e2, however far out (the default criteria of mtlod-gaze, mtlod-load and the viewer).
+  const float tan_per_px = std::tan(2.3f * std::numbers::pi_v<float> / 180.0f) / 10.0f;
+  const RegionLaw foveal{FalloffLaw::kFoveal, 0.0f, 1.0f, 0.0f, 2.3f};
+  EXPECT_EQ(law_factor(foveal, 0.0f, tan_per_px), 1.0f);
+  EXPECT_NEAR(law_factor(foveal, 10.0f, tan_per_px), 2.0f, 1e-5f);
+  const double e1000 = std::atan(100.0 * std::tan(2.3 * std::numbers::pi / 180.0)) * 180.0 / std::numbers::pi;
+  EXPECT_NEAR(law_factor(foveal, 1000.0f, tan_per_px), 1.0 + e1000 / 2.3, 1e-4);
+  EXPECT_GT(law_factor(foveal, 1000.0f, tan_per_px), 30.0f);
+}
+
 TEST(LawFactor, NeglectRegionRaisesTheError) {
   const RegionLaw neglect{FalloffLaw::kStep, 3.0f, 4.0f, 0.0f, 2.3f};
   EXPECT_EQ(law_factor(neglect, 3.0f, 0.0f), 4.0f);

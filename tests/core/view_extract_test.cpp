@@ -347,15 +347,24 @@ SessionScene session_scene() {
 // A session's gaze path (same view, foci moved: occupancy and silhouette transform reused, allowed
 // error recomputed only where the focus multiplier changed, the refinement told which vertices
 // changed) must give exactly what a fresh extraction from the root gives, request after request,
-// for every falloff law, in model units and in pixels, with the camera changing now and then.
+// for every falloff law, in model units and in pixels, with the camera changing now and then; and
+// for the viewing clients' default, a foveal law from the bound itself (f = 1, growing past 1)
+// without a silhouette.
 TEST(ViewExtract, SessionGazePathEqualsAFreshExtractionEveryTime) {
   const auto [b, camera, other] = session_scene();
   ASSERT_NE(b, nullptr);
   std::mt19937 rng(11);
   std::uniform_real_distribution<float> unit(0.1f, 0.9f);
   // 64² has fewer cells than the mesh has vertices (the field tabulates per cell), 160² more.
-  for (const FalloffLaw law :
-       {FalloffLaw::kStep, FalloffLaw::kLinear, FalloffLaw::kSmoothstep, FalloffLaw::kFoveal}) {
+  struct Focus {
+    FalloffLaw law;
+    float factor;
+    bool silhouette;
+  };
+  for (const auto [law, factor, silhouette] :
+       {Focus{FalloffLaw::kStep, 0.1f, true}, Focus{FalloffLaw::kLinear, 0.1f, true},
+        Focus{FalloffLaw::kSmoothstep, 0.1f, true}, Focus{FalloffLaw::kFoveal, 0.1f, true},
+        Focus{FalloffLaw::kFoveal, 1.0f, false}}) {
     for (const ErrorUnits units : {ErrorUnits::kModel, ErrorUnits::kScreenPixels}) {
       for (const std::uint32_t side : {64u, 160u}) {
         for (const DistanceMetric metric :
@@ -368,10 +377,10 @@ TEST(ViewExtract, SessionGazePathEqualsAFreshExtractionEveryTime) {
           r.allowed.metric = metric;
           r.allowed.units = units;
           r.allowed.error = units == ErrorUnits::kModel ? 0.02f : 1.0f;
-          r.allowed.use_silhouette = true;
+          r.allowed.use_silhouette = silhouette;
           r.allowed.silhouette = RegionLaw{FalloffLaw::kStep, 2.0f, 0.25f};
           r.allowed.use_focus = true;
-          r.allowed.focus = RegionLaw{law, 8.0f, 0.1f, 16.0f};
+          r.allowed.focus = RegionLaw{law, 8.0f, factor, 16.0f};
           ViewExtractor session_extractor(b->mt, *b->levels), fresh_extractor(b->mt, *b->levels);
           ViewCache session;
           Refiner kept(b->mt);
