@@ -1,10 +1,13 @@
 #!/usr/bin/env bash
-# Regenerates the evaluation report: tests/evaluation/REPORT.md, results.csv and the PNG
-# figures in tests/evaluation/figures/. Builds mtlod-eval (Release) into $MTLOD_EVAL_BUILD (default
+# Regenerates the evaluation reports in tests/evaluation/: REPORT.md and results.csv (object-space
+# and silhouette errors), FIDELITY.md and fidelity.csv (image-space fidelity per triangle and per
+# byte), SEARCH.md and search.csv (the search that picked the default criteria), GAZE.md and
+# gaze.csv (a gaze trace replayed), and the figures in tests/evaluation/figures/. Builds mtlod-eval (Release) into $MTLOD_EVAL_BUILD (default
 # build/release) with $JOBS compile jobs (default: all cores), prepares the built-in models, and runs
 # `mtlod-eval experiment` on the bunny, the 871k dragon and the shared real meshes (../shared/meshes,
-# read in place; absent ones are skipped). MT files are cached in build/eval-cache. About 5 minutes
-# on 2 cores. Extra arguments go to mtlod-eval experiment (e.g. --cameras 4).
+# read in place; absent ones are skipped), then `mtlod-eval fidelity` twice and `mtlod-eval gaze`.
+# MT files are cached in build/eval-cache. About 8 minutes on 2 cores. Extra arguments go to the
+# experiment and fidelity runs (e.g. --cameras 4).
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 cd "$root"
@@ -29,3 +32,33 @@ done
     --silhouette 2,0.2 --focus 0.08,0.1 --out-dir tests/evaluation --cache-dir build/eval-cache \
     --figures bunny,dragon-871k \
     --note "The law parameters (silhouette: ×0.2 within 2 px; focus: ×0.1 within 8 % of the view) were picked after a short trial on the bunny and the armadillo (4 cameras, budgets 1000 and 4000) among silhouette 2,0.1 / 2,0.3 / 4,0.3 / 1,0.2 and focus 0.15,0.2 / 0.08,0.1 / 0.1,0.05: smaller factors win more silhouette XOR and lose more global Hausdorff; no setting met every target there." "$@"
+
+# The search for the default criteria: candidates the protocol can express (one falloff law for every
+# criterion), on five meshes and four cameras, at equal bytes.
+search=(--mesh bunny=build/models/bunny.ply)
+for entry in lucy-15k armadillo-52k igea-269k bunny-zipper-69k; do
+  [ -s "$shared/$entry.ply" ] && search+=(--mesh "$entry=$shared/$entry.ply")
+done
+"$build/clients/tools/mtlod-eval" fidelity "${search[@]}" --budgets 1000,4000,16000 --cameras 4 --no-equal-triangles --no-curves \
+    --out-dir tests/evaluation --report SEARCH.md --csv search.csv --cache-dir build/eval-cache --target foveal \
+    --method uniform=uniform --method meshopt=meshopt --method previous=px,sil=2/0,focus=20/0.1,frustum=8 \
+    --method pixels=px,frustum=8 --method foveal=px,focus-foveal=1,frustum=8 \
+    --method foveal-0.3=px,focus-foveal=0.3,frustum=8 --method linear=px,focus-linear=0/0.1/128,frustum=8 \
+    --method smoothstep=px,focus-smooth=0/0.1/128,frustum=8 --method step-80=px,focus=80/0.3,frustum=8 \
+    --method step-sil=px,sil=2/0.5,focus=40/0.3,frustum=8 --method back-faces=px,focus-foveal=1,back=16,frustum=8 \
+    --note "Candidates for the default; the winner became \`default\` in FIDELITY.md." "$@"
+
+"$build/clients/tools/mtlod-eval" fidelity "${meshes[@]}" --budgets 1000,4000,16000,64000 --cameras 8 \
+    --out-dir tests/evaluation --cache-dir build/eval-cache --figures bunny,armadillo-52k,igea-269k \
+    --note "\`default\` is the best of the candidates in SEARCH.md that needs no normals in the model (back-face coarsening gains little there and loses on meshes whose faces are not consistently oriented)." \
+    --note "Why the 1.5× target is missed: near the focus (within 4.6°) the default's error is about 1.6× lower than uniform's in every case, but the foveated score weighs every covered pixel, the acuity weight is still 0.1–0.3 at 5–20° from the focus and that ring holds most of the model's pixels, and there the default spends fewer triangles than a uniform cut of the same bytes. Its gain is worth 1.05–1.2× uniform's bytes (last column of the targets); uniform's own error falls only 1.4–3× per fourfold payload (tables at equal triangles)." \
+    --note "Where it loses: dragon-vrip-res4-11k, whose MT root already holds 2,601 of the 4,000 triangles (meshopt, simplifying the 10.6k input directly, wins there), and the smallest cuts (1,000–4,000 triangles) of lucy and the armadillo, where the coarse periphery's silhouette errors outweigh the focus." "$@"
+
+# A gaze trace replayed (mtlod-gaze's synthesiser): gaze-driven cuts against a uniform cut of the same
+# bytes, per frame, and the recovery after saccades.
+gaze=()
+for entry in igea-269k armadillo-52k; do
+  [ -s "$shared/$entry.ply" ] && gaze+=(--mesh "$entry=$shared/$entry.ply")
+done
+"$build/clients/tools/mtlod-eval" gaze "${gaze[@]}" --mesh dragon-871k=build/models/dragon-871k.ply --duration 3000 \
+    --out-dir tests/evaluation --cache-dir build/eval-cache

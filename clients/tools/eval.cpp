@@ -4,6 +4,10 @@
 //   silhouette A B --eye ... silhouette XOR and contour distances from one camera
 //   image A B --eye ...      both rendered from one camera, shaded with A's normals: SSIM, mean
 //                            absolute error and their foveated variants, coverage, depth
+//   fidelity --mesh N=P...   image-space fidelity of the methods at equal triangles and equal bytes
+//                            (clients/tools/eval/fidelity.hpp); writes FIDELITY.md, fidelity.csv, figures
+//   gaze --mesh N=P...       a gaze trace replayed: gaze-driven cuts against a uniform cut of the same
+//                            bytes, recovery after saccades (eval/gaze_study.hpp); writes GAZE.md
 //   experiment --mesh N=P... uniform vs silhouette-DT vs focus-DT budgeted refinement at equal
 //                            triangle counts, plus meshoptimizer's meshopt_simplify as a peer, over
 //                            several meshes, cameras and budgets; writes REPORT.md, results.csv, PNGs
@@ -28,6 +32,9 @@
 #include <glm/geometric.hpp>
 
 #include "CLI/CLI.hpp"
+#include "clients/tools/eval/fidelity.hpp"
+#include "clients/tools/eval/gaze_study.hpp"
+#include "clients/tools/eval/support.hpp"
 #include "core/bounds.hpp"
 #include "core/eval/image_metrics.hpp"
 #include "core/eval/render.hpp"
@@ -48,59 +55,8 @@ namespace {
 
 using namespace mtlod;
 using namespace mtlod::core;
+using namespace mtlod::eval_tool;
 namespace fs = std::filesystem;
-
-using Clock = std::chrono::steady_clock;
-double seconds_since(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
-
-// A perspective camera for a viewport of the given aspect (width / height); fails on a degenerate or
-// non-finite setup with a message naming the flag.
-Result<Camera> make_camera(const std::array<double, 3>& eye, const std::array<double, 3>& target,
-                           const std::array<double, 3>& up, double fov_deg, double near, double far,
-                           double aspect = 1.0) {
-  const glm::vec3 e(eye[0], eye[1], eye[2]), t(target[0], target[1], target[2]), u(up[0], up[1], up[2]);
-  for (int c = 0; c < 3; ++c)
-    if (!std::isfinite(e[c]) || !std::isfinite(t[c]) || !std::isfinite(u[c]))
-      return make_error(ErrorCode::kInvalidArgument, "camera: --eye, --target and --up must be finite");
-  if (glm::length(t - e) <= 0.0f)
-    return make_error(ErrorCode::kInvalidArgument, "camera: --eye equals --target");
-  if (glm::length(glm::cross(t - e, u)) <= 1e-6f * glm::length(t - e) * glm::length(u))
-    return make_error(ErrorCode::kInvalidArgument, "camera: --up is zero or parallel to the view direction");
-  if (!(fov_deg > 0.0 && fov_deg < 180.0))
-    return make_error(ErrorCode::kInvalidArgument,
-                      fmt::format("camera: --fov {} is outside (0, 180)", fov_deg));
-  if (!(near > 0.0 && far > near))
-    return make_error(ErrorCode::kInvalidArgument,
-                      fmt::format("camera: near {} / far {} planes invalid", near, far));
-  Camera camera;
-  camera.view = glm::lookAt(e, t, u);
-  camera.projection = glm::perspective(glm::radians(float(fov_deg)), float(aspect), float(near), float(far));
-  return camera;
-}
-
-// Camera k of n around a model: azimuth k·360°/n, elevation alternating +25° and −10°, far enough
-// that the bounding sphere fills about 90 % of the 40° field of view.
-Camera orbit_camera(const Bounds& b, int k, int n) {
-  const double azimuth = 2.0 * M_PI * k / n, elevation = glm::radians(k % 2 == 0 ? 25.0 : -10.0);
-  const double fov = 40.0, distance = b.radius() / std::sin(glm::radians(fov / 2)) / 0.9;
-  const glm::vec3 dir(std::cos(elevation) * std::sin(azimuth), std::sin(elevation),
-                      std::cos(elevation) * std::cos(azimuth));
-  const std::array<float, 3> c = b.centre();
-  const glm::vec3 eye = glm::vec3(c[0], c[1], c[2]) + float(distance) * dir;
-  auto camera =
-      make_camera({eye.x, eye.y, eye.z}, {c[0], c[1], c[2]}, {0, 1, 0}, fov,
-                  std::max(1e-3 * distance, distance - 2.0 * b.radius()), distance + 2.0 * b.radius());
-  return *camera;  // never degenerate: the direction is never parallel to +y
-}
-
-Result<Mesh> load(const fs::path& path) {
-  MTLOD_TRY(io::LoadedMesh loaded, io::load_mesh(path));
-  if (loaded.mesh.triangle_count() == 0)
-    return make_error(ErrorCode::kInvalidArgument, path.string() + ": no triangles");
-  return std::move(loaded.mesh);
-}
 
 // ---------------------------------------------------------------------------------------------
 // compare and silhouette subcommands
@@ -208,91 +164,6 @@ int run_silhouette(const std::string& a_path, const std::string& b_path, const C
 // ---------------------------------------------------------------------------------------------
 // image-space metrics: the helpers the image subcommand and the experiment share
 
-// One shaded rendering: the RGB image, its luminance (core/eval/image_metrics) and the eye-space depth
-// of every pixel (+inf on the background).
-struct ShadedView {
-  std::vector<std::uint8_t> rgb;
-  std::vector<float> luminance, depth;
-  std::size_t covered_px = 0;
-};
-
-// Renders (positions, triangles) through mapping, shaded smoothly with normals (per vertex, indexed
-// like positions; empty: flat shading), the figures' colours on a white background.
-void render_shaded(const ViewMapping& mapping, std::span<const float> positions,
-                   std::span<const std::uint32_t> triangles, std::span<const float> normals,
-                   ShadedView& out) {
-  const std::size_t n = mapping.grid().cell_count();
-  out.rgb.resize(3 * n), out.luminance.resize(n), out.depth.resize(n);
-  RenderOptions options;
-  options.vertex_normals = normals;
-  out.covered_px = render_mesh(mapping, positions, triangles, {}, options, out.rgb, out.depth);
-  luminance_from_rgb(out.rgb, out.luminance);
-}
-
-// Image-space difference of a simplification's rendering from the original's, both from one mapping:
-// the metrics of core/eval/image_metrics (covered = either rendering covers the pixel), and from the
-// depth, the silhouette XOR and the depth difference where both cover a pixel.
-struct ImageMeasure {
-  ImageComparison image;
-  std::size_t xor_px = 0;                // covered by exactly one
-  std::size_t both_px = 0;               // covered by both
-  double depth_mean = 0, depth_max = 0;  // |depth a − depth b| over both_px, model units
-};
-
-// Scratch reused between calls (one per thread).
-struct ImageScratch {
-  std::vector<std::uint8_t> covered;
-  std::vector<float> map;
-};
-
-ImageMeasure measure_image(const ShadedView& a, const ShadedView& b, GridSize grid,
-                           std::span<const float> acuity_weights, ImageScratch& scratch) {
-  ImageMeasure m;
-  scratch.covered.resize(grid.cell_count());
-  double depth_sum = 0;
-  for (std::size_t c = 0; c < grid.cell_count(); ++c) {
-    const bool in_a = std::isfinite(a.depth[c]), in_b = std::isfinite(b.depth[c]);
-    scratch.covered[c] = in_a || in_b;
-    m.xor_px += in_a != in_b;
-    if (in_a && in_b) {
-      const double d = std::abs(double(a.depth[c]) - double(b.depth[c]));
-      depth_sum += d, m.depth_max = std::max(m.depth_max, d), ++m.both_px;
-    }
-  }
-  m.depth_mean = m.both_px ? depth_sum / double(m.both_px) : 0.0;
-  scratch.map.resize(ssim_map_size(grid).cell_count());
-  m.image = compare_images(a.luminance, b.luminance, grid, scratch.covered, acuity_weights, scratch.map);
-  return m;
-}
-
-// Normals for a simplification B of mesh A from A's: each vertex of B takes the normal of A's vertex
-// at exactly the same position (a cut's vertices are the model's, copied bit for bit, whatever their
-// numbering in B's file); the others get B's own area-weighted normal. Returns how many matched.
-std::size_t normals_from_original(std::span<const float> a_positions, std::span<const float> a_normals,
-                                  std::span<const float> b_positions,
-                                  std::span<const std::uint32_t> b_triangles, std::vector<float>& b_normals) {
-  const auto key = [](std::span<const float> p, std::size_t v) {
-    std::array<std::uint32_t, 3> k;
-    std::memcpy(k.data(), &p[3 * v], sizeof k);
-    return k;
-  };
-  std::vector<std::pair<std::array<std::uint32_t, 3>, std::uint32_t>> by_position(a_positions.size() / 3);
-  for (std::size_t v = 0; v < by_position.size(); ++v)
-    by_position[v] = {key(a_positions, v), std::uint32_t(v)};
-  std::sort(by_position.begin(), by_position.end());
-  b_normals.resize(b_positions.size());
-  area_weighted_normals(b_positions, b_triangles, b_normals);
-  std::size_t matched = 0;
-  for (std::size_t v = 0; v < b_positions.size() / 3; ++v) {
-    const auto k = key(b_positions, v);
-    const auto it = std::lower_bound(by_position.begin(), by_position.end(), std::pair{k, std::uint32_t{0}});
-    if (it == by_position.end() || it->first != k) continue;
-    std::copy_n(&a_normals[3 * std::size_t{it->second}], 3, &b_normals[3 * v]);
-    ++matched;
-  }
-  return matched;
-}
-
 // ---------------------------------------------------------------------------------------------
 // experiment
 
@@ -329,20 +200,6 @@ struct Row {
   int camera = 0;
   std::array<Measure, kMethodCount> m;
 };
-
-Result<Mt> cached_mt(const Mesh& mesh, const std::string& name, const fs::path& cache_dir) {
-  const fs::path path = cache_dir / (name + ".mt");
-  if (fs::exists(path)) {
-    auto mt = io::read_mt_file(path);
-    if (mt && mt->vertex_count() == mesh.vertex_count()) return mt;
-  }
-  MTLOD_TRY(Mt mt, build_mt(mesh));
-  std::error_code ec;
-  fs::create_directories(cache_dir, ec);
-  MTLOD_TRY(auto bytes, io::write_mt_file(path, mt));
-  (void)bytes;
-  return mt;
-}
 
 // Object-space error of a cut against the original, both directions (samples of the original and
 // its index are shared by every cut of the mesh).
@@ -480,27 +337,6 @@ Status write_figures(const fs::path& dir, const std::string& name, std::size_t b
   return Ok{};
 }
 
-// Focus point of a view: the centroid of the original's mask, moved to the nearest covered pixel
-// when the centroid falls outside it (normalised viewport coordinates).
-std::array<float, 2> focus_point(std::span<const std::uint8_t> mask, GridSize grid) {
-  double sx = 0, sy = 0, n = 0;
-  for (std::uint32_t j = 0; j < grid.height; ++j)
-    for (std::uint32_t i = 0; i < grid.width; ++i)
-      if (mask[grid.cell(i, j)]) sx += i + 0.5, sy += j + 0.5, n += 1;
-  if (n == 0) return {0.5f, 0.5f};
-  double fx = sx / n, fy = sy / n, best = INFINITY;
-  std::array<float, 2> out{float(fx / grid.width), float(fy / grid.height)};
-  if (mask[grid.cell(std::uint32_t(fx), std::uint32_t(fy))]) return out;
-  for (std::uint32_t j = 0; j < grid.height; ++j) {
-    for (std::uint32_t i = 0; i < grid.width; ++i) {
-      const double d = std::hypot(i + 0.5 - fx, j + 0.5 - fy);
-      if (mask[grid.cell(i, j)] && d < best)
-        best = d, out = {float((i + 0.5) / grid.width), float((j + 0.5) / grid.height)};
-    }
-  }
-  return out;
-}
-
 double mean_of(const std::vector<Row>& rows, const std::string& mesh, std::size_t budget, int method,
                double Measure::*field) {
   double sum = 0;
@@ -559,15 +395,7 @@ int run_experiment(const ExperimentOptions& o, const std::string& command) {
         {name, fmt::format("{} | {} | {} | {} | {}", path, mesh->vertex_count(), mesh->triangle_count(),
                            mt->root_triangle_count(), ref.samples.size())});
 
-    // Budgets the MT can honour: above its root and below half the input.
-    std::vector<std::size_t> budgets;
-    for (const std::size_t b : o.budgets) {
-      if (b <= mt->root_triangle_count() * 5 / 4 || 2 * b > mesh->triangle_count())
-        notes.push_back(fmt::format("{}: budget {} skipped (root {} triangles, input {})", name, b,
-                                    mt->root_triangle_count(), mesh->triangle_count()));
-      else
-        budgets.push_back(b);
-    }
+    const std::vector<std::size_t> budgets = usable_budgets(o.budgets, *mesh, *mt, name, notes);
     // meshopt_simplify on the full-resolution mesh, once per budget (it does not depend on the view).
     std::map<std::size_t, std::vector<std::uint32_t>> meshopt;
     std::map<std::size_t, Measure> meshopt_surface;
@@ -882,19 +710,6 @@ struct ImageFlags {
   double diff_scale = 0.25;
 };
 
-// "WxH" or "N" (square).
-bool parse_viewport(const std::string& text, GridSize& out) {
-  unsigned w = 0, h = 0;
-  char x = 0, rest = 0;
-  const int n = std::sscanf(text.c_str(), "%u%c%u%c", &w, &x, &h, &rest);
-  if (n == 1)
-    h = w;
-  else if (!(n == 3 && (x == 'x' || x == 'X')))
-    return false;
-  out = {w, h};
-  return true;
-}
-
 int run_image(const std::string& a_path, const std::string& b_path, const ImageFlags& f) {
   auto a = load(a_path);
   if (!a) return fmt::print(stderr, "mtlod-eval: {}\n", a.error().message), 1;
@@ -1057,6 +872,45 @@ int main(int argc, char** argv) {
   experiment->add_option("--cache-dir", ex.cache_dir, "where MT files are cached");
   experiment->add_option("--note", ex.notes, "a line for the report's setup section, repeatable");
   experiment->add_option("--figures", ex.figure_meshes, "meshes to draw figures for")->delimiter(',');
+  FidelityOptions fid;
+  auto* fidelity = app.add_subcommand(
+      "fidelity",
+      "image-space fidelity of each method at equal triangles and equal bytes; writes FIDELITY.md");
+  fidelity->add_option("--mesh", fid.meshes, "NAME=PATH, repeatable")->required();
+  fidelity->add_option("--budgets", fid.budgets, "triangle budgets")->delimiter(',');
+  fidelity->add_option("--cameras", fid.cameras, "cameras per mesh");
+  fidelity->add_option("--image", fid.image_px, "rendered image side, pixels");
+  fidelity->add_option("--grid", fid.grid_px, "view grid side of the distance transforms");
+  fidelity->add_option("--method", fid.methods,
+                       "NAME=SPEC, repeatable (default: the standard set; see FIDELITY.md for SPEC)");
+  fidelity->add_option("--target", fid.target, "the method the targets are about")->capture_default_str();
+  fidelity->add_flag("!--no-equal-triangles", fid.equal_triangles, "compare at equal bytes only");
+  fidelity->add_flag("!--no-curves", fid.curves, "no error-against-bytes plots");
+  fidelity->add_option("--out-dir", fid.out_dir, "report directory");
+  fidelity->add_option("--report", fid.report, "report file name in the directory")->capture_default_str();
+  fidelity->add_option("--csv", fid.csv, "raw numbers file name in the directory")->capture_default_str();
+  fidelity->add_option("--cache-dir", fid.cache_dir, "where MT files are cached");
+  fidelity->add_option("--figures", fid.figure_meshes, "meshes to draw figures for")->delimiter(',');
+  fidelity->add_option("--note", fid.notes, "a line for the report's setup section, repeatable");
+  GazeStudyOptions gz;
+  auto* gaze = app.add_subcommand(
+      "gaze",
+      "replay a gaze trace: gaze-driven cuts against a uniform cut of the same bytes; writes GAZE.md");
+  gaze->add_option("--mesh", gz.meshes, "NAME=PATH, repeatable")->required();
+  gaze->add_option("--trace", gz.trace, "CSV time_ms,x,y (default: synthesised fixations and saccades)");
+  gaze->add_option("--duration", gz.duration_ms, "synthesised trace length, ms")->capture_default_str();
+  gaze->add_option("--hz", gz.hz, "synthesised sample rate and frame rate")->capture_default_str();
+  gaze->add_option("--seed", gz.seed, "synthesised trace seed")->capture_default_str();
+  gaze->add_option("--latencies", gz.latencies_ms, "gaze-to-screen latencies, ms")->delimiter(',');
+  gaze->add_option("--budget", gz.budget, "triangles of the gaze-driven cuts")->capture_default_str();
+  gaze->add_option("--image", gz.image_px, "rendered image side, pixels")->capture_default_str();
+  gaze->add_option("--near", gz.near_deg, "degrees around the gaze that count as near")
+      ->capture_default_str();
+  gaze->add_option("--out-dir", gz.out_dir, "report directory");
+  gaze->add_option("--report", gz.report, "report file name in the directory")->capture_default_str();
+  gaze->add_option("--csv", gz.csv, "per-frame numbers file name in the directory")->capture_default_str();
+  gaze->add_option("--cache-dir", gz.cache_dir, "where MT files are cached");
+  gaze->add_option("--note", gz.notes, "a line for the report's setup section, repeatable");
   CLI11_PARSE(app, argc, argv);
 
   if (compare->parsed()) return run_compare(a, b, samples);
@@ -1064,5 +918,7 @@ int main(int argc, char** argv) {
   if (image->parsed()) return run_image(a, b, image_flags);
   std::string command = "mtlod-eval";
   for (int i = 1; i < argc; ++i) command += std::string(" ") + argv[i];
+  if (fidelity->parsed()) return run_fidelity(fid, command);
+  if (gaze->parsed()) return run_gaze_study(gz, command);
   return run_experiment(ex, command);
 }
