@@ -75,8 +75,8 @@ void add_extract_flags(CLI::App& app, ExtractFlags& f) {
       ->take_all();
   app.add_option("--budget", f.budget, "at most this many triangles (worst first)");
   // The choices come from the protocol's tables, so a new law or metric shows up here by itself.
-  app.add_option("--falloff", f.falloff, fmt::format("falloff law: {}", fmt::join(kFalloffNames, ", ")))
-      ->capture_default_str();
+  app.add_option("--falloff", f.falloff,
+                 fmt::format("falloff law: {} (default: step)", fmt::join(kFalloffNames, ", ")));
   app.add_option("--distance", f.distance,
                  fmt::format("distance transform: {}", fmt::join(kDistanceMetricNames, ", ")))
       ->capture_default_str();
@@ -103,6 +103,13 @@ void add_extract_flags(CLI::App& app, ExtractFlags& f) {
   app.add_flag("--labels", f.labels, "send per-vertex distance labels");
   app.add_flag("--delta", f.delta,
                "replies carry what changed since the previous mesh (by triangle id; sequential Draco)");
+}
+
+void apply_default_criteria(ExtractFlags& flags) {
+  if (!flags.error && !flags.error_px) flags.error_px = 1;
+  if (!flags.silhouette.empty() || !flags.focus.empty() || !flags.falloff.empty()) return;
+  flags.falloff = "foveal";
+  flags.focus.push_back("0.5,0.5,0,1");
 }
 
 Result<Extract> make_extract(const ExtractFlags& f, const std::string& model,
@@ -167,7 +174,8 @@ Result<Extract> make_extract(const ExtractFlags& f, const std::string& model,
     out = *found;
     return Ok{};
   };
-  MTLOD_RETURN_IF_ERROR(named(e.criteria.falloff, kFalloffNames, f.falloff, "--falloff"));
+  MTLOD_RETURN_IF_ERROR(
+      named(e.criteria.falloff, kFalloffNames, f.falloff.empty() ? "step" : f.falloff, "--falloff"));
   MTLOD_RETURN_IF_ERROR(named(e.criteria.distance, kDistanceMetricNames, f.distance, "--distance"));
   MTLOD_RETURN_IF_ERROR(named(e.criteria.units, kDistanceUnitNames, f.units, "--units"));
   if (!f.draco_method.empty()) {

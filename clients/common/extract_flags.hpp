@@ -27,7 +27,8 @@ struct ExtractFlags {
   std::vector<std::string> focus;  // "X,Y,D,F", repeatable
   std::vector<std::string> neglect;
   std::optional<std::uint32_t> budget;
-  std::string falloff = "step", distance = "chamfer-5-7-11", units = "pixels";
+  std::string falloff;  // empty: step
+  std::string distance = "chamfer-5-7-11", units = "pixels";
   bool internal_silhouettes = false;
   double frustum_factor = 8, backface_factor = 1;
   std::string draco_method;  // empty: the server's default for the request type
@@ -43,6 +44,13 @@ bool parse_number_list(const std::string& text, std::vector<double>& out);
 
 // Registers the flags on `app`, writing into `flags`.
 void add_extract_flags(CLI::App& app, ExtractFlags& flags);
+
+// The default criteria of the viewing clients (mtlod-gaze, mtlod-load, the browser viewer), the
+// winner of the image-space study (tests/evaluation/FIDELITY.md, `default`): a bound in screen
+// pixels (1 unless given) that holds at the focus and grows with eccentricity like the eye's minimum
+// angle of resolution, ×(1 + e/2.3°) (`--falloff foveal --focus X,Y,0,1`). Applied only when no
+// criterion flag (--silhouette, --focus, --falloff) was given; the focus starts at the view's centre.
+void apply_default_criteria(ExtractFlags& flags);
 
 // Builds the request for `model` whose bounding box is given (for the default camera). The result
 // is checked by the same parser the server uses; errors name the flag.

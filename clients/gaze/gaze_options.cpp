@@ -38,8 +38,8 @@ void add_gaze_flags(CLI::App& app, GazeOptions& o, protocol::ExtractFlags& flags
 }
 
 void complete_gaze_flags(protocol::ExtractFlags& flags) {
-  if (!flags.error && !flags.error_px) flags.error_px = 1;
-  if (flags.silhouette.empty()) flags.silhouette = "2,0";
+  protocol::apply_default_criteria(flags);
+  // A gaze moves the focus: without one the trace would change nothing.
   if (flags.focus.empty()) flags.focus.push_back("0.5,0.5,20,0.1");
 }
 

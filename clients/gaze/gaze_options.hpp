@@ -29,8 +29,8 @@ struct GazeOptions {
 // Registers mtlod-gaze's flags on `app`, writing into `options` and `flags`.
 void add_gaze_flags(CLI::App& app, GazeOptions& options, protocol::ExtractFlags& flags);
 
-// After parsing: mtlod-gaze's criteria where the flags leave them open (1 px, silhouette 2,0, and
-// full detail within 20 px of the gaze).
+// After parsing: mtlod-gaze's criteria where the flags leave them open (protocol::apply_default_criteria;
+// given other criteria but no focus, a step law ×0.1 within 20 px of the gaze).
 void complete_gaze_flags(protocol::ExtractFlags& flags);
 
 }  // namespace mtlod::clients

@@ -95,8 +95,7 @@ void add_load_flags(CLI::App& app, LoadOptions& options, protocol::ExtractFlags&
 }
 
 Result<RequestSettings> complete_load_options(LoadOptions& o, protocol::ExtractFlags& flags) {
-  if (!flags.error && !flags.error_px) flags.error_px = 1;
-  if (flags.silhouette.empty()) flags.silhouette = "2,0";
+  protocol::apply_default_criteria(flags);
   if (o.gaze_hz > 0) {
     o.mix = "gaze=1";
     o.rate = o.gaze_hz * o.connections;

@@ -96,7 +96,9 @@ function viewportSize() {
 function extractRequest() {
   const [width, height] = viewportSize();
   camera.updateMatrixWorld();
-  const criteria = {};
+  // The default (foveal falloff, focus factor 1, no silhouette band) is the winner of the image-space
+  // study, tests/evaluation/FIDELITY.md: the bound holds at the focus and grows with eccentricity.
+  const criteria = { falloff: $('falloff').value };
   if ($('silhouette').checked) {
     criteria.silhouette = { distance: Number($('silhouette-distance').value), factor: Number($('silhouette-factor').value) };
   }
@@ -321,7 +323,7 @@ renderer.domElement.addEventListener('pointermove', (event) => {
   pump();
 });
 for (const id of ['error', 'budget', 'silhouette', 'silhouette-distance', 'silhouette-factor', 'focus', 'focus-distance',
-                  'focus-factor', 'labels', 'delta']) {
+                  'focus-factor', 'falloff', 'labels', 'delta']) {
   $(id).addEventListener('change', requestExtract);
 }
 $('wireframe').addEventListener('change', () => { mesh.material.wireframe = $('wireframe').checked; });

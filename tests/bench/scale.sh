@@ -26,7 +26,7 @@ requests=${REQUESTS:-50}
 gaze_seconds=${GAZE_SECONDS:-10}
 orbit_requests=${ORBIT_REQUESTS:-300}
 # The two extractions, from the front view mtlod-client frames when given no --eye. The budgeted one
-# has the load table's criteria (mtlod-load's defaults): the full-resolution silhouette band alone
+# has the load table's criteria (--silhouette 2,0): the full-resolution silhouette band alone
 # passes 10k triangles, so the budget binds and every model gets a cut of the same size. The
 # error-bound one has mtlod-gaze's criteria (issue #24): its cut size is whatever the model needs.
 budget_flags=(--error-px 1 --silhouette "2,0" --budget 10000)
