@@ -6,7 +6,7 @@
 # build/release) with $JOBS compile jobs (default: all cores), prepares the built-in models, and runs
 # `mtlod-eval experiment` on the bunny, the 871k dragon and the shared real meshes (../shared/meshes,
 # read in place; absent ones are skipped), then `mtlod-eval fidelity` twice and `mtlod-eval gaze`.
-# MT files are cached in build/eval-cache. About 8 minutes on 2 cores. Extra arguments go to the
+# MT files are cached in build/eval-cache. About 5 minutes on 2 cores. Extra arguments go to the
 # experiment and fidelity runs (e.g. --cameras 4).
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)

@@ -689,7 +689,8 @@ std::string report_markdown(const FidelityOptions& o, const std::vector<Method>&
       "`sil=D/F` "
       "step law ×F within D grid px of the silhouette; `focus=R/F` the same around the focus; "
       "`focus-foveal=F` "
-      "×F·(1 + e/2.3°) capped at 1; `back=F` ×F on back faces; `frustum=F` ×F outside the view. Grid "
+      "×F·(1 + e/2.3°) capped at 1 when F < 1; `back=F` ×F on back faces; `frustum=F` ×F outside the view. "
+      "Grid "
       "256×256.\n";
   for (const std::string& n : o.notes) md += "- " + n + "\n";
   md += "\n| mesh | file | vertices | triangles | MT root triangles |\n| --- | --- | ---: | ---: | ---: |\n";
