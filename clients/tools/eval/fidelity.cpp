@@ -175,12 +175,10 @@ struct MeshContext {
 };
 
 std::size_t encoded_bytes(MeshContext& ctx, const Candidate& c) {
-  DracoInput input;
-  input.positions =
-      c.mesh_vertices ? std::span<const float>(ctx.model->mesh.positions) : ctx.model->mt.positions;
-  input.triangles = c.triangles;
-  auto stats = ctx.encoder.encode(input, DracoOptions{}, ctx.payload);
-  return stats ? stats->bytes : 0;
+  return draco_payload_bytes(
+      ctx.encoder,
+      c.mesh_vertices ? std::span<const float>(ctx.model->mesh.positions) : ctx.model->mt.positions,
+      c.triangles, ctx.payload);
 }
 
 // The per-vertex allowed error of a criteria method at this camera and focus (whole field).
@@ -251,9 +249,8 @@ void cut_at_bytes(MeshContext& ctx, const Method& m, std::span<const float> fiel
   }
 }
 
-// "Near the focus": within 2·e2 of it, where the acuity weight e2/(e2 + e) is at least 1/3.
+// "Near the focus": within 2·e2 of it.
 constexpr double kNearDeg = 4.6;
-constexpr float kNearWeight = 1.0f / 3.0f;
 
 struct Views {
   ShadedView reference, cut;
@@ -459,8 +456,7 @@ int run_fidelity(const FidelityOptions& o, const std::string& command) {
       foveation.focal_px = focal_px_from_fov(o.image_px, kOrbitFovDeg);
       foveation_weights(image_grid, foveation, views.weights);
       views.near_weights.resize(views.weights.size());
-      for (std::size_t c = 0; c < views.weights.size(); ++c)
-        views.near_weights[c] = views.weights[c] >= kNearWeight ? views.weights[c] : 0.0f;
+      near_weights(views.weights, foveation.e2_deg, kNearDeg, views.near_weights);
       for (std::size_t m = 0; m < methods.size(); ++m)
         if (methods[m].kind == Kind::kCriteria)
           criteria_field(ctx, methods[m].criteria, camera, dt_grid, focus, fields[m]);

@@ -53,15 +53,6 @@ struct Scorer {
   }
 };
 
-std::size_t encoded_bytes(DracoEncoder& encoder, const Mt& mt, std::span<const std::uint32_t> triangles,
-                          std::vector<std::uint8_t>& payload) {
-  DracoInput input;
-  input.positions = mt.positions;
-  input.triangles = triangles;
-  auto stats = encoder.encode(input, DracoOptions{}, payload);
-  return stats ? stats->bytes : 0;
-}
-
 // The default criteria's budgeted cut for a focus (the budget alone decides the size: the bound is
 // far below what any cut reaches, as in FIDELITY.md).
 void default_cut(ViewExtractor& extractor, Refiner& refiner, const Camera& camera, GridSize grid,
@@ -196,7 +187,7 @@ int run_gaze_study(const GazeStudyOptions& o, const std::string& command) {
       default_cut(extractor, refiner, camera, dt_grid, {float(trace[k].x), float(trace[k].y)}, o.budget, cut);
       scorer.score(model, image, cut.triangles, cuts[k]);
       cuts[k].sample = k;
-      cuts[k].bytes = encoded_bytes(encoder, model.mt, cut.triangles, payload);
+      cuts[k].bytes = draco_payload_bytes(encoder, model.mt.positions, cut.triangles, payload);
       bytes_sum += cuts[k].bytes;
     }
     // The uniform cut of the same mean bytes (secant steps on its triangle count).
@@ -207,7 +198,7 @@ int run_gaze_study(const GazeStudyOptions& o, const std::string& command) {
       CutMesh best;
       for (int step = 0; step < 8; ++step) {
         refiner.refine_budget(AllowedError::everywhere(0.0f), n, cut);
-        const std::size_t bytes = encoded_bytes(encoder, model.mt, cut.triangles, payload);
+        const std::size_t bytes = draco_payload_bytes(encoder, model.mt.positions, cut.triangles, payload);
         if (best_bytes == 0 ||
             std::abs(double(bytes) - target_bytes) < std::abs(double(best_bytes) - target_bytes))
           best_bytes = bytes, best = cut;
@@ -233,14 +224,8 @@ int run_gaze_study(const GazeStudyOptions& o, const std::string& command) {
       f.focal_px = focal_px;
       const auto eye = pixel(trace[k]);
       f.focus_x_px = float(eye[0]), f.focus_y_px = float(eye[1]);
-      for (std::uint32_t j = 0; j < grid.height; ++j) {
-        for (std::uint32_t i = 0; i < grid.width; ++i) {
-          const double e = pixel_eccentricity_deg(grid, f, i + 0.5, j + 0.5);
-          const std::size_t c = grid.cell(i, j);
-          weights[c] = float(acuity_weight(e, f.e2_deg));
-          near[c] = e <= o.near_deg ? weights[c] : 0.0f;
-        }
-      }
+      foveation_weights(grid, f, weights);
+      near_weights(weights, f.e2_deg, o.near_deg, near);
       const double uniform_error = scorer.error(uniform, weights), uniform_near = scorer.error(uniform, near);
       for (LatencyResult& l : result.latencies) {
         // On screen: the cut of the newest sample that had reached the viewer latency ms ago.

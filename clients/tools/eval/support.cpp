@@ -169,6 +169,21 @@ bool parse_viewport(const std::string& text, GridSize& out) {
   return true;
 }
 
+std::size_t draco_payload_bytes(DracoEncoder& encoder, std::span<const float> positions,
+                                std::span<const std::uint32_t> triangles,
+                                std::vector<std::uint8_t>& payload) {
+  DracoInput input;
+  input.positions = positions;
+  input.triangles = triangles;
+  auto stats = encoder.encode(input, DracoOptions{}, payload);
+  return stats ? stats->bytes : 0;
+}
+
+void near_weights(std::span<const float> acuity, double e2_deg, double near_deg, std::span<float> out) {
+  const float threshold = float(acuity_weight(near_deg, e2_deg));
+  for (std::size_t c = 0; c < acuity.size(); ++c) out[c] = acuity[c] >= threshold ? acuity[c] : 0.0f;
+}
+
 std::vector<std::size_t> usable_budgets(const std::vector<std::size_t>& budgets, const Mesh& mesh,
                                         const Mt& mt, const std::string& name,
                                         std::vector<std::string>& notes) {

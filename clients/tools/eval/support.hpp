@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "core/bounds.hpp"
+#include "core/draco_encode.hpp"
 #include "core/eval/image_metrics.hpp"
 #include "core/grid.hpp"
 #include "core/mesh.hpp"
@@ -108,6 +109,14 @@ std::size_t normals_from_original(std::span<const float> a_positions, std::span<
 // Focus point of a view: the centroid of the original's mask, moved to the nearest covered pixel
 // when the centroid falls outside it (normalised viewport coordinates).
 std::array<float, 2> focus_point(std::span<const std::uint8_t> mask, core::GridSize grid);
+
+// Size of the payload the server sends for a cut by default (core::DracoOptions{}: positions only).
+std::size_t draco_payload_bytes(core::DracoEncoder& encoder, std::span<const float> positions,
+                                std::span<const std::uint32_t> triangles, std::vector<std::uint8_t>& payload);
+
+// The acuity weights (core::foveation_weights) within near_deg of the focus, 0 beyond: a weight
+// e2/(e2 + e) is at least e2/(e2 + near_deg) exactly there.
+void near_weights(std::span<const float> acuity, double e2_deg, double near_deg, std::span<float> out);
 
 // "WxH" or "N" (square).
 bool parse_viewport(const std::string& text, core::GridSize& out);
