@@ -53,6 +53,7 @@ void AllowedErrorField::bind(const ViewMapping& mapping, const AllowedErrorOptio
   assert(!options.use_focus || inputs.focus_dt.size() == cells);
   assert(!options.use_neglect || inputs.neglect_dt.size() == cells);
   assert(inputs.normals.empty() || inputs.normals.size() == inputs.positions.size());
+  assert(inputs.visible_depth.empty() || inputs.visible_depth.size() == cells);
   (void)cells;
   mapping_ = &mapping;
   options_ = options;
@@ -105,9 +106,20 @@ float AllowedErrorField::label_multiplier(std::uint32_t silhouette_label, std::u
   return m;
 }
 
-float AllowedErrorField::finish(float m, bool has_cell, float clip_w, std::uint32_t vertex) const {
+bool AllowedErrorField::hidden(std::uint32_t cell, float clip_w, std::uint32_t vertex) const {
+  const float* p = inputs_.positions.data() + 3 * std::size_t{vertex};
+  // The vertex's eye depth the way the rasteriser computes a surface's (from ndc z), so that both
+  // sides of the comparison agree for perspective and orthographic cameras alike.
+  const float depth = mapping_->eye_depth_from_ndc_z(mapping_->clip_z(p[0], p[1], p[2]) / clip_w);
+  return depth > inputs_.visible_depth[cell] * (1.0f + options_.hidden_depth_margin);
+}
+
+float AllowedErrorField::finish(float m, std::uint32_t cell, float clip_w, std::uint32_t vertex) const {
   const AllowedErrorOptions& o = options_;
+  const bool has_cell = cell != kNoCell;
   if (!has_cell) m *= o.outside_view_factor;
+  if (has_cell && o.hidden_factor != 1.0f && !inputs_.visible_depth.empty() && hidden(cell, clip_w, vertex))
+    m *= o.hidden_factor;
   if (o.back_face_factor != 1.0f && !inputs_.normals.empty()) {
     const float* p = inputs_.positions.data() + 3 * std::size_t{vertex};
     const float* n = inputs_.normals.data() + 3 * std::size_t{vertex};
@@ -149,8 +161,7 @@ void AllowedErrorField::compute_all(std::span<float> vertex_allowed_error) {
       const std::uint32_t cell = cells_[k];
       const bool has_cell = cell != kNoCell;
       const float m = !has_cell ? no_cell : per_cell ? cell_multiplier_[cell] : cell_multiplier(cell);
-      vertex_allowed_error[first + k] =
-          finish(m, has_cell, clip_w_[k], static_cast<std::uint32_t>(first + k));
+      vertex_allowed_error[first + k] = finish(m, cell, clip_w_[k], static_cast<std::uint32_t>(first + k));
     }
   }
 }
@@ -166,7 +177,7 @@ float AllowedErrorField::vertex_allowed_error(std::uint32_t vertex) const {
   const float* p = inputs_.positions.data() + 3 * std::size_t{vertex};
   float clip_w = 0.0f;
   const std::uint32_t cell = mapping_->map_point(p[0], p[1], p[2], &clip_w);
-  return finish(cell_multiplier(cell), cell != kNoCell, clip_w, vertex);
+  return finish(cell_multiplier(cell), cell, clip_w, vertex);
 }
 
 void AllowedErrorField::fill(std::span<const std::uint32_t> vertices, std::span<float> field) const {
@@ -196,7 +207,7 @@ void AllowedErrorField::fill_mapped(std::span<const std::uint32_t> vertices, std
     map_vertices(*mapping_, std::span<const float>(positions, 3 * count), batch_cells, batch_w);
     for (std::size_t k = 0; k < count; ++k) {
       const std::uint32_t v = vertices[first + k];
-      field[v] = finish(cell_multiplier(batch_cells[k]), batch_cells[k] != kNoCell, batch_w[k], v);
+      field[v] = finish(cell_multiplier(batch_cells[k]), batch_cells[k], batch_w[k], v);
     }
   }
 }

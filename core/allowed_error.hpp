@@ -1,7 +1,8 @@
 // Allowed-error functions (DESIGN.md §1.5 and §3): turn per-vertex distance labels into the error a
 // triangle may keep. The papers' law is two-level: allowed_error(t) = e·f if label(t) ≤ d, e otherwise
 // (JVRB 2006 §4, DGCI 2006 §3.3). Beyond the papers: linear, smoothstep and foveal falloffs,
-// focus-of-neglect regions, frustum and back-face coarsening, and error bounds in screen pixels.
+// focus-of-neglect regions, frustum, back-face and hidden-surface coarsening, and error bounds in
+// screen pixels.
 //
 // Contract with the refinement (core/refine): the output is one allowed error per VERTEX, in model
 // units, and the refiner uses as a triangle's allowed error the MINIMUM over its three vertices.
@@ -10,7 +11,7 @@
 // g(min_v label_v), so the minimum of the per-vertex values is exactly g(label(t)). The step law with
 // f ≤ 1 and the linear, smoothstep and foveal falloffs (which rise towards 1) are non-decreasing, and
 // so is the minimum of two of them (silhouette and focus combined, the stricter wins). Factors that are
-// not functions of the label (the depth of a pixel bound, back-face and frustum coarsening, and the
+// not functions of the label (the depth of a pixel bound, back-face, hidden and frustum coarsening, the
 // neglect factor > 1, which decreases with distance) make the minimum the conservative choice: a
 // triangle is only coarsened when all three of its vertices allow it.
 #pragma once
@@ -64,6 +65,13 @@ struct AllowedErrorOptions {
   // the rim, which shape the silhouette, keep their error.
   float back_face_factor = 1.0f;
   float back_face_cos = -0.2f;
+  // Hidden-surface coarsening (needs AllowedErrorInputs::visible_depth): multiplier for vertices
+  // farther from the eye than (1 + hidden_depth_margin) times the visible surface around their cell
+  // (1 = off). A depth test rather than a normal test, so it also finds occluded front faces and does
+  // not depend on how consistently a scan's triangles are oriented. The margin absorbs the
+  // difference between the coarse cut whose depths the grid holds and the model's surface.
+  float hidden_factor = 1.0f;
+  float hidden_depth_margin = 0.01f;
   // kFoveal: vertical field of view in degrees used to turn pixels into eccentricity; 0 = from the
   // projection (2·atan(1/P[1][1]), perspective cameras).
   float fovy_deg = 0.0f;
@@ -89,6 +97,9 @@ struct AllowedErrorInputs {
   std::span<const std::uint16_t> neglect_dt;     // chamfer transform seeded by the neglect foci
   std::span<const float> positions;              // x, y, z per vertex
   std::span<const float> normals;                // empty, or unit x, y, z per vertex (back-face coarsening)
+  // Hidden-surface coarsening: per cell, the farthest visible eye depth (−z_eye) in the cell and its 8
+  // neighbours (visible_depth_bound), +inf where any of them is background; empty = off.
+  std::span<const float> visible_depth;
 };
 
 // The whole allowed-error function for one request: full (every vertex, struct-of-arrays passes) or
@@ -122,8 +133,9 @@ class AllowedErrorField final : public VertexErrorSource {
                    std::span<std::uint32_t> cells, std::span<float> clip_w) const;
   // The same value for a vertex already known to lie in a grid cell with this clip-space w (as
   // map_point or map_vertices give them), with multiplier = cell_multiplier(cell).
-  float vertex_allowed_error_in_cell(float multiplier, float clip_w, std::uint32_t vertex) const {
-    return finish(multiplier, true, clip_w, vertex);
+  float vertex_allowed_error_in_cell(float multiplier, std::uint32_t cell, float clip_w,
+                                     std::uint32_t vertex) const {
+    return finish(multiplier, cell, clip_w, vertex);
   }
   // The part of the multiplier the cell's labels give (every law combined), for a grid cell.
   float cell_multiplier(std::uint32_t cell) const;
@@ -149,7 +161,9 @@ class AllowedErrorField final : public VertexErrorSource {
   // per-vertex factors and units.
   float label_multiplier(std::uint32_t silhouette_label, std::uint32_t focus_label,
                          std::uint32_t neglect_label) const;
-  float finish(float label_multiplier, bool has_cell, float clip_w, std::uint32_t vertex) const;
+  float finish(float label_multiplier, std::uint32_t cell, float clip_w, std::uint32_t vertex) const;
+  // Whether a vertex in a grid cell lies behind the visible surface around it.
+  bool hidden(std::uint32_t cell, float clip_w, std::uint32_t vertex) const;
   // Multiplier of a law at every raw label value present in its grid, so that no vertex pays for
   // the law itself (the foveal law's atan costs more than the rest of a vertex). A table keeps the
   // law it was made for: the next request with the same law (every gaze of a stream) only extends

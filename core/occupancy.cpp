@@ -410,4 +410,28 @@ std::size_t mark_depth_discontinuities(std::span<const float> depth, GridSize gr
   return marked;
 }
 
+void visible_depth_bound(std::span<const float> depth, GridSize grid, std::span<float> out) {
+  assert(depth.size() == grid.cell_count() && out.size() == grid.cell_count());
+  constexpr float kOff = std::numeric_limits<float>::infinity();  // off the grid counts as background
+  const std::size_t w = grid.width, h = grid.height;
+  // Separable: the largest of three along each column into out (reading depth only), then along each
+  // row in place, the overwritten left neighbour kept in a scalar. No scratch memory.
+  for (std::size_t j = 0; j < h; ++j) {
+    const float* d = depth.data() + j * w;
+    const float* up = j > 0 ? d - w : nullptr;
+    const float* down = j + 1 < h ? d + w : nullptr;
+    float* o = out.data() + j * w;
+    for (std::size_t i = 0; i < w; ++i) o[i] = std::max({up ? up[i] : kOff, d[i], down ? down[i] : kOff});
+  }
+  for (std::size_t j = 0; j < h; ++j) {
+    float* o = out.data() + j * w;
+    float left = kOff;
+    for (std::size_t i = 0; i < w; ++i) {
+      const float here = o[i];
+      o[i] = std::max({left, here, i + 1 < w ? o[i + 1] : kOff});
+      left = here;
+    }
+  }
+}
+
 }  // namespace mtlod::core

@@ -56,4 +56,11 @@ std::size_t rasterize_occupancy_compact(const ViewMapping& mapping, std::span<co
 std::size_t mark_depth_discontinuities(std::span<const float> depth, GridSize grid, float relative_jump,
                                        std::span<std::uint8_t> image);
 
+// Hidden-surface coarsening (AllowedErrorInputs::visible_depth): out[c] = the largest depth of cell c
+// and its 8 neighbours, +inf where any of them is background or off the grid. A point behind this
+// bound lies behind the visible surface wherever in the cell it projects: a cell that a nearer
+// surface covers only in part (conservative rasterisation marks it whole) still has a neighbour that
+// shows the farther one, and the model's outline keeps every point near it visible.
+void visible_depth_bound(std::span<const float> depth, GridSize grid, std::span<float> out);
+
 }  // namespace mtlod::core

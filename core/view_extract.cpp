@@ -50,9 +50,9 @@ ViewExtractor::ViewExtractor(const Mt& mt, const OccupancyLevels& levels) : mt_(
 std::size_t ViewCache::memory_bytes() const {
   auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
   return allowed_error_.resident_bytes() + known_bits_.resident_bytes() + bytes(silhouette_dt_) +
-         bytes(neglect_dt_) + bytes(focus_factor_) + bytes(known_vertices_) + bytes(known_cells_) +
-         bytes(known_clip_w_) + bytes(cell_changed_) + bytes(cell_multiplier_) + bytes(changed_cells_) +
-         bytes(changed_) + bytes(neglect_) + bytes(focus_cells_);
+         bytes(neglect_dt_) + bytes(visible_depth_) + bytes(focus_factor_) + bytes(known_vertices_) +
+         bytes(known_cells_) + bytes(known_clip_w_) + bytes(cell_changed_) + bytes(cell_multiplier_) +
+         bytes(changed_cells_) + bytes(changed_) + bytes(neglect_) + bytes(focus_cells_);
 }
 
 bool ViewExtractor::same_view(const ViewCache& s, const ViewRequest& r) {
@@ -86,22 +86,31 @@ double ViewExtractor::covered_cells() const {
 }
 
 std::size_t ViewExtractor::occupancy() {
+  const bool hidden = request_->allowed.hidden_factor != 1.0f;
   if (incremental_) {
-    occupancy_level_ = nullptr;  // the silhouette transform is the session's
+    occupancy_level_ = nullptr;  // the silhouette transform and the visible depths are the session's
+    visible_depth_ = session_->visible_depth_;
     return 0;
   }
   const OccupancyLevel& level = levels_.for_covered_cells(covered_cells());
   occupancy_level_ = &level;
   const std::size_t cells = request_->grid.cell_count();
   occupancy_.resize(cells);
-  if (request_->internal_silhouettes) depth_.resize(cells);
-  if (request_->internal_silhouettes) {
+  if (request_->internal_silhouettes || hidden) {
     // Depths come from the cut's own triangles: a hole's cap is not a surface.
+    depth_.resize(cells);
     rasterize_occupancy_compact(mapping_, level.positions, level.cut_triangles(), occupancy_, depth_,
                                 projected_);
   } else {
     rasterize_occupancy_compact(mapping_, level.positions, level.triangles, occupancy_, {}, projected_,
                                 level.closed);
+  }
+  if (hidden) {
+    visible_depth_bound_.resize(cells);
+    visible_depth_bound(depth_, request_->grid, visible_depth_bound_);
+    visible_depth_ = visible_depth_bound_;
+  } else {
+    visible_depth_ = {};
   }
   return level.triangle_count();
 }
@@ -166,7 +175,8 @@ void ViewExtractor::allowed_error() {
   options.use_silhouette = options.use_silhouette && !silhouette_.empty();
   options.use_focus = options.use_focus && !focus_dt_.empty();
   options.use_neglect = options.use_neglect && !neglect_.empty();
-  field_.bind(mapping_, options, {silhouette_, focus_dt_, neglect_, mt_.positions, mt_.normals});
+  field_.bind(mapping_, options,
+              {silhouette_, focus_dt_, neglect_, mt_.positions, mt_.normals, visible_depth_});
   if (!incremental_) {
     ZeroedArray<float>& field = session_ ? session_->allowed_error_ : vertex_allowed_error_;
     // Only the entries written are read: on demand, the pages of the cut's vertices.
@@ -237,7 +247,7 @@ void ViewExtractor::allowed_error() {
     const std::uint32_t c = s.known_cells_[k];
     if (c == kNoCell || !s.cell_changed_[c]) continue;
     const std::uint32_t v = s.known_vertices_[k];
-    allowed_[v] = field_.vertex_allowed_error_in_cell(s.cell_multiplier_[c], s.known_clip_w_[k], v);
+    allowed_[v] = field_.vertex_allowed_error_in_cell(s.cell_multiplier_[c], c, s.known_clip_w_[k], v);
     s.changed_.push_back(v);
   }
   for (const std::uint32_t c : s.changed_cells_) s.cell_changed_[c] = 0;
@@ -270,6 +280,7 @@ void ViewExtractor::remember_view(ViewCache& s) const {
   s.depth_jump_ = r.depth_jump;
   s.silhouette_dt_.assign(silhouette_.begin(), silhouette_.end());
   s.neglect_dt_.assign(neglect_.begin(), neglect_.end());
+  s.visible_depth_.assign(visible_depth_.begin(), visible_depth_.end());
   remember_foci(s);
   s.changed_.clear();
 }
@@ -401,9 +412,9 @@ CutSpan ViewExtractor::refine_view(Refiner& session, CutMesh& scratch) {
 std::size_t ViewExtractor::memory_bytes() const {
   auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
   return transformer_.memory_bytes() + bytes(occupancy_) + bytes(seeds_image_) + bytes(depth_) +
-         bytes(silhouette_dt_) + bytes(focus_dt_) + bytes(neglect_dt_) + bytes(euclidean_) + bytes(cells_) +
-         vertex_allowed_error_.resident_bytes() + vertex_labels_.resident_bytes() + bytes(projected_) +
-         bytes(unknown_) + field_.memory_bytes();
+         bytes(visible_depth_bound_) + bytes(silhouette_dt_) + bytes(focus_dt_) + bytes(neglect_dt_) +
+         bytes(euclidean_) + bytes(cells_) + vertex_allowed_error_.resident_bytes() +
+         vertex_labels_.resident_bytes() + bytes(projected_) + bytes(unknown_) + field_.memory_bytes();
 }
 
 }  // namespace mtlod::core

@@ -84,6 +84,7 @@ class ViewCache {
   bool allowed_error_complete_ = false;       // every vertex's was computed (else on demand)
   std::vector<std::uint16_t> silhouette_dt_;  // of the view
   std::vector<std::uint16_t> neglect_dt_;
+  std::vector<float> visible_depth_;        // of the view, with hidden-surface coarsening
   std::vector<float> focus_factor_;         // per cell, for the last request's foci
   std::vector<std::uint32_t> focus_cells_;  // the last request's foci (kNoCell off the grid)
   // The known vertices, their cells (kNoCell off the grid) and clip-space w. With a complete field
@@ -111,7 +112,8 @@ class ViewExtractor {
   // update it, and take the incremental path when the view is the session's previous one.
   void map(const ViewRequest& request, ViewCache* session = nullptr);
   // Stage 2: rasterises the occupancy from a precomputed coarse cut sized to the grid cells the
-  // model covers (see OccupancyLevels). Returns that cut's triangle count (0: reused the session's).
+  // model covers (see OccupancyLevels), with its depths when internal silhouettes or hidden-surface
+  // coarsening need them. Returns that cut's triangle count (0: reused the session's).
   std::size_t occupancy();
   // Stage 3: the silhouette, focus and neglect transforms the request uses.
   void distance_transforms();
@@ -175,8 +177,9 @@ class ViewExtractor {
   ViewCache* session_ = nullptr;
   bool incremental_ = false;
   bool on_demand_ = false;  // stage 5 computes the allowed error it reads
-  // The transforms and field in use: this extractor's buffers or the session's.
+  // The transforms, visible depths and field in use: this extractor's buffers or the session's.
   std::span<const std::uint16_t> silhouette_, neglect_;
+  std::span<const float> visible_depth_;
   std::span<float> allowed_;
   ViewMapping mapping_;
   const OccupancyLevels& levels_;
@@ -184,7 +187,7 @@ class ViewExtractor {
   DistanceTransformer transformer_;
   AllowedErrorField field_;
   std::vector<std::uint8_t> occupancy_, seeds_image_;
-  std::vector<float> depth_;
+  std::vector<float> depth_, visible_depth_bound_;
   std::vector<std::uint16_t> silhouette_dt_, focus_dt_, neglect_dt_;
   std::vector<std::uint32_t> euclidean_, cells_;
   ZeroedArray<float> vertex_allowed_error_;

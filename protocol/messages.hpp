@@ -87,6 +87,7 @@ struct Criteria {
   bool internal_silhouettes = false;  // depth discontinuities seed the silhouette distance too
   double frustum_factor = 8;          // allowed error multiplier outside the view (1 = off)
   double backface_factor = 1;         // allowed error multiplier for back faces (1 = off)
+  double hidden_factor = 1;           // allowed error multiplier behind the visible surface (1 = off)
 };
 
 struct DracoSettings {

@@ -256,6 +256,7 @@ Criteria read_criteria(const json& v, const Limits& limits) {
   c.internal_silhouettes = r.boolean("internal_silhouettes", false);
   c.frustum_factor = r.number("frustum_factor", c.frustum_factor, 1, 1e6);
   c.backface_factor = r.number("backface_factor", c.backface_factor, 1, 1e6);
+  c.hidden_factor = r.number("hidden_factor", c.hidden_factor, 1, 1e6);
   r.finish();
   return c;
 }
@@ -447,6 +448,7 @@ json extract_json(const Extract& e) {
   c["internal_silhouettes"] = e.criteria.internal_silhouettes;
   c["frustum_factor"] = e.criteria.frustum_factor;
   c["backface_factor"] = e.criteria.backface_factor;
+  c["hidden_factor"] = e.criteria.hidden_factor;
   j["criteria"] = c;
   if (e.budget) j["budget"] = *e.budget;
   j["attributes"] = {{"normals", e.normals}, {"colors", e.colors}, {"labels", e.labels}};

@@ -53,6 +53,7 @@ core::ViewRequest to_view_request(const Extract& e, bool model_has_normals) {
   }
   a.outside_view_factor = static_cast<float>(e.criteria.frustum_factor);
   a.back_face_factor = model_has_normals ? static_cast<float>(e.criteria.backface_factor) : 1.0f;
+  a.hidden_factor = static_cast<float>(e.criteria.hidden_factor);
   v.internal_silhouettes = e.criteria.internal_silhouettes;
   if (e.budget) v.budget = *e.budget;
   v.labels = e.labels;

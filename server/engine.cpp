@@ -68,6 +68,8 @@ Worker& this_worker() {
 // kPagedPerCutTriangle per triangle of the cut (its neighbours' ids lie close together). Upper
 // bounds with headroom, checked against the real figures by tests/server/memory_test.cpp.
 constexpr std::uint64_t kScratchPerCell = 16, kSessionPerCell = 16, kSessionPerCutTriangle = 128;
+// Hidden-surface coarsening: the depth image and its 3×3 bound per worker, the bound per session.
+constexpr std::uint64_t kHiddenPerCell = 12;
 constexpr std::uint64_t kPerVertex = 24, kPerMtTriangle = 1, kPagedPerCutTriangle = 2048;
 
 }  // namespace
@@ -91,7 +93,9 @@ std::uint64_t Engine::estimate_bytes(const protocol::Extract& request, const Ext
   const std::uint64_t paged =
       std::min(kPerVertex * model->mt.vertex_count() + kPerMtTriangle * model->mt.triangle_count(),
                kPagedPerCutTriangle * cut);
-  return (kScratchPerCell + kSessionPerCell) * cells + kSessionPerCutTriangle * cut + paged;
+  const std::uint64_t per_cell =
+      kScratchPerCell + kSessionPerCell + (request.criteria.hidden_factor != 1 ? kHiddenPerCell : 0);
+  return per_cell * cells + kSessionPerCutTriangle * cut + paged;
 }
 
 std::int64_t Engine::settle_worker_scratch() {

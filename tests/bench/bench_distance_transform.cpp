@@ -312,7 +312,8 @@ void BM_AllowedErrorFull(benchmark::State& state) {
   }
   const LabelScene scene(dragon);
   AllowedErrorField field;
-  field.bind(scene.mapping, scene.options, {scene.silhouette, scene.focus, {}, dragon.full->positions, {}});
+  field.bind(scene.mapping, scene.options,
+             {scene.silhouette, scene.focus, {}, dragon.full->positions, {}, {}});
   std::vector<float> allowed(dragon.full->vertex_count());
   for (auto _ : state) {
     field.compute_all(allowed);
@@ -330,7 +331,8 @@ void BM_AllowedErrorLazy(benchmark::State& state) {
   }
   const LabelScene scene(dragon);
   AllowedErrorField field;
-  field.bind(scene.mapping, scene.options, {scene.silhouette, scene.focus, {}, dragon.full->positions, {}});
+  field.bind(scene.mapping, scene.options,
+             {scene.silhouette, scene.focus, {}, dragon.full->positions, {}, {}});
   // Touched triangles: random (arg 1 = 0) or a contiguous run in file order (arg 1 = 1).
   const auto touched = static_cast<std::size_t>(state.range(0));
   std::vector<std::uint32_t> triangles(touched);
@@ -377,7 +379,8 @@ void BM_GridPipelineDragon256(benchmark::State& state) {
     rasterize_occupancy(scene.mapping, dragon.coarse->positions, dragon.coarse->triangles, occupancy);
     transformer.chamfer(DistanceMetric::kChamfer5711, occupancy, grid, scene.silhouette);
     transformer.chamfer_from_cells(DistanceMetric::kChamfer5711, foci, grid, scene.focus);
-    field.bind(scene.mapping, scene.options, {scene.silhouette, scene.focus, {}, dragon.full->positions, {}});
+    field.bind(scene.mapping, scene.options,
+               {scene.silhouette, scene.focus, {}, dragon.full->positions, {}, {}});
     field.compute_all(allowed);
     benchmark::DoNotOptimize(allowed.data());
   }
@@ -476,7 +479,7 @@ void BM_RequestPipelineDragon256(benchmark::State& state) {
     rasterize_occupancy_compact(mapping, level.positions, level.triangles, occupancy, {}, projected,
                                 level.closed);
     transformer.chamfer(DistanceMetric::kChamfer5711, occupancy, grid, silhouette);
-    field.bind(mapping, options, {silhouette, {}, {}, mt.positions, {}});
+    field.bind(mapping, options, {silhouette, {}, {}, mt.positions, {}, {}});
     field.compute_all(allowed);
     refiner.refine(AllowedError::from_vertices(allowed), cut);
   };
@@ -555,6 +558,45 @@ BENCHMARK(BM_OccupancyFromMtCut256)
     ->Arg(131072)
     ->Unit(benchmark::kMillisecond);
 
+// Hidden-surface coarsening's extra work on the dragon at 256²: the 16k level rasterised with depths
+// (every triangle: no one-sided shortcut), the 3×3 bound, and the share of the in-view vertices the
+// allowed-error stage then finds hidden.
+void BM_VisibleDepthDragon256(benchmark::State& state) {
+  const DragonMt& dragon = DragonMt::get();
+  if (!dragon.mt) {
+    state.SkipWithError("no dragon MT");
+    return;
+  }
+  const Mt& mt = *dragon.mt;
+  const OccupancyLevel& level = dragon.level(16384);
+  const ViewMapping mapping(dragon.camera, GridSize{256, 256});
+  const GridSize grid = mapping.grid();
+  std::vector<ProjectedCorner> projected;
+  std::vector<std::uint8_t> occupancy(grid.cell_count());
+  std::vector<float> depth(grid.cell_count()), visible(grid.cell_count());
+  for (auto _ : state) {
+    rasterize_occupancy_compact(mapping, level.positions, level.cut_triangles(), occupancy, depth, projected);
+    visible_depth_bound(depth, grid, visible);
+    benchmark::DoNotOptimize(visible.data());
+  }
+  AllowedErrorOptions options;
+  options.hidden_factor = 2.0f;
+  std::vector<float> allowed(mt.vertex_count());
+  compute_vertex_allowed_error(mapping, options, {{}, {}, {}, mt.positions, {}, visible}, allowed);
+  std::vector<std::uint32_t> cells(mt.vertex_count());
+  std::vector<float> clip_w(mt.vertex_count());
+  map_vertices(mapping, mt.positions, cells, clip_w);
+  std::size_t in_view = 0, hidden = 0;
+  for (std::size_t v = 0; v < cells.size(); ++v) {
+    if (cells[v] == kNoCell) continue;
+    ++in_view;
+    hidden += allowed[v] == 2.0f;
+  }
+  state.counters["hidden_pct"] = 100.0 * static_cast<double>(hidden) / static_cast<double>(in_view);
+  state.counters["cut_triangles"] = static_cast<double>(level.triangle_count());
+}
+BENCHMARK(BM_VisibleDepthDragon256)->Unit(benchmark::kMillisecond);
+
 // The refinement alone, with the allowed errors of the pipeline above (for the breakdown).
 void BM_RefineOnlyDragon256(benchmark::State& state) {
   const DragonMt& dragon = DragonMt::get();
@@ -579,7 +621,7 @@ void BM_RefineOnlyDragon256(benchmark::State& state) {
   Refiner refiner(mt);
   tune_error_for_size(dragon.radius, static_cast<std::size_t>(state.range(0)), [&](float bound) {
     options.error = bound;
-    compute_vertex_allowed_error(mapping, options, {silhouette, {}, {}, mt.positions, {}}, allowed);
+    compute_vertex_allowed_error(mapping, options, {silhouette, {}, {}, mt.positions, {}, {}}, allowed);
     refiner.refine(AllowedError::from_vertices(allowed), cut);
     return cut.triangle_count();
   });

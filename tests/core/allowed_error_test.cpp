@@ -99,7 +99,7 @@ TEST(AllowedError, StricterOfSilhouetteAndFocusWins) {
   options.silhouette = {FalloffLaw::kStep, 2.0f, 0.5f, 0.0f, 2.3f};
   options.use_focus = true;
   options.focus = {FalloffLaw::kStep, 3.0f, 0.25f, 0.0f, 2.3f};
-  const AllowedErrorInputs inputs{scene.silhouette, scene.focus, {}, positions, {}};
+  const AllowedErrorInputs inputs{scene.silhouette, scene.focus, {}, positions, {}, {}};
   std::vector<float> out(1);
   // Label 10 (2 px) is inside the silhouette band only: 2·0.5.
   scene.silhouette[cell] = 10;
@@ -118,7 +118,7 @@ TEST(AllowedError, StricterOfSilhouetteAndFocusWins) {
   options.use_neglect = true;
   options.neglect = {FalloffLaw::kStep, 2.0f, 4.0f, 0.0f, 2.3f};
   scene.neglect[cell] = 0;
-  const AllowedErrorInputs with_neglect{scene.silhouette, scene.focus, scene.neglect, positions, {}};
+  const AllowedErrorInputs with_neglect{scene.silhouette, scene.focus, scene.neglect, positions, {}, {}};
   compute_vertex_allowed_error(scene.mapping, options, with_neglect, out);
   EXPECT_EQ(out[0], 8.0f);
 }
@@ -134,13 +134,13 @@ TEST(AllowedError, PixelBoundConvertsWithDepth) {
   options.units = ErrorUnits::kScreenPixels;
   options.viewport_height_px = 1000.0f;
   std::vector<float> out(3);
-  compute_vertex_allowed_error(scene.mapping, options, {{}, {}, {}, positions, {}}, out);
+  compute_vertex_allowed_error(scene.mapping, options, {{}, {}, {}, positions, {}, {}}, out);
   EXPECT_NEAR(out[0], 0.02f, 1e-8f);
   EXPECT_EQ(out[1], kInf);
   EXPECT_NEAR(out[2], 0.02f, 1e-8f);  // off the grid but in front: same depth, same bound
   // Without viewport_height_px the grid's 16 rows are the pixels: 2 · 10/16 = 1.25.
   options.viewport_height_px = 0.0f;
-  compute_vertex_allowed_error(scene.mapping, options, {{}, {}, {}, positions, {}}, out);
+  compute_vertex_allowed_error(scene.mapping, options, {{}, {}, {}, positions, {}, {}}, out);
   EXPECT_NEAR(out[0], 1.25f, 1e-6f);
 }
 
@@ -155,8 +155,36 @@ TEST(AllowedError, FrustumAndBackFaceCoarsening) {
   options.outside_view_factor = 8.0f;
   options.back_face_factor = 3.0f;
   std::vector<float> out(4);
-  compute_vertex_allowed_error(scene.mapping, options, {{}, {}, {}, positions, normals}, out);
+  compute_vertex_allowed_error(scene.mapping, options, {{}, {}, {}, positions, normals, {}}, out);
   EXPECT_EQ(out, (std::vector<float>{1.0f, 8.0f, 3.0f, 1.0f}));
+}
+
+TEST(AllowedError, HiddenSurfaceCoarseningComparesDepthWithTheVisibleSurface) {
+  HandScene scene;
+  // The visible surface at depth 4 everywhere but in cell (3, 8), which sees the background. Vertices:
+  // 0 on the surface; 1 behind it within the 1 % margin; 2 behind it beyond the margin; 3 just as far
+  // but in the background's cell; 4 just as far, off the grid; 5 in front of the surface.
+  std::vector<float> visible(256, 4.0f);
+  const std::uint32_t background = scene.mapping.grid().cell(3, 8);
+  visible[background] = kInf;
+  // x = −(1 − 2·3.5/16)·depth puts a vertex at the centre of column 3, y = 0 in row 8.
+  const float column3 = -(1.0f - 7.0f / 16.0f);
+  const std::vector<float> positions = {0,           0, -4, 0,  0, -4.03f, 0, 0, -4.2f,
+                                        column3 * 6, 0, -6, 40, 0, -6,     0, 0, -3};
+  ASSERT_EQ(scene.mapping.map_point(column3 * 6, 0, -6), background);
+  AllowedErrorOptions options;
+  options.error = 1.0f;
+  options.outside_view_factor = 8.0f;
+  options.hidden_factor = 5.0f;
+  std::vector<float> out(6);
+  compute_vertex_allowed_error(scene.mapping, options, {{}, {}, {}, positions, {}, visible}, out);
+  EXPECT_EQ(out, (std::vector<float>{1.0f, 1.0f, 5.0f, 1.0f, 8.0f, 1.0f}));
+  // Off without the depths, and with a factor of 1.
+  compute_vertex_allowed_error(scene.mapping, options, {{}, {}, {}, positions, {}, {}}, out);
+  EXPECT_EQ(out, (std::vector<float>{1.0f, 1.0f, 1.0f, 1.0f, 8.0f, 1.0f}));
+  options.hidden_factor = 1.0f;
+  compute_vertex_allowed_error(scene.mapping, options, {{}, {}, {}, positions, {}, visible}, out);
+  EXPECT_EQ(out, (std::vector<float>{1.0f, 1.0f, 1.0f, 1.0f, 8.0f, 1.0f}));
 }
 
 // A sphere seen in perspective on a 96² grid, with its silhouette transform and room for a focus
@@ -196,7 +224,7 @@ TEST(AllowedError, LazyVertexEqualsFullArray) {
   options.back_face_factor = 2.0f;
   AllowedErrorField field;
   field.bind(view.mapping, options,
-             {view.silhouette, view.focus, {}, view.sphere.positions, view.sphere.normals});
+             {view.silhouette, view.focus, {}, view.sphere.positions, view.sphere.normals, {}});
   std::vector<float> full(view.sphere.vertex_count());
   field.compute_all(full);
   std::size_t distinct = 0;
@@ -242,7 +270,7 @@ TEST(AllowedError, AFieldReusedOverLawsAndFociEqualsAFreshOneEveryTime) {
     options.use_silhouette = true;
     options.use_focus = true;
     options.focus = step.focus_law;
-    const AllowedErrorInputs inputs{view.silhouette, view.focus, {}, view.sphere.positions, {}};
+    const AllowedErrorInputs inputs{view.silhouette, view.focus, {}, view.sphere.positions, {}, {}};
     reused.bind(view.mapping, options, inputs);
     reused.compute_all(kept);
     AllowedErrorField fresh;
@@ -270,7 +298,7 @@ TEST(AllowedError, TriangleMinimumEqualsLawOfTriangleLabel) {
   options.use_silhouette = true;
   options.silhouette = {FalloffLaw::kStep, 3.0f, 0.25f, 0.0f, 2.3f};
   std::vector<float> allowed(sphere.vertex_count());
-  compute_vertex_allowed_error(mapping, options, {dt, {}, {}, sphere.positions, {}}, allowed);
+  compute_vertex_allowed_error(mapping, options, {dt, {}, {}, sphere.positions, {}, {}}, allowed);
   const std::size_t n = sphere.vertex_count();
   std::vector<std::uint32_t> cells(n), labels(n), triangle_labels(sphere.triangles.size() / 3);
   std::vector<float> clip_w(n);

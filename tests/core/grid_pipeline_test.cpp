@@ -71,7 +71,8 @@ TEST(GridPipeline, SphereSilhouetteZeroFactorBandKeepsContourAtFullResolution) {
   options.use_silhouette = true;
   options.silhouette = {FalloffLaw::kStep, 2.0f, 0.0f, 0.0f, 2.3f};
   std::vector<float> allowed(r.sphere.vertex_count());
-  compute_vertex_allowed_error(r.mapping, options, {r.silhouette, {}, {}, r.sphere.positions, {}}, allowed);
+  compute_vertex_allowed_error(r.mapping, options, {r.silhouette, {}, {}, r.sphere.positions, {}, {}},
+                               allowed);
   std::size_t band = 0;
   for (std::size_t v = 0; v < allowed.size(); ++v) {
     const bool near_contour = r.silhouette[r.cells[v]] <= 10;

@@ -6,6 +6,7 @@
 
 #include <array>
 #include <cstring>
+#include <limits>
 #include <random>
 #include <unordered_map>
 #include <vector>
@@ -16,6 +17,8 @@
 
 namespace mtlod::core {
 namespace {
+
+constexpr float kInf = std::numeric_limits<float>::infinity();
 
 using test::ortho_camera;
 using test::rectangle;
@@ -324,6 +327,39 @@ TEST(Occupancy, DepthJumpSeedsTheFartherSide) {
   // A 20 % threshold is still exceeded by the 4 → 8 jump; 150 % is not.
   image = occupancy;
   EXPECT_EQ(mark_depth_discontinuities(depth, mapping.grid(), 1.5f, image), 0u);
+}
+
+// Hidden-surface coarsening's bound against its definition: every cell's largest depth over its 3×3
+// neighbourhood, off-grid neighbours counting as background (+inf), on grids of several shapes.
+TEST(Occupancy, VisibleDepthBoundIsTheLargestDepthAroundEachCell) {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> depth_of(1.0f, 9.0f);
+  std::bernoulli_distribution background(0.1);
+  for (const GridSize grid : {GridSize{1, 1}, GridSize{7, 5}, GridSize{5, 7}, GridSize{64, 48}}) {
+    std::vector<float> depth(grid.cell_count());
+    for (float& d : depth) d = background(rng) ? kInf : depth_of(rng);
+    std::vector<float> bound(grid.cell_count());
+    visible_depth_bound(depth, grid, bound);
+    for (std::uint32_t j = 0; j < grid.height; ++j) {
+      for (std::uint32_t i = 0; i < grid.width; ++i) {
+        float expected = -kInf;
+        for (int dj = -1; dj <= 1; ++dj) {
+          for (int di = -1; di <= 1; ++di) {
+            const int x = int(i) + di, y = int(j) + dj;
+            const bool on_grid = x >= 0 && y >= 0 && x < int(grid.width) && y < int(grid.height);
+            expected = std::max(expected, on_grid ? depth[grid.cell(x, y)] : kInf);
+          }
+        }
+        ASSERT_EQ(bound[grid.cell(i, j)], expected) << "cell " << i << ", " << j;
+      }
+    }
+  }
+  // A surface at one depth with no background near: the bound is that depth inside, +inf at the rim.
+  const GridSize ten{10, 10};
+  std::vector<float> flat(ten.cell_count(), 3.0f), bound(ten.cell_count());
+  visible_depth_bound(flat, ten, bound);
+  EXPECT_EQ(bound[ten.cell(5, 5)], 3.0f);
+  EXPECT_EQ(bound[ten.cell(0, 5)], kInf);
 }
 
 }  // namespace

@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <memory>
 #include <random>
@@ -26,6 +27,9 @@
 
 #include <glm/ext/matrix_clip_space.hpp>
 #include <glm/ext/matrix_transform.hpp>
+#include <glm/geometric.hpp>
+#include <glm/mat4x4.hpp>
+#include <glm/matrix.hpp>
 
 namespace mtlod::core {
 namespace {
@@ -254,6 +258,81 @@ std::vector<std::array<std::uint32_t, 3>> triangle_set(const CutMesh& cut) {
   return out;
 }
 
+// Whether the segment from `from` to `to` crosses a triangle of `mesh` before the last `end_gap`
+// of its length (Möller–Trumbore in double): the reference visibility of a point.
+bool segment_blocked(const Mesh& mesh, glm::dvec3 from, glm::dvec3 to, double end_gap) {
+  const glm::dvec3 dir = to - from;
+  auto corner = [&](std::uint32_t v) {
+    const float* p = mesh.positions.data() + 3 * std::size_t{v};
+    return glm::dvec3(p[0], p[1], p[2]);
+  };
+  for (std::size_t t = 0; t < mesh.triangles.size(); t += 3) {
+    const glm::dvec3 a = corner(mesh.triangles[t]), b = corner(mesh.triangles[t + 1]),
+                     c = corner(mesh.triangles[t + 2]);
+    const glm::dvec3 e1 = b - a, e2 = c - a, p = glm::cross(dir, e2);
+    const double det = glm::dot(e1, p);
+    if (std::abs(det) < 1e-15) continue;
+    const glm::dvec3 s = from - a;
+    const double u = glm::dot(s, p) / det;
+    if (u < 0 || u > 1) continue;
+    const glm::dvec3 q = glm::cross(s, e1);
+    const double v = glm::dot(dir, q) / det;
+    if (v < 0 || u + v > 1) continue;
+    const double hit = glm::dot(e2, q) / det;
+    if (hit > 0 && hit < 1 - end_gap) return true;
+  }
+  return false;
+}
+
+// Hidden-surface coarsening against ray casting on the full-resolution surface: on a spiral shell,
+// which hides parts of itself from the side as well as its far half, a vertex the field coarsens lies
+// behind the surface, and most vertices that lie behind it are coarsened. The depths come from a
+// coarse occupancy cut, so the bounds leave room for its error (and the reference counts a ray that
+// grazes the vertex's own neighbourhood as blocked).
+TEST(ViewExtract, HiddenSurfaceCoarseningFindsWhatRayCastingFindsHidden) {
+  GenerateOptions o;
+  o.shape = Shape::kShell;
+  o.target_triangles = 6'000;
+  const auto b = build(generate_mesh(o));
+  ASSERT_NE(b, nullptr);
+  for (const glm::vec3 axis : {glm::vec3(0, 0, 1), glm::normalize(glm::vec3(1, 0.5f, 0.3f))}) {
+    ViewRequest r;
+    r.camera = camera_along(b->input.positions, axis, 1.0f);
+    r.grid = {256, 256};
+    r.allowed.error = 1.0f;
+    r.allowed.outside_view_factor = 1.0f;
+    r.allowed.hidden_factor = 4.0f;
+    r.dynamic = false;
+    r.allowed_error_on_demand = false;
+    ViewExtractor x(b->mt, *b->levels);
+    Refiner refiner(b->mt);
+    CutMesh cut;
+    run(x, r, refiner, cut);
+    const std::span<const float> field = x.vertex_allowed_error();
+    const glm::dvec3 eye = glm::inverse(glm::dmat4(r.camera.view))[3];
+    std::size_t in_view = 0, blocked = 0, coarsened = 0, coarsened_blocked = 0;
+    for (std::uint32_t v = 0; v < b->mt.vertex_count(); ++v) {
+      const float* p = b->mt.positions.data() + 3 * std::size_t{v};
+      if (x.mapping().map_point(p[0], p[1], p[2]) == kNoCell) continue;
+      ++in_view;
+      ASSERT_TRUE(field[v] == 1.0f || field[v] == 4.0f) << field[v];
+      const bool is_blocked = segment_blocked(b->input, eye, glm::dvec3(p[0], p[1], p[2]), 1e-3);
+      blocked += is_blocked;
+      coarsened += field[v] == 4.0f;
+      coarsened_blocked += field[v] == 4.0f && is_blocked;
+    }
+    char counts[160];
+    std::snprintf(counts, sizeof counts,
+                  "axis %.2f,%.2f,%.2f: %zu in view, %zu blocked, %zu coarsened, %zu of them blocked", axis.x,
+                  axis.y, axis.z, in_view, blocked, coarsened, coarsened_blocked);
+    std::printf("%s\n", counts);
+    SCOPED_TRACE(counts);
+    EXPECT_GT(blocked, in_view / 3);  // a scene with much to hide
+    EXPECT_GE(coarsened_blocked, coarsened - coarsened / 100);
+    EXPECT_GE(coarsened, blocked * 6 / 10);
+  }
+}
+
 TEST(ViewExtract, OccupancyCutGrowsAsTheModelFillsMoreOfTheGrid) {
   GenerateOptions o;
   o.target_triangles = 200'000;
@@ -349,7 +428,7 @@ SessionScene session_scene() {
 // changed) must give exactly what a fresh extraction from the root gives, request after request,
 // for every falloff law, in model units and in pixels, with the camera changing now and then; and
 // for the viewing clients' default, a foveal law from the bound itself (f = 1, growing past 1)
-// without a silhouette.
+// without a silhouette, with and without hidden-surface coarsening (whose depths the gazes reuse).
 TEST(ViewExtract, SessionGazePathEqualsAFreshExtractionEveryTime) {
   const auto [b, camera, other] = session_scene();
   ASSERT_NE(b, nullptr);
@@ -360,11 +439,12 @@ TEST(ViewExtract, SessionGazePathEqualsAFreshExtractionEveryTime) {
     FalloffLaw law;
     float factor;
     bool silhouette;
+    float hidden = 1.0f;
   };
-  for (const auto [law, factor, silhouette] :
+  for (const auto [law, factor, silhouette, hidden] :
        {Focus{FalloffLaw::kStep, 0.1f, true}, Focus{FalloffLaw::kLinear, 0.1f, true},
         Focus{FalloffLaw::kSmoothstep, 0.1f, true}, Focus{FalloffLaw::kFoveal, 0.1f, true},
-        Focus{FalloffLaw::kFoveal, 1.0f, false}}) {
+        Focus{FalloffLaw::kFoveal, 1.0f, false}, Focus{FalloffLaw::kFoveal, 1.0f, false, 16.0f}}) {
     for (const ErrorUnits units : {ErrorUnits::kModel, ErrorUnits::kScreenPixels}) {
       for (const std::uint32_t side : {64u, 160u}) {
         for (const DistanceMetric metric :
@@ -381,6 +461,7 @@ TEST(ViewExtract, SessionGazePathEqualsAFreshExtractionEveryTime) {
           r.allowed.silhouette = RegionLaw{FalloffLaw::kStep, 2.0f, 0.25f};
           r.allowed.use_focus = true;
           r.allowed.focus = RegionLaw{law, 8.0f, factor, 16.0f};
+          r.allowed.hidden_factor = hidden;
           ViewExtractor session_extractor(b->mt, *b->levels), fresh_extractor(b->mt, *b->levels);
           ViewCache session;
           Refiner kept(b->mt);

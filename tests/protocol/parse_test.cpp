@@ -31,6 +31,7 @@ Extract sample_extract() {
   e.criteria.internal_silhouettes = true;
   e.criteria.frustum_factor = 4;
   e.criteria.backface_factor = 2;
+  e.criteria.hidden_factor = 16;
   e.budget = 50'000;
   e.normals = true;
   e.labels = true;
@@ -64,6 +65,7 @@ TEST(ParseRequest, ReadsBackEveryFieldAClientWrote) {
   EXPECT_EQ(got.criteria.units, DistanceUnit::kChamfer);
   EXPECT_TRUE(got.criteria.internal_silhouettes);
   EXPECT_EQ(got.criteria.backface_factor, 2);
+  EXPECT_EQ(got.criteria.hidden_factor, 16);
   EXPECT_EQ(got.budget, 50'000u);
   EXPECT_TRUE(got.normals && got.labels);
   EXPECT_EQ(got.draco.method, core::DracoMethod::kSequential);
