@@ -39,20 +39,23 @@ search=(--mesh bunny=build/models/bunny.ply)
 for entry in lucy-15k armadillo-52k igea-269k bunny-zipper-69k; do
   [ -s "$shared/$entry.ply" ] && search+=(--mesh "$entry=$shared/$entry.ply")
 done
-"$build/clients/tools/mtlod-eval" fidelity "${search[@]}" --budgets 1000,4000,16000 --cameras 4 --no-equal-triangles --no-curves \
-    --out-dir tests/evaluation --report SEARCH.md --csv search.csv --cache-dir build/eval-cache --target foveal \
+"$build/clients/tools/mtlod-eval" fidelity "${search[@]}" --budgets 1000,4000,16000 --cameras 4 --no-equal-triangles --no-curves --no-turns \
+    --out-dir tests/evaluation --report SEARCH.md --csv search.csv --cache-dir build/eval-cache --target foveal-hidden \
     --method uniform=uniform --method meshopt=meshopt --method previous=px,sil=2/0,focus=20/0.1,frustum=8 \
     --method pixels=px,frustum=8 --method foveal=px,focus-foveal=1,frustum=8 \
     --method foveal-0.3=px,focus-foveal=0.3,frustum=8 --method linear=px,focus-linear=0/0.1/128,frustum=8 \
     --method smoothstep=px,focus-smooth=0/0.1/128,frustum=8 --method step-80=px,focus=80/0.3,frustum=8 \
     --method step-sil=px,sil=2/0.5,focus=40/0.3,frustum=8 --method back-faces=px,focus-foveal=1,back=16,frustum=8 \
-    --note "Candidates for the default; the winner became \`default\` in FIDELITY.md." "$@"
+    --method hidden=px,hidden=16,frustum=8 --method foveal-hidden=px,focus-foveal=1,hidden=16,frustum=8 \
+    --method foveal-hidden-64=px,focus-foveal=1,hidden=64,frustum=8 \
+    --method foveal-hidden-5%=px,focus-foveal=1,hidden=16/0.05,frustum=8 \
+    --note "Candidates for the default; the winner became \`default\` in FIDELITY.md. \`back=F\` trusts the model's normals (a scan without them gets them from its triangles' winding, and bunny-zipper's triangles face inwards: its signed volume is negative, so its front is coarsened); \`hidden=F\` compares depths with the view's coarse depth image and trusts nothing of the model." "$@"
 
 "$build/clients/tools/mtlod-eval" fidelity "${meshes[@]}" --budgets 1000,4000,16000,64000 --cameras 8 \
     --out-dir tests/evaluation --cache-dir build/eval-cache --figures bunny,armadillo-52k,igea-269k \
-    --note "\`default\` is the best of the candidates in SEARCH.md that needs no normals in the model (back-face coarsening gains little there and loses on meshes whose faces are not consistently oriented)." \
-    --note "Why the 1.5× target is missed: near the focus (within 4.6°) the default's error is about 1.6× lower than uniform's in every case, but the foveated score weighs every covered pixel, the acuity weight is still 0.1–0.3 at 5–20° from the focus and that ring holds most of the model's pixels, and there the default spends fewer triangles than a uniform cut of the same bytes. Its gain is worth 1.05–1.2× uniform's bytes (last column of the targets); uniform's own error falls only 1.4–3× per fourfold payload (tables at equal triangles)." \
-    --note "Where it loses: dragon-vrip-res4-11k, whose MT root already holds 2,601 of the 4,000 triangles (meshopt, simplifying the 10.6k input directly, wins there), and the smallest cuts (1,000–4,000 triangles) of lucy and the armadillo, where the coarse periphery's silhouette errors outweigh the focus." "$@"
+    --note "\`default\` is SEARCH.md's winner: the pixel bound holding at the focus and growing ×(1 + e/2.3°) with eccentricity, and hidden-surface coarsening (\`hidden=16\`): a vertex more than 1 % deeper than the visible surface around its grid cell (the view's coarse depth image, its largest depth over 3×3 cells) gets 16 times the error. A uniform or meshopt cut spends much of its payload on surface that no pixel shows (the far side and what the model hides of itself); the default spends it on what the camera sees, densest where the eye looks." \
+    --note "A cut is made for its camera: when the camera turns, coarse hidden surface comes into view until the next reply, as coarse surface outside the frustum does at the image's edge (the viewer and the network clients ask for a new cut on every camera change; see GAZE.md for the latency a reply takes)." \
+    --note "Where it loses: dragon-vrip-res4-11k at 4,000 triangles against meshopt (it beats uniform there): the MT root already holds 2,601 of the 4,000 triangles, while meshopt simplifies the 10.6k input directly. The smallest cuts (1,000 triangles) gain least, 1.06–1.26×: there the coarse outline, which hidden-surface coarsening does not touch, dominates the error." "$@"
 
 # A gaze trace replayed (mtlod-gaze's synthesiser): gaze-driven cuts against a uniform cut of the same
 # bytes, per frame, and the recovery after saccades.

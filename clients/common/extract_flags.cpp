@@ -87,6 +87,8 @@ void add_extract_flags(CLI::App& app, ExtractFlags& f) {
       ->capture_default_str();
   app.add_option("--backface-factor", f.backface_factor, "error multiplier for back faces")
       ->capture_default_str();
+  app.add_option("--hidden-factor", f.hidden_factor,
+                 "error multiplier behind the visible surface (default: 1, or 16 with the default criteria)");
   app.add_option(
       "--draco", f.draco_method,
       "Draco method: edgebreaker or sequential (default: edgebreaker for extract, sequential for gaze)");
@@ -110,6 +112,7 @@ void apply_default_criteria(ExtractFlags& flags) {
   if (!flags.silhouette.empty() || !flags.focus.empty() || !flags.falloff.empty()) return;
   flags.falloff = "foveal";
   flags.focus.push_back("0.5,0.5,0,1");
+  if (!flags.hidden_factor) flags.hidden_factor = kDefaultHiddenFactor;
 }
 
 Result<Extract> make_extract(const ExtractFlags& f, const std::string& model,
@@ -162,6 +165,7 @@ Result<Extract> make_extract(const ExtractFlags& f, const std::string& model,
   e.criteria.internal_silhouettes = f.internal_silhouettes;
   e.criteria.frustum_factor = f.frustum_factor;
   e.criteria.backface_factor = f.backface_factor;
+  e.criteria.hidden_factor = f.hidden_factor.value_or(1.0);
   auto named = [](auto& out, const auto& names, const std::string& value, const char* flag) -> Status {
     using Enum = std::decay_t<decltype(out)>;
     const auto found = enum_from_name<Enum>(names, value);

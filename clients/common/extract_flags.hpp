@@ -31,7 +31,8 @@ struct ExtractFlags {
   std::string distance = "chamfer-5-7-11", units = "pixels";
   bool internal_silhouettes = false;
   double frustum_factor = 8, backface_factor = 1;
-  std::string draco_method;  // empty: the server's default for the request type
+  std::optional<double> hidden_factor;  // 1 (off) unless given, or set by apply_default_criteria
+  std::string draco_method;             // empty: the server's default for the request type
   int draco_speed = 10, position_bits = 14;
   std::optional<bool> draco_entropy;  // unset: the server's default for the request type
   bool normals = false, colors = false, labels = false;
@@ -48,9 +49,11 @@ void add_extract_flags(CLI::App& app, ExtractFlags& flags);
 // The default criteria of the viewing clients (mtlod-gaze, mtlod-load, the browser viewer), the
 // winner of the image-space study (tests/evaluation/FIDELITY.md, `default`): a bound in screen
 // pixels (1 unless given) that holds at the focus and grows with eccentricity like the eye's minimum
-// angle of resolution, ×(1 + e/2.3°) (`--falloff foveal --focus X,Y,0,1`). Applied only when no
+// angle of resolution, ×(1 + e/2.3°) (`--falloff foveal --focus X,Y,0,1`), and surfaces hidden from
+// the camera coarsened ×16 (`--hidden-factor 16`, unless that flag was given). Applied only when no
 // criterion flag (--silhouette, --focus, --falloff) was given; the focus starts at the view's centre.
 void apply_default_criteria(ExtractFlags& flags);
+inline constexpr double kDefaultHiddenFactor = 16;
 
 // Builds the request for `model` whose bounding box is given (for the default camera). The result
 // is checked by the same parser the server uses; errors name the flag.

@@ -891,6 +891,14 @@ int main(int argc, char** argv) {
   fidelity->add_option("--csv", fid.csv, "raw numbers file name in the directory")->capture_default_str();
   fidelity->add_option("--cache-dir", fid.cache_dir, "where MT files are cached");
   fidelity->add_option("--figures", fid.figure_meshes, "meshes to draw figures for")->delimiter(',');
+  fidelity
+      ->add_option("--turns", fid.turns,
+                   "also score the equal-bytes cuts of uniform, the target and meshopt with the model turned "
+                   "by these degrees")
+      ->delimiter(',')
+      ->capture_default_str();
+  fidelity->add_flag_callback(
+      "--no-turns", [&fid] { fid.turns.clear(); }, "no turned views");
   fidelity->add_option("--note", fid.notes, "a line for the report's setup section, repeatable");
   GazeStudyOptions gz;
   auto* gaze = app.add_subcommand(

@@ -1,5 +1,6 @@
 // The viewing clients' default criteria (protocol::apply_default_criteria): the image-space study's
-// winner when the user names no criterion, and nothing changed when they do. Checked on the request
+// winner (foveal bound, hidden surfaces coarsened) when the user names no criterion, and nothing
+// changed when they do. Checked on the request
 // make_extract builds, which the server's own parser has accepted.
 #include "clients/common/extract_flags.hpp"
 
@@ -26,6 +27,14 @@ TEST(DefaultCriteria, FovealBoundAtTheFocusWhenNoCriterionIsGiven) {
   EXPECT_EQ(e.criteria.focus[0].x, 0.5);
   EXPECT_EQ(e.criteria.focus[0].y, 0.5);
   EXPECT_EQ(e.criteria.focus[0].factor, 1.0);  // the bound itself holds at the focus
+  EXPECT_EQ(e.criteria.hidden_factor, kDefaultHiddenFactor);
+}
+
+TEST(DefaultCriteria, AGivenHiddenFactorIsKept) {
+  ExtractFlags flags;
+  flags.hidden_factor = 1;
+  apply_default_criteria(flags);
+  EXPECT_EQ(request_for(flags).criteria.hidden_factor, 1.0);
 }
 
 TEST(DefaultCriteria, AGivenBoundIsKept) {
@@ -44,6 +53,7 @@ TEST(DefaultCriteria, AnyGivenCriterionTurnsTheDefaultOff) {
   Extract e = request_for(silhouette);
   EXPECT_EQ(e.criteria.falloff, core::FalloffLaw::kStep);
   EXPECT_TRUE(e.criteria.focus.empty());
+  EXPECT_EQ(e.criteria.hidden_factor, 1.0);
   ASSERT_TRUE(e.criteria.silhouette);
   EXPECT_EQ(e.criteria.silhouette->factor, 0.25);
 

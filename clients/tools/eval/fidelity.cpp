@@ -31,14 +31,15 @@ using namespace mtlod::core;
 namespace fs = std::filesystem;
 
 // A method's criteria in the server's terms: the bound's units, the laws of the silhouette and focus
-// transforms, back-face and frustum coarsening. Under a budget only the ratios between vertices
-// matter, so the bound itself is a tiny constant that every triangle fails.
+// transforms, back-face, hidden-surface and frustum coarsening. Under a budget only the ratios between
+// vertices matter, so the bound itself is a tiny constant that every triangle fails.
 struct Criteria {
   ErrorUnits units = ErrorUnits::kScreenPixels;
   bool use_silhouette = false, use_focus = false;
   RegionLaw silhouette{FalloffLaw::kStep, 2.0f, 0.2f, 16.0f, 2.3f};
   RegionLaw focus{FalloffLaw::kStep, 20.0f, 0.1f, 16.0f, 2.3f};
-  float back_face = 1.0f, frustum = 1.0f;
+  float back_face = 1.0f, hidden = 1.0f, frustum = 1.0f;
+  float hidden_margin = AllowedErrorOptions{}.hidden_depth_margin;
 };
 
 enum class Kind { kUniform, kMeshopt, kCriteria };
@@ -66,7 +67,8 @@ constexpr std::array<LawKey, 7> kLawKeys{{{"sil", true, FalloffLaw::kStep, 2},
 
 // SPEC: `uniform`, `meshopt`, or comma-separated criteria: `px` (default) or `model` units;
 // `sil=D/F`, `sil-linear=D/F/W`, `sil-smooth=D/F/W` (distances in grid pixels); `focus=R/F`,
-// `focus-linear=R/F/W`, `focus-smooth=R/F/W`, `focus-foveal=F`; `back=F`; `frustum=F`.
+// `focus-linear=R/F/W`, `focus-smooth=R/F/W`, `focus-foveal=F`; `back=F`; `hidden=F` or `hidden=F/M` (M:
+// relative depth margin); `frustum=F`.
 Result<Method> parse_method(const std::string& text) {
   const auto eq = text.find('=');
   if (eq == std::string::npos || eq == 0)
@@ -92,6 +94,9 @@ Result<Method> parse_method(const std::string& text) {
       v.push_back(x);
     }
     const auto law = [&](RegionLaw& out, FalloffLaw kind, std::size_t count) -> bool {
+      // The foveal law: F, or F/E2 (the eccentricity at which the error doubles, 2.3° unless given).
+      if (kind == FalloffLaw::kFoveal && v.size() == 2)
+        return out.law = kind, out.factor = v[0], out.foveal_e2_deg = v[1], true;
       if (v.size() != count) return false;
       out.law = kind;
       if (kind == FalloffLaw::kFoveal) return out.factor = v[0], true;
@@ -112,7 +117,10 @@ Result<Method> parse_method(const std::string& text) {
       (k->silhouette ? c.use_silhouette : c.use_focus) = true;
     } else if (key == "back" && v.size() == 1)
       c.back_face = v[0];
-    else if (key == "frustum" && v.size() == 1)
+    else if (key == "hidden" && (v.size() == 1 || v.size() == 2)) {
+      c.hidden = v[0];
+      if (v.size() == 2) c.hidden_margin = v[1];
+    } else if (key == "frustum" && v.size() == 1)
       c.frustum = v[0];
     else
       ok = false;
@@ -131,7 +139,7 @@ const std::vector<std::string> kStandardMethods{
     "silhouette-DT=model,sil=2/0.2",
     "focus-DT=model,focus=20/0.1",
     "previous=px,sil=2/0,focus=20/0.1,frustum=8",
-    "default=px,focus-foveal=1,frustum=8",
+    "default=px,focus-foveal=1,hidden=16,frustum=8",
     "meshopt=meshopt",
 };
 
@@ -144,8 +152,10 @@ struct Score {
   double near_error() const { return 1.0 - near_ssim; }
 };
 
-enum Mode { kEqualTriangles, kEqualBytes, kModeCount };
-constexpr const char* kModeNames[kModeCount] = {"triangles", "bytes"};
+// kTurned: the equal-bytes cuts seen from a turned camera (Row::turn_deg), scored for uniform, the
+// target and meshopt only.
+enum Mode { kEqualTriangles, kEqualBytes, kTurned, kModeCount };
+constexpr const char* kModeNames[kModeCount] = {"triangles", "bytes", "bytes-turned"};
 
 struct Row {
   std::string mesh;
@@ -153,6 +163,7 @@ struct Row {
   int camera = 0;
   Mode mode = kEqualBytes;
   std::vector<Score> scores;  // one per method
+  double turn_deg = 0;
 };
 
 // A candidate cut: triangles indexing the MT's vertices (meshopt: the loaded mesh's, which the MT
@@ -192,7 +203,8 @@ void criteria_field(MeshContext& ctx, const Criteria& c, const Camera& camera, G
   a.error = c.units == ErrorUnits::kModel ? 1e-9f * ctx.model->bounds.radius() : 1e-6f;
   a.use_silhouette = c.use_silhouette, a.silhouette = c.silhouette;
   a.use_focus = c.use_focus, a.focus = c.focus;
-  a.back_face_factor = c.back_face, a.outside_view_factor = c.frustum;
+  a.back_face_factor = c.back_face, a.hidden_factor = c.hidden, a.outside_view_factor = c.frustum;
+  a.hidden_depth_margin = c.hidden_margin;
   if (c.use_focus) request.focus = {focus};
   request.dynamic = false;
   request.allowed_error_on_demand = false;  // the whole field is read below
@@ -440,6 +452,7 @@ int run_fidelity(const FidelityOptions& o, const std::string& command) {
     const std::vector<std::size_t> budgets = usable_budgets(o.budgets, model.mesh, model.mt, name, notes);
 
     Views views;
+    std::vector<Views> turned(o.turns.size());
     views.weights.resize(image_grid.cell_count());
     std::vector<std::uint8_t> mask(image_grid.cell_count());
     std::vector<std::vector<float>> fields(methods.size());
@@ -460,6 +473,14 @@ int run_fidelity(const FidelityOptions& o, const std::string& command) {
       for (std::size_t m = 0; m < methods.size(); ++m)
         if (methods[m].kind == Kind::kCriteria)
           criteria_field(ctx, methods[m].criteria, camera, dt_grid, focus, fields[m]);
+      // The turned views: the gaze stays at the same point of the image, so do its weights.
+      std::vector<ViewMapping> turned_image;
+      for (std::size_t i = 0; i < o.turns.size(); ++i) {
+        turned_image.emplace_back(turned_camera(camera, ctx.model->bounds, o.turns[i]), image_grid);
+        render_shaded(turned_image[i], mesh->positions, mesh->triangles, ctx.model->normals,
+                      turned[i].reference);
+        turned[i].weights = views.weights, turned[i].near_weights = views.near_weights;
+      }
 
       // Uniform's error against bytes at this camera, for the report's byte equivalents.
       Candidate c;
@@ -505,6 +526,13 @@ int run_fidelity(const FidelityOptions& o, const std::string& command) {
           if (m == uniform || m == target || methods[m].kind == Kind::kMeshopt) shown.push_back(views.cut);
         }
         rows.push_back(std::move(row));
+        for (std::size_t i = 0; i < o.turns.size(); ++i) {
+          Row turn{name, b, k, kTurned, std::vector<Score>(methods.size()), o.turns[i]};
+          for (std::size_t m = 0; m < methods.size(); ++m)
+            if (m == uniform || m == target || methods[m].kind == Kind::kMeshopt)
+              turn.scores[m] = score_cut(ctx, turned_image[i], cuts[m], turned[i]);
+          rows.push_back(std::move(turn));
+        }
 
         const bool figure =
             k == 0 && b == budgets.front() &&
@@ -566,13 +594,15 @@ int run_fidelity(const FidelityOptions& o, const std::string& command) {
   }
 
   std::string csv =
-      "mesh,budget,camera,equal,method,triangles,bytes,ssim,foveated_ssim,mae_covered,foveated_mae,xor_px\n";
+      "mesh,budget,camera,equal,turn_deg,method,triangles,bytes,ssim,foveated_ssim,mae_covered,foveated_mae,"
+      "xor_px\n";
   for (const Row& r : rows)
     for (std::size_t m = 0; m < methods.size(); ++m) {
       const Score& s = r.scores[m];
-      csv += fmt::format("{},{},{},{},{},{:.0f},{:.0f},{:.6f},{:.6f},{:.6f},{:.6f},{:.0f}\n", r.mesh,
-                         r.budget, r.camera, kModeNames[r.mode], methods[m].name, s.triangles, s.bytes,
-                         s.ssim, s.foveated_ssim, s.mae_covered, s.foveated_mae, s.xor_px);
+      if (r.mode == kTurned && s.triangles == 0) continue;  // not scored turned
+      csv += fmt::format("{},{},{},{},{},{},{:.0f},{:.0f},{:.6f},{:.6f},{:.6f},{:.6f},{:.0f}\n", r.mesh,
+                         r.budget, r.camera, kModeNames[r.mode], r.turn_deg, methods[m].name, s.triangles,
+                         s.bytes, s.ssim, s.foveated_ssim, s.mae_covered, s.foveated_mae, s.xor_px);
     }
   const std::string report = report_markdown(o, methods, target, rows, curves, mesh_info, notes, figures,
                                              seconds_since(start), command);
@@ -685,9 +715,9 @@ std::string report_markdown(const FidelityOptions& o, const std::vector<Method>&
       "`sil=D/F` "
       "step law ×F within D grid px of the silhouette; `focus=R/F` the same around the focus; "
       "`focus-foveal=F` "
-      "×F·(1 + e/2.3°) capped at 1 when F < 1; `back=F` ×F on back faces; `frustum=F` ×F outside the view. "
-      "Grid "
-      "256×256.\n";
+      "×F·(1 + e/2.3°) capped at 1 when F < 1 (`focus-foveal=F/E2`: e/E2); `back=F` ×F on back faces; "
+      "`hidden=F` ×F more than 1 % (`hidden=F/M`: M) behind the visible surface; `frustum=F` ×F outside the "
+      "view. Grid 256×256.\n";
   for (const std::string& n : o.notes) md += "- " + n + "\n";
   md += "\n| mesh | file | vertices | triangles | MT root triangles |\n| --- | --- | ---: | ---: | ---: |\n";
   for (const auto& [name, info] : mesh_info) md += fmt::format("| {} | {} |\n", name, info);
@@ -773,6 +803,45 @@ std::string report_markdown(const FidelityOptions& o, const std::vector<Method>&
     md += fmt::format("\nCases `{}` does not win against every peer ({}): ", t.name, lost.size());
     for (std::size_t i = 0; i < lost.size(); ++i) md += (i ? ", " : "") + lost[i];
     md += ".\n";
+  }
+
+  // The same cuts from turned cameras: how much of the gain a stale cut keeps while the view orbits.
+  std::vector<double> turns;
+  for (const Row& r : rows)
+    if (r.mode == kTurned && std::find(turns.begin(), turns.end(), r.turn_deg) == turns.end())
+      turns.push_back(r.turn_deg);
+  if (!turns.empty()) {
+    md += fmt::format(
+        "\n## When the camera turns before the next cut\n\nThe equal-bytes cuts above, made for each "
+        "camera, seen from that camera after the model turned about its vertical axis (the gaze staying at "
+        "the same point of the image): what an orbiting viewer sees until the next reply arrives. A cut for "
+        "the new view would be as good as the table above.\n\n| turn | cases `{}` wins",
+        t.name);
+    for (const std::size_t p : peers) md += fmt::format(" | {} / {} (geo-mean)", methods[p].name, t.name);
+    md += " |\n| ---: | ---:";
+    for (std::size_t i = 0; i < peers.size(); ++i) md += " | ---:";
+    md += " |\n";
+    auto turn_row = [&](const std::string& label, Mode mode, double deg) {
+      std::vector<std::vector<double>> ratios(methods.size());
+      std::size_t won = 0, n = 0;
+      for (const Row& r : rows) {
+        if (r.mode != mode || (mode == kTurned && r.turn_deg != deg)) continue;
+        ++n;
+        bool all_won = true;
+        for (const std::size_t p : peers) {
+          const double ratio =
+              r.scores[p].foveated_error() / std::max(1e-12, r.scores[target].foveated_error());
+          ratios[p].push_back(ratio);
+          all_won &= ratio > 1.0;
+        }
+        won += all_won;
+      }
+      md += fmt::format("| {} | {}/{} ({:.0f} %)", label, won, n, n ? 100.0 * won / n : 0.0);
+      for (const std::size_t p : peers) md += fmt::format(" | {:.2f}", geometric_mean(ratios[p]));
+      md += " |\n";
+    };
+    turn_row("0° (the targets)", kEqualBytes, 0);
+    for (const double deg : turns) turn_row(fmt::format("{:g}°", deg), kTurned, deg);
   }
 
   // Every method against uniform, all cases at equal bytes: the search's summary.

@@ -30,6 +30,9 @@ struct FidelityOptions {
   std::string report = "FIDELITY.md";  // file names inside out_dir
   std::string csv = "fidelity.csv";
   std::string cache_dir = "build/eval-cache";
+  // The equal-bytes cuts of uniform, the target and meshopt are also scored from the camera turned by
+  // each of these angles (degrees about the model's vertical axis): a stale cut while the view orbits.
+  std::vector<double> turns{5, 15, 45};
   std::vector<std::string> figure_meshes;  // side-by-side renders and difference images
   std::vector<std::string> notes;          // extra lines for the report's setup section
 };

@@ -8,6 +8,7 @@
 #include <fstream>
 #include <sstream>
 
+#include "clients/common/extract_flags.hpp"
 #include "clients/gaze/trace.hpp"
 #include "clients/tools/eval/support.hpp"
 #include "core/draco_encode.hpp"
@@ -65,6 +66,7 @@ void default_cut(ViewExtractor& extractor, Refiner& refiner, const Camera& camer
   r.allowed.use_focus = true;
   r.allowed.focus = {FalloffLaw::kFoveal, 0.0f, 1.0f, 16.0f, 2.3f};
   r.allowed.outside_view_factor = 8.0f;
+  r.allowed.hidden_factor = static_cast<float>(protocol::kDefaultHiddenFactor);
   r.focus = {focus};
   r.budget = budget;
   r.dynamic = false;
@@ -308,8 +310,9 @@ int run_gaze_study(const GazeStudyOptions& o, const std::string& command) {
       o.image_px, o.image_px, kOrbitFovDeg);
   md += fmt::format(
       "- Gaze-driven: every sample's cut with the clients' default criteria (`--falloff foveal --focus "
-      "X,Y,0,1`, "
-      "the bound growing ×(1 + e/2.3°) from the gaze) and a budget of {} triangles; the frame at time t "
+      "X,Y,0,1 --hidden-factor 16`, "
+      "the bound growing ×(1 + e/2.3°) from the gaze, hidden surfaces coarsened) and a budget of {} "
+      "triangles; the frame at time t "
       "shows "
       "the cut of the newest sample from before t − latency. Uniform: one cut, one allowed error everywhere, "
       "whose Draco payload matches the gaze-driven cuts' mean.\n",

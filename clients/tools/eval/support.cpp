@@ -61,6 +61,16 @@ Camera orbit_camera(const Bounds& b, int k, int n) {
   return *camera;  // never degenerate: the direction is never parallel to +y
 }
 
+Camera turned_camera(const Camera& camera, const Bounds& b, double degrees) {
+  const std::array<float, 3> c = b.centre();
+  const glm::vec3 centre(c[0], c[1], c[2]);
+  Camera turned = camera;
+  turned.model = glm::translate(glm::mat4(1.0f), centre) *
+                 glm::rotate(glm::mat4(1.0f), glm::radians(float(degrees)), glm::vec3(0, 1, 0)) *
+                 glm::translate(glm::mat4(1.0f), -centre) * camera.model;
+  return turned;
+}
+
 Result<Mesh> load(const fs::path& path) {
   MTLOD_TRY(io::LoadedMesh loaded, io::load_mesh(path));
   if (loaded.mesh.triangle_count() == 0)

@@ -37,6 +37,10 @@ Result<core::Camera> make_camera(const std::array<double, 3>& eye, const std::ar
 constexpr double kOrbitFovDeg = 40.0;
 core::Camera orbit_camera(const core::Bounds& b, int k, int n);
 
+// The same camera after the model turned by `degrees` about the vertical axis through the bounds'
+// centre: the view an orbiting viewer reaches before a new cut arrives.
+core::Camera turned_camera(const core::Camera& camera, const core::Bounds& b, double degrees);
+
 // A mesh file with at least one triangle.
 Result<core::Mesh> load(const std::filesystem::path& path);
 
