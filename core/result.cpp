@@ -16,6 +16,8 @@ const char* to_string(ErrorCode code) {
       return "unsupported";
     case ErrorCode::kLimitExceeded:
       return "limit_exceeded";
+    case ErrorCode::kBusy:
+      return "busy";
     case ErrorCode::kInternal:
       return "internal";
   }

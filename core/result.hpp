@@ -18,6 +18,7 @@ enum class ErrorCode : std::uint8_t {
   kCorrupt,          // bytes do not follow the format (bad magic, checksum, index, truncation)
   kUnsupported,      // valid but not handled (unknown version, unknown property type)
   kLimitExceeded,    // a size is over a configured limit
+  kBusy,             // another process holds the resource (a file open for writing); try later
   kInternal,         // a library we call failed in a way we did not foresee
 };
 

@@ -22,6 +22,7 @@ enum class ErrorKind : std::uint8_t {
   kSuperseded,          // a newer gaze replaced this one before it ran
   kShuttingDown,        // the server is draining and takes no new work
   kUnauthorized,        // the server wants an access token and the connection has not shown a valid one
+  kUnavailable,         // the model's file is being rewritten in place; retry once the new one is loaded
   kInternal,            // the server failed; the message says how (kept last: counters size by it)
 };
 

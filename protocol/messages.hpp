@@ -142,13 +142,18 @@ struct Cancel {
 };
 struct Stats {};
 struct Ping {};
+// Reloads the served models from their files now (as SIGHUP does); needs an admin token
+// (mtlod-server --admin-tokens).
+struct Reload {
+  std::string token;
+};
 
-using Request = std::variant<Hello, ListModels, ModelInfo, Extract, Gaze, Cancel, Stats, Ping>;
+using Request = std::variant<Hello, ListModels, ModelInfo, Extract, Gaze, Cancel, Stats, Ping, Reload>;
 
 // The request types' names on the wire, in the variant's order: parse.cpp, the server's counters and
 // the error message for an unknown type all read this table.
-inline constexpr std::array<const char*, 8> kRequestTypeNames{"hello", "list_models", "model_info", "extract",
-                                                              "gaze",  "cancel",      "stats",      "ping"};
+inline constexpr std::array<const char*, 9> kRequestTypeNames{
+    "hello", "list_models", "model_info", "extract", "gaze", "cancel", "stats", "ping", "reload"};
 static_assert(kRequestTypeNames.size() == std::variant_size_v<Request>);
 
 inline const char* request_type_name(const Request& request) {

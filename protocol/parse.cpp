@@ -350,6 +350,7 @@ Request read_request(ObjectReader& r, const std::string& type, const Limits& lim
   if (type == "cancel") return Cancel{r.integer("target", 0, 0, UINT64_MAX)};
   if (type == "stats") return Stats{};
   if (type == "ping") return Ping{};
+  if (type == "reload") return Reload{r.string("token", 256)};
   fail(ErrorKind::kUnknownType, fmt::format("unknown request type '{}'; expected one of {}", type,
                                             fmt::join(kRequestTypeNames, ", ")));
 }
@@ -382,6 +383,8 @@ const char* to_string(ErrorKind kind) {
       return "shutting_down";
     case ErrorKind::kUnauthorized:
       return "unauthorized";
+    case ErrorKind::kUnavailable:
+      return "unavailable";
     case ErrorKind::kInternal:
       return "internal";
   }
@@ -481,6 +484,7 @@ std::string to_json(const Request& request, std::uint64_t id) {
           return g;
         }
         if constexpr (std::is_same_v<T, Cancel>) return {{"target", r.target}};
+        if constexpr (std::is_same_v<T, Reload>) return {{"token", r.token}};
         return json::object();
       },
       request);

@@ -47,7 +47,8 @@ json summary_json(const ModelSummary& m) {
           {"root_triangles", m.root_triangles},
           {"nodes", m.nodes},
           {"memory_bytes", m.memory_bytes},
-          {"max_error", m.max_error}};
+          {"max_error", m.max_error},
+          {"version", m.version}};
 }
 
 ModelSummary summary_from(const json& j) {
@@ -59,6 +60,7 @@ ModelSummary summary_from(const json& j) {
   m.nodes = j.value("nodes", std::uint64_t{0});
   m.memory_bytes = j.value("memory_bytes", std::uint64_t{0});
   m.max_error = j.value("max_error", 0.0);
+  m.version = j.value("version", std::uint64_t{1});
   return m;
 }
 
@@ -126,6 +128,8 @@ std::string to_json(const Reply& reply, std::optional<std::uint64_t> id) {
                     {"timings_us", timings_json(r.timings)},
                     {"memory", {{"session_bytes", r.session_bytes}, {"scratch_bytes", r.scratch_bytes}}}};
           if (r.focus) m["focus"] = *r.focus;
+          m["model_version"] = r.model_version;
+          if (r.model_changed) m["model_changed"] = true;
           if (r.delta) {
             m["delta"] = {{"reset", r.delta->reset},
                           {"draco_bytes", r.delta->draco_bytes},
@@ -141,6 +145,14 @@ std::string to_json(const Reply& reply, std::optional<std::uint64_t> id) {
           json counters = json::object();
           for (const auto& [name, value] : r.counters) counters[name] = value;
           return {{"counters", counters}};
+        } else if constexpr (std::is_same_v<T, ReloadReply>) {
+          json models = json::array();
+          for (const ModelReload& m : r.models) {
+            json entry = {{"name", m.name}, {"change", m.change}, {"version", m.version}};
+            if (!m.message.empty()) entry["message"] = m.message;
+            models.push_back(std::move(entry));
+          }
+          return {{"models", models}};
         } else {
           return json::object();
         }
@@ -188,6 +200,8 @@ Result<ParsedReply> parse_reply(std::string_view text) {
       r.session_bytes = memory.value("session_bytes", std::uint64_t{0});
       r.scratch_bytes = memory.value("scratch_bytes", std::uint64_t{0});
       if (j.contains("focus")) r.focus = j["focus"].get<std::array<double, 2>>();
+      r.model_version = j.value("model_version", std::uint64_t{0});
+      r.model_changed = j.value("model_changed", false);
       if (j.contains("delta")) {
         const json& d = j["delta"];
         r.delta = MeshDelta{d.value("reset", false), d.value("draco_bytes", std::uint64_t{0}),
@@ -208,6 +222,13 @@ Result<ParsedReply> parse_reply(std::string_view text) {
       out.reply = std::move(r);
     } else if (type == "pong") {
       out.reply = Pong{};
+    } else if (type == "reloaded") {
+      ReloadReply r;
+      for (const json& m : j.value("models", json::array())) {
+        r.models.push_back(ModelReload{m.value("name", ""), m.value("change", ""),
+                                       m.value("version", std::uint64_t{0}), m.value("message", "")});
+      }
+      out.reply = std::move(r);
     } else {
       return make_error(ErrorCode::kCorrupt, fmt::format("unknown reply type '{}'", type));
     }

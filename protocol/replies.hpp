@@ -38,6 +38,7 @@ struct ModelSummary {
   std::uint64_t nodes = 0;
   std::uint64_t memory_bytes = 0;  // resident size of the loaded model
   double max_error = 0;            // model units
+  std::uint64_t version = 1;       // of this model's file in this server process, from 1
 };
 
 struct ModelsReply {
@@ -98,7 +99,11 @@ struct MeshReply {
   std::uint64_t session_bytes = 0;             // memory the connection's cut holds on the server
   std::uint64_t scratch_bytes = 0;             // memory the worker that ran it holds for this model
   StageTimings timings;
-  std::optional<MeshDelta> delta;  // set when the extract asked for delta replies
+  std::optional<MeshDelta> delta;   // set when the extract asked for delta replies
+  std::uint64_t model_version = 0;  // the version of the model this cut was taken from
+  // The model's file changed since this connection's previous cut: this cut starts afresh from the
+  // new version (a delta reply then resets the client's mesh).
+  bool model_changed = false;
 };
 
 struct ErrorReply {
@@ -117,12 +122,23 @@ struct StatsReply {
 
 struct Pong {};
 
+// What a reload did to one model.
+struct ModelReload {
+  std::string name;
+  std::string change;         // "loaded", "replaced", "removed", "unchanged", "failed" or "pending"
+  std::uint64_t version = 0;  // the version served afterwards (0: none)
+  std::string message;        // why, for "failed" and "pending"
+};
+struct ReloadReply {
+  std::vector<ModelReload> models;
+};
+
 using Reply = std::variant<HelloReply, ModelsReply, ModelInfoReply, MeshReply, ErrorReply, CancelReply,
-                           StatsReply, Pong>;
+                           StatsReply, Pong, ReloadReply>;
 
 // The reply types' names on the wire, in the variant's order.
-inline constexpr std::array<const char*, 8> kReplyTypeNames{"hello", "models", "model_info", "mesh",
-                                                            "error", "cancel", "stats",      "pong"};
+inline constexpr std::array<const char*, 9> kReplyTypeNames{
+    "hello", "models", "model_info", "mesh", "error", "cancel", "stats", "pong", "reloaded"};
 static_assert(kReplyTypeNames.size() == std::variant_size_v<Reply>);
 
 // The JSON header of a reply; `id` is the request's id (absent only when the request had none).

@@ -155,7 +155,7 @@ void Connection::authorise(const Grant* grant) {
     spdlog::debug("conn={} authorised by the token on line {} of the tokens file", number_, grant->line);
 }
 
-const Model* Connection::visible_model(std::string_view name) const {
+ModelPtr Connection::visible_model(std::string_view name) const {
   if (grant_ && !grant_->sees(name)) return nullptr;
   return server_.models.find(name);
 }
@@ -193,7 +193,7 @@ void Connection::on_request(std::uint64_t seq, std::uint64_t id, const protocol:
   replies_.fill(seq, make_frame(reply, id));
 }
 void Connection::on_request(std::uint64_t seq, std::uint64_t id, const protocol::ModelInfo& request) {
-  const Model* model = visible_model(request.model);
+  const ModelPtr model = visible_model(request.model);
   if (!model) return reply_unknown_model(seq, id, request.model);
   replies_.fill(seq, make_frame(model->info(), id));
 }
@@ -205,6 +205,32 @@ void Connection::on_request(std::uint64_t seq, std::uint64_t id, const protocol:
 }
 void Connection::on_request(std::uint64_t seq, std::uint64_t id, const protocol::Ping&) {
   replies_.fill(seq, make_frame(protocol::Pong{}, id));
+}
+void Connection::on_request(std::uint64_t seq, std::uint64_t id, const protocol::Reload& request) {
+  const TokenTable* admins = server_.config.admin_tokens.get();
+  if (!admins || !admins->find(request.token)) {
+    spdlog::log(refusal_logged_ ? spdlog::level::debug : spdlog::level::info,
+                "conn={} from {}: reload refused", number_, address());
+    refusal_logged_ = true;
+    return reply_error(seq, protocol::ErrorKind::kUnauthorized,
+                       admins ? "the admin token is not valid"
+                              : "this server takes no reload requests (start it with --admin-tokens FILE)",
+                       id);
+  }
+  spdlog::info("conn={} from {}: reload requested", number_, address());
+  // Loading reads files: on a worker, with the reply filled in its turn once it is done.
+  server_.scheduler.submit(address(), [self = shared_from_this(), seq, id] {
+    protocol::ReloadReply reply;
+    try {
+      reply.models = self->server_.models.reload();
+    } catch (const std::exception& e) {
+      spdlog::error("reload failed: {}", e.what());
+    }
+    net::post(self->strand_, [self, seq, id, reply = std::move(reply)] {
+      self->replies_.fill(seq, make_frame(reply, id));
+      self->flush();
+    });
+  });
 }
 void Connection::on_request(std::uint64_t seq, std::uint64_t id, const protocol::Cancel& request) {
   std::optional<Job> job = jobs_.cancel(request.target);

@@ -31,7 +31,7 @@ namespace mtlod::server {
 // What every connection of a server shares.
 struct ServerContext {
   const ServerConfig& config;
-  const ModelRegistry& models;
+  ModelRegistry& models;
   Engine& engine;
   Metrics& metrics;
   AddressTable& addresses;
@@ -120,6 +120,7 @@ class Connection : public std::enable_shared_from_this<Connection> {
   void on_request(std::uint64_t seq, std::uint64_t id, const protocol::Cancel& request);
   void on_request(std::uint64_t seq, std::uint64_t id, const protocol::Stats& request);
   void on_request(std::uint64_t seq, std::uint64_t id, const protocol::Ping& request);
+  void on_request(std::uint64_t seq, std::uint64_t id, const protocol::Reload& request);
   bool paused() const;
   void failed(const char* what, const char* reason) noexcept;
   void enqueue(Job job);
@@ -129,7 +130,7 @@ class Connection : public std::enable_shared_from_this<Connection> {
   // Whether this connection may be served yet: true without access tokens, else once a token is shown.
   bool authorised() const { return !server_.config.tokens || grant_ != nullptr; }
   // The model of that name if this connection's token lets it see it, else nullptr.
-  const Model* visible_model(std::string_view name) const;
+  ModelPtr visible_model(std::string_view name) const;
   void reply_unknown_model(std::uint64_t seq, std::uint64_t id, const std::string& name);
   void reply_error(std::uint64_t seq, protocol::ErrorKind code, const std::string& message,
                    std::optional<std::uint64_t> id);

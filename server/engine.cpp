@@ -17,7 +17,7 @@
 namespace mtlod::server {
 
 struct ExtractionState::State {
-  const Model* model = nullptr;
+  ModelPtr model;  // the version the session's cut comes from
   std::unique_ptr<core::Refiner> refiner;
   core::ViewCache view;               // lets a gaze (same view, new foci) reuse the view's stages
   core::CutDelta sent;                // the client's mesh, when it asked for delta replies
@@ -40,9 +40,16 @@ std::uint64_t elapsed_us(Clock::time_point& since) {
   return static_cast<std::uint64_t>(us);
 }
 
-// Per worker: one extractor per model and one encoder, created on first use, reused after.
+// A worker's extractor for one version of a model (which it reads): dropped once that version is
+// no longer served.
+struct CachedExtractor {
+  std::weak_ptr<const Model> model;
+  std::unique_ptr<core::ViewExtractor> extractor;
+};
+
+// Per worker: one extractor per model version and one encoder, created on first use, reused after.
 struct Worker {
-  std::unordered_map<const Model*, std::unique_ptr<core::ViewExtractor>> extractors;
+  std::unordered_map<std::uint64_t, CachedExtractor> extractors;  // by Model::serial
   core::DracoEncoder encoder;
   core::CutMesh cut;
   std::vector<std::uint32_t> added, removed, added_ids, added_triangles;  // delta replies
@@ -50,7 +57,7 @@ struct Worker {
 
   std::uint64_t scratch_bytes() const {
     std::uint64_t bytes = cut.triangles.capacity() * sizeof(std::uint32_t);
-    for (const auto& [model, extractor] : extractors) bytes += extractor->memory_bytes();
+    for (const auto& [serial, cached] : extractors) bytes += cached.extractor->memory_bytes();
     return bytes;
   }
 };
@@ -80,7 +87,7 @@ std::uint64_t ExtractionState::memory_bytes() const {
 }
 
 std::uint64_t Engine::estimate_bytes(const protocol::Extract& request, const ExtractionState* session) const {
-  const Model* model = models_.find(request.model);
+  const ModelPtr model = models_.find(request.model);
   if (!model) return 0;
   const std::uint64_t cells = std::uint64_t{request.grid[0]} * request.grid[1];
   // A budget bounds the cut; without one it may be the whole input, or for a session whose last
@@ -100,8 +107,13 @@ std::uint64_t Engine::estimate_bytes(const protocol::Extract& request, const Ext
 
 std::int64_t Engine::settle_worker_scratch() {
   Worker& worker = this_worker();
-  std::erase_if(worker.extractors,
-                [](const auto& entry) { return entry.second->memory_bytes() > kRetainedScratchBytes; });
+  std::erase_if(worker.extractors, [](const auto& entry) {
+    const CachedExtractor& cached = entry.second;
+    if (cached.extractor->memory_bytes() > kRetainedScratchBytes) return true;
+    // A version no session or registry holds any more, or one retired: its extractor is not reused.
+    const ModelPtr model = cached.model.lock();
+    return !model || model->gate.retired();
+  });
   const std::uint64_t now = worker.scratch_bytes();
   const auto change = static_cast<std::int64_t>(now) - static_cast<std::int64_t>(worker.accounted);
   worker.accounted = now;
@@ -109,10 +121,18 @@ std::int64_t Engine::settle_worker_scratch() {
 }
 
 ExtractResult Engine::extract(const protocol::Extract& request, bool gaze, ExtractionState& session) {
-  const Model* model = models_.find(request.model);
+  const ModelPtr model = models_.find(request.model);
   if (!model)
     return protocol::ProtocolError{protocol::ErrorKind::kUnknownModel,
                                    fmt::format("no model named '{}'", request.model)};
+  // Held until the cut is encoded: the version's file is not handed to a writer before then.
+  const ModelGate::Pass pass = model->gate.enter();
+  if (!pass) {
+    return protocol::ProtocolError{
+        protocol::ErrorKind::kUnavailable,
+        fmt::format("model '{}' is being rewritten on disk; it is served again once the new file is loaded",
+                    request.model)};
+  }
   if (request.normals && !model->mt.has_normals()) {
     return protocol::ProtocolError{protocol::ErrorKind::kBadRequest,
                                    fmt::format("model '{}' has no normals to send", request.model)};
@@ -122,7 +142,7 @@ ExtractResult Engine::extract(const protocol::Extract& request, bool gaze, Extra
                                    fmt::format("model '{}' has no colours to send", request.model)};
   }
   try {
-    return run(*model, request, gaze, session);
+    return run(model, request, gaze, session);
   } catch (const core::CorruptMt& e) {
     // A block of the model's mapped file failed its check on first use. Every request that reaches
     // it fails the same way; the others are served. The session's cut may be half-updated.
@@ -133,18 +153,24 @@ ExtractResult Engine::extract(const protocol::Extract& request, bool gaze, Extra
   }
 }
 
-ExtractResult Engine::run(const Model& model_ref, const protocol::Extract& request, bool gaze,
+ExtractResult Engine::run(const ModelPtr& model, const protocol::Extract& request, bool gaze,
                           ExtractionState& session) {
-  const Model* model = &model_ref;
   Worker& worker = this_worker();
-  auto& extractor = worker.extractors[model];
-  if (!extractor) extractor = std::make_unique<core::ViewExtractor>(model->mt, *model->occupancy);
+  CachedExtractor& cached = worker.extractors[model->serial];
+  if (!cached.extractor) {
+    cached.model = model;
+    cached.extractor = std::make_unique<core::ViewExtractor>(model->mt, *model->occupancy);
+  }
+  core::ViewExtractor* const extractor = cached.extractor.get();
 
   if (!session.state) session.state = std::make_unique<ExtractionState::State>();
   ExtractionState::State& state = *session.state;
+  bool model_changed = false;
   if (state.model != model) {
-    state.model = model;
+    // Another model, or a new version of this one: the cut starts afresh from its root.
+    model_changed = state.model && state.model->name == model->name;
     state.refiner = std::make_unique<core::Refiner>(model->mt);
+    state.model = model;
     state.view.reset();
     state.sent.reset();
   }
@@ -223,6 +249,8 @@ ExtractResult Engine::run(const Model& model_ref, const protocol::Extract& reque
   t.encode_us = elapsed_us(clock);
 
   outcome.reply.model = model->name;
+  outcome.reply.model_version = model->version;
+  outcome.reply.model_changed = model_changed;
   outcome.reply.triangles = cut.triangle_count();
   outcome.reply.vertices = vertices;
   outcome.reply.bytes = outcome.payload.size();

@@ -59,7 +59,7 @@ class Engine {
   const ModelRegistry& models() const { return models_; }
 
  private:
-  ExtractResult run(const Model& model, const protocol::Extract& request, bool gaze,
+  ExtractResult run(const ModelPtr& model, const protocol::Extract& request, bool gaze,
                     ExtractionState& session);
   const ModelRegistry& models_;
 };

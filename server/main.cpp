@@ -111,7 +111,18 @@ int main(int argc, char** argv) {
                  "fields as members)")
       ->check(CLI::IsMember({"text", "json"}))
       ->capture_default_str();
+  std::string admin_tokens_file;
+  app.add_option("--admin-tokens", admin_tokens_file,
+                 "tokens that may send the `reload` message, one per line (# comments); without them "
+                 "`reload` is refused");
+  std::string reload_mode = "watch";
+  app.add_option("--reload", reload_mode,
+                 "when changed model files are loaded: watch (as soon as they change, inotify), or signal "
+                 "(only on SIGHUP or a `reload` message, which work in both modes)")
+      ->check(CLI::IsMember({"watch", "signal"}))
+      ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
+  config.watch_models = reload_mode == "watch";
 
   spdlog::set_level(spdlog::level::from_str(log_level));
   server::LogFormat format = server::LogFormat::kText;
@@ -159,6 +170,15 @@ int main(int argc, char** argv) {
     }
     spdlog::info("access tokens: {} from {}", tokens->size(), tokens_file);
     config.tokens = std::make_shared<const server::TokenTable>(std::move(*tokens));
+  }
+  if (!admin_tokens_file.empty()) {
+    auto admins = server::TokenTable::load(admin_tokens_file);
+    if (!admins) {
+      spdlog::error("{}", admins.error().message);
+      return 1;
+    }
+    spdlog::info("admin tokens: {} from {}", admins->size(), admin_tokens_file);
+    config.admin_tokens = std::make_shared<const server::TokenTable>(std::move(*admins));
   }
   for (const auto& model : registry.models()) {
     const auto s = model->summary();

@@ -5,8 +5,26 @@
 #include <iterator>
 
 #include "fmt/format.h"
+#include "protocol/text.hpp"
 
 namespace mtlod::server {
+namespace {
+
+// A Prometheus label value: valid text with its backslashes, quotes and newlines escaped.
+std::string label_value(const std::string& text) {
+  std::string out;
+  for (const char c : protocol::printable(text)) {
+    if (c == '\\' || c == '"') out += '\\';
+    if (c == '\n') {
+      out += "\\n";
+      continue;
+    }
+    out += c;
+  }
+  return out;
+}
+
+}  // namespace
 
 void PrometheusHistogram::observe(std::uint64_t us) {
   const auto bound = std::lower_bound(kBoundsUs.begin(), kBoundsUs.end(), us);
@@ -135,6 +153,14 @@ std::string Metrics::prometheus_text(const MetricsGauges& gauges) const {
   family("mtlod_model_mapped_bytes", "gauge",
          "Bytes of the model files mapped in place (resident only as far as requests read them).");
   sample("mtlod_model_mapped_bytes", gauges.model_mapped_bytes);
+  family("mtlod_model_reloads_total", "counter",
+         "New model versions loaded from changed files since start-up (SIGHUP, reload, file watch).");
+  sample("mtlod_model_reloads_total", gauges.model_reloads);
+  if (!gauges.model_versions.empty()) {
+    family("mtlod_model_version", "gauge", "The version of each model served (1 at start-up).");
+    for (const auto& [name, version] : gauges.model_versions)
+      sample("mtlod_model_version", version, fmt::format("model=\"{}\"", label_value(name)));
+  }
   return out;
 }
 

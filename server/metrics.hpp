@@ -40,6 +40,10 @@ struct MetricsGauges {
   std::uint64_t models = 0;
   std::uint64_t model_bytes = 0;         // held in memory by every model
   std::uint64_t model_mapped_bytes = 0;  // of the model files mapped in place
+  std::uint64_t model_reloads = 0;       // new versions loaded since start-up
+  // The version each model serves, by name; left empty where model names are not public (with
+  // access tokens, whose grants name the models a client may see).
+  std::vector<std::pair<std::string, std::uint64_t>> model_versions;
 };
 
 class Metrics {

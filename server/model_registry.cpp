@@ -2,8 +2,10 @@
 #include "server/model_registry.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
+#include <map>
 
 #include "core/bounds.hpp"
 #include "core/io/mesh_io.hpp"
@@ -16,9 +18,33 @@
 namespace mtlod::server {
 namespace fs = std::filesystem;
 
+ModelGate::Pass::~Pass() {
+  if (!gate_) return;
+  std::lock_guard lock(gate_->mutex_);
+  if (--gate_->passes_ == 0) gate_->idle_.notify_all();
+}
+
+ModelGate::Pass ModelGate::enter() const {
+  std::lock_guard lock(mutex_);
+  if (retired_) return Pass();
+  ++passes_;
+  return Pass(this);
+}
+
+void ModelGate::retire() const {
+  std::unique_lock lock(mutex_);
+  retired_ = true;
+  idle_.wait(lock, [this] { return passes_ == 0; });
+}
+
+bool ModelGate::retired() const {
+  std::lock_guard lock(mutex_);
+  return retired_;
+}
+
 protocol::ModelSummary Model::summary() const {
   return {name,         mt.vertex_count(), input_triangles, mt.root_triangle_count(), mt.node_count(),
-          memory_bytes, max_error};
+          memory_bytes, max_error,         version};
 }
 
 protocol::ModelInfoReply Model::info() const {
@@ -33,11 +59,16 @@ protocol::ModelInfoReply Model::info() const {
 
 namespace {
 
-std::unique_ptr<Model> describe(std::string name, fs::path path, core::Mt mt) {
-  auto model = std::make_unique<Model>();
+std::atomic<std::uint64_t> next_serial{1};
+
+// A version of `name` from an MT, with its derived data; throws core::CorruptMt when a mapped
+// block the coarse cuts read fails its check.
+std::shared_ptr<Model> describe(std::string name, fs::path path, core::Mt mt) {
+  auto model = std::make_shared<Model>();
   model->name = std::move(name);
   model->path = std::move(path);
   model->mt = std::move(mt);
+  model->serial = next_serial++;
   const core::Mt& m = model->mt;
   model->occupancy = std::make_unique<core::OccupancyLevels>(m);
   model->memory_bytes = m.memory_bytes() + model->occupancy->memory_bytes();
@@ -56,30 +87,123 @@ std::unique_ptr<Model> describe(std::string name, fs::path path, core::Mt mt) {
   return model;
 }
 
-}  // namespace
-
-Status ModelRegistry::add_file(const fs::path& path) {
-  MTLOD_TRY(core::Mt mt, core::io::read_mt_file(path));
-  if (!mt.vertices_in_node_order()) {
+// Loads `path` as version `version` of `name`: mapped under a lease where it can be.
+Result<std::shared_ptr<Model>> load(const std::string& name, const fs::path& path, std::uint64_t version) {
+  MTLOD_TRY(core::io::ServedMt served, core::io::open_served_mt(path));
+  std::shared_ptr<Model> model;
+  try {
+    model = describe(name, path, std::move(served.mt));
+  } catch (const core::CorruptMt& e) {
+    // A mapped file's block failed its check while the coarse cuts were read.
+    return make_error(ErrorCode::kCorrupt, fmt::format("{}: {}", path.string(), e.what()));
+  }
+  model->version = version;
+  model->file = served.identity;
+  model->lease = std::move(served.lease);
+  model->read_whole_because = std::move(served.read_whole_because);
+  if (!model->read_whole_because.empty()) {
+    spdlog::warn("{}: read into memory ({}): changes to the file reach the server only by a reload",
+                 path.string(), model->read_whole_because);
+  }
+  if (!model->mt.vertices_in_node_order()) {
     spdlog::warn(
         "{}: written by an older mtlod-build (vertices not in node order); it is served as it is, "
         "and rebuilt with mtlod-build it refines about 10 % faster",
         path.string());
   }
-  return add(path, std::move(mt));
+  return model;
 }
 
-Status ModelRegistry::add(const fs::path& path, core::Mt mt) {
-  const std::string name = path.stem().string();
-  if (find(name))
-    return make_error(ErrorCode::kInvalidArgument,
-                      fmt::format("{}: a model named '{}' is already loaded", path.string(), name));
-  try {
-    models_.push_back(describe(name, path, std::move(mt)));
-  } catch (const core::CorruptMt& e) {
-    // A mapped file's block failed its check while the coarse cuts were read.
-    return make_error(ErrorCode::kCorrupt, fmt::format("{}: {}", path.string(), e.what()));
+struct Source {
+  std::string name;
+  fs::path path;
+};
+
+// How long a file handed over to a writer is left alone unless it reports a change: a writer that
+// opens without waiting (coreutils truncate uses O_NONBLOCK) fails once while the lease breaks, and
+// its second try must not meet a new lease.
+constexpr auto kHandOverGrace = std::chrono::seconds(5);
+
+}  // namespace
+
+struct ModelRegistry::Impl {
+  mutable std::mutex mutex;      // everything below but reload_mutex
+  std::vector<ModelPtr> models;  // sorted by name
+  std::vector<fs::path> directories;
+  std::vector<Source> files;  // named files and the MTs built from meshes
+  // Names to load again without a file event: a writer held the file open (at once), or its
+  // version was handed over to one (after kHandOverGrace, as the writer's close usually comes first).
+  std::map<std::string, std::chrono::steady_clock::time_point> pending;
+  std::map<std::string, std::uint64_t> last_version;  // versions keep counting across a removal
+  std::vector<std::weak_ptr<const Model>> leased;     // every live version holding a lease
+  std::uint64_t reloads = 0;
+  std::mutex reload_mutex;  // one reload at a time
+
+  ModelPtr find_locked(std::string_view name) const {
+    const auto it = std::lower_bound(models.begin(), models.end(), name,
+                                     [](const ModelPtr& m, std::string_view n) { return m->name < n; });
+    return it != models.end() && (*it)->name == name ? *it : nullptr;
   }
+  // Serves `model` in place of any version of its name.
+  void publish(ModelPtr model) {
+    std::lock_guard lock(mutex);
+    if (model->lease) leased.push_back(model);
+    std::erase_if(leased, [](const std::weak_ptr<const Model>& m) { return m.expired(); });
+    const auto it = std::lower_bound(models.begin(), models.end(), model->name,
+                                     [](const ModelPtr& m, const std::string& n) { return m->name < n; });
+    if (it != models.end() && (*it)->name == model->name) {
+      *it = std::move(model);
+    } else {
+      models.insert(it, std::move(model));
+    }
+  }
+  void remove(const std::string& name) {
+    std::lock_guard lock(mutex);
+    std::erase_if(models, [&](const ModelPtr& m) { return m->name == name; });
+  }
+  // Every (name, path) the sources name now: listed files, then each directory's .mt files.
+  std::map<std::string, fs::path> candidates() const {
+    std::map<std::string, fs::path> out;
+    std::vector<fs::path> dirs;
+    {
+      std::lock_guard lock(mutex);
+      for (const Source& s : files) out.emplace(s.name, s.path);
+      dirs = directories;
+    }
+    for (const fs::path& dir : dirs) {
+      std::error_code ec;
+      for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+        if (it->path().extension() == ".mt") out.emplace(it->path().stem().string(), it->path());
+      }
+    }
+    return out;
+  }
+  Status add(std::shared_ptr<Model> model, const fs::path& path) {
+    if (find_locked_guarded(model->name))
+      return make_error(ErrorCode::kInvalidArgument,
+                        fmt::format("{}: a model named '{}' is already loaded", path.string(), model->name));
+    {
+      std::lock_guard lock(mutex);
+      last_version[model->name] = model->version;
+    }
+    publish(std::move(model));
+    return Ok{};
+  }
+  ModelPtr find_locked_guarded(std::string_view name) const {
+    std::lock_guard lock(mutex);
+    return find_locked(name);
+  }
+};
+
+ModelRegistry::ModelRegistry() : impl_(std::make_unique<Impl>()) {}
+ModelRegistry::~ModelRegistry() = default;
+
+Status ModelRegistry::add_file(const fs::path& path) {
+  const std::string name = path.stem().string();
+  MTLOD_TRY(std::shared_ptr<Model> model, load(name, path, 1));
+  MTLOD_RETURN_IF_ERROR(impl_->add(std::move(model), path));
+  std::lock_guard lock(impl_->mutex);
+  impl_->files.push_back({name, path});
   return Ok{};
 }
 
@@ -92,50 +216,238 @@ Status ModelRegistry::add_directory(const fs::path& dir) {
     if (entry.path().extension() == ".mt") files.push_back(entry.path());
   }
   std::sort(files.begin(), files.end());
-  for (const fs::path& f : files) MTLOD_RETURN_IF_ERROR(add_file(f));
+  for (const fs::path& f : files) {
+    MTLOD_TRY(std::shared_ptr<Model> model, load(f.stem().string(), f, 1));
+    MTLOD_RETURN_IF_ERROR(impl_->add(std::move(model), f));
+  }
   if (files.empty()) return make_error(ErrorCode::kNotFound, fmt::format("{}: no .mt files", dir.string()));
+  std::lock_guard lock(impl_->mutex);
+  impl_->directories.push_back(dir);
   return Ok{};
 }
 
 Status ModelRegistry::add_mesh(const fs::path& mesh, const fs::path& mt_path) {
+  const std::string name = mt_path.stem().string();
   std::error_code ec;
   const bool fresh = fs::exists(mt_path, ec) && fs::exists(mesh, ec) &&
                      fs::last_write_time(mt_path, ec) >= fs::last_write_time(mesh, ec);
+  std::shared_ptr<Model> model;
   if (fresh) {
     // A cached file an older build wrote is built again: that takes seconds, and it is built once.
-    auto cached = core::io::read_mt_file(mt_path);
-    if (cached && cached->vertices_in_node_order()) return add(mt_path, std::move(*cached));
-    spdlog::info(
-        "{}: {}; building it again from {}", mt_path.string(),
-        cached ? "written by an older mtlod-build (vertices not in node order)" : cached.error().message,
-        mesh.string());
+    auto cached = load(name, mt_path, 1);
+    if (cached && (*cached)->mt.vertices_in_node_order()) model = std::move(*cached);
+    if (!model) {
+      spdlog::info(
+          "{}: {}; building it again from {}", mt_path.string(),
+          cached ? "written by an older mtlod-build (vertices not in node order)" : cached.error().message,
+          mesh.string());
+    }
   }
-  core::Mt built;
-  {  // the input mesh and the build's threads are released before the model is described
-    const auto start = std::chrono::steady_clock::now();
-    MTLOD_TRY(core::io::LoadedMesh loaded, core::io::load_mesh(mesh));
-    core::BuildStats stats;
-    // Built before the server serves anyone: every core helps (the MT is the same as serial).
-    core::ThreadPool pool;
-    core::BuildOptions options;
-    pool.attach(options);
-    MTLOD_TRY(core::Mt mt, core::build_mt(loaded.mesh, options, &stats));
-    fs::create_directories(mt_path.parent_path(), ec);
-    MTLOD_TRY(std::uint64_t bytes, core::io::write_mt_file(mt_path, mt));
-    spdlog::info("built {} from {}: {} triangles → {} root triangles, {} nodes, {:.1f} MiB, {:.2f} s",
-                 mt_path.string(), mesh.string(), stats.input_triangles, stats.root_triangles, stats.nodes,
-                 bytes / 1048576.0,
-                 std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
-    built = std::move(mt);
+  if (!model) {
+    core::Mt built;
+    {  // the input mesh and the build's threads are released before the model is described
+      const auto start = std::chrono::steady_clock::now();
+      MTLOD_TRY(core::io::LoadedMesh loaded, core::io::load_mesh(mesh));
+      core::BuildStats stats;
+      // Built before the server serves anyone: every core helps (the MT is the same as serial).
+      core::ThreadPool pool;
+      core::BuildOptions options;
+      pool.attach(options);
+      MTLOD_TRY(core::Mt mt, core::build_mt(loaded.mesh, options, &stats));
+      fs::create_directories(mt_path.parent_path(), ec);
+      MTLOD_TRY(std::uint64_t bytes, core::io::write_mt_file(mt_path, mt));
+      spdlog::info("built {} from {}: {} triangles → {} root triangles, {} nodes, {:.1f} MiB, {:.2f} s",
+                   mt_path.string(), mesh.string(), stats.input_triangles, stats.root_triangles, stats.nodes,
+                   bytes / 1048576.0,
+                   std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+      built = std::move(mt);
+    }
+    // The MT just written is served from memory, not read back; a later change to its file is
+    // loaded like any other.
+    try {
+      model = describe(name, mt_path, std::move(built));
+    } catch (const core::CorruptMt& e) {
+      return make_error(ErrorCode::kCorrupt, fmt::format("{}: {}", mt_path.string(), e.what()));
+    }
+    if (auto id = core::io::identify(mt_path)) model->file = *id;
   }
-  return add(mt_path, std::move(built));  // the MT just written, not read back
+  MTLOD_RETURN_IF_ERROR(impl_->add(std::move(model), mt_path));
+  std::lock_guard lock(impl_->mutex);
+  impl_->files.push_back({name, mt_path});
+  return Ok{};
 }
 
-const Model* ModelRegistry::find(std::string_view name) const {
-  for (const auto& m : models_) {
-    if (m->name == name) return m.get();
+ModelPtr ModelRegistry::find(std::string_view name) const {
+  return impl_->find_locked_guarded(name);
+}
+
+std::vector<ModelPtr> ModelRegistry::models() const {
+  std::lock_guard lock(impl_->mutex);
+  return impl_->models;
+}
+
+std::vector<protocol::ModelReload> ModelRegistry::reload(const std::vector<std::string>& only) {
+  std::lock_guard reloading(impl_->reload_mutex);
+  std::map<std::string, fs::path> candidates = impl_->candidates();
+  for (const ModelPtr& m : models()) candidates.emplace(m->name, m->path);  // gone ones are dropped
+  std::vector<protocol::ModelReload> outcomes;
+  for (const auto& [name, path] : candidates) {
+    if (!only.empty() && std::find(only.begin(), only.end(), name) == only.end()) continue;
+    const ModelPtr current = find(name);
+    protocol::ModelReload outcome{name, "unchanged", current ? current->version : 0, ""};
+    std::error_code ec;
+    const bool regular = fs::is_regular_file(path, ec);
+    auto identity = regular ? core::io::identify(path) : Result<core::io::FileIdentity>(Error{});
+    if (!identity) {
+      if (!current) continue;
+      outcome.change = "removed";
+      outcome.version = 0;
+      outcome.message =
+          fs::exists(path, ec) ? path.string() + " is not a regular file" : path.string() + " is gone";
+      impl_->remove(name);
+      {
+        std::lock_guard lock(impl_->mutex);
+        impl_->pending.erase(name);
+      }
+      spdlog::warn("model {}: no longer served: {}", name, outcome.message);
+      outcomes.push_back(std::move(outcome));
+      continue;
+    }
+    if (current && !current->gate.retired() && current->file == *identity) {
+      std::lock_guard lock(impl_->mutex);
+      impl_->pending.erase(name);
+      outcomes.push_back(std::move(outcome));
+      continue;
+    }
+    std::uint64_t version = 1;
+    {
+      std::lock_guard lock(impl_->mutex);
+      version = impl_->last_version[name] + 1;
+    }
+    const auto load_start = std::chrono::steady_clock::now();
+    auto loaded = load(name, path, version);
+    const double load_ms =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - load_start).count();
+    if (!loaded) {
+      outcome.message = loaded.error().message;
+      if (loaded.error().code == ErrorCode::kBusy) {
+        // A writer still has it open: the next reload (its close, or the retry timer) tries again.
+        outcome.change = "pending";
+        std::lock_guard lock(impl_->mutex);
+        impl_->pending[name] = std::chrono::steady_clock::now();
+      } else {
+        outcome.change = "failed";
+        {
+          std::lock_guard lock(impl_->mutex);
+          impl_->pending.erase(name);
+        }
+        if (current && current->gate.retired()) {
+          // Its bytes were overwritten in place: nothing is left to serve until a valid file comes.
+          impl_->remove(name);
+          outcome.version = 0;
+          spdlog::error("model {}: not served: version {} was rewritten in place and {}", name,
+                        current->version, outcome.message);
+        } else if (current) {
+          spdlog::error("model {}: version {} keeps serving: the new file is rejected: {}", name,
+                        current->version, outcome.message);
+        } else {
+          spdlog::error("model {}: not loaded: {}", name, outcome.message);
+        }
+      }
+      outcomes.push_back(std::move(outcome));
+      continue;
+    }
+    const std::shared_ptr<Model>& model = *loaded;
+    outcome.change = current ? "replaced" : "loaded";
+    outcome.version = model->version;
+    spdlog::info(
+        "model {}: version {} serving from {} ({}, {} input triangles, {} root triangles; loaded in {:.1f} "
+        "ms)",
+        name, model->version, path.string(), model->lease ? "mapped under a read lease" : "in memory",
+        model->input_triangles, model->mt.root_triangle_count(), load_ms);
+    impl_->publish(model);
+    {
+      std::lock_guard lock(impl_->mutex);
+      impl_->pending.erase(name);
+      impl_->last_version[name] = model->version;
+      ++impl_->reloads;
+    }
+    outcomes.push_back(std::move(outcome));
   }
-  return nullptr;
+  return outcomes;
+}
+
+std::vector<std::string> ModelRegistry::hand_over_leases(int fd) {
+  std::vector<ModelPtr> breaking;
+  {
+    std::lock_guard lock(impl_->mutex);
+    std::erase_if(impl_->leased, [](const std::weak_ptr<const Model>& m) { return m.expired(); });
+    for (const auto& weak : impl_->leased) {
+      ModelPtr m = weak.lock();
+      if (m && m->lease && (fd < 0 || m->lease->fd() == fd) && m->lease->breaking()) breaking.push_back(m);
+    }
+  }
+  std::vector<std::string> names;
+  for (const ModelPtr& m : breaking) {
+    const auto start = std::chrono::steady_clock::now();
+    m->gate.retire();  // extractions reading the mapping finish first
+    m->lease->release();
+    spdlog::warn(
+        "model {}: version {} stops serving: another process opens {} for writing; the file was handed "
+        "over after {:.1f} ms, and a new version is loaded once it is written",
+        m->name, m->version, m->path.string(),
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
+    names.push_back(m->name);
+    std::lock_guard lock(impl_->mutex);
+    impl_->pending[m->name] = std::chrono::steady_clock::now() + kHandOverGrace;
+  }
+  return names;
+}
+
+std::vector<std::string> ModelRegistry::due_pending() const {
+  const auto now = std::chrono::steady_clock::now();
+  std::lock_guard lock(impl_->mutex);
+  std::vector<std::string> names;
+  for (const auto& [name, due] : impl_->pending) {
+    if (due <= now) names.push_back(name);
+  }
+  return names;
+}
+
+std::vector<fs::path> ModelRegistry::watched_directories() const {
+  std::lock_guard lock(impl_->mutex);
+  std::vector<fs::path> dirs = impl_->directories;
+  for (const Source& s : impl_->files) {
+    fs::path parent = s.path.parent_path();
+    if (parent.empty()) parent = ".";
+    dirs.push_back(parent);
+  }
+  std::sort(dirs.begin(), dirs.end());
+  dirs.erase(std::unique(dirs.begin(), dirs.end()), dirs.end());
+  return dirs;
+}
+
+std::optional<std::string> ModelRegistry::model_for(const fs::path& dir, const std::string& file_name) const {
+  std::lock_guard lock(impl_->mutex);
+  const fs::path path = dir / file_name;
+  for (const Source& s : impl_->files) {
+    fs::path parent = s.path.parent_path();
+    if (parent.empty()) parent = ".";
+    if (parent == dir && s.path.filename() == file_name) return s.name;
+  }
+  if (path.extension() == ".mt" &&
+      std::find(impl_->directories.begin(), impl_->directories.end(), dir) != impl_->directories.end())
+    return path.stem().string();
+  return std::nullopt;
+}
+
+bool ModelRegistry::watches(const fs::path& dir, const std::string& file_name) const {
+  return model_for(dir, file_name).has_value();
+}
+
+std::uint64_t ModelRegistry::reloads() const {
+  std::lock_guard lock(impl_->mutex);
+  return impl_->reloads;
 }
 
 }  // namespace mtlod::server

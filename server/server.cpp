@@ -38,7 +38,7 @@ std::string instance_id(const std::string& name) {
 
 struct Server::Impl {
   ServerConfig config;
-  const ModelRegistry& models;
+  ModelRegistry& models;
   Engine engine;
   Metrics metrics;
   net::io_context ioc;
@@ -50,7 +50,8 @@ struct Server::Impl {
   AddressTable addresses{config.limits.max_connections_per_address};
   MemoryCeiling memory{config.limits.max_memory_bytes};
   std::unique_ptr<ServerContext> context;
-  net::signal_set signals{control, SIGINT, SIGTERM};
+  net::signal_set signals{control, SIGINT, SIGTERM, SIGHUP};
+  std::unique_ptr<ModelWatch> watch;  // from run() on
   net::steady_timer drain_timer{control};
   std::atomic<bool> stopping{false};
   std::atomic<std::uint64_t> next_connection{1};
@@ -156,7 +157,7 @@ void Server::Impl::begin_stop() {
   });
 }
 
-Server::Server(ServerConfig config, const ModelRegistry& models)
+Server::Server(ServerConfig config, ModelRegistry& models)
     : impl_(std::make_unique<Impl>(std::move(config), models)) {}
 
 Server::~Server() {
@@ -210,11 +211,8 @@ void Server::run() {
   s.scheduler = std::make_unique<FairScheduler>(*s.workers, workers);
   s.context.reset(new ServerContext{s.config, s.models, s.engine, s.metrics, s.addresses, *s.scheduler,
                                     s.memory, [&s] { s.on_connection_closed(); }});
-  s.signals.async_wait([&s](error_code ec, int signal) {
-    if (ec) return;
-    spdlog::info("received signal {}", signal);
-    s.begin_stop();
-  });
+  s.watch = std::make_unique<ModelWatch>(s.models, ModelWatchOptions{s.config.watch_models});
+  s.wait_for_signals();
   s.accept();
   if (s.web) {
     s.web->start(*s.context, WebHooks{[&s] { return s.next_connection++; },
@@ -239,6 +237,7 @@ void Server::run() {
   run_io();
   for (auto& t : extra) t.join();
   s.workers->join();
+  s.watch.reset();
 }
 
 void Server::stop() {

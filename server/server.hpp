@@ -40,7 +40,8 @@ std::string instance_id(const std::string& name);
 
 class Server {
  public:
-  Server(ServerConfig config, const ModelRegistry& models);
+  // The server reloads `models` when their files change, on SIGHUP and on `reload` (model_watch.hpp).
+  Server(ServerConfig config, ModelRegistry& models);
   ~Server();
 
   // Loads the TLS certificate and key when configured, binds and listens; errors name the file or
@@ -50,7 +51,7 @@ class Server {
   std::uint16_t port() const;
   // The bound HTTP port, 0 when HTTP is off.
   std::uint16_t http_port() const;
-  // Serves until stop() or SIGINT/SIGTERM has drained every connection.
+  // Serves until stop() or SIGINT/SIGTERM has drained every connection. SIGHUP reloads the models.
   void run();
   // Starts a graceful shutdown: stop accepting, answer queued work `shutting_down`, finish running
   // extractions, write their replies, close. Safe from any thread.

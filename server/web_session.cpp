@@ -419,11 +419,16 @@ class HttpSession : public HttpSessionBase, public std::enable_shared_from_this<
     if (target == "/metrics") {
       // Prometheus scrapes this, with no token as /health: counts and timings only, no model names.
       const ServerContext& context = *server_->context;
-      MetricsGauges gauges{context.memory.held(), context.memory.limit(), context.models.models().size(), 0};
+      MetricsGauges gauges;
+      gauges.memory_held_bytes = context.memory.held();
+      gauges.memory_limit_bytes = context.memory.limit();
+      gauges.models = context.models.models().size();
       for (const auto& model : context.models.models()) {
         gauges.model_bytes += model->memory_bytes;
         gauges.model_mapped_bytes += model->mt.mapped_bytes();
+        if (!context.config.tokens) gauges.model_versions.emplace_back(model->name, model->version);
       }
+      gauges.model_reloads = context.models.reloads();
       auto response = text_response(request, http::status::ok, context.metrics.prometheus_text(gauges));
       response.set(http::field::content_type, "text/plain; version=0.0.4; charset=utf-8");
       return send(std::move(response));

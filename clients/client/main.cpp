@@ -51,6 +51,9 @@ int main(int argc, char** argv) {
   auto* info = app.add_subcommand("info", "describe one model");
   info->add_option("model", model, "model name")->required();
   auto* stats = app.add_subcommand("stats", "print the server's counters");
+  std::string admin_token;
+  auto* reload = app.add_subcommand("reload", "load changed model files now (as SIGHUP does)");
+  reload->add_option("--admin-token", admin_token, "a token of the server's --admin-tokens file")->required();
   auto* extract = app.add_subcommand("extract", "fetch a view-dependent extraction");
   extract->add_option("model", model, "model name")->required();
   extract->add_option("-o,--output", output,
@@ -74,11 +77,22 @@ int main(int argc, char** argv) {
     auto reply = c.call(protocol::ListModels{});
     if (!reply) return fail(reply.error().message);
     if (is_error(*reply)) return 1;
-    fmt::print("{:<16} {:>10} {:>12} {:>8} {:>9} {:>10} {:>10}\n", "model", "vertices", "triangles", "root",
-               "nodes", "MiB", "max error");
+    fmt::print("{:<16} {:>10} {:>12} {:>8} {:>9} {:>10} {:>10} {:>8}\n", "model", "vertices", "triangles",
+               "root", "nodes", "MiB", "max error", "version");
     for (const auto& m : std::get<protocol::ModelsReply>(reply->header.reply).models) {
-      fmt::print("{:<16} {:>10} {:>12} {:>8} {:>9} {:>10.1f} {:>10.4g}\n", m.name, m.vertices,
-                 m.input_triangles, m.root_triangles, m.nodes, m.memory_bytes / 1048576.0, m.max_error);
+      fmt::print("{:<16} {:>10} {:>12} {:>8} {:>9} {:>10.1f} {:>10.4g} {:>8}\n", m.name, m.vertices,
+                 m.input_triangles, m.root_triangles, m.nodes, m.memory_bytes / 1048576.0, m.max_error,
+                 m.version);
+    }
+    return 0;
+  }
+  if (*reload) {
+    auto reply = c.call(protocol::Reload{admin_token});
+    if (!reply) return fail(reply.error().message);
+    if (is_error(*reply)) return 1;
+    for (const auto& m : std::get<protocol::ReloadReply>(reply->header.reply).models) {
+      fmt::print("{:<16} {:<10} version {}{}\n", m.name, m.change, m.version,
+                 m.message.empty() ? "" : "  (" + m.message + ")");
     }
     return 0;
   }

@@ -118,7 +118,11 @@ Result<ReplyFrame> RetryingConnection::call(const protocol::Request& request,
     }
     const std::uint64_t id = next_id_++;
     auto reply = connection_->call(request, id, timeout);
-    if (reply && !asks_for_retry(*reply)) return reply;
+    // A model whose file is being rewritten is served again soon: the request is sent again after
+    // the backoff (streams count such replies instead, as any error).
+    const auto* error = reply ? std::get_if<protocol::ErrorReply>(&reply->header.reply) : nullptr;
+    const bool unavailable = error && error->code == protocol::ErrorKind::kUnavailable;
+    if (reply && !asks_for_retry(*reply) && !unavailable) return reply;
     last_error = reply ? std::get<protocol::ErrorReply>(reply->header.reply).message : reply.error().message;
     connection_.reset();
   }

@@ -269,7 +269,8 @@ async function showReply({ json, payload, latencyMs }) {
   $('server-ms').textContent = (json.timings_us.total / 1000).toFixed(1);
   if (json.focus) $('focus-point').textContent = `${json.focus[0].toFixed(3)}, ${json.focus[1].toFixed(3)}`;
   $('meshes').textContent = String(state.meshes);
-  setStatus('ok');
+  // The model's file changed on the server: this cut comes from its new version.
+  setStatus(json.model_changed ? `ok: ${state.model} was updated (version ${json.model_version})` : 'ok');
 }
 
 async function selectModel(name) {

@@ -92,6 +92,91 @@ Result<Mt> read_mt_file(const std::filesystem::path& path, MtLoad load) {
   return mt;
 }
 
+namespace {
+
+// Reads the whole file behind fd (from its start) with pread, which a truncation can only shorten.
+Result<std::vector<std::uint8_t>> read_whole(int fd, std::uint64_t size, const std::filesystem::path& path) {
+  std::vector<std::uint8_t> bytes(size);
+  for (std::uint64_t done = 0; done < size;) {
+    const ssize_t n = ::pread(fd, bytes.data() + done, size - done, static_cast<off_t>(done));
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0)
+      return make_error(ErrorCode::kBusy, path.string() + ": changed while it was read (short read)");
+    done += static_cast<std::uint64_t>(n);
+  }
+  return bytes;
+}
+
+}  // namespace
+
+Result<ServedMt> open_served_mt(const std::filesystem::path& path) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0 && errno == ENOENT)
+    return make_error(ErrorCode::kNotFound, "MT file " + path.string() + " does not exist");
+  if (fd < 0)
+    return make_error(ErrorCode::kIoError, "cannot open " + path.string() + ": " + std::strerror(errno));
+  struct stat st {};
+  if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
+    ::close(fd);
+    return make_error(ErrorCode::kInvalidArgument, path.string() + ": not a regular file");
+  }
+  ServedMt served;
+  auto lease = FileLease::acquire(fd);  // owns fd from here on, whatever it answers
+  if (!lease && lease.error().code == ErrorCode::kBusy) return named(path, lease.take_error());
+  if (!lease) {
+    // No lease here: a private copy, which no other process can change or truncate.
+    served.read_whole_because = lease.error().message;
+    const int copy_fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+    if (copy_fd < 0)
+      return make_error(ErrorCode::kIoError, "cannot open " + path.string() + ": " + std::strerror(errno));
+    auto before = identify(copy_fd);
+    if (!before) {
+      ::close(copy_fd);
+      return named(path, before.take_error());
+    }
+    auto bytes = read_whole(copy_fd, before->size, path);
+    auto after = identify(copy_fd);
+    ::close(copy_fd);
+    if (!bytes) return bytes.take_error();
+    if (!after || *after != *before)
+      return make_error(ErrorCode::kBusy, path.string() + ": changed while it was read");
+    served.identity = *before;
+    auto mt = deserialize_mt(*bytes);
+    if (!mt) return named(path, mt.take_error());
+    served.mt = std::move(*mt);
+    return served;
+  }
+  served.lease = std::move(*lease);
+  const int leased = served.lease->fd();
+  MTLOD_TRY(served.identity, identify(leased));
+  const std::size_t size = served.identity.size;
+  if (size < kMtHeaderBytes) {
+    MTLOD_TRY(std::vector<std::uint8_t> bytes, read_whole(leased, size, path));
+    auto mt = deserialize_mt(bytes);  // reports what is wrong
+    if (!mt) return named(path, mt.take_error());
+    served.mt = std::move(*mt);
+    served.lease.reset();
+    return served;
+  }
+  void* data = ::mmap(nullptr, size, PROT_READ, MAP_SHARED, leased, 0);
+  if (data == MAP_FAILED)
+    return make_error(ErrorCode::kIoError, "cannot map " + path.string() + ": " + std::strerror(errno));
+  auto mapping = std::make_shared<const Mapping>(data, size);
+  if (mt_file_version(mapping->bytes()) != kMtFormatVersion) {
+    // Version 1 is copied out of the mapping whole: nothing is left to guard.
+    auto mt = deserialize_mt(mapping->bytes());
+    if (!mt) return named(path, mt.take_error());
+    served.mt = std::move(*mt);
+    served.lease.reset();
+    return served;
+  }
+  ::madvise(data, size, MADV_RANDOM);
+  auto mt = view_mt(mapping->bytes(), mapping);
+  if (!mt) return named(path, mt.take_error());
+  served.mt = std::move(*mt);
+  return served;
+}
+
 Result<std::uint64_t> write_mt_file(const std::filesystem::path& path, const Mt& mt) {
   std::vector<std::uint8_t> bytes;
   serialize_mt(mt, bytes);

@@ -4,7 +4,10 @@
 #pragma once
 
 #include <filesystem>
+#include <memory>
+#include <string>
 
+#include "core/io/file_lease.hpp"
 #include "core/mt.hpp"
 #include "core/result.hpp"
 
@@ -19,6 +22,20 @@ enum class MtLoad {
 // kUnsupported. A mapped file must not be truncated or rewritten in place while it is in use
 // (replace it by renaming a new file over it, as mtlod-build does).
 Result<Mt> read_mt_file(const std::filesystem::path& path, MtLoad load = MtLoad::kMap);
+
+// An .mt file opened to be served while other processes may change it: mapped under a read lease
+// (core/io/file_lease.hpp), so that the server hears of a writer before the mapping can change,
+// or read whole into memory where no lease can be had (then nothing outside can change it).
+struct ServedMt {
+  Mt mt;
+  FileIdentity identity;             // of the bytes the MT comes from
+  std::unique_ptr<FileLease> lease;  // guards the mapping; null when the MT is in memory
+  std::string read_whole_because;    // empty when mapped under a lease
+};
+// Errors name the file: kNotFound, kInvalidArgument (not a regular file), kBusy (open for writing
+// by another process: try again once it is closed), kIoError, and the parser's kCorrupt and
+// kUnsupported.
+Result<ServedMt> open_served_mt(const std::filesystem::path& path);
 
 // Writes mt as an .mt file (replacing it). Returns the file size in bytes.
 Result<std::uint64_t> write_mt_file(const std::filesystem::path& path, const Mt& mt);

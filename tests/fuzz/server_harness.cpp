@@ -52,8 +52,9 @@ std::chrono::nanoseconds process_cpu_time() {
 
 // The reply each request type gets when it does not fail (PROTOCOL.md, "Requests").
 constexpr std::pair<std::string_view, const char*> kReplyTypes[] = {
-    {"hello", "hello"}, {"list_models", "models"}, {"model_info", "model_info"}, {"extract", "mesh"},
-    {"gaze", "mesh"},   {"cancel", "cancel"},      {"stats", "stats"},           {"ping", "pong"}};
+    {"hello", "hello"},  {"list_models", "models"}, {"model_info", "model_info"},
+    {"extract", "mesh"}, {"gaze", "mesh"},          {"cancel", "cancel"},
+    {"stats", "stats"},  {"ping", "pong"},          {"reload", "reloaded"}};
 
 // MTLOD_FUZZ_TRACE=1 prints every request and reply, to read what a reproducer does.
 const bool kTrace = std::getenv("MTLOD_FUZZ_TRACE") != nullptr;

@@ -81,7 +81,7 @@ TEST_F(ModelRegistryTest, CacheFromAnOlderBuilderIsBuiltAgain) {
   write_cache(older);
   server::ModelRegistry registry;
   ASSERT_TRUE(registry.add_mesh(mesh_path_, mt_path_).ok());
-  const server::Model* model = registry.find("shell");
+  const server::ModelPtr model = registry.find("shell");
   ASSERT_NE(model, nullptr);
   EXPECT_TRUE(model->mt.vertices_in_node_order());
   EXPECT_TRUE(std::ranges::equal(model->mt.node_vertex, built_.node_vertex));
