@@ -104,6 +104,14 @@ int main(int argc, char** argv) {
       "access tokens, one per line: TOKEN [model ...] (# comments); connections are served only after "
       "a hello with a valid token (WebSocket: /ws?token=) and see only their token's models (all "
       "when none is listed)");
+  app.add_option(
+         "--proxy-protocol-from", config.proxy_protocol_from,
+         "networks of trusted load balancers (CIDR, comma-separated or repeated: 10.0.0.0/8,::1/128): "
+         "their connections must open with a PROXY protocol v2 header (HAProxy send-proxy-v2), sent "
+         "within --first-frame-timeout-ms, and are served as the client address it names; other peers "
+         "may not send one")
+      ->delimiter(',')
+      ->type_name("CIDR");
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error or off")->capture_default_str();
   std::string log_format = "text";
   app.add_option("--log-format", log_format,

@@ -17,6 +17,8 @@
 #include "protocol/replies.hpp"
 #include "protocol/text.hpp"
 #include "server/connection.hpp"
+#include "server/model_watch.hpp"
+#include "server/proxy_accept.hpp"
 #include "server/tcp_session.hpp"
 #include "server/tls.hpp"
 #include "server/web_session.hpp"
@@ -59,9 +61,9 @@ struct Server::Impl {
   std::list<std::weak_ptr<Connection>> connections;
   std::unique_ptr<WebServer> web;          // HTTP + WebSocket, when config.http_port is set
   std::unique_ptr<net::ssl::context> tls;  // both listeners' TLS, when config names a certificate
+  std::unique_ptr<ProxyGate> proxies;      // both listeners' PROXY headers, with --proxy-protocol-from
 
-  Impl(ServerConfig c, const ModelRegistry& m)
-      : config(with_memory_limit(std::move(c))), models(m), engine(m) {}
+  Impl(ServerConfig c, ModelRegistry& m) : config(with_memory_limit(std::move(c))), models(m), engine(m) {}
   static ServerConfig with_memory_limit(ServerConfig c) {
     if (c.limits.max_memory_bytes == 0) c.limits.max_memory_bytes = core::io::default_memory_limit();
     return c;
@@ -69,9 +71,12 @@ struct Server::Impl {
 
   void accept();
   void begin_stop();
+  void wait_for_signals();
   // The new connection's address slot, or an empty one after refusing it with an error frame (over
-  // the server's or its address's connection limit).
-  AddressTable::Slot admit(tcp::socket& socket, std::uint64_t number);
+  // the server's or its address's connection limit). `address`: the client's, the socket's own or
+  // the one its PROXY header names.
+  AddressTable::Slot admit(tcp::socket& socket, std::uint64_t number, const std::string& address);
+  void start_session(tcp::socket socket, std::uint64_t number, AddressTable::Slot slot);
   void track(const std::shared_ptr<Connection>& connection) {
     std::lock_guard lock(connections_mutex);
     connections.remove_if([](const std::weak_ptr<Connection>& c) { return c.expired(); });
@@ -85,10 +90,10 @@ struct Server::Impl {
   }
 };
 
-AddressTable::Slot Server::Impl::admit(tcp::socket& socket, std::uint64_t number) {
+AddressTable::Slot Server::Impl::admit(tcp::socket& socket, std::uint64_t number,
+                                       const std::string& address) {
   std::string why;
   AddressTable::Slot slot;
-  const std::string address = remote_address(socket);
   if (metrics.open_connections() >= config.limits.max_connections) {
     why = fmt::format("the server has {} connections, its limit", config.limits.max_connections);
   } else if (!(slot = addresses.acquire(address))) {
@@ -122,10 +127,49 @@ void Server::Impl::accept() {
     error_code ignored;
     socket.set_option(tcp::no_delay(true), ignored);
     const std::uint64_t number = next_connection++;
-    if (AddressTable::Slot slot = admit(socket, number)) {
-      track(start_tcp_session(*context, std::move(socket), number, std::move(slot), tls.get()));
+    if (proxies && proxies->trusted(socket)) {
+      // Admission waits for the header: the cap and the turns are the client's, not the balancer's.
+      proxies->read_header(std::move(socket), fmt::format("conn={}", number),
+                           [this, number](tcp::socket socket, std::string address) {
+                             if (stopping) return;
+                             if (AddressTable::Slot slot = admit(socket, number, address))
+                               start_session(std::move(socket), number, std::move(slot));
+                           });
+    } else if (AddressTable::Slot slot = admit(socket, number, remote_address(socket))) {
+      if (!proxies) {
+        start_session(std::move(socket), number, std::move(slot));
+      } else {
+        // Admitted before its first bytes are looked at, so that idle sockets count against the cap
+        // as they do without a balancer.
+        auto held = std::make_shared<AddressTable::Slot>(std::move(slot));
+        proxies->screen(std::move(socket), fmt::format("conn={}", number),
+                        [this, number, held](tcp::socket socket, std::string) {
+                          if (!stopping) start_session(std::move(socket), number, std::move(*held));
+                        });
+      }
     }
     accept();
+  });
+}
+
+void Server::Impl::start_session(tcp::socket socket, std::uint64_t number, AddressTable::Slot slot) {
+  auto connection = start_tcp_session(*context, std::move(socket), number, std::move(slot), tls.get());
+  track(connection);
+  // A drain that began while a PROXY header was read (on the socket's strand) has not seen it.
+  if (stopping) connection->shutdown();
+}
+
+void Server::Impl::wait_for_signals() {
+  signals.async_wait([this](error_code ec, int signal) {
+    if (ec) return;
+    if (signal == SIGHUP) {
+      // The usual way to ask a daemon to read its files again: the models, not a shutdown.
+      spdlog::info("SIGHUP: reloading the models from their files");
+      watch->request_reload();
+      return wait_for_signals();
+    }
+    spdlog::info("received signal {}", signal);
+    begin_stop();
   });
 }
 
@@ -136,6 +180,8 @@ void Server::Impl::begin_stop() {
   error_code ignored;
   acceptor.close(ignored);
   signals.cancel(ignored);
+  // Sockets still sending their PROXY header are no connections yet: they are closed here.
+  if (proxies) proxies->stop();
   if (web) web->stop();  // before collecting connections: an upgrade in progress sees `stopping`
   std::vector<std::shared_ptr<Connection>> live;
   {
@@ -171,6 +217,16 @@ Status Server::listen() {
       return make_error(ErrorCode::kInvalidArgument, "TLS needs both --tls-cert and --tls-key");
     MTLOD_TRY(impl_->tls, make_tls_context(config.tls_cert_file, config.tls_key_file));
   }
+  if (!config.proxy_protocol_from.empty()) {
+    MTLOD_TRY(TrustedNetworks networks, TrustedNetworks::parse(config.proxy_protocol_from));
+    spdlog::info(
+        "PROXY protocol v2 header required from {}: their connections are served as the client "
+        "address it names",
+        networks.to_string());
+    // The header is the first thing a balancer sends: it gets the deadline of a first frame.
+    impl_->proxies = std::make_unique<ProxyGate>(std::move(networks), config.limits.first_frame_timeout_ms,
+                                                 impl_->metrics);
+  }
   error_code ec;
   const auto address = net::ip::make_address(impl_->config.host, ec);
   if (ec)
@@ -187,8 +243,9 @@ Status Server::listen() {
                                                        impl_->config.port, ec.message()));
   }
   if (impl_->config.http_port) {
-    impl_->web = std::make_unique<WebServer>(impl_->ioc, impl_->control,
-                                             WebConfig{impl_->config.web_root, impl_->tls.get()});
+    impl_->web = std::make_unique<WebServer>(
+        impl_->ioc, impl_->control,
+        WebConfig{impl_->config.web_root, impl_->tls.get(), impl_->proxies.get()});
     MTLOD_RETURN_IF_ERROR(impl_->web->listen(impl_->config.host, *impl_->config.http_port));
   }
   return Ok{};

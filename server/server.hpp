@@ -7,6 +7,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "protocol/messages.hpp"
 #include "server/engine.hpp"
@@ -30,9 +31,17 @@ struct ServerConfig {
   std::string instance = "mtlod";
   // TLS on both listeners, from PEM files (server/tls.hpp); plain TCP and HTTP when both are empty.
   std::string tls_cert_file, tls_key_file;
+  // Networks of trusted load balancers (--proxy-protocol-from; CIDRs, server/proxy_accept.hpp): a
+  // connection from one must open with a PROXY protocol v2 header, and the client address in it
+  // stands for the connection. Empty: no header is read and every peer is its own client.
+  std::vector<std::string> proxy_protocol_from;
   // Access tokens (server/auth.hpp): when set, a connection is served only once it has shown a
   // valid token, and sees only its token's models.
   std::shared_ptr<const TokenTable> tokens;
+  // Tokens that may send `reload` (mtlod-server --admin-tokens); without them `reload` is refused.
+  std::shared_ptr<const TokenTable> admin_tokens;
+  // Load changed model files when they change (inotify); off: on SIGHUP or `reload` only.
+  bool watch_models = true;
 };
 
 // "<name>@<8 hex digits>", random per call: a replica's identity for this run.

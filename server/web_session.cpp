@@ -29,6 +29,7 @@
 #include "protocol/frame.hpp"
 #include "protocol/text.hpp"
 #include "server/auth.hpp"
+#include "server/proxy_accept.hpp"
 #include "spdlog/spdlog.h"
 
 namespace mtlod::server {
@@ -270,6 +271,11 @@ struct WebServer::Impl : std::enable_shared_from_this<WebServer::Impl> {
       : ioc(i), config(std::move(c)), acceptor(std::move(control)) {}
 
   void accept();
+  // A slot for a new HTTP connection from `address` (the socket's, or its PROXY header's), or an
+  // empty one after refusing it with 503.
+  AddressTable::Slot acquire(tcp::socket& socket, const std::string& address);
+  // Starts an HTTP session on an admitted socket.
+  void serve(tcp::socket socket, AddressTable::Slot slot);
   // Whether another WebSocket connection fits under max_connections.
   bool admit() const {
     if (context->metrics.open_connections() < context->config.limits.max_connections) return true;
@@ -494,43 +500,70 @@ class HttpSession : public HttpSessionBase, public std::enable_shared_from_this<
 };
 
 void WebServer::Impl::accept() {
-  acceptor.async_accept(net::make_strand(ioc), [self = shared_from_this()](error_code ec,
-                                                                           tcp::socket socket) {
-    if (ec) {
-      if (ec != net::error::operation_aborted) spdlog::warn("http accept failed: {}", ec.message());
-      if (!self->stopping && self->acceptor.is_open()) self->accept();
-      return;
-    }
-    if (self->stopping) return;
-    error_code ignored;
-    socket.set_option(tcp::no_delay(true), ignored);  // as for TCP sessions: no Nagle delay on replies
-    AddressTable::Slot slot = self->context->addresses.acquire(remote_address(socket));
-    if (!slot) {
-      self->context->metrics.connection_refused();
-      // Over TLS a plain-text answer would only break the client's handshake: just close.
-      refuse_socket(std::move(socket), self->config.tls ? ""
-                                                        : "HTTP/1.1 503 Service Unavailable\r\n"
-                                                          "Connection: close\r\nContent-Length: 0\r\n\r\n");
-      return self->accept();
-    }
-    std::shared_ptr<HttpSessionBase> session;
-    if (self->config.tls) {
-      auto tls = std::make_shared<HttpSession<TlsStream>>(std::move(socket), self, std::move(slot),
-                                                          *self->config.tls);
-      tls->start();
-      session = std::move(tls);
-    } else {
-      auto plain = std::make_shared<HttpSession<beast::tcp_stream>>(std::move(socket), self, std::move(slot));
-      plain->start();
-      session = std::move(plain);
-    }
-    {
-      std::lock_guard lock(self->sessions_mutex);
-      self->sessions.remove_if([](const std::weak_ptr<HttpSessionBase>& s) { return s.expired(); });
-      self->sessions.push_back(session);
-    }
-    self->accept();
-  });
+  acceptor.async_accept(
+      net::make_strand(ioc), [self = shared_from_this()](error_code ec, tcp::socket socket) {
+        if (ec) {
+          if (ec != net::error::operation_aborted) spdlog::warn("http accept failed: {}", ec.message());
+          if (!self->stopping && self->acceptor.is_open()) self->accept();
+          return;
+        }
+        if (self->stopping) return;
+        error_code ignored;
+        socket.set_option(tcp::no_delay(true), ignored);  // as for TCP sessions: no Nagle delay on replies
+        ProxyGate* proxies = self->config.proxies;
+        if (proxies && proxies->trusted(socket)) {
+          // The slot is the client's, so it is taken once the header has named the client.
+          proxies->read_header(std::move(socket), "http", [self](tcp::socket socket, std::string address) {
+            if (self->stopping) return;
+            if (AddressTable::Slot slot = self->acquire(socket, address))
+              self->serve(std::move(socket), std::move(slot));
+          });
+        } else if (AddressTable::Slot slot = self->acquire(socket, remote_address(socket))) {
+          if (!proxies) {
+            self->serve(std::move(socket), std::move(slot));
+          } else {
+            auto held = std::make_shared<AddressTable::Slot>(std::move(slot));
+            proxies->screen(std::move(socket), "http", [self, held](tcp::socket socket, std::string) {
+              if (!self->stopping) self->serve(std::move(socket), std::move(*held));
+            });
+          }
+        }
+        self->accept();
+      });
+}
+
+AddressTable::Slot WebServer::Impl::acquire(tcp::socket& socket, const std::string& address) {
+  AddressTable::Slot slot = context->addresses.acquire(address);
+  if (!slot) {
+    context->metrics.connection_refused();
+    // Over TLS a plain-text answer would only break the client's handshake: just close.
+    refuse_socket(std::move(socket), config.tls ? ""
+                                                : "HTTP/1.1 503 Service Unavailable\r\n"
+                                                  "Connection: close\r\nContent-Length: 0\r\n\r\n");
+  }
+  return slot;
+}
+
+void WebServer::Impl::serve(tcp::socket socket, AddressTable::Slot slot) {
+  std::shared_ptr<HttpSessionBase> session;
+  if (config.tls) {
+    auto tls = std::make_shared<HttpSession<TlsStream>>(std::move(socket), shared_from_this(),
+                                                        std::move(slot), *config.tls);
+    tls->start();
+    session = std::move(tls);
+  } else {
+    auto plain = std::make_shared<HttpSession<beast::tcp_stream>>(std::move(socket), shared_from_this(),
+                                                                  std::move(slot));
+    plain->start();
+    session = std::move(plain);
+  }
+  {
+    std::lock_guard lock(sessions_mutex);
+    sessions.remove_if([](const std::weak_ptr<HttpSessionBase>& s) { return s.expired(); });
+    sessions.push_back(session);
+  }
+  // A stop that began while a PROXY header was read (on the socket's strand) has not seen it.
+  if (stopping) session->close();
 }
 
 template <class Stream>

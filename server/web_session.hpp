@@ -23,6 +23,8 @@ class context;
 
 namespace mtlod::server {
 
+class ProxyGate;
+
 // The files served over HTTP:
 //   /              → <root>/clients/web/index.html
 //   /<name>        → <root>/clients/web/<name>
@@ -33,6 +35,8 @@ struct WebConfig {
   std::filesystem::path root;  // the repository root (or an install with the same two folders)
   // HTTPS and wss only, with this context (server/tls.hpp); plain HTTP when null.
   boost::asio::ssl::context* tls = nullptr;
+  // PROXY protocol v2 headers from trusted balancers (server/proxy_accept.hpp); none read when null.
+  ProxyGate* proxies = nullptr;
 };
 
 // What the server lends the web listener for WebSocket connections.

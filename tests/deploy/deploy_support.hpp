@@ -55,6 +55,14 @@ inline std::map<std::string, std::string> haproxy_environment(const HaproxyPorts
   return environment;
 }
 
+// What the replicas behind docker/haproxy.cfg are given here: HAProxy connects to them from
+// 127.0.0.1 with a PROXY protocol v2 header (send-proxy-v2), so they trust that address for one.
+inline const std::vector<std::string> kBehindHaproxy = {"--proxy-protocol-from", "127.0.0.1/32"};
+// The header HAProxy's health checks send (LOCAL: the balancer's own connection), for a test that
+// talks to such a replica directly from 127.0.0.1 as HAProxy's checks do.
+inline const std::string kProxyLocalHeader("\x0D\x0A\x0D\x0A\x00\x0D\x0A\x51\x55\x49\x54\x0A\x20\x00\x00\x00",
+                                           16);
+
 // A child process: argv, extra environment, output to a log file. Killed (SIGKILL) when destroyed
 // unless it has exited.
 class Child {

@@ -36,9 +36,10 @@ std::filesystem::path write_model(const std::filesystem::path& dir, std::size_t 
   return dir / "models";
 }
 
-// The instance a replica reports on /health ("" when it does not answer).
+// The instance a replica behind HAProxy reports on /health ("" when it does not answer), asked as
+// HAProxy's checks ask: from 127.0.0.1, after a LOCAL PROXY header.
 std::string health_instance(std::uint16_t http_port) {
-  const test::HttpReply reply = test::http_get(http_port, "/health");
+  const test::HttpReply reply = test::http_get(http_port, "/health", test::kProxyLocalHeader);
   if (reply.status != 200) return "";
   return json::parse(reply.body).value("instance", "");
 }
@@ -82,10 +83,11 @@ struct Replica {
   std::unique_ptr<test::ServerProcess> process;
 
   void start(const std::filesystem::path& models) {
-    process = std::make_unique<test::ServerProcess>(
-        std::vector<std::string>{"--models", models.string(), "--name", name, "--http-port",
-                                 std::to_string(http_port), "--workers", "1", "--log-level", "warn"},
-        dir, port);
+    std::vector<std::string> args{
+        "--models", models.string(), "--name", name, "--http-port", std::to_string(http_port), "--workers",
+        "1",        "--log-level",   "warn"};
+    args.insert(args.end(), test::kBehindHaproxy.begin(), test::kBehindHaproxy.end());
+    process = std::make_unique<test::ServerProcess>(args, dir, port);
   }
 };
 

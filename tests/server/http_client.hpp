@@ -18,7 +18,9 @@ struct HttpReply {
 };
 
 // Sends `request` (a whole HTTP request) on a fresh loopback connection and reads until it closes.
-inline HttpReply http_request(std::uint16_t port, const std::string& request) {
+// `before` goes first on the connection (a PROXY protocol header, as a load balancer sends).
+inline HttpReply http_request(std::uint16_t port, const std::string& request,
+                              const std::string& before = "") {
   HttpReply reply;
   const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
   sockaddr_in address{};
@@ -31,7 +33,8 @@ inline HttpReply http_request(std::uint16_t port, const std::string& request) {
   }
   timeval timeout{10, 0};
   ::setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &timeout, sizeof timeout);
-  (void)::send(fd, request.data(), request.size(), MSG_NOSIGNAL);
+  const std::string bytes = before + request;
+  (void)::send(fd, bytes.data(), bytes.size(), MSG_NOSIGNAL);
   std::string all;
   char buffer[65536];
   for (ssize_t n; (n = ::recv(fd, buffer, sizeof buffer, 0)) > 0;)
@@ -45,9 +48,10 @@ inline HttpReply http_request(std::uint16_t port, const std::string& request) {
   return reply;
 }
 
-// GET http://127.0.0.1:port/target with Connection: close.
-inline HttpReply http_get(std::uint16_t port, const std::string& target) {
-  return http_request(port, "GET " + target + " HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n");
+// GET http://127.0.0.1:port/target with Connection: close, after `before`.
+inline HttpReply http_get(std::uint16_t port, const std::string& target, const std::string& before = "") {
+  return http_request(port, "GET " + target + " HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n",
+                      before);
 }
 
 }  // namespace mtlod::test

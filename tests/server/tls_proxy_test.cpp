@@ -38,6 +38,8 @@ void run_layout(const std::string& mode) {
   std::vector<std::string> args = {
       "--mesh",        (dir / "bunny.ply").string(),    "--cache-dir", dir.string(), "--http-port", "0",
       "--auth-tokens", test::write_tokens(dir).string()};
+  // HAProxy sends its PROXY v2 header on every connection, health checks included (haproxy.cfg).
+  args.insert(args.end(), test::kBehindHaproxy.begin(), test::kBehindHaproxy.end());
   if (passthrough) {
     args.insert(args.end(), {"--tls-cert", certificate.cert.string(), "--tls-key", certificate.key.string()});
   }
