@@ -2,7 +2,7 @@
 # Installs every dependency mtlod needs on Debian 12: Debian packages with apt-get, npm packages
 # into scripts/node_modules. Idempotent: when everything is there it installs nothing.
 #   scripts/bootstrap.sh                    everything: build, tests, benchmarks, browser test
-#   scripts/bootstrap.sh --profile build    what building the server and tools needs (docker/Dockerfile)
+#   scripts/bootstrap.sh --profile build    what building and serving needs (scripts/run.sh, docker/Dockerfile)
 #   scripts/bootstrap.sh --profile runtime  only the shared libraries the binaries load (no npm)
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)

@@ -1,12 +1,15 @@
 #!/usr/bin/env bash
-# The main job: installs what is missing, builds mtlod (Release), prepares the built-in models and
-# serves them: the Stanford bunny and the 871k-triangle Stanford dragon. Their Multi-Tessellations
+# The main job: installs what serving needs, builds the server and the clients (Release), prepares
+# the built-in models and serves them: the Stanford bunny and the 871k-triangle Stanford dragon. Their Multi-Tessellations
 # are built into build/models on the first run and reused afterwards. The browser viewer is served
 # on HTTP port $MTLOD_HTTP_PORT (default 8080). Extra arguments go to mtlod-server (e.g. --port 9000).
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
-"$root/scripts/bootstrap.sh"
-"$root/scripts/build.sh" release -DCMAKE_BUILD_TYPE=Release
+# Only what serving needs: the tests' packages (Chromium, podman, HAProxy, ...) and the tests and
+# benchmarks themselves are scripts/test.sh's business.
+"$root/scripts/bootstrap.sh" --profile build
+MTLOD_TARGETS="mtlod-server mtlod-client mtlod-load mtlod-gaze mtlod-build mtlod-extract" \
+  "$root/scripts/build.sh" release -DCMAKE_BUILD_TYPE=Release
 "$root/scripts/prepare-models.sh"
 bin="$root/build/release"
 models="$root/build/models"
