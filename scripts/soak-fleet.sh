@@ -91,14 +91,27 @@ node "$root/scripts/soak-viewers.mjs" --port "$lb_http" --duration $((minutes * 
   --viewers 4 --out "$out/viewers.json" >"$out/viewers.log" 2>&1 &
 viewers=$!
 
-(  # gaze streams, one run per minute
+# One model's gaze streams for a minute. mtlod-gaze gives up when its first extract fails, which it
+# does while the changing model is removed or being rewritten: it starts again 2 s later, for
+# what is left of the minute (a run that gave up counts in gaze.log, not as an error).
+gaze_minute() {
+  local model=$1 m=$2 attempt=0 until=$(($(date +%s) + 60))
+  while [ "$(date +%s)" -lt $((until - 2)) ]; do
+    attempt=$((attempt + 1))
+    "$bin/clients/gaze/mtlod-gaze" --port "$lb" --model "$model" --streams 8 --hz 120 \
+      --duration $(((until - $(date +%s)) * 1000)) --delta --seed "$m" \
+      --json "$out/gaze-$model-$m-$attempt.json" >/dev/null 2>>"$out/gaze.log" && return 0
+    echo "$(($(date +%s) - start)) gaze on $model gave up at its start; again in 2 s" >>"$out/events.log"
+    sleep 2
+  done
+}
+
+(  # gaze streams, one run per minute and model
   m=0
   while [ "$(date +%s)" -lt "$end" ]; do
     m=$((m + 1))
-    for model in dragon changing; do
-      "$bin/clients/gaze/mtlod-gaze" --port "$lb" --model "$model" --streams 8 --hz 120 --duration 60000 \
-        --delta --seed "$m" --json "$out/gaze-$model-$m.json" >/dev/null 2>>"$out/gaze.log" &
-    done
+    gaze_minute dragon "$m" &
+    gaze_minute changing "$m" &
     wait
   done
 ) &
