@@ -15,6 +15,47 @@
 #include "server/server.hpp"
 #include "spdlog/spdlog.h"
 
+namespace {
+
+// Loads a token file or ends the process: a server must not start with access rules it cannot read.
+std::shared_ptr<const mtlod::server::TokenTable> load_tokens(const std::string& file, const char* what) {
+  auto tokens = mtlod::server::TokenTable::load(file);
+  if (!tokens) {
+    spdlog::error("{}", tokens.error().message);
+    std::exit(1);
+  }
+  spdlog::info("{}: {} from {}", what, tokens->size(), file);
+  return std::make_shared<const mtlod::server::TokenTable>(std::move(*tokens));
+}
+
+void log_model(const mtlod::server::Model& model) {
+  const auto s = model.summary();
+  const std::size_t mapped = model.mt.mapped_bytes();
+  spdlog::info(
+      "model {}: {} vertices, {} input triangles, {} root triangles, {} nodes, {:.1f} MiB in memory{}",
+      s.name, s.vertices, s.input_triangles, s.root_triangles, s.nodes, s.memory_bytes / 1048576.0,
+      mapped ? fmt::format(", {:.1f} MiB mapped from {} ({:.1f} bytes per input triangle)",
+                           mapped / 1048576.0, model.path.string(),
+                           static_cast<double>(mapped) /
+                               static_cast<double>(std::max<std::uint64_t>(1, s.input_triangles)))
+             : fmt::format(" ({:.1f} bytes per input triangle)",
+                           static_cast<double>(s.memory_bytes) /
+                               static_cast<double>(std::max<std::uint64_t>(1, s.input_triangles))));
+}
+
+// Written to a temporary name and renamed, so a reader never sees a half-written port.
+bool write_port_file(const std::string& port_file, unsigned port, unsigned http_port) {
+  const std::string temporary = port_file + ".tmp";
+  std::FILE* f = std::fopen(temporary.c_str(), "w");
+  if (!f) return false;
+  std::fprintf(f, "%u\n", port);
+  if (http_port) std::fprintf(f, "%u\n", http_port);
+  std::fclose(f);
+  return std::rename(temporary.c_str(), port_file.c_str()) == 0;
+}
+
+}  // namespace
+
 int main(int argc, char** argv) {
   using namespace mtlod;
   CLI::App app{
@@ -167,41 +208,14 @@ int main(int argc, char** argv) {
     return 1;
   }
   if (!tokens_file.empty()) {
-    auto tokens = server::TokenTable::load(tokens_file);
-    if (!tokens) {
-      spdlog::error("{}", tokens.error().message);
-      return 1;
-    }
+    config.tokens = load_tokens(tokens_file, "access tokens");
     // A name no loaded model has is likely a typo; it may also be a model this replica lacks.
-    for (const std::string& name : tokens->listed_models()) {
+    for (const std::string& name : config.tokens->listed_models()) {
       if (!registry.find(name)) spdlog::warn("{}: model '{}' is not loaded here", tokens_file, name);
     }
-    spdlog::info("access tokens: {} from {}", tokens->size(), tokens_file);
-    config.tokens = std::make_shared<const server::TokenTable>(std::move(*tokens));
   }
-  if (!admin_tokens_file.empty()) {
-    auto admins = server::TokenTable::load(admin_tokens_file);
-    if (!admins) {
-      spdlog::error("{}", admins.error().message);
-      return 1;
-    }
-    spdlog::info("admin tokens: {} from {}", admins->size(), admin_tokens_file);
-    config.admin_tokens = std::make_shared<const server::TokenTable>(std::move(*admins));
-  }
-  for (const auto& model : registry.models()) {
-    const auto s = model->summary();
-    const std::size_t mapped = model->mt.mapped_bytes();
-    spdlog::info(
-        "model {}: {} vertices, {} input triangles, {} root triangles, {} nodes, {:.1f} MiB in memory{}",
-        s.name, s.vertices, s.input_triangles, s.root_triangles, s.nodes, s.memory_bytes / 1048576.0,
-        mapped ? fmt::format(", {:.1f} MiB mapped from {} ({:.1f} bytes per input triangle)",
-                             mapped / 1048576.0, model->path.string(),
-                             static_cast<double>(mapped) /
-                                 static_cast<double>(std::max<std::uint64_t>(1, s.input_triangles)))
-               : fmt::format(" ({:.1f} bytes per input triangle)",
-                             static_cast<double>(s.memory_bytes) /
-                                 static_cast<double>(std::max<std::uint64_t>(1, s.input_triangles))));
-  }
+  if (!admin_tokens_file.empty()) config.admin_tokens = load_tokens(admin_tokens_file, "admin tokens");
+  for (const auto& model : registry.models()) log_model(*model);
 
   server::Server server(config, registry);
   check(server.listen());
@@ -214,18 +228,9 @@ int main(int argc, char** argv) {
     spdlog::info("viewer: {}://{}:{}/{} (WebSocket at /ws, files from {})", tls ? "https" : "http",
                  config.host, server.http_port(), config.tokens ? "?token=TOKEN" : "", config.web_root);
   }
-  if (!port_file.empty()) {
-    // Written to a temporary name and renamed, so a reader never sees a half-written port.
-    const std::string temporary = port_file + ".tmp";
-    if (std::FILE* f = std::fopen(temporary.c_str(), "w")) {
-      std::fprintf(f, "%u\n", static_cast<unsigned>(server.port()));
-      if (config.http_port) std::fprintf(f, "%u\n", static_cast<unsigned>(server.http_port()));
-      std::fclose(f);
-      std::rename(temporary.c_str(), port_file.c_str());
-    } else {
-      spdlog::error("cannot write {}", port_file);
-      return 1;
-    }
+  if (!port_file.empty() && !write_port_file(port_file, server.port(), server.http_port())) {
+    spdlog::error("cannot write {}", port_file);
+    return 1;
   }
   server.run();
   spdlog::info("stopped");

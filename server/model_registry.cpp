@@ -61,16 +61,20 @@ namespace {
 
 std::atomic<std::uint64_t> next_serial{1};
 
-// A version of `name` from an MT, with its derived data; throws core::CorruptMt when a mapped
-// block the coarse cuts read fails its check.
-std::shared_ptr<Model> describe(std::string name, fs::path path, core::Mt mt) {
+// A version of `name` from an MT, with its derived data. kCorrupt when a mapped block the coarse
+// cuts read fails its check.
+Result<std::shared_ptr<Model>> describe(std::string name, fs::path path, core::Mt mt) {
   auto model = std::make_shared<Model>();
   model->name = std::move(name);
   model->path = std::move(path);
   model->mt = std::move(mt);
   model->serial = next_serial++;
   const core::Mt& m = model->mt;
-  model->occupancy = std::make_unique<core::OccupancyLevels>(m);
+  try {
+    model->occupancy = std::make_unique<core::OccupancyLevels>(m);
+  } catch (const core::CorruptMt& e) {
+    return make_error(ErrorCode::kCorrupt, fmt::format("{}: {}", model->path.string(), e.what()));
+  }
   model->memory_bytes = m.memory_bytes() + model->occupancy->memory_bytes();
   model->bounds_min = m.bounds.lo;
   model->bounds_max = m.bounds.hi;
@@ -90,13 +94,7 @@ std::shared_ptr<Model> describe(std::string name, fs::path path, core::Mt mt) {
 // Loads `path` as version `version` of `name`: mapped under a lease where it can be.
 Result<std::shared_ptr<Model>> load(const std::string& name, const fs::path& path, std::uint64_t version) {
   MTLOD_TRY(core::io::ServedMt served, core::io::open_served_mt(path));
-  std::shared_ptr<Model> model;
-  try {
-    model = describe(name, path, std::move(served.mt));
-  } catch (const core::CorruptMt& e) {
-    // A mapped file's block failed its check while the coarse cuts were read.
-    return make_error(ErrorCode::kCorrupt, fmt::format("{}: {}", path.string(), e.what()));
-  }
+  MTLOD_TRY(std::shared_ptr<Model> model, describe(name, path, std::move(served.mt)));
   model->version = version;
   model->file = served.identity;
   model->lease = std::move(served.lease);
@@ -264,11 +262,7 @@ Status ModelRegistry::add_mesh(const fs::path& mesh, const fs::path& mt_path) {
     }
     // The MT just written is served from memory, not read back; a later change to its file is
     // loaded like any other.
-    try {
-      model = describe(name, mt_path, std::move(built));
-    } catch (const core::CorruptMt& e) {
-      return make_error(ErrorCode::kCorrupt, fmt::format("{}: {}", mt_path.string(), e.what()));
-    }
+    MTLOD_TRY(model, describe(name, mt_path, std::move(built)));
     if (auto id = core::io::identify(mt_path)) model->file = *id;
   }
   MTLOD_RETURN_IF_ERROR(impl_->add(std::move(model), mt_path));
@@ -439,10 +433,6 @@ std::optional<std::string> ModelRegistry::model_for(const fs::path& dir, const s
       std::find(impl_->directories.begin(), impl_->directories.end(), dir) != impl_->directories.end())
     return path.stem().string();
   return std::nullopt;
-}
-
-bool ModelRegistry::watches(const fs::path& dir, const std::string& file_name) const {
-  return model_for(dir, file_name).has_value();
 }
 
 std::uint64_t ModelRegistry::reloads() const {

@@ -114,8 +114,6 @@ class ModelRegistry {
 
   // The directories holding the files served and watched (for a file-system watch).
   std::vector<std::filesystem::path> watched_directories() const;
-  // Whether a file name in one of those directories belongs to a model (or could become one).
-  bool watches(const std::filesystem::path& dir, const std::string& file_name) const;
   // Which model a file name stands for ("dragon" for "dragon.mt"), if any.
   std::optional<std::string> model_for(const std::filesystem::path& dir, const std::string& file_name) const;
 

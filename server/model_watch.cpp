@@ -92,6 +92,7 @@ struct ModelWatch::Impl {
     }
   }
 
+  // The registry logs each outcome that matters at info level or above; here only what set it off.
   void reload(std::vector<std::string> names, const char* why) {
     if (std::find(names.begin(), names.end(), "") != names.end()) names.clear();
     const auto outcomes = models.reload(names);

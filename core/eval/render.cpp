@@ -14,10 +14,6 @@
 namespace mtlod::core {
 namespace {
 
-double edge(double ax, double ay, double bx, double by, double px, double py) {
-  return (bx - ax) * (py - ay) - (by - ay) * (px - ax);
-}
-
 // Headlight shade of one pixel from interpolated vertex normals: persp holds the screen-space
 // barycentric weights of the corners divided by their clip.w, which renormalised are the
 // perspective-correct weights of the surface point (screen-space weights would bend the shading of
@@ -80,7 +76,7 @@ std::size_t render_mesh(const ViewMapping& mapping, std::span<const float> posit
       gx[k] = g.x, gy[k] = g.y, gz[k] = mapping.clip_z(p[k][0], p[k][1], p[k][2]) / cw, gw[k] = cw;
     }
     if (!visible) continue;
-    const double area = edge(gx[0], gy[0], gx[1], gy[1], gx[2], gy[2]);
+    const double area = edge_function(gx[0], gy[0], gx[1], gy[1], gx[2], gy[2]);
     if (!(std::abs(area) > 0.0)) continue;
 
     // Headlight shading from the face normal and the ray to the eye at the centroid.
@@ -106,9 +102,9 @@ std::size_t render_mesh(const ViewMapping& mapping, std::span<const float> posit
       for (int i = i0; i <= i1; ++i) {
         const double px = i + 0.5, py = j + 0.5;
         // Barycentric weights of corners 2, 0, 1 (the edge opposite each), positive inside.
-        const double w2 = edge(gx[0], gy[0], gx[1], gy[1], px, py) / area;
-        const double w0 = edge(gx[1], gy[1], gx[2], gy[2], px, py) / area;
-        const double w1 = edge(gx[2], gy[2], gx[0], gy[0], px, py) / area;
+        const double w2 = edge_function(gx[0], gy[0], gx[1], gy[1], px, py) / area;
+        const double w0 = edge_function(gx[1], gy[1], gx[2], gy[2], px, py) / area;
+        const double w1 = edge_function(gx[2], gy[2], gx[0], gy[0], px, py) / area;
         if (w0 < 0 || w1 < 0 || w2 < 0) continue;
         const float z = float(w0 * gz[0] + w1 * gz[1] + w2 * gz[2]);
         const std::size_t cell = grid.cell(std::uint32_t(i), std::uint32_t(j));

@@ -57,4 +57,10 @@ void area_weighted_normals(std::span<const float> positions, std::span<const std
 // usual Hausdorff-distance palette (MESH, Metro). NaN gives grey.
 std::array<std::uint8_t, 3> ramp_color(float t);
 
+// Twice the signed area of the triangle (a, b, p): positive when p lies left of a→b. The
+// rasterisers' inside test and barycentric weights.
+inline double edge_function(double ax, double ay, double bx, double by, double px, double py) {
+  return (bx - ax) * (py - ay) - (by - ay) * (px - ax);
+}
+
 }  // namespace mtlod::core

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "core/distance_transform.hpp"
+#include "core/eval/render.hpp"
 #include "core/view_grid.hpp"
 
 namespace mtlod::core {
@@ -24,10 +25,6 @@ bool project_triangle(const ViewMapping& mapping, std::span<const float> positio
     out[k] = mapping.to_grid(cx, cy, cw);
   }
   return true;
-}
-
-double edge(double ax, double ay, double bx, double by, double px, double py) {
-  return (bx - ax) * (py - ay) - (by - ay) * (px - ax);
 }
 
 double point_segment_2d(double px, double py, double ax, double ay, double bx, double by) {
@@ -67,7 +64,7 @@ std::size_t rasterize_silhouette(const ViewMapping& mapping, std::span<const flo
   GridPoint g[3];
   for (std::size_t t = 0; t < triangles.size() / 3; ++t) {
     if (!project_triangle(mapping, positions, triangles, t, g)) continue;
-    const double area = edge(g[0].x, g[0].y, g[1].x, g[1].y, g[2].x, g[2].y);
+    const double area = edge_function(g[0].x, g[0].y, g[1].x, g[1].y, g[2].x, g[2].y);
     if (!(std::abs(area) > 0.0)) continue;
     // Pixel centres (i + 0.5, j + 0.5) inside the bounding box; both windings count.
     const double lo_x = std::min({g[0].x, g[1].x, g[2].x}), hi_x = std::max({g[0].x, g[1].x, g[2].x});
@@ -80,9 +77,9 @@ std::size_t rasterize_silhouette(const ViewMapping& mapping, std::span<const flo
     for (int j = j0; j <= j1; ++j) {
       for (int i = i0; i <= i1; ++i) {
         const double px = i + 0.5, py = j + 0.5;
-        if (sign * edge(g[0].x, g[0].y, g[1].x, g[1].y, px, py) >= 0 &&
-            sign * edge(g[1].x, g[1].y, g[2].x, g[2].y, px, py) >= 0 &&
-            sign * edge(g[2].x, g[2].y, g[0].x, g[0].y, px, py) >= 0)
+        if (sign * edge_function(g[0].x, g[0].y, g[1].x, g[1].y, px, py) >= 0 &&
+            sign * edge_function(g[1].x, g[1].y, g[2].x, g[2].y, px, py) >= 0 &&
+            sign * edge_function(g[2].x, g[2].y, g[0].x, g[0].y, px, py) >= 0)
           mask[grid.cell(std::uint32_t(i), std::uint32_t(j))] = 1;
       }
     }
@@ -148,11 +145,11 @@ std::size_t triangles_near_point(const ViewMapping& mapping, std::span<const flo
   for (std::size_t t = 0; t < in_region.size(); ++t) {
     in_region[t] = 0;
     if (!project_triangle(mapping, positions, triangles, t, g)) continue;
-    const double e0 = edge(g[0].x, g[0].y, g[1].x, g[1].y, x_px, y_px);
-    const double e1 = edge(g[1].x, g[1].y, g[2].x, g[2].y, x_px, y_px);
-    const double e2 = edge(g[2].x, g[2].y, g[0].x, g[0].y, x_px, y_px);
+    const double e0 = edge_function(g[0].x, g[0].y, g[1].x, g[1].y, x_px, y_px);
+    const double e1 = edge_function(g[1].x, g[1].y, g[2].x, g[2].y, x_px, y_px);
+    const double e2 = edge_function(g[2].x, g[2].y, g[0].x, g[0].y, x_px, y_px);
     // A degenerate projection has no inside (every point on its line would pass the sign test).
-    const bool flat = !(std::abs(edge(g[0].x, g[0].y, g[1].x, g[1].y, g[2].x, g[2].y)) > 0.0);
+    const bool flat = !(std::abs(edge_function(g[0].x, g[0].y, g[1].x, g[1].y, g[2].x, g[2].y)) > 0.0);
     const bool inside = !flat && ((e0 >= 0 && e1 >= 0 && e2 >= 0) || (e0 <= 0 && e1 <= 0 && e2 <= 0));
     const double d = inside ? 0.0
                             : std::min({point_segment_2d(x_px, y_px, g[0].x, g[0].y, g[1].x, g[1].y),

@@ -35,6 +35,7 @@ class Mapping {
   Mapping& operator=(const Mapping&) = delete;
   ~Mapping() { ::munmap(const_cast<void*>(data_), size_); }
   std::span<const std::uint8_t> bytes() const { return {static_cast<const std::uint8_t*>(data_), size_}; }
+  void advise_random() const { ::madvise(const_cast<void*>(data_), size_, MADV_RANDOM); }
 
  private:
   const void* data_;
@@ -46,53 +47,14 @@ Error named(const std::filesystem::path& path, Error error) {
   return error;
 }
 
-}  // namespace
-
-Result<Mt> read_mt_file(const std::filesystem::path& path, MtLoad load) {
-  if (load == MtLoad::kMap) {
-    const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
-    if (fd < 0 && errno == ENOENT)
-      return make_error(ErrorCode::kNotFound, "MT file " + path.string() + " does not exist");
-    if (fd < 0)
-      return make_error(ErrorCode::kIoError, "cannot open " + path.string() + ": " + std::strerror(errno));
-    struct stat st {};
-    const bool stat_ok = ::fstat(fd, &st) == 0;
-    const std::size_t size = stat_ok ? std::size_t(st.st_size) : 0;
-    void* data = size >= kMtHeaderBytes ? ::mmap(nullptr, size, PROT_READ, MAP_SHARED, fd, 0) : MAP_FAILED;
-    const int map_errno = errno;
-    ::close(fd);  // the mapping keeps the file
-    if (!stat_ok) return make_error(ErrorCode::kIoError, "cannot stat " + path.string());
-    if (data == MAP_FAILED && size >= kMtHeaderBytes)
-      return make_error(ErrorCode::kIoError, "cannot map " + path.string() + ": " + std::strerror(map_errno));
-    if (data != MAP_FAILED) {
-      auto mapping = std::make_shared<const Mapping>(data, size);
-      const bool in_place = mt_file_version(mapping->bytes()) == kMtFormatVersion;
-      // Refinements jump between blocks: no read-ahead beyond the pages they touch. Version 1 is
-      // copied out of the mapping whole.
-      if (in_place) ::madvise(data, size, MADV_RANDOM);
-      auto mt = in_place ? view_mt(mapping->bytes(), mapping) : deserialize_mt(mapping->bytes());
-      if (!mt.ok()) return named(path, mt.take_error());
-      return mt;
-    }
-    // Too short to be mapped: read, which reports what is wrong.
-  }
-  std::error_code ec;
-  if (!std::filesystem::exists(path, ec))
+// Opens path read-only: a missing file is kNotFound, any other failure kIoError.
+Result<int> open_readonly(const std::filesystem::path& path) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd >= 0) return fd;
+  if (errno == ENOENT)
     return make_error(ErrorCode::kNotFound, "MT file " + path.string() + " does not exist");
-  const std::uintmax_t size = std::filesystem::file_size(path, ec);
-  if (ec) return make_error(ErrorCode::kIoError, "cannot stat " + path.string() + ": " + ec.message());
-  File file(std::fopen(path.c_str(), "rb"));
-  if (!file)
-    return make_error(ErrorCode::kIoError, "cannot open " + path.string() + ": " + std::strerror(errno));
-  std::vector<std::uint8_t> bytes(size);
-  if (size != 0 && std::fread(bytes.data(), 1, size, file.get()) != size)
-    return make_error(ErrorCode::kIoError, "short read of " + path.string());
-  auto mt = deserialize_mt(bytes);
-  if (!mt.ok()) return named(path, mt.take_error());
-  return mt;
+  return make_error(ErrorCode::kIoError, "cannot open " + path.string() + ": " + std::strerror(errno));
 }
-
-namespace {
 
 // Reads the whole file behind fd (from its start) with pread, which a truncation can only shorten.
 Result<std::vector<std::uint8_t>> read_whole(int fd, std::uint64_t size, const std::filesystem::path& path) {
@@ -107,14 +69,55 @@ Result<std::vector<std::uint8_t>> read_whole(int fd, std::uint64_t size, const s
   return bytes;
 }
 
+// Maps a whole file of at least a header's size, or says why not.
+Result<std::shared_ptr<const Mapping>> map_whole(int fd, std::size_t size,
+                                                 const std::filesystem::path& path) {
+  void* data = ::mmap(nullptr, size, PROT_READ, MAP_SHARED, fd, 0);
+  if (data == MAP_FAILED)
+    return make_error(ErrorCode::kIoError, "cannot map " + path.string() + ": " + std::strerror(errno));
+  return std::make_shared<const Mapping>(data, size);
+}
+
+// The current format is read in place from the mapping; refinements jump between blocks, so no
+// read-ahead beyond the pages they touch. Version 1 is copied out of the mapping whole.
+Result<Mt> parse_mapped(std::shared_ptr<const Mapping> mapping, const std::filesystem::path& path) {
+  const bool in_place = mt_file_version(mapping->bytes()) == kMtFormatVersion;
+  if (in_place) mapping->advise_random();
+  auto mt = in_place ? view_mt(mapping->bytes(), mapping) : deserialize_mt(mapping->bytes());
+  if (!mt) return named(path, mt.take_error());
+  return mt;
+}
+
+Result<Mt> parse_read(std::span<const std::uint8_t> bytes, const std::filesystem::path& path) {
+  auto mt = deserialize_mt(bytes);  // reports what is wrong with a short file too
+  if (!mt) return named(path, mt.take_error());
+  return mt;
+}
+
 }  // namespace
 
+Result<Mt> read_mt_file(const std::filesystem::path& path, MtLoad load) {
+  MTLOD_TRY(const int fd, open_readonly(path));
+  struct stat st {};
+  if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
+    ::close(fd);
+    return make_error(ErrorCode::kInvalidArgument, path.string() + ": not a regular file");
+  }
+  const std::size_t size = std::size_t(st.st_size);
+  if (load == MtLoad::kMap && size >= kMtHeaderBytes) {
+    auto mapping = map_whole(fd, size, path);
+    ::close(fd);  // the mapping keeps the file
+    if (!mapping) return mapping.take_error();
+    return parse_mapped(std::move(*mapping), path);
+  }
+  auto bytes = read_whole(fd, size, path);
+  ::close(fd);
+  if (!bytes) return bytes.take_error();
+  return parse_read(*bytes, path);
+}
+
 Result<ServedMt> open_served_mt(const std::filesystem::path& path) {
-  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
-  if (fd < 0 && errno == ENOENT)
-    return make_error(ErrorCode::kNotFound, "MT file " + path.string() + " does not exist");
-  if (fd < 0)
-    return make_error(ErrorCode::kIoError, "cannot open " + path.string() + ": " + std::strerror(errno));
+  MTLOD_TRY(const int fd, open_readonly(path));
   struct stat st {};
   if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
     ::close(fd);
@@ -126,9 +129,7 @@ Result<ServedMt> open_served_mt(const std::filesystem::path& path) {
   if (!lease) {
     // No lease here: a private copy, which no other process can change or truncate.
     served.read_whole_because = lease.error().message;
-    const int copy_fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
-    if (copy_fd < 0)
-      return make_error(ErrorCode::kIoError, "cannot open " + path.string() + ": " + std::strerror(errno));
+    MTLOD_TRY(const int copy_fd, open_readonly(path));
     auto before = identify(copy_fd);
     if (!before) {
       ::close(copy_fd);
@@ -141,9 +142,7 @@ Result<ServedMt> open_served_mt(const std::filesystem::path& path) {
     if (!after || *after != *before)
       return make_error(ErrorCode::kBusy, path.string() + ": changed while it was read");
     served.identity = *before;
-    auto mt = deserialize_mt(*bytes);
-    if (!mt) return named(path, mt.take_error());
-    served.mt = std::move(*mt);
+    MTLOD_TRY(served.mt, parse_read(*bytes, path));
     return served;
   }
   served.lease = std::move(*lease);
@@ -152,28 +151,15 @@ Result<ServedMt> open_served_mt(const std::filesystem::path& path) {
   const std::size_t size = served.identity.size;
   if (size < kMtHeaderBytes) {
     MTLOD_TRY(std::vector<std::uint8_t> bytes, read_whole(leased, size, path));
-    auto mt = deserialize_mt(bytes);  // reports what is wrong
-    if (!mt) return named(path, mt.take_error());
-    served.mt = std::move(*mt);
     served.lease.reset();
+    MTLOD_TRY(served.mt, parse_read(bytes, path));
     return served;
   }
-  void* data = ::mmap(nullptr, size, PROT_READ, MAP_SHARED, leased, 0);
-  if (data == MAP_FAILED)
-    return make_error(ErrorCode::kIoError, "cannot map " + path.string() + ": " + std::strerror(errno));
-  auto mapping = std::make_shared<const Mapping>(data, size);
-  if (mt_file_version(mapping->bytes()) != kMtFormatVersion) {
-    // Version 1 is copied out of the mapping whole: nothing is left to guard.
-    auto mt = deserialize_mt(mapping->bytes());
-    if (!mt) return named(path, mt.take_error());
-    served.mt = std::move(*mt);
-    served.lease.reset();
-    return served;
-  }
-  ::madvise(data, size, MADV_RANDOM);
-  auto mt = view_mt(mapping->bytes(), mapping);
-  if (!mt) return named(path, mt.take_error());
-  served.mt = std::move(*mt);
+  MTLOD_TRY(std::shared_ptr<const Mapping> mapping, map_whole(leased, size, path));
+  const bool copied = mt_file_version(mapping->bytes()) != kMtFormatVersion;
+  MTLOD_TRY(served.mt, parse_mapped(std::move(mapping), path));
+  // Version 1 was copied out of the mapping whole: nothing is left to guard.
+  if (copied) served.lease.reset();
   return served;
 }
 

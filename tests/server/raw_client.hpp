@@ -3,9 +3,6 @@
 // raw bytes, read whole reply frames.
 #pragma once
 
-#include <arpa/inet.h>
-#include <netinet/in.h>
-#include <netinet/tcp.h>
 #include <sys/socket.h>
 #include <unistd.h>
 
@@ -18,6 +15,7 @@
 #include "protocol/frame.hpp"
 #include "protocol/parse.hpp"
 #include "protocol/replies.hpp"
+#include "tests/server/loopback_socket.hpp"
 
 namespace mtlod::test {
 
@@ -25,23 +23,7 @@ class RawClient {
  public:
   RawClient() = default;
   // Connects from `source` (e.g. "127.0.0.2") to 127.0.0.1:port; valid() says whether it did.
-  RawClient(const std::string& source, std::uint16_t port) {
-    fd_ = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
-    sockaddr_in local{};
-    local.sin_family = AF_INET;
-    ::inet_pton(AF_INET, source.c_str(), &local.sin_addr);
-    sockaddr_in remote{};
-    remote.sin_family = AF_INET;
-    remote.sin_port = htons(port);
-    remote.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-    if (::bind(fd_, reinterpret_cast<sockaddr*>(&local), sizeof local) != 0 ||
-        ::connect(fd_, reinterpret_cast<sockaddr*>(&remote), sizeof remote) != 0) {
-      close();
-      return;
-    }
-    const int one = 1;
-    ::setsockopt(fd_, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
-  }
+  RawClient(const std::string& source, std::uint16_t port) : fd_(connect_loopback_from(source, port)) {}
   RawClient(RawClient&& other) noexcept : fd_(other.fd_) { other.fd_ = -1; }
   RawClient& operator=(RawClient&& other) noexcept {
     std::swap(fd_, other.fd_);
@@ -62,15 +44,7 @@ class RawClient {
     close();
   }
 
-  bool send(const std::string& bytes) const {
-    std::size_t sent = 0;
-    while (fd_ >= 0 && sent < bytes.size()) {
-      const ssize_t n = ::send(fd_, bytes.data() + sent, bytes.size() - sent, MSG_NOSIGNAL);
-      if (n <= 0) return false;
-      sent += static_cast<std::size_t>(n);
-    }
-    return fd_ >= 0;
-  }
+  bool send(const std::string& bytes) const { return send_all(fd_, bytes); }
   bool send_request(const protocol::Request& request, std::uint64_t id) const {
     return send(frame(protocol::to_json(request, id)));
   }

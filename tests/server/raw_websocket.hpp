@@ -4,9 +4,6 @@
 // masked, server messages are reassembled from their fragments.
 #pragma once
 
-#include <arpa/inet.h>
-#include <netinet/in.h>
-#include <netinet/tcp.h>
 #include <sys/socket.h>
 #include <unistd.h>
 
@@ -18,28 +15,14 @@
 #include <string>
 #include <string_view>
 
+#include "tests/server/loopback_socket.hpp"
+
 namespace mtlod::test {
 
 class RawWebSocket {
  public:
   // Connects from `source` (any of 127.0.0.0/8) to 127.0.0.1:port; valid() says whether it did.
-  RawWebSocket(const std::string& source, std::uint16_t port) {
-    fd_ = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
-    sockaddr_in local{};
-    local.sin_family = AF_INET;
-    ::inet_pton(AF_INET, source.c_str(), &local.sin_addr);
-    sockaddr_in remote{};
-    remote.sin_family = AF_INET;
-    remote.sin_port = htons(port);
-    remote.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-    if (::bind(fd_, reinterpret_cast<sockaddr*>(&local), sizeof local) != 0 ||
-        ::connect(fd_, reinterpret_cast<sockaddr*>(&remote), sizeof remote) != 0) {
-      close();
-      return;
-    }
-    const int one = 1;
-    ::setsockopt(fd_, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
-  }
+  RawWebSocket(const std::string& source, std::uint16_t port) : fd_(connect_loopback_from(source, port)) {}
   RawWebSocket(RawWebSocket&& other) noexcept : fd_(other.fd_), buffered_(std::move(other.buffered_)) {
     other.fd_ = -1;
   }
@@ -54,15 +37,7 @@ class RawWebSocket {
   }
 
   // Sends bytes as they are (a PROXY header before the upgrade).
-  bool send_raw(std::string_view bytes) const {
-    for (std::size_t sent = 0; sent < bytes.size();) {
-      if (fd_ < 0) return false;
-      const ssize_t n = ::send(fd_, bytes.data() + sent, bytes.size() - sent, MSG_NOSIGNAL);
-      if (n <= 0) return false;
-      sent += static_cast<std::size_t>(n);
-    }
-    return fd_ >= 0;
-  }
+  bool send_raw(std::string_view bytes) const { return send_all(fd_, bytes); }
 
   // Sends the upgrade request for `target` (e.g. "/ws?model=bunny") and reads the response's head.
   // Returns its status (101: upgraded), 0 when the connection closed or timed out first.
