@@ -2,6 +2,7 @@
 #include "clients/gaze/gaze_stream.hpp"
 
 #include <algorithm>
+#include <chrono>
 #include <cstdio>
 #include <thread>
 #include <utility>
@@ -10,6 +11,8 @@
 
 namespace mtlod::clients {
 namespace {
+
+constexpr auto kUnavailablePatience = std::chrono::seconds(30);
 
 std::uint64_t microseconds_from(std::int64_t from_ns, std::int64_t to_ns) {
   return static_cast<std::uint64_t>(std::max<std::int64_t>(0, to_ns - from_ns) / 1000);
@@ -33,9 +36,18 @@ Status GazeStream::open_view(const protocol::ExtractFlags& flags) {
   MTLOD_TRY(protocol::Extract request, protocol::make_extract(flags, model, m->bounds_min, m->bounds_max));
   request.criteria.focus.front().x = trace_.front().x;
   request.criteria.focus.front().y = trace_.front().y;
-  MTLOD_TRY(const ReplyFrame first, connection.call(request, 0, std::chrono::seconds(120)));
-  if (const auto* e = std::get_if<protocol::ErrorReply>(&first.header.reply))
-    return make_error(ErrorCode::kInvalidArgument, "extract: " + e->message);
+  // A model whose file is being rewritten answers `unavailable` until the new file is loaded
+  // (seconds): the stream waits for it instead of giving up before its first sample.
+  const auto patience = std::chrono::steady_clock::now() + kUnavailablePatience;
+  ReplyFrame first;
+  for (;;) {
+    MTLOD_TRY(first, connection.call(request, 0, std::chrono::seconds(120)));
+    const auto* e = std::get_if<protocol::ErrorReply>(&first.header.reply);
+    if (!e) break;
+    if (e->code != protocol::ErrorKind::kUnavailable || std::chrono::steady_clock::now() >= patience)
+      return make_error(ErrorCode::kInvalidArgument, "extract: " + e->message);
+    std::this_thread::sleep_for(std::chrono::milliseconds(250));
+  }
   if (const auto* mesh = std::get_if<protocol::MeshReply>(&first.header.reply); mesh && mesh->delta) {
     MTLOD_RETURN_IF_ERROR(mesh_.apply(*mesh, first.payload));
   }
