@@ -12,7 +12,7 @@ if [ "${1:-}" = "--profile" ]; then profile=${2:-}; fi
 case "$profile" in all|build|runtime) ;; *) echo "bootstrap: --profile must be all, build or runtime" >&2; exit 2 ;; esac
 
 build_packages=(
-  build-essential cmake ccache pkg-config gzip
+  build-essential cmake ninja-build ccache pkg-config gzip
   libboost-dev libboost-program-options-dev   # Asio and Beast are header-only in libboost-dev
   nlohmann-json3-dev libopenmesh-dev libdraco-dev draco libglm-dev
   libcli11-dev libspdlog-dev libfmt-dev libpng-dev
