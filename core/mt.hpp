@@ -117,6 +117,12 @@ struct Mt {
     storage_ = std::move(storage);
     check_ = std::move(check);
   }
+  // Gives an MT stored without normals computed ones (core/vertex_normals.hpp), which it keeps
+  // alive and counts in memory_bytes() even when the rest is mapped.
+  void attach_normals(std::shared_ptr<const std::vector<float>> normals) {
+    attached_normals_ = std::move(normals);
+    this->normals = *attached_normals_;
+  }
   // A copy of the arrays, for tests and tools that alter an MT.
   MtArrays arrays() const;
 
@@ -152,15 +158,20 @@ struct Mt {
   // Bytes of the arrays (sizes, not capacities): held in memory, or mapped from the file (of which
   // only the pages in use are resident, in the page cache).
   std::size_t array_bytes() const;
-  std::size_t memory_bytes() const { return mapped() ? 0 : array_bytes(); }
-  std::size_t mapped_bytes() const { return mapped() ? array_bytes() : 0; }
+  std::size_t memory_bytes() const { return mapped() ? attached_bytes() : array_bytes(); }
+  std::size_t mapped_bytes() const { return mapped() ? array_bytes() - attached_bytes() : 0; }
   // Whether the split vertices are numbered in node order (node n + 1's is node n's plus one), as
   // build_mt numbers them; files written before it did are valid but refine more slowly.
   bool vertices_in_node_order() const;
 
  private:
+  std::size_t attached_bytes() const {
+    return attached_normals_ ? attached_normals_->size() * sizeof(float) : 0;
+  }
+
   std::shared_ptr<const void> storage_;
   std::shared_ptr<const MtBlockCheck> check_;
+  std::shared_ptr<const std::vector<float>> attached_normals_;
 };
 
 }  // namespace mtlod::core

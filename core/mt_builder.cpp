@@ -34,6 +34,7 @@
 #include "core/bounds.hpp"
 #include "core/grow_only_vector.hpp"
 #include "core/radix_sort.hpp"
+#include "core/vertex_normals.hpp"
 
 namespace mtlod::core {
 namespace {
@@ -305,6 +306,7 @@ class Builder {
   BlockOutput export_block();
 
   const Mesh& mesh_;
+  NormalRepair normal_repair_;
   BuildOptions options_;
   BlockInput* block_;
   std::size_t target_triangles_ = 0;  // stop once at most this many faces are alive
@@ -990,6 +992,7 @@ Mt Builder::assemble(std::vector<std::uint32_t>* vertex_ids) {
   MtArrays mt;
   mt.positions = mesh_.positions;
   mt.normals = mesh_.normals;
+  normal_repair_ = repair_normals(mt.normals, mesh_.positions, mesh_.triangles);
   mt.colors = mesh_.colors;
 
   const std::uint32_t k = std::uint32_t(collapse_u_.size());
@@ -1405,6 +1408,8 @@ Result<Mt> Builder::run(BuildStats* stats, std::vector<std::uint32_t>* vertex_id
     stats->mt_triangles = mt.triangle_count();
     stats->passes = pass_;
     stats->complex_vertices = complex_vertices_;
+    stats->normals_given = normal_repair_.had_normals;
+    stats->normals_computed = normal_repair_.computed;
     stats->max_error = 0;
     for (const float e : mt.node_error) stats->max_error = std::max(stats->max_error, e);
   }

@@ -51,13 +51,17 @@ struct BuildStats {
   std::size_t mt_triangles = 0;  // all triangles of all nodes
   std::size_t passes = 0;
   std::size_t complex_vertices = 0;  // never collapsed: non-manifold or inconsistently oriented fans
+  bool normals_given = false;        // the mesh came with normals
+  std::size_t normals_computed = 0;  // vertices whose normal was computed (missing, NaN or zero)
   float max_error = 0.0f;            // largest node error, model units
 };
 
 // Builds the MT of mesh. Triangles with a repeated vertex id are kept unchanged (their vertices are
-// never collapsed). Normals and colours are copied. Fails with kInvalidArgument on an index out of
-// range or a non-finite coordinate, or with kLimitExceeded when counts do not fit 32-bit ids. An
-// empty mesh gives an MT of one empty root. stats may be null.
+// never collapsed). Colours are copied; normals too, made unit length, and computed
+// (core/vertex_normals.hpp) where the mesh has none or they are not finite or are zero-length.
+// Fails with kInvalidArgument on an index out of range or a non-finite coordinate, or with
+// kLimitExceeded when counts do not fit 32-bit ids. An empty mesh gives an MT of one empty root.
+// stats may be null.
 //
 // The MT numbers the vertices in its own order (core/mt.hpp); vertex_ids, when not null, receives
 // the MT id of every input vertex.

@@ -12,6 +12,7 @@
 #include "core/io/mt_file.hpp"
 #include "core/mt_builder.hpp"
 #include "core/threads/thread_pool.hpp"
+#include "core/vertex_normals.hpp"
 #include "fmt/format.h"
 #include "spdlog/spdlog.h"
 
@@ -71,6 +72,8 @@ Result<std::shared_ptr<Model>> describe(std::string name, fs::path path, core::M
   model->serial = next_serial++;
   const core::Mt& m = model->mt;
   try {
+    // Every reply carries normals: an MT stored without them gets them now (12 bytes per vertex).
+    model->normals_computed = core::ensure_normals(model->mt);
     model->occupancy = std::make_unique<core::OccupancyLevels>(m);
   } catch (const core::CorruptMt& e) {
     return make_error(ErrorCode::kCorrupt, fmt::format("{}: {}", model->path.string(), e.what()));
@@ -99,6 +102,12 @@ Result<std::shared_ptr<Model>> load(const std::string& name, const fs::path& pat
   model->file = served.identity;
   model->lease = std::move(served.lease);
   model->read_whole_because = std::move(served.read_whole_because);
+  if (model->normals_computed) {
+    spdlog::warn(
+        "{}: stored without normals: computed from its surface ({:.1f} MiB in memory); "
+        "mtlod-build stores them in the file",
+        path.string(), 12.0 * static_cast<double>(model->mt.vertex_count()) / 1048576.0);
+  }
   if (!model->read_whole_because.empty()) {
     spdlog::warn("{}: read into memory ({}): changes to the file reach the server only by a reload",
                  path.string(), model->read_whole_because);
@@ -233,12 +242,15 @@ Status ModelRegistry::add_mesh(const fs::path& mesh, const fs::path& mt_path) {
   if (fresh) {
     // A cached file an older build wrote is built again: that takes seconds, and it is built once.
     auto cached = load(name, mt_path, 1);
-    if (cached && (*cached)->mt.vertices_in_node_order()) model = std::move(*cached);
+    if (cached && (*cached)->mt.vertices_in_node_order() && !(*cached)->normals_computed)
+      model = std::move(*cached);
     if (!model) {
-      spdlog::info(
-          "{}: {}; building it again from {}", mt_path.string(),
-          cached ? "written by an older mtlod-build (vertices not in node order)" : cached.error().message,
-          mesh.string());
+      spdlog::info("{}: {}; building it again from {}", mt_path.string(),
+                   !cached ? cached.error().message
+                   : !(*cached)->mt.vertices_in_node_order()
+                       ? "written by an older mtlod-build (vertices not in node order)"
+                       : "written by an older mtlod-build (no normals)",
+                   mesh.string());
     }
   }
   if (!model) {
@@ -252,6 +264,12 @@ Status ModelRegistry::add_mesh(const fs::path& mesh, const fs::path& mt_path) {
       core::BuildOptions options;
       pool.attach(options);
       MTLOD_TRY(core::Mt mt, core::build_mt(loaded.mesh, options, &stats));
+      if (!stats.normals_given) {
+        spdlog::info("{}: no normals: computed from its surface (angle-weighted)", mesh.string());
+      } else if (stats.normals_computed > 0) {
+        spdlog::warn("{}: {} of {} vertex normals are NaN or zero-length: computed from the surface",
+                     mesh.string(), stats.normals_computed, loaded.mesh.vertex_count());
+      }
       fs::create_directories(mt_path.parent_path(), ec);
       MTLOD_TRY(std::uint64_t bytes, core::io::write_mt_file(mt_path, mt));
       spdlog::info("built {} from {}: {} triangles → {} root triangles, {} nodes, {:.1f} MiB, {:.2f} s",

@@ -73,6 +73,7 @@ struct Model {
   core::io::FileIdentity file;                 // the file this version was read from
   std::unique_ptr<core::io::FileLease> lease;  // held while the arrays are mapped from the file
   std::string read_whole_because;              // why the file is in memory rather than mapped
+  bool normals_computed = false;               // stored without normals: computed at load, in memory
   ModelGate gate;
 
   protocol::ModelSummary summary() const;

@@ -57,6 +57,18 @@ std::string lower_extension(const std::string& path) {
   return ext;
 }
 
+// Says where the normals came from: a mesh without them is common (scans rarely carry them), broken
+// ones are worth a warning.
+void report_normals(bool given, std::uint64_t computed, std::uint64_t vertices) {
+  if (!given)
+    fmt::print(stderr, "mtlod-build: the mesh has no normals: computed from its surface (angle-weighted)\n");
+  else if (computed > 0)
+    fmt::print(
+        stderr,
+        "mtlod-build: warning: {} of {} vertex normals are NaN or zero-length: computed from the surface\n",
+        computed, vertices);
+}
+
 // PLY in bounded memory, streamed (core/io/large_build.hpp).
 int build_large(const std::string& input, const std::string& output,
                 const mtlod::core::io::LargeBuildOptions& options, bool tty) {
@@ -76,6 +88,7 @@ int build_large(const std::string& input, const std::string& output,
     fmt::print(stderr, "mtlod-build: {}\n", built.error().message);
     return 1;
   }
+  report_normals(stats.normals_given, stats.normals_computed, stats.vertices);
   fmt::print(
       "{}: {} vertices, {} triangles\n"
       "  clean-up: dropped {} degenerate and {} duplicate triangles, {} polygons triangulated\n"
@@ -159,6 +172,7 @@ int main(int argc, char** argv) {
     fmt::print(stderr, "mtlod-build: {}\n", mt.error().message);
     return 1;
   }
+  report_normals(stats.normals_given, stats.normals_computed, mesh.vertex_count());
   auto size = io::write_mt_file(output, *mt);
   if (!size) {
     fmt::print(stderr, "mtlod-build: {}\n", size.error().message);

@@ -4,10 +4,14 @@
 //   read_vertices   the PLY's vertices into raw arrays (positions, normals, colours) on disk
 //   read_faces      its faces, dropping degenerate ones, into a raw face file; a histogram of the
 //                   faces' centroid cells in Morton order
+//   check_normals   whether the file's own normals are all usable (finite, not zero-length); if
+//                   not, or there are none, angle-weighted normals (core/vertex_normals.hpp) are
+//                   summed over every leaf's faces as the leaves are simplified
 //   choose_leaves   runs of cells of at most block_triangles faces each: the leaf blocks
 //   distribute      every face into its leaf's file; per vertex the range of leaves around it
 //   simplify        stages level by level: leaves, then merges of two neighbouring stages' remains,
 //                   each with the vertices whose faces reach outside it locked (simplify_block)
+//   finish_normals  the normals file: the file's own made unit length, computed ones where needed
 //   assemble        nodes numbered as build_mt numbers them, triangles placed by creating node
 //                   through bucket files, the arrays written into the .mt file and its checksum
 #include "core/io/large_build.hpp"
@@ -34,6 +38,7 @@
 #include "core/mesh_cleanup.hpp"
 #include "core/mt_format.hpp"
 #include "core/radix_sort.hpp"
+#include "core/vertex_normals.hpp"
 #include "fmt/format.h"
 
 namespace mtlod::core::io {
@@ -235,6 +240,47 @@ class MappedFile {
   std::uint64_t bytes_;
 };
 
+// A normal a file may keep: finite and not zero-length.
+bool usable_normal(const float* n) {
+  return std::isfinite(n[0]) && std::isfinite(n[1]) && std::isfinite(n[2]) &&
+         (n[0] != 0.0f || n[1] != 0.0f || n[2] != 0.0f);
+}
+
+// A writable shared map of a file, created or resized to `bytes` (new bytes are zero).
+class WritableMap {
+ public:
+  static Result<WritableMap> open(const fs::path& path, std::uint64_t bytes) {
+    const int fd = ::open(path.string().c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0600);
+    if (fd < 0) return io_error(path, "open");
+    if (::ftruncate(fd, static_cast<off_t>(bytes)) != 0) {
+      ::close(fd);
+      return io_error(path, "resize");
+    }
+    void* p = bytes == 0 ? nullptr : ::mmap(nullptr, bytes, PROT_READ | PROT_WRITE, MAP_SHARED, fd, 0);
+    ::close(fd);
+    if (p == MAP_FAILED) return io_error(path, "map");
+    return WritableMap(static_cast<float*>(p), bytes);
+  }
+  WritableMap(WritableMap&& other) noexcept
+      : data_(std::exchange(other.data_, nullptr)), bytes_(std::exchange(other.bytes_, 0)) {}
+  WritableMap& operator=(WritableMap&&) = delete;
+  ~WritableMap() {
+    if (data_) ::munmap(data_, bytes_);
+  }
+  std::span<float> floats() { return {data_, bytes_ / sizeof(float)}; }
+  // Writes the pages back and drops them from this process.
+  Status release(const fs::path& path) {
+    if (data_ && ::msync(data_, bytes_, MS_SYNC) != 0) return io_error(path, "write");
+    if (data_) ::madvise(data_, bytes_, MADV_DONTNEED);
+    return Ok{};
+  }
+
+ private:
+  WritableMap(float* data, std::uint64_t bytes) : data_(data), bytes_(bytes) {}
+  float* data_;
+  std::uint64_t bytes_;
+};
+
 std::uint32_t spread_bits(std::uint32_t x) {
   // Up to 8 bits to every third bit of 24.
   x &= 0xff;
@@ -299,6 +345,8 @@ class LargeBuilder {
 
   Status read_vertices(PlyReader& reader);
   Status read_faces(PlyReader& reader);
+  Status check_normals();
+  Status finish_normals();
   Status choose_leaves();
   Status distribute();
   void plan_stages();
@@ -336,6 +384,9 @@ class LargeBuilder {
   std::vector<std::uint32_t> cell_count_;
   std::vector<std::uint32_t> leaf_of_cell_;
   std::uint32_t leaves_ = 0;
+  // Per vertex, the fixed-point sums of computed normals (NormalAccumulator), while the leaves
+  // are simplified; empty when the file's own normals are all usable.
+  std::vector<std::int64_t> normal_sums_;
   // Per vertex, the first and last leaf holding one of its faces (kNoVertex: none).
   std::vector<std::uint32_t> leaf_lo_, leaf_hi_;
   std::vector<Stage> stages_;
@@ -431,11 +482,48 @@ Status LargeBuilder::read_faces(PlyReader& reader) {
   return Ok{};
 }
 
+Status LargeBuilder::check_normals() {
+  stats_->normals_given = normals_;
+  stats_->normals_computed = vertex_count_;
+  if (normals_) {
+    MTLOD_TRY(const MappedFile given, MappedFile::open(file("normals")));
+    std::uint64_t bad = 0;
+    for (std::uint64_t v = 0; v < vertex_count_; ++v) bad += !usable_normal(given.data() + 3 * v);
+    given.release();
+    stats_->normals_computed = bad;
+  }
+  if (stats_->normals_computed > 0) normal_sums_.assign(3 * vertex_count_, 0);
+  return Ok{};
+}
+
+Status LargeBuilder::finish_normals() {
+  const fs::path path = file("normals");
+  MTLOD_TRY(WritableMap normals, WritableMap::open(path, 12 * vertex_count_));
+  const std::span<float> n = normals.floats();
+  for (std::uint64_t begin = 0; begin < vertex_count_; begin += kChunkTriangles) {
+    const std::uint64_t end = std::min<std::uint64_t>(vertex_count_, begin + kChunkTriangles);
+    for (std::uint64_t v = begin; v < end; ++v) {
+      float* q = &n[3 * v];
+      if (!normals_ || !usable_normal(q)) {
+        NormalAccumulator::finish(std::span(normal_sums_).subspan(3 * v, 3), std::span(q, 3));
+        continue;
+      }
+      // In double: no finite float overflows when squared, none but zero squares to zero.
+      const double l = std::sqrt(double{q[0]} * q[0] + double{q[1]} * q[1] + double{q[2]} * q[2]);
+      for (int k = 0; k < 3; ++k) q[k] = static_cast<float>(q[k] / l);
+    }
+  }
+  std::vector<std::int64_t>().swap(normal_sums_);
+  normals_ = true;
+  return normals.release(path);
+}
+
 Status LargeBuilder::choose_leaves() {
   // Memory while blocks are simplified: the process, per vertex (leaf ranges) and, at the top
   // levels, every removed vertex carried as a point; what is left goes to the stages running at once.
   const std::uint64_t limit = limit_;
-  const std::uint64_t fixed = kFixedBytes + vertex_count_ * (kBytesPerVertex + kBytesPerPoint);
+  const std::uint64_t fixed = kFixedBytes + vertex_count_ * (kBytesPerVertex + kBytesPerPoint) +
+                              normal_sums_.size() * sizeof(std::int64_t);
   const std::uint64_t threads = std::max<std::size_t>(options_.threads, 1);
   std::uint64_t block = options_.block_triangles;
   if (block == 0) {
@@ -601,6 +689,12 @@ Status LargeBuilder::run_stage(std::uint32_t s, bool parallel) {
       ++out;
     }
     global.resize(3 * out);
+    if (!normal_sums_.empty()) {
+      // Leaves run side by side: their sums meet in shared vertices.
+      NormalAccumulator normals(std::span<const float>(positions_->data(), 3 * vertex_count_), normal_sums_);
+      for (std::size_t f = 0; f < out; ++f)
+        normals.add_concurrently(global[3 * f], global[3 * f + 1], global[3 * f + 2]);
+    }
     stage.duplicates = count - out;
     stage.inputs = std::uint32_t(out);
     origin.resize(out);
@@ -1040,9 +1134,11 @@ Status LargeBuilder::run(LargeBuildStats& stats) {
   MTLOD_RETURN_IF_ERROR(read_vertices(reader));
   stats.vertices = vertex_count_;
   MTLOD_RETURN_IF_ERROR(read_faces(reader));
+  MTLOD_RETURN_IF_ERROR(check_normals());
   MTLOD_RETURN_IF_ERROR(choose_leaves());
   MTLOD_RETURN_IF_ERROR(distribute());
   MTLOD_RETURN_IF_ERROR(simplify());
+  MTLOD_RETURN_IF_ERROR(finish_normals());
   for (const Stage& s : stages_) {
     stats.dropped_duplicate += s.duplicates;
     stats.complex_vertices += s.complex_vertices;

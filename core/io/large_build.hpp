@@ -46,7 +46,9 @@ struct LargeBuildStats {
   std::size_t blocks = 0;  // leaves
   std::size_t stages = 0;  // simplifications run: leaves and merges
   std::size_t levels = 0;
-  std::size_t complex_vertices = 0;  // never collapsed: non-manifold fans (summed over stages)
+  std::size_t complex_vertices = 0;    // never collapsed: non-manifold fans (summed over stages)
+  bool normals_given = false;          // the PLY has normals
+  std::uint64_t normals_computed = 0;  // vertices whose normal was computed (missing, NaN or zero)
   std::uint64_t nodes = 0;
   std::uint64_t mt_triangles = 0;
   std::uint64_t root_triangles = 0;

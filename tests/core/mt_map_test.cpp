@@ -17,6 +17,7 @@
 #include "core/mt_format.hpp"
 #include "core/occupancy_levels.hpp"
 #include "core/refine.hpp"
+#include "core/vertex_normals.hpp"
 #include "tests/core/test_meshes.hpp"
 
 namespace mtlod::core {
@@ -85,6 +86,26 @@ TEST(MtMap, OpensInPlace) {
   ASSERT_TRUE(read.ok());
   EXPECT_FALSE(read->mapped());
   EXPECT_EQ(read->memory_bytes(), m.built.array_bytes());
+}
+
+TEST(MtMap, NormalsComputedForAFileWithoutThemAreCountedInMemory) {
+  const Model& m = model();
+  MtArrays arrays = m.built.arrays();
+  const std::vector<float> stored = arrays.normals;
+  ASSERT_EQ(stored.size(), arrays.positions.size()) << "every build stores normals";
+  arrays.normals.clear();
+  const fs::path path = model().dir / "no-normals.mt";
+  ASSERT_TRUE(io::write_mt_file(path, Mt(std::move(arrays))).ok());
+  auto mapped = io::read_mt_file(path);
+  ASSERT_TRUE(mapped.ok()) << mapped.error().message;
+  ASSERT_TRUE(mapped->mapped());
+  const std::size_t mapped_before = mapped->mapped_bytes();
+  ASSERT_TRUE(ensure_normals(*mapped));
+  EXPECT_EQ(mapped->memory_bytes(), stored.size() * sizeof(float));
+  EXPECT_EQ(mapped->mapped_bytes(), mapped_before);
+  // From the full-resolution triangles the MT holds: the builder's normals, up to summation order.
+  ASSERT_EQ(mapped->normals.size(), stored.size());
+  for (std::size_t i = 0; i < stored.size(); ++i) EXPECT_NEAR(mapped->normals[i], stored[i], 1e-5) << i / 3;
 }
 
 TEST(MtMap, CutsEqualThoseOfTheFileReadWhole) {
