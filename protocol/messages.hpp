@@ -121,8 +121,8 @@ struct Extract {
   core::ErrorUnits error_unit = core::ErrorUnits::kModel;
   Criteria criteria;
   std::optional<std::uint32_t> budget;  // at most this many triangles
-  bool normals = false;
-  bool colors = false;
+  bool normals = true;                  // every model has normals (stored, or computed at load)
+  std::optional<bool> colors;           // unset: the model's colours when it has them
   bool labels = false;
   DracoSettings draco;
   // Replies (this one and the gazes that follow) carry what changed since the connection's previous

@@ -294,8 +294,8 @@ Extract read_extract(ObjectReader& r, const Limits& limits) {
   }
   if (const json* a = r.find("attributes")) {
     ObjectReader ar(*a, "attributes");
-    e.normals = ar.boolean("normals", false);
-    e.colors = ar.boolean("colors", false);
+    e.normals = ar.boolean("normals", true);
+    if (ar.has("colors")) e.colors = ar.boolean("colors", false);
     e.labels = ar.boolean("labels", false);
     ar.finish();
   }
@@ -454,7 +454,8 @@ json extract_json(const Extract& e) {
   c["hidden_factor"] = e.criteria.hidden_factor;
   j["criteria"] = c;
   if (e.budget) j["budget"] = *e.budget;
-  j["attributes"] = {{"normals", e.normals}, {"colors", e.colors}, {"labels", e.labels}};
+  j["attributes"] = {{"normals", e.normals}, {"labels", e.labels}};
+  if (e.colors) j["attributes"]["colors"] = *e.colors;
   if (e.delta) j["delta"] = true;
   j["draco"] = {{"speed", e.draco.speed},
                 {"position_bits", e.draco.position_bits},

@@ -133,11 +133,8 @@ ExtractResult Engine::extract(const protocol::Extract& request, bool gaze, Extra
         fmt::format("model '{}' is being rewritten on disk; it is served again once the new file is loaded",
                     request.model)};
   }
-  if (request.normals && !model->mt.has_normals()) {
-    return protocol::ProtocolError{protocol::ErrorKind::kBadRequest,
-                                   fmt::format("model '{}' has no normals to send", request.model)};
-  }
-  if (request.colors && !model->mt.has_colors()) {
+  // Normals are always there: stored, or computed when the model was loaded.
+  if (request.colors.value_or(false) && !model->mt.has_colors()) {
     return protocol::ProtocolError{protocol::ErrorKind::kBadRequest,
                                    fmt::format("model '{}' has no colours to send", request.model)};
   }
@@ -210,7 +207,7 @@ ExtractResult Engine::run(const ModelPtr& model, const protocol::Extract& reques
     draco.position_grid = grid;
   }
   draco.normals = request.normals;
-  draco.colors = request.colors;
+  draco.colors = request.colors.value_or(model->mt.has_colors());
   draco.labels = request.labels;
   std::span<const std::uint32_t> triangles = cut.triangles;
   if (request.delta) {

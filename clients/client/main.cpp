@@ -58,7 +58,7 @@ int main(int argc, char** argv) {
   extract->add_option("model", model, "model name")->required();
   extract->add_option("-o,--output", output,
                       "write the mesh: .drc (as received), .ply or .obj (decoded), or .glb (binary glTF 2.0 "
-                      "with the normals and colours the reply carries: --normals, --colors)");
+                      "with the normals and colours the reply carries)");
   std::string gltf_draco = "on";
   extract
       ->add_option("--gltf-draco", gltf_draco,
@@ -122,6 +122,8 @@ int main(int argc, char** argv) {
     return 0;
   }
 
+  // The criteria the flags leave open are the clients' defaults (1 px, a foveal focus at the centre).
+  protocol::apply_default_criteria(flags);
   auto request = protocol::make_extract(flags, model, m.bounds_min, m.bounds_max);
   if (!request) return fail(request.error().message);
   const auto start = std::chrono::steady_clock::now();

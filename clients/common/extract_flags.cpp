@@ -100,8 +100,12 @@ void add_extract_flags(CLI::App& app, ExtractFlags& f) {
   app.add_option("--position-bits", f.position_bits, "Draco position quantization bits")
       ->check(CLI::Range(1, 20))
       ->capture_default_str();
-  app.add_flag("--normals", f.normals, "send vertex normals");
-  app.add_flag("--colors", f.colors, "send vertex colours (models built from coloured PLY files)");
+  app.add_option("--normal-bits", f.normal_bits, "Draco normal quantization bits (octahedral)")
+      ->check(CLI::Range(2, 16))
+      ->capture_default_str();
+  app.add_flag("--no-normals", f.no_normals, "leave the vertex normals out (sent by default)");
+  app.add_flag("--colors", f.colors, "require vertex colours (sent by default when the model has them)");
+  app.add_flag("--no-colors", f.no_colors, "leave the vertex colours out");
   app.add_flag("--labels", f.labels, "send per-vertex distance labels");
   app.add_flag("--delta", f.delta,
                "replies carry what changed since the previous mesh (by triangle id; sequential Draco)");
@@ -155,8 +159,11 @@ Result<Extract> make_extract(const ExtractFlags& f, const std::string& model,
     }
   }
   e.budget = f.budget;
-  e.normals = f.normals;
-  e.colors = f.colors;
+  e.normals = !f.no_normals;
+  if (f.colors && f.no_colors)
+    return make_error(ErrorCode::kInvalidArgument, "--colors and --no-colors contradict each other");
+  if (f.colors || f.no_colors) e.colors = f.colors;
+  e.draco.normal_bits = f.normal_bits;
   e.labels = f.labels;
   e.draco.speed = f.draco_speed;
   e.draco.position_bits = f.position_bits;

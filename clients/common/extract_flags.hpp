@@ -33,9 +33,11 @@ struct ExtractFlags {
   double frustum_factor = 8, backface_factor = 1;
   std::optional<double> hidden_factor;  // 1 (off) unless given, or set by apply_default_criteria
   std::string draco_method;             // empty: the server's default for the request type
-  int draco_speed = 10, position_bits = 14;
-  std::optional<bool> draco_entropy;  // unset: the server's default for the request type
-  bool normals = false, colors = false, labels = false;
+  int draco_speed = 10, position_bits = 14, normal_bits = 10;
+  std::optional<bool> draco_entropy;       // unset: the server's default for the request type
+  bool no_normals = false;                 // normals are sent unless this is set
+  bool colors = false, no_colors = false;  // neither: the model's colours when it has them
+  bool labels = false;
   bool delta = false;  // replies carry changes since the previous mesh (sequential Draco)
 };
 

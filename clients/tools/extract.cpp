@@ -19,6 +19,7 @@
 #include "core/io/mt_file.hpp"
 #include "core/occupancy_levels.hpp"
 #include "core/refine.hpp"
+#include "core/vertex_normals.hpp"
 #include "core/view_extract.hpp"
 #include "fmt/format.h"
 #include "protocol/view_request.hpp"
@@ -96,8 +97,10 @@ Status write_output(const std::string& path, bool gltf_draco, const Mt& mt, cons
     draco.method = request->draco.method.value_or(DracoMethod::kEdgebreaker);
     draco.speed = request->draco.speed;
     draco.position_bits = request->draco.position_bits;
-    draco.normals = request->normals && mt.has_normals();
-    draco.colors = request->colors && mt.has_colors();
+    draco.normal_bits = request->draco.normal_bits;
+    draco.entropy_coding = request->draco.entropy_coding.value_or(true);  // as the server's extract
+    draco.normals = request->normals;
+    draco.colors = request->colors.value_or(mt.has_colors()) && mt.has_colors();
     draco.labels = request->labels && !labels.empty();
   }
   if (glb) {
@@ -140,6 +143,8 @@ int run(int argc, char** argv) {
     fmt::print(stderr, "mtlod-extract: {}\n", mt.error().message);
     return 1;
   }
+  // An MT stored without normals gets them as the server gives them: computed once at load.
+  ensure_normals(*mt);
   const double load_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 
   Refiner refiner(*mt);

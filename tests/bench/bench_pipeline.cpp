@@ -107,7 +107,7 @@ double us_since(Clock::time_point& t) {
 }
 
 // Args: model (0 bunny, 1 dragon), target triangles, Draco mode (0, 5, 10 = edgebreaker speed; -1 sequential;
-// -2 sequential with raw attribute values).
+// -2 sequential with raw attribute values), normals (1: sent, 10-bit octahedral, the default).
 void BM_Request(benchmark::State& state) {
   const Model* m = model(state.range(0) == 0 ? "bunny" : "dragon");
   if (!m) return state.SkipWithError("mesh not found");
@@ -119,6 +119,8 @@ void BM_Request(benchmark::State& state) {
   draco.method = state.range(2) < 0 ? core::DracoMethod::kSequential : core::DracoMethod::kEdgebreaker;
   draco.speed = state.range(2) < 0 ? 10 : static_cast<int>(state.range(2));
   draco.entropy_coding = state.range(2) != -2;
+  draco.normals = state.range(3) != 0;
+  const std::span<const float> normals = draco.normals ? m->mt.normals : std::span<const float>();
   core::ViewExtractor extractor(m->mt, *m->levels);
   core::Refiner refiner(m->mt);
   core::CutMesh cut;
@@ -137,7 +139,7 @@ void BM_Request(benchmark::State& state) {
     t_labels += us_since(t);
     extractor.refine(refiner, cut);
     t_refine += us_since(t);
-    auto stats = encoder.encode({m->mt.positions, {}, {}, cut.triangles}, draco, payload);
+    auto stats = encoder.encode({m->mt.positions, normals, {}, cut.triangles}, draco, payload);
     t_encode += us_since(t);
     benchmark::DoNotOptimize(stats);
   }
@@ -157,11 +159,13 @@ void BM_Request(benchmark::State& state) {
 }
 
 void request_args(benchmark::internal::Benchmark* b) {
-  for (int draco : {-1, 0, 5, 10}) b->Args({0, 3674, draco});  // the bunny whole: it has 3,674 triangles
-  for (int size : {10'000, 50'000, 200'000}) {
-    for (int draco : {-2, -1, 0, 5, 10}) b->Args({1, size, draco});
+  for (int normals : {0, 1}) {
+    for (int draco : {-1, 0, 5, 10}) b->Args({0, 3674, draco, normals});  // the bunny whole: 3,674 triangles
+    for (int size : {10'000, 50'000, 200'000}) {
+      for (int draco : {-2, -1, 0, 5, 10}) b->Args({1, size, draco, normals});
+    }
   }
-  b->ArgNames({"model", "triangles", "draco"})->Unit(benchmark::kMillisecond);
+  b->ArgNames({"model", "triangles", "draco", "normals"})->Unit(benchmark::kMillisecond);
 }
 BENCHMARK(BM_Request)->Apply(request_args);
 
