@@ -20,8 +20,10 @@ scene.add(sun);
 const camera = new THREE.PerspectiveCamera(45, 1, 0.01, 100);
 const controls = new OrbitControls(camera, renderer.domElement);
 
-const material = new THREE.MeshStandardMaterial({ color: 0xc8c0b0, flatShading: true, roughness: 0.8 });
-const vertexColourMaterial = new THREE.MeshStandardMaterial({ vertexColors: true, flatShading: true, roughness: 0.8 });
+// Smooth shading with the normals the server sends (the original surface's, at every vertex of
+// every cut); flat shading, a toggle, shows the cut's facets.
+const material = new THREE.MeshStandardMaterial({ color: 0xc8c0b0, roughness: 0.8 });
+const vertexColourMaterial = new THREE.MeshStandardMaterial({ vertexColors: true, roughness: 0.8 });
 const mesh = new THREE.Mesh(new THREE.BufferGeometry(), material);
 scene.add(mesh);
 
@@ -41,7 +43,10 @@ const state = {
   lastReply: null,      // JSON of the last mesh reply
   lastReplyHadLabels: false,  // its Draco data carried the `label` attribute
   lastReplyHadColors: false,  // the mesh shown has the model's vertex colours
+  lastReplyHadNormals: false, // the mesh shown has the server's vertex normals
+  flatShading: false,   // the mesh is drawn with its facets' normals
   colors: false,        // the model has vertex colours: they are asked for and shown
+  deltaNormals: false,  // the kept delta mesh has normals
   displayedTriangles: 0,
   focus: [0.5, 0.5],
   errors: [],
@@ -114,7 +119,7 @@ function extractRequest() {
     grid: [Math.min(512, Math.round(width / 2)), Math.min(512, Math.round(height / 2))],
     error: { value: Number($('error').value), unit: 'pixels' },
     criteria,
-    attributes: { labels: $('labels').checked, colors: state.colors },
+    attributes: { normals: true, labels: $('labels').checked, colors: state.colors },
   };
   // Delta replies send only what changed, named by triangle id; labels would go stale on kept triangles.
   // After a delta that did not apply, one whole mesh puts the kept mesh right again.
@@ -162,9 +167,11 @@ function colourByLabel(geometry) {
 }
 
 // The mesh kept across delta replies (PROTOCOL.md, "Delta replies"): 9 floats per triangle (and 9
-// for its corners' colours), keyed by the triangle's id in the model's Multi-Tessellation; removal
-// swaps in the last triangle.
-const kept = { ids: [], slot: new Map(), positions: new Float32Array(9 * 1024), colors: new Float32Array(9 * 1024) };
+// for its corners' normals and 9 for their colours), keyed by the triangle's id in the model's
+// Multi-Tessellation; removal swaps in the last triangle.
+const keptArrays = ['positions', 'normals', 'colors'];
+const kept = { ids: [], slot: new Map() };
+for (const key of keptArrays) kept[key] = new Float32Array(9 * 1024);
 
 function keptRemove(id) {
   const slot = kept.slot.get(id);
@@ -173,24 +180,24 @@ function keptRemove(id) {
   kept.slot.delete(id);
   if (slot !== last) {
     kept.ids[slot] = kept.ids[last];
-    kept.positions.copyWithin(9 * slot, 9 * last, 9 * last + 9);
-    kept.colors.copyWithin(9 * slot, 9 * last, 9 * last + 9);
+    for (const key of keptArrays) kept[key].copyWithin(9 * slot, 9 * last, 9 * last + 9);
     kept.slot.set(kept.ids[slot], slot);
   }
   kept.ids.pop();
 }
 
-function keptAdd(id, corners, colours) {
+function keptAdd(id, corners, normals, colours) {
   if (kept.slot.has(id)) throw new Error(`the delta adds triangle ${id}, which the mesh already holds`);
   const slot = kept.ids.length;
   if (9 * (slot + 1) > kept.positions.length) {
-    for (const key of ['positions', 'colors']) {
+    for (const key of keptArrays) {
       const grown = new Float32Array(2 * kept[key].length);
       grown.set(kept[key]);
       kept[key] = grown;
     }
   }
   kept.positions.set(corners, 9 * slot);
+  if (normals) kept.normals.set(normals, 9 * slot);
   if (colours) kept.colors.set(colours, 9 * slot);
   kept.ids.push(id);
   kept.slot.set(id, slot);
@@ -208,22 +215,25 @@ async function applyDelta(delta, payload) {
   if (delta.added > 0) {
     // The decoder takes its buffer away (it is transferred to a worker): hand it a copy.
     const added = await new Promise((resolve, reject) => draco.parse(payload.slice(0, delta.draco_bytes), resolve, reject));
-    const index = added.index.array, position = added.getAttribute('position'), color = added.getAttribute('color');
-    const corners = new Float32Array(9), colours = color ? new Float32Array(9) : null;
+    const index = added.index.array, position = added.getAttribute('position');
+    const normal = added.getAttribute('normal'), color = added.getAttribute('color');
+    const corners = new Float32Array(9), normals = normal ? new Float32Array(9) : null;
+    const colours = color ? new Float32Array(9) : null;
     for (let f = 0; f < delta.added; ++f) {
       for (let k = 0; k < 3; ++k) {
         const v = index[3 * f + k];
-        corners[3 * k] = position.getX(v);
-        corners[3 * k + 1] = position.getY(v);
-        corners[3 * k + 2] = position.getZ(v);
+        corners.set([position.getX(v), position.getY(v), position.getZ(v)], 3 * k);
+        if (normal) normals.set([normal.getX(v), normal.getY(v), normal.getZ(v)], 3 * k);
         if (color) colours.set([color.getX(v), color.getY(v), color.getZ(v)], 3 * k);
       }
-      keptAdd(ids.getUint32(4 * f, true), corners, colours);
+      keptAdd(ids.getUint32(4 * f, true), corners, normals, colours);
     }
+    state.deltaNormals = normal !== undefined;
     added.dispose();
   }
   const geometry = new THREE.BufferGeometry();
   geometry.setAttribute('position', new THREE.BufferAttribute(kept.positions.slice(0, 9 * kept.ids.length), 3));
+  if (state.deltaNormals) geometry.setAttribute('normal', new THREE.BufferAttribute(kept.normals.slice(0, 9 * kept.ids.length), 3));
   if (state.colors) geometry.setAttribute('color', new THREE.BufferAttribute(kept.colors.slice(0, 9 * kept.ids.length), 3));
   return geometry;
 }
@@ -256,11 +266,12 @@ async function showReply({ json, payload, latencyMs }) {
   // Label colours (colourByLabel) replace the model's own while labels are shown.
   const coloured = labelled || geometry.getAttribute('color') !== undefined;
   mesh.material = coloured ? vertexColourMaterial : material;
-  mesh.material.wireframe = $('wireframe').checked;
+  setLook();
   state.displayedTriangles = geometry.index ? geometry.index.count / 3 : geometry.getAttribute('position').count / 3;
   state.lastReply = json;
   state.lastReplyHadLabels = geometry.getAttribute('label') !== undefined;
   state.lastReplyHadColors = geometry.getAttribute('color') !== undefined && !labelled;
+  state.lastReplyHadNormals = geometry.getAttribute('normal') !== undefined;
   state.meshes += 1;
   $('triangles').textContent = String(state.displayedTriangles);
   $('vertices').textContent = json.delta ? `${json.vertices} new` : String(geometry.getAttribute('position').count);
@@ -328,7 +339,20 @@ for (const id of ['error', 'budget', 'silhouette', 'silhouette-distance', 'silho
                   'focus-factor', 'falloff', 'hidden-factor', 'labels', 'delta']) {
   $(id).addEventListener('change', requestExtract);
 }
-$('wireframe').addEventListener('change', () => { mesh.material.wireframe = $('wireframe').checked; });
+// Wireframe and flat shading change only how the mesh shown is drawn. A mesh without normals
+// (none sent) can only be drawn flat.
+function setLook() {
+  const flat = $('flat').checked || mesh.geometry.getAttribute('normal') === undefined;
+  state.flatShading = flat;
+  for (const m of [material, vertexColourMaterial]) {
+    m.wireframe = $('wireframe').checked;
+    if (m.flatShading !== flat) {
+      m.flatShading = flat;
+      m.needsUpdate = true;
+    }
+  }
+}
+for (const id of ['wireframe', 'flat']) $(id).addEventListener('change', setLook);
 $('model').addEventListener('change', () => selectModel($('model').value));
 
 function connect() {

@@ -155,8 +155,18 @@ try {
           secondReply.json.delta.added < secondReply.json.triangles,
           `the gaze's mesh came as a change to the kept one (${JSON.stringify(secondReply?.json.delta)}), and the page shows the server's count`);
 
-    // The mesh kept from deltas, as shown.
-    await page.screenshot({ path: path.join(args.out, 'viewer-delta.png') });
+    // The mesh kept from deltas, as shown: smooth-shaded with the server's normals.
+    const shading = await page.evaluate(() => ({ normals: window.mtlod.lastReplyHadNormals, flat: window.mtlod.flatShading }));
+    check(shading.normals === true && shading.flat === false,
+          `the kept mesh carries the server's normals and is smooth-shaded (${JSON.stringify(shading)})`);
+    check(extractsSent.every((e) => e.attributes.normals === true), 'the page asks for normals');
+    const smooth = await page.screenshot({ path: path.join(args.out, 'viewer-delta.png') });
+    await page.check('#flat');
+    await page.waitForFunction(() => window.mtlod.flatShading === true, null, { timeout: 10_000 });
+    await page.waitForTimeout(200);  // a frame drawn with the new material
+    const flat = await page.screenshot({ path: path.join(args.out, 'viewer-flat.png') });
+    check(!smooth.equals(flat), 'flat shading, a toggle, changes the picture');
+    await page.uncheck('#flat');
 
     // Colouring by distance label: the page asks for labels and decodes the generic attribute.
     await page.check('#labels');
