@@ -15,6 +15,7 @@
 #include "core/io/mesh_io.hpp"
 #include "protocol/camera.hpp"
 #include "protocol/frame.hpp"
+#include "tests/clients/delta_meshes.hpp"
 #include "tests/core/googles_draco_decoder.hpp"
 #include "tests/core/mesh_compare.hpp"
 #include "tests/core/test_meshes.hpp"
@@ -118,28 +119,12 @@ TEST(Colours, DeltaRepliesCarryTheColoursOfWhatTheyAdd) {
   const Served& s = served();
   auto c = clients::ServerConnection::open("127.0.0.1", s.server->port());
   ASSERT_TRUE(c.ok()) << c.error().message;
-  protocol::Extract first = request("painted");
-  first.delta = true;
-  std::uint64_t id = 1;
-  auto reply = c->call(first, id);
-  ASSERT_TRUE(reply.ok()) << reply.error().message;
-  std::size_t checked = 0;
-  for (const double x : {0.2, 0.8, 0.5}) {
-    const protocol::MeshReply* mesh = as_mesh(*reply);
-    ASSERT_NE(mesh, nullptr) << reply->json;
-    ASSERT_TRUE(mesh->delta) << reply->json;
-    if (mesh->delta->added > 0) {
-      auto parts = protocol::split_delta_payload(*mesh->delta, reply->payload);
-      ASSERT_TRUE(parts.ok()) << parts.error().message;
-      auto loaded = test::googles_draco_decode(parts->draco, s.dir, "delta" + std::to_string(id));
-      ASSERT_TRUE(loaded.ok()) << loaded.error().message;
-      EXPECT_EQ(loaded->triangle_count(), mesh->delta->added);
-      expect_painted(*loaded, "delta reply " + std::to_string(id));
-      ++checked;
-    }
-    reply = c->call(protocol::Gaze{x, 0.5, std::nullopt, std::nullopt}, ++id);
-    ASSERT_TRUE(reply.ok()) << reply.error().message;
-  }
+  const std::size_t checked =
+      test::check_delta_meshes(*c, request("painted"), {0.2, 0.8}, s.dir,
+                               [](const core::Mesh& m, std::uint64_t added, const std::string& what) {
+                                 EXPECT_EQ(m.triangle_count(), added) << what;
+                                 expect_painted(m, what);
+                               });
   EXPECT_GE(checked, 2u);  // the first reply and at least one gaze added triangles
 }
 

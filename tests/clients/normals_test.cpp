@@ -20,6 +20,7 @@
 #include "core/vertex_normals.hpp"
 #include "protocol/camera.hpp"
 #include "protocol/frame.hpp"
+#include "tests/clients/delta_meshes.hpp"
 #include "tests/core/googles_draco_decoder.hpp"
 #include "tests/core/mesh_compare.hpp"
 #include "tests/core/test_meshes.hpp"
@@ -32,11 +33,11 @@ namespace fs = std::filesystem;
 
 struct Served {
   fs::path dir;
-  core::Mesh shell;              // the surface every model here comes from
-  std::vector<float> computed;   // its angle-weighted normals
+  core::Mesh shell;                  // the surface every model here comes from
+  std::vector<float> computed;       // its angle-weighted normals
   std::vector<std::uint8_t> broken;  // per vertex: its normal in broken.ply is NaN or zero-length
-  std::vector<float> given;      // broken.ply's normals (the usable ones are kept)
-  std::string broken_log;        // what mtlod-build said about broken.ply
+  std::vector<float> given;          // broken.ply's normals (the usable ones are kept)
+  std::string broken_log;            // what mtlod-build said about broken.ply
   core::Bounds box;
   std::unique_ptr<test::ServerProcess> server;
 };
@@ -159,7 +160,8 @@ TEST(Normals, NaNAndZeroLengthNormalsAreComputedAndTheBuildWarns) {
   }
   auto decoded = fetch("broken", request("broken"), "broken");
   ASSERT_TRUE(decoded.ok()) << decoded.error().message;
-  for (const float x : decoded->normals) ASSERT_TRUE(std::isfinite(x)) << "a non-finite normal reached the client";
+  for (const float x : decoded->normals)
+    ASSERT_TRUE(std::isfinite(x)) << "a non-finite normal reached the client";
   expect_normals(*decoded, want, "broken");
 }
 
@@ -175,27 +177,11 @@ TEST(Normals, DeltaRepliesCarryTheNormalsOfWhatTheyAdd) {
   const Served& s = served();
   auto c = clients::ServerConnection::open("127.0.0.1", s.server->port());
   ASSERT_TRUE(c.ok()) << c.error().message;
-  protocol::Extract first = request("plain");
-  first.delta = true;
-  std::uint64_t id = 1;
-  auto reply = c->call(first, id);
-  ASSERT_TRUE(reply.ok()) << reply.error().message;
-  std::size_t checked = 0;
-  for (const double x : {0.2, 0.8, 0.5}) {
-    const protocol::MeshReply* mesh = as_mesh(*reply);
-    ASSERT_NE(mesh, nullptr) << reply->json;
-    ASSERT_TRUE(mesh->delta) << reply->json;
-    if (mesh->delta->added > 0) {
-      auto parts = protocol::split_delta_payload(*mesh->delta, reply->payload);
-      ASSERT_TRUE(parts.ok()) << parts.error().message;
-      auto loaded = test::googles_draco_decode(parts->draco, s.dir, "delta" + std::to_string(id));
-      ASSERT_TRUE(loaded.ok()) << loaded.error().message;
-      expect_normals(*loaded, s.computed, "delta reply " + std::to_string(id));
-      ++checked;
-    }
-    reply = c->call(protocol::Gaze{x, 0.5, std::nullopt, std::nullopt}, ++id);
-    ASSERT_TRUE(reply.ok()) << reply.error().message;
-  }
+  const std::size_t checked =
+      test::check_delta_meshes(*c, request("plain"), {0.2, 0.8}, s.dir,
+                               [&](const core::Mesh& m, std::uint64_t, const std::string& what) {
+                                 expect_normals(m, s.computed, what);
+                               });
   EXPECT_GE(checked, 2u);
 }
 
@@ -211,8 +197,9 @@ TEST(Normals, AClientMayLeaveThemOut) {
 TEST(Normals, MtlodClientExtractsWithNoCriteriaFlags) {
   const Served& s = served();
   const fs::path out = s.dir / "cli.ply", log = s.dir / "cli.log";
-  const std::string command = std::string(MTLOD_CLIENT_BINARY) + " --port " + std::to_string(s.server->port()) +
-                              " extract plain -o " + out.string() + " > " + log.string() + " 2>&1";
+  const std::string command = std::string(MTLOD_CLIENT_BINARY) + " --port " +
+                              std::to_string(s.server->port()) + " extract plain -o " + out.string() + " > " +
+                              log.string() + " 2>&1";
   ASSERT_EQ(std::system(command.c_str()), 0) << test::read_file(log);
   auto loaded = core::io::load_mesh(out, {.clean = false});
   ASSERT_TRUE(loaded.ok()) << loaded.error().message;
