@@ -223,11 +223,21 @@ Status ModelRegistry::add_directory(const fs::path& dir) {
     if (entry.path().extension() == ".mt") files.push_back(entry.path());
   }
   std::sort(files.begin(), files.end());
-  for (const fs::path& f : files) {
-    MTLOD_TRY(std::shared_ptr<Model> model, load(f.stem().string(), f, 1));
-    MTLOD_RETURN_IF_ERROR(impl_->add(std::move(model), f));
-  }
   if (files.empty()) return make_error(ErrorCode::kNotFound, fmt::format("{}: no .mt files", dir.string()));
+  // A file that does not load now (being written, damaged, a directory) does not keep the others
+  // from being served: it is loaded like any other once it changes, as a replica restarted while
+  // an operator replaces a model must still serve the rest.
+  for (const fs::path& f : files) {
+    const std::string name = f.stem().string();
+    auto model = load(name, f, 1);
+    if (!model) {
+      spdlog::error("model {}: not loaded: {}", name, model.error().message);
+      std::lock_guard lock(impl_->mutex);
+      if (model.error().code == ErrorCode::kBusy) impl_->pending[name] = std::chrono::steady_clock::now();
+      continue;
+    }
+    MTLOD_RETURN_IF_ERROR(impl_->add(std::move(*model), f));
+  }
   std::lock_guard lock(impl_->mutex);
   impl_->directories.push_back(dir);
   return Ok{};

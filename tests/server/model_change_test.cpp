@@ -346,6 +346,31 @@ TEST(ModelChange, EveryWayOfChangingAServedFileLeavesTheProcessServing) {
   EXPECT_NE(log.find("no longer served"), std::string::npos) << log;
 }
 
+TEST(ModelChange, AServerStartsWhileAModelFileIsBadAndServesItOnceWhole) {
+  // As a replica restarted while an operator replaces a model: the file is a directory, then a
+  // half-written file, then whole; the others are served throughout.
+  const fs::path dir = test::scratch_dir("model-start");
+  const fs::path contents_dir = dir / "contents", models = dir / "models";
+  fs::create_directories(contents_dir);
+  fs::create_directories(models / "changing.mt");
+  const Content a = make_content(contents_dir, "a", core::Shape::kSphere, 0.0f);
+  fs::copy_file(a.file, models / "steady.mt");
+
+  test::ServerProcess server({"--models", models.string()}, dir);
+  ASSERT_TRUE(server.running()) << server.log();
+  auto c = clients::ServerConnection::open("127.0.0.1", server.port());
+  ASSERT_TRUE(c.ok());
+  EXPECT_TRUE(listed(*c, "steady").has_value());
+  EXPECT_FALSE(listed(*c, "changing").has_value());
+  EXPECT_NE(server.log().find("changing.mt: not a regular file"), std::string::npos) << server.log();
+
+  fs::remove(models / "changing.mt");
+  fs::copy_file(a.file, models / "changing.mt");  // the watch loads it
+  EXPECT_TRUE(eventually([&] { return listed(*c, "changing").has_value(); })) << server.log();
+  EXPECT_TRUE(listed(*c, "steady").has_value());
+  ASSERT_TRUE(server.running()) << server.log();
+}
+
 TEST(ModelChange, SignalAndAdminMessageReloadInSignalMode) {
   const fs::path dir = test::scratch_dir("model-reload");
   const fs::path contents_dir = dir / "contents", models = dir / "models";

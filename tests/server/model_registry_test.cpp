@@ -1,6 +1,7 @@
 // ModelRegistry (server/model_registry.hpp): what it does with cached .mt files a mesh was built
 // into — reused when current, built again when an older mtlod-build numbered the vertices
-// otherwise or when the file cannot be read — and that such older files still load on their own.
+// otherwise or when the file cannot be read — that such older files still load on their own, and
+// that a directory's bad file does not keep its good ones from being served.
 #include "server/model_registry.hpp"
 
 #include <gtest/gtest.h>
@@ -109,6 +110,29 @@ TEST_F(ModelRegistryTest, OlderFileGivenByItselfIsServedAsItIs) {
   ASSERT_TRUE(registry.add_file(path).ok());
   ASSERT_NE(registry.find("older"), nullptr);
   EXPECT_TRUE(std::ranges::equal(registry.find("older")->mt.node_vertex, older.node_vertex));
+}
+
+TEST_F(ModelRegistryTest, ADirectoryServesItsGoodFilesWhileOthersDoNotLoad) {
+  // A replica restarted while an operator replaces one model still serves the others, and the
+  // replaced one once its file is whole.
+  const fs::path models = dir_ / "models";
+  fs::create_directories(models / "folder.mt");  // a directory named like a model
+  ASSERT_TRUE(core::io::write_mt_file(models / "good.mt", built_).ok());
+  test::write_file(models / "damaged.mt", std::string(200, 'x'));
+  server::ModelRegistry registry;
+  ASSERT_TRUE(registry.add_directory(models).ok());
+  EXPECT_NE(registry.find("good"), nullptr);
+  EXPECT_EQ(registry.find("damaged"), nullptr);
+  EXPECT_EQ(registry.find("folder"), nullptr);
+  EXPECT_EQ(registry.models().size(), 1u);
+
+  ASSERT_TRUE(core::io::write_mt_file(models / "damaged.mt", built_).ok());
+  const auto outcomes = registry.reload();
+  const auto damaged = std::find_if(outcomes.begin(), outcomes.end(),
+                                    [](const protocol::ModelReload& o) { return o.name == "damaged"; });
+  ASSERT_NE(damaged, outcomes.end());
+  EXPECT_EQ(damaged->change, "loaded") << damaged->message;
+  EXPECT_NE(registry.find("damaged"), nullptr);
 }
 
 }  // namespace
