@@ -20,6 +20,7 @@
 #include "tests/core/mesh_compare.hpp"
 #include "tests/core/test_meshes.hpp"
 #include "tests/server/server_process.hpp"
+#include "tests/server/test_requests.hpp"
 
 namespace mtlod {
 namespace {
@@ -66,13 +67,8 @@ const Served& served() {
 }
 
 protocol::Extract request(const std::string& model) {
-  protocol::Extract e;
-  e.model = model;
-  protocol::look_at_camera(
-      protocol::frame_bounds(core::to_double(served().box.lo), core::to_double(served().box.hi)), 4.0 / 3.0,
-      e.view, e.projection);
-  e.error = 1;
-  e.error_unit = core::ErrorUnits::kScreenPixels;
+  protocol::Extract e = test::framing_extract(model, core::to_double(served().box.lo),
+                                              core::to_double(served().box.hi), {256, 256}, 1.0);
   e.criteria.focus = {protocol::Focus{0.5, 0.5, 20, 0.25}};
   e.colors = true;
   return e;

@@ -15,17 +15,22 @@
 
 namespace mtlod::test {
 
-// An extract of `model` seen whole from its front (4:3), with a W×H grid and an error in pixels.
-inline protocol::Extract framing_extract(const std::string& name, const protocol::ModelInfoReply& model,
-                                         std::array<std::uint32_t, 2> grid, double error_px) {
+// An extract of the model within bounds lo..hi seen whole from its front (4:3), with a W×H grid and
+// an error in pixels.
+inline protocol::Extract framing_extract(const std::string& name, const std::array<double, 3>& lo,
+                                         const std::array<double, 3>& hi, std::array<std::uint32_t, 2> grid,
+                                         double error_px) {
   protocol::Extract e;
   e.model = name;
-  protocol::look_at_camera(protocol::frame_bounds(model.bounds_min, model.bounds_max), 4.0 / 3.0, e.view,
-                           e.projection);
+  protocol::look_at_camera(protocol::frame_bounds(lo, hi), 4.0 / 3.0, e.view, e.projection);
   e.grid = grid;
   e.error = error_px;
   e.error_unit = core::ErrorUnits::kScreenPixels;
   return e;
+}
+inline protocol::Extract framing_extract(const std::string& name, const protocol::ModelInfoReply& model,
+                                         std::array<std::uint32_t, 2> grid, double error_px) {
+  return framing_extract(name, model.bounds_min, model.bounds_max, grid, error_px);
 }
 
 // A message the server sent on its WebSocket (PROTOCOL.md, "WebSocket"): a text message is a
