@@ -29,12 +29,17 @@ double angle(const Vec& a, const Vec& b) {
   return std::atan2(length(cross(a, b)), dot(a, b));
 }
 
-bool usable(const float* n) {
+}  // namespace
+
+bool usable_normal(const float* n) {
   return std::isfinite(n[0]) && std::isfinite(n[1]) && std::isfinite(n[2]) &&
          (n[0] != 0.0f || n[1] != 0.0f || n[2] != 0.0f);
 }
 
-}  // namespace
+void make_unit(float* n) {
+  const double l = std::sqrt(double{n[0]} * n[0] + double{n[1]} * n[1] + double{n[2]} * n[2]);
+  for (int k = 0; k < 3; ++k) n[k] = static_cast<float>(n[k] / l);
+}
 
 void NormalAccumulator::add(std::uint32_t a, std::uint32_t b, std::uint32_t c, bool concurrently) {
   const std::uint32_t v[3] = {a, b, c};
@@ -124,18 +129,16 @@ NormalRepair repair_normals(std::vector<float>& normals, std::span<const float> 
     return repair;
   }
   std::size_t bad = 0;
-  for (std::size_t v = 0; v < n; ++v) bad += !usable(&normals[3 * v]);
+  for (std::size_t v = 0; v < n; ++v) bad += !usable_normal(&normals[3 * v]);
   std::vector<float> computed;
   if (bad) computed = vertex_normals(positions, triangles);
   for (std::size_t v = 0; v < n; ++v) {
     float* own = &normals[3 * v];
-    if (!usable(own)) {
+    if (!usable_normal(own)) {
       std::copy_n(&computed[3 * v], 3, own);
       continue;
     }
-    // In double: the square of any finite float is finite and, when the float is not zero, not zero.
-    const double l = std::sqrt(double{own[0]} * own[0] + double{own[1]} * own[1] + double{own[2]} * own[2]);
-    for (int k = 0; k < 3; ++k) own[k] = static_cast<float>(own[k] / l);
+    make_unit(own);
   }
   repair.computed = bad;
   return repair;

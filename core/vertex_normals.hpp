@@ -51,6 +51,12 @@ std::vector<float> vertex_normals(const Mt& mt);
 // Attaches computed normals (vertex_normals(mt)) to an MT stored without them; true when it did.
 bool ensure_normals(Mt& mt);
 
+// Whether a given normal can be kept: finite and not zero-length.
+bool usable_normal(const float* n);
+// Scales a usable normal to unit length (in double: no finite float overflows when squared, and
+// none but zero squares to zero).
+void make_unit(float* n);
+
 // What repair_normals did.
 struct NormalRepair {
   std::size_t computed = 0;  // vertices whose normal was computed (all of them when there were none)

@@ -240,12 +240,6 @@ class MappedFile {
   std::uint64_t bytes_;
 };
 
-// A normal a file may keep: finite and not zero-length.
-bool usable_normal(const float* n) {
-  return std::isfinite(n[0]) && std::isfinite(n[1]) && std::isfinite(n[2]) &&
-         (n[0] != 0.0f || n[1] != 0.0f || n[2] != 0.0f);
-}
-
 // A writable shared map of a file, created or resized to `bytes` (new bytes are zero).
 class WritableMap {
  public:
@@ -508,9 +502,7 @@ Status LargeBuilder::finish_normals() {
         NormalAccumulator::finish(std::span(normal_sums_).subspan(3 * v, 3), std::span(q, 3));
         continue;
       }
-      // In double: no finite float overflows when squared, none but zero squares to zero.
-      const double l = std::sqrt(double{q[0]} * q[0] + double{q[1]} * q[1] + double{q[2]} * q[2]);
-      for (int k = 0; k < 3; ++k) q[k] = static_cast<float>(q[k] / l);
+      make_unit(q);
     }
   }
   std::vector<std::int64_t>().swap(normal_sums_);
