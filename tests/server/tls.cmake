@@ -34,10 +34,10 @@ if(MTLOD_HAPROXY)
                    -addext subjectAltName=IP:127.0.0.1 -keyout ${tls_pem}.key -out ${tls_pem})
   set_tests_properties(deploy.haproxy_tls_certificate PROPERTIES LABELS deploy FIXTURES_SETUP haproxy_tls_pem)
   foreach(mode terminate passthrough)
-    add_test(NAME deploy.haproxy_config_with_tls_${mode}_is_valid
-             COMMAND ${MTLOD_HAPROXY} -c -f ${PROJECT_SOURCE_DIR}/docker/haproxy.cfg)
+    mtlod_add_cli_test(deploy.haproxy_config_with_tls_${mode}_is_valid STATUS 0 MATCH "Configuration file is valid"
+                       COMMAND ${MTLOD_HAPROXY} -c -f ${PROJECT_SOURCE_DIR}/docker/haproxy.cfg)
     set_tests_properties(deploy.haproxy_config_with_tls_${mode}_is_valid PROPERTIES LABELS deploy
-                         FIXTURES_REQUIRED haproxy_tls_pem PASS_REGULAR_EXPRESSION "Configuration file is valid"
+                         FIXTURES_REQUIRED haproxy_tls_pem
                          ENVIRONMENT "${haproxy_environment};MTLOD_TLS=${mode};MTLOD_TLS_CERT=${tls_pem}")
   endforeach()
 endif()
