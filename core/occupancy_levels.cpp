@@ -51,18 +51,28 @@ bool is_closed_surface(std::span<const std::uint32_t> triangles) {
 
 std::size_t cap_holes(std::vector<std::uint32_t>& triangles) {
   const std::size_t before = triangles.size();
-  // Boundary edges (whose reverse is missing), by first vertex, each list walked from its end.
+  // Boundary edges by first vertex, each list walked from its end: (a, b) as often as it is walked
+  // more often than (b, a). This is the boundary of the triangles as an integer chain, so at every
+  // vertex as many boundary edges leave as arrive and they split into loops, also where a cut
+  // joins sheets (an edge walked twice one way and once the other has one boundary edge).
   std::vector<std::uint32_t> boundary_offset, boundary_to, remaining;
   {
     const Outgoing edges(triangles);
     const std::uint32_t vertices = edges.vertex_count();
     boundary_offset.assign(std::size_t{vertices} + 1, 0);
+    std::vector<std::uint32_t> seen;
     for (std::uint32_t a = 0; a < vertices; ++a) {
       boundary_offset[a + 1] = boundary_offset[a];
-      for (std::uint32_t i = edges.offset[a]; i < edges.offset[a + 1]; ++i) {
-        if (edges.count(edges.to[i], a) != 0) continue;
-        boundary_to.push_back(edges.to[i]);
-        ++boundary_offset[a + 1];
+      seen.assign(edges.to.begin() + edges.offset[a], edges.to.begin() + edges.offset[a + 1]);
+      std::sort(seen.begin(), seen.end());
+      for (std::size_t i = 0; i < seen.size();) {
+        const std::uint32_t b = seen[i];
+        std::size_t j = i;
+        while (j < seen.size() && seen[j] == b) ++j;
+        const std::uint32_t forward = static_cast<std::uint32_t>(j - i), backward = edges.count(b, a);
+        for (std::uint32_t k = backward; k < forward; ++k) boundary_to.push_back(b);
+        boundary_offset[a + 1] += forward > backward ? forward - backward : 0;
+        i = j;
       }
     }
     remaining.resize(vertices);

@@ -38,9 +38,10 @@ struct OccupancyLevel {
 // Whether every directed edge (a, b) of `triangles` (3 vertex ids each) appears as often as (b, a):
 // a closed surface, whose triangles facing one way cover the projection of all of them.
 bool is_closed_surface(std::span<const std::uint32_t> triangles);
-// Caps the holes of a surface whose directed edges each appear at most once: every boundary loop
-// (edges whose reverse is missing) gets a fan of triangles holding the reversed edges, a loop that
-// passes a vertex twice being split there. Returns how many triangles it appended.
+// Caps the holes of a surface: every loop of boundary edges (an edge walked more often one way than
+// the other, once per surplus) gets a fan of triangles holding the reversed edges, a loop that
+// passes a vertex twice being split there. Afterwards every edge is walked as often both ways
+// (is_closed_surface). Returns how many triangles it appended.
 std::size_t cap_holes(std::vector<std::uint32_t>& triangles);
 
 class OccupancyLevels {

@@ -265,6 +265,33 @@ TEST(Occupancy, CappedHolesCloseTheSurface) {
   }
 }
 
+TEST(Occupancy, CappedHolesCloseSheetsThatMeetOnAnEdge) {
+  // Coarse cuts whose topology the builder changed join sheets: an edge with three faces, two of
+  // them walking it the same way. Three open quads fanned around one shared edge (not all the same
+  // way round), a book of three pages, and a closed sphere with a quad glued to one of its edges:
+  // closed after capping.
+  const std::vector<std::vector<std::uint32_t>> cases = {
+      // edge (0, 1) walked as 0->1 twice and 1->0 once
+      {0, 1, 2, 2, 1, 3, 0, 1, 4, 4, 1, 5, 1, 0, 6, 6, 0, 7},
+      // a book: two pages the same way round and one the other way
+      {0, 1, 2, 0, 1, 3, 1, 0, 4},
+  };
+  for (std::size_t i = 0; i < cases.size(); ++i) {
+    std::vector<std::uint32_t> triangles = cases[i];
+    EXPECT_FALSE(is_closed_surface(triangles)) << i;
+    cap_holes(triangles);
+    EXPECT_TRUE(is_closed_surface(triangles)) << i;
+  }
+  test::Scene sphere = test::uv_sphere(1.0f, 8, 10);
+  std::vector<std::uint32_t> glued = sphere.triangles;
+  const std::uint32_t a = sphere.triangles[0], b = sphere.triangles[1];
+  const std::uint32_t extra = static_cast<std::uint32_t>(sphere.positions.size() / 3);
+  glued.insert(glued.end(), {a, b, extra, a, extra, extra + 1});  // walks (a, b) as the sphere's face does
+  EXPECT_FALSE(is_closed_surface(glued));
+  cap_holes(glued);
+  EXPECT_TRUE(is_closed_surface(glued));
+}
+
 TEST(Occupancy, ClosedSurfacesRasteriseOneSideOnly) {
   // Rasterising only the triangles of one orientation gives the same cells as all of them, for
   // closed surfaces seen from anywhere in front: spheres, capped spheres with holes, and spheres
