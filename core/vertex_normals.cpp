@@ -59,7 +59,9 @@ void NormalAccumulator::add(std::uint32_t a, std::uint32_t b, std::uint32_t c, b
     const double w = angle(e1, e2) * kScale;
     std::int64_t* s = sums_.data() + 3 * std::size_t{v[k]};
     for (int c = 0; c < 3; ++c) {
-      const auto units = static_cast<std::int64_t>(std::llround(w * unit[c]));
+      // Rounded half away from zero, as llround, without its library call (|x| < 2^33 here).
+      const double x = w * unit[c];
+      const auto units = static_cast<std::int64_t>(x < 0 ? x - 0.5 : x + 0.5);
       if (concurrently)
         std::atomic_ref<std::int64_t>(s[c]).fetch_add(units, std::memory_order_relaxed);
       else

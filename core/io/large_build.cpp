@@ -682,10 +682,31 @@ Status LargeBuilder::run_stage(std::uint32_t s, bool parallel) {
     }
     global.resize(3 * out);
     if (!normal_sums_.empty()) {
-      // Leaves run side by side: their sums meet in shared vertices.
+      // Leaves that run side by side meet in shared vertices, and a lone leaf splits its faces over
+      // the runner: both add concurrently. Fixed-point sums make the result independent of the order.
       NormalAccumulator normals(std::span<const float>(positions_->data(), 3 * vertex_count_), normal_sums_);
-      for (std::size_t f = 0; f < out; ++f)
-        normals.add_concurrently(global[3 * f], global[3 * f + 1], global[3 * f + 2]);
+      const bool side_by_side = !parallel && options_.build.parallel_for != nullptr;
+      if (parallel && options_.build.parallel_for != nullptr) {
+        struct Chunks {
+          NormalAccumulator* normals;
+          const std::uint32_t* faces;
+          std::size_t count;
+        } chunks{&normals, global.data(), out};
+        constexpr std::size_t kChunks = 64;
+        options_.build.parallel_for(
+            options_.build.parallel_user, kChunks,
+            [](void* opaque, std::size_t i) {
+              const auto* c = static_cast<const Chunks*>(opaque);
+              for (std::size_t f = c->count * i / kChunks; f < c->count * (i + 1) / kChunks; ++f)
+                c->normals->add_concurrently(c->faces[3 * f], c->faces[3 * f + 1], c->faces[3 * f + 2]);
+            },
+            &chunks);
+      } else if (side_by_side) {
+        for (std::size_t f = 0; f < out; ++f)
+          normals.add_concurrently(global[3 * f], global[3 * f + 1], global[3 * f + 2]);
+      } else {
+        for (std::size_t f = 0; f < out; ++f) normals.add(global[3 * f], global[3 * f + 1], global[3 * f + 2]);
+      }
     }
     stage.duplicates = count - out;
     stage.inputs = std::uint32_t(out);
