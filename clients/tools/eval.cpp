@@ -6,6 +6,8 @@
 //                            absolute error and their foveated variants, coverage, depth
 //   fidelity --mesh N=P...   image-space fidelity of the methods at equal triangles and equal bytes
 //                            (clients/tools/eval/fidelity.hpp); writes FIDELITY.md, fidelity.csv, figures
+//   score REF.png CUT.png    two renderings as pictures (the browser viewer's screenshots): the
+//                            foveated error and SSIM as above, one JSON line (eval/score.hpp)
 //   gaze --mesh N=P...       a gaze trace replayed: gaze-driven cuts against a uniform cut of the same
 //                            bytes, recovery after saccades (eval/gaze_study.hpp); writes GAZE.md
 //   experiment --mesh N=P... uniform vs silhouette-DT vs focus-DT budgeted refinement at equal
@@ -34,6 +36,7 @@
 #include "CLI/CLI.hpp"
 #include "clients/tools/eval/fidelity.hpp"
 #include "clients/tools/eval/gaze_study.hpp"
+#include "clients/tools/eval/score.hpp"
 #include "clients/tools/eval/support.hpp"
 #include "core/bounds.hpp"
 #include "core/eval/image_metrics.hpp"
@@ -852,6 +855,29 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   image->add_option("--dump-renders", image_flags.renders_prefix, "write PREFIX-a.png and PREFIX-b.png");
 
+  ScoreOptions score_options;
+  auto* score = app.add_subcommand(
+      "score",
+      "two renderings given as PNG files: foveated error (1 - foveated SSIM), SSIM, MAE; one JSON line");
+  score->add_option("reference", score_options.reference, "the full model's rendering (PNG)")->required();
+  score->add_option("candidate", score_options.candidate, "the cut's rendering from the same camera (PNG)")
+      ->required();
+  score
+      ->add_option("--focus", score_options.focus,
+                   "X,Y normalised (default: the centroid of the reference's model)")
+      ->delimiter(',')
+      ->expected(2);
+  score->add_option("--fov", score_options.fov_deg, "vertical field of view of the renderings, degrees")
+      ->capture_default_str();
+  score->add_option("--viewing-distance-px", score_options.viewing_distance_px,
+                    "eye to image in pixels, for eccentricity (default: the camera's, (H/2)/tan(fov/2))");
+  score->add_option("--e2", score_options.e2_deg, "eccentricity in degrees at which acuity halves")
+      ->capture_default_str();
+  score->add_option(
+      "--background", score_options.background,
+      "RRGGBB: pixels of this colour in both images are not the model's (default: the reference's "
+      "top-left pixel)");
+
   ExperimentOptions ex;
   auto* experiment =
       app.add_subcommand("experiment", "the whole study; writes REPORT.md, results.csv, figures/");
@@ -924,6 +950,7 @@ int main(int argc, char** argv) {
   if (compare->parsed()) return run_compare(a, b, samples);
   if (silhouette->parsed()) return run_silhouette(a, b, camera, xor_png);
   if (image->parsed()) return run_image(a, b, image_flags);
+  if (score->parsed()) return run_score(score_options);
   std::string command = "mtlod-eval";
   for (int i = 1; i < argc; ++i) command += std::string(" ") + argv[i];
   if (fidelity->parsed()) return run_fidelity(fid, command);

@@ -173,4 +173,34 @@ ImageComparison compare_images(std::span<const float> a, std::span<const float> 
   return out;
 }
 
+std::size_t coverage_from_background(std::span<const std::uint8_t> a_rgb, std::span<const std::uint8_t> b_rgb,
+                                     const std::array<std::uint8_t, 3>& background,
+                                     std::span<std::uint8_t> covered) {
+  assert(a_rgb.size() == b_rgb.size() && a_rgb.size() == 3 * covered.size());
+  const auto differs = [&background](std::span<const std::uint8_t> rgb, std::size_t c) {
+    return rgb[3 * c] != background[0] || rgb[3 * c + 1] != background[1] || rgb[3 * c + 2] != background[2];
+  };
+  std::size_t count = 0;
+  for (std::size_t c = 0; c < covered.size(); ++c) {
+    covered[c] = differs(a_rgb, c) || differs(b_rgb, c);
+    count += covered[c];
+  }
+  return count;
+}
+
+ImageComparison compare_rgb_renderings(std::span<const std::uint8_t> a_rgb,
+                                       std::span<const std::uint8_t> b_rgb, GridSize size,
+                                       const std::array<std::uint8_t, 3>& background,
+                                       const Foveation& foveation, const SsimOptions& options) {
+  assert(a_rgb.size() == 3 * size.cell_count() && b_rgb.size() == a_rgb.size());
+  const std::size_t n = size.cell_count();
+  std::vector<float> a(n), b(n), weights(n), map(ssim_map_size(size, options).cell_count());
+  std::vector<std::uint8_t> covered(n);
+  luminance_from_rgb(a_rgb, a);
+  luminance_from_rgb(b_rgb, b);
+  coverage_from_background(a_rgb, b_rgb, background, covered);
+  foveation_weights(size, foveation, weights);
+  return compare_images(a, b, size, covered, weights, map, options);
+}
+
 }  // namespace mtlod::core

@@ -31,6 +31,7 @@
 // functions; the SSIM keeps a small ring of filtered rows, never a whole filtered image.
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <span>
@@ -126,5 +127,21 @@ struct ImageComparison {
 ImageComparison compare_images(std::span<const float> a, std::span<const float> b, GridSize size,
                                std::span<const std::uint8_t> covered, std::span<const float> weights,
                                std::span<float> map, const SsimOptions& options = {});
+
+// Renderings that arrive as pictures (screenshots of the viewer): a pixel is covered when it differs
+// from the background colour in a, in b, or both. covered holds a_rgb.size()/3 entries (1 covered,
+// 0 not); returns how many are covered. Antialiased edge pixels, blends of model and background,
+// count as covered.
+std::size_t coverage_from_background(std::span<const std::uint8_t> a_rgb, std::span<const std::uint8_t> b_rgb,
+                                     const std::array<std::uint8_t, 3>& background,
+                                     std::span<std::uint8_t> covered);
+
+// Two 8-bit RGB renderings of one size-pixel view compared as the studies compare their own
+// renderings: luma (luminance_from_rgb), covered = coverage_from_background, acuity weights of
+// `foveation` (foveation_weights), then compare_images. Allocates its scratch: for tools, not loops.
+ImageComparison compare_rgb_renderings(std::span<const std::uint8_t> a_rgb,
+                                       std::span<const std::uint8_t> b_rgb, GridSize size,
+                                       const std::array<std::uint8_t, 3>& background,
+                                       const Foveation& foveation, const SsimOptions& options = {});
 
 }  // namespace mtlod::core

@@ -1,4 +1,5 @@
-// PNG writing with libpng's simplified API (png_image), for the debug images of DESIGN.md §1.2–1.4.
+// PNG writing and reading with libpng's simplified API (png_image), for the debug images of DESIGN.md
+// §1.2–1.4 and the renderings that mtlod-eval scores.
 #include "core/io/image_io.hpp"
 
 #include <png.h>
@@ -47,6 +48,32 @@ Status write_png_gray(const std::filesystem::path& path, std::span<const std::ui
 
 Status write_png_rgb(const std::filesystem::path& path, std::span<const std::uint8_t> rgb, GridSize grid) {
   return write_png(path, rgb.data(), rgb.size(), grid, PNG_FORMAT_RGB, 3);
+}
+
+Result<RgbImage> read_png_rgb(const std::filesystem::path& path) {
+  png_image image;
+  std::memset(&image, 0, sizeof(image));
+  image.version = PNG_IMAGE_VERSION;
+  if (png_image_begin_read_from_file(&image, path.c_str()) == 0)
+    return make_error(ErrorCode::kIoError, "cannot read PNG " + path.string() + ": " + image.message);
+  RgbImage out;
+  out.size = {image.width, image.height};
+  // Checked before allocating: a header may claim any size.
+  if (!out.size.valid()) {
+    png_image_free(&image);
+    return make_error(ErrorCode::kInvalidArgument, "PNG " + path.string() + " is " +
+                                                       std::to_string(image.width) + "x" +
+                                                       std::to_string(image.height) + ", outside 1.." +
+                                                       std::to_string(kMaxGridSide) + " a side");
+  }
+  image.format = PNG_FORMAT_RGB;
+  out.rgb.resize(3 * out.size.cell_count());
+  if (png_image_finish_read(&image, nullptr, out.rgb.data(), 0, nullptr) == 0) {
+    std::string message = "cannot decode PNG " + path.string() + ": " + image.message;
+    png_image_free(&image);
+    return make_error(ErrorCode::kIoError, std::move(message));
+  }
+  return out;
 }
 
 Status write_occupancy_png(const std::filesystem::path& path, std::span<const std::uint8_t> occupancy,
