@@ -11,6 +11,18 @@
 // shared position (collapse tags, MT triangles, pool blocks) is fixed before, so the MT is the same
 // byte for byte.
 //
+// Two phases. The first keeps the topology (link condition; boundary vertices slide along their
+// boundary; non-manifold and inconsistently oriented fans are never touched). When it has no valid
+// collapse left, the topology phase (BuildOptions::coarse_topology) drops the link condition and
+// collapses any vertex whose edges all have an even number of faces into any neighbour, and any
+// other vertex into a neighbour that is also on an odd edge. Counted mod 2, the outline of the
+// faces a collapse of an even vertex creates is that of the faces it removes (the faces holding u
+// and v cancel), so no crack opens; an odd vertex only moves its odd edges onto vertices already
+// on odd edges, so a cut's odd edges stay on vertices of the input's odd edges. Its collapses come
+// last, with errors measured like any other, so a cut changes the topology only where its error
+// allows. Without the link condition a vertex's cheapest partner is often refused while another
+// is valid, so refused pairs are remembered and the next pass tries the next partner.
+//
 // Global error (the Jade method's): every original vertex removed so far is assigned to one working
 // face. A collapse hands u and the vertices of u's faces to faces of the new fan, and its error is
 // the largest exact distance from those vertices to their faces, raised to the fan's largest error
@@ -28,6 +40,7 @@
 #include <limits>
 #include <numeric>
 #include <string>
+#include <unordered_map>
 #include <utility>
 #include <vector>
 
@@ -40,7 +53,18 @@ namespace mtlod::core {
 namespace {
 
 // kLocked: a block's border vertex in an out-of-core build, kept as it is (simplify_block).
-enum VertexKind : std::uint8_t { kUnused = 0, kInterior = 1, kBoundary = 2, kComplex = 3, kLocked = 4 };
+// kEven and kOdd: the kinds of the topology phase (BuildOptions::coarse_topology), where a vertex is
+// even when every edge at it has an even number of faces and odd otherwise (a boundary, or an edge
+// with three faces); kComplex there is a vertex that a face holds twice.
+enum VertexKind : std::uint8_t {
+  kUnused = 0,
+  kInterior = 1,
+  kBoundary = 2,
+  kComplex = 3,
+  kLocked = 4,
+  kEven = 5,
+  kOdd = 6
+};
 
 // Fans larger than this are treated as complex: they never occur on scans except at defects.
 constexpr std::uint32_t kMaxFan = 64;
@@ -272,6 +296,13 @@ class Builder {
   template <class Keep>
   std::size_t filter_in_halves(std::vector<std::uint32_t>& list, const Keep& keep);
   VertexKind classify(std::uint32_t u, std::uint32_t& boundary_next, std::uint32_t& boundary_prev) const;
+  VertexKind classify_parity(std::uint32_t u) const;
+  // Whether v may take u's place: in the first phase an interior or boundary vertex; in the
+  // topology phase any even or odd vertex for an even u, an odd one for an odd u.
+  bool is_target(VertexKind u_kind, VertexKind v_kind) const {
+    if (!topology_phase_) return v_kind == kInterior || v_kind == kBoundary;
+    return v_kind == kOdd || (v_kind == kEven && u_kind == kEven);
+  }
   void find_partner(std::uint32_t u, const std::uint32_t* boundary_ends);
   // Scratch marks of can_collapse, one set per thread that calls it.
   struct Stamps {
@@ -351,6 +382,20 @@ class Builder {
   // collapse's v; kNoVertex when it is an end of a chosen collapse or in two chosen fans.
   std::vector<std::uint32_t> ring_target_;
   std::uint32_t pass_ = 0;
+  // The topology phase (BuildOptions::coarse_topology) starts once the first phase has no valid
+  // collapse left, at pass topology_pass_; its collapses are those from topology_first_ on.
+  bool topology_phase_ = false;
+  std::uint32_t topology_pass_ = 0;
+  std::size_t topology_first_ = 0;
+  // Pairs (u << 32 | v) that can_collapse refused in the topology phase, with the pass: u's next
+  // search skips v until u or v is touched. Without the link condition a vertex's cheapest partner
+  // is often invalid while another is not; a pass that only refuses still makes progress.
+  std::unordered_map<std::uint64_t, std::uint32_t> refused_;
+  std::vector<std::uint64_t> refused_now_;  // by the chooser, during a pass
+  bool is_refused(std::uint32_t u, std::uint32_t v) const {
+    const auto it = refused_.find(std::uint64_t{u} << 32 | v);
+    return it != refused_.end() && touched_[u] < it->second && touched_[v] < it->second;
+  }
   Stamps chooser_stamps_, guesser_stamps_;
   std::vector<std::uint8_t> verdicts_;      // per candidate: 0 not known yet, 1 can collapse, 2 cannot
   std::uint32_t chosen_triangles_end_ = 0;  // MT triangle count once the chosen collapses have run
@@ -598,6 +643,34 @@ VertexKind Builder::classify(std::uint32_t u, std::uint32_t& boundary_next,
   return kBoundary;
 }
 
+VertexKind Builder::classify_parity(std::uint32_t u) const {
+  const std::uint32_t begin = adjacency_begin_[u], end = adjacency_end_[u];
+  const std::uint32_t degree = end - begin;
+  if (degree == 0) return kUnused;
+  // Each face gives the edges (u, next) and (u, prev): sorted, a run of odd length is an odd edge.
+  std::array<std::uint32_t, 2 * kMaxFan> small;
+  std::vector<std::uint32_t> large;
+  std::uint32_t* ends = small.data();
+  if (degree > kMaxFan) {
+    large.resize(2 * std::size_t{degree});
+    ends = large.data();
+  }
+  for (std::uint32_t i = 0; i < degree; ++i) {
+    const Corner& c = adjacency_[begin + i];
+    if (c.next == u || c.prev == u || c.next == c.prev) return kComplex;
+    ends[2 * i] = c.next;
+    ends[2 * i + 1] = c.prev;
+  }
+  std::sort(ends, ends + 2 * std::size_t{degree});
+  for (std::uint32_t i = 0; i < 2 * degree;) {
+    std::uint32_t j = i;
+    while (j < 2 * degree && ends[j] == ends[i]) ++j;
+    if ((j - i) % 2 != 0) return kOdd;
+    i = j;
+  }
+  return kEven;
+}
+
 template <class Body>
 void Builder::for_ranges(std::size_t count, std::size_t items, const Body& body) {
   auto task = [](void* opaque, std::size_t i) { (*static_cast<const Body*>(opaque))(i); };
@@ -642,15 +715,21 @@ void Builder::find_partner(std::uint32_t u, const std::uint32_t* boundary_ends) 
   Candidate& best = best_[u];
   // The partner's cost Q_u(v) only changes when u's quadric or fan does, i.e. when u was touched;
   // a cached partner that stopped being collapsible forces a new search too.
-  const bool stale = pass_ == 1 || touched_[u] == pass_ - 1 ||
-                     (best.v != u && kind_[best.v] != kInterior && kind_[best.v] != kBoundary);
+  const VertexKind kind = VertexKind(kind_[u]);
+  const bool stale = pass_ == 1 || pass_ == topology_pass_ || touched_[u] == pass_ - 1 ||
+                     (best.v != u && !is_target(kind, VertexKind(kind_[best.v]))) ||
+                     (topology_phase_ && best.v != u && is_refused(u, best.v));
   if (!stale) return;
   best = Candidate{std::numeric_limits<float>::infinity(), u, u};
   auto consider = [&](std::uint32_t v) {
     const float cost = evaluate(quadrics_[u], &unit_positions_[3 * std::size_t{v}]);
     if (cost < best.cost) best.cost = cost, best.v = v;
   };
-  if (kind_[u] == kInterior) {
+  if (kind == kEven || kind == kOdd) {
+    for (std::uint32_t i = adjacency_begin_[u]; i < adjacency_end_[u]; ++i)
+      for (const std::uint32_t w : {adjacency_[i].next, adjacency_[i].prev})
+        if (is_target(kind, VertexKind(kind_[w])) && !is_refused(u, w)) consider(w);
+  } else if (kind_[u] == kInterior) {
     for (std::uint32_t i = adjacency_begin_[u]; i < adjacency_end_[u]; ++i) {
       const std::uint32_t a = adjacency_[i].next;
       if (kind_[a] == kInterior || kind_[a] == kBoundary) consider(a);
@@ -670,14 +749,16 @@ bool Builder::can_collapse(std::uint32_t u, std::uint32_t v, Stamps& stamps) con
     link_stamp[adjacency_[i].next] = link_stamp[adjacency_[i].prev] = link;
   std::uint32_t opposite[2] = {0, 0};
   int opposites = 0;
-  for (std::uint32_t i = adjacency_begin_[u]; i < adjacency_end_[u]; ++i) {
-    const std::uint32_t a = adjacency_[i].next, b = adjacency_[i].prev;
-    if (a == v || b == v) {
-      if (opposites == 2) return false;
-      opposite[opposites++] = a == v ? b : a;
+  if (!topology_phase_)
+    for (std::uint32_t i = adjacency_begin_[u]; i < adjacency_end_[u]; ++i) {
+      const std::uint32_t a = adjacency_[i].next, b = adjacency_[i].prev;
+      if (a == v || b == v) {
+        if (opposites == 2) return false;
+        opposite[opposites++] = a == v ? b : a;
+      }
     }
-  }
-  // Link condition: the only common neighbours of u and v are the corners opposite edge uv.
+  // Link condition (first phase only): the only common neighbours of u and v are the corners
+  // opposite edge uv. The topology phase drops it and keeps the geometric checks below.
   int survivors = 0;
   const float* pu = position(u);
   const float* pv = position(v);
@@ -685,10 +766,11 @@ bool Builder::can_collapse(std::uint32_t u, std::uint32_t v, Stamps& stamps) con
     const std::uint32_t a = adjacency_[i].next, b = adjacency_[i].prev;
     if (a == v || b == v) continue;
     // (A common neighbour met twice gets the same answer twice.)
-    for (const std::uint32_t w : {a, b})
-      if (link_stamp[w] == link &&
-          !((opposites > 0 && w == opposite[0]) || (opposites > 1 && w == opposite[1])))
-        return false;
+    if (!topology_phase_)
+      for (const std::uint32_t w : {a, b})
+        if (link_stamp[w] == link &&
+            !((opposites > 0 && w == opposite[0]) || (opposites > 1 && w == opposite[1])))
+          return false;
     ++survivors;
     const float* pa = position(a);
     const float* pb = position(b);
@@ -710,9 +792,33 @@ bool Builder::can_collapse(std::uint32_t u, std::uint32_t v, Stamps& stamps) con
         if (has_a && has_b) return false;
       }
     }
+    // Nor may two new faces share their corners a and b (a fan that holds one edge twice).
+    if (topology_phase_)
+      for (std::uint32_t j = adjacency_begin_[u]; j < i; ++j) {
+        const Corner& t = adjacency_[j];
+        if (t.next != v && t.prev != v && ((t.next == a && t.prev == b) || (t.next == b && t.prev == a)))
+          return false;
+      }
   }
   // A collapse that leaves no face would make a node that removes nothing (detached from the DAG).
-  return survivors > 0;
+  if (survivors == 0) return false;
+  // Every corner of u's fan must stay on a face the collapse makes (the link condition sees to it in
+  // the first phase). A corner left only on faces that vanish would tie the node to no later
+  // collapse of that corner, and a cut could then hold the node's faces after that corner's
+  // collapse: a face on a vertex the cut no longer has.
+  if (topology_phase_)
+    for (std::uint32_t i = adjacency_begin_[u]; i < adjacency_end_[u]; ++i) {
+      const std::uint32_t a = adjacency_[i].next, b = adjacency_[i].prev;
+      if (a != v && b != v) continue;
+      const std::uint32_t x = a == v ? b : a;
+      bool kept = false;
+      for (std::uint32_t j = adjacency_begin_[u]; j < adjacency_end_[u] && !kept; ++j) {
+        const Corner& t = adjacency_[j];
+        kept = t.next != v && t.prev != v && (t.next == x || t.prev == x);
+      }
+      if (!kept) return false;
+    }
+  return true;
 }
 
 void Builder::choose_collapses(std::size_t quota) {
@@ -744,6 +850,8 @@ void Builder::choose_collapses(std::size_t quota) {
   auto blocked = [&](const Candidate& c) {
     if (is_touched(c.u)) return true;
     if (!is_touched(c.v)) return false;
+    // Without the link condition a changed fan of v may matter however it changed.
+    if (topology_phase_) return true;
     const std::uint32_t w = target_of(c.v);
     if (w == kNoVertex) return true;
     for (std::uint32_t j = adjacency_begin_[c.u]; j < adjacency_end_[c.u]; ++j)
@@ -787,7 +895,10 @@ void Builder::choose_collapses(std::size_t quota) {
       }
       const std::uint8_t verdict =
           std::atomic_ref<std::uint8_t>(verdicts_[i]).load(std::memory_order_relaxed);
-      if (verdict == 2 || (verdict == 0 && !can_collapse(c.u, c.v, chooser_stamps_))) continue;
+      if (verdict == 2 || (verdict == 0 && !can_collapse(c.u, c.v, chooser_stamps_))) {
+        if (topology_phase_) refused_now_.push_back(std::uint64_t{c.u} << 32 | c.v);
+        continue;
+      }
       chosen_.push_back({c.u, c.v, tag++, triangle, 1});  // u joins the points (its fan's: counted later)
       for (const std::uint32_t x : {c.u, c.v}) {
         touch(x);
@@ -1214,14 +1325,27 @@ void Builder::simplify() {
     ++pass_;
     if (pass_ > 1) build_adjacency();
     classify_vertices();
-    if (collect_candidates() == 0) break;
-    choose_collapses(pass_quota());
-    const std::size_t collapses = chosen_.size();
-    place_collapses();
-    run_collapses();
-    if (options_.progress)
-      options_.progress(options_.progress_user, 1.0 - double(alive_faces_) / initial_faces);
-    if (collapses == 0 || alive_faces_ <= target_triangles_) break;
+    std::size_t collapses = 0, refusals = 0;
+    if (collect_candidates() > 0) {
+      refused_now_.clear();
+      choose_collapses(pass_quota());
+      collapses = chosen_.size();
+      refusals = refused_now_.size();
+      for (const std::uint64_t pair : refused_now_) refused_[pair] = pass_;
+      place_collapses();
+      run_collapses();
+      if (options_.progress)
+        options_.progress(options_.progress_user, 1.0 - double(alive_faces_) / initial_faces);
+    }
+    if (alive_faces_ <= target_triangles_) break;
+    if (collapses == 0 && refusals == 0) {
+      if (topology_phase_ || !options_.coarse_topology) break;
+      // Nothing that keeps the topology is left: go on with collapses that may change it. The
+      // next pass classifies every vertex and finds every partner again.
+      topology_phase_ = true;
+      topology_pass_ = pass_ + 1;
+      topology_first_ = collapse_u_.size();
+    }
   }
 }
 
@@ -1234,8 +1358,12 @@ void Builder::classify_vertices() {
     for (std::size_t i = begin; i < end; ++i) {
       const std::uint32_t u = alive_vertex_list_[i];
       if (kind_[u] == kLocked) continue;
-      if (pass_ == 1 || (touched_[u] == pass_ - 1 && (kind_[u] != kInterior || ring_target_[u] == kNoVertex)))
+      if (topology_phase_) {
+        if (pass_ == topology_pass_ || touched_[u] == pass_ - 1) kind_[u] = classify_parity(u);
+      } else if (pass_ == 1 ||
+                 (touched_[u] == pass_ - 1 && (kind_[u] != kInterior || ring_target_[u] == kNoVertex))) {
         kind_[u] = classify(u, boundary_ends_[2 * u], boundary_ends_[2 * u + 1]);
+      }
     }
   });
 }
@@ -1386,6 +1514,11 @@ BlockOutput Builder::export_block() {
   out.points = std::move(points_);
   out.passes = pass_;
   out.complex_vertices = complex_vertices_;
+  if (topology_phase_) {
+    out.topology_collapses = out.collapse_u.size() - topology_first_;
+    for (std::size_t c = topology_first_; c < out.collapse_error.size(); ++c)
+      out.topology_error = std::min(out.topology_error, out.collapse_error[c]);
+  }
   return out;
 }
 
@@ -1400,6 +1533,11 @@ Result<Mt> Builder::run(BuildStats* stats, std::vector<std::uint32_t>* vertex_id
   target_triangles_ = options_.min_triangles;
   MTLOD_RETURN_IF_ERROR(prepare());
   simplify();
+  if (stats && topology_phase_) {
+    stats->topology_collapses = collapse_u_.size() - topology_first_;
+    for (std::size_t c = topology_first_; c < collapse_error_.size(); ++c)
+      stats->topology_error = std::min(stats->topology_error, collapse_error_[c]);
+  }
   Mt mt = assemble(vertex_ids);
   if (stats) {
     stats->input_triangles = face_count_;

@@ -5,6 +5,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <span>
 #include <vector>
 
@@ -36,6 +37,16 @@ struct BuildOptions {
   float boundary_weight = 2.0f;
   // Stop when the working mesh has at most this many triangles (0: collapse while any collapse is valid).
   std::size_t min_triangles = 0;
+  // Once no collapse that keeps the topology is valid (closed components down to tetrahedra, holes
+  // down to triangles, vertices at non-manifold edges or clashing orientations), go on with
+  // collapses that may change it: no link condition, and any vertex whose edges all have an even
+  // number of faces may collapse into any neighbour (a vertex with an odd edge only into another
+  // such vertex, so a cut's boundary and non-manifold edges stay on vertices of the input's). Each
+  // such collapse still replaces its faces by faces with the same outline (no crack), passes the
+  // normal and degeneracy checks and records its measured error, so a cut changes the topology only
+  // where its error allows it: scans with many components, holes or non-manifold edges get small
+  // roots.
+  bool coarse_topology = true;
   BuildProgressFn progress = nullptr;
   void* progress_user = nullptr;
   // Runs the independent work of each pass (vertex classification, partner search, the collapses
@@ -54,6 +65,11 @@ struct BuildStats {
   bool normals_given = false;        // the mesh came with normals
   std::size_t normals_computed = 0;  // vertices whose normal was computed (missing, NaN or zero)
   float max_error = 0.0f;            // largest node error, model units
+  // Collapses of the coarse_topology phase, and the smallest of their errors (infinity when there
+  // are none): a cut to any uniform error below it refines all their nodes and so has the input's
+  // topology.
+  std::size_t topology_collapses = 0;
+  float topology_error = std::numeric_limits<float>::infinity();
 };
 
 // Builds the MT of mesh. Triangles with a repeated vertex id are kept unchanged (their vertices are
@@ -102,6 +118,8 @@ struct BlockOutput {
   GrowOnlyVector<float> points;
   std::size_t passes = 0;
   std::size_t complex_vertices = 0;
+  std::size_t topology_collapses = 0;  // as in BuildStats
+  float topology_error = std::numeric_limits<float>::infinity();
 };
 
 // Simplifies input until at most target_triangles faces remain or no collapse is valid

@@ -69,6 +69,13 @@ void report_normals(bool given, std::uint64_t computed, std::uint64_t vertices) 
         computed, vertices);
 }
 
+// Where the topology may differ from the input's: only in cuts coarser than the error printed.
+std::string topology_line(std::size_t collapses, float error) {
+  if (collapses == 0) return "  every cut has the input's topology\n";
+  return fmt::format("  {} collapses change the topology, all with error >= {:.6g}: finer cuts keep it\n",
+                     collapses, error);
+}
+
 // PLY in bounded memory, streamed (core/io/large_build.hpp).
 int build_large(const std::string& input, const std::string& output,
                 const mtlod::core::io::LargeBuildOptions& options, bool tty) {
@@ -95,6 +102,7 @@ int build_large(const std::string& input, const std::string& output,
       "  memory limit {} MiB: {} blocks of at most {} triangles, {} stages in {} levels\n"
       "  input triangles {}, root triangles {}, nodes {}, MT triangles {}\n"
       "  max error {:.6g} (model units), {} complex vertices kept\n"
+      "{}"
       "  built in {:.3f} s ({:.0f} input triangles/s), temporary files up to {} MiB\n"
       "  wrote {} ({} bytes)\n",
       input, stats.vertices, stats.input_triangles, stats.dropped_degenerate, stats.dropped_duplicate,
@@ -102,7 +110,8 @@ int build_large(const std::string& input, const std::string& output,
       (large.memory_limit ? large.memory_limit : io::default_memory_limit()) >> 20, stats.blocks,
       stats.block_triangles, stats.stages, stats.levels,
       stats.input_triangles - stats.dropped_degenerate - stats.dropped_duplicate, stats.root_triangles,
-      stats.nodes, stats.mt_triangles, stats.max_error, stats.complex_vertices, seconds,
+      stats.nodes, stats.mt_triangles, stats.max_error, stats.complex_vertices,
+      topology_line(stats.topology_collapses, stats.topology_error), seconds,
       double(stats.input_triangles) / seconds, stats.temp_bytes >> 20, output, stats.file_bytes);
   return 0;
 }
@@ -123,6 +132,10 @@ int main(int argc, char** argv) {
   app.add_option("--pass-fraction", options.pass_fraction,
                  "share of the cheapest collapses tried per pass (smaller: closer to greedy order, slower)")
       ->check(CLI::Range(0.01f, 1.0f));
+  bool keep_topology = false;
+  app.add_flag("--keep-topology", keep_topology,
+               "every cut keeps the input's topology, the coarsest too (larger roots on scans with many "
+               "components, holes or non-manifold edges)");
   bool serial = false;
   app.add_flag("--serial", serial, "build on one thread (the MT is the same)");
   app.add_flag("--raw", raw,
@@ -137,6 +150,7 @@ int main(int argc, char** argv) {
   app.add_option("--temp-dir", large.temp_dir,
                  "where a PLY build keeps its temporary files (default: beside -o)");
   CLI11_PARSE(app, argc, argv);
+  options.coarse_topology = !keep_topology;
 
   const bool tty = isatty(fileno(stderr)) != 0;
   mtlod::core::ThreadPool pool(serial ? 1u : std::thread::hardware_concurrency());  // 1: no other thread
@@ -183,10 +197,11 @@ int main(int argc, char** argv) {
   fmt::print(
       "  input triangles {}, root triangles {}, nodes {}, MT triangles {}\n"
       "  max error {:.6g} (model units), {} passes, {} complex vertices kept\n"
+      "{}"
       "  built in {:.3f} s ({:.0f} input triangles/s)\n"
       "  wrote {} ({} bytes), {:.1f} bytes per input triangle in memory\n",
       stats.input_triangles, stats.root_triangles, stats.nodes, stats.mt_triangles, stats.max_error,
-      stats.passes, stats.complex_vertices, seconds, double(stats.input_triangles) / seconds, output, *size,
-      per_triangle);
+      stats.passes, stats.complex_vertices, topology_line(stats.topology_collapses, stats.topology_error),
+      seconds, double(stats.input_triangles) / seconds, output, *size, per_triangle);
   return 0;
 }

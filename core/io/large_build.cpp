@@ -240,41 +240,6 @@ class MappedFile {
   std::uint64_t bytes_;
 };
 
-// A writable shared map of a file, created or resized to `bytes` (new bytes are zero).
-class WritableMap {
- public:
-  static Result<WritableMap> open(const fs::path& path, std::uint64_t bytes) {
-    const int fd = ::open(path.string().c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0600);
-    if (fd < 0) return io_error(path, "open");
-    if (::ftruncate(fd, static_cast<off_t>(bytes)) != 0) {
-      ::close(fd);
-      return io_error(path, "resize");
-    }
-    void* p = bytes == 0 ? nullptr : ::mmap(nullptr, bytes, PROT_READ | PROT_WRITE, MAP_SHARED, fd, 0);
-    ::close(fd);
-    if (p == MAP_FAILED) return io_error(path, "map");
-    return WritableMap(static_cast<float*>(p), bytes);
-  }
-  WritableMap(WritableMap&& other) noexcept
-      : data_(std::exchange(other.data_, nullptr)), bytes_(std::exchange(other.bytes_, 0)) {}
-  WritableMap& operator=(WritableMap&&) = delete;
-  ~WritableMap() {
-    if (data_) ::munmap(data_, bytes_);
-  }
-  std::span<float> floats() { return {data_, bytes_ / sizeof(float)}; }
-  // Writes the pages back and drops them from this process.
-  Status release(const fs::path& path) {
-    if (data_ && ::msync(data_, bytes_, MS_SYNC) != 0) return io_error(path, "write");
-    if (data_) ::madvise(data_, bytes_, MADV_DONTNEED);
-    return Ok{};
-  }
-
- private:
-  WritableMap(float* data, std::uint64_t bytes) : data_(data), bytes_(bytes) {}
-  float* data_;
-  std::uint64_t bytes_;
-};
-
 std::uint32_t spread_bits(std::uint32_t x) {
   // Up to 8 bits to every third bit of 24.
   x &= 0xff;
@@ -303,6 +268,8 @@ struct Stage {
   std::uint64_t remaining_points = 0;
   std::uint64_t duplicates = 0;  // input faces dropped (leaves only)
   std::size_t complex_vertices = 0;
+  std::size_t topology_collapses = 0;
+  float topology_error = std::numeric_limits<float>::infinity();
 };
 
 // A face a stage leaves to its parent (28 bytes in the .rem file; its points follow in .pts).
@@ -491,23 +458,38 @@ Status LargeBuilder::check_normals() {
 }
 
 Status LargeBuilder::finish_normals() {
-  const fs::path path = file("normals");
-  MTLOD_TRY(WritableMap normals, WritableMap::open(path, 12 * vertex_count_));
-  const std::span<float> n = normals.floats();
+  // Written through the page cache like every other stage file: a map of the output would need an
+  // msync (tens of ms on the 871k dragon) to report write errors before its pages are dropped.
+  const fs::path path = file("normals"), partial = file("normals.unit");
+  std::optional<MappedFile> given;
+  if (normals_) {
+    MTLOD_TRY(MappedFile m, MappedFile::open(path));
+    given.emplace(std::move(m));
+  }
+  MTLOD_TRY(Writer out, Writer::open(partial));
+  std::vector<float> n(3 * kChunkTriangles);
   for (std::uint64_t begin = 0; begin < vertex_count_; begin += kChunkTriangles) {
     const std::uint64_t end = std::min<std::uint64_t>(vertex_count_, begin + kChunkTriangles);
     for (std::uint64_t v = begin; v < end; ++v) {
-      float* q = &n[3 * v];
-      if (!normals_ || !usable_normal(q)) {
+      float* q = &n[3 * (v - begin)];
+      if (given) std::copy_n(given->data() + 3 * v, 3, q);
+      if (!given || !usable_normal(q)) {
         NormalAccumulator::finish(std::span(normal_sums_).subspan(3 * v, 3), std::span(q, 3));
         continue;
       }
       make_unit(q);
     }
+    MTLOD_RETURN_IF_ERROR(out.write(std::span<const float>(n.data(), 3 * (end - begin))));
   }
+  MTLOD_RETURN_IF_ERROR(out.close());
+  if (given) given->release();
+  given.reset();
+  std::error_code ec;
+  fs::rename(partial, path, ec);
+  if (ec) return io_error(path, "rename");
   std::vector<std::int64_t>().swap(normal_sums_);
   normals_ = true;
-  return normals.release(path);
+  return Ok{};
 }
 
 Status LargeBuilder::choose_leaves() {
@@ -705,7 +687,8 @@ Status LargeBuilder::run_stage(std::uint32_t s, bool parallel) {
         for (std::size_t f = 0; f < out; ++f)
           normals.add_concurrently(global[3 * f], global[3 * f + 1], global[3 * f + 2]);
       } else {
-        for (std::size_t f = 0; f < out; ++f) normals.add(global[3 * f], global[3 * f + 1], global[3 * f + 2]);
+        for (std::size_t f = 0; f < out; ++f)
+          normals.add(global[3 * f], global[3 * f + 1], global[3 * f + 2]);
       }
     }
     stage.duplicates = count - out;
@@ -755,11 +738,16 @@ Status LargeBuilder::run_stage(std::uint32_t s, bool parallel) {
   BuildOptions build = options_.build;
   build.progress = nullptr;
   if (!parallel) build.parallel_for = nullptr;
+  // Topology may change only at the top, where the root orders all the remaining faces by error;
+  // a lower stage's topology changes would reach into finer cuts.
+  build.coarse_topology = build.coarse_topology && stage.root;
   const std::size_t target = stage.root ? options_.build.min_triangles : face_count / kStageReduction;
   MTLOD_TRY(BlockOutput result, simplify_block(std::move(block), target, build));
   block = BlockInput{};
   positions_->release();
   stage.complex_vertices = result.complex_vertices;
+  stage.topology_collapses = result.topology_collapses;
+  stage.topology_error = result.topology_error;
 
   // Collapses: global u and error.
   stage.collapses = std::uint32_t(result.collapse_u.size());
@@ -1155,6 +1143,8 @@ Status LargeBuilder::run(LargeBuildStats& stats) {
   for (const Stage& s : stages_) {
     stats.dropped_duplicate += s.duplicates;
     stats.complex_vertices += s.complex_vertices;
+    stats.topology_collapses += s.topology_collapses;
+    stats.topology_error = std::min(stats.topology_error, s.topology_error);
   }
   return assemble();
 }

@@ -10,6 +10,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
+#include <limits>
 #include <vector>
 
 #include "core/io/memory_limit.hpp"
@@ -47,6 +48,8 @@ struct LargeBuildStats {
   std::size_t stages = 0;  // simplifications run: leaves and merges
   std::size_t levels = 0;
   std::size_t complex_vertices = 0;    // never collapsed: non-manifold fans (summed over stages)
+  std::size_t topology_collapses = 0;  // as in BuildStats (the root stage's)
+  float topology_error = std::numeric_limits<float>::infinity();
   bool normals_given = false;          // the PLY has normals
   std::uint64_t normals_computed = 0;  // vertices whose normal was computed (missing, NaN or zero)
   std::uint64_t nodes = 0;

@@ -3,6 +3,7 @@
 // can GTEST_SKIP.
 #pragma once
 
+#include <limits>
 #include <map>
 #include <memory>
 #include <string>
@@ -22,6 +23,9 @@ struct MtCase {
   core::Mesh mesh;
   core::Mt mt;
   CutReference reference;
+  // Collapses of the builder's topology phase and their smallest error (core::BuildStats).
+  std::size_t topology_collapses = 0;
+  float topology_error = std::numeric_limits<float>::infinity();
 };
 
 // The same mesh with its vertices numbered as the MT numbers them (ids[v]: MT id of input vertex v),
@@ -50,17 +54,22 @@ inline Result<core::Mt> build_mt_renumbering(core::Mesh& mesh, const core::Build
 }
 
 // The input mesh is kept numbered as the MT numbers its vertices.
-inline const MtCase* build_case(const std::string& key, core::Mesh mesh) {
+inline const MtCase* build_case(const std::string& key, core::Mesh mesh,
+                                const core::BuildOptions& options = {}) {
   static std::map<std::string, std::unique_ptr<MtCase>> cache;
   auto& slot = cache[key];
   if (!slot) {
     auto c = std::make_unique<MtCase>();
     c->mesh = std::move(mesh);
-    auto mt = build_mt_renumbering(c->mesh);
+    core::BuildStats stats;
+    auto mt = build_mt_renumbering(c->mesh, options, &stats);
     EXPECT_TRUE(mt.ok()) << key << ": " << (mt.ok() ? "" : mt.error().message);
     if (!mt.ok()) return nullptr;
     c->mt = std::move(mt).value();
     c->reference = make_reference(c->mesh);
+    c->topology_collapses = stats.topology_collapses;
+    c->topology_error = stats.topology_error;
+    c->reference.coarse_topology_changes = stats.topology_collapses > 0;
     slot = std::move(c);
   }
   return slot.get();
@@ -79,7 +88,8 @@ inline const MtCase* large_case(const std::string& key, core::Mesh mesh, std::si
     core::io::LargeBuildOptions options;
     options.block_triangles = block_triangles;
     options.vertex_ids = &ids;
-    const auto built = core::io::build_mt_file(ply, mt_path, options);
+    core::io::LargeBuildStats stats;
+    const auto built = core::io::build_mt_file(ply, mt_path, options, &stats);
     EXPECT_TRUE(built.ok()) << key << ": " << (built.ok() ? "" : built.error().message);
     if (!built.ok()) return nullptr;
     auto mt = core::io::read_mt_file(mt_path);
@@ -90,19 +100,25 @@ inline const MtCase* large_case(const std::string& key, core::Mesh mesh, std::si
     renumber_like_mt(c->mesh, ids);
     c->mt = std::move(mt).value();
     c->reference = make_reference(c->mesh);
+    c->topology_collapses = stats.topology_collapses;
+    c->topology_error = stats.topology_error;
+    c->reference.coarse_topology_changes = stats.topology_collapses > 0;
     slot = std::move(c);
   }
   return slot.get();
 }
 
 // A shared scan, loaded with the default clean-up (as mtlod-build does); null when absent.
-inline const MtCase* scan_case(const std::string& file) {
+// keep_topology builds it with BuildOptions::coarse_topology off.
+inline const MtCase* scan_case(const std::string& file, bool keep_topology = false) {
   const auto path = shared_meshes_dir() / file;
   if (!std::filesystem::exists(path)) return nullptr;
   auto loaded = core::io::load_mesh(path);
   EXPECT_TRUE(loaded.ok()) << file;
   if (!loaded.ok()) return nullptr;
-  return build_case(file, std::move(loaded->mesh));
+  core::BuildOptions options;
+  options.coarse_topology = !keep_topology;
+  return build_case(keep_topology ? file + "/keep-topology" : file, std::move(loaded->mesh), options);
 }
 
 // A shared scan (cleaned as scan_case does) built out of core in blocks; null when absent.
