@@ -21,9 +21,12 @@ const camera = new THREE.PerspectiveCamera(45, 1, 0.01, 100);
 const controls = new OrbitControls(camera, renderer.domElement);
 
 // Smooth shading with the normals the server sends (the original surface's, at every vertex of
-// every cut); flat shading, a toggle, shows the cut's facets.
-const material = new THREE.MeshStandardMaterial({ color: 0xc8c0b0, roughness: 0.8 });
-const vertexColourMaterial = new THREE.MeshStandardMaterial({ vertexColors: true, roughness: 0.8 });
+// every cut); flat shading, a toggle, shows the cut's facets. Both sides of every triangle are drawn:
+// scans wound inwards (bunny-zipper) or with clashing orientation (the dragon_vrip_res* files) would
+// otherwise show their far side or holes (tests/evaluation/VIEWER.md); back faces are lit with the
+// normal turned towards the eye.
+const material = new THREE.MeshStandardMaterial({ color: 0xc8c0b0, roughness: 0.8, side: THREE.DoubleSide });
+const vertexColourMaterial = new THREE.MeshStandardMaterial({ vertexColors: true, roughness: 0.8, side: THREE.DoubleSide });
 const mesh = new THREE.Mesh(new THREE.BufferGeometry(), material);
 scene.add(mesh);
 
@@ -102,8 +105,9 @@ function extractRequest() {
   const [width, height] = viewportSize();
   camera.updateMatrixWorld();
   // The default (foveal falloff, focus factor 1, no silhouette band, hidden surfaces ×16) is the winner
-  // of the image-space study, tests/evaluation/FIDELITY.md: the bound holds at the focus and grows with
-  // eccentricity, and what the camera cannot see gets few triangles.
+  // of the image-space studies, tests/evaluation/FIDELITY.md and, on this page's own pixels, VIEWER.md:
+  // the bound holds at the focus and grows with eccentricity, and what the camera cannot see gets few
+  // triangles. The bound (index.html) is 0.25 px: at the clients' 1 px the facets show at 1280×720.
   const criteria = { falloff: $('falloff').value, hidden_factor: Math.max(1, Number($('hidden-factor').value) || 1) };
   if ($('silhouette').checked) {
     criteria.silhouette = { distance: Number($('silhouette-distance').value), factor: Number($('silhouette-factor').value) };
@@ -322,6 +326,20 @@ function requestExtract() {
 }
 
 controls.addEventListener('change', requestExtract);
+
+// Hooks for scripts that drive the page as a user would (tests/evaluation/viewer_study.mjs): place
+// the camera exactly (eye and target as [x, y, z], vertical field of view in degrees; up stays +y,
+// the orbit's axis), which asks for a new view as an orbit does, and tell when every change asked
+// for has been answered and shown. Criteria are set through the panel's own controls.
+state.setView = ({ eye, target, fov }) => {
+  camera.fov = fov;
+  camera.updateProjectionMatrix();
+  camera.position.set(...eye);
+  controls.target.set(...target);
+  controls.update();
+  requestExtract();
+};
+state.idle = () => !inFlight && !extractTimer && !wantExtract && !wantGaze;
 window.addEventListener('resize', () => {
   resize();
   requestExtract();
