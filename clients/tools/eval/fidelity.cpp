@@ -11,6 +11,8 @@
 #include <numeric>
 #include <optional>
 #include <sstream>
+#include <string>
+#include <string_view>
 
 #include "clients/tools/eval/support.hpp"
 #include "core/allowed_error.hpp"
@@ -402,6 +404,25 @@ std::string report_markdown(const FidelityOptions& o, const std::vector<Method>&
 
 }  // namespace
 
+namespace {
+
+// The section that tests/evaluation/viewer_study.mjs appends to the report (the same study on the
+// browser viewer's pixels), from its marker line to the end: another generator's text, kept when this
+// report is written again. Empty when the report has none.
+std::string viewer_study_section(const fs::path& report) {
+  constexpr std::string_view kMarker = "<!-- viewer-study:";
+  std::FILE* f = std::fopen(report.c_str(), "rb");
+  if (!f) return {};
+  std::string text;
+  char buffer[4096];
+  for (std::size_t n; (n = std::fread(buffer, 1, sizeof buffer, f)) > 0;) text.append(buffer, n);
+  std::fclose(f);
+  const std::size_t at = text.find(kMarker);
+  return at == std::string::npos ? std::string{} : "\n" + text.substr(at);
+}
+
+}  // namespace
+
 int run_fidelity(const FidelityOptions& o, const std::string& command) {
   const auto start = Clock::now();
   if (o.meshes.empty())
@@ -605,7 +626,8 @@ int run_fidelity(const FidelityOptions& o, const std::string& command) {
                          s.bytes, s.ssim, s.foveated_ssim, s.mae_covered, s.foveated_mae, s.xor_px);
     }
   const std::string report = report_markdown(o, methods, target, rows, curves, mesh_info, notes, figures,
-                                             seconds_since(start), command);
+                                             seconds_since(start), command) +
+                             viewer_study_section(out_dir / o.report);
   for (const auto& [file, text] : {std::pair{out_dir / o.csv, csv}, std::pair{out_dir / o.report, report}}) {
     std::FILE* f = std::fopen(file.c_str(), "wb");
     const bool ok = f && std::fwrite(text.data(), 1, text.size(), f) == text.size();
