@@ -907,8 +907,10 @@ int main(int argc, char** argv) {
   fidelity->add_option("--cameras", fid.cameras, "cameras per mesh");
   fidelity->add_option("--image", fid.image_px, "rendered image side, pixels");
   fidelity->add_option("--grid", fid.grid_px, "view grid side of the distance transforms");
-  fidelity->add_option("--method", fid.methods,
-                       "NAME=SPEC, repeatable (default: the standard set; see FIDELITY.md for SPEC)");
+  fidelity->add_option(
+      "--method", fid.methods,
+      "NAME=SPEC or a standard method's NAME, repeatable (default: the standard set; see FIDELITY.md "
+      "for SPEC)");
   fidelity->add_option("--target", fid.target, "the method the targets are about")->capture_default_str();
   fidelity->add_flag("!--no-equal-triangles", fid.equal_triangles, "compare at equal bytes only");
   fidelity->add_flag("!--no-curves", fid.curves, "no error-against-bytes plots");
