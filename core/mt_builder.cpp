@@ -335,6 +335,13 @@ class Builder {
   }
   Mt assemble(std::vector<std::uint32_t>* vertex_ids);
   BlockOutput export_block();
+  // The topology phase's collapse count and smallest error (BuildStats::topology_collapses).
+  void topology_stats(std::size_t& collapses, float& error) const {
+    if (!topology_phase_) return;
+    collapses = collapse_u_.size() - topology_first_;
+    for (std::size_t c = topology_first_; c < collapse_error_.size(); ++c)
+      error = std::min(error, collapse_error_[c]);
+  }
 
   const Mesh& mesh_;
   NormalRepair normal_repair_;
@@ -1497,6 +1504,7 @@ Status Builder::check_block() const {
 
 BlockOutput Builder::export_block() {
   BlockOutput out;
+  topology_stats(out.topology_collapses, out.topology_error);
   out.collapse_u = std::move(collapse_u_);
   out.collapse_error = std::move(collapse_error_);
   out.made_triangles.assign(mt_vertices_.begin() + 3 * std::ptrdiff_t(face_count_), mt_vertices_.end());
@@ -1514,11 +1522,6 @@ BlockOutput Builder::export_block() {
   out.points = std::move(points_);
   out.passes = pass_;
   out.complex_vertices = complex_vertices_;
-  if (topology_phase_) {
-    out.topology_collapses = out.collapse_u.size() - topology_first_;
-    for (std::size_t c = topology_first_; c < out.collapse_error.size(); ++c)
-      out.topology_error = std::min(out.topology_error, out.collapse_error[c]);
-  }
   return out;
 }
 
@@ -1533,11 +1536,7 @@ Result<Mt> Builder::run(BuildStats* stats, std::vector<std::uint32_t>* vertex_id
   target_triangles_ = options_.min_triangles;
   MTLOD_RETURN_IF_ERROR(prepare());
   simplify();
-  if (stats && topology_phase_) {
-    stats->topology_collapses = collapse_u_.size() - topology_first_;
-    for (std::size_t c = topology_first_; c < collapse_error_.size(); ++c)
-      stats->topology_error = std::min(stats->topology_error, collapse_error_[c]);
-  }
+  if (stats) topology_stats(stats->topology_collapses, stats->topology_error);
   Mt mt = assemble(vertex_ids);
   if (stats) {
     stats->input_triangles = face_count_;

@@ -1,6 +1,7 @@
-// What the browser tests (viewer_test.mjs, gltf_three_test.mjs) share: the repository root,
-// playwright-core from scripts/node_modules, `--name value` arguments, Debian's Chromium or a skip
-// (exit 77, which ctest reports as skipped), and ok/FAIL lines counted for the exit status.
+// What the browser tests (viewer_test.mjs, gltf_three_test.mjs) and the viewer study share: the
+// repository root, playwright-core from scripts/node_modules, `--name value` arguments, Debian's
+// Chromium or a skip (exit 77, which ctest reports as skipped) and the flags it runs with, waiting
+// for a server's port file, and ok/FAIL lines counted for the exit status.
 import fs from 'node:fs';
 import { createRequire } from 'node:module';
 import path from 'node:path';
@@ -29,6 +30,24 @@ export function chromiumOrSkip() {
     process.exit(77);
   }
   return chromiumPath;
+}
+
+// Headless Chromium with software GL (SwiftShader) and none of its background network traffic.
+export const chromiumArgs = ['--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run',
+                             '--disable-background-networking', '--disable-component-update', '--disable-sync',
+                             '--use-angle=swiftshader', '--enable-unsafe-swiftshader'];
+
+export const sleep = (ms) => new Promise((resolve) => setTimeout(resolve, ms));
+
+// The HTTP port an mtlod-server started with --port-file writes on its second line, polled every
+// 100 ms up to `attempts` times while `running()` holds; 0 when it never came.
+export async function waitForHttpPort(portFile, running, attempts) {
+  for (let i = 0; i < attempts && running(); ++i) {
+    const lines = fs.existsSync(portFile) ? fs.readFileSync(portFile, 'utf8').trim().split('\n') : [];
+    if (lines.length >= 2) return Number(lines[1]);
+    await sleep(100);
+  }
+  return 0;
 }
 
 export const results = { failures: 0 };

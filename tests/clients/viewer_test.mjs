@@ -16,7 +16,7 @@
 import { spawn, spawnSync } from 'node:child_process';
 import fs from 'node:fs';
 import path from 'node:path';
-import { check, chromium, chromiumOrSkip, parseArgs, results } from './browser_support.mjs';
+import { check, chromium, chromiumArgs, chromiumOrSkip, parseArgs, results, sleep, waitForHttpPort } from './browser_support.mjs';
 
 const tls = process.argv.includes('--tls');
 const args = parseArgs(process.argv.slice(2), ['server', 'mesh', 'out'], ['--tls']);
@@ -25,8 +25,6 @@ if (!fs.existsSync(args.mesh)) {
   console.log(`skipped: ${args.mesh} is missing (scripts/prepare-models.sh writes it)`);
   process.exit(77);
 }
-
-const sleep = (ms) => new Promise((resolve) => setTimeout(resolve, ms));
 
 // With --tls: a certificate for 127.0.0.1 and a tokens file, both made for this run.
 const token = 'viewer-test-token-0123456789abcdef';
@@ -61,18 +59,12 @@ const deadline = setTimeout(() => {
 }, 90_000);
 
 try {
-  let httpPort = 0;
-  for (let i = 0; i < 600 && !httpPort && !serverExit; ++i) {
-    const lines = fs.existsSync(portFile) ? fs.readFileSync(portFile, 'utf8').trim().split('\n') : [];
-    if (lines.length >= 2) httpPort = Number(lines[1]);
-    else await sleep(100);
-  }
+  const httpPort = await waitForHttpPort(portFile, () => !serverExit, 600);
   if (!httpPort) throw new Error(`the server did not start: ${JSON.stringify(serverExit)}`);
 
   browser = await chromium.launch({
     executablePath: chromiumPath,
-    args: ['--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run', '--disable-background-networking',
-           '--disable-component-update', '--disable-sync', '--use-angle=swiftshader', '--enable-unsafe-swiftshader',
+    args: [...chromiumArgs,
            // The test's certificate is self-signed: no browser trusts it.
            ...(tls ? ['--ignore-certificate-errors'] : [])],
   });

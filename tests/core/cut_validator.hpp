@@ -126,12 +126,11 @@ inline CutReference make_reference(const core::Mesh& input) {
   return ref;
 }
 
-// A cut is conforming, whatever its topology: vertex ids are used input vertices; no degenerate or
-// duplicate triangle; every edge with an odd number of faces (a boundary, or three faces) joins
-// vertices that are on such an edge in the input. A crack or a T-junction inside the surface would
-// leave an edge with one face between vertices that the input surrounds with faces.
-inline ::testing::AssertionResult validate_conforming_cut(const CutReference& ref,
-                                                          std::span<const std::uint32_t> cut) {
+// What every cut must be: whole triangles on used input vertices, none degenerate or repeated.
+// Fills t with the cut's topology for the callers' further checks.
+inline ::testing::AssertionResult validate_triangles(const CutReference& ref,
+                                                     std::span<const std::uint32_t> cut,
+                                                     core::TopologyReport& t) {
   const std::size_t vertex_count = ref.input->vertex_count();
   if (cut.size() % 3 != 0)
     return ::testing::AssertionFailure() << "cut size " << cut.size() << " not a multiple of 3";
@@ -139,11 +138,23 @@ inline ::testing::AssertionResult validate_conforming_cut(const CutReference& re
     if (cut[i] >= vertex_count || !ref.used[cut[i]])
       return ::testing::AssertionFailure()
              << "cut corner " << i << " = " << cut[i] << " is not a used input vertex";
-  const core::TopologyReport t = core::analyze_topology(ref.input->positions, cut);
+  t = core::analyze_topology(ref.input->positions, cut);
   if (t.degenerate_triangles != 0)
     return ::testing::AssertionFailure() << t.degenerate_triangles << " degenerate triangles";
   if (t.duplicate_triangles != 0)
     return ::testing::AssertionFailure() << t.duplicate_triangles << " duplicate triangles";
+  return ::testing::AssertionSuccess();
+}
+
+// A cut is conforming, whatever its topology: vertex ids are used input vertices; no degenerate or
+// duplicate triangle; every edge with an odd number of faces (a boundary, or three faces) joins
+// vertices that are on such an edge in the input. A crack or a T-junction inside the surface would
+// leave an edge with one face between vertices that the input surrounds with faces.
+inline ::testing::AssertionResult validate_conforming_cut(const CutReference& ref,
+                                                          std::span<const std::uint32_t> cut) {
+  const std::size_t vertex_count = ref.input->vertex_count();
+  core::TopologyReport t;
+  if (auto ok = validate_triangles(ref, cut, t); !ok) return ok;
   const std::vector<std::uint8_t> odd = odd_vertices(vertex_count, cut);
   for (std::size_t v = 0; v < vertex_count; ++v)
     if (odd[v] && !ref.odd[v])
@@ -161,21 +172,12 @@ inline ::testing::AssertionResult validate_conforming_cut(const CutReference& re
 inline ::testing::AssertionResult validate_cut(const CutReference& ref, std::span<const std::uint32_t> cut) {
   if (ref.coarse_topology_changes) return validate_conforming_cut(ref, cut);
   const std::size_t vertex_count = ref.input->vertex_count();
-  if (cut.size() % 3 != 0)
-    return ::testing::AssertionFailure() << "cut size " << cut.size() << " not a multiple of 3";
-  for (std::size_t i = 0; i < cut.size(); ++i)
-    if (cut[i] >= vertex_count || !ref.used[cut[i]])
-      return ::testing::AssertionFailure()
-             << "cut corner " << i << " = " << cut[i] << " is not a used input vertex";
+  core::TopologyReport t;
+  if (auto ok = validate_triangles(ref, cut, t); !ok) return ok;
   for (const std::uint64_t key : defective_edges(cut))
     if (!std::binary_search(ref.defects.begin(), ref.defects.end(), key))
       return ::testing::AssertionFailure() << "edge (" << (key >> 32) << ", " << (key & 0xffffffffu)
                                            << ") is non-manifold or inconsistently oriented in the cut only";
-  const core::TopologyReport t = core::analyze_topology(ref.input->positions, cut);
-  if (t.degenerate_triangles != 0)
-    return ::testing::AssertionFailure() << t.degenerate_triangles << " degenerate triangles";
-  if (t.duplicate_triangles != 0)
-    return ::testing::AssertionFailure() << t.duplicate_triangles << " duplicate triangles";
   const std::vector<std::uint8_t> boundary = boundary_vertices(vertex_count, cut);
   for (std::size_t v = 0; v < vertex_count; ++v)
     if (boundary[v] && !ref.boundary[v])

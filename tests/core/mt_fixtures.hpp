@@ -26,6 +26,13 @@ struct MtCase {
   // Collapses of the builder's topology phase and their smallest error (core::BuildStats).
   std::size_t topology_collapses = 0;
   float topology_error = std::numeric_limits<float>::infinity();
+  // From core::BuildStats or core::io::LargeBuildStats.
+  template <class Stats>
+  void set_topology(const Stats& stats) {
+    topology_collapses = stats.topology_collapses;
+    topology_error = stats.topology_error;
+    reference.coarse_topology_changes = stats.topology_collapses > 0;
+  }
 };
 
 // The same mesh with its vertices numbered as the MT numbers them (ids[v]: MT id of input vertex v),
@@ -67,9 +74,7 @@ inline const MtCase* build_case(const std::string& key, core::Mesh mesh,
     if (!mt.ok()) return nullptr;
     c->mt = std::move(mt).value();
     c->reference = make_reference(c->mesh);
-    c->topology_collapses = stats.topology_collapses;
-    c->topology_error = stats.topology_error;
-    c->reference.coarse_topology_changes = stats.topology_collapses > 0;
+    c->set_topology(stats);
     slot = std::move(c);
   }
   return slot.get();
@@ -100,9 +105,7 @@ inline const MtCase* large_case(const std::string& key, core::Mesh mesh, std::si
     renumber_like_mt(c->mesh, ids);
     c->mt = std::move(mt).value();
     c->reference = make_reference(c->mesh);
-    c->topology_collapses = stats.topology_collapses;
-    c->topology_error = stats.topology_error;
-    c->reference.coarse_topology_changes = stats.topology_collapses > 0;
+    c->set_topology(stats);
     slot = std::move(c);
   }
   return slot.get();

@@ -6,7 +6,7 @@
 // node tests/evaluation/viewer_screenshots.mjs --url http://127.0.0.1:8080/?model=dragon-871k \
 //     --out tests/evaluation/figures [--name viewer-dragon] [--x 0.55 --y 0.45]
 import path from 'node:path';
-import { chromium, chromiumOrSkip, parseArgs } from '../clients/browser_support.mjs';
+import { chromium, chromiumArgs, chromiumOrSkip, parseArgs } from '../clients/browser_support.mjs';
 
 const args = parseArgs(process.argv.slice(2), ['url', 'out']);
 const name = args.name ?? 'viewer';
@@ -15,7 +15,7 @@ const size = { width: 1280, height: 720 };
 
 const browser = await chromium.launch({
   executablePath: chromiumOrSkip(),
-  args: ['--no-sandbox', '--disable-gpu', '--use-angle=swiftshader', '--enable-unsafe-swiftshader'],
+  args: chromiumArgs,
 });
 try {
   const page = await browser.newPage({ viewport: size });

@@ -27,7 +27,7 @@
 import { execFileSync, spawn } from 'node:child_process';
 import fs from 'node:fs';
 import path from 'node:path';
-import { chromium, chromiumOrSkip, parseArgs, root } from '../clients/browser_support.mjs';
+import { chromium, chromiumArgs, chromiumOrSkip, parseArgs, root, sleep, waitForHttpPort } from '../clients/browser_support.mjs';
 import { analyse, writeReport } from './viewer_study_report.mjs';
 
 const smoke = process.argv.includes('--smoke'), reportOnly = process.argv.includes('--report-only');
@@ -87,8 +87,6 @@ if (missing.length) {
   process.exit(77);
 }
 
-const sleep = (ms) => new Promise((resolve) => setTimeout(resolve, ms));
-
 // The server on OS-chosen ports, serving every mesh (MTs built into the cache on first use).
 async function startServer() {
   const portFile = path.join(args.work, 'ports');
@@ -99,11 +97,8 @@ async function startServer() {
                                      '--log-level', 'warn'], { stdio: ['ignore', log, log] });
   let exited = null;
   server.on('exit', (code, signal) => { exited = { code, signal }; });
-  for (let i = 0; i < 6000 && !exited; ++i) {
-    const lines = fs.existsSync(portFile) ? fs.readFileSync(portFile, 'utf8').trim().split('\n') : [];
-    if (lines.length >= 2) return { server, httpPort: Number(lines[1]) };
-    await sleep(100);
-  }
+  const httpPort = await waitForHttpPort(portFile, () => !exited, 6000);
+  if (httpPort) return { server, httpPort };
   server.kill('SIGKILL');
   throw new Error(`the server did not start: ${JSON.stringify(exited)} (see ${args.work}/server.log)`);
 }
@@ -300,8 +295,7 @@ const elapsed = () => earlierSeconds + (Date.now() - startedAt) / 1000;
 const { server, httpPort } = await startServer();
 const browser = await chromium.launch({
   executablePath: chromiumPath,
-  args: ['--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run', '--disable-background-networking',
-         '--disable-component-update', '--disable-sync', '--use-angle=swiftshader', '--enable-unsafe-swiftshader'],
+  args: chromiumArgs,
 });
 let defaults = null;
 try {
