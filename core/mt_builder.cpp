@@ -21,7 +21,14 @@
 // on odd edges, so a cut's odd edges stay on vertices of the input's odd edges. Its collapses come
 // last, with errors measured like any other, so a cut changes the topology only where its error
 // allows. Without the link condition a vertex's cheapest partner is often refused while another
-// is valid, so refused pairs are remembered and the next pass tries the next partner.
+// is valid, so refused pairs are remembered and the next pass tries the next partner. When even
+// that phase is stuck, its last stage also lets a new face land on three vertices that already
+// have a face (in the opposite orientation as a rule: two sheets of a scan's stacked or pinched
+// surface meeting). Counted mod 2 the pair is no face, so the outline argument still holds and a
+// later collapse of one of its vertices removes both; the format cannot say that a node removes a
+// face around another vertex, so the pair stays in the cuts between. Without this stage scans
+// whose non-manifold edges were split finely (the 105M dragon of BENCHMARKS.md) stop at thousands
+// of faces in stacks of small closed pieces where every collapse repeats a face.
 //
 // Global error (the Jade method's): every original vertex removed so far is assigned to one working
 // face. A collapse hands u and the vertices of u's faces to faces of the new fan, and its error is
@@ -335,12 +342,17 @@ class Builder {
   }
   Mt assemble(std::vector<std::uint32_t>* vertex_ids);
   BlockOutput export_block();
-  // The topology phase's collapse count and smallest error (BuildStats::topology_collapses).
-  void topology_stats(std::size_t& collapses, float& error) const {
-    if (!topology_phase_) return;
-    collapses = collapse_u_.size() - topology_first_;
-    for (std::size_t c = topology_first_; c < collapse_error_.size(); ++c)
-      error = std::min(error, collapse_error_[c]);
+  // Collapses from `first` on (a phase that started there) and their smallest error.
+  void phase_stats(bool started, std::size_t first, std::size_t& collapses, float& error) const {
+    if (!started) return;
+    collapses = collapse_u_.size() - first;
+    for (std::size_t c = first; c < collapse_error_.size(); ++c) error = std::min(error, collapse_error_[c]);
+  }
+  // BuildStats::topology_* and stacking_*.
+  template <class Stats>
+  void topology_stats(Stats& s) const {
+    phase_stats(topology_phase_, topology_first_, s.topology_collapses, s.topology_error);
+    phase_stats(stacking_, stacking_first_, s.stacking_collapses, s.stacking_error);
   }
 
   const Mesh& mesh_;
@@ -392,6 +404,9 @@ class Builder {
   // The topology phase (BuildOptions::coarse_topology) starts once the first phase has no valid
   // collapse left, at pass topology_pass_; its collapses are those from topology_first_ on.
   bool topology_phase_ = false;
+  // The topology phase's last stage: a new face may repeat a face its target already has.
+  bool stacking_ = false;
+  std::size_t stacking_first_ = 0;
   std::uint32_t topology_pass_ = 0;
   std::size_t topology_first_ = 0;
   // Pairs (u << 32 | v) that can_collapse refused in the topology phase, with the pass: u's next
@@ -790,8 +805,9 @@ bool Builder::can_collapse(std::uint32_t u, std::uint32_t v, Stamps& stamps) con
     const double longest = std::max({dot(ab, ab), dot(av, av), dot(bv, bv)});
     if (!(new_length > 1e-6 * longest)) return false;
     if (!(dot(old_normal, new_normal) > options_.min_normal_cos * old_length * new_length)) return false;
-    // The new face (v, a, b) must not repeat a face v already has (a tetrahedron folding flat).
-    if (link_stamp[a] == link && link_stamp[b] == link) {
+    // The new face (v, a, b) must not repeat a face v already has (a tetrahedron folding flat),
+    // except in the last stage of the topology phase.
+    if (!stacking_ && link_stamp[a] == link && link_stamp[b] == link) {
       for (std::uint32_t j = adjacency_begin_[v]; j < adjacency_end_[v]; ++j) {
         const Corner& t = adjacency_[j];  // the face (v, next, prev)
         const bool has_a = v == a || t.next == a || t.prev == a;
@@ -800,7 +816,7 @@ bool Builder::can_collapse(std::uint32_t u, std::uint32_t v, Stamps& stamps) con
       }
     }
     // Nor may two new faces share their corners a and b (a fan that holds one edge twice).
-    if (topology_phase_)
+    if (topology_phase_ && !stacking_)
       for (std::uint32_t j = adjacency_begin_[u]; j < i; ++j) {
         const Corner& t = adjacency_[j];
         if (t.next != v && t.prev != v && ((t.next == a && t.prev == b) || (t.next == b && t.prev == a)))
@@ -1346,12 +1362,19 @@ void Builder::simplify() {
     }
     if (alive_faces_ <= target_triangles_) break;
     if (collapses == 0 && refusals == 0) {
-      if (topology_phase_ || !options_.coarse_topology) break;
-      // Nothing that keeps the topology is left: go on with collapses that may change it. The
-      // next pass classifies every vertex and finds every partner again.
-      topology_phase_ = true;
+      if (stacking_ || !options_.coarse_topology) break;
+      // Nothing that keeps the topology is left: go on with collapses that may change it, and
+      // when those are stuck too, with collapses that may stack a face on another. The next pass
+      // classifies every vertex and finds every partner again.
+      if (topology_phase_) {
+        stacking_ = true;
+        stacking_first_ = collapse_u_.size();
+        refused_.clear();
+      } else {
+        topology_phase_ = true;
+        topology_first_ = collapse_u_.size();
+      }
       topology_pass_ = pass_ + 1;
-      topology_first_ = collapse_u_.size();
     }
   }
 }
@@ -1504,7 +1527,7 @@ Status Builder::check_block() const {
 
 BlockOutput Builder::export_block() {
   BlockOutput out;
-  topology_stats(out.topology_collapses, out.topology_error);
+  topology_stats(out);
   out.collapse_u = std::move(collapse_u_);
   out.collapse_error = std::move(collapse_error_);
   out.made_triangles.assign(mt_vertices_.begin() + 3 * std::ptrdiff_t(face_count_), mt_vertices_.end());
@@ -1536,7 +1559,7 @@ Result<Mt> Builder::run(BuildStats* stats, std::vector<std::uint32_t>* vertex_id
   target_triangles_ = options_.min_triangles;
   MTLOD_RETURN_IF_ERROR(prepare());
   simplify();
-  if (stats) topology_stats(stats->topology_collapses, stats->topology_error);
+  if (stats) topology_stats(*stats);
   Mt mt = assemble(vertex_ids);
   if (stats) {
     stats->input_triangles = face_count_;

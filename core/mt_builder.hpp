@@ -45,7 +45,8 @@ struct BuildOptions {
   // such collapse still replaces its faces by faces with the same outline (no crack), passes the
   // normal and degeneracy checks and records its measured error, so a cut changes the topology only
   // where its error allows it: scans with many components, holes or non-manifold edges get small
-  // roots.
+  // roots. Its last stage also lets a new face repeat one its target has (BuildStats::
+  // stacking_collapses): stacked sheets of a scan then still simplify.
   bool coarse_topology = true;
   BuildProgressFn progress = nullptr;
   void* progress_user = nullptr;
@@ -70,6 +71,11 @@ struct BuildStats {
   // topology.
   std::size_t topology_collapses = 0;
   float topology_error = std::numeric_limits<float>::infinity();
+  // Of those, the collapses of the phase's last stage, which may leave two faces on the same three
+  // vertices (no face, counted mod 2), and the smallest of their errors: cuts to a uniform error
+  // below it have no such pair.
+  std::size_t stacking_collapses = 0;
+  float stacking_error = std::numeric_limits<float>::infinity();
 };
 
 // Builds the MT of mesh. Triangles with a repeated vertex id are kept unchanged (their vertices are
@@ -120,6 +126,8 @@ struct BlockOutput {
   std::size_t complex_vertices = 0;
   std::size_t topology_collapses = 0;  // as in BuildStats
   float topology_error = std::numeric_limits<float>::infinity();
+  std::size_t stacking_collapses = 0;
+  float stacking_error = std::numeric_limits<float>::infinity();
 };
 
 // Simplifies input until at most target_triangles faces remain or no collapse is valid

@@ -69,11 +69,16 @@ void report_normals(bool given, std::uint64_t computed, std::uint64_t vertices) 
         computed, vertices);
 }
 
-// Where the topology may differ from the input's: only in cuts coarser than the error printed.
-std::string topology_line(std::size_t collapses, float error) {
+// Where the topology may differ from the input's: only in cuts coarser than the error printed; and
+// where a cut may hold two faces on the same three vertices.
+std::string topology_line(std::size_t collapses, float error, std::size_t stacking, float stacking_error) {
   if (collapses == 0) return "  every cut has the input's topology\n";
-  return fmt::format("  {} collapses change the topology, all with error >= {:.6g}: finer cuts keep it\n",
-                     collapses, error);
+  std::string line = fmt::format(
+      "  {} collapses change the topology, all with error >= {:.6g}: finer cuts keep it\n", collapses, error);
+  if (stacking > 0)
+    line +=
+        fmt::format("  {} of them may stack two faces, all with error >= {:.6g}\n", stacking, stacking_error);
+  return line;
 }
 
 // PLY in bounded memory, streamed (core/io/large_build.hpp).
@@ -111,8 +116,9 @@ int build_large(const std::string& input, const std::string& output,
       stats.block_triangles, stats.stages, stats.levels,
       stats.input_triangles - stats.dropped_degenerate - stats.dropped_duplicate, stats.root_triangles,
       stats.nodes, stats.mt_triangles, stats.max_error, stats.complex_vertices,
-      topology_line(stats.topology_collapses, stats.topology_error), seconds,
-      double(stats.input_triangles) / seconds, stats.temp_bytes >> 20, output, stats.file_bytes);
+      topology_line(stats.topology_collapses, stats.topology_error, stats.stacking_collapses,
+                    stats.stacking_error),
+      seconds, double(stats.input_triangles) / seconds, stats.temp_bytes >> 20, output, stats.file_bytes);
   return 0;
 }
 
@@ -201,7 +207,9 @@ int main(int argc, char** argv) {
       "  built in {:.3f} s ({:.0f} input triangles/s)\n"
       "  wrote {} ({} bytes), {:.1f} bytes per input triangle in memory\n",
       stats.input_triangles, stats.root_triangles, stats.nodes, stats.mt_triangles, stats.max_error,
-      stats.passes, stats.complex_vertices, topology_line(stats.topology_collapses, stats.topology_error),
+      stats.passes, stats.complex_vertices,
+      topology_line(stats.topology_collapses, stats.topology_error, stats.stacking_collapses,
+                    stats.stacking_error),
       seconds, double(stats.input_triangles) / seconds, output, *size, per_triangle);
   return 0;
 }

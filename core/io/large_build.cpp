@@ -270,6 +270,8 @@ struct Stage {
   std::size_t complex_vertices = 0;
   std::size_t topology_collapses = 0;
   float topology_error = std::numeric_limits<float>::infinity();
+  std::size_t stacking_collapses = 0;
+  float stacking_error = std::numeric_limits<float>::infinity();
 };
 
 // A face a stage leaves to its parent (28 bytes in the .rem file; its points follow in .pts).
@@ -748,6 +750,8 @@ Status LargeBuilder::run_stage(std::uint32_t s, bool parallel) {
   stage.complex_vertices = result.complex_vertices;
   stage.topology_collapses = result.topology_collapses;
   stage.topology_error = result.topology_error;
+  stage.stacking_collapses = result.stacking_collapses;
+  stage.stacking_error = result.stacking_error;
 
   // Collapses: global u and error.
   stage.collapses = std::uint32_t(result.collapse_u.size());
@@ -1145,6 +1149,8 @@ Status LargeBuilder::run(LargeBuildStats& stats) {
     stats.complex_vertices += s.complex_vertices;
     stats.topology_collapses += s.topology_collapses;
     stats.topology_error = std::min(stats.topology_error, s.topology_error);
+    stats.stacking_collapses += s.stacking_collapses;
+    stats.stacking_error = std::min(stats.stacking_error, s.stacking_error);
   }
   return assemble();
 }

@@ -50,6 +50,8 @@ struct LargeBuildStats {
   std::size_t complex_vertices = 0;    // never collapsed: non-manifold fans (summed over stages)
   std::size_t topology_collapses = 0;  // as in BuildStats (the root stage's)
   float topology_error = std::numeric_limits<float>::infinity();
+  std::size_t stacking_collapses = 0;  // likewise
+  float stacking_error = std::numeric_limits<float>::infinity();
   bool normals_given = false;          // the PLY has normals
   std::uint64_t normals_computed = 0;  // vertices whose normal was computed (missing, NaN or zero)
   std::uint64_t nodes = 0;

@@ -6,11 +6,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <limits>
 #include <set>
 #include <string_view>
 #include <vector>
 
+#include "core/eval/subdivide.hpp"
 #include "core/mt_format.hpp"
 #include "core/threads/thread_pool.hpp"
 #include "tests/core/cut_validator.hpp"
@@ -33,6 +35,22 @@ std::vector<std::uint32_t> all_nodes_cut(const Mt& mt) {
   return out;
 }
 
+// The static cut for a uniform error e: triangles created by a node of error > e (or the root) and
+// removed by none of them.
+std::vector<std::uint32_t> uniform_cut(const Mt& mt, float e) {
+  std::vector<std::uint32_t> out;
+  for (std::uint32_t t = 0; t < mt.triangle_count(); ++t) {
+    const std::uint32_t creator = mt.triangle_creator(t), remover = mt.triangle_remover[t];
+    const bool created = creator == 0 || mt.node_error[creator] > e;
+    const bool removed = remover != kNoNode && mt.node_error[remover] > e;
+    if (!created || removed) continue;
+    std::uint32_t v[3];
+    mt.triangle_vertices(t, v);
+    out.insert(out.end(), v, v + 3);
+  }
+  return out;
+}
+
 std::vector<std::uint32_t> root_cut(const Mt& mt) {
   std::vector<std::uint32_t> out;
   for (std::uint32_t t = 0; t < mt.root_triangle_count(); ++t) {
@@ -43,13 +61,40 @@ std::vector<std::uint32_t> root_cut(const Mt& mt) {
   return out;
 }
 
-TEST(MtBuilder, TetrahedronHasNoValidCollapse) {
+TEST(MtBuilder, TetrahedronHasNoCollapseThatKeepsItsTopology) {
   // Any edge collapse of a tetrahedron folds it into two copies of one triangle; refused.
   const Mesh mesh = test::tetrahedron();
-  auto mt = build_mt(mesh);
+  BuildOptions keep;
+  keep.coarse_topology = false;
+  auto mt = build_mt(mesh, keep);
   ASSERT_TRUE(mt.ok());
   EXPECT_EQ(mt->node_count(), 1u);
   EXPECT_EQ(test::triangle_set(root_cut(*mt)), test::triangle_set(mesh.triangles));
+}
+
+TEST(MtBuilder, TetrahedronFoldsIntoTwoCopiesOfOneTriangleAtTheStackingStage) {
+  // The stacking stage takes the collapse: the root is one triangle twice, opposite ways round (no
+  // face counted mod 2, like the closed tetrahedron's outline), and its error is at least the
+  // removed corner's distance to it, the tetrahedron's height 4/sqrt(3).
+  Mesh mesh = test::tetrahedron();
+  BuildStats stats;
+  auto mt = test::build_mt_renumbering(mesh, {}, &stats);
+  ASSERT_TRUE(mt.ok());
+  EXPECT_EQ(mt->node_count(), 2u);
+  EXPECT_EQ(stats.topology_collapses, 1u);
+  EXPECT_EQ(stats.stacking_collapses, 1u);
+  const std::vector<std::uint32_t> root = root_cut(*mt);
+  ASSERT_EQ(root.size(), 6u);
+  EXPECT_EQ(test::canonical(root[0], root[2], root[1]), test::canonical(root[3], root[4], root[5]));
+  EXPECT_EQ(test::triangle_set(all_nodes_cut(*mt)), test::triangle_set(mesh.triangles));
+  const float error = mt->node_error[1];
+  EXPECT_GE(error, 4 / std::sqrt(3.0f) * (1 - 1e-6f));
+  EXPECT_TRUE(test::every_vertex_within(mesh, root, std::vector<double>(4, double(error) * (1 + 1e-6))));
+  test::CutReference reference = test::make_reference(mesh);
+  reference.coarse_topology_changes = reference.stacked_faces = true;
+  EXPECT_TRUE(test::validate_conforming_cut(reference, root));
+  reference.stacked_faces = false;
+  EXPECT_FALSE(test::validate_conforming_cut(reference, root));
 }
 
 TEST(MtBuilder, SquareCollapsesOneCornerAlongItsBoundary) {
@@ -267,22 +312,57 @@ TEST(MtBuilder, CutsFinerThanTheTopologyPhaseKeepTheInputsTopology) {
     strict.coarse_topology_changes = false;
     for (const float below : {0.99f, 0.5f}) {
       const float e = c->topology_error * below;
-      std::vector<std::uint32_t> cut;
-      for (std::uint32_t t = 0; t < c->mt.triangle_count(); ++t) {
-        // The static cut for e: triangles created by a node of error > e (or the root) and removed
-        // by none of them.
-        const std::uint32_t creator = c->mt.triangle_creator(t), remover = c->mt.triangle_remover[t];
-        const bool created = creator == 0 || c->mt.node_error[creator] > e;
-        const bool removed = remover != kNoNode && c->mt.node_error[remover] > e;
-        if (!created || removed) continue;
-        std::uint32_t v[3];
-        c->mt.triangle_vertices(t, v);
-        cut.insert(cut.end(), v, v + 3);
-      }
-      EXPECT_TRUE(test::validate_cut(strict, cut)) << file << " e " << e;
+      EXPECT_TRUE(test::validate_cut(strict, uniform_cut(c->mt, e))) << file << " e " << e;
     }
   }
   if (meshes == 0) GTEST_SKIP() << "no shared meshes";
+}
+
+// The topology phase's last stage may leave two faces on the same three vertices; cuts finer than
+// all its collapses hold no such pair, and those coarser are still conforming counted mod 2.
+TEST(MtBuilder, OnlyCutsCoarserThanTheStackingStageStackFaces) {
+  int meshes = 0;
+  for (const char* file : {"dragon-vrip-res4-11k.ply", "dragon-vrip-res2-203k.ply"}) {
+    const MtCase* c = test::scan_case(file);
+    if (!c) continue;
+    ++meshes;
+    ASSERT_GT(c->stacking_collapses, 0u) << file;
+    EXPECT_LE(c->stacking_collapses, c->topology_collapses) << file;
+    EXPECT_GE(c->stacking_error, c->topology_error) << file;
+    test::CutReference unstacked = c->reference;
+    unstacked.stacked_faces = false;
+    EXPECT_TRUE(test::validate_conforming_cut(unstacked, uniform_cut(c->mt, c->stacking_error * 0.99f)))
+        << file;
+    for (const float above : {1.0f, 2.0f, 8.0f})
+      EXPECT_TRUE(test::validate_conforming_cut(c->reference, uniform_cut(c->mt, c->stacking_error * above)))
+          << file << " x" << above;
+  }
+  if (meshes == 0) GTEST_SKIP() << "no shared meshes";
+}
+
+// A scan whose every triangle is split 3×3 with noise (as mtlod-gen --split makes the 105M dragon
+// of BENCHMARKS.md) keeps its non-manifold and misoriented edges as long chains of short ones; the
+// topology phase without its stacking stage stops there at thousands of faces in stacks of small
+// closed pieces. The root still gets under 2,000 triangles and bounds its error.
+TEST(MtBuilder, AFinelySplitScanStillGetsASmallRoot) {
+  const auto path = test::shared_meshes_dir() / "dragon-vrip-res4-11k.ply";
+  if (!std::filesystem::exists(path)) GTEST_SKIP() << "no shared meshes";
+  auto loaded = io::load_mesh(path);
+  ASSERT_TRUE(loaded.ok());
+  SubdivideOptions split;
+  split.split = 3;
+  split.noise = 0.05f;
+  const MtCase* c = test::build_case("res4-split-3", subdivide(loaded->mesh, split));
+  ASSERT_NE(c, nullptr);
+  EXPECT_GT(c->stacking_collapses, 0u);
+  EXPECT_LE(c->mt.root_triangle_count(), 2000u);
+  const std::vector<std::uint32_t> root = root_cut(c->mt);
+  EXPECT_TRUE(test::validate_conforming_cut(c->reference, root));
+  float bound = 0;
+  for (std::uint32_t t = 0; t < c->mt.root_triangle_count(); ++t)
+    bound = std::max(bound, c->mt.triangle_error(t));
+  EXPECT_TRUE(test::every_vertex_within(
+      c->mesh, root, std::vector<double>(c->mesh.vertex_count(), double(bound) * (1 + 1e-5))));
 }
 
 TEST(MtBuilder, VerticesAreNumberedRootMeshFirstThenByNode) {

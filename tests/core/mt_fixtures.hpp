@@ -26,12 +26,17 @@ struct MtCase {
   // Collapses of the builder's topology phase and their smallest error (core::BuildStats).
   std::size_t topology_collapses = 0;
   float topology_error = std::numeric_limits<float>::infinity();
+  std::size_t stacking_collapses = 0;  // of them, those that may stack two faces
+  float stacking_error = std::numeric_limits<float>::infinity();
   // From core::BuildStats or core::io::LargeBuildStats.
   template <class Stats>
   void set_topology(const Stats& stats) {
     topology_collapses = stats.topology_collapses;
     topology_error = stats.topology_error;
+    stacking_collapses = stats.stacking_collapses;
+    stacking_error = stats.stacking_error;
     reference.coarse_topology_changes = stats.topology_collapses > 0;
+    reference.stacked_faces = stats.stacking_collapses > 0;
   }
 };
 
