@@ -10,9 +10,9 @@
 #include <variant>
 #include <vector>
 
-#include "core/distance_transform.hpp"
-#include "core/draco_encode.hpp"
-#include "core/falloff.hpp"
+#include "core/codec/draco_encode.hpp"
+#include "core/view/distance_transform.hpp"
+#include "core/view/falloff.hpp"
 
 namespace mtlod::protocol {
 
@@ -39,14 +39,14 @@ using Matrix4 = std::array<double, 16>;  // column-major, as OpenGL and GLM stor
 // The names on the wire of the core enumerations a request chooses from, in enumerator order: adding
 // an enumerator in core fails these assertions until its name is added here.
 inline constexpr std::array<const char*, 2> kErrorUnitNames{"model", "pixels"};
-static_assert(kErrorUnitNames.size() == core::kErrorUnitsCount);
+static_assert(kErrorUnitNames.size() == core::view::kErrorUnitsCount);
 inline constexpr std::array<const char*, 4> kFalloffNames{"step", "linear", "smoothstep", "foveal"};
-static_assert(kFalloffNames.size() == core::kFalloffLawCount);
+static_assert(kFalloffNames.size() == core::view::kFalloffLawCount);
 inline constexpr std::array<const char*, 5> kDistanceMetricNames{"chamfer-5-7-11", "chamfer-3-4",
                                                                  "city-block", "chessboard", "euclidean"};
-static_assert(kDistanceMetricNames.size() == core::kDistanceMetricCount);
+static_assert(kDistanceMetricNames.size() == core::view::kDistanceMetricCount);
 inline constexpr std::array<const char*, 2> kDracoMethodNames{"edgebreaker", "sequential"};
-static_assert(kDracoMethodNames.size() == core::kDracoMethodCount);
+static_assert(kDracoMethodNames.size() == core::codec::kDracoMethodCount);
 // The unit of a request's distance thresholds exists on the wire only: core works in pixels.
 enum class DistanceUnit : std::uint8_t { kPixels, kChamfer };
 inline constexpr std::array<const char*, 2> kDistanceUnitNames{"pixels", "chamfer"};
@@ -81,8 +81,8 @@ struct Criteria {
   std::optional<Silhouette> silhouette;
   std::vector<Focus> focus;
   std::vector<Focus> neglect;
-  core::FalloffLaw falloff = core::FalloffLaw::kStep;
-  core::DistanceMetric distance = core::DistanceMetric::kChamfer5711;
+  core::view::FalloffLaw falloff = core::view::FalloffLaw::kStep;
+  core::view::DistanceMetric distance = core::view::DistanceMetric::kChamfer5711;
   DistanceUnit units = DistanceUnit::kPixels;
   bool internal_silhouettes = false;  // depth discontinuities seed the silhouette distance too
   double frustum_factor = 8;          // allowed error multiplier outside the view (1 = off)
@@ -93,7 +93,7 @@ struct Criteria {
 struct DracoSettings {
   // Unset: edgebreaker for extract (smallest payload), sequential for gaze (lowest latency), the
   // defaults chosen from tests/bench/bench_pipeline (tests/bench/BENCHMARKS.md, "Draco").
-  std::optional<core::DracoMethod> method;
+  std::optional<core::codec::DracoMethod> method;
   int speed = 10;  // 0 best ratio .. 10 fastest; 10 is also no larger than 5-8 (bench_pipeline)
   int position_bits = 14;
   int normal_bits = 10;
@@ -118,7 +118,7 @@ struct Extract {
   std::array<std::uint32_t, 2> viewport{800, 600};  // pixels
   std::array<std::uint32_t, 2> grid{256, 256};      // distance-transform cells
   double error = 0;                                 // the bound e
-  core::ErrorUnits error_unit = core::ErrorUnits::kModel;
+  core::view::ErrorUnits error_unit = core::view::ErrorUnits::kModel;
   Criteria criteria;
   std::optional<std::uint32_t> budget;  // at most this many triangles
   bool normals = true;                  // every model has normals (stored, or computed at load)

@@ -250,8 +250,8 @@ Criteria read_criteria(const json& v, const Limits& limits) {
     fail(ErrorKind::kLimitExceeded, fmt::format("{} focus and neglect points exceed the server limit {}",
                                                 c.focus.size() + c.neglect.size(), limits.max_foci));
   }
-  c.falloff = static_cast<core::FalloffLaw>(r.choice("falloff", kFalloffNames, 0));
-  c.distance = static_cast<core::DistanceMetric>(r.choice("distance", kDistanceMetricNames, 0));
+  c.falloff = static_cast<core::view::FalloffLaw>(r.choice("falloff", kFalloffNames, 0));
+  c.distance = static_cast<core::view::DistanceMetric>(r.choice("distance", kDistanceMetricNames, 0));
   c.units = static_cast<DistanceUnit>(r.choice("units", kDistanceUnitNames, 0));
   c.internal_silhouettes = r.boolean("internal_silhouettes", false);
   c.frustum_factor = r.number("frustum_factor", c.frustum_factor, 1, 1e6);
@@ -280,7 +280,7 @@ Extract read_extract(ObjectReader& r, const Limits& limits) {
   } else {
     ObjectReader er(error, "error");
     e.error = er.required_number("value", 0, 1e12);
-    e.error_unit = static_cast<core::ErrorUnits>(er.choice("unit", kErrorUnitNames, 0));
+    e.error_unit = static_cast<core::view::ErrorUnits>(er.choice("unit", kErrorUnitNames, 0));
     er.finish();
   }
   if (const json* c = r.find("criteria")) e.criteria = read_criteria(*c, limits);
@@ -303,7 +303,7 @@ Extract read_extract(ObjectReader& r, const Limits& limits) {
   if (const json* d = r.find("draco")) {
     ObjectReader dr(*d, "draco");
     if (dr.has("method"))
-      e.draco.method = static_cast<core::DracoMethod>(dr.choice("method", kDracoMethodNames, 0));
+      e.draco.method = static_cast<core::codec::DracoMethod>(dr.choice("method", kDracoMethodNames, 0));
     e.draco.speed = static_cast<int>(dr.integer("speed", e.draco.speed, 0, 10));
     // Positions are floats (24-bit mantissa), and Draco's entropy coder's time and memory double with
     // each bit: 20 bits is finer than any model needs and still cheap. Its octahedral normal coding
@@ -313,7 +313,7 @@ Extract read_extract(ObjectReader& r, const Limits& limits) {
     if (dr.has("entropy_coding")) e.draco.entropy_coding = dr.boolean("entropy_coding", true);
     dr.finish();
   }
-  if (e.delta && e.draco.method == core::DracoMethod::kEdgebreaker) {
+  if (e.delta && e.draco.method == core::codec::DracoMethod::kEdgebreaker) {
     fail(ErrorKind::kBadRequest, "'delta' needs draco.method 'sequential': edgebreaker reorders the faces");
   }
   if (e.delta && e.labels) {

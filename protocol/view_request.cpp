@@ -13,22 +13,22 @@ glm::mat4 to_glm(const Matrix4& m) {
 
 }  // namespace
 
-core::ViewRequest to_view_request(const Extract& e, bool model_has_normals) {
-  core::ViewRequest v;
+core::view::ViewRequest to_view_request(const Extract& e, bool model_has_normals) {
+  core::view::ViewRequest v;
   v.camera.view = to_glm(e.view);
   v.camera.projection = to_glm(e.projection);
   v.grid = {e.grid[0], e.grid[1]};
-  core::AllowedErrorOptions& a = v.allowed;
+  core::view::AllowedErrorOptions& a = v.allowed;
   a.error = static_cast<float>(e.error);
   a.units = e.error_unit;
   a.viewport_height_px = static_cast<float>(e.viewport[1]);
   a.metric = e.criteria.distance;
   // Thresholds in raw units become pixels; exact Euclidean distances count fifths of a pixel.
-  const float per_pixel = a.metric == core::DistanceMetric::kEuclidean
+  const float per_pixel = a.metric == core::view::DistanceMetric::kEuclidean
                               ? 5.0f
-                              : static_cast<float>(core::units_per_pixel(a.metric));
+                              : static_cast<float>(core::view::units_per_pixel(a.metric));
   const float to_px = e.criteria.units == DistanceUnit::kChamfer ? 1.0f / per_pixel : 1.0f;
-  const core::FalloffLaw law = e.criteria.falloff;
+  const core::view::FalloffLaw law = e.criteria.falloff;
   if (e.criteria.silhouette) {
     a.use_silhouette = true;
     a.silhouette.law = law;
@@ -45,7 +45,7 @@ core::ViewRequest to_view_request(const Extract& e, bool model_has_normals) {
   }
   if (!e.criteria.neglect.empty()) {
     a.use_neglect = true;
-    a.neglect.law = law == core::FalloffLaw::kFoveal ? core::FalloffLaw::kStep : law;
+    a.neglect.law = law == core::view::FalloffLaw::kFoveal ? core::view::FalloffLaw::kStep : law;
     a.neglect.distance_px = static_cast<float>(e.criteria.neglect.front().distance) * to_px;
     a.neglect.factor = static_cast<float>(e.criteria.neglect.front().factor);
     for (const auto& f : e.criteria.neglect)

@@ -7,9 +7,9 @@
 #include <chrono>
 #include <unordered_map>
 
-#include "core/cut_delta.hpp"
-#include "core/draco_encode.hpp"
-#include "core/view_extract.hpp"
+#include "core/codec/draco_encode.hpp"
+#include "core/cut/cut_delta.hpp"
+#include "core/view/view_extract.hpp"
 #include "fmt/format.h"
 #include "protocol/view_request.hpp"
 #include "spdlog/spdlog.h"
@@ -18,9 +18,9 @@ namespace mtlod::server {
 
 struct ExtractionState::State {
   ModelPtr model;  // the version the session's cut comes from
-  std::unique_ptr<core::Refiner> refiner;
-  core::ViewCache view;               // lets a gaze (same view, new foci) reuse the view's stages
-  core::CutDelta sent;                // the client's mesh, when it asked for delta replies
+  std::unique_ptr<core::cut::Refiner> refiner;
+  core::view::ViewCache view;         // lets a gaze (same view, new foci) reuse the view's stages
+  core::cut::CutDelta sent;           // the client's mesh, when it asked for delta replies
   std::uint64_t error_bound_cut = 0;  // triangles of the last cut, when it had no budget
 };
 
@@ -44,14 +44,14 @@ std::uint64_t elapsed_us(Clock::time_point& since) {
 // no longer served.
 struct CachedExtractor {
   std::weak_ptr<const Model> model;
-  std::unique_ptr<core::ViewExtractor> extractor;
+  std::unique_ptr<core::view::ViewExtractor> extractor;
 };
 
 // Per worker: one extractor per model version and one encoder, created on first use, reused after.
 struct Worker {
   std::unordered_map<std::uint64_t, CachedExtractor> extractors;  // by Model::serial
-  core::DracoEncoder encoder;
-  core::CutMesh cut;
+  core::codec::DracoEncoder encoder;
+  core::cut::CutMesh cut;
   std::vector<std::uint32_t> added, removed, added_ids, added_triangles;  // delta replies
   std::uint64_t accounted = 0;  // scratch bytes last reported to the memory ceiling
 
@@ -140,7 +140,7 @@ ExtractResult Engine::extract(const protocol::Extract& request, bool gaze, Extra
   }
   try {
     return run(model, request, gaze, session);
-  } catch (const core::CorruptMt& e) {
+  } catch (const core::model::CorruptMt& e) {
     // A block of the model's mapped file failed its check on first use. Every request that reaches
     // it fails the same way; the others are served. The session's cut may be half-updated.
     spdlog::error("model {}: {}", model->name, e.what());
@@ -156,9 +156,9 @@ ExtractResult Engine::run(const ModelPtr& model, const protocol::Extract& reques
   CachedExtractor& cached = worker.extractors[model->serial];
   if (!cached.extractor) {
     cached.model = model;
-    cached.extractor = std::make_unique<core::ViewExtractor>(model->mt, *model->occupancy);
+    cached.extractor = std::make_unique<core::view::ViewExtractor>(model->mt, *model->occupancy);
   }
-  core::ViewExtractor* const extractor = cached.extractor.get();
+  core::view::ViewExtractor* const extractor = cached.extractor.get();
 
   if (!session.state) session.state = std::make_unique<ExtractionState::State>();
   ExtractionState::State& state = *session.state;
@@ -166,13 +166,13 @@ ExtractResult Engine::run(const ModelPtr& model, const protocol::Extract& reques
   if (state.model != model) {
     // Another model, or a new version of this one: the cut starts afresh from its root.
     model_changed = state.model && state.model->name == model->name;
-    state.refiner = std::make_unique<core::Refiner>(model->mt);
+    state.refiner = std::make_unique<core::cut::Refiner>(model->mt);
     state.model = model;
     state.view.reset();
     state.sent.reset();
   }
 
-  const core::ViewRequest view = protocol::to_view_request(request, model->mt.has_normals());
+  const core::view::ViewRequest view = protocol::to_view_request(request, model->mt.has_normals());
   ExtractOutcome outcome;
   protocol::StageTimings& t = outcome.reply.timings;
   auto clock = Clock::now();
@@ -185,14 +185,14 @@ ExtractResult Engine::run(const ModelPtr& model, const protocol::Extract& reques
   extractor->allowed_error();
   t.labels_us = elapsed_us(clock);
   // A gaze's cut is read in place from the session's refiner (no copy of the whole mesh).
-  const core::CutSpan cut = extractor->refine_view(*state.refiner, worker.cut);
+  const core::cut::CutSpan cut = extractor->refine_view(*state.refiner, worker.cut);
   t.refine_us = elapsed_us(clock);
   state.error_bound_cut = request.budget ? 0 : cut.triangle_count();
 
-  core::DracoOptions draco;
+  core::codec::DracoOptions draco;
   // Deltas are sequential (the parser refuses them with an explicit edgebreaker).
-  draco.method = request.draco.method.value_or(gaze || request.delta ? core::DracoMethod::kSequential
-                                                                     : core::DracoMethod::kEdgebreaker);
+  draco.method = request.draco.method.value_or(
+      gaze || request.delta ? core::codec::DracoMethod::kSequential : core::codec::DracoMethod::kEdgebreaker);
   draco.speed = request.draco.speed;
   draco.position_bits = request.draco.position_bits;
   draco.normal_bits = request.draco.normal_bits;
@@ -200,7 +200,7 @@ ExtractResult Engine::run(const ModelPtr& model, const protocol::Extract& reques
   if (request.delta) {
     // One grid for every payload of the model: a vertex kept from an earlier delta and the same
     // vertex in a new one decode to the same floats.
-    core::DracoOptions::Grid grid;
+    core::codec::DracoOptions::Grid grid;
     grid.origin = model->bounds_min;
     for (int c = 0; c < 3; ++c)
       grid.range = std::max(grid.range, model->bounds_max[c] - model->bounds_min[c]);
@@ -228,7 +228,7 @@ ExtractResult Engine::run(const ModelPtr& model, const protocol::Extract& reques
   std::uint64_t vertices = 0;
   outcome.payload.clear();
   if (!triangles.empty() || !request.delta) {  // a full reply always goes through the encoder's checks
-    const core::DracoInput input{
+    const core::codec::DracoInput input{
         model->mt.positions, model->mt.normals,
         request.labels ? extractor->vertex_labels() : std::span<const std::uint32_t>(), triangles,
         model->mt.colors};

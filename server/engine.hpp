@@ -1,4 +1,4 @@
-// The request pipeline behind the sockets (DESIGN.md §4): an extract request becomes grid mapping,
+// The pipeline behind the sockets (core/ARCHITECTURE.md §4): an extract becomes grid mapping,
 // distance transforms, labels, refinement of the session's cut and Draco encoding. Runs on worker
 // threads; per-worker scratch memory lives in the engine, per-session state in ExtractionState.
 #pragma once

@@ -7,12 +7,12 @@
 #include <cmath>
 #include <map>
 
-#include "core/bounds.hpp"
+#include "core/build/mt_builder.hpp"
+#include "core/build/vertex_normals.hpp"
 #include "core/io/mesh_io.hpp"
 #include "core/io/mt_file.hpp"
-#include "core/mt_builder.hpp"
+#include "core/model/bounds.hpp"
 #include "core/threads/thread_pool.hpp"
-#include "core/vertex_normals.hpp"
 #include "fmt/format.h"
 #include "spdlog/spdlog.h"
 
@@ -64,18 +64,18 @@ std::atomic<std::uint64_t> next_serial{1};
 
 // A version of `name` from an MT, with its derived data. kCorrupt when a mapped block the coarse
 // cuts read fails its check.
-Result<std::shared_ptr<Model>> describe(std::string name, fs::path path, core::Mt mt) {
+Result<std::shared_ptr<Model>> describe(std::string name, fs::path path, core::model::Mt mt) {
   auto model = std::make_shared<Model>();
   model->name = std::move(name);
   model->path = std::move(path);
   model->mt = std::move(mt);
   model->serial = next_serial++;
-  const core::Mt& m = model->mt;
+  const core::model::Mt& m = model->mt;
   try {
     // Every reply carries normals: an MT stored without them gets them now (12 bytes per vertex).
-    model->normals_computed = core::ensure_normals(model->mt);
-    model->occupancy = std::make_unique<core::OccupancyLevels>(m);
-  } catch (const core::CorruptMt& e) {
+    model->normals_computed = core::build::ensure_normals(model->mt);
+    model->occupancy = std::make_unique<core::view::OccupancyLevels>(m);
+  } catch (const core::model::CorruptMt& e) {
     return make_error(ErrorCode::kCorrupt, fmt::format("{}: {}", model->path.string(), e.what()));
   }
   model->memory_bytes = m.memory_bytes() + model->occupancy->memory_bytes();
@@ -264,16 +264,16 @@ Status ModelRegistry::add_mesh(const fs::path& mesh, const fs::path& mt_path) {
     }
   }
   if (!model) {
-    core::Mt built;
+    core::model::Mt built;
     {  // the input mesh and the build's threads are released before the model is described
       const auto start = std::chrono::steady_clock::now();
       MTLOD_TRY(core::io::LoadedMesh loaded, core::io::load_mesh(mesh));
-      core::BuildStats stats;
+      core::build::BuildStats stats;
       // Built before the server serves anyone: every core helps (the MT is the same as serial).
-      core::ThreadPool pool;
-      core::BuildOptions options;
+      core::threads::ThreadPool pool;
+      core::build::BuildOptions options;
       pool.attach(options);
-      MTLOD_TRY(core::Mt mt, core::build_mt(loaded.mesh, options, &stats));
+      MTLOD_TRY(core::model::Mt mt, core::build::build_mt(loaded.mesh, options, &stats));
       if (!stats.normals_given) {
         spdlog::info("{}: no normals: computed from its surface (angle-weighted)", mesh.string());
       } else if (stats.normals_computed > 0) {

@@ -22,9 +22,9 @@
 #include <vector>
 
 #include "core/io/file_lease.hpp"
-#include "core/mt.hpp"
-#include "core/occupancy_levels.hpp"
+#include "core/model/mt.hpp"
 #include "core/result.hpp"
+#include "core/view/occupancy_levels.hpp"
 #include "protocol/replies.hpp"
 
 namespace mtlod::server {
@@ -60,9 +60,9 @@ class ModelGate {
 struct Model {
   std::string name;  // file stem: "bunny" for bunny.mt
   std::filesystem::path path;
-  core::Mt mt;
-  std::unique_ptr<core::OccupancyLevels> occupancy;  // coarse cuts for the occupancy stage
-  std::size_t memory_bytes = 0;                      // held in memory: arrays read whole, coarse cuts
+  core::model::Mt mt;
+  std::unique_ptr<core::view::OccupancyLevels> occupancy;  // coarse cuts for the occupancy stage
+  std::size_t memory_bytes = 0;                            // held in memory: arrays read whole, coarse cuts
   std::size_t input_triangles = 0;
   float max_error = 0;  // largest triangle error
   float min_error = 0;  // smallest non-zero triangle error

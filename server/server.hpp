@@ -1,4 +1,4 @@
-// mtlod-server's network shell (DESIGN.md §4): a Boost.Asio TCP listener, one session per
+// mtlod-server's shell (core/ARCHITECTURE.md §5.1): a Boost.Asio TCP listener, one session per
 // connection, a worker pool for extractions, limits, metrics and graceful shutdown. Asio stays in
 // server.cpp; this header is light.
 #pragma once

@@ -1,4 +1,4 @@
-// Per-connection request policy, without sockets (DESIGN.md §4 "server/"; PROTOCOL.md): replies
+// Per-connection request policy, no sockets (core/ARCHITECTURE.md §4; PROTOCOL.md): replies
 // leave in request order, compute jobs of one connection run one at a time (they share the
 // connection's cut for dynamic refinement), a newer gaze replaces a queued one, cancel removes a
 // queued job, and the number of unanswered requests is bounded.

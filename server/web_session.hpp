@@ -1,4 +1,4 @@
-// The browser transport (DESIGN.md §4 "server/"): one HTTP port that serves the viewer's static
+// Browser transport (core/ARCHITECTURE.md §4): one HTTP port that serves the viewer's static
 // files (clients/web/ and three.js from scripts/node_modules/three) and upgrades `GET /ws` to a
 // WebSocket carrying the protocol (PROTOCOL.md, first paragraph). A WebSocket connection is a
 // server::Connection like a TCP one, so ordering, coalescing, limits and drain are shared. Beast

@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Fails when an include points the wrong way between the source folders (README, "Layout"):
-#   core/ (algorithms)       core/ only (not its io/, eval/ or threads/)
-#   core/io, eval, threads   core/, and io/ may use eval/ (debug images)
-#   protocol/                core/ algorithms and protocol/; nlohmann-json, not CLI11/Boost/spdlog
+#   core/<room>/             core/result.hpp and the rooms below it: util model codec cut view eval
+#                            io build threads (core/ARCHITECTURE.md §5)
+#   protocol/                core/'s request path (util to view) and protocol/; nlohmann-json, not
+#                            CLI11/Boost/spdlog
 #   server/                  core/ (not eval/), protocol/, server/
 #   clients/                 core/, protocol/, clients/ (not server/)
 # Usage: tests/check_layers.sh [SOURCE_ROOT]
@@ -33,13 +34,20 @@ check() {
   done < <(find "$folder" "$@" \( -name '*.cpp' -o -name '*.hpp' \) -print0)
 }
 
-core_algorithms='^core/[^/]+$'
-check core "$core_algorithms" 'boost/|CLI/|spdlog/|nlohmann/|OpenMesh/' -maxdepth 1
-check core/io '^core/([^/]+|io/.+|eval/.+)$' 'boost/|CLI/|spdlog/|nlohmann/'
-check core/eval '^core/([^/]+|eval/.+)$' 'boost/|CLI/|spdlog/|nlohmann/|OpenMesh/'
-check core/threads "$core_algorithms" 'boost/|CLI/|spdlog/|nlohmann/|OpenMesh/'
-check protocol '^(core/[^/]+|protocol/.+)$' 'boost/|CLI/|spdlog/|OpenMesh/'
-server_allowed='^(core/([^/]+|io/.+|threads/.+)|protocol/.+|server/.+)$'
+# core/'s rooms, bottom to top (core/CMakeLists.txt): each may include core/result.hpp and the rooms
+# up to itself. Only io/ reads meshes with OpenMesh, PNG or tinygltf.
+rooms=(util model codec cut view eval io build threads)
+below=''
+for room in "${rooms[@]}"; do
+  below="${below:+$below|}$room"
+  ban='boost/|CLI/|spdlog/|nlohmann/'
+  [ "$room" = io ] || ban="$ban|OpenMesh/|png.h|tiny_gltf"
+  check "core/$room" "^core/(result\.hpp|($below)/.+)$" "$ban"
+done
+check core '^core/result\.hpp$' 'boost/|CLI/|spdlog/|nlohmann/|OpenMesh/' -maxdepth 1
+request_path='core/(result\.hpp|(util|model|codec|cut|view)/.+)'
+check protocol "^($request_path|protocol/.+)$" 'boost/|CLI/|spdlog/|OpenMesh/'
+server_allowed='^(core/(result\.hpp|(util|model|codec|cut|view|io|build|threads)/.+)|protocol/.+|server/.+)$'
 check server "$server_allowed" 'CLI/' -not -name main.cpp
 check server "$server_allowed" '' -name main.cpp  # the program parses its command line
 check clients '^(core/.+|protocol/.+|clients/.+)$' ''

@@ -8,7 +8,7 @@
 #include "CLI/CLI.hpp"
 #include "clients/common/extract_flags.hpp"
 #include "clients/common/retry.hpp"
-#include "core/draco_decode.hpp"
+#include "core/codec/draco_decode.hpp"
 #include "core/io/gltf.hpp"
 #include "core/io/mesh_io.hpp"
 #include "fmt/format.h"
@@ -164,7 +164,7 @@ int main(int argc, char** argv) {
     } else if (ext == ".glb" && gltf_draco == "on") {
       if (auto saved = core::io::write_glb_draco(output, draco); !saved) return fail(saved.error().message);
     } else {
-      auto decoded = core::decode_draco(draco);
+      auto decoded = core::codec::decode_draco(draco);
       if (!decoded) return fail(decoded.error().message);
       auto saved = ext == ".glb" ? core::io::write_glb(output, decoded->mesh)
                                  : core::io::save_mesh(output, decoded->mesh);

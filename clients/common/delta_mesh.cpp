@@ -3,7 +3,7 @@
 
 #include <algorithm>
 
-#include "core/draco_decode.hpp"
+#include "core/codec/draco_decode.hpp"
 #include "fmt/format.h"
 
 namespace mtlod::clients {
@@ -40,8 +40,8 @@ Status DeltaMesh::apply(const protocol::MeshReply& reply, std::span<const std::u
     corners_.resize(9 * std::size_t{last});
   }
   if (!parts.added_ids.empty()) {
-    MTLOD_TRY(const core::DecodedMesh decoded, core::decode_draco(parts.draco));
-    const core::Mesh& m = decoded.mesh;
+    MTLOD_TRY(const core::codec::DecodedMesh decoded, core::codec::decode_draco(parts.draco));
+    const core::model::Mesh& m = decoded.mesh;
     if (m.triangle_count() != parts.added_ids.size()) {
       return make_error(ErrorCode::kCorrupt,
                         fmt::format("the delta's Draco mesh has {} triangles for {} added ids",

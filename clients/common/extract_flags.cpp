@@ -142,7 +142,7 @@ Result<Extract> make_extract(const ExtractFlags& f, const std::string& model,
                       "give exactly one of --error (model units) and --error-px (pixels)");
   }
   e.error = f.error ? *f.error : *f.error_px;
-  e.error_unit = f.error ? core::ErrorUnits::kModel : core::ErrorUnits::kScreenPixels;
+  e.error_unit = f.error ? core::view::ErrorUnits::kModel : core::view::ErrorUnits::kScreenPixels;
   std::vector<double> v;
   if (!f.silhouette.empty()) {
     if (!parse_numbers(f.silhouette, 2, v))
@@ -190,7 +190,7 @@ Result<Extract> make_extract(const ExtractFlags& f, const std::string& model,
   MTLOD_RETURN_IF_ERROR(named(e.criteria.distance, kDistanceMetricNames, f.distance, "--distance"));
   MTLOD_RETURN_IF_ERROR(named(e.criteria.units, kDistanceUnitNames, f.units, "--units"));
   if (!f.draco_method.empty()) {
-    core::DracoMethod method{};
+    core::codec::DracoMethod method{};
     MTLOD_RETURN_IF_ERROR(named(method, kDracoMethodNames, f.draco_method, "--draco"));
     e.draco.method = method;
   }

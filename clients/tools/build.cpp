@@ -1,4 +1,4 @@
-// mtlod-build: reads a mesh, builds its Multi-Tessellation (DESIGN.md §2) and writes an .mt file,
+// mtlod-build: reads a mesh, builds its MT (core/ARCHITECTURE.md §2) and writes an .mt file,
 // with a progress bar on a terminal and a summary of counts, error, time and size.
 #include <unistd.h>
 
@@ -11,10 +11,10 @@
 
 #include "CLI/CLI.hpp"
 #include "clients/common/huge_pages.hpp"
-#include "core/io/large_build.hpp"
+#include "core/build/large_build.hpp"
+#include "core/build/mt_builder.hpp"
 #include "core/io/mesh_io.hpp"
 #include "core/io/mt_file.hpp"
-#include "core/mt_builder.hpp"
 #include "core/threads/thread_pool.hpp"
 #include "fmt/format.h"
 
@@ -81,19 +81,19 @@ std::string topology_line(std::size_t collapses, float error, std::size_t stacki
   return line;
 }
 
-// PLY in bounded memory, streamed (core/io/large_build.hpp).
+// PLY in bounded memory, streamed (core/build/large_build.hpp).
 int build_large(const std::string& input, const std::string& output,
-                const mtlod::core::io::LargeBuildOptions& options, bool tty) {
+                const mtlod::core::build::LargeBuildOptions& options, bool tty) {
   using namespace mtlod::core;
   BarState bar;
-  io::LargeBuildOptions large = options;
+  build::LargeBuildOptions large = options;
   if (tty) {
     large.progress = draw_phase;
     large.progress_user = &bar;
   }
-  io::LargeBuildStats stats;
+  build::LargeBuildStats stats;
   const auto start = std::chrono::steady_clock::now();
-  const auto built = io::build_mt_file(input, output, large, &stats);
+  const auto built = build::build_mt_file(input, output, large, &stats);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   if (tty) fmt::print(stderr, "\n");
   if (!built) {
@@ -129,8 +129,8 @@ int main(int argc, char** argv) {
   mtlod::clients::rerun_with_huge_pages(argv);
   CLI::App app{"Build a Multi-Tessellation (.mt) from a triangle mesh."};
   std::string input, output;
-  BuildOptions options;
-  io::LargeBuildOptions large;
+  build::BuildOptions options;
+  build::LargeBuildOptions large;
   bool raw = false;
   app.add_option("input", input, "mesh file: .ply (streamed in bounded memory), .obj, .off or .stl")
       ->required();
@@ -159,7 +159,8 @@ int main(int argc, char** argv) {
   options.coarse_topology = !keep_topology;
 
   const bool tty = isatty(fileno(stderr)) != 0;
-  mtlod::core::ThreadPool pool(serial ? 1u : std::thread::hardware_concurrency());  // 1: no other thread
+  mtlod::core::threads::ThreadPool pool(serial ? 1u
+                                               : std::thread::hardware_concurrency());  // 1: no other thread
   if (!serial) pool.attach(options);
   if (!raw && lower_extension(input) == ".ply") {
     large.build = options;
@@ -174,7 +175,7 @@ int main(int argc, char** argv) {
     fmt::print(stderr, "mtlod-build: {}\n", loaded.error().message);
     return 1;
   }
-  const Mesh& mesh = loaded->mesh;
+  const model::Mesh& mesh = loaded->mesh;
   fmt::print("{}: {} vertices, {} triangles\n  {}\n", input, mesh.vertex_count(), mesh.triangle_count(),
              loaded->cleanup.summary());
 
@@ -183,9 +184,9 @@ int main(int argc, char** argv) {
     options.progress = draw_bar;
     options.progress_user = &bar;
   }
-  BuildStats stats;
+  build::BuildStats stats;
   const auto start = std::chrono::steady_clock::now();
-  auto mt = build_mt(mesh, options, &stats);
+  auto mt = build::build_mt(mesh, options, &stats);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   if (tty) fmt::print(stderr, "\n");
   if (!mt) {

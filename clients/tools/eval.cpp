@@ -38,7 +38,8 @@
 #include "clients/tools/eval/gaze_study.hpp"
 #include "clients/tools/eval/score.hpp"
 #include "clients/tools/eval/support.hpp"
-#include "core/bounds.hpp"
+#include "core/build/mt_builder.hpp"
+#include "core/cut/refine.hpp"
 #include "core/eval/image_metrics.hpp"
 #include "core/eval/render.hpp"
 #include "core/eval/silhouette_metrics.hpp"
@@ -46,12 +47,11 @@
 #include "core/io/image_io.hpp"
 #include "core/io/mesh_io.hpp"
 #include "core/io/mt_file.hpp"
-#include "core/labels.hpp"
-#include "core/mt_builder.hpp"
-#include "core/occupancy_levels.hpp"
-#include "core/refine.hpp"
-#include "core/view_extract.hpp"
-#include "core/view_grid.hpp"
+#include "core/model/bounds.hpp"
+#include "core/view/labels.hpp"
+#include "core/view/occupancy_levels.hpp"
+#include "core/view/view_extract.hpp"
+#include "core/view/view_grid.hpp"
 #include "fmt/format.h"
 
 namespace {
@@ -83,12 +83,12 @@ int run_compare(const std::string& a_path, const std::string& b_path, std::size_
   auto b = load(b_path);
   if (!b) return fmt::print(stderr, "mtlod-eval: {}\n", b.error().message), 1;
   const auto start = Clock::now();
-  const SurfaceError e =
-      compare_surfaces(a->positions, a->triangles, b->positions, b->triangles, {samples, true, 1});
-  const double diag = bounds_of(a->positions).diagonal();
+  const eval::SurfaceError e =
+      eval::compare_surfaces(a->positions, a->triangles, b->positions, b->triangles, {samples, true, 1});
+  const double diag = model::bounds_of(a->positions).diagonal();
   fmt::print("A = {} ({} triangles), B = {} ({} triangles), A's bounding-box diagonal {:.6g}\n", a_path,
              a->triangle_count(), b_path, b->triangle_count(), diag);
-  const auto row = [&](const char* name, const DistanceStats& s) {
+  const auto row = [&](const char* name, const eval::DistanceStats& s) {
     fmt::print("  {}: {} samples, max {:.6g} ({:.4f} % of diagonal), mean {:.6g}, RMS {:.6g}\n", name,
                s.samples, s.max, 100 * s.max / diag, s.mean, s.rms);
   };
@@ -119,8 +119,8 @@ void add_camera_flags(CLI::App& app, CameraFlags& camera) {
 
 // The camera of the flags for a model with these bounds: without --eye, in front of the model
 // along +z, far enough that its bounding sphere fills about 90 % of the field of view.
-Result<Camera> camera_from_flags(const Bounds& bounds, const CameraFlags& f, double aspect) {
-  std::array<double, 3> eye, target = to_double(bounds.centre()), up{f.up[0], f.up[1], f.up[2]};
+Result<view::Camera> camera_from_flags(const model::Bounds& bounds, const CameraFlags& f, double aspect) {
+  std::array<double, 3> eye, target = model::to_double(bounds.centre()), up{f.up[0], f.up[1], f.up[2]};
   if (f.eye.empty()) {
     const double d = bounds.radius() / std::sin(glm::radians(f.fov / 2)) / 0.9;
     eye = {target[0], target[1], target[2] + d};
@@ -139,16 +139,16 @@ int run_silhouette(const std::string& a_path, const std::string& b_path, const C
   if (!a) return fmt::print(stderr, "mtlod-eval: {}\n", a.error().message), 1;
   auto b = load(b_path);
   if (!b) return fmt::print(stderr, "mtlod-eval: {}\n", b.error().message), 1;
-  if (f.size == 0 || f.size > kMaxGridSide)
-    return fmt::print(stderr, "mtlod-eval: --size {} is outside [1, {}]\n", f.size, kMaxGridSide), 2;
-  auto camera = camera_from_flags(bounds_of(a->positions), f, 1.0);
+  if (f.size == 0 || f.size > view::kMaxGridSide)
+    return fmt::print(stderr, "mtlod-eval: --size {} is outside [1, {}]\n", f.size, view::kMaxGridSide), 2;
+  auto camera = camera_from_flags(model::bounds_of(a->positions), f, 1.0);
   if (!camera) return fmt::print(stderr, "mtlod-eval: {}\n", camera.error().message), 2;
-  const GridSize grid{f.size, f.size};
-  const ViewMapping mapping(*camera, grid);
+  const view::GridSize grid{f.size, f.size};
+  const view::ViewMapping mapping(*camera, grid);
   std::vector<std::uint8_t> mask_a(grid.cell_count()), mask_b(grid.cell_count());
-  rasterize_silhouette(mapping, a->positions, a->triangles, mask_a);
-  rasterize_silhouette(mapping, b->positions, b->triangles, mask_b);
-  const SilhouetteError e = compare_silhouettes(mask_a, mask_b, grid);
+  eval::rasterize_silhouette(mapping, a->positions, a->triangles, mask_a);
+  eval::rasterize_silhouette(mapping, b->positions, b->triangles, mask_b);
+  const eval::SilhouetteError e = eval::compare_silhouettes(mask_a, mask_b, grid);
   fmt::print(
       "{}x{} image: A covers {} px, B covers {} px, XOR {} px; contour distance mean {:.3f} px, max {:.3f} "
       "px "
@@ -207,9 +207,9 @@ struct Row {
 // Object-space error of a cut against the original, both directions (samples of the original and
 // its index are shared by every cut of the mesh).
 struct Reference {
-  const Mesh* mesh = nullptr;
-  SurfaceSamples samples;
-  std::unique_ptr<TriangleIndex> index;
+  const model::Mesh* mesh = nullptr;
+  eval::SurfaceSamples samples;
+  std::unique_ptr<eval::TriangleIndex> index;
   double diagonal = 1;
 };
 
@@ -217,24 +217,24 @@ struct Reference {
 // that the focus-region error of any view is a masked reduction over them.
 struct CutDistances {
   std::vector<float> ref_to_cut;
-  SurfaceSamples cut_samples;
+  eval::SurfaceSamples cut_samples;
   std::vector<float> cut_to_ref;
 };
 
 void measure_surface(Reference& ref, std::span<const float> positions, std::span<const std::uint32_t> cut,
                      std::size_t cut_samples, CutDistances& d, Measure& out) {
-  TriangleIndex cut_index(positions, cut);
-  sample_surface(positions, cut, {}, {cut_samples, true, 2}, d.cut_samples);
+  eval::TriangleIndex cut_index(positions, cut);
+  eval::sample_surface(positions, cut, {}, {cut_samples, true, 2}, d.cut_samples);
   d.ref_to_cut.resize(ref.samples.size());
   d.cut_to_ref.resize(d.cut_samples.size());
-  const DistanceStats to_cut = sample_distances(ref.samples, cut_index, d.ref_to_cut);
-  const DistanceStats to_ref = sample_distances(d.cut_samples, *ref.index, d.cut_to_ref);
+  const eval::DistanceStats to_cut = eval::sample_distances(ref.samples, cut_index, d.ref_to_cut);
+  const eval::DistanceStats to_ref = eval::sample_distances(d.cut_samples, *ref.index, d.cut_to_ref);
   out.hausdorff = std::max(to_cut.max, to_ref.max) / ref.diagonal;
   out.rms = std::max(to_cut.rms, to_ref.rms) / ref.diagonal;
 }
 
 // Max and RMS of the distances whose sample lies on a masked triangle.
-std::pair<double, double> masked_stats(std::span<const float> distance, const SurfaceSamples& samples,
+std::pair<double, double> masked_stats(std::span<const float> distance, const eval::SurfaceSamples& samples,
                                        std::span<const std::uint8_t> mask) {
   double max = 0, sum2 = 0;
   std::size_t n = 0;
@@ -253,22 +253,23 @@ void measure_focus(const Reference& ref, const CutDistances& d, std::span<const 
   out.focus_rms = std::max(rms_a, rms_b) / ref.diagonal;
 }
 
-void measure_silhouette(const ViewMapping& image, std::span<const std::uint8_t> ref_mask,
+void measure_silhouette(const view::ViewMapping& image, std::span<const std::uint8_t> ref_mask,
                         std::span<const float> positions, std::span<const std::uint32_t> cut,
                         std::vector<std::uint8_t>& scratch, Measure& out) {
-  rasterize_silhouette(image, positions, cut, scratch);
-  const SilhouetteError e = compare_silhouettes(ref_mask, scratch, image.grid());
+  eval::rasterize_silhouette(image, positions, cut, scratch);
+  const eval::SilhouetteError e = eval::compare_silhouettes(ref_mask, scratch, image.grid());
   out.xor_px = double(e.xor_pixels);
   out.contour_mean_px = e.mean_px();
   out.contour_max_px = e.max_px();
 }
 
-Status write_render(const fs::path& path, const ViewMapping& image, std::span<const float> positions,
-                    std::span<const std::uint32_t> triangles, const RenderColors& colors, bool wireframe) {
-  RenderOptions options;
+Status write_render(const fs::path& path, const view::ViewMapping& image, std::span<const float> positions,
+                    std::span<const std::uint32_t> triangles, const eval::RenderColors& colors,
+                    bool wireframe) {
+  eval::RenderOptions options;
   options.wireframe = wireframe;
   std::vector<std::uint8_t> rgb(3 * image.grid().cell_count());
-  render_mesh(image, positions, triangles, colors, options, rgb);
+  eval::render_mesh(image, positions, triangles, colors, options, rgb);
   return io::write_png_rgb(path, rgb, image.grid());
 }
 
@@ -276,10 +277,10 @@ Status write_render(const fs::path& path, const ViewMapping& image, std::span<co
 // silhouette XOR of uniform and silhouette-DT, Hausdorff colour maps of the original against both,
 // and the silhouette distance labels.
 Status write_figures(const fs::path& dir, const std::string& name, std::size_t budget,
-                     const ViewMapping& image, const Mesh& mesh, const Mt& mt,
+                     const view::ViewMapping& image, const model::Mesh& mesh, const model::Mt& mt,
                      const std::array<std::vector<std::uint32_t>, kMethodCount>& cuts,
                      const std::vector<float>& meshopt_positions, std::span<const std::uint8_t> ref_mask,
-                     std::span<const std::uint16_t> silhouette_dt, const ViewMapping& dt_mapping,
+                     std::span<const std::uint16_t> silhouette_dt, const view::ViewMapping& dt_mapping,
                      std::vector<std::string>& figures) {
   const std::string stem = fmt::format("{}-{}", name, budget);
   for (int m = 0; m < kMethodCount; ++m) {
@@ -293,7 +294,7 @@ Status write_figures(const fs::path& dir, const std::string& name, std::size_t b
   // Silhouette XOR: shared pixels grey, only the original blue, only the cut red.
   std::vector<std::uint8_t> mask(image.grid().cell_count()), rgb;
   for (const int m : {kUniform, kSilhouette}) {
-    rasterize_silhouette(image, mt.positions, cuts[m], mask);
+    eval::rasterize_silhouette(image, mt.positions, cuts[m], mask);
     xor_image(ref_mask, mask, rgb);
     const std::string file = fmt::format("{}-xor-{}.png", stem, kMethodFiles[m]);
     MTLOD_TRY(auto ok, io::write_png_rgb(dir / file, rgb, image.grid()));
@@ -304,7 +305,7 @@ Status write_figures(const fs::path& dir, const std::string& name, std::size_t b
   // cut, on one scale for both methods (the uniform cut's largest vertex distance).
   std::array<std::vector<float>, 2> distance;
   for (int k = 0; k < 2; ++k) {
-    TriangleIndex index(mt.positions, cuts[k == 0 ? kUniform : kSilhouette]);
+    eval::TriangleIndex index(mt.positions, cuts[k == 0 ? kUniform : kSilhouette]);
     distance[k].resize(mesh.vertex_count());
     for (std::size_t v = 0; v < mesh.vertex_count(); ++v)
       distance[k][v] =
@@ -314,7 +315,7 @@ Status write_figures(const fs::path& dir, const std::string& name, std::size_t b
   std::vector<std::uint8_t> colours(3 * mesh.vertex_count());
   for (int k = 0; k < 2; ++k) {
     for (std::size_t v = 0; v < mesh.vertex_count(); ++v) {
-      const auto c = ramp_color(distance[k][v] / scale);
+      const auto c = eval::ramp_color(distance[k][v] / scale);
       std::copy(c.begin(), c.end(), &colours[3 * v]);
     }
     const std::string file =
@@ -326,11 +327,11 @@ Status write_figures(const fs::path& dir, const std::string& name, std::size_t b
   // Silhouette labels of the original's vertices (papers/000 figure 2): 0 to 20 px on the ramp.
   std::vector<std::uint32_t> cells(mesh.vertex_count()), labels(mesh.vertex_count());
   std::vector<float> clip_w(mesh.vertex_count());
-  map_vertices(dt_mapping, mesh.positions, cells, clip_w);
-  label_vertices(cells, silhouette_dt, labels);
+  view::map_vertices(dt_mapping, mesh.positions, cells, clip_w);
+  view::label_vertices(cells, silhouette_dt, labels);
   for (std::size_t v = 0; v < mesh.vertex_count(); ++v) {
-    const auto c = labels[v] >= kLabelUnreached ? std::array<std::uint8_t, 3>{128, 128, 128}
-                                                : ramp_color(float(labels[v]) / (5.0f * 20.0f));
+    const auto c = labels[v] >= view::kLabelUnreached ? std::array<std::uint8_t, 3>{128, 128, 128}
+                                                      : eval::ramp_color(float(labels[v]) / (5.0f * 20.0f));
     std::copy(c.begin(), c.end(), &colours[3 * v]);
   }
   const std::string file = fmt::format("{}-labels.png", name);
@@ -370,7 +371,7 @@ int run_experiment(const ExperimentOptions& o, const std::string& command) {
   std::vector<Row> rows;
   std::vector<std::pair<std::string, std::string>> mesh_info;
   std::vector<std::string> notes, figures;
-  const GridSize image_grid{o.image_px, o.image_px}, dt_grid{o.grid_px, o.grid_px};
+  const view::GridSize image_grid{o.image_px, o.image_px}, dt_grid{o.grid_px, o.grid_px};
   for (const std::string& spec : o.meshes) {
     const auto eq = spec.find('=');
     if (eq == std::string::npos || eq == 0)
@@ -381,19 +382,19 @@ int run_experiment(const ExperimentOptions& o, const std::string& command) {
     if (!mesh) return fmt::print(stderr, "mtlod-eval: {}\n", mesh.error().message), 1;
     auto mt = cached_mt(*mesh, name, o.cache_dir);
     if (!mt) return fmt::print(stderr, "mtlod-eval: {}: {}\n", name, mt.error().message), 1;
-    const OccupancyLevels levels(*mt);
-    ViewExtractor extractor(*mt, levels);
-    Refiner refiner(*mt);
-    const Bounds bounds = bounds_of(mesh->positions);
+    const view::OccupancyLevels levels(*mt);
+    view::ViewExtractor extractor(*mt, levels);
+    cut::Refiner refiner(*mt);
+    const model::Bounds bounds = model::bounds_of(mesh->positions);
 
     Reference ref;
     ref.mesh = &*mesh;
     ref.diagonal = bounds.diagonal();
     // Vertices as samples too while they are few; big meshes get area samples only (said in the report).
     const bool with_vertices = mesh->vertex_count() <= o.reference_samples;
-    sample_surface(mesh->positions, mesh->triangles, {}, {o.reference_samples, with_vertices, 1},
-                   ref.samples);
-    ref.index = std::make_unique<TriangleIndex>(mesh->positions, mesh->triangles);
+    eval::sample_surface(mesh->positions, mesh->triangles, {}, {o.reference_samples, with_vertices, 1},
+                         ref.samples);
+    ref.index = std::make_unique<eval::TriangleIndex>(mesh->positions, mesh->triangles);
     mesh_info.push_back(
         {name, fmt::format("{} | {} | {} | {} | {}", path, mesh->vertex_count(), mesh->triangle_count(),
                            mt->root_triangle_count(), ref.samples.size())});
@@ -420,27 +421,28 @@ int run_experiment(const ExperimentOptions& o, const std::string& command) {
     CutDistances distances;
     std::vector<float> sil_field, focus_field;
     std::vector<std::uint16_t> sil_dt0;
-    ViewMapping dt_mapping0;
+    view::ViewMapping dt_mapping0;
     for (int k = 0; k < o.cameras; ++k) {
-      const Camera camera = orbit_camera(bounds, k, o.cameras);
-      const ViewMapping image(camera, image_grid);
-      rasterize_silhouette(image, mesh->positions, mesh->triangles, ref_mask);
+      const view::Camera camera = orbit_camera(bounds, k, o.cameras);
+      const view::ViewMapping image(camera, image_grid);
+      eval::rasterize_silhouette(image, mesh->positions, mesh->triangles, ref_mask);
       const std::array<float, 2> focus = focus_point(ref_mask, image_grid);
       const float focus_radius_img = o.focus[0] * float(o.image_px);
-      triangles_near_point(image, mesh->positions, mesh->triangles, focus[0] * o.image_px,
-                           focus[1] * o.image_px, focus_radius_img, ref_focus);
+      eval::triangles_near_point(image, mesh->positions, mesh->triangles, focus[0] * o.image_px,
+                                 focus[1] * o.image_px, focus_radius_img, ref_focus);
 
       // The two view-dependent fields: a tiny bound e so that every triangle fails and the budget
       // alone stops the refinement; the ranking error / allowed then depends only on the factors.
       const auto field = [&](bool silhouette, std::vector<float>& out) {
-        ViewRequest request;
+        view::ViewRequest request;
         request.camera = camera;
         request.grid = dt_grid;
         request.allowed.error = 1e-9f * bounds.radius();
         request.allowed.use_silhouette = silhouette;
-        request.allowed.silhouette = {FalloffLaw::kStep, o.silhouette[0], o.silhouette[1], 16.0f, 2.3f};
+        request.allowed.silhouette = {view::FalloffLaw::kStep, o.silhouette[0], o.silhouette[1], 16.0f, 2.3f};
         request.allowed.use_focus = !silhouette;
-        request.allowed.focus = {FalloffLaw::kStep, o.focus[0] * float(o.grid_px), o.focus[1], 16.0f, 2.3f};
+        request.allowed.focus = {view::FalloffLaw::kStep, o.focus[0] * float(o.grid_px), o.focus[1], 16.0f,
+                                 2.3f};
         if (!silhouette) request.focus = {focus};
         request.dynamic = false;
         request.allowed_error_on_demand = false;  // the whole field is read below
@@ -456,13 +458,13 @@ int run_experiment(const ExperimentOptions& o, const std::string& command) {
       };
       field(true, sil_field);
       field(false, focus_field);
-      const std::array<AllowedError, 3> allowed{AllowedError::everywhere(0.0f),
-                                                AllowedError::from_vertices(sil_field),
-                                                AllowedError::from_vertices(focus_field)};
+      const std::array<cut::AllowedError, 3> allowed{cut::AllowedError::everywhere(0.0f),
+                                                     cut::AllowedError::from_vertices(sil_field),
+                                                     cut::AllowedError::from_vertices(focus_field)};
 
       for (const std::size_t b : budgets) {
         // Equal counts: run each method at the budget, then all at the smallest count, until equal.
-        std::array<CutMesh, 3> cuts;
+        std::array<cut::CutMesh, 3> cuts;
         std::size_t target = b;
         for (int round = 0; round < 6; ++round) {
           for (int m = 0; m < 3; ++m) refiner.refine_budget(allowed[m], target, cuts[m]);
@@ -478,8 +480,8 @@ int run_experiment(const ExperimentOptions& o, const std::string& command) {
           Measure& r = row.m[m];
           r.triangles = double(cuts[m].triangle_count());
           cut_focus.resize(cuts[m].triangle_count());
-          triangles_near_point(image, mt->positions, cuts[m].triangles, focus[0] * o.image_px,
-                               focus[1] * o.image_px, focus_radius_img, cut_focus);
+          eval::triangles_near_point(image, mt->positions, cuts[m].triangles, focus[0] * o.image_px,
+                                     focus[1] * o.image_px, focus_radius_img, cut_focus);
           measure_surface(ref, mt->positions, cuts[m].triangles, o.cut_samples, distances, r);
           measure_focus(ref, distances, ref_focus, cut_focus, r);
           measure_silhouette(image, ref_mask, mt->positions, cuts[m].triangles, scratch, r);
@@ -487,8 +489,8 @@ int run_experiment(const ExperimentOptions& o, const std::string& command) {
         Measure& mo = row.m[kMeshopt];
         mo = meshopt_surface[b];
         cut_focus.resize(meshopt[b].size() / 3);
-        triangles_near_point(image, mesh->positions, meshopt[b], focus[0] * o.image_px, focus[1] * o.image_px,
-                             focus_radius_img, cut_focus);
+        eval::triangles_near_point(image, mesh->positions, meshopt[b], focus[0] * o.image_px,
+                                   focus[1] * o.image_px, focus_radius_img, cut_focus);
         measure_focus(ref, meshopt_distances[b], ref_focus, cut_focus, mo);
         measure_silhouette(image, ref_mask, mesh->positions, meshopt[b], scratch, mo);
         rows.push_back(row);
@@ -551,12 +553,12 @@ std::string report_markdown(const ExperimentOptions& o, const std::vector<Row>& 
       "- {} cameras per mesh on an orbit around the bounding sphere (azimuth every {:.0f}°, elevation "
       "alternating +25° and −10°, 40° field of view, the sphere filling ~90 % of the view).",
       o.cameras, 360.0 / o.cameras));
-  add("- Methods, all from the same Multi-Tessellation (core/mt_builder) by budgeted refinement "
-      "(core/refine `refine_budget`, worst error/allowed ratio first):");
+  add("- Methods, all from the same Multi-Tessellation (core/build/mt_builder) by budgeted refinement "
+      "(core/cut/refine `refine_budget`, worst error/allowed ratio first):");
   add("  - **uniform**: one allowed error everywhere (the ranking is the triangles' own error);");
   add(fmt::format(
       "  - **silhouette-DT**: the papers' step law on the 5-7-11 silhouette transform of a {}×{} view grid "
-      "(core/view_extract): allowed error ×{} within {} grid px of the external silhouette;",
+      "(core/view/view_extract): allowed error ×{} within {} grid px of the external silhouette;",
       o.grid_px, o.grid_px, o.silhouette[1], o.silhouette[0]));
   add(fmt::format(
       "  - **focus-DT**: the same law on the focus transform: ×{} within {:.0f} grid px ({:.0f} % of the "
@@ -718,29 +720,29 @@ int run_image(const std::string& a_path, const std::string& b_path, const ImageF
   if (!a) return fmt::print(stderr, "mtlod-eval: {}\n", a.error().message), 1;
   auto b = load(b_path);
   if (!b) return fmt::print(stderr, "mtlod-eval: {}\n", b.error().message), 1;
-  GridSize grid;
-  const std::uint32_t min_side = 2 * SsimOptions{}.window_radius + 1;
+  view::GridSize grid;
+  const std::uint32_t min_side = 2 * eval::SsimOptions{}.window_radius + 1;
   if (!parse_viewport(f.viewport, grid) || grid.width < min_side || grid.height < min_side ||
-      grid.width > kMaxGridSide || grid.height > kMaxGridSide)
+      grid.width > view::kMaxGridSide || grid.height > view::kMaxGridSide)
     return fmt::print(stderr, "mtlod-eval: --viewport '{}' is not WxH with sides in [{}, {}]\n", f.viewport,
-                      min_side, kMaxGridSide),
+                      min_side, view::kMaxGridSide),
            2;
   if (!f.focus.empty() && !(f.focus[0] >= 0 && f.focus[0] <= 1 && f.focus[1] >= 0 && f.focus[1] <= 1))
     return fmt::print(stderr, "mtlod-eval: --focus {},{} is outside [0, 1]²\n", f.focus[0], f.focus[1]), 2;
   if (!(f.viewing_distance_px >= 0) || !(f.e2_deg > 0) || !(f.diff_scale > 0))
     return fmt::print(stderr, "mtlod-eval: --viewing-distance-px, --e2 and --diff-scale must be positive\n"),
            2;
-  const Bounds bounds = bounds_of(a->positions);
+  const model::Bounds bounds = model::bounds_of(a->positions);
   auto camera = camera_from_flags(bounds, f.camera, double(grid.width) / grid.height);
   if (!camera) return fmt::print(stderr, "mtlod-eval: {}\n", camera.error().message), 2;
-  const ViewMapping mapping(*camera, grid);
+  const view::ViewMapping mapping(*camera, grid);
 
   // "Shaded with the original normals": A's own (from its file, else area-weighted), handed to B's
   // vertices by position.
   std::vector<float> a_normals = a->normals, b_normals;
   if (a_normals.empty()) {
     a_normals.resize(a->positions.size());
-    area_weighted_normals(a->positions, a->triangles, a_normals);
+    eval::area_weighted_normals(a->positions, a->triangles, a_normals);
   }
   const std::size_t matched =
       normals_from_original(a->positions, a_normals, b->positions, b->triangles, b_normals);
@@ -753,14 +755,14 @@ int run_image(const std::string& a_path, const std::string& b_path, const ImageF
   const std::array<float, 2> focus01 = f.focus.empty()
                                            ? focus_point(mask_a, grid)
                                            : std::array<float, 2>{float(f.focus[0]), float(f.focus[1])};
-  Foveation foveation;
+  eval::Foveation foveation;
   foveation.focus_x_px = focus01[0] * float(grid.width);
   foveation.focus_y_px = focus01[1] * float(grid.height);
   foveation.focal_px =
-      f.viewing_distance_px > 0 ? f.viewing_distance_px : focal_px_from_fov(grid.height, f.camera.fov);
+      f.viewing_distance_px > 0 ? f.viewing_distance_px : eval::focal_px_from_fov(grid.height, f.camera.fov);
   foveation.e2_deg = f.e2_deg;
   std::vector<float> weights(grid.cell_count());
-  foveation_weights(grid, foveation, weights);
+  eval::foveation_weights(grid, foveation, weights);
   ImageScratch scratch;
   const ImageMeasure m = measure_image(va, vb, grid, weights, scratch);
 
@@ -793,7 +795,7 @@ int run_image(const std::string& a_path, const std::string& b_path, const ImageF
     std::vector<std::uint8_t> rgb(3 * grid.cell_count(), 255);
     for (std::size_t c = 0; c < grid.cell_count(); ++c) {
       if (!scratch.covered[c]) continue;
-      const auto colour = ramp_color(float(std::abs(va.luminance[c] - vb.luminance[c]) / f.diff_scale));
+      const auto colour = eval::ramp_color(float(std::abs(va.luminance[c] - vb.luminance[c]) / f.diff_scale));
       std::copy(colour.begin(), colour.end(), &rgb[3 * c]);
     }
     if (auto s = io::write_png_rgb(f.diff_png, rgb, grid); !s)

@@ -1,7 +1,7 @@
 // mtlod-extract: loads an .mt file and writes one selective refinement of it as a mesh
-// (DESIGN.md §2): a uniform error bound (--error, model units) and/or a triangle budget (--budget),
+// (core/ARCHITECTURE.md §2.4): a uniform bound (--error, model units) and/or a budget (--budget),
 // or, with a camera or criteria, the view-dependent extraction the server computes for the same
-// flags (DESIGN.md §1; the flags and their meaning are protocol/extract_flags, shared with
+// flags (core/ARCHITECTURE.md §1; the flags are clients/common/extract_flags, shared with
 // mtlod-client), with the occupancy and distance images on request.
 #include <chrono>
 #include <cstdint>
@@ -11,16 +11,16 @@
 
 #include "CLI/CLI.hpp"
 #include "clients/common/extract_flags.hpp"
-#include "core/bounds.hpp"
-#include "core/draco_encode.hpp"
+#include "core/build/vertex_normals.hpp"
+#include "core/codec/draco_encode.hpp"
+#include "core/cut/refine.hpp"
 #include "core/io/gltf.hpp"
 #include "core/io/image_io.hpp"
 #include "core/io/mesh_io.hpp"
 #include "core/io/mt_file.hpp"
-#include "core/occupancy_levels.hpp"
-#include "core/refine.hpp"
-#include "core/vertex_normals.hpp"
-#include "core/view_extract.hpp"
+#include "core/model/bounds.hpp"
+#include "core/view/occupancy_levels.hpp"
+#include "core/view/view_extract.hpp"
 #include "fmt/format.h"
 #include "protocol/view_request.hpp"
 
@@ -60,8 +60,9 @@ bool view_dependent(const ExtractOptions& o) {
 }
 
 // The cut with its used vertices only, renumbered in first-use order; normals and colours follow.
-mtlod::core::Mesh compact(const mtlod::core::Mt& mt, const std::vector<std::uint32_t>& triangles) {
-  mtlod::core::Mesh mesh;
+mtlod::core::model::Mesh compact(const mtlod::core::model::Mt& mt,
+                                 const std::vector<std::uint32_t>& triangles) {
+  mtlod::core::model::Mesh mesh;
   std::vector<std::uint32_t> remap(mt.vertex_count(), UINT32_MAX);
   mesh.triangles.reserve(triangles.size());
   for (const std::uint32_t v : triangles) {
@@ -86,15 +87,15 @@ using namespace mtlod::core;
 
 // Writes the cut as a mesh file, or as the Draco payload the server would send for the request (in
 // a .glb with the model's normals and colours, and no labels: glTF has no meaning for them).
-Status write_output(const std::string& path, bool gltf_draco, const Mt& mt, const CutMesh& cut,
+Status write_output(const std::string& path, bool gltf_draco, const model::Mt& mt, const cut::CutMesh& cut,
                     const protocol::Extract* request, std::span<const std::uint32_t> labels) {
   const auto extension = std::filesystem::path(path).extension();
   const bool glb = extension == ".glb";
   if (glb && !gltf_draco) return io::write_glb(path, compact(mt, cut.triangles));
   if (!glb && extension != ".drc") return io::save_mesh(path, compact(mt, cut.triangles));
-  DracoOptions draco;
+  codec::DracoOptions draco;
   if (request) {
-    draco.method = request->draco.method.value_or(DracoMethod::kEdgebreaker);
+    draco.method = request->draco.method.value_or(codec::DracoMethod::kEdgebreaker);
     draco.speed = request->draco.speed;
     draco.position_bits = request->draco.position_bits;
     draco.normal_bits = request->draco.normal_bits;
@@ -109,9 +110,9 @@ Status write_output(const std::string& path, bool gltf_draco, const Mt& mt, cons
     draco.labels = false;
   }
   std::vector<std::uint8_t> bytes;
-  MTLOD_TRY(
-      DracoStats stats,
-      DracoEncoder().encode({mt.positions, mt.normals, labels, cut.triangles, mt.colors}, draco, bytes));
+  MTLOD_TRY(codec::DracoStats stats,
+            codec::DracoEncoder().encode({mt.positions, mt.normals, labels, cut.triangles, mt.colors}, draco,
+                                         bytes));
   if (glb) return io::write_glb_draco(path, bytes);
   std::FILE* f = std::fopen(path.c_str(), "wb");
   const bool ok = f && std::fwrite(bytes.data(), 1, bytes.size(), f) == bytes.size();
@@ -144,27 +145,27 @@ int run(int argc, char** argv) {
     return 1;
   }
   // An MT stored without normals gets them as the server gives them: computed once at load.
-  ensure_normals(*mt);
+  build::ensure_normals(*mt);
   const double load_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 
-  Refiner refiner(*mt);
-  CutMesh cut;
+  cut::Refiner refiner(*mt);
+  cut::CutMesh cut;
   std::optional<mtlod::protocol::Extract> request;
-  std::unique_ptr<OccupancyLevels> levels;
-  std::unique_ptr<ViewExtractor> extractor;
+  std::unique_ptr<view::OccupancyLevels> levels;
+  std::unique_ptr<view::ViewExtractor> extractor;
   double refine_s = 0;
   if (view) {
-    const Bounds& box = mt->bounds;
-    auto made =
-        mtlod::protocol::make_extract(options.view, options.model, to_double(box.lo), to_double(box.hi));
+    const model::Bounds& box = mt->bounds;
+    auto made = mtlod::protocol::make_extract(options.view, options.model, model::to_double(box.lo),
+                                              model::to_double(box.hi));
     if (!made) {
       fmt::print(stderr, "mtlod-extract: {}\n", made.error().message);
       return 2;
     }
     request = std::move(*made);
-    levels = std::make_unique<OccupancyLevels>(*mt);
-    extractor = std::make_unique<ViewExtractor>(*mt, *levels);
-    ViewRequest v = mtlod::protocol::to_view_request(*request, mt->has_normals());
+    levels = std::make_unique<view::OccupancyLevels>(*mt);
+    extractor = std::make_unique<view::ViewExtractor>(*mt, *levels);
+    view::ViewRequest v = mtlod::protocol::to_view_request(*request, mt->has_normals());
     v.dynamic = false;
     start = std::chrono::steady_clock::now();
     extractor->map(v);
@@ -173,7 +174,7 @@ int run(int argc, char** argv) {
     extractor->allowed_error();
     extractor->refine(refiner, cut);
     refine_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    const GridSize grid{request->grid[0], request->grid[1]};
+    const view::GridSize grid{request->grid[0], request->grid[1]};
     if (!options.dump_occupancy.empty()) {
       if (auto s = io::write_occupancy_png(options.dump_occupancy, extractor->occupancy_grid(), grid); !s) {
         fmt::print(stderr, "mtlod-extract: {}\n", s.error().message);
@@ -186,9 +187,10 @@ int run(int argc, char** argv) {
         fmt::print(stderr, "mtlod-extract: --dump-dt needs --silhouette or --focus\n");
         return 2;
       }
-      // Exact Euclidean labels come in fifths of a pixel, like 5-7-11 (see core/view_extract).
-      const DistanceMetric metric = v.allowed.metric;
-      const std::uint32_t per_px = metric == DistanceMetric::kEuclidean ? 5 : units_per_pixel(metric);
+      // Exact Euclidean labels come in fifths of a pixel, like 5-7-11 (see core/view/view_extract).
+      const view::DistanceMetric metric = v.allowed.metric;
+      const std::uint32_t per_px =
+          metric == view::DistanceMetric::kEuclidean ? 5 : view::units_per_pixel(metric);
       if (auto s = io::write_distance_png(options.dump_dt, dt, grid, per_px); !s) {
         fmt::print(stderr, "mtlod-extract: {}\n", s.error().message);
         return 1;
@@ -198,10 +200,11 @@ int run(int argc, char** argv) {
     start = std::chrono::steady_clock::now();
     if (options.view.budget) {
       // Without --error every triangle that has a finer version competes, ranked by its error.
-      refiner.refine_budget(AllowedError::everywhere(static_cast<float>(options.view.error.value_or(0.0))),
-                            *options.view.budget, cut);
+      refiner.refine_budget(
+          cut::AllowedError::everywhere(static_cast<float>(options.view.error.value_or(0.0))),
+          *options.view.budget, cut);
     } else {
-      refiner.refine(AllowedError::everywhere(static_cast<float>(*options.view.error)), cut);
+      refiner.refine(cut::AllowedError::everywhere(static_cast<float>(*options.view.error)), cut);
     }
     refine_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   }
@@ -232,7 +235,7 @@ int run(int argc, char** argv) {
 int main(int argc, char** argv) {
   try {
     return run(argc, argv);
-  } catch (const mtlod::core::CorruptMt& e) {
+  } catch (const mtlod::core::model::CorruptMt& e) {
     // A block of the mapped file failed its check when the refinement reached it.
     fmt::print(stderr, "mtlod-extract: {}\n", e.what());
     return 1;

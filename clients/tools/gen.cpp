@@ -12,7 +12,7 @@
 #include "core/eval/subdivide.hpp"
 #include "core/io/mesh_io.hpp"
 #include "core/io/ply_stream.hpp"
-#include "core/mesh_cleanup.hpp"
+#include "core/model/mesh_cleanup.hpp"
 #include "fmt/format.h"
 
 namespace {
@@ -25,7 +25,7 @@ double seconds_since(std::chrono::steady_clock::time_point start) {
 }
 
 // Hands the subdivider's chunks to the PLY writer.
-class PlySink final : public SubdivisionSink {
+class PlySink final : public eval::SubdivisionSink {
  public:
   explicit PlySink(io::PlyWriter& writer) : writer_(writer) {}
   Status vertices(std::span<const float> positions, std::span<const std::uint8_t> colors) override {
@@ -39,7 +39,7 @@ class PlySink final : public SubdivisionSink {
   io::PlyWriter& writer_;
 };
 
-int split_mesh(const std::string& from, const std::string& output, const SubdivideOptions& options) {
+int split_mesh(const std::string& from, const std::string& output, const eval::SubdivideOptions& options) {
   if (std::filesystem::path(output).extension() != ".ply") {
     fmt::print(stderr, "mtlod-gen: --from writes binary PLY only, not {}\n", output);
     return 1;
@@ -51,15 +51,15 @@ int split_mesh(const std::string& from, const std::string& output, const Subdivi
     fmt::print(stderr, "mtlod-gen: {}\n", loaded.error().message);
     return 1;
   }
-  const Mesh& base = loaded->mesh;
-  const Subdivider subdivider(base, options);
-  const SubdivisionCounts& counts = subdivider.counts();
+  const model::Mesh& base = loaded->mesh;
+  const eval::Subdivider subdivider(base, options);
+  const eval::SubdivisionCounts& counts = subdivider.counts();
   fmt::print("{}: {} vertices, {} edges, {} triangles{}, read in {:.2f} s\n", from, counts.base_vertices,
              counts.base_edges, counts.base_triangles, base.has_colors() ? ", colours" : "",
              seconds_since(start));
   if (!subdivider.fits()) {
     fmt::print(stderr, "mtlod-gen: --split {} gives {} vertices, more than 32-bit ids allow ({})\n",
-               options.split, counts.vertices, Subdivider::kMaxVertices);
+               options.split, counts.vertices, eval::Subdivider::kMaxVertices);
     return 1;
   }
   fmt::print("split {}: {} vertices, {} triangles; noise amplitude {:.3g} ({} x mean edge {:.3g})\n",
@@ -91,8 +91,8 @@ int split_mesh(const std::string& from, const std::string& output, const Subdivi
 int main(int argc, char** argv) {
   CLI::App app{"Generate a synthetic triangle mesh, or a scan-like one from a real scan, as binary PLY."};
   std::string shape_name = "sphere", output, from;
-  GenerateOptions options;
-  SubdivideOptions split_options;
+  eval::GenerateOptions options;
+  eval::SubdivideOptions split_options;
   auto* shape = app.add_option("--shape", shape_name,
                                "sphere (closed, noisy), terrain (open height field) or shell "
                                "(closed logarithmic-spiral sea shell)")
@@ -128,16 +128,16 @@ int main(int argc, char** argv) {
     split_options.seed = options.seed;
     return split_mesh(from, output, split_options);
   }
-  parse_shape(shape_name, options.shape);
+  eval::parse_shape(shape_name, options.shape);
   const auto start = std::chrono::steady_clock::now();
-  const Mesh mesh = generate_mesh(options);
+  const model::Mesh mesh = eval::generate_mesh(options);
   const auto status = io::save_mesh(output, mesh);
   if (!status) {
     fmt::print(stderr, "mtlod-gen: {}\n", status.error().message);
     return 1;
   }
   const double seconds = seconds_since(start);
-  const TopologyReport topology = analyze_topology(mesh.positions, mesh.triangles);
+  const model::TopologyReport topology = model::analyze_topology(mesh.positions, mesh.triangles);
   fmt::print("{} ({}): {}\ngenerated and written in {:.2f} s\n", output, shape_name, topology.summary(),
              seconds);
   return 0;

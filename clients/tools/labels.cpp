@@ -1,4 +1,4 @@
-// mtlod-labels: runs the per-request grid stages of DESIGN.md §1 on a mesh for one camera (mapping,
+// mtlod-labels: runs the grid stages (core/ARCHITECTURE.md §1) on a mesh for one camera (mapping,
 // occupancy, silhouette and focus transforms, vertex labels), prints their times and label counts,
 // and writes the debug images (occupancy, distance transforms) like the papers' figures 2–3.
 #include <chrono>
@@ -10,12 +10,12 @@
 #include <glm/gtc/matrix_transform.hpp>
 
 #include "CLI/CLI.hpp"
-#include "core/distance_transform.hpp"
 #include "core/io/image_io.hpp"
 #include "core/io/mesh_io.hpp"
-#include "core/labels.hpp"
-#include "core/occupancy.hpp"
-#include "core/view_grid.hpp"
+#include "core/view/distance_transform.hpp"
+#include "core/view/labels.hpp"
+#include "core/view/occupancy.hpp"
+#include "core/view/view_grid.hpp"
 #include "fmt/format.h"
 
 namespace {
@@ -45,7 +45,7 @@ int main(int argc, char** argv) {
       ->expected(3);
   app.add_option("--up", up, "up vector X,Y,Z")->delimiter(',')->expected(3);
   app.add_option("--fov", fov_deg, "vertical field of view in degrees")->check(CLI::Range(1.0f, 170.0f));
-  app.add_option("--grid", grid_side, "grid cells per side")->check(CLI::Range(1u, kMaxGridSide));
+  app.add_option("--grid", grid_side, "grid cells per side")->check(CLI::Range(1u, view::kMaxGridSide));
   app.add_option("--focus", foci, "focus X,Y in normalised viewport coordinates (repeatable)")
       ->delimiter(',')
       ->expected(2)
@@ -62,8 +62,8 @@ int main(int argc, char** argv) {
     fmt::print(stderr, "mtlod-labels: {}\n", loaded.error().message);
     return 1;
   }
-  const Mesh& mesh = loaded->mesh;
-  Mesh coarse_mesh;
+  const model::Mesh& mesh = loaded->mesh;
+  model::Mesh coarse_mesh;
   if (!coarse_input.empty()) {
     auto coarse = io::load_mesh(coarse_input, load);
     if (!coarse) {
@@ -72,7 +72,7 @@ int main(int argc, char** argv) {
     }
     coarse_mesh = std::move(coarse->mesh);
   }
-  const Mesh& raster = coarse_input.empty() ? mesh : coarse_mesh;
+  const model::Mesh& raster = coarse_input.empty() ? mesh : coarse_mesh;
 
   glm::vec3 lo(1e30f), hi(-1e30f);
   for (std::size_t v = 0; v < mesh.vertex_count(); ++v) {
@@ -86,40 +86,40 @@ int main(int argc, char** argv) {
       eye.empty() ? centre + glm::vec3(0.0f, 0.0f, radius / std::tan(glm::radians(fov_deg) / 2.0f) * 1.1f)
                   : glm::vec3(eye[0], eye[1], eye[2]);
   const float distance = glm::length(eye_point - centre);
-  Camera camera;
+  view::Camera camera;
   camera.view = glm::lookAt(eye_point, centre, glm::vec3(up[0], up[1], up[2]));
   camera.projection =
       glm::perspective(glm::radians(fov_deg), 1.0f, std::max(1e-4f * distance, distance - 2.0f * radius),
                        distance + 2.0f * radius);
-  const ViewMapping mapping(camera, GridSize{grid_side, grid_side});
-  const GridSize grid = mapping.grid();
+  const view::ViewMapping mapping(camera, view::GridSize{grid_side, grid_side});
+  const view::GridSize grid = mapping.grid();
 
   std::vector<std::uint32_t> cells(mesh.vertex_count()), labels(mesh.vertex_count());
   std::vector<float> clip_w(mesh.vertex_count());
   std::vector<std::uint8_t> occupancy(grid.cell_count());
   std::vector<float> depth(depth_jump > 0.0f ? grid.cell_count() : 0);
   std::vector<std::uint16_t> silhouette(grid.cell_count()), focus(grid.cell_count());
-  DistanceTransformer transformer;
+  view::DistanceTransformer transformer;
 
   auto start = Clock::now();
-  map_vertices(mapping, mesh.positions, cells, clip_w);
+  view::map_vertices(mapping, mesh.positions, cells, clip_w);
   const double map_ms = ms_since(start);
   start = Clock::now();
-  rasterize_occupancy(mapping, raster.positions, raster.triangles, occupancy, depth);
+  view::rasterize_occupancy(mapping, raster.positions, raster.triangles, occupancy, depth);
   const double occupancy_ms = ms_since(start);
   std::vector<std::uint8_t> seeds = occupancy;
   std::size_t internal = 0;
-  if (depth_jump > 0.0f) internal = mark_depth_discontinuities(depth, grid, depth_jump, seeds);
+  if (depth_jump > 0.0f) internal = view::mark_depth_discontinuities(depth, grid, depth_jump, seeds);
   start = Clock::now();
-  transformer.chamfer(DistanceMetric::kChamfer5711, seeds, grid, silhouette);
+  transformer.chamfer(view::DistanceMetric::kChamfer5711, seeds, grid, silhouette);
   const double dt_ms = ms_since(start);
   start = Clock::now();
-  label_vertices(cells, silhouette, labels);
+  view::label_vertices(cells, silhouette, labels);
   const double label_ms = ms_since(start);
 
   std::size_t in_view = 0, contour = 0, object_cells = 0;
   for (const std::uint32_t l : labels) {
-    in_view += l != kLabelNoCell;
+    in_view += l != view::kLabelNoCell;
     contour += l == 5;
   }
   for (const std::uint8_t o : occupancy) object_cells += o != 0;
@@ -131,10 +131,10 @@ int main(int argc, char** argv) {
              depth_jump > 0.0f ? fmt::format(", {} internal-silhouette seeds", internal) : std::string());
 
   std::vector<std::uint32_t> focus_cells;
-  for (const auto& f : foci) focus_cells.push_back(focus_cell(grid, f[0], f[1]));
+  for (const auto& f : foci) focus_cells.push_back(view::focus_cell(grid, f[0], f[1]));
   if (!focus_cells.empty()) {
     start = Clock::now();
-    transformer.chamfer_from_cells(DistanceMetric::kChamfer5711, focus_cells, grid, focus);
+    transformer.chamfer_from_cells(view::DistanceMetric::kChamfer5711, focus_cells, grid, focus);
     fmt::print("  focus 5-7-11 from {} foci {:.3f} ms\n", focus_cells.size(), ms_since(start));
   }
   if (!out_dir.empty()) {

@@ -26,7 +26,7 @@ int main(int argc, char** argv) {
     return 1;
   }
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  const Mesh& mesh = loaded->mesh;
+  const model::Mesh& mesh = loaded->mesh;
   fmt::print("{}: read in {:.2f} s\n  as read: {}\n", input, seconds, loaded->input_topology.summary());
   if (loaded->polygons_triangulated != 0)
     fmt::print("  {} polygons triangulated\n", loaded->polygons_triangulated);

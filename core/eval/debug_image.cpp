@@ -1,11 +1,11 @@
-// Colour maps for the debug images of DESIGN.md §1.2–1.4 (the papers' figures 2–3 show the
+// Colour maps for debug images (core/ARCHITECTURE.md §1.2–1.4; the papers' figures 2–3 show the
 // distance image over the projected model).
 #include "core/eval/debug_image.hpp"
 
 #include <algorithm>
 #include <cassert>
 
-namespace mtlod::core {
+namespace mtlod::core::eval {
 
 namespace {
 
@@ -21,7 +21,7 @@ void ramp_colour(float t, std::uint8_t* rgb) {
 }
 
 template <class T>
-void colorize(std::span<const T> raw, [[maybe_unused]] GridSize grid, std::uint32_t unreached,
+void colorize(std::span<const T> raw, [[maybe_unused]] view::GridSize grid, std::uint32_t unreached,
               std::uint32_t max_raw, std::uint32_t band_raw, std::span<std::uint8_t> rgb) {
   assert(raw.size() == grid.cell_count() && rgb.size() == 3 * grid.cell_count());
   if (max_raw == 0) {
@@ -48,7 +48,7 @@ void colorize(std::span<const T> raw, [[maybe_unused]] GridSize grid, std::uint3
 
 }  // namespace
 
-void colorize_occupancy(std::span<const std::uint8_t> occupancy, [[maybe_unused]] GridSize grid,
+void colorize_occupancy(std::span<const std::uint8_t> occupancy, [[maybe_unused]] view::GridSize grid,
                         std::span<std::uint8_t> rgb) {
   assert(occupancy.size() == grid.cell_count() && rgb.size() == 3 * grid.cell_count());
   for (std::size_t c = 0; c < occupancy.size(); ++c) {
@@ -57,13 +57,13 @@ void colorize_occupancy(std::span<const std::uint8_t> occupancy, [[maybe_unused]
   }
 }
 
-void colorize_distance(std::span<const std::uint32_t> raw, GridSize grid, std::uint32_t unreached,
+void colorize_distance(std::span<const std::uint32_t> raw, view::GridSize grid, std::uint32_t unreached,
                        std::uint32_t max_raw, std::uint32_t band_raw, std::span<std::uint8_t> rgb) {
   colorize(raw, grid, unreached, max_raw, band_raw, rgb);
 }
-void colorize_distance(std::span<const std::uint16_t> raw, GridSize grid, std::uint32_t unreached,
+void colorize_distance(std::span<const std::uint16_t> raw, view::GridSize grid, std::uint32_t unreached,
                        std::uint32_t max_raw, std::uint32_t band_raw, std::span<std::uint8_t> rgb) {
   colorize(raw, grid, unreached, max_raw, band_raw, rgb);
 }
 
-}  // namespace mtlod::core
+}  // namespace mtlod::core::eval

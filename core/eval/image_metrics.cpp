@@ -7,7 +7,7 @@
 #include <numbers>
 #include <vector>
 
-namespace mtlod::core {
+namespace mtlod::core::eval {
 namespace {
 
 double radians_to_degrees(double r) {
@@ -28,18 +28,18 @@ void luminance_from_rgb(std::span<const std::uint8_t> rgb, std::span<float> lumi
     luminance[c] = float((0.299 * rgb[3 * c] + 0.587 * rgb[3 * c + 1] + 0.114 * rgb[3 * c + 2]) / 255.0);
 }
 
-GridSize ssim_map_size(GridSize size, const SsimOptions& options) {
+view::GridSize ssim_map_size(view::GridSize size, const SsimOptions& options) {
   const std::uint32_t side = 2 * options.window_radius + 1;
   assert(size.width >= side && size.height >= side);
   (void)side;
   return {size.width - 2 * options.window_radius, size.height - 2 * options.window_radius};
 }
 
-double ssim(std::span<const float> a, std::span<const float> b, GridSize size, std::span<float> map,
+double ssim(std::span<const float> a, std::span<const float> b, view::GridSize size, std::span<float> map,
             const SsimOptions& options) {
   assert(a.size() == size.cell_count() && b.size() == a.size());
   assert(options.dynamic_range > 0 && options.k1 > 0 && options.k2 > 0 && options.sigma_px > 0);
-  const GridSize out = ssim_map_size(size, options);
+  const view::GridSize out = ssim_map_size(size, options);
   assert(map.empty() || map.size() == out.cell_count());
   const std::size_t r = options.window_radius, n = 2 * r + 1, w = size.width, mw = out.width;
   const double c1 = (options.k1 * options.dynamic_range) * (options.k1 * options.dynamic_range);
@@ -102,9 +102,9 @@ double ssim(std::span<const float> a, std::span<const float> b, GridSize size, s
   return sum / double(out.cell_count());
 }
 
-double weighted_ssim(std::span<const float> map, GridSize size, const PixelWeights& weighting,
+double weighted_ssim(std::span<const float> map, view::GridSize size, const PixelWeights& weighting,
                      const SsimOptions& options) {
-  const GridSize out = ssim_map_size(size, options);
+  const view::GridSize out = ssim_map_size(size, options);
   assert(map.size() == out.cell_count());
   assert(weighting.mask.empty() || weighting.mask.size() == size.cell_count());
   assert(weighting.weights.empty() || weighting.weights.size() == size.cell_count());
@@ -137,7 +137,7 @@ double focal_px_from_fov(std::uint32_t height_px, double fovy_deg) {
   return 0.5 * double(height_px) / std::tan(0.5 * fovy_deg * (std::numbers::pi / 180.0));
 }
 
-double pixel_eccentricity_deg(GridSize size, const Foveation& f, double x_px, double y_px) {
+double pixel_eccentricity_deg(view::GridSize size, const Foveation& f, double x_px, double y_px) {
   assert(f.focal_px > 0);
   // Rays from the eye through the focus (u) and the point (v); atan2 of |u × v| and u·v is accurate
   // at small angles too, where acos of the normalised dot product loses half its digits.
@@ -149,7 +149,7 @@ double pixel_eccentricity_deg(GridSize size, const Foveation& f, double x_px, do
   return radians_to_degrees(std::atan2(std::hypot(cross[0], cross[1], cross[2]), dot));
 }
 
-void foveation_weights(GridSize size, const Foveation& foveation, std::span<float> weights) {
+void foveation_weights(view::GridSize size, const Foveation& foveation, std::span<float> weights) {
   assert(weights.size() == size.cell_count());
   for (std::uint32_t j = 0; j < size.height; ++j)
     for (std::uint32_t i = 0; i < size.width; ++i)
@@ -157,7 +157,7 @@ void foveation_weights(GridSize size, const Foveation& foveation, std::span<floa
           float(acuity_weight(pixel_eccentricity_deg(size, foveation, i + 0.5, j + 0.5), foveation.e2_deg));
 }
 
-ImageComparison compare_images(std::span<const float> a, std::span<const float> b, GridSize size,
+ImageComparison compare_images(std::span<const float> a, std::span<const float> b, view::GridSize size,
                                std::span<const std::uint8_t> covered, std::span<const float> weights,
                                std::span<float> map, const SsimOptions& options) {
   ImageComparison out;
@@ -189,7 +189,7 @@ std::size_t coverage_from_background(std::span<const std::uint8_t> a_rgb, std::s
 }
 
 ImageComparison compare_rgb_renderings(std::span<const std::uint8_t> a_rgb,
-                                       std::span<const std::uint8_t> b_rgb, GridSize size,
+                                       std::span<const std::uint8_t> b_rgb, view::GridSize size,
                                        const std::array<std::uint8_t, 3>& background,
                                        const Foveation& foveation, const SsimOptions& options) {
   assert(a_rgb.size() == 3 * size.cell_count() && b_rgb.size() == a_rgb.size());
@@ -203,4 +203,4 @@ ImageComparison compare_rgb_renderings(std::span<const std::uint8_t> a_rgb,
   return compare_images(a, b, size, covered, weights, map, options);
 }
 
-}  // namespace mtlod::core
+}  // namespace mtlod::core::eval

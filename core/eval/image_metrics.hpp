@@ -18,7 +18,7 @@
 //   Proc. SPIE 3299, 1998, pp. 294–305: their contrast threshold CT(f, e) = CT0·exp(α·f·(e + e2)/e2)
 //   puts the highest visible frequency at fc(e) ∝ e2/(e2 + e). The weight is that relative acuity,
 //   w(e) = MAR0/MAR(e) = fc(e)/fc(0) = e2/(e2 + e): 1 at the focus, ½ at e2, ~0.1 at 20°. The same
-//   law and e2 drive the server's kFoveal falloff (core/allowed_error.hpp).
+//   law and e2 drive the server's kFoveal falloff (core/view/allowed_error.hpp).
 //
 // Eccentricity needs a viewing geometry. Here the viewer's eye sits on the axis through the image
 // centre at focal_px pixels from the image plane: the angle between the rays through the focus and
@@ -36,9 +36,9 @@
 #include <cstdint>
 #include <span>
 
-#include "core/grid.hpp"
+#include "core/view/grid.hpp"
 
-namespace mtlod::core {
+namespace mtlod::core::eval {
 
 // Luma of 8-bit RGB pixels (3 bytes each) in [0, 1]: Y' = (0.299·R' + 0.587·G' + 0.114·B')/255 on the
 // stored (gamma-encoded) values, the ITU-R BT.601 weights that JPEG/JFIF and MATLAB's rgb2gray use.
@@ -56,14 +56,14 @@ struct SsimOptions {
 
 // Size of the SSIM map of a size-pixel image: (W − 2r) × (H − 2r). The image must be at least one
 // window large (W, H ≥ 2r + 1).
-GridSize ssim_map_size(GridSize size, const SsimOptions& options = {});
+view::GridSize ssim_map_size(view::GridSize size, const SsimOptions& options = {});
 
 // SSIM of images a and b (size.cell_count() entries each): writes the map, when not empty
 // (ssim_map_size(size).cell_count() entries), and returns its mean (MSSIM). Identical images give
 // exactly 1: the per-window terms are formed so that equal inputs make numerator and denominator
 // bit-identical. Filtering is separable and in double precision, O(W·H·r).
-double ssim(std::span<const float> a, std::span<const float> b, GridSize size, std::span<float> map = {},
-            const SsimOptions& options = {});
+double ssim(std::span<const float> a, std::span<const float> b, view::GridSize size,
+            std::span<float> map = {}, const SsimOptions& options = {});
 
 // Which pixels count and how much. Both parts are optional; a pixel's weight is
 // (mask empty or mask ≠ 0) · (weights empty ? 1 : weights). Either span has one entry per pixel.
@@ -75,7 +75,7 @@ struct PixelWeights {
 // Weighted mean of an SSIM map of a size-pixel image, each window weighted by the weight of its
 // centre pixel. With no weight at all (an empty mask) the images agree wherever they are compared,
 // and the result is 1.
-double weighted_ssim(std::span<const float> map, GridSize size, const PixelWeights& weighting,
+double weighted_ssim(std::span<const float> map, view::GridSize size, const PixelWeights& weighting,
                      const SsimOptions& options = {});
 
 // Weighted mean of |a − b| over the pixels (a and b of one size): Σ w·|a − b| / Σ w. Unweighted, every
@@ -99,7 +99,7 @@ double focal_px_from_fov(std::uint32_t height_px, double fovy_deg);
 // Eccentricity in degrees of the point (x_px, y_px) of a size-pixel image: the angle at the eye
 // between the rays through it and through the focus, the eye on the axis through the image centre
 // (W/2, H/2). 0 exactly at the focus itself.
-double pixel_eccentricity_deg(GridSize size, const Foveation& foveation, double x_px, double y_px);
+double pixel_eccentricity_deg(view::GridSize size, const Foveation& foveation, double x_px, double y_px);
 
 // Relative acuity at eccentricity e degrees: e2/(e2 + e); 1 at e = 0.
 inline double acuity_weight(double e_deg, double e2_deg) {
@@ -107,7 +107,7 @@ inline double acuity_weight(double e_deg, double e2_deg) {
 }
 
 // Acuity weight of every pixel centre: weights holds size.cell_count() entries.
-void foveation_weights(GridSize size, const Foveation& foveation, std::span<float> weights);
+void foveation_weights(view::GridSize size, const Foveation& foveation, std::span<float> weights);
 
 // Every image-space score of a pair of renderings, computed from one SSIM map.
 struct ImageComparison {
@@ -124,7 +124,7 @@ struct ImageComparison {
 // (empty: every pixel); weights are the acuity weights of foveation_weights (empty: all 1, and the
 // foveated values equal the covered ones). map is scratch of ssim_map_size(size).cell_count() floats,
 // and holds the SSIM map afterwards.
-ImageComparison compare_images(std::span<const float> a, std::span<const float> b, GridSize size,
+ImageComparison compare_images(std::span<const float> a, std::span<const float> b, view::GridSize size,
                                std::span<const std::uint8_t> covered, std::span<const float> weights,
                                std::span<float> map, const SsimOptions& options = {});
 
@@ -140,8 +140,8 @@ std::size_t coverage_from_background(std::span<const std::uint8_t> a_rgb, std::s
 // renderings: luma (luminance_from_rgb), covered = coverage_from_background, acuity weights of
 // `foveation` (foveation_weights), then compare_images. Allocates its scratch: for tools, not loops.
 ImageComparison compare_rgb_renderings(std::span<const std::uint8_t> a_rgb,
-                                       std::span<const std::uint8_t> b_rgb, GridSize size,
+                                       std::span<const std::uint8_t> b_rgb, view::GridSize size,
                                        const std::array<std::uint8_t, 3>& background,
                                        const Foveation& foveation, const SsimOptions& options = {});
 
-}  // namespace mtlod::core
+}  // namespace mtlod::core::eval

@@ -8,7 +8,7 @@
 #include <numbers>
 #include <vector>
 
-namespace mtlod::core {
+namespace mtlod::core::eval {
 namespace {
 
 constexpr float kPi = std::numbers::pi_v<float>;
@@ -29,23 +29,23 @@ float wave_noise(float x, float y, float z, std::uint32_t seed) {
   return sum;
 }
 
-void add_triangle(Mesh& mesh, std::uint32_t a, std::uint32_t b, std::uint32_t c) {
+void add_triangle(model::Mesh& mesh, std::uint32_t a, std::uint32_t b, std::uint32_t c) {
   mesh.triangles.insert(mesh.triangles.end(), {a, b, c});
 }
 
-std::uint32_t add_vertex(Mesh& mesh, float x, float y, float z) {
+std::uint32_t add_vertex(model::Mesh& mesh, float x, float y, float z) {
   const auto id = static_cast<std::uint32_t>(mesh.vertex_count());
   mesh.positions.insert(mesh.positions.end(), {x, y, z});
   return id;
 }
 
-Mesh generate_sphere(const GenerateOptions& o) {
+model::Mesh generate_sphere(const GenerateOptions& o) {
   // Six n×n faces of a cube, 2 triangles per quad: 12·n² triangles.
   const auto n = static_cast<std::uint32_t>(std::max(1.0, std::round(std::sqrt(o.target_triangles / 12.0))));
   const std::uint32_t side = n + 1;
   // Lattice points (i, j, k) in [0, n]³ on the cube's surface get ids through a dense table.
   std::vector<std::uint32_t> id(static_cast<std::size_t>(side) * side * side, UINT32_MAX);
-  Mesh mesh;
+  model::Mesh mesh;
   mesh.positions.reserve(3 * (6 * std::size_t{n} * n + 2));
   mesh.triangles.reserve(3 * 12 * std::size_t{n} * n);
   auto vertex = [&](std::uint32_t i, std::uint32_t j, std::uint32_t k) {
@@ -88,11 +88,11 @@ Mesh generate_sphere(const GenerateOptions& o) {
   return mesh;
 }
 
-Mesh generate_terrain(const GenerateOptions& o) {
+model::Mesh generate_terrain(const GenerateOptions& o) {
   // n×n samples, 2·(n−1)² triangles over [−1, 1]², heights from layered waves.
   const auto n =
       static_cast<std::uint32_t>(std::max(2.0, std::round(std::sqrt(o.target_triangles / 2.0)) + 1));
-  Mesh mesh;
+  model::Mesh mesh;
   mesh.positions.reserve(3 * std::size_t{n} * n);
   mesh.triangles.reserve(6 * std::size_t{n - 1} * (n - 1));
   for (std::uint32_t j = 0; j < n; ++j) {
@@ -113,7 +113,7 @@ Mesh generate_terrain(const GenerateOptions& o) {
   return mesh;
 }
 
-Mesh generate_shell(const GenerateOptions& o) {
+model::Mesh generate_shell(const GenerateOptions& o) {
   // A circle of radius rho(u) swept along a logarithmic spiral of radius R(u) descending the axis:
   // both grow as e^(b·u), so whorls are similar, like a real shell. u runs over `kTurns` turns.
   constexpr float kTurns = 3.5f;
@@ -124,7 +124,7 @@ Mesh generate_shell(const GenerateOptions& o) {
   const double t = static_cast<double>(std::max<std::size_t>(o.target_triangles, 64));
   const auto nv = static_cast<std::uint32_t>(std::max(3.0, std::round(std::sqrt(t / 12.0))));
   const auto nu = static_cast<std::uint32_t>(std::max(2.0, std::round((t - 2.0 * nv) / (2.0 * nv)) + 1));
-  Mesh mesh;
+  model::Mesh mesh;
   mesh.positions.reserve(3 * (std::size_t{nu} * nv + 2));
   mesh.triangles.reserve(3 * (2 * std::size_t{nv} * nu + 2 * nv));
   const float scale = std::exp(-kGrowth * u_max);  // largest whorl ≈ unit size
@@ -183,7 +183,7 @@ bool parse_shape(std::string_view name, Shape& shape) {
 namespace {
 
 // Each channel follows one axis across the bounding box: smooth, and different at every vertex.
-void colour_by_position(Mesh& mesh) {
+void colour_by_position(model::Mesh& mesh) {
   float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
   for (std::size_t i = 0; i < mesh.positions.size(); ++i) {
     lo[i % 3] = std::min(lo[i % 3], mesh.positions[i]);
@@ -197,7 +197,7 @@ void colour_by_position(Mesh& mesh) {
   }
 }
 
-Mesh generate_shape(const GenerateOptions& options) {
+model::Mesh generate_shape(const GenerateOptions& options) {
   switch (options.shape) {
     case Shape::kSphere:
       return generate_sphere(options);
@@ -212,10 +212,10 @@ Mesh generate_shape(const GenerateOptions& options) {
 
 }  // namespace
 
-Mesh generate_mesh(const GenerateOptions& options) {
-  Mesh mesh = generate_shape(options);
+model::Mesh generate_mesh(const GenerateOptions& options) {
+  model::Mesh mesh = generate_shape(options);
   if (options.colors) colour_by_position(mesh);
   return mesh;
 }
 
-}  // namespace mtlod::core
+}  // namespace mtlod::core::eval

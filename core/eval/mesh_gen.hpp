@@ -7,9 +7,9 @@
 #include <cstdint>
 #include <string_view>
 
-#include "core/mesh.hpp"
+#include "core/model/mesh.hpp"
 
-namespace mtlod::core {
+namespace mtlod::core::eval {
 
 enum class Shape : std::uint8_t {
   kSphere,   // cube-sphere with radial noise: closed 2-manifold, genus 0, 12·n² triangles
@@ -30,6 +30,6 @@ struct GenerateOptions {
 
 // Generates the shape with outward (counter-clockwise seen from outside) triangles, coloured on
 // request. Positions lie within the unit cube scaled to about 1 unit radius.
-Mesh generate_mesh(const GenerateOptions& options);
+model::Mesh generate_mesh(const GenerateOptions& options);
 
-}  // namespace mtlod::core
+}  // namespace mtlod::core::eval

@@ -9,9 +9,9 @@
 
 #include <glm/geometric.hpp>
 
-#include "core/view_grid.hpp"
+#include "core/view/view_grid.hpp"
 
-namespace mtlod::core {
+namespace mtlod::core::eval {
 namespace {
 
 // Headlight shade of one pixel from interpolated vertex normals: persp holds the screen-space
@@ -49,11 +49,11 @@ std::array<std::uint8_t, 3> ramp_color(float t) {
   return out;
 }
 
-std::size_t render_mesh(const ViewMapping& mapping, std::span<const float> positions,
+std::size_t render_mesh(const view::ViewMapping& mapping, std::span<const float> positions,
                         std::span<const std::uint32_t> triangles, const RenderColors& colors,
                         const RenderOptions& options, std::span<std::uint8_t> rgb,
                         std::span<float> depth_out) {
-  const GridSize grid = mapping.grid();
+  const view::GridSize grid = mapping.grid();
   assert(rgb.size() == 3 * grid.cell_count());
   assert(depth_out.empty() || depth_out.size() == grid.cell_count());
   assert(options.vertex_normals.empty() || options.vertex_normals.size() == positions.size());
@@ -72,7 +72,7 @@ std::size_t render_mesh(const ViewMapping& mapping, std::span<const float> posit
       float cx, cy, cw;
       mapping.clip_xyw(p[k][0], p[k][1], p[k][2], cx, cy, cw);
       if (!(cw > 0.0f)) visible = false;
-      const GridPoint g = mapping.to_grid(cx, cy, cw);
+      const view::GridPoint g = mapping.to_grid(cx, cy, cw);
       gx[k] = g.x, gy[k] = g.y, gz[k] = mapping.clip_z(p[k][0], p[k][1], p[k][2]) / cw, gw[k] = cw;
     }
     if (!visible) continue;
@@ -164,4 +164,4 @@ void area_weighted_normals(std::span<const float> positions, std::span<const std
   }
 }
 
-}  // namespace mtlod::core
+}  // namespace mtlod::core::eval

@@ -12,9 +12,11 @@
 #include <cstdint>
 #include <span>
 
-namespace mtlod::core {
+namespace mtlod::core::view {
+class ViewMapping;  // core/view/view_grid.hpp
+}  // namespace mtlod::core::view
 
-class ViewMapping;  // core/view_grid.hpp
+namespace mtlod::core::eval {
 
 struct RenderOptions {
   std::array<std::uint8_t, 3> background{255, 255, 255};
@@ -42,7 +44,7 @@ struct RenderColors {
 // pixels the mesh covers. depth, when not empty (one float per pixel), receives the eye-space depth
 // of the visible surface (−z_eye in the camera's units, ViewMapping::eye_depth_from_ndc_z) and +inf
 // where no triangle covers the pixel.
-std::size_t render_mesh(const ViewMapping& mapping, std::span<const float> positions,
+std::size_t render_mesh(const view::ViewMapping& mapping, std::span<const float> positions,
                         std::span<const std::uint32_t> triangles, const RenderColors& colors,
                         const RenderOptions& options, std::span<std::uint8_t> rgb,
                         std::span<float> depth = {});
@@ -63,4 +65,4 @@ inline double edge_function(double ax, double ay, double bx, double by, double p
   return (bx - ax) * (py - ay) - (by - ay) * (px - ax);
 }
 
-}  // namespace mtlod::core
+}  // namespace mtlod::core::eval

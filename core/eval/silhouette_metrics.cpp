@@ -7,16 +7,16 @@
 #include <limits>
 #include <vector>
 
-#include "core/distance_transform.hpp"
 #include "core/eval/render.hpp"
-#include "core/view_grid.hpp"
+#include "core/view/distance_transform.hpp"
+#include "core/view/view_grid.hpp"
 
-namespace mtlod::core {
+namespace mtlod::core::eval {
 namespace {
 
 // Projects the three corners of triangle t; false when one is at or behind the eye plane.
-bool project_triangle(const ViewMapping& mapping, std::span<const float> positions,
-                      std::span<const std::uint32_t> triangles, std::size_t t, GridPoint out[3]) {
+bool project_triangle(const view::ViewMapping& mapping, std::span<const float> positions,
+                      std::span<const std::uint32_t> triangles, std::size_t t, view::GridPoint out[3]) {
   for (int k = 0; k < 3; ++k) {
     const float* p = positions.data() + 3 * std::size_t{triangles[3 * t + k]};
     float cx, cy, cw;
@@ -36,16 +36,16 @@ double point_segment_2d(double px, double py, double ax, double ay, double bx, d
 
 // Distances from the contour pixels of `from` to the nearest contour pixel of `to`.
 ContourDistance contour_distance(std::span<const std::uint8_t> from_contour,
-                                 std::span<const std::uint8_t> to_contour, GridSize grid,
+                                 std::span<const std::uint8_t> to_contour, view::GridSize grid,
                                  std::vector<std::uint8_t>& seeds, std::vector<std::uint32_t>& dt) {
   ContourDistance out;
   for (std::size_t c = 0; c < seeds.size(); ++c) seeds[c] = to_contour[c] ? 0 : 1;
-  euclidean_squared(seeds, grid, dt);
+  view::euclidean_squared(seeds, grid, dt);
   double sum = 0.0;
   for (std::size_t c = 0; c < from_contour.size(); ++c) {
     if (!from_contour[c]) continue;
-    const double d =
-        dt[c] == kEuclideanUnreached ? std::numeric_limits<double>::infinity() : std::sqrt(double(dt[c]));
+    const double d = dt[c] == view::kEuclideanUnreached ? std::numeric_limits<double>::infinity()
+                                                        : std::sqrt(double(dt[c]));
     out.max_px = std::max(out.max_px, d);
     sum += d;
     ++out.pixels;
@@ -56,12 +56,12 @@ ContourDistance contour_distance(std::span<const std::uint8_t> from_contour,
 
 }  // namespace
 
-std::size_t rasterize_silhouette(const ViewMapping& mapping, std::span<const float> positions,
+std::size_t rasterize_silhouette(const view::ViewMapping& mapping, std::span<const float> positions,
                                  std::span<const std::uint32_t> triangles, std::span<std::uint8_t> mask) {
-  const GridSize grid = mapping.grid();
+  const view::GridSize grid = mapping.grid();
   assert(mask.size() == grid.cell_count());
   std::fill(mask.begin(), mask.end(), std::uint8_t{0});
-  GridPoint g[3];
+  view::GridPoint g[3];
   for (std::size_t t = 0; t < triangles.size() / 3; ++t) {
     if (!project_triangle(mapping, positions, triangles, t, g)) continue;
     const double area = edge_function(g[0].x, g[0].y, g[1].x, g[1].y, g[2].x, g[2].y);
@@ -100,7 +100,7 @@ std::size_t xor_count(std::span<const std::uint8_t> a, std::span<const std::uint
   return count;
 }
 
-std::size_t extract_contour(std::span<const std::uint8_t> mask, GridSize grid,
+std::size_t extract_contour(std::span<const std::uint8_t> mask, view::GridSize grid,
                             std::span<std::uint8_t> contour) {
   assert(mask.size() == grid.cell_count() && contour.size() == mask.size());
   std::size_t count = 0;
@@ -120,7 +120,7 @@ std::size_t extract_contour(std::span<const std::uint8_t> mask, GridSize grid,
 }
 
 SilhouetteError compare_silhouettes(std::span<const std::uint8_t> mask_a,
-                                    std::span<const std::uint8_t> mask_b, GridSize grid) {
+                                    std::span<const std::uint8_t> mask_b, view::GridSize grid) {
   assert(mask_a.size() == grid.cell_count() && mask_b.size() == grid.cell_count());
   SilhouetteError out;
   out.xor_pixels = xor_count(mask_a, mask_b);
@@ -136,12 +136,12 @@ SilhouetteError compare_silhouettes(std::span<const std::uint8_t> mask_a,
   return out;
 }
 
-std::size_t triangles_near_point(const ViewMapping& mapping, std::span<const float> positions,
+std::size_t triangles_near_point(const view::ViewMapping& mapping, std::span<const float> positions,
                                  std::span<const std::uint32_t> triangles, float x_px, float y_px,
                                  float radius_px, std::span<std::uint8_t> in_region) {
   assert(in_region.size() == triangles.size() / 3);
   std::size_t count = 0;
-  GridPoint g[3];
+  view::GridPoint g[3];
   for (std::size_t t = 0; t < in_region.size(); ++t) {
     in_region[t] = 0;
     if (!project_triangle(mapping, positions, triangles, t, g)) continue;
@@ -160,4 +160,4 @@ std::size_t triangles_near_point(const ViewMapping& mapping, std::span<const flo
   return count;
 }
 
-}  // namespace mtlod::core
+}  // namespace mtlod::core::eval

@@ -9,7 +9,7 @@
 #include <cmath>
 #include <numeric>
 
-namespace mtlod::core {
+namespace mtlod::core::eval {
 namespace {
 
 constexpr std::uint64_t kEmptyKey = UINT64_MAX;  // no pair of 32-bit ids packs to this
@@ -125,7 +125,8 @@ std::uint8_t to_color(float c) {
 
 }  // namespace
 
-Subdivider::Subdivider(const Mesh& base, const SubdivideOptions& options) : base_(base), options_(options) {
+Subdivider::Subdivider(const model::Mesh& base, const SubdivideOptions& options)
+    : base_(base), options_(options) {
   assert(options.split >= 1 && options.chunk_vertices >= 1 && options.chunk_triangles >= 1);
   assert(base.triangle_count() <= UINT32_MAX / 3);  // edge ids are 32-bit
   const std::vector<float>& p = base.positions;
@@ -360,11 +361,11 @@ Status Subdivider::run(SubdivisionSink& sink) const {
   return Ok{};
 }
 
-Mesh subdivide(const Mesh& base, const SubdivideOptions& options) {
+model::Mesh subdivide(const model::Mesh& base, const SubdivideOptions& options) {
   const Subdivider subdivider(base, options);
   assert(subdivider.fits());
   struct Collector final : SubdivisionSink {
-    Mesh mesh;
+    model::Mesh mesh;
     Status vertices(std::span<const float> positions, std::span<const std::uint8_t> colors) override {
       mesh.positions.insert(mesh.positions.end(), positions.begin(), positions.end());
       mesh.colors.insert(mesh.colors.end(), colors.begin(), colors.end());
@@ -384,4 +385,4 @@ Mesh subdivide(const Mesh& base, const SubdivideOptions& options) {
   return std::move(collector.mesh);
 }
 
-}  // namespace mtlod::core
+}  // namespace mtlod::core::eval

@@ -23,10 +23,10 @@
 #include <span>
 #include <vector>
 
-#include "core/mesh.hpp"
+#include "core/model/mesh.hpp"
 #include "core/result.hpp"
 
-namespace mtlod::core {
+namespace mtlod::core::eval {
 
 struct SubdivideOptions {
   std::uint32_t split = 2;  // n ≥ 1: every edge cut into n equal segments, n² triangles per triangle
@@ -72,7 +72,7 @@ class Subdivider {
 
   // base must outlive the Subdivider. Its triangles may be degenerate or repeated; its vertex ids
   // must be in range. options.split ≥ 1 and chunk sizes ≥ 1.
-  Subdivider(const Mesh& base, const SubdivideOptions& options);
+  Subdivider(const model::Mesh& base, const SubdivideOptions& options);
 
   const SubdivisionCounts& counts() const { return counts_; }
   // Whether the output's vertex ids fit in 32 bits (run requires it).
@@ -91,7 +91,7 @@ class Subdivider {
   // Adds the displacement of flat point p with (not necessarily unit) normal n.
   void displace(float p[3], const float n[3]) const;
 
-  const Mesh& base_;
+  const model::Mesh& base_;
   SubdivideOptions options_;
   SubdivisionCounts counts_;
   std::vector<std::uint32_t> triangle_edges_;  // three edge ids per triangle: edges v0v1, v1v2, v2v0
@@ -103,6 +103,6 @@ class Subdivider {
 };
 
 // The whole output in memory, for tests and small meshes. Requires Subdivider(base, options).fits().
-Mesh subdivide(const Mesh& base, const SubdivideOptions& options);
+model::Mesh subdivide(const model::Mesh& base, const SubdivideOptions& options);
 
-}  // namespace mtlod::core
+}  // namespace mtlod::core::eval

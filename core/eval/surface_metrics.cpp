@@ -6,9 +6,9 @@
 #include <cmath>
 #include <limits>
 
-#include "core/bounds.hpp"
+#include "core/model/bounds.hpp"
 
-namespace mtlod::core {
+namespace mtlod::core::eval {
 namespace {
 
 // splitmix64: a tiny generator whose sequence is the same on every platform and standard library
@@ -149,8 +149,8 @@ TriangleIndex::TriangleIndex(std::span<const float> positions, std::span<const s
   stamp_.assign(count, 0);
   cell_offsets_.assign(2, 0);
   if (count == 0) return;
-  const Bounds box = bounds_of(positions, triangles);
-  const std::array<double, 3> lo = to_double(box.lo), hi = to_double(box.hi);
+  const model::Bounds box = model::bounds_of(positions, triangles);
+  const std::array<double, 3> lo = model::to_double(box.lo), hi = model::to_double(box.hi);
   // Cubic cells sized to the triangles (twice the square root of the mean area), so a cell on the
   // surface holds a few triangles whatever the volume around the surface; the cell count is capped
   // at 8 per triangle (and 1024 per side) by growing the cells.
@@ -317,4 +317,4 @@ SurfaceError compare_surfaces(std::span<const float> positions_a, std::span<cons
   return {sample_distances(samples_a, index_b), sample_distances(samples_b, index_a)};
 }
 
-}  // namespace mtlod::core
+}  // namespace mtlod::core::eval

@@ -4,7 +4,7 @@
 // distance of each sample to the nearest triangle of the other surface, and from those the one-sided
 // maximum (Hausdorff), mean and RMS; the symmetric values take the worse of both directions.
 // A uniform grid over the triangles answers the nearest-triangle queries, so the 871k dragon against
-// a cut runs in seconds. A triangle mask restricts the samples (the focus-region error, DESIGN.md §3).
+// a cut runs in seconds. A triangle mask restricts the samples (the error inside a focus region).
 #pragma once
 
 #include <cstddef>
@@ -12,7 +12,7 @@
 #include <span>
 #include <vector>
 
-namespace mtlod::core {
+namespace mtlod::core::eval {
 
 // Samples on a surface: their positions and the triangle each lies on.
 struct SurfaceSamples {
@@ -104,4 +104,4 @@ SurfaceError compare_surfaces(std::span<const float> positions_a, std::span<cons
                               std::span<const float> positions_b, std::span<const std::uint32_t> triangles_b,
                               const SamplingOptions& options = {});
 
-}  // namespace mtlod::core
+}  // namespace mtlod::core::eval

@@ -18,7 +18,7 @@
 #include <string>
 #include <vector>
 
-#include "core/draco_decode.hpp"
+#include "core/codec/draco_decode.hpp"
 #include "fmt/format.h"
 
 namespace mtlod::core::io {
@@ -135,7 +135,7 @@ Status write_model(const std::filesystem::path& path, const tinygltf::Model& mod
 
 }  // namespace
 
-Status write_glb(const std::filesystem::path& path, const Mesh& mesh) {
+Status write_glb(const std::filesystem::path& path, const model::Mesh& mesh) {
   const std::size_t n = mesh.vertex_count();
   assert(mesh.normals.empty() || mesh.normals.size() == 3 * n);
   assert(mesh.colors.empty() || mesh.colors.size() == 3 * n);
@@ -182,8 +182,8 @@ Status write_glb(const std::filesystem::path& path, const Mesh& mesh) {
 }
 
 Status write_glb_draco(const std::filesystem::path& path, std::span<const std::uint8_t> draco) {
-  MTLOD_TRY(DecodedMesh decoded, decode_draco(draco));
-  const Mesh& mesh = decoded.mesh;
+  MTLOD_TRY(codec::DecodedMesh decoded, codec::decode_draco(draco));
+  const model::Mesh& mesh = decoded.mesh;
   const std::size_t n = mesh.vertex_count();
   MTLOD_RETURN_IF_ERROR(check_triangles(mesh.triangles, n));
   tinygltf::Model model = make_model();

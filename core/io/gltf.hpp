@@ -9,7 +9,7 @@
 #include <filesystem>
 #include <span>
 
-#include "core/mesh.hpp"
+#include "core/model/mesh.hpp"
 #include "core/result.hpp"
 
 namespace mtlod::core::io {
@@ -19,7 +19,7 @@ namespace mtlod::core::io {
 // colours as normalised uint8 RGB (the bytes as they are), uint32 indices. Errors: kInvalidArgument
 // for a mesh without triangles, an index out of range or a non-finite position; kIoError naming the
 // path when it cannot be written.
-Status write_glb(const std::filesystem::path& path, const Mesh& mesh);
+Status write_glb(const std::filesystem::path& path, const model::Mesh& mesh);
 
 // Writes a Draco triangle mesh (as DracoEncoder or the server produces it) as .glb: the bytes are the
 // buffer, unchanged, and the accessors describe what they decode to (counts, position bounds; normals

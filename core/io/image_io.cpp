@@ -1,5 +1,5 @@
-// PNG writing and reading with libpng's simplified API (png_image), for the debug images of DESIGN.md
-// §1.2–1.4 and the renderings that mtlod-eval scores.
+// PNG writing and reading with libpng's simplified API (png_image), for the debug images of
+// core/ARCHITECTURE.md §1.2–1.4 and the renderings that mtlod-eval scores.
 #include "core/io/image_io.hpp"
 
 #include <png.h>
@@ -8,15 +8,15 @@
 #include <string>
 #include <vector>
 
-#include "core/distance_transform.hpp"
 #include "core/eval/debug_image.hpp"
+#include "core/view/distance_transform.hpp"
 
 namespace mtlod::core::io {
 
 namespace {
 
 Status write_png(const std::filesystem::path& path, const std::uint8_t* pixels, std::size_t size,
-                 GridSize grid, std::uint32_t format, std::size_t channels) {
+                 view::GridSize grid, std::uint32_t format, std::size_t channels) {
   if (!grid.valid()) {
     return make_error(ErrorCode::kInvalidArgument, "image grid " + std::to_string(grid.width) + "x" +
                                                        std::to_string(grid.height) +
@@ -42,11 +42,13 @@ Status write_png(const std::filesystem::path& path, const std::uint8_t* pixels, 
 
 }  // namespace
 
-Status write_png_gray(const std::filesystem::path& path, std::span<const std::uint8_t> cells, GridSize grid) {
+Status write_png_gray(const std::filesystem::path& path, std::span<const std::uint8_t> cells,
+                      view::GridSize grid) {
   return write_png(path, cells.data(), cells.size(), grid, PNG_FORMAT_GRAY, 1);
 }
 
-Status write_png_rgb(const std::filesystem::path& path, std::span<const std::uint8_t> rgb, GridSize grid) {
+Status write_png_rgb(const std::filesystem::path& path, std::span<const std::uint8_t> rgb,
+                     view::GridSize grid) {
   return write_png(path, rgb.data(), rgb.size(), grid, PNG_FORMAT_RGB, 3);
 }
 
@@ -64,7 +66,7 @@ Result<RgbImage> read_png_rgb(const std::filesystem::path& path) {
     return make_error(ErrorCode::kInvalidArgument, "PNG " + path.string() + " is " +
                                                        std::to_string(image.width) + "x" +
                                                        std::to_string(image.height) + ", outside 1.." +
-                                                       std::to_string(kMaxGridSide) + " a side");
+                                                       std::to_string(view::kMaxGridSide) + " a side");
   }
   image.format = PNG_FORMAT_RGB;
   out.rgb.resize(3 * out.size.cell_count());
@@ -77,7 +79,7 @@ Result<RgbImage> read_png_rgb(const std::filesystem::path& path) {
 }
 
 Status write_occupancy_png(const std::filesystem::path& path, std::span<const std::uint8_t> occupancy,
-                           GridSize grid) {
+                           view::GridSize grid) {
   if (occupancy.size() != grid.cell_count()) return make_error(ErrorCode::kInvalidArgument, "occupancy size");
   std::vector<std::uint8_t> grey(occupancy.size());
   for (std::size_t c = 0; c < grey.size(); ++c) grey[c] = occupancy[c] != 0 ? 255 : 0;
@@ -85,10 +87,10 @@ Status write_occupancy_png(const std::filesystem::path& path, std::span<const st
 }
 
 Status write_distance_png(const std::filesystem::path& path, std::span<const std::uint16_t> raw,
-                          GridSize grid, std::uint32_t units_per_pixel, std::uint32_t band_px) {
+                          view::GridSize grid, std::uint32_t units_per_pixel, std::uint32_t band_px) {
   if (raw.size() != grid.cell_count()) return make_error(ErrorCode::kInvalidArgument, "distance grid size");
   std::vector<std::uint8_t> rgb(3 * raw.size());
-  colorize_distance(raw, grid, kChamferUnreached, 0, band_px * units_per_pixel, rgb);
+  eval::colorize_distance(raw, grid, view::kChamferUnreached, 0, band_px * units_per_pixel, rgb);
   return write_png_rgb(path, rgb, grid);
 }
 

@@ -28,7 +28,7 @@ namespace OM = OpenMesh;
 // matter; everything else (texture coordinates, face colours, halfedge data) is ignored.
 class FlatImporter final : public OM::IO::BaseImporter {
  public:
-  Mesh mesh;
+  model::Mesh mesh;
   std::size_t polygons_triangulated = 0;
   std::string first_error;  // the importer cannot return errors through OpenMesh: remember the first
   bool saw_normal = false;
@@ -268,7 +268,7 @@ Result<LoadedMesh> load_mesh(const std::filesystem::path& path, const LoadOption
   }
   LoadedMesh loaded;
   loaded.mesh = std::move(importer.mesh);
-  Mesh& mesh = loaded.mesh;
+  model::Mesh& mesh = loaded.mesh;
   if (mesh.vertex_count() == 0) return make_error(ErrorCode::kCorrupt, fmt::format("{}: no vertices", name));
   if (mesh.triangle_count() == 0) return make_error(ErrorCode::kCorrupt, fmt::format("{}: no faces", name));
   // Readers set points through several importer calls; check them all once here.
@@ -296,14 +296,14 @@ Result<LoadedMesh> load_mesh(const std::filesystem::path& path, const LoadOption
     mesh.colors.resize(mesh.positions.size(), 0);
   loaded.polygons_triangulated = importer.polygons_triangulated;
 
-  loaded.input_topology = analyze_topology(mesh.positions, mesh.triangles);
+  loaded.input_topology = model::analyze_topology(mesh.positions, mesh.triangles);
   // OpenMesh's STL reader already merges equal corners; report that weld as ours.
   if (ext == ".stl") loaded.cleanup.welded_vertices = 3 * mesh.triangle_count() - mesh.vertex_count();
   if (options.clean) {
-    CleanupOptions cleanup = options.cleanup;
+    model::CleanupOptions cleanup = options.cleanup;
     if (ext == ".stl") cleanup.weld_duplicate_positions = true;  // STL stores each corner on its own
     const std::size_t welded_by_reader = loaded.cleanup.welded_vertices;
-    loaded.cleanup = clean_mesh(mesh, cleanup);
+    loaded.cleanup = model::clean_mesh(mesh, cleanup);
     loaded.cleanup.welded_vertices += welded_by_reader;
     if (mesh.triangle_count() == 0) {
       return make_error(ErrorCode::kCorrupt, fmt::format("{}: every triangle is degenerate", name));
@@ -315,7 +315,7 @@ Result<LoadedMesh> load_mesh(const std::filesystem::path& path, const LoadOption
 namespace {
 
 // One PLY writer in the tree: PlyWriter, given the whole mesh at once.
-Status write_ply(const std::filesystem::path& path, const Mesh& mesh) {
+Status write_ply(const std::filesystem::path& path, const model::Mesh& mesh) {
   const std::size_t n = mesh.vertex_count();
   const std::size_t t = mesh.triangle_count();
   MTLOD_TRY(PlyWriter writer, PlyWriter::create(path, n, t, mesh.has_normals(), mesh.has_colors()));
@@ -325,7 +325,7 @@ Status write_ply(const std::filesystem::path& path, const Mesh& mesh) {
   return writer.close();
 }
 
-Status write_obj(const std::filesystem::path& path, const Mesh& mesh) {
+Status write_obj(const std::filesystem::path& path, const model::Mesh& mesh) {
   std::FILE* f = std::fopen(path.string().c_str(), "wb");
   if (!f) return make_error(ErrorCode::kIoError, fmt::format("{}: cannot open for writing", path.string()));
   fmt::memory_buffer out;
@@ -364,7 +364,7 @@ Status write_obj(const std::filesystem::path& path, const Mesh& mesh) {
 
 }  // namespace
 
-Status save_mesh(const std::filesystem::path& path, const Mesh& mesh) {
+Status save_mesh(const std::filesystem::path& path, const model::Mesh& mesh) {
   const std::string ext = lower_extension(path);
   if (ext == ".ply") return write_ply(path, mesh);
   if (ext == ".obj") return write_obj(path, mesh);

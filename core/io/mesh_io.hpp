@@ -5,21 +5,21 @@
 
 #include <filesystem>
 
-#include "core/mesh.hpp"
-#include "core/mesh_cleanup.hpp"
+#include "core/model/mesh.hpp"
+#include "core/model/mesh_cleanup.hpp"
 #include "core/result.hpp"
 
 namespace mtlod::core::io {
 
 struct LoadOptions {
   bool clean = true;  // run clean_mesh (welding is forced on for STL)
-  CleanupOptions cleanup = {};
+  model::CleanupOptions cleanup = {};
 };
 
 struct LoadedMesh {
-  Mesh mesh;
-  TopologyReport input_topology;          // of the file as read, before clean-up
-  CleanupSummary cleanup;                 // what clean-up changed
+  model::Mesh mesh;
+  model::TopologyReport input_topology;   // of the file as read, before clean-up
+  model::CleanupSummary cleanup;          // what clean-up changed
   std::size_t polygons_triangulated = 0;  // input faces with more than three corners
 };
 
@@ -29,6 +29,6 @@ Result<LoadedMesh> load_mesh(const std::filesystem::path& path, const LoadOption
 
 // Writes binary little-endian PLY (positions, normals and colours when present) or OBJ, by extension
 // (.ply, .obj). OBJ keeps float32 positions exactly (shortest round-trip decimals).
-Status save_mesh(const std::filesystem::path& path, const Mesh& mesh);
+Status save_mesh(const std::filesystem::path& path, const model::Mesh& mesh);
 
 }  // namespace mtlod::core::io

@@ -1,5 +1,5 @@
 // .mt file reading and writing: a memory map or one read, one write; parsing lives in
-// core/mt_format.cpp.
+// core/model/mt_format.cpp.
 #include "core/io/mt_file.hpp"
 
 #include <fcntl.h>
@@ -16,7 +16,7 @@
 #include <system_error>
 #include <vector>
 
-#include "core/mt_format.hpp"
+#include "core/model/mt_format.hpp"
 
 namespace mtlod::core::io {
 namespace {
@@ -80,23 +80,23 @@ Result<std::shared_ptr<const Mapping>> map_whole(int fd, std::size_t size,
 
 // The current format is read in place from the mapping; refinements jump between blocks, so no
 // read-ahead beyond the pages they touch. Version 1 is copied out of the mapping whole.
-Result<Mt> parse_mapped(std::shared_ptr<const Mapping> mapping, const std::filesystem::path& path) {
-  const bool in_place = mt_file_version(mapping->bytes()) == kMtFormatVersion;
+Result<model::Mt> parse_mapped(std::shared_ptr<const Mapping> mapping, const std::filesystem::path& path) {
+  const bool in_place = model::mt_file_version(mapping->bytes()) == model::kMtFormatVersion;
   if (in_place) mapping->advise_random();
-  auto mt = in_place ? view_mt(mapping->bytes(), mapping) : deserialize_mt(mapping->bytes());
+  auto mt = in_place ? model::view_mt(mapping->bytes(), mapping) : model::deserialize_mt(mapping->bytes());
   if (!mt) return named(path, mt.take_error());
   return mt;
 }
 
-Result<Mt> parse_read(std::span<const std::uint8_t> bytes, const std::filesystem::path& path) {
-  auto mt = deserialize_mt(bytes);  // reports what is wrong with a short file too
+Result<model::Mt> parse_read(std::span<const std::uint8_t> bytes, const std::filesystem::path& path) {
+  auto mt = model::deserialize_mt(bytes);  // reports what is wrong with a short file too
   if (!mt) return named(path, mt.take_error());
   return mt;
 }
 
 }  // namespace
 
-Result<Mt> read_mt_file(const std::filesystem::path& path, MtLoad load) {
+Result<model::Mt> read_mt_file(const std::filesystem::path& path, MtLoad load) {
   MTLOD_TRY(const int fd, open_readonly(path));
   struct stat st {};
   if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
@@ -104,7 +104,7 @@ Result<Mt> read_mt_file(const std::filesystem::path& path, MtLoad load) {
     return make_error(ErrorCode::kInvalidArgument, path.string() + ": not a regular file");
   }
   const std::size_t size = std::size_t(st.st_size);
-  if (load == MtLoad::kMap && size >= kMtHeaderBytes) {
+  if (load == MtLoad::kMap && size >= model::kMtHeaderBytes) {
     auto mapping = map_whole(fd, size, path);
     ::close(fd);  // the mapping keeps the file
     if (!mapping) return mapping.take_error();
@@ -149,23 +149,23 @@ Result<ServedMt> open_served_mt(const std::filesystem::path& path) {
   const int leased = served.lease->fd();
   MTLOD_TRY(served.identity, identify(leased));
   const std::size_t size = served.identity.size;
-  if (size < kMtHeaderBytes) {
+  if (size < model::kMtHeaderBytes) {
     MTLOD_TRY(std::vector<std::uint8_t> bytes, read_whole(leased, size, path));
     served.lease.reset();
     MTLOD_TRY(served.mt, parse_read(bytes, path));
     return served;
   }
   MTLOD_TRY(std::shared_ptr<const Mapping> mapping, map_whole(leased, size, path));
-  const bool copied = mt_file_version(mapping->bytes()) != kMtFormatVersion;
+  const bool copied = model::mt_file_version(mapping->bytes()) != model::kMtFormatVersion;
   MTLOD_TRY(served.mt, parse_mapped(std::move(mapping), path));
   // Version 1 was copied out of the mapping whole: nothing is left to guard.
   if (copied) served.lease.reset();
   return served;
 }
 
-Result<std::uint64_t> write_mt_file(const std::filesystem::path& path, const Mt& mt) {
+Result<std::uint64_t> write_mt_file(const std::filesystem::path& path, const model::Mt& mt) {
   std::vector<std::uint8_t> bytes;
-  serialize_mt(mt, bytes);
+  model::serialize_mt(mt, bytes);
   // Written beside and renamed over: a server may have the old file mapped, and rewriting a mapped
   // file in place would pull pages out from under it.
   std::filesystem::path partial = path;

@@ -1,6 +1,6 @@
-// Reading and writing .mt files (DESIGN.md §2 "Storage", layout in core/FORMAT.md). Version-2 files
+// Reads and writes .mt files (core/ARCHITECTURE.md §2.8; layout: core/model/FORMAT.md). Version-2 files
 // are memory-mapped and checked block by block as they are used; version-1 files, or any file with
-// MtLoad::kRead, are read whole with one read and validated at once (core/mt_format).
+// MtLoad::kRead, are read whole with one read and validated at once (core/model/mt_format).
 #pragma once
 
 #include <filesystem>
@@ -8,7 +8,7 @@
 #include <string>
 
 #include "core/io/file_lease.hpp"
-#include "core/mt.hpp"
+#include "core/model/mt.hpp"
 #include "core/result.hpp"
 
 namespace mtlod::core::io {
@@ -21,13 +21,13 @@ enum class MtLoad {
 // Opens an .mt file. Errors name the file: kNotFound, kIoError, and the parser's kCorrupt /
 // kUnsupported. A mapped file must not be truncated or rewritten in place while it is in use
 // (replace it by renaming a new file over it, as mtlod-build does).
-Result<Mt> read_mt_file(const std::filesystem::path& path, MtLoad load = MtLoad::kMap);
+Result<model::Mt> read_mt_file(const std::filesystem::path& path, MtLoad load = MtLoad::kMap);
 
 // An .mt file opened to be served while other processes may change it: mapped under a read lease
 // (core/io/file_lease.hpp), so that the server hears of a writer before the mapping can change,
 // or read whole into memory where no lease can be had (then nothing outside can change it).
 struct ServedMt {
-  Mt mt;
+  model::Mt mt;
   FileIdentity identity;             // of the bytes the MT comes from
   std::unique_ptr<FileLease> lease;  // guards the mapping; null when the MT is in memory
   std::string read_whole_because;    // empty when mapped under a lease
@@ -38,6 +38,6 @@ struct ServedMt {
 Result<ServedMt> open_served_mt(const std::filesystem::path& path);
 
 // Writes mt as an .mt file (replacing it). Returns the file size in bytes.
-Result<std::uint64_t> write_mt_file(const std::filesystem::path& path, const Mt& mt);
+Result<std::uint64_t> write_mt_file(const std::filesystem::path& path, const model::Mt& mt);
 
 }  // namespace mtlod::core::io

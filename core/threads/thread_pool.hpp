@@ -1,4 +1,4 @@
-// A ParallelForFn (core/mt_builder.hpp) for the offline tools, the benchmarks and the server's
+// A ParallelForFn (core/build/mt_builder.hpp) for the offline tools, the benchmarks and the server's
 // start-up builds. core/threads/ is the only part of core that starts threads; the algorithms take
 // a ParallelForFn and never start one themselves. A pool of threads, one per hardware core with
 // the caller as one of them, that take task indices from a shared counter until none are left. The
@@ -13,9 +13,9 @@
 #include <thread>
 #include <vector>
 
-#include "core/mt_builder.hpp"
+#include "core/build/mt_builder.hpp"
 
-namespace mtlod::core {
+namespace mtlod::core::threads {
 
 class ThreadPool {
  public:
@@ -38,7 +38,7 @@ class ThreadPool {
     static_cast<ThreadPool*>(pool)->run(count, task, context);
   }
   // Makes a build with these options run its concurrent phases on this pool.
-  void attach(core::BuildOptions& options) {
+  void attach(core::build::BuildOptions& options) {
     options.parallel_for = parallel_for;
     options.parallel_user = this;
   }
@@ -102,4 +102,4 @@ class ThreadPool {
   std::size_t count_ = 0;
 };
 
-}  // namespace mtlod::core
+}  // namespace mtlod::core::threads

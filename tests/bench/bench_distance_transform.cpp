@@ -1,4 +1,4 @@
-// Benchmarks of the per-request grid stages (DESIGN.md §1): the papers' two-pass 5-7-11 chamfer and the
+// Benchmarks of the grid stages (core/ARCHITECTURE.md §1): the papers' two-pass 5-7-11 chamfer and the
 // exact Euclidean transform against OpenCV's cv::distanceTransform on the same images (one thread),
 // the projection of 1M vertices hand-written against a generic glm::mat4 product, occupancy of the
 // shared dragon meshes, and the allowed-error labels of the 871k dragon full against lazy.
@@ -21,22 +21,22 @@
 #include <filesystem>
 #include <optional>
 
-#include "core/allowed_error.hpp"
-#include "core/distance_transform.hpp"
+#include "core/build/mt_builder.hpp"
+#include "core/cut/refine.hpp"
 #include "core/io/mesh_io.hpp"
 #include "core/io/mt_file.hpp"
-#include "core/labels.hpp"
-#include "core/mt_builder.hpp"
-#include "core/occupancy.hpp"
-#include "core/occupancy_levels.hpp"
-#include "core/refine.hpp"
-#include "core/view_grid.hpp"
+#include "core/view/allowed_error.hpp"
+#include "core/view/distance_transform.hpp"
+#include "core/view/labels.hpp"
+#include "core/view/occupancy.hpp"
+#include "core/view/occupancy_levels.hpp"
+#include "core/view/view_grid.hpp"
 
 namespace mtlod::core {
 namespace {
 
 // Random discs covering about half of the image, fixed seed: object cells are 1, background 0.
-std::vector<std::uint8_t> blob_image(GridSize grid) {
+std::vector<std::uint8_t> blob_image(view::GridSize grid) {
   std::mt19937 rng(4242);
   std::vector<std::uint8_t> image(grid.cell_count(), 0);
   const float side = static_cast<float>(grid.width);
@@ -56,12 +56,12 @@ std::vector<std::uint8_t> blob_image(GridSize grid) {
 
 void BM_Chamfer5711(benchmark::State& state) {
   const auto side = static_cast<std::uint32_t>(state.range(0));
-  const GridSize grid{side, side};
+  const view::GridSize grid{side, side};
   const auto image = blob_image(grid);
   std::vector<std::uint16_t> out(grid.cell_count());
-  DistanceTransformer transformer;
+  view::DistanceTransformer transformer;
   for (auto _ : state) {
-    transformer.chamfer(DistanceMetric::kChamfer5711, image, grid, out);
+    transformer.chamfer(view::DistanceMetric::kChamfer5711, image, grid, out);
     benchmark::DoNotOptimize(out.data());
   }
   state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * grid.cell_count()));
@@ -71,13 +71,13 @@ BENCHMARK(BM_Chamfer5711)->Arg(256)->Arg(512)->Arg(1024)->Arg(2048)->Unit(benchm
 // The same transform through the cell-by-cell scalar passes (the portable fallback), for reference.
 void BM_Chamfer5711Scalar(benchmark::State& state) {
   const auto side = static_cast<std::uint32_t>(state.range(0));
-  const GridSize grid{side, side};
+  const view::GridSize grid{side, side};
   const auto image = blob_image(grid);
   std::vector<std::uint16_t> out(grid.cell_count());
-  DistanceTransformer transformer;
+  view::DistanceTransformer transformer;
   transformer.set_scalar(true);
   for (auto _ : state) {
-    transformer.chamfer(DistanceMetric::kChamfer5711, image, grid, out);
+    transformer.chamfer(view::DistanceMetric::kChamfer5711, image, grid, out);
     benchmark::DoNotOptimize(out.data());
   }
   state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * grid.cell_count()));
@@ -86,12 +86,12 @@ BENCHMARK(BM_Chamfer5711Scalar)->Arg(512)->Unit(benchmark::kMicrosecond);
 
 void BM_Chamfer34(benchmark::State& state) {
   const auto side = static_cast<std::uint32_t>(state.range(0));
-  const GridSize grid{side, side};
+  const view::GridSize grid{side, side};
   const auto image = blob_image(grid);
   std::vector<std::uint16_t> out(grid.cell_count());
-  DistanceTransformer transformer;
+  view::DistanceTransformer transformer;
   for (auto _ : state) {
-    transformer.chamfer(DistanceMetric::kChamfer34, image, grid, out);
+    transformer.chamfer(view::DistanceMetric::kChamfer34, image, grid, out);
     benchmark::DoNotOptimize(out.data());
   }
   state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * grid.cell_count()));
@@ -100,10 +100,10 @@ BENCHMARK(BM_Chamfer34)->Arg(512)->Unit(benchmark::kMicrosecond);
 
 void BM_EuclideanSquared(benchmark::State& state) {
   const auto side = static_cast<std::uint32_t>(state.range(0));
-  const GridSize grid{side, side};
+  const view::GridSize grid{side, side};
   const auto image = blob_image(grid);
   std::vector<std::uint32_t> out(grid.cell_count());
-  DistanceTransformer transformer;
+  view::DistanceTransformer transformer;
   for (auto _ : state) {
     transformer.euclidean_squared(image, grid, out);
     benchmark::DoNotOptimize(out.data());
@@ -116,7 +116,7 @@ BENCHMARK(BM_EuclideanSquared)->Arg(256)->Arg(512)->Arg(1024)->Arg(2048)->Unit(b
 void opencv_distance(benchmark::State& state, int mask) {
   cv::setNumThreads(1);
   const auto side = static_cast<std::uint32_t>(state.range(0));
-  const GridSize grid{side, side};
+  const view::GridSize grid{side, side};
   auto image = blob_image(grid);
   const cv::Mat src(static_cast<int>(side), static_cast<int>(side), CV_8UC1, image.data());
   cv::Mat dst;
@@ -138,16 +138,16 @@ BENCHMARK(BM_OpenCvPrecise)->Arg(256)->Arg(512)->Arg(1024)->Arg(2048)->Unit(benc
 // 1M random vertices in a unit cube seen by a perspective camera.
 struct ProjectionScene {
   std::vector<float> positions;
-  ViewMapping mapping;
+  view::ViewMapping mapping;
   ProjectionScene() {
     std::mt19937 rng(99);
     std::uniform_real_distribution<float> u(-1.0f, 1.0f);
     positions.resize(3 * 1000000);
     for (float& p : positions) p = u(rng);
-    Camera camera;
+    view::Camera camera;
     camera.view = glm::lookAt(glm::vec3(0.5f, 0.8f, 3.0f), glm::vec3(0.0f), glm::vec3(0.0f, 1.0f, 0.0f));
     camera.projection = glm::perspective(glm::radians(45.0f), 1.0f, 0.1f, 100.0f);
-    mapping = ViewMapping(camera, GridSize{512, 512});
+    mapping = view::ViewMapping(camera, view::GridSize{512, 512});
   }
 };
 
@@ -157,7 +157,7 @@ void BM_ProjectHandWritten(benchmark::State& state) {
   std::vector<std::uint32_t> cells(n);
   std::vector<float> clip_w(n);
   for (auto _ : state) {
-    map_vertices(scene.mapping, scene.positions, cells, clip_w);
+    view::map_vertices(scene.mapping, scene.positions, cells, clip_w);
     benchmark::DoNotOptimize(cells.data());
     benchmark::DoNotOptimize(clip_w.data());
   }
@@ -179,7 +179,8 @@ void BM_ProjectGlm(benchmark::State& state) {
       const glm::vec4 ndc = clip / clip.w;
       const float gx = (ndc.x + 1.0f) / 2.0f * w, gy = (1.0f - ndc.y) / 2.0f * h;
       const bool inside = clip.w > 0.0f && gx >= 0.0f && gx < w && gy >= 0.0f && gy < h;
-      cells[v] = inside ? static_cast<std::uint32_t>(gy) * 512u + static_cast<std::uint32_t>(gx) : kNoCell;
+      cells[v] =
+          inside ? static_cast<std::uint32_t>(gy) * 512u + static_cast<std::uint32_t>(gx) : view::kNoCell;
       clip_w[v] = clip.w;
     }
     benchmark::DoNotOptimize(cells.data());
@@ -191,9 +192,9 @@ BENCHMARK(BM_ProjectGlm)->Unit(benchmark::kMicrosecond);
 
 // The shared dragon meshes (loaded once), seen from the front so that the model fills ~80% of the view.
 struct DragonScene {
-  std::optional<Mesh> full;    // dragon-vrip-871k: 437,645 vertices, 871,414 triangles
-  std::optional<Mesh> coarse;  // dragon-vrip-res4-11k: 11,102 triangles, a stand-in for a coarse cut
-  Camera camera;
+  std::optional<model::Mesh> full;    // dragon-vrip-871k: 437,645 vertices, 871,414 triangles
+  std::optional<model::Mesh> coarse;  // dragon-vrip-res4-11k: 11,102 triangles, a stand-in for a coarse cut
+  view::Camera camera;
   static const DragonScene& get() {
     static const DragonScene scene;
     return scene;
@@ -222,17 +223,17 @@ struct DragonScene {
 
 void BM_OccupancyDragon(benchmark::State& state) {
   const DragonScene& scene = DragonScene::get();
-  const Mesh* mesh =
+  const model::Mesh* mesh =
       state.range(1) == 0 ? (scene.full ? &*scene.full : nullptr) : (scene.coarse ? &*scene.coarse : nullptr);
   if (mesh == nullptr) {
     state.SkipWithError("shared dragon meshes not found");
     return;
   }
   const auto side = static_cast<std::uint32_t>(state.range(0));
-  const ViewMapping mapping(scene.camera, GridSize{side, side});
+  const view::ViewMapping mapping(scene.camera, view::GridSize{side, side});
   std::vector<std::uint8_t> occupancy(mapping.grid().cell_count());
   for (auto _ : state) {
-    rasterize_occupancy(mapping, mesh->positions, mesh->triangles, occupancy);
+    view::rasterize_occupancy(mapping, mesh->positions, mesh->triangles, occupancy);
     benchmark::DoNotOptimize(occupancy.data());
   }
   state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * mesh->triangle_count()));
@@ -240,22 +241,22 @@ void BM_OccupancyDragon(benchmark::State& state) {
   // vertices whose silhouette label (5-7-11) changes.
   if (mesh == &*scene.coarse && scene.full) {
     std::vector<std::uint8_t> reference(occupancy.size());
-    rasterize_occupancy(mapping, scene.full->positions, scene.full->triangles, reference);
+    view::rasterize_occupancy(mapping, scene.full->positions, scene.full->triangles, reference);
     std::size_t differing = 0, object = 0;
     for (std::size_t c = 0; c < occupancy.size(); ++c) {
       differing += occupancy[c] != reference[c];
       object += reference[c] != 0;
     }
     std::vector<std::uint16_t> dt(occupancy.size()), dt_reference(occupancy.size());
-    chamfer_5_7_11(occupancy, mapping.grid(), dt);
-    chamfer_5_7_11(reference, mapping.grid(), dt_reference);
+    view::chamfer_5_7_11(occupancy, mapping.grid(), dt);
+    view::chamfer_5_7_11(reference, mapping.grid(), dt_reference);
     const std::size_t n = scene.full->vertex_count();
     std::vector<std::uint32_t> cells(n);
     std::vector<float> clip_w(n);
-    map_vertices(mapping, scene.full->positions, cells, clip_w);
+    view::map_vertices(mapping, scene.full->positions, cells, clip_w);
     std::size_t changed = 0, within_one_px = 0, labelled = 0;
     for (std::size_t v = 0; v < n; ++v) {
-      if (cells[v] == kNoCell) continue;
+      if (cells[v] == view::kNoCell) continue;
       ++labelled;
       const int a = dt[cells[v]], b = dt_reference[cells[v]];
       changed += a != b;
@@ -281,26 +282,26 @@ BENCHMARK(BM_OccupancyDragon)
 // pixel bound. Full: every vertex through the SIMD projection. Lazy: only the vertices of a random
 // set of triangles (a refinement touching that many triangles), projected one by one.
 struct LabelScene {
-  ViewMapping mapping;
+  view::ViewMapping mapping;
   std::vector<std::uint16_t> silhouette, focus;
-  AllowedErrorOptions options;
+  view::AllowedErrorOptions options;
   explicit LabelScene(const DragonScene& dragon) {
-    mapping = ViewMapping(dragon.camera, GridSize{256, 256});
-    const GridSize grid = mapping.grid();
+    mapping = view::ViewMapping(dragon.camera, view::GridSize{256, 256});
+    const view::GridSize grid = mapping.grid();
     std::vector<std::uint8_t> occupancy(grid.cell_count());
-    rasterize_occupancy(mapping, dragon.coarse->positions, dragon.coarse->triangles, occupancy);
+    view::rasterize_occupancy(mapping, dragon.coarse->positions, dragon.coarse->triangles, occupancy);
     silhouette.resize(grid.cell_count());
     focus.resize(grid.cell_count());
-    DistanceTransformer transformer;
-    transformer.chamfer(DistanceMetric::kChamfer5711, occupancy, grid, silhouette);
-    const std::vector<std::uint32_t> foci = {focus_cell(grid, 0.5f, 0.4f)};
-    transformer.chamfer_from_cells(DistanceMetric::kChamfer5711, foci, grid, focus);
+    view::DistanceTransformer transformer;
+    transformer.chamfer(view::DistanceMetric::kChamfer5711, occupancy, grid, silhouette);
+    const std::vector<std::uint32_t> foci = {view::focus_cell(grid, 0.5f, 0.4f)};
+    transformer.chamfer_from_cells(view::DistanceMetric::kChamfer5711, foci, grid, focus);
     options.error = 1.0f;
-    options.units = ErrorUnits::kScreenPixels;
+    options.units = view::ErrorUnits::kScreenPixels;
     options.use_silhouette = true;
-    options.silhouette = {FalloffLaw::kStep, 2.0f, 0.0f, 0.0f, 2.3f};
+    options.silhouette = {view::FalloffLaw::kStep, 2.0f, 0.0f, 0.0f, 2.3f};
     options.use_focus = true;
-    options.focus = {FalloffLaw::kFoveal, 0.0f, 0.2f, 0.0f, 2.3f};
+    options.focus = {view::FalloffLaw::kFoveal, 0.0f, 0.2f, 0.0f, 2.3f};
   }
 };
 
@@ -311,7 +312,7 @@ void BM_AllowedErrorFull(benchmark::State& state) {
     return;
   }
   const LabelScene scene(dragon);
-  AllowedErrorField field;
+  view::AllowedErrorField field;
   field.bind(scene.mapping, scene.options,
              {scene.silhouette, scene.focus, {}, dragon.full->positions, {}, {}});
   std::vector<float> allowed(dragon.full->vertex_count());
@@ -330,7 +331,7 @@ void BM_AllowedErrorLazy(benchmark::State& state) {
     return;
   }
   const LabelScene scene(dragon);
-  AllowedErrorField field;
+  view::AllowedErrorField field;
   field.bind(scene.mapping, scene.options,
              {scene.silhouette, scene.focus, {}, dragon.full->positions, {}, {}});
   // Touched triangles: random (arg 1 = 0) or a contiguous run in file order (arg 1 = 1).
@@ -369,16 +370,16 @@ void BM_GridPipelineDragon256(benchmark::State& state) {
     return;
   }
   LabelScene scene(dragon);
-  const GridSize grid = scene.mapping.grid();
+  const view::GridSize grid = scene.mapping.grid();
   std::vector<std::uint8_t> occupancy(grid.cell_count());
-  DistanceTransformer transformer;
-  AllowedErrorField field;
+  view::DistanceTransformer transformer;
+  view::AllowedErrorField field;
   std::vector<float> allowed(dragon.full->vertex_count());
-  const std::vector<std::uint32_t> foci = {focus_cell(grid, 0.5f, 0.4f)};
+  const std::vector<std::uint32_t> foci = {view::focus_cell(grid, 0.5f, 0.4f)};
   for (auto _ : state) {
-    rasterize_occupancy(scene.mapping, dragon.coarse->positions, dragon.coarse->triangles, occupancy);
-    transformer.chamfer(DistanceMetric::kChamfer5711, occupancy, grid, scene.silhouette);
-    transformer.chamfer_from_cells(DistanceMetric::kChamfer5711, foci, grid, scene.focus);
+    view::rasterize_occupancy(scene.mapping, dragon.coarse->positions, dragon.coarse->triangles, occupancy);
+    transformer.chamfer(view::DistanceMetric::kChamfer5711, occupancy, grid, scene.silhouette);
+    transformer.chamfer_from_cells(view::DistanceMetric::kChamfer5711, foci, grid, scene.focus);
     field.bind(scene.mapping, scene.options,
                {scene.silhouette, scene.focus, {}, dragon.full->positions, {}, {}});
     field.compute_all(allowed);
@@ -394,14 +395,14 @@ BENCHMARK(BM_GridPipelineDragon256)->Unit(benchmark::kMicrosecond);
 // The error bound is tuned once so that the cut has about 50k triangles. (BM_Request in
 // bench_pipeline.cpp is the request as the server runs it, allowed error on demand.)
 struct DragonMt {
-  std::optional<Mt> mt;
-  std::optional<OccupancyLevels> levels;
-  Camera camera;
+  std::optional<model::Mt> mt;
+  std::optional<view::OccupancyLevels> levels;
+  view::Camera camera;
   float radius = 0.0f;
   // The occupancy level of at most `triangles` triangles.
-  const OccupancyLevel& level(std::size_t triangles) const {
-    const OccupancyLevel* found = &levels->levels().front();
-    for (const OccupancyLevel& l : levels->levels())
+  const view::OccupancyLevel& level(std::size_t triangles) const {
+    const view::OccupancyLevel* found = &levels->levels().front();
+    for (const view::OccupancyLevel& l : levels->levels())
       if (l.triangle_count() <= triangles) found = &l;
     return *found;
   }
@@ -418,7 +419,7 @@ struct DragonMt {
     } else {
       auto loaded = io::load_mesh(std::filesystem::path(MTLOD_SHARED_MESHES_DIR) / "dragon-vrip-871k.ply");
       if (!loaded.ok()) return;
-      auto built = build_mt(loaded->mesh);
+      auto built = build::build_mt(loaded->mesh);
       if (!built.ok()) return;
       mt = std::move(built).value();
     }
@@ -460,28 +461,28 @@ void BM_RequestPipelineDragon256(benchmark::State& state) {
     state.SkipWithError("no dragon MT (models dir) and no shared dragon mesh");
     return;
   }
-  const Mt& mt = *dragon.mt;
-  const ViewMapping mapping(dragon.camera, GridSize{256, 256});
-  const GridSize grid = mapping.grid();
-  CutMesh cut;
-  const OccupancyLevel& level = dragon.level(16384);
-  std::vector<ProjectedCorner> projected;
+  const model::Mt& mt = *dragon.mt;
+  const view::ViewMapping mapping(dragon.camera, view::GridSize{256, 256});
+  const view::GridSize grid = mapping.grid();
+  cut::CutMesh cut;
+  const view::OccupancyLevel& level = dragon.level(16384);
+  std::vector<view::ProjectedCorner> projected;
   std::vector<std::uint8_t> occupancy(grid.cell_count());
   std::vector<std::uint16_t> silhouette(grid.cell_count());
   std::vector<float> allowed(mt.vertex_count());
-  DistanceTransformer transformer;
-  AllowedErrorField field;
-  Refiner refiner(mt);
-  AllowedErrorOptions options;
+  view::DistanceTransformer transformer;
+  view::AllowedErrorField field;
+  cut::Refiner refiner(mt);
+  view::AllowedErrorOptions options;
   options.use_silhouette = true;
-  options.silhouette = {FalloffLaw::kStep, 2.0f, 0.25f, 0.0f, 2.3f};
+  options.silhouette = {view::FalloffLaw::kStep, 2.0f, 0.25f, 0.0f, 2.3f};
   auto request = [&] {
-    rasterize_occupancy_compact(mapping, level.positions, level.triangles, occupancy, {}, projected,
-                                level.closed);
-    transformer.chamfer(DistanceMetric::kChamfer5711, occupancy, grid, silhouette);
+    view::rasterize_occupancy_compact(mapping, level.positions, level.triangles, occupancy, {}, projected,
+                                      level.closed);
+    transformer.chamfer(view::DistanceMetric::kChamfer5711, occupancy, grid, silhouette);
     field.bind(mapping, options, {silhouette, {}, {}, mt.positions, {}, {}});
     field.compute_all(allowed);
-    refiner.refine(AllowedError::from_vertices(allowed), cut);
+    refiner.refine(cut::AllowedError::from_vertices(allowed), cut);
   };
   tune_error_for_size(dragon.radius, 50'000, [&](float bound) {
     options.error = bound;
@@ -510,29 +511,29 @@ void BM_OccupancyFromMtCut256(benchmark::State& state) {
     state.SkipWithError("no dragon MT");
     return;
   }
-  const Mt& mt = *dragon.mt;
-  const OccupancyLevel* level = &dragon.level(static_cast<std::size_t>(state.range(0)));
-  const ViewMapping mapping(dragon.camera, GridSize{256, 256});
-  const GridSize grid = mapping.grid();
-  CutMesh full;
-  refine_static(mt, AllowedError::everywhere(-1.0f), full);
-  std::vector<ProjectedCorner> projected;
+  const model::Mt& mt = *dragon.mt;
+  const view::OccupancyLevel* level = &dragon.level(static_cast<std::size_t>(state.range(0)));
+  const view::ViewMapping mapping(dragon.camera, view::GridSize{256, 256});
+  const view::GridSize grid = mapping.grid();
+  cut::CutMesh full;
+  cut::refine_static(mt, cut::AllowedError::everywhere(-1.0f), full);
+  std::vector<view::ProjectedCorner> projected;
   std::vector<std::uint8_t> occupancy(grid.cell_count()), reference(grid.cell_count());
   for (auto _ : state) {
-    rasterize_occupancy_compact(mapping, level->positions, level->triangles, occupancy, {}, projected,
-                                level->closed);
+    view::rasterize_occupancy_compact(mapping, level->positions, level->triangles, occupancy, {}, projected,
+                                      level->closed);
     benchmark::DoNotOptimize(occupancy.data());
   }
-  rasterize_occupancy(mapping, mt.positions, full.triangles, reference);
+  view::rasterize_occupancy(mapping, mt.positions, full.triangles, reference);
   std::vector<std::uint16_t> dt(grid.cell_count()), dt_reference(grid.cell_count());
-  chamfer_5_7_11(occupancy, grid, dt);
-  chamfer_5_7_11(reference, grid, dt_reference);
+  view::chamfer_5_7_11(occupancy, grid, dt);
+  view::chamfer_5_7_11(reference, grid, dt_reference);
   std::vector<std::uint32_t> cells(mt.vertex_count());
   std::vector<float> clip_w(mt.vertex_count());
-  map_vertices(mapping, mt.positions, cells, clip_w);
+  view::map_vertices(mapping, mt.positions, cells, clip_w);
   std::size_t labelled = 0, changed = 0, far = 0, cells_differing = 0, object = 0;
   for (std::size_t v = 0; v < cells.size(); ++v) {
-    if (cells[v] == kNoCell) continue;
+    if (cells[v] == view::kNoCell) continue;
     ++labelled;
     const int a = dt[cells[v]], b = dt_reference[cells[v]];
     changed += a != b;
@@ -567,28 +568,29 @@ void BM_VisibleDepthDragon256(benchmark::State& state) {
     state.SkipWithError("no dragon MT");
     return;
   }
-  const Mt& mt = *dragon.mt;
-  const OccupancyLevel& level = dragon.level(16384);
-  const ViewMapping mapping(dragon.camera, GridSize{256, 256});
-  const GridSize grid = mapping.grid();
-  std::vector<ProjectedCorner> projected;
+  const model::Mt& mt = *dragon.mt;
+  const view::OccupancyLevel& level = dragon.level(16384);
+  const view::ViewMapping mapping(dragon.camera, view::GridSize{256, 256});
+  const view::GridSize grid = mapping.grid();
+  std::vector<view::ProjectedCorner> projected;
   std::vector<std::uint8_t> occupancy(grid.cell_count());
   std::vector<float> depth(grid.cell_count()), visible(grid.cell_count());
   for (auto _ : state) {
-    rasterize_occupancy_compact(mapping, level.positions, level.cut_triangles(), occupancy, depth, projected);
-    visible_depth_bound(depth, grid, visible);
+    view::rasterize_occupancy_compact(mapping, level.positions, level.cut_triangles(), occupancy, depth,
+                                      projected);
+    view::visible_depth_bound(depth, grid, visible);
     benchmark::DoNotOptimize(visible.data());
   }
-  AllowedErrorOptions options;
+  view::AllowedErrorOptions options;
   options.hidden_factor = 2.0f;
   std::vector<float> allowed(mt.vertex_count());
-  compute_vertex_allowed_error(mapping, options, {{}, {}, {}, mt.positions, {}, visible}, allowed);
+  view::compute_vertex_allowed_error(mapping, options, {{}, {}, {}, mt.positions, {}, visible}, allowed);
   std::vector<std::uint32_t> cells(mt.vertex_count());
   std::vector<float> clip_w(mt.vertex_count());
-  map_vertices(mapping, mt.positions, cells, clip_w);
+  view::map_vertices(mapping, mt.positions, cells, clip_w);
   std::size_t in_view = 0, hidden = 0;
   for (std::size_t v = 0; v < cells.size(); ++v) {
-    if (cells[v] == kNoCell) continue;
+    if (cells[v] == view::kNoCell) continue;
     ++in_view;
     hidden += allowed[v] == 2.0f;
   }
@@ -604,29 +606,29 @@ void BM_RefineOnlyDragon256(benchmark::State& state) {
     state.SkipWithError("no dragon MT");
     return;
   }
-  const Mt& mt = *dragon.mt;
-  const ViewMapping mapping(dragon.camera, GridSize{256, 256});
-  CutMesh cut;
-  const OccupancyLevel& level = dragon.level(16384);
-  std::vector<ProjectedCorner> projected;
+  const model::Mt& mt = *dragon.mt;
+  const view::ViewMapping mapping(dragon.camera, view::GridSize{256, 256});
+  cut::CutMesh cut;
+  const view::OccupancyLevel& level = dragon.level(16384);
+  std::vector<view::ProjectedCorner> projected;
   std::vector<std::uint8_t> occupancy(mapping.grid().cell_count());
   std::vector<std::uint16_t> silhouette(occupancy.size());
-  rasterize_occupancy_compact(mapping, level.positions, level.triangles, occupancy, {}, projected,
-                              level.closed);
-  chamfer_5_7_11(occupancy, mapping.grid(), silhouette);
-  AllowedErrorOptions options;
+  view::rasterize_occupancy_compact(mapping, level.positions, level.triangles, occupancy, {}, projected,
+                                    level.closed);
+  view::chamfer_5_7_11(occupancy, mapping.grid(), silhouette);
+  view::AllowedErrorOptions options;
   options.use_silhouette = true;
-  options.silhouette = {FalloffLaw::kStep, 2.0f, 0.25f, 0.0f, 2.3f};
+  options.silhouette = {view::FalloffLaw::kStep, 2.0f, 0.25f, 0.0f, 2.3f};
   std::vector<float> allowed(mt.vertex_count());
-  Refiner refiner(mt);
+  cut::Refiner refiner(mt);
   tune_error_for_size(dragon.radius, static_cast<std::size_t>(state.range(0)), [&](float bound) {
     options.error = bound;
-    compute_vertex_allowed_error(mapping, options, {silhouette, {}, {}, mt.positions, {}, {}}, allowed);
-    refiner.refine(AllowedError::from_vertices(allowed), cut);
+    view::compute_vertex_allowed_error(mapping, options, {silhouette, {}, {}, mt.positions, {}, {}}, allowed);
+    refiner.refine(cut::AllowedError::from_vertices(allowed), cut);
     return cut.triangle_count();
   });
   for (auto _ : state) {
-    refiner.refine(AllowedError::from_vertices(allowed), cut);
+    refiner.refine(cut::AllowedError::from_vertices(allowed), cut);
     benchmark::DoNotOptimize(cut.triangles.data());
   }
   state.counters["cut_triangles"] = static_cast<double>(cut.triangle_count());

@@ -1,4 +1,4 @@
-// Multi-Tessellation benchmarks (DESIGN.md §2), peers in the same run: building the MT of the 871k
+// MT benchmarks (core/ARCHITECTURE.md §2), peers in the same run: building the MT of the 871k
 // dragon against meshoptimizer's meshopt_simplify and OpenMesh's Decimater (ModQuadric) to the same
 // triangle count; static, budgeted and dynamic refinement output rates; bytes per input triangle.
 //   build/tests/mtlod_bench_mt --benchmark_counters_tabular=true
@@ -15,47 +15,47 @@
 #include <filesystem>
 #include <vector>
 
+#include "core/build/mt_builder.hpp"
+#include "core/cut/refine.hpp"
 #include "core/io/mesh_io.hpp"
-#include "core/mt_builder.hpp"
-#include "core/refine.hpp"
 #include "core/threads/thread_pool.hpp"
 
 namespace {
 
 using namespace mtlod::core;
 
-const Mesh* dragon() {
-  static const Mesh* mesh = []() -> const Mesh* {
+const model::Mesh* dragon() {
+  static const model::Mesh* mesh = []() -> const model::Mesh* {
     const auto path = std::filesystem::path(MTLOD_SHARED_MESHES_DIR) / "dragon-vrip-871k.ply";
     auto loaded = io::load_mesh(path);
     if (!loaded) {
       std::fprintf(stderr, "cannot load %s: %s\n", path.c_str(), loaded.error().message.c_str());
       return nullptr;
     }
-    return new Mesh(std::move(loaded->mesh));
+    return new model::Mesh(std::move(loaded->mesh));
   }();
   return mesh;
 }
 
-const Mt* dragon_mt() {
-  static const Mt* mt = []() -> const Mt* {
+const model::Mt* dragon_mt() {
+  static const model::Mt* mt = []() -> const model::Mt* {
     if (!dragon()) return nullptr;
-    auto built = build_mt(*dragon());
-    return built ? new Mt(std::move(built).value()) : nullptr;
+    auto built = build::build_mt(*dragon());
+    return built ? new model::Mt(std::move(built).value()) : nullptr;
   }();
   return mt;
 }
 
 void BM_BuildMt(benchmark::State& state) {
-  const Mesh* mesh = dragon();
+  const model::Mesh* mesh = dragon();
   if (!mesh) return state.SkipWithError("dragon-vrip-871k.ply not found");
-  BuildStats stats;
-  BuildOptions options;
+  build::BuildStats stats;
+  build::BuildOptions options;
   // range(0) = 1: the pass's independent work on every core (2 here); the MT is the same as serial.
-  mtlod::core::ThreadPool pool;
+  mtlod::core::threads::ThreadPool pool;
   if (state.range(0) == 1) pool.attach(options);
   for (auto _ : state) {
-    auto mt = build_mt(*mesh, options, &stats);
+    auto mt = build::build_mt(*mesh, options, &stats);
     benchmark::DoNotOptimize(mt);
     if (!mt) return state.SkipWithError("build failed");
     state.counters["bytes_per_input_triangle"] = double(mt->memory_bytes()) / double(mesh->triangle_count());
@@ -75,7 +75,7 @@ BENCHMARK(BM_BuildMt)
 
 // meshopt_simplify to a fraction of the input (range(0) percent), no error limit.
 void BM_MeshoptSimplify(benchmark::State& state) {
-  const Mesh* mesh = dragon();
+  const model::Mesh* mesh = dragon();
   if (!mesh) return state.SkipWithError("dragon-vrip-871k.ply not found");
   const std::size_t target = mesh->triangles.size() * std::size_t(state.range(0)) / 100 / 3 * 3;
   std::vector<std::uint32_t> out(mesh->triangles.size());
@@ -93,7 +93,7 @@ BENCHMARK(BM_MeshoptSimplify)->Arg(10)->Arg(1)->Unit(benchmark::kMillisecond)->I
 // OpenMesh Decimater with ModQuadric, to 10% of the input. About 16 s: one iteration.
 void BM_OpenMeshDecimater(benchmark::State& state) {
   using OmMesh = OpenMesh::TriMesh_ArrayKernelT<>;
-  const Mesh* mesh = dragon();
+  const model::Mesh* mesh = dragon();
   if (!mesh) return state.SkipWithError("dragon-vrip-871k.ply not found");
   const std::size_t target = mesh->triangle_count() * std::size_t(state.range(0)) / 100;
   std::size_t result = 0;
@@ -122,20 +122,20 @@ void BM_OpenMeshDecimater(benchmark::State& state) {
 BENCHMARK(BM_OpenMeshDecimater)->Arg(10)->Unit(benchmark::kMillisecond)->Iterations(1);
 
 // The uniform error whose static cut has about `triangles` triangles (bisection on a log scale).
-float error_for_size(const Mt& mt, std::size_t triangles) {
-  Refiner refiner(mt);
-  CutMesh cut;
+float error_for_size(const model::Mt& mt, std::size_t triangles) {
+  cut::Refiner refiner(mt);
+  cut::CutMesh cut;
   float lo = 1e-7f, hi = *std::max_element(mt.node_error.begin(), mt.node_error.end());
   for (int i = 0; i < 40; ++i) {
     const float mid = std::sqrt(lo * hi);
-    refiner.refine(AllowedError::everywhere(mid), cut);
+    refiner.refine(cut::AllowedError::everywhere(mid), cut);
     (cut.triangle_count() > triangles ? lo : hi) = mid;
   }
   return hi;
 }
 
 // A per-vertex field fine near a focus vertex and coarse away from it (what labels will give).
-std::vector<float> focus_field(const Mesh& mesh, std::size_t focus_vertex, float fine, float coarse,
+std::vector<float> focus_field(const model::Mesh& mesh, std::size_t focus_vertex, float fine, float coarse,
                                float radius) {
   std::vector<float> field(mesh.vertex_count());
   const float* f = &mesh.positions[3 * focus_vertex];
@@ -149,13 +149,13 @@ std::vector<float> focus_field(const Mesh& mesh, std::size_t focus_vertex, float
 }
 
 void BM_RefineStatic(benchmark::State& state) {
-  const Mt* mt = dragon_mt();
+  const model::Mt* mt = dragon_mt();
   if (!mt) return state.SkipWithError("dragon-vrip-871k.ply not found");
   const float e = error_for_size(*mt, std::size_t(state.range(0)));
-  Refiner refiner(*mt);
-  CutMesh cut;
+  cut::Refiner refiner(*mt);
+  cut::CutMesh cut;
   for (auto _ : state) {
-    refiner.refine(AllowedError::everywhere(e), cut);
+    refiner.refine(cut::AllowedError::everywhere(e), cut);
     benchmark::DoNotOptimize(cut.triangles.data());
   }
   state.SetItemsProcessed(state.iterations() * std::int64_t(cut.triangle_count()));
@@ -166,12 +166,12 @@ void BM_RefineStatic(benchmark::State& state) {
 BENCHMARK(BM_RefineStatic)->Arg(50'000)->Arg(500'000)->Unit(benchmark::kMicrosecond);
 
 void BM_RefineBudget(benchmark::State& state) {
-  const Mt* mt = dragon_mt();
+  const model::Mt* mt = dragon_mt();
   if (!mt) return state.SkipWithError("dragon-vrip-871k.ply not found");
-  Refiner refiner(*mt);
-  CutMesh cut;
+  cut::Refiner refiner(*mt);
+  cut::CutMesh cut;
   for (auto _ : state) {
-    refiner.refine_budget(AllowedError::everywhere(0.0f), std::size_t(state.range(0)), cut);
+    refiner.refine_budget(cut::AllowedError::everywhere(0.0f), std::size_t(state.range(0)), cut);
     benchmark::DoNotOptimize(cut.triangles.data());
   }
   state.SetItemsProcessed(state.iterations() * std::int64_t(cut.triangle_count()));
@@ -181,14 +181,14 @@ BENCHMARK(BM_RefineBudget)->Arg(50'000)->Unit(benchmark::kMicrosecond);
 
 // Budget with a per-vertex field: the error/allowed ratio heap.
 void BM_RefineBudgetPerVertex(benchmark::State& state) {
-  const Mt* mt = dragon_mt();
+  const model::Mt* mt = dragon_mt();
   if (!mt) return state.SkipWithError("dragon-vrip-871k.ply not found");
-  const Mesh& mesh = *dragon();
+  const model::Mesh& mesh = *dragon();
   const std::vector<float> field = focus_field(mesh, mesh.triangles[3 * 1000], 1e-5f, 1e-3f, 0.05f);
-  Refiner refiner(*mt);
-  CutMesh cut;
+  cut::Refiner refiner(*mt);
+  cut::CutMesh cut;
   for (auto _ : state) {
-    refiner.refine_budget(AllowedError::from_vertices(field), std::size_t(state.range(0)), cut);
+    refiner.refine_budget(cut::AllowedError::from_vertices(field), std::size_t(state.range(0)), cut);
     benchmark::DoNotOptimize(cut.triangles.data());
   }
   state.SetItemsProcessed(state.iterations() * std::int64_t(cut.triangle_count()));
@@ -202,8 +202,8 @@ struct FieldPair {
 };
 const FieldPair& small_change_fields() {
   static const FieldPair pair = [] {
-    const Mesh& mesh = *dragon();
-    const Mt& mt = *dragon_mt();
+    const model::Mesh& mesh = *dragon();
+    const model::Mt& mt = *dragon_mt();
     const float e = error_for_size(mt, 50'000);
     const std::uint32_t f = mesh.triangles[3 * 1000];
     const std::uint32_t g = mesh.triangles[3 * 1000 + 1];  // a neighbour of f
@@ -227,14 +227,14 @@ const FieldPair& fields_for(std::int64_t which) {
 }
 
 void BM_RefinePerVertexStatic(benchmark::State& state) {
-  const Mt* mt = dragon_mt();
+  const model::Mt* mt = dragon_mt();
   if (!mt) return state.SkipWithError("dragon-vrip-871k.ply not found");
   const FieldPair& fields = fields_for(state.range(0));
-  Refiner refiner(*mt);
-  CutMesh cut;
+  cut::Refiner refiner(*mt);
+  cut::CutMesh cut;
   bool flip = false;
   for (auto _ : state) {
-    refiner.refine(AllowedError::from_vertices(flip ? fields.b : fields.a), cut);
+    refiner.refine(cut::AllowedError::from_vertices(flip ? fields.b : fields.a), cut);
     flip = !flip;
     benchmark::DoNotOptimize(cut.triangles.data());
   }
@@ -245,16 +245,16 @@ void BM_RefinePerVertexStatic(benchmark::State& state) {
 BENCHMARK(BM_RefinePerVertexStatic)->Arg(0)->Arg(1)->Unit(benchmark::kMicrosecond);
 
 void BM_RefinePerVertexDynamic(benchmark::State& state) {
-  const Mt* mt = dragon_mt();
+  const model::Mt* mt = dragon_mt();
   if (!mt) return state.SkipWithError("dragon-vrip-871k.ply not found");
   const FieldPair& fields = fields_for(state.range(0));
-  Refiner refiner(*mt);
-  CutMesh cut;
-  refiner.update(AllowedError::from_vertices(fields.a), cut);
-  refiner.update(AllowedError::from_vertices(fields.b), cut);
+  cut::Refiner refiner(*mt);
+  cut::CutMesh cut;
+  refiner.update(cut::AllowedError::from_vertices(fields.a), cut);
+  refiner.update(cut::AllowedError::from_vertices(fields.b), cut);
   bool flip = false;
   for (auto _ : state) {
-    refiner.update(AllowedError::from_vertices(flip ? fields.b : fields.a), cut);
+    refiner.update(cut::AllowedError::from_vertices(flip ? fields.b : fields.a), cut);
     flip = !flip;
     benchmark::DoNotOptimize(cut.triangles.data());
   }
@@ -265,19 +265,19 @@ BENCHMARK(BM_RefinePerVertexDynamic)->Arg(0)->Arg(1)->Unit(benchmark::kMicroseco
 
 // 20 vertices changed, and the caller says which (no O(vertices) comparison).
 void BM_RefinePerVertexDynamicChangedList(benchmark::State& state) {
-  const Mt* mt = dragon_mt();
+  const model::Mt* mt = dragon_mt();
   if (!mt) return state.SkipWithError("dragon-vrip-871k.ply not found");
   const FieldPair& fields = few_vertex_fields();
   std::vector<std::uint32_t> changed;
   for (std::uint32_t v = 0; v < fields.a.size(); ++v)
     if (fields.a[v] != fields.b[v]) changed.push_back(v);
-  Refiner refiner(*mt);
-  CutMesh cut;
-  refiner.update(AllowedError::from_vertices(fields.a), cut);
-  refiner.update(AllowedError::from_vertices(fields.b), cut);
+  cut::Refiner refiner(*mt);
+  cut::CutMesh cut;
+  refiner.update(cut::AllowedError::from_vertices(fields.a), cut);
+  refiner.update(cut::AllowedError::from_vertices(fields.b), cut);
   bool flip = false;
   for (auto _ : state) {
-    refiner.update(AllowedError::from_vertices(flip ? fields.b : fields.a), changed, cut);
+    refiner.update(cut::AllowedError::from_vertices(flip ? fields.b : fields.a), changed, cut);
     flip = !flip;
     benchmark::DoNotOptimize(cut.triangles.data());
   }

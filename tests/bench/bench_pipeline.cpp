@@ -12,13 +12,13 @@
 #include <memory>
 #include <random>
 
-#include "core/bounds.hpp"
-#include "core/cut_delta.hpp"
-#include "core/draco_encode.hpp"
+#include "core/build/mt_builder.hpp"
+#include "core/codec/draco_encode.hpp"
+#include "core/cut/cut_delta.hpp"
 #include "core/io/mesh_io.hpp"
-#include "core/mt_builder.hpp"
-#include "core/occupancy_levels.hpp"
-#include "core/view_extract.hpp"
+#include "core/model/bounds.hpp"
+#include "core/view/occupancy_levels.hpp"
+#include "core/view/view_extract.hpp"
 #include "protocol/camera.hpp"
 #include "protocol/view_request.hpp"
 
@@ -28,8 +28,8 @@ using namespace mtlod;
 namespace fs = std::filesystem;
 
 struct Model {
-  core::Mt mt;
-  std::unique_ptr<core::OccupancyLevels> levels;
+  core::model::Mt mt;
+  std::unique_ptr<core::view::OccupancyLevels> levels;
   std::array<double, 3> lo{}, hi{};
 };
 
@@ -54,14 +54,14 @@ const Model* model(const std::string& name) {
   if (path.empty()) return nullptr;
   auto mesh = core::io::load_mesh(path);
   if (!mesh) return nullptr;
-  auto mt = core::build_mt(mesh->mesh);
+  auto mt = core::build::build_mt(mesh->mesh);
   if (!mt) return nullptr;
   slot = std::make_unique<Model>();
   slot->mt = std::move(*mt);
-  slot->levels = std::make_unique<core::OccupancyLevels>(slot->mt);
-  const core::Bounds box = core::bounds_of(slot->mt.positions);
-  slot->lo = core::to_double(box.lo);
-  slot->hi = core::to_double(box.hi);
+  slot->levels = std::make_unique<core::view::OccupancyLevels>(slot->mt);
+  const core::model::Bounds box = core::model::bounds_of(slot->mt.positions);
+  slot->lo = core::model::to_double(box.lo);
+  slot->hi = core::model::to_double(box.hi);
   return slot.get();
 }
 
@@ -72,17 +72,17 @@ protocol::Extract request_for(const Model& m, double error_px) {
   protocol::look_at_camera(protocol::frame_bounds(m.lo, m.hi), 800.0 / 600.0, e.view, e.projection);
   e.grid = {256, 256};
   e.error = error_px;
-  e.error_unit = core::ErrorUnits::kScreenPixels;
+  e.error_unit = core::view::ErrorUnits::kScreenPixels;
   e.criteria.silhouette = protocol::Silhouette{2, 0.1};
   e.criteria.focus = {protocol::Focus{0.5, 0.5, 40, 0.25}};
   return e;
 }
 
 std::size_t static_cut_size(const Model& m, double error_px) {
-  core::ViewExtractor x(m.mt, *m.levels);
-  core::Refiner r(m.mt);
-  core::CutMesh cut;
-  core::ViewRequest v = protocol::to_view_request(request_for(m, error_px), false);
+  core::view::ViewExtractor x(m.mt, *m.levels);
+  core::cut::Refiner r(m.mt);
+  core::cut::CutMesh cut;
+  core::view::ViewRequest v = protocol::to_view_request(request_for(m, error_px), false);
   v.dynamic = false;
   x.map(v), x.occupancy(), x.distance_transforms(), x.allowed_error(), x.refine(r, cut);
   return cut.triangle_count();
@@ -113,18 +113,19 @@ void BM_Request(benchmark::State& state) {
   if (!m) return state.SkipWithError("mesh not found");
   const auto target = static_cast<std::size_t>(state.range(1));
   const double error_px = error_for_size(*m, target);
-  core::ViewRequest view = protocol::to_view_request(request_for(*m, error_px), false);
+  core::view::ViewRequest view = protocol::to_view_request(request_for(*m, error_px), false);
   view.dynamic = false;
-  core::DracoOptions draco;
-  draco.method = state.range(2) < 0 ? core::DracoMethod::kSequential : core::DracoMethod::kEdgebreaker;
+  core::codec::DracoOptions draco;
+  draco.method =
+      state.range(2) < 0 ? core::codec::DracoMethod::kSequential : core::codec::DracoMethod::kEdgebreaker;
   draco.speed = state.range(2) < 0 ? 10 : static_cast<int>(state.range(2));
   draco.entropy_coding = state.range(2) != -2;
   draco.normals = state.range(3) != 0;
   const std::span<const float> normals = draco.normals ? m->mt.normals : std::span<const float>();
-  core::ViewExtractor extractor(m->mt, *m->levels);
-  core::Refiner refiner(m->mt);
-  core::CutMesh cut;
-  core::DracoEncoder encoder;
+  core::view::ViewExtractor extractor(m->mt, *m->levels);
+  core::cut::Refiner refiner(m->mt);
+  core::cut::CutMesh cut;
+  core::codec::DracoEncoder encoder;
   std::vector<std::uint8_t> payload;
   double t_map = 0, t_occ = 0, t_dt = 0, t_labels = 0, t_refine = 0, t_encode = 0, occupancy_triangles = 0;
   for (auto _ : state) {
@@ -177,15 +178,15 @@ void BM_RefineAfterSmallMove(benchmark::State& state) {
   const double error_px = error_for_size(*m, 50'000);
   protocol::Extract a = request_for(*m, error_px), b = a;
   b.criteria.focus[0].x += 0.01;  // the gaze moves by 1% of the screen
-  core::ViewRequest va = protocol::to_view_request(a, false), vb = protocol::to_view_request(b, false);
+  core::view::ViewRequest va = protocol::to_view_request(a, false), vb = protocol::to_view_request(b, false);
   va.dynamic = vb.dynamic = dynamic;
-  core::ViewExtractor x(m->mt, *m->levels);
-  core::Refiner refiner(m->mt);
-  core::CutMesh cut;
+  core::view::ViewExtractor x(m->mt, *m->levels);
+  core::cut::Refiner refiner(m->mt);
+  core::cut::CutMesh cut;
   bool flip = false;
   double refine_us = 0;
   for (auto _ : state) {
-    const core::ViewRequest& v = flip ? vb : va;
+    const core::view::ViewRequest& v = flip ? vb : va;
     flip = !flip;
     state.PauseTiming();
     x.map(v), x.occupancy(), x.distance_transforms(), x.allowed_error();
@@ -218,13 +219,13 @@ void BM_BudgetNewView(benchmark::State& state) {
   if (!m) return state.SkipWithError("mesh not found");
   protocol::Extract e = gaze_request(*m);
   e.budget = 50'000;
-  core::ViewRequest v = protocol::to_view_request(e, false);
+  core::view::ViewRequest v = protocol::to_view_request(e, false);
   v.allowed_error_on_demand = false;
-  core::ViewExtractor x(m->mt, *m->levels);
+  core::view::ViewExtractor x(m->mt, *m->levels);
   x.map(v), x.occupancy(), x.distance_transforms(), x.allowed_error();
-  const core::AllowedError allowed = core::AllowedError::from_vertices(x.vertex_allowed_error());
-  core::Refiner refiner(m->mt);
-  core::CutMesh cut;
+  const core::cut::AllowedError allowed = core::cut::AllowedError::from_vertices(x.vertex_allowed_error());
+  core::cut::Refiner refiner(m->mt);
+  core::cut::CutMesh cut;
   for (auto _ : state) {
     if (state.range(0) == 1) {
       refiner.start_budget(allowed, 50'000, cut);
@@ -255,20 +256,20 @@ void BM_GazeStream(benchmark::State& state) {
   protocol::Extract e = gaze_criteria ? gaze_request(*m) : request_for(*m, error_for_size(*m, 50'000));
   if (budget) e.budget = 50'000;
   std::vector<double> gaze_us;
-  core::ViewExtractor x(m->mt, *m->levels);
-  core::ViewCache session;
-  core::Refiner refiner(m->mt);
-  core::CutMesh cut;
-  core::DracoEncoder encoder;
-  core::DracoOptions draco;
-  draco.method = core::DracoMethod::kSequential;
+  core::view::ViewExtractor x(m->mt, *m->levels);
+  core::view::ViewCache session;
+  core::cut::Refiner refiner(m->mt);
+  core::cut::CutMesh cut;
+  core::codec::DracoEncoder encoder;
+  core::codec::DracoOptions draco;
+  draco.method = core::codec::DracoMethod::kSequential;
   draco.entropy_coding = state.range(1) == 0;
   std::vector<std::uint8_t> payload;
   std::mt19937 rng(5);
   std::uniform_real_distribution<double> anywhere(0.2, 0.8), drift(-0.003, 0.003), chance(0, 1);
   double labels_us = 0, refine_us = 0, before_us = 0, encode_us = 0, delta_us = 0, triangles = 0, changed = 0,
          bytes = 0;
-  core::CutDelta delta;  // what a delta reply's diff costs (server, "delta": true)
+  core::cut::CutDelta delta;  // what a delta reply's diff costs (server, "delta": true)
   std::vector<std::uint32_t> added, removed;
   for (auto _ : state) {
     auto& f = e.criteria.focus[0];
@@ -277,7 +278,7 @@ void BM_GazeStream(benchmark::State& state) {
     } else {
       f.x = std::clamp(f.x + drift(rng), 0.0, 1.0), f.y = std::clamp(f.y + drift(rng), 0.0, 1.0);
     }
-    const core::ViewRequest v = protocol::to_view_request(e, false);
+    const core::view::ViewRequest v = protocol::to_view_request(e, false);
     auto start = Clock::now();
     x.map(v, with_session ? &session : nullptr);
     x.occupancy(), x.distance_transforms();

@@ -9,10 +9,10 @@
 #include <vector>
 
 #include "clients/common/server_connection.hpp"
-#include "core/bounds.hpp"
-#include "core/draco_decode.hpp"
+#include "core/codec/draco_decode.hpp"
 #include "core/eval/mesh_gen.hpp"
 #include "core/io/mesh_io.hpp"
+#include "core/model/bounds.hpp"
 #include "protocol/camera.hpp"
 #include "protocol/frame.hpp"
 #include "tests/clients/delta_meshes.hpp"
@@ -29,8 +29,8 @@ namespace fs = std::filesystem;
 
 struct Served {
   fs::path dir;
-  core::Mesh painted;  // the coloured PLY's mesh
-  core::Bounds box;
+  core::model::Mesh painted;  // the coloured PLY's mesh
+  core::model::Bounds box;
   std::unique_ptr<test::ServerProcess> server;
 };
 
@@ -46,17 +46,17 @@ const Served& served() {
   static const Served s = [] {
     Served s;
     s.dir = test::scratch_dir("colours");
-    core::GenerateOptions options;
-    options.shape = core::Shape::kShell;
+    core::eval::GenerateOptions options;
+    options.shape = core::eval::Shape::kShell;
     options.target_triangles = 20'000;
     options.colors = true;
-    s.painted = core::generate_mesh(options);
+    s.painted = core::eval::generate_mesh(options);
     EXPECT_TRUE(core::io::save_mesh(s.dir / "painted.ply", s.painted).ok());
     options.colors = false;
-    EXPECT_TRUE(core::io::save_mesh(s.dir / "plain.ply", core::generate_mesh(options)).ok());
+    EXPECT_TRUE(core::io::save_mesh(s.dir / "plain.ply", core::eval::generate_mesh(options)).ok());
     build(s.dir / "painted.ply", s.dir / "painted.mt");
     build(s.dir / "plain.ply", s.dir / "plain.mt");
-    s.box = core::bounds_of(s.painted.positions);
+    s.box = core::model::bounds_of(s.painted.positions);
     s.server = std::make_unique<test::ServerProcess>(
         std::vector<std::string>{(s.dir / "painted.mt").string(), (s.dir / "plain.mt").string(),
                                  "--log-level", "warn"},
@@ -67,8 +67,8 @@ const Served& served() {
 }
 
 protocol::Extract request(const std::string& model) {
-  protocol::Extract e = test::framing_extract(model, core::to_double(served().box.lo),
-                                              core::to_double(served().box.hi), {256, 256}, 1.0);
+  protocol::Extract e = test::framing_extract(model, core::model::to_double(served().box.lo),
+                                              core::model::to_double(served().box.hi), {256, 256}, 1.0);
   e.criteria.focus = {protocol::Focus{0.5, 0.5, 20, 0.25}};
   e.colors = true;
   return e;
@@ -76,7 +76,7 @@ protocol::Extract request(const std::string& model) {
 
 // Every vertex of `decoded` has the colour of the painted mesh's vertex at its position (the server
 // quantizes positions on the model's bounding box).
-void expect_painted(const core::Mesh& decoded, const std::string& what) {
+void expect_painted(const core::model::Mesh& decoded, const std::string& what) {
   const Served& s = served();
   ASSERT_GT(decoded.vertex_count(), 0u) << what;
   ASSERT_EQ(decoded.colors.size(), decoded.positions.size()) << what << ": no colours";
@@ -117,7 +117,7 @@ TEST(Colours, DeltaRepliesCarryTheColoursOfWhatTheyAdd) {
   ASSERT_TRUE(c.ok()) << c.error().message;
   const std::size_t checked =
       test::check_delta_meshes(*c, request("painted"), {0.2, 0.8}, s.dir,
-                               [](const core::Mesh& m, std::uint64_t added, const std::string& what) {
+                               [](const core::model::Mesh& m, std::uint64_t added, const std::string& what) {
                                  EXPECT_EQ(m.triangle_count(), added) << what;
                                  expect_painted(m, what);
                                });

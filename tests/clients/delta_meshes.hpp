@@ -13,7 +13,7 @@
 #include <string>
 
 #include "clients/common/server_connection.hpp"
-#include "core/mesh.hpp"
+#include "core/model/mesh.hpp"
 #include "protocol/frame.hpp"
 #include "tests/core/googles_draco_decoder.hpp"
 
@@ -21,10 +21,10 @@ namespace mtlod::test {
 
 // Sends `first` with delta on, then a gaze at (x, 0.5) for each x; returns how many replies added
 // triangles (each decoded and checked as `check(mesh, added, what)`).
-inline std::size_t check_delta_meshes(
-    clients::ServerConnection& c, protocol::Extract first, std::initializer_list<double> gaze_xs,
-    const std::filesystem::path& dir,
-    const std::function<void(const core::Mesh&, std::uint64_t added, const std::string& what)>& check) {
+inline std::size_t check_delta_meshes(clients::ServerConnection& c, protocol::Extract first,
+                                      std::initializer_list<double> gaze_xs, const std::filesystem::path& dir,
+                                      const std::function<void(const core::model::Mesh&, std::uint64_t added,
+                                                               const std::string& what)>& check) {
   first.delta = true;
   std::uint64_t id = 1;
   auto reply = c.call(first, id);

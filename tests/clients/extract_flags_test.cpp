@@ -19,9 +19,9 @@ TEST(DefaultCriteria, FovealBoundAtTheFocusWhenNoCriterionIsGiven) {
   ExtractFlags flags;
   apply_default_criteria(flags);
   const Extract e = request_for(flags);
-  EXPECT_EQ(e.error_unit, core::ErrorUnits::kScreenPixels);
+  EXPECT_EQ(e.error_unit, core::view::ErrorUnits::kScreenPixels);
   EXPECT_EQ(e.error, 1.0);
-  EXPECT_EQ(e.criteria.falloff, core::FalloffLaw::kFoveal);
+  EXPECT_EQ(e.criteria.falloff, core::view::FalloffLaw::kFoveal);
   EXPECT_FALSE(e.criteria.silhouette);
   ASSERT_EQ(e.criteria.focus.size(), 1u);
   EXPECT_EQ(e.criteria.focus[0].x, 0.5);
@@ -43,7 +43,7 @@ TEST(DefaultCriteria, AGivenBoundIsKept) {
   apply_default_criteria(flags);
   const Extract e = request_for(flags);
   EXPECT_EQ(e.error, 0.25);
-  EXPECT_EQ(e.criteria.falloff, core::FalloffLaw::kFoveal);
+  EXPECT_EQ(e.criteria.falloff, core::view::FalloffLaw::kFoveal);
 }
 
 TEST(DefaultCriteria, AnyGivenCriterionTurnsTheDefaultOff) {
@@ -51,7 +51,7 @@ TEST(DefaultCriteria, AnyGivenCriterionTurnsTheDefaultOff) {
   silhouette.silhouette = "2,0.25";
   apply_default_criteria(silhouette);
   Extract e = request_for(silhouette);
-  EXPECT_EQ(e.criteria.falloff, core::FalloffLaw::kStep);
+  EXPECT_EQ(e.criteria.falloff, core::view::FalloffLaw::kStep);
   EXPECT_TRUE(e.criteria.focus.empty());
   EXPECT_EQ(e.criteria.hidden_factor, 1.0);
   ASSERT_TRUE(e.criteria.silhouette);
@@ -61,14 +61,14 @@ TEST(DefaultCriteria, AnyGivenCriterionTurnsTheDefaultOff) {
   falloff.falloff = "linear";
   apply_default_criteria(falloff);
   e = request_for(falloff);
-  EXPECT_EQ(e.criteria.falloff, core::FalloffLaw::kLinear);
+  EXPECT_EQ(e.criteria.falloff, core::view::FalloffLaw::kLinear);
   EXPECT_TRUE(e.criteria.focus.empty());
 
   ExtractFlags focus;
   focus.focus.push_back("0.2,0.3,40,0.5");
   apply_default_criteria(focus);
   e = request_for(focus);
-  EXPECT_EQ(e.criteria.falloff, core::FalloffLaw::kStep);
+  EXPECT_EQ(e.criteria.falloff, core::view::FalloffLaw::kStep);
   ASSERT_EQ(e.criteria.focus.size(), 1u);
   EXPECT_EQ(e.criteria.focus[0].factor, 0.5);
 }
@@ -76,7 +76,7 @@ TEST(DefaultCriteria, AnyGivenCriterionTurnsTheDefaultOff) {
 TEST(DefaultCriteria, WithoutTheDefaultNoFalloffMeansStep) {
   ExtractFlags flags;
   flags.error = 0.01;
-  EXPECT_EQ(request_for(flags).criteria.falloff, core::FalloffLaw::kStep);
+  EXPECT_EQ(request_for(flags).criteria.falloff, core::view::FalloffLaw::kStep);
 }
 
 }  // namespace

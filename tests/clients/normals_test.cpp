@@ -13,11 +13,11 @@
 #include <vector>
 
 #include "clients/common/server_connection.hpp"
-#include "core/bounds.hpp"
+#include "core/build/vertex_normals.hpp"
 #include "core/eval/mesh_gen.hpp"
 #include "core/io/mesh_io.hpp"
 #include "core/io/mt_file.hpp"
-#include "core/vertex_normals.hpp"
+#include "core/model/bounds.hpp"
 #include "protocol/camera.hpp"
 #include "protocol/frame.hpp"
 #include "tests/clients/delta_meshes.hpp"
@@ -34,12 +34,12 @@ namespace fs = std::filesystem;
 
 struct Served {
   fs::path dir;
-  core::Mesh shell;                  // the surface every model here comes from
+  core::model::Mesh shell;           // the surface every model here comes from
   std::vector<float> computed;       // its angle-weighted normals
   std::vector<std::uint8_t> broken;  // per vertex: its normal in broken.ply is NaN or zero-length
   std::vector<float> given;          // broken.ply's normals (the usable ones are kept)
   std::string broken_log;            // what mtlod-build said about broken.ply
-  core::Bounds box;
+  core::model::Bounds box;
   std::unique_ptr<test::ServerProcess> server;
 };
 
@@ -56,16 +56,16 @@ const Served& served() {
   static const Served s = [] {
     Served s;
     s.dir = test::scratch_dir("normals");
-    core::GenerateOptions options;
-    options.shape = core::Shape::kShell;
+    core::eval::GenerateOptions options;
+    options.shape = core::eval::Shape::kShell;
     options.target_triangles = 20'000;
-    s.shell = core::generate_mesh(options);
-    s.computed = core::vertex_normals(s.shell.positions, s.shell.triangles);
+    s.shell = core::eval::generate_mesh(options);
+    s.computed = core::build::vertex_normals(s.shell.positions, s.shell.triangles);
     EXPECT_TRUE(core::io::save_mesh(s.dir / "plain.ply", s.shell).ok());
     build(s.dir / "plain.ply", s.dir / "plain.mt");
 
     // Given normals pointing a fixed odd way, every 7th NaN and every 11th zero.
-    core::Mesh broken = s.shell;
+    core::model::Mesh broken = s.shell;
     const std::size_t n = broken.vertex_count();
     broken.normals.resize(3 * n);
     s.broken.assign(n, 0);
@@ -82,11 +82,11 @@ const Served& served() {
     // An MT written without normals, as mtlod-build wrote them before every MT had them.
     auto mt = core::io::read_mt_file(s.dir / "plain.mt", core::io::MtLoad::kRead);
     EXPECT_TRUE(mt.ok());
-    core::MtArrays arrays = mt->arrays();
+    core::model::MtArrays arrays = mt->arrays();
     arrays.normals.clear();
-    EXPECT_TRUE(core::io::write_mt_file(s.dir / "legacy.mt", core::Mt(std::move(arrays))).ok());
+    EXPECT_TRUE(core::io::write_mt_file(s.dir / "legacy.mt", core::model::Mt(std::move(arrays))).ok());
 
-    s.box = core::bounds_of(s.shell.positions);
+    s.box = core::model::bounds_of(s.shell.positions);
     s.server = std::make_unique<test::ServerProcess>(
         std::vector<std::string>{(s.dir / "plain.mt").string(), (s.dir / "broken.mt").string(),
                                  (s.dir / "legacy.mt").string(), "--log-level", "info"},
@@ -98,15 +98,16 @@ const Served& served() {
 
 // A view with the default attributes (the protocol's defaults: normals on).
 protocol::Extract request(const std::string& model) {
-  protocol::Extract e = test::framing_extract(model, core::to_double(served().box.lo),
-                                              core::to_double(served().box.hi), {256, 256}, 1.0);
+  protocol::Extract e = test::framing_extract(model, core::model::to_double(served().box.lo),
+                                              core::model::to_double(served().box.hi), {256, 256}, 1.0);
   e.criteria.focus = {protocol::Focus{0.5, 0.5, 20, 0.25}};
   return e;
 }
 
 // Every decoded vertex has a unit normal within the 10-bit octahedral quantization of `want` at the
 // shell's vertex it decodes to.
-void expect_normals(const core::Mesh& decoded, const std::vector<float>& want, const std::string& what) {
+void expect_normals(const core::model::Mesh& decoded, const std::vector<float>& want,
+                    const std::string& what) {
   const Served& s = served();
   ASSERT_GT(decoded.vertex_count(), 0u) << what;
   ASSERT_EQ(decoded.normals.size(), decoded.positions.size()) << what << ": no normals";
@@ -131,7 +132,8 @@ const protocol::MeshReply* as_mesh(const clients::ReplyFrame& f) {
   return std::get_if<protocol::MeshReply>(&f.header.reply);
 }
 
-Result<core::Mesh> fetch(const std::string& model, const protocol::Extract& e, const std::string& name) {
+Result<core::model::Mesh> fetch(const std::string& model, const protocol::Extract& e,
+                                const std::string& name) {
   auto c = clients::ServerConnection::open("127.0.0.1", served().server->port());
   if (!c) return c.take_error();
   MTLOD_TRY(clients::ReplyFrame reply, c->call(e, 1));
@@ -175,7 +177,7 @@ TEST(Normals, DeltaRepliesCarryTheNormalsOfWhatTheyAdd) {
   ASSERT_TRUE(c.ok()) << c.error().message;
   const std::size_t checked =
       test::check_delta_meshes(*c, request("plain"), {0.2, 0.8}, s.dir,
-                               [&](const core::Mesh& m, std::uint64_t, const std::string& what) {
+                               [&](const core::model::Mesh& m, std::uint64_t, const std::string& what) {
                                  expect_normals(m, s.computed, what);
                                });
   EXPECT_GE(checked, 2u);

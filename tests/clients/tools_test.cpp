@@ -11,7 +11,7 @@
 #include <map>
 
 #include "clients/common/server_connection.hpp"
-#include "core/draco_decode.hpp"
+#include "core/codec/draco_decode.hpp"
 #include "core/eval/mesh_gen.hpp"
 #include "core/io/mesh_io.hpp"
 #include "fmt/format.h"
@@ -33,9 +33,9 @@ class ToolsTest : public testing::Test {
     if (std::filesystem::exists(bunny)) {
       std::filesystem::copy_file(bunny, *dir_ / "bunny.ply");
     } else {
-      core::GenerateOptions o;
+      core::eval::GenerateOptions o;
       o.target_triangles = 4000;
-      ASSERT_TRUE(core::io::save_mesh(*dir_ / "bunny.ply", core::generate_mesh(o)).ok());
+      ASSERT_TRUE(core::io::save_mesh(*dir_ / "bunny.ply", core::eval::generate_mesh(o)).ok());
     }
   }
   static void TearDownTestSuite() { delete dir_; }
@@ -235,7 +235,7 @@ TEST_F(ToolsTest, ClientGlbEmbedsTheDracoBytesItReceived) {
   EXPECT_EQ(bin.substr(offset, length), drc);
 
   const auto decoded =
-      core::decode_draco(std::span(reinterpret_cast<const std::uint8_t*>(drc.data()), drc.size()));
+      core::codec::decode_draco(std::span(reinterpret_cast<const std::uint8_t*>(drc.data()), drc.size()));
   ASSERT_TRUE(decoded.ok()) << decoded.error().message;
   const auto [plain, plain_bin] = chunks(test::read_file(*dir_ / "cut-plain.glb"));
   const json& p = plain.at("meshes")[0].at("primitives")[0];

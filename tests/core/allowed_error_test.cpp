@@ -1,7 +1,7 @@
-// Allowed-error functions (DESIGN.md §1.5, §3): each law at hand-computed labels, the stricter
+// Allowed error (core/ARCHITECTURE.md §1.5): each law at hand-computed labels, the stricter
 // criterion wins, the pixel bound converts with depth, coarsening factors apply where they should, the
 // lazy field equals the full one, and the per-vertex minimum reproduces the papers' triangle law.
-#include "core/allowed_error.hpp"
+#include "core/view/allowed_error.hpp"
 
 #include <gtest/gtest.h>
 
@@ -10,7 +10,7 @@
 #include <numbers>
 #include <vector>
 
-#include "core/occupancy.hpp"
+#include "core/view/occupancy.hpp"
 #include "tests/core/test_scenes.hpp"
 
 namespace mtlod::core {
@@ -19,25 +19,25 @@ namespace {
 constexpr float kInf = std::numeric_limits<float>::infinity();
 
 TEST(LawFactor, StepIsFactorInsideAndOneOutside) {
-  const RegionLaw step{FalloffLaw::kStep, 2.0f, 0.25f, 16.0f, 2.3f};
-  EXPECT_EQ(law_factor(step, 0.0f, 0.0f), 0.25f);
-  EXPECT_EQ(law_factor(step, 2.0f, 0.0f), 0.25f);  // label ≤ d is inside
-  EXPECT_EQ(law_factor(step, 2.2f, 0.0f), 1.0f);
-  EXPECT_EQ(law_factor(step, kInf, 0.0f), 1.0f);  // unlabeled
+  const view::RegionLaw step{view::FalloffLaw::kStep, 2.0f, 0.25f, 16.0f, 2.3f};
+  EXPECT_EQ(view::law_factor(step, 0.0f, 0.0f), 0.25f);
+  EXPECT_EQ(view::law_factor(step, 2.0f, 0.0f), 0.25f);  // label ≤ d is inside
+  EXPECT_EQ(view::law_factor(step, 2.2f, 0.0f), 1.0f);
+  EXPECT_EQ(view::law_factor(step, kInf, 0.0f), 1.0f);  // unlabeled
 }
 
 TEST(LawFactor, LinearAndSmoothstepRampFromFactorToOne) {
   // d = 2, ramp 4 px, f = 0.2. At 4 px, halfway: linear 0.2 + 0.8·0.5 = 0.6. At 3 px, t = 0.25:
   // smoothstep 0.25²·(3 − 0.5) = 0.15625, so 0.2 + 0.8·0.15625 = 0.325. All values are exact in float.
-  const RegionLaw linear{FalloffLaw::kLinear, 2.0f, 0.2f, 4.0f, 2.3f};
-  const RegionLaw smooth{FalloffLaw::kSmoothstep, 2.0f, 0.2f, 4.0f, 2.3f};
-  EXPECT_EQ(law_factor(linear, 1.0f, 0.0f), 0.2f);
-  EXPECT_FLOAT_EQ(law_factor(linear, 4.0f, 0.0f), 0.6f);  // 0.2f + 0.8f·0.5f rounds within 1 ulp
-  EXPECT_EQ(law_factor(linear, 6.0f, 0.0f), 1.0f);
-  EXPECT_EQ(law_factor(linear, 50.0f, 0.0f), 1.0f);
-  EXPECT_FLOAT_EQ(law_factor(smooth, 3.0f, 0.0f), 0.325f);
-  EXPECT_FLOAT_EQ(law_factor(smooth, 4.0f, 0.0f), 0.6f);  // smoothstep(0.5) = 0.5
-  EXPECT_EQ(law_factor(smooth, 6.0f, 0.0f), 1.0f);
+  const view::RegionLaw linear{view::FalloffLaw::kLinear, 2.0f, 0.2f, 4.0f, 2.3f};
+  const view::RegionLaw smooth{view::FalloffLaw::kSmoothstep, 2.0f, 0.2f, 4.0f, 2.3f};
+  EXPECT_EQ(view::law_factor(linear, 1.0f, 0.0f), 0.2f);
+  EXPECT_FLOAT_EQ(view::law_factor(linear, 4.0f, 0.0f), 0.6f);  // 0.2f + 0.8f·0.5f rounds within 1 ulp
+  EXPECT_EQ(view::law_factor(linear, 6.0f, 0.0f), 1.0f);
+  EXPECT_EQ(view::law_factor(linear, 50.0f, 0.0f), 1.0f);
+  EXPECT_FLOAT_EQ(view::law_factor(smooth, 3.0f, 0.0f), 0.325f);
+  EXPECT_FLOAT_EQ(view::law_factor(smooth, 4.0f, 0.0f), 0.6f);  // smoothstep(0.5) = 0.5
+  EXPECT_EQ(view::law_factor(smooth, 6.0f, 0.0f), 1.0f);
 }
 
 TEST(LawFactor, FovealGrowsLinearlyWithEccentricity) {
@@ -45,42 +45,42 @@ TEST(LawFactor, FovealGrowsLinearlyWithEccentricity) {
   // acuity model doubles the allowed error: f = 0.1 → 0.2. 20 px is atan(2·tan 2.3°) ≈ 4.5966°.
   // Tolerance: float tan/atan round-trips (~1e-6 relative).
   const float tan_per_px = std::tan(2.3f * std::numbers::pi_v<float> / 180.0f) / 10.0f;
-  const RegionLaw foveal{FalloffLaw::kFoveal, 0.0f, 0.1f, 0.0f, 2.3f};
-  EXPECT_NEAR(eccentricity_deg(10.0f, tan_per_px), 2.3f, 1e-5f);
-  EXPECT_EQ(law_factor(foveal, 0.0f, tan_per_px), 0.1f);
-  EXPECT_NEAR(law_factor(foveal, 10.0f, tan_per_px), 0.2f, 1e-6f);
+  const view::RegionLaw foveal{view::FalloffLaw::kFoveal, 0.0f, 0.1f, 0.0f, 2.3f};
+  EXPECT_NEAR(view::eccentricity_deg(10.0f, tan_per_px), 2.3f, 1e-5f);
+  EXPECT_EQ(view::law_factor(foveal, 0.0f, tan_per_px), 0.1f);
+  EXPECT_NEAR(view::law_factor(foveal, 10.0f, tan_per_px), 0.2f, 1e-6f);
   const double e20 = std::atan(2.0 * std::tan(2.3 * std::numbers::pi / 180.0)) * 180.0 / std::numbers::pi;
-  EXPECT_NEAR(law_factor(foveal, 20.0f, tan_per_px), 0.1 * (1.0 + e20 / 2.3), 1e-6);
-  EXPECT_EQ(law_factor(foveal, 1000.0f, tan_per_px), 1.0f);  // capped at the base error
+  EXPECT_NEAR(view::law_factor(foveal, 20.0f, tan_per_px), 0.1 * (1.0 + e20 / 2.3), 1e-6);
+  EXPECT_EQ(view::law_factor(foveal, 1000.0f, tan_per_px), 1.0f);  // capped at the base error
 }
 
 TEST(LawFactor, FovealFromTheBaseErrorGrowsWithoutACap) {
   // f = 1: the base error is the bound at the focus, and it grows as the minimum angle of resolution
   // does, 1 + e/e2, however far out (the default criteria of mtlod-gaze, mtlod-load and the viewer).
   const float tan_per_px = std::tan(2.3f * std::numbers::pi_v<float> / 180.0f) / 10.0f;
-  const RegionLaw foveal{FalloffLaw::kFoveal, 0.0f, 1.0f, 0.0f, 2.3f};
-  EXPECT_EQ(law_factor(foveal, 0.0f, tan_per_px), 1.0f);
-  EXPECT_NEAR(law_factor(foveal, 10.0f, tan_per_px), 2.0f, 1e-5f);
+  const view::RegionLaw foveal{view::FalloffLaw::kFoveal, 0.0f, 1.0f, 0.0f, 2.3f};
+  EXPECT_EQ(view::law_factor(foveal, 0.0f, tan_per_px), 1.0f);
+  EXPECT_NEAR(view::law_factor(foveal, 10.0f, tan_per_px), 2.0f, 1e-5f);
   const double e1000 = std::atan(100.0 * std::tan(2.3 * std::numbers::pi / 180.0)) * 180.0 / std::numbers::pi;
-  EXPECT_NEAR(law_factor(foveal, 1000.0f, tan_per_px), 1.0 + e1000 / 2.3, 1e-4);
-  EXPECT_GT(law_factor(foveal, 1000.0f, tan_per_px), 30.0f);
+  EXPECT_NEAR(view::law_factor(foveal, 1000.0f, tan_per_px), 1.0 + e1000 / 2.3, 1e-4);
+  EXPECT_GT(view::law_factor(foveal, 1000.0f, tan_per_px), 30.0f);
 }
 
 TEST(LawFactor, NeglectRegionRaisesTheError) {
-  const RegionLaw neglect{FalloffLaw::kStep, 3.0f, 4.0f, 0.0f, 2.3f};
-  EXPECT_EQ(law_factor(neglect, 3.0f, 0.0f), 4.0f);
-  EXPECT_EQ(law_factor(neglect, 3.2f, 0.0f), 1.0f);
+  const view::RegionLaw neglect{view::FalloffLaw::kStep, 3.0f, 4.0f, 0.0f, 2.3f};
+  EXPECT_EQ(view::law_factor(neglect, 3.0f, 0.0f), 4.0f);
+  EXPECT_EQ(view::law_factor(neglect, 3.2f, 0.0f), 1.0f);
 }
 
 // A 16×16 grid over a 90° perspective view from the origin down −z; transforms are set by hand.
 struct HandScene {
-  ViewMapping mapping;
+  view::ViewMapping mapping;
   std::vector<std::uint16_t> silhouette, focus, neglect;
   HandScene() {
-    Camera camera;
+    view::Camera camera;
     camera.view = glm::lookAt(glm::vec3(0, 0, 0), glm::vec3(0, 0, -1), glm::vec3(0, 1, 0));
     camera.projection = glm::perspective(glm::radians(90.0f), 1.0f, 0.1f, 100.0f);
-    mapping = ViewMapping(camera, GridSize{16, 16});
+    mapping = view::ViewMapping(camera, view::GridSize{16, 16});
     silhouette.assign(256, 100);
     focus.assign(256, 100);
     neglect.assign(256, 100);
@@ -93,33 +93,34 @@ TEST(AllowedError, StricterOfSilhouetteAndFocusWins) {
   const std::vector<float> positions = {0.0f, 0.0f, -4.0f};
   const std::uint32_t cell = scene.mapping.map_point(0.0f, 0.0f, -4.0f);
   ASSERT_EQ(cell, scene.mapping.grid().cell(8, 8));
-  AllowedErrorOptions options;
+  view::AllowedErrorOptions options;
   options.error = 2.0f;
   options.use_silhouette = true;
-  options.silhouette = {FalloffLaw::kStep, 2.0f, 0.5f, 0.0f, 2.3f};
+  options.silhouette = {view::FalloffLaw::kStep, 2.0f, 0.5f, 0.0f, 2.3f};
   options.use_focus = true;
-  options.focus = {FalloffLaw::kStep, 3.0f, 0.25f, 0.0f, 2.3f};
-  const AllowedErrorInputs inputs{scene.silhouette, scene.focus, {}, positions, {}, {}};
+  options.focus = {view::FalloffLaw::kStep, 3.0f, 0.25f, 0.0f, 2.3f};
+  const view::AllowedErrorInputs inputs{scene.silhouette, scene.focus, {}, positions, {}, {}};
   std::vector<float> out(1);
   // Label 10 (2 px) is inside the silhouette band only: 2·0.5.
   scene.silhouette[cell] = 10;
-  compute_vertex_allowed_error(scene.mapping, options, inputs, out);
+  view::compute_vertex_allowed_error(scene.mapping, options, inputs, out);
   EXPECT_EQ(out[0], 1.0f);
   // Also within 3 px of the focus (label 15): the stricter 0.25 wins.
   scene.focus[cell] = 15;
-  compute_vertex_allowed_error(scene.mapping, options, inputs, out);
+  view::compute_vertex_allowed_error(scene.mapping, options, inputs, out);
   EXPECT_EQ(out[0], 0.5f);
   // Outside both: the base error.
   scene.silhouette[cell] = 11;
   scene.focus[cell] = 16;
-  compute_vertex_allowed_error(scene.mapping, options, inputs, out);
+  view::compute_vertex_allowed_error(scene.mapping, options, inputs, out);
   EXPECT_EQ(out[0], 2.0f);
   // A neglect region multiplies: inside it (label 0) the base error is raised 4×.
   options.use_neglect = true;
-  options.neglect = {FalloffLaw::kStep, 2.0f, 4.0f, 0.0f, 2.3f};
+  options.neglect = {view::FalloffLaw::kStep, 2.0f, 4.0f, 0.0f, 2.3f};
   scene.neglect[cell] = 0;
-  const AllowedErrorInputs with_neglect{scene.silhouette, scene.focus, scene.neglect, positions, {}, {}};
-  compute_vertex_allowed_error(scene.mapping, options, with_neglect, out);
+  const view::AllowedErrorInputs with_neglect{scene.silhouette, scene.focus, scene.neglect,
+                                              positions,        {},          {}};
+  view::compute_vertex_allowed_error(scene.mapping, options, with_neglect, out);
   EXPECT_EQ(out[0], 8.0f);
 }
 
@@ -129,18 +130,18 @@ TEST(AllowedError, PixelBoundConvertsWithDepth) {
   // Tolerance: P[1][1] = 1/tan(π/4) is 1 up to float rounding, and 0.02 is not exact in float.
   HandScene scene;
   const std::vector<float> positions = {0.5f, 0.5f, -5.0f, 0.0f, 0.0f, 3.0f, 40.0f, 0.0f, -5.0f};
-  AllowedErrorOptions options;
+  view::AllowedErrorOptions options;
   options.error = 2.0f;
-  options.units = ErrorUnits::kScreenPixels;
+  options.units = view::ErrorUnits::kScreenPixels;
   options.viewport_height_px = 1000.0f;
   std::vector<float> out(3);
-  compute_vertex_allowed_error(scene.mapping, options, {{}, {}, {}, positions, {}, {}}, out);
+  view::compute_vertex_allowed_error(scene.mapping, options, {{}, {}, {}, positions, {}, {}}, out);
   EXPECT_NEAR(out[0], 0.02f, 1e-8f);
   EXPECT_EQ(out[1], kInf);
   EXPECT_NEAR(out[2], 0.02f, 1e-8f);  // off the grid but in front: same depth, same bound
   // Without viewport_height_px the grid's 16 rows are the pixels: 2 · 10/16 = 1.25.
   options.viewport_height_px = 0.0f;
-  compute_vertex_allowed_error(scene.mapping, options, {{}, {}, {}, positions, {}, {}}, out);
+  view::compute_vertex_allowed_error(scene.mapping, options, {{}, {}, {}, positions, {}, {}}, out);
   EXPECT_NEAR(out[0], 1.25f, 1e-6f);
 }
 
@@ -150,12 +151,12 @@ TEST(AllowedError, FrustumAndBackFaceCoarsening) {
   // on the rim (normal ⟂ view direction).
   const std::vector<float> positions = {0, 0, -4, 40, 0, -4, 0.1f, 0, -4, 0, 0.2f, -4};
   const std::vector<float> normals = {0, 0, 1, 0, 0, 1, 0, 0, -1, 0, 1, 0};
-  AllowedErrorOptions options;
+  view::AllowedErrorOptions options;
   options.error = 1.0f;
   options.outside_view_factor = 8.0f;
   options.back_face_factor = 3.0f;
   std::vector<float> out(4);
-  compute_vertex_allowed_error(scene.mapping, options, {{}, {}, {}, positions, normals, {}}, out);
+  view::compute_vertex_allowed_error(scene.mapping, options, {{}, {}, {}, positions, normals, {}}, out);
   EXPECT_EQ(out, (std::vector<float>{1.0f, 8.0f, 3.0f, 1.0f}));
 }
 
@@ -172,18 +173,18 @@ TEST(AllowedError, HiddenSurfaceCoarseningComparesDepthWithTheVisibleSurface) {
   const std::vector<float> positions = {0,           0, -4, 0,  0, -4.03f, 0, 0, -4.2f,
                                         column3 * 6, 0, -6, 40, 0, -6,     0, 0, -3};
   ASSERT_EQ(scene.mapping.map_point(column3 * 6, 0, -6), background);
-  AllowedErrorOptions options;
+  view::AllowedErrorOptions options;
   options.error = 1.0f;
   options.outside_view_factor = 8.0f;
   options.hidden_factor = 5.0f;
   std::vector<float> out(6);
-  compute_vertex_allowed_error(scene.mapping, options, {{}, {}, {}, positions, {}, visible}, out);
+  view::compute_vertex_allowed_error(scene.mapping, options, {{}, {}, {}, positions, {}, visible}, out);
   EXPECT_EQ(out, (std::vector<float>{1.0f, 1.0f, 5.0f, 1.0f, 8.0f, 1.0f}));
   // Off without the depths, and with a factor of 1.
-  compute_vertex_allowed_error(scene.mapping, options, {{}, {}, {}, positions, {}, {}}, out);
+  view::compute_vertex_allowed_error(scene.mapping, options, {{}, {}, {}, positions, {}, {}}, out);
   EXPECT_EQ(out, (std::vector<float>{1.0f, 1.0f, 1.0f, 1.0f, 8.0f, 1.0f}));
   options.hidden_factor = 1.0f;
-  compute_vertex_allowed_error(scene.mapping, options, {{}, {}, {}, positions, {}, visible}, out);
+  view::compute_vertex_allowed_error(scene.mapping, options, {{}, {}, {}, positions, {}, visible}, out);
   EXPECT_EQ(out, (std::vector<float>{1.0f, 1.0f, 1.0f, 1.0f, 8.0f, 1.0f}));
 }
 
@@ -191,19 +192,19 @@ TEST(AllowedError, HiddenSurfaceCoarseningComparesDepthWithTheVisibleSurface) {
 // transform.
 struct SphereView {
   test::Scene sphere = test::uv_sphere(1.0f, 24, 48);
-  ViewMapping mapping;
-  GridSize grid;
-  DistanceTransformer transformer;
+  view::ViewMapping mapping;
+  view::GridSize grid;
+  view::DistanceTransformer transformer;
   std::vector<std::uint16_t> silhouette, focus;
   SphereView() {
-    Camera camera;
+    view::Camera camera;
     camera.view = glm::lookAt(glm::vec3(0.4f, 0.3f, 3.0f), glm::vec3(0, 0, 0), glm::vec3(0, 1, 0));
     camera.projection = glm::perspective(glm::radians(50.0f), 1.0f, 0.1f, 10.0f);
-    mapping = ViewMapping(camera, GridSize{96, 96});
+    mapping = view::ViewMapping(camera, view::GridSize{96, 96});
     std::vector<std::uint8_t> occupancy(mapping.grid().cell_count());
-    rasterize_occupancy(mapping, sphere.positions, sphere.triangles, occupancy);
+    view::rasterize_occupancy(mapping, sphere.positions, sphere.triangles, occupancy);
     silhouette.resize(occupancy.size());
-    transformer.chamfer(DistanceMetric::kChamfer5711, occupancy, mapping.grid(), silhouette);
+    transformer.chamfer(view::DistanceMetric::kChamfer5711, occupancy, mapping.grid(), silhouette);
     grid = mapping.grid();
     focus.resize(grid.cell_count());
   }
@@ -213,16 +214,16 @@ TEST(AllowedError, LazyVertexEqualsFullArray) {
   // A sphere seen in perspective, silhouette + focus + back-face, pixel bound: every vertex's lazy value
   // equals the full pass bit for bit (same projection arithmetic).
   SphereView view;
-  const std::vector<std::uint32_t> foci = {focus_cell(view.grid, 0.4f, 0.45f)};
-  view.transformer.chamfer_from_cells(DistanceMetric::kChamfer5711, foci, view.grid, view.focus);
-  AllowedErrorOptions options;
+  const std::vector<std::uint32_t> foci = {view::focus_cell(view.grid, 0.4f, 0.45f)};
+  view.transformer.chamfer_from_cells(view::DistanceMetric::kChamfer5711, foci, view.grid, view.focus);
+  view::AllowedErrorOptions options;
   options.error = 1.5f;
-  options.units = ErrorUnits::kScreenPixels;
+  options.units = view::ErrorUnits::kScreenPixels;
   options.use_silhouette = true;
   options.use_focus = true;
-  options.focus = {FalloffLaw::kFoveal, 0.0f, 0.1f, 0.0f, 2.3f};
+  options.focus = {view::FalloffLaw::kFoveal, 0.0f, 0.1f, 0.0f, 2.3f};
   options.back_face_factor = 2.0f;
-  AllowedErrorField field;
+  view::AllowedErrorField field;
   field.bind(view.mapping, options,
              {view.silhouette, view.focus, {}, view.sphere.positions, view.sphere.normals, {}});
   std::vector<float> full(view.sphere.vertex_count());
@@ -242,38 +243,38 @@ TEST(AllowedError, AFieldReusedOverLawsAndFociEqualsAFreshOneEveryTime) {
   SphereView view;
   struct Step {
     float x, y;
-    RegionLaw focus_law;
-    DistanceMetric metric;
+    view::RegionLaw focus_law;
+    view::DistanceMetric metric;
     float fovy_deg;
   };
-  const RegionLaw foveal{FalloffLaw::kFoveal, 0.0f, 0.1f, 0.0f, 2.3f};
-  const RegionLaw linear{FalloffLaw::kLinear, 4.0f, 0.2f, 12.0f, 2.3f};
+  const view::RegionLaw foveal{view::FalloffLaw::kFoveal, 0.0f, 0.1f, 0.0f, 2.3f};
+  const view::RegionLaw linear{view::FalloffLaw::kLinear, 4.0f, 0.2f, 12.0f, 2.3f};
   const std::vector<Step> steps = {
-      {0.5f, 0.5f, foveal, DistanceMetric::kChamfer5711, 0.0f},    // centre: small labels
-      {0.02f, 0.03f, foveal, DistanceMetric::kChamfer5711, 0.0f},  // corner: larger labels, table grows
-      {0.45f, 0.5f, foveal, DistanceMetric::kChamfer5711, 0.0f},   // back: the longer table stays
-      {0.45f, 0.5f, linear, DistanceMetric::kChamfer5711, 0.0f},   // another law
-      {0.45f, 0.5f, linear, DistanceMetric::kChamfer34, 0.0f},     // another metric (same labels)
-      {0.45f, 0.5f, foveal, DistanceMetric::kChamfer34, 70.0f},    // another field of view
+      {0.5f, 0.5f, foveal, view::DistanceMetric::kChamfer5711, 0.0f},    // centre: small labels
+      {0.02f, 0.03f, foveal, view::DistanceMetric::kChamfer5711, 0.0f},  // corner: larger labels, table grows
+      {0.45f, 0.5f, foveal, view::DistanceMetric::kChamfer5711, 0.0f},   // back: the longer table stays
+      {0.45f, 0.5f, linear, view::DistanceMetric::kChamfer5711, 0.0f},   // another law
+      {0.45f, 0.5f, linear, view::DistanceMetric::kChamfer34, 0.0f},     // another metric (same labels)
+      {0.45f, 0.5f, foveal, view::DistanceMetric::kChamfer34, 70.0f},    // another field of view
   };
-  AllowedErrorField reused;
+  view::AllowedErrorField reused;
   std::vector<float> kept(view.sphere.vertex_count()), fresh_values(view.sphere.vertex_count());
   for (std::size_t i = 0; i < steps.size(); ++i) {
     const Step& step = steps[i];
-    const std::vector<std::uint32_t> foci = {focus_cell(view.grid, step.x, step.y)};
+    const std::vector<std::uint32_t> foci = {view::focus_cell(view.grid, step.x, step.y)};
     view.transformer.chamfer_from_cells(step.metric, foci, view.grid, view.focus);
-    AllowedErrorOptions options;
+    view::AllowedErrorOptions options;
     options.error = 1.5f;
-    options.units = ErrorUnits::kScreenPixels;
+    options.units = view::ErrorUnits::kScreenPixels;
     options.metric = step.metric;
     options.fovy_deg = step.fovy_deg;
     options.use_silhouette = true;
     options.use_focus = true;
     options.focus = step.focus_law;
-    const AllowedErrorInputs inputs{view.silhouette, view.focus, {}, view.sphere.positions, {}, {}};
+    const view::AllowedErrorInputs inputs{view.silhouette, view.focus, {}, view.sphere.positions, {}, {}};
     reused.bind(view.mapping, options, inputs);
     reused.compute_all(kept);
-    AllowedErrorField fresh;
+    view::AllowedErrorField fresh;
     fresh.bind(view.mapping, options, inputs);
     fresh.compute_all(fresh_values);
     ASSERT_EQ(kept, fresh_values) << "step " << i;
@@ -287,24 +288,24 @@ TEST(AllowedError, TriangleMinimumEqualsLawOfTriangleLabel) {
   // the papers' e·f if label(t) ≤ d else e, with label(t) the minimum vertex label (step law,
   // silhouette mode, model units, on a sphere).
   const test::Scene sphere = test::uv_sphere(1.5f, 30, 60);
-  const ViewMapping mapping = test::ortho_camera(2.0f, 64);
-  const GridSize grid = mapping.grid();
+  const view::ViewMapping mapping = test::ortho_camera(2.0f, 64);
+  const view::GridSize grid = mapping.grid();
   std::vector<std::uint8_t> occupancy(grid.cell_count());
-  rasterize_occupancy(mapping, sphere.positions, sphere.triangles, occupancy);
+  view::rasterize_occupancy(mapping, sphere.positions, sphere.triangles, occupancy);
   std::vector<std::uint16_t> dt(grid.cell_count());
-  chamfer_5_7_11(occupancy, grid, dt);
-  AllowedErrorOptions options;
+  view::chamfer_5_7_11(occupancy, grid, dt);
+  view::AllowedErrorOptions options;
   options.error = 0.01f;
   options.use_silhouette = true;
-  options.silhouette = {FalloffLaw::kStep, 3.0f, 0.25f, 0.0f, 2.3f};
+  options.silhouette = {view::FalloffLaw::kStep, 3.0f, 0.25f, 0.0f, 2.3f};
   std::vector<float> allowed(sphere.vertex_count());
-  compute_vertex_allowed_error(mapping, options, {dt, {}, {}, sphere.positions, {}, {}}, allowed);
+  view::compute_vertex_allowed_error(mapping, options, {dt, {}, {}, sphere.positions, {}, {}}, allowed);
   const std::size_t n = sphere.vertex_count();
   std::vector<std::uint32_t> cells(n), labels(n), triangle_labels(sphere.triangles.size() / 3);
   std::vector<float> clip_w(n);
-  map_vertices(mapping, sphere.positions, cells, clip_w);
-  label_vertices(cells, dt, labels);
-  label_triangles(sphere.triangles, labels, triangle_labels);
+  view::map_vertices(mapping, sphere.positions, cells, clip_w);
+  view::label_vertices(cells, dt, labels);
+  view::label_triangles(sphere.triangles, labels, triangle_labels);
   std::size_t inside = 0;
   for (std::size_t t = 0; t < triangle_labels.size(); ++t) {
     const std::uint32_t* tri = sphere.triangles.data() + 3 * t;

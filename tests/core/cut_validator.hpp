@@ -1,4 +1,4 @@
-// Independent checks of MT cuts shared by the MT tests (DESIGN.md §2 "Cut"): conformity, topology
+// Independent cut checks shared by the MT tests (core/ARCHITECTURE.md §2.3): conformity, topology
 // against the input, triangle-set comparison, and the error bound by exact point–triangle distance.
 // Nothing here uses the refiner's or the builder's code paths beyond the Mt arrays.
 #pragma once
@@ -13,9 +13,9 @@
 #include <string>
 #include <vector>
 
-#include "core/mesh.hpp"
-#include "core/mesh_cleanup.hpp"
-#include "core/mt.hpp"
+#include "core/model/mesh.hpp"
+#include "core/model/mesh_cleanup.hpp"
+#include "core/model/mt.hpp"
 
 namespace mtlod::test {
 
@@ -103,8 +103,8 @@ inline std::vector<std::uint8_t> odd_vertices(std::size_t vertex_count,
 
 // The input of an MT, with the facts a cut is compared against.
 struct CutReference {
-  const core::Mesh* input = nullptr;
-  core::TopologyReport topology;
+  const core::model::Mesh* input = nullptr;
+  core::model::TopologyReport topology;
   std::vector<std::uint64_t> defects;  // sorted undirected edge keys
   std::vector<std::uint8_t> boundary;
   std::vector<std::uint8_t> odd;
@@ -118,10 +118,10 @@ struct CutReference {
   bool stacked_faces = false;
 };
 
-inline CutReference make_reference(const core::Mesh& input) {
+inline CutReference make_reference(const core::model::Mesh& input) {
   CutReference ref;
   ref.input = &input;
-  ref.topology = core::analyze_topology(input.positions, input.triangles);
+  ref.topology = core::model::analyze_topology(input.positions, input.triangles);
   ref.defects = defective_edges(input.triangles);
   ref.boundary = boundary_vertices(input.vertex_count(), input.triangles);
   ref.odd = odd_vertices(input.vertex_count(), input.triangles);
@@ -135,7 +135,7 @@ inline CutReference make_reference(const core::Mesh& input) {
 // Fills t with the cut's topology for the callers' further checks.
 inline ::testing::AssertionResult validate_triangles(const CutReference& ref,
                                                      std::span<const std::uint32_t> cut,
-                                                     core::TopologyReport& t) {
+                                                     core::model::TopologyReport& t) {
   const std::size_t vertex_count = ref.input->vertex_count();
   if (cut.size() % 3 != 0)
     return ::testing::AssertionFailure() << "cut size " << cut.size() << " not a multiple of 3";
@@ -143,7 +143,7 @@ inline ::testing::AssertionResult validate_triangles(const CutReference& ref,
     if (cut[i] >= vertex_count || !ref.used[cut[i]])
       return ::testing::AssertionFailure()
              << "cut corner " << i << " = " << cut[i] << " is not a used input vertex";
-  t = core::analyze_topology(ref.input->positions, cut);
+  t = core::model::analyze_topology(ref.input->positions, cut);
   if (t.degenerate_triangles != 0)
     return ::testing::AssertionFailure() << t.degenerate_triangles << " degenerate triangles";
   if (t.duplicate_triangles != 0 && !ref.stacked_faces)
@@ -158,7 +158,7 @@ inline ::testing::AssertionResult validate_triangles(const CutReference& ref,
 inline ::testing::AssertionResult validate_conforming_cut(const CutReference& ref,
                                                           std::span<const std::uint32_t> cut) {
   const std::size_t vertex_count = ref.input->vertex_count();
-  core::TopologyReport t;
+  core::model::TopologyReport t;
   if (auto ok = validate_triangles(ref, cut, t); !ok) return ok;
   const std::vector<std::uint8_t> odd = odd_vertices(vertex_count, cut);
   for (std::size_t v = 0; v < vertex_count; ++v)
@@ -177,7 +177,7 @@ inline ::testing::AssertionResult validate_conforming_cut(const CutReference& re
 inline ::testing::AssertionResult validate_cut(const CutReference& ref, std::span<const std::uint32_t> cut) {
   if (ref.coarse_topology_changes) return validate_conforming_cut(ref, cut);
   const std::size_t vertex_count = ref.input->vertex_count();
-  core::TopologyReport t;
+  core::model::TopologyReport t;
   if (auto ok = validate_triangles(ref, cut, t); !ok) return ok;
   for (const std::uint64_t key : defective_edges(cut))
     if (!std::binary_search(ref.defects.begin(), ref.defects.end(), key))
@@ -248,7 +248,7 @@ inline double point_triangle_distance_squared(const double* p, const double* a, 
 // Every used input vertex i must lie within bound[i] of the cut's surface. Exact distances; a grid
 // only skips triangles whose box, grown by the largest bound, cannot reach the point (so a skipped
 // triangle is always farther than the bound). Returns the first violation.
-inline ::testing::AssertionResult every_vertex_within(const core::Mesh& input,
+inline ::testing::AssertionResult every_vertex_within(const core::model::Mesh& input,
                                                       std::span<const std::uint32_t> cut,
                                                       std::span<const double> bound) {
   const std::size_t vertex_count = input.vertex_count();

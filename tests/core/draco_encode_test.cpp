@@ -1,7 +1,7 @@
 // Draco payloads decode (with the Draco library, and with Google's draco_decoder command) to the
 // cut that was encoded: same triangles over the same vertices, positions within quantization,
 // colours exact.
-#include "core/draco_encode.hpp"
+#include "core/codec/draco_encode.hpp"
 
 #include <gtest/gtest.h>
 
@@ -12,9 +12,9 @@
 #include <set>
 #include <unordered_map>
 
-#include "core/bounds.hpp"
-#include "core/draco_decode.hpp"
+#include "core/codec/draco_decode.hpp"
 #include "core/eval/mesh_gen.hpp"
+#include "core/model/bounds.hpp"
 #include "tests/core/googles_draco_decoder.hpp"
 #include "tests/core/mesh_compare.hpp"
 #include "tests/core/test_meshes.hpp"
@@ -29,10 +29,10 @@ std::vector<std::uint8_t> colours_of(std::size_t vertices) {
   return colours;
 }
 
-Mesh sphere(std::size_t triangles) {
-  GenerateOptions o;
+model::Mesh sphere(std::size_t triangles) {
+  eval::GenerateOptions o;
   o.target_triangles = triangles;
-  Mesh m = generate_mesh(o);
+  model::Mesh m = eval::generate_mesh(o);
   // Normals: the normalised position is close enough for a closed blob and gives distinct values.
   for (std::size_t v = 0; v < m.vertex_count(); ++v) {
     const float* p = &m.positions[3 * v];
@@ -43,16 +43,16 @@ Mesh sphere(std::size_t triangles) {
 }
 
 // Encodes `cut` (triangles of `model`), decodes, and checks the triangle set is unchanged.
-void expect_round_trip(const Mesh& model, const std::vector<std::uint32_t>& cut,
-                       const DracoOptions& options) {
-  DracoEncoder encoder;
+void expect_round_trip(const model::Mesh& model, const std::vector<std::uint32_t>& cut,
+                       const codec::DracoOptions& options) {
+  codec::DracoEncoder encoder;
   std::vector<std::uint8_t> bytes;
-  DracoInput input{model.positions, model.normals, {}, cut};
+  codec::DracoInput input{model.positions, model.normals, {}, cut};
   auto stats = encoder.encode(input, options, bytes);
   ASSERT_TRUE(stats.ok()) << stats.error().message;
   EXPECT_EQ(stats->bytes, bytes.size());
   EXPECT_EQ(stats->triangles, cut.size() / 3);
-  auto decoded = decode_draco(bytes);
+  auto decoded = codec::decode_draco(bytes);
   ASSERT_TRUE(decoded.ok()) << decoded.error().message;
   ASSERT_EQ(decoded->mesh.triangle_count(), cut.size() / 3);
   const float tolerance =
@@ -63,13 +63,13 @@ void expect_round_trip(const Mesh& model, const std::vector<std::uint32_t>& cut,
 }
 
 TEST(DracoEncoder, DecodesToTheSameTrianglesForEveryMethodAndSpeed) {
-  const Mesh m = sphere(8'000);
-  for (DracoMethod method : {DracoMethod::kEdgebreaker, DracoMethod::kSequential}) {
+  const model::Mesh m = sphere(8'000);
+  for (codec::DracoMethod method : {codec::DracoMethod::kEdgebreaker, codec::DracoMethod::kSequential}) {
     for (int speed : {0, 5, 10}) {
       for (bool entropy : {true, false}) {
         SCOPED_TRACE(testing::Message()
                      << "method " << int(method) << " speed " << speed << " entropy " << entropy);
-        DracoOptions options;
+        codec::DracoOptions options;
         options.method = method;
         options.speed = speed;
         options.entropy_coding = entropy;
@@ -81,30 +81,30 @@ TEST(DracoEncoder, DecodesToTheSameTrianglesForEveryMethodAndSpeed) {
 
 TEST(DracoEncoder, RawAttributeValuesTradeBytesForSpeed) {
   // Without entropy coding the quantized positions are stored as they are: the payload must grow.
-  const Mesh m = sphere(8'000);
-  for (DracoMethod method : {DracoMethod::kEdgebreaker, DracoMethod::kSequential}) {
-    DracoOptions coded, raw;
+  const model::Mesh m = sphere(8'000);
+  for (codec::DracoMethod method : {codec::DracoMethod::kEdgebreaker, codec::DracoMethod::kSequential}) {
+    codec::DracoOptions coded, raw;
     coded.method = raw.method = method;
     raw.entropy_coding = false;
     std::vector<std::uint8_t> coded_bytes, raw_bytes;
-    ASSERT_TRUE(DracoEncoder().encode({m.positions, {}, {}, m.triangles}, coded, coded_bytes).ok());
-    ASSERT_TRUE(DracoEncoder().encode({m.positions, {}, {}, m.triangles}, raw, raw_bytes).ok());
+    ASSERT_TRUE(codec::DracoEncoder().encode({m.positions, {}, {}, m.triangles}, coded, coded_bytes).ok());
+    ASSERT_TRUE(codec::DracoEncoder().encode({m.positions, {}, {}, m.triangles}, raw, raw_bytes).ok());
     EXPECT_GT(raw_bytes.size(), coded_bytes.size()) << "method " << int(method);
   }
 }
 
 TEST(DracoEncoder, EncodesOnlyTheVerticesOfAPartialCut) {
   // Every third triangle: an open, sparse subset whose vertex ids are scattered over the model.
-  const Mesh m = sphere(6'000);
+  const model::Mesh m = sphere(6'000);
   std::vector<std::uint32_t> cut;
   for (std::size_t t = 0; t < m.triangle_count(); t += 3)
     cut.insert(cut.end(), &m.triangles[3 * t], &m.triangles[3 * t] + 3);
   std::vector<std::uint8_t> used(m.vertex_count(), 0);
   for (std::uint32_t v : cut) used[v] = 1;
-  DracoEncoder encoder;
+  codec::DracoEncoder encoder;
   std::vector<std::uint8_t> bytes;
-  DracoOptions options;
-  options.method = DracoMethod::kSequential;
+  codec::DracoOptions options;
+  options.method = codec::DracoMethod::kSequential;
   auto stats = encoder.encode({m.positions, {}, {}, cut}, options, bytes);
   ASSERT_TRUE(stats.ok());
   EXPECT_EQ(stats->vertices, static_cast<std::size_t>(std::count(used.begin(), used.end(), 1)));
@@ -112,12 +112,12 @@ TEST(DracoEncoder, EncodesOnlyTheVerticesOfAPartialCut) {
 }
 
 TEST(DracoEncoder, ReusedEncoderGivesTheSameBytesAsAFreshOne) {
-  const Mesh a = sphere(3'000), b = sphere(1'000);
-  DracoEncoder reused;
+  const model::Mesh a = sphere(3'000), b = sphere(1'000);
+  codec::DracoEncoder reused;
   std::vector<std::uint8_t> first, second, fresh;
   ASSERT_TRUE(reused.encode({a.positions, {}, {}, a.triangles}, {}, first).ok());
   ASSERT_TRUE(reused.encode({b.positions, {}, {}, b.triangles}, {}, second).ok());
-  ASSERT_TRUE(DracoEncoder().encode({b.positions, {}, {}, b.triangles}, {}, fresh).ok());
+  ASSERT_TRUE(codec::DracoEncoder().encode({b.positions, {}, {}, b.triangles}, {}, fresh).ok());
   EXPECT_EQ(second, fresh);
   // Partial cuts of one model in turn: nothing of the previous cut's vertices is left behind.
   for (const std::size_t step : {3u, 2u, 5u}) {
@@ -125,7 +125,7 @@ TEST(DracoEncoder, ReusedEncoderGivesTheSameBytesAsAFreshOne) {
     for (std::size_t t = 0; t < a.triangle_count(); t += step)
       cut.insert(cut.end(), &a.triangles[3 * t], &a.triangles[3 * t] + 3);
     ASSERT_TRUE(reused.encode({a.positions, {}, {}, cut}, {}, second).ok());
-    ASSERT_TRUE(DracoEncoder().encode({a.positions, {}, {}, cut}, {}, fresh).ok());
+    ASSERT_TRUE(codec::DracoEncoder().encode({a.positions, {}, {}, cut}, {}, fresh).ok());
     EXPECT_EQ(second, fresh) << "every " << step << "th triangle";
   }
 }
@@ -133,12 +133,12 @@ TEST(DracoEncoder, ReusedEncoderGivesTheSameBytesAsAFreshOne) {
 TEST(DracoEncoder, AFixedGridDecodesAVertexToTheSameFloatsInEveryPayload) {
   // Two overlapping halves of a mesh, encoded on the model's grid: every vertex they share decodes
   // bit for bit the same in both, and within the grid's quantization of the original.
-  const Mesh m = sphere(4'000);
-  DracoOptions options;
-  options.method = DracoMethod::kSequential;
+  const model::Mesh m = sphere(4'000);
+  codec::DracoOptions options;
+  options.method = codec::DracoMethod::kSequential;
   options.entropy_coding = false;
-  DracoOptions::Grid grid;
-  const Bounds box = bounds_of(m.positions);
+  codec::DracoOptions::Grid grid;
+  const model::Bounds box = model::bounds_of(m.positions);
   grid.origin = box.lo;
   grid.range = box.largest_side();
   options.position_grid = grid;
@@ -149,8 +149,8 @@ TEST(DracoEncoder, AFixedGridDecodesAVertexToTheSameFloatsInEveryPayload) {
   std::size_t shared = 0;
   for (const auto* cut : {&first, &second}) {
     std::vector<std::uint8_t> bytes;
-    ASSERT_TRUE(DracoEncoder().encode({m.positions, {}, {}, *cut}, options, bytes).ok());
-    auto decoded = decode_draco(bytes);
+    ASSERT_TRUE(codec::DracoEncoder().encode({m.positions, {}, {}, *cut}, options, bytes).ok());
+    auto decoded = codec::decode_draco(bytes);
     ASSERT_TRUE(decoded.ok()) << decoded.error().message;
     const float tolerance = test::draco_tolerance(grid.range, options.position_bits);
     const auto match =
@@ -174,23 +174,24 @@ TEST(DracoEncoder, AFixedGridDecodesAVertexToTheSameFloatsInEveryPayload) {
 class DracoAttributes : public testing::TestWithParam<bool> {};
 
 TEST_P(DracoAttributes, NormalsColoursAndLabelsSurviveTheRoundTrip) {
-  const Mesh m = sphere(2'000);
+  const model::Mesh m = sphere(2'000);
   const std::vector<std::uint8_t> colours = colours_of(m.vertex_count());
   std::vector<std::uint32_t> labels(m.vertex_count());
   for (std::size_t v = 0; v < labels.size(); ++v) labels[v] = static_cast<std::uint32_t>(v * 7 % 70'000);
-  DracoOptions options;
+  codec::DracoOptions options;
   options.normals = true;
   options.colors = true;
   options.labels = true;
-  options.method = DracoMethod::kSequential;
+  options.method = codec::DracoMethod::kSequential;
   options.entropy_coding = GetParam();
   std::vector<std::uint8_t> bytes;
-  ASSERT_TRUE(
-      DracoEncoder().encode({m.positions, m.normals, labels, m.triangles, colours}, options, bytes).ok());
-  auto decoded = decode_draco(bytes);
+  ASSERT_TRUE(codec::DracoEncoder()
+                  .encode({m.positions, m.normals, labels, m.triangles, colours}, options, bytes)
+                  .ok());
+  auto decoded = codec::decode_draco(bytes);
   ASSERT_TRUE(decoded.ok()) << decoded.error().message;
   // Four distinct attributes, each named by its own id.
-  const DracoAttributeIds& ids = decoded->attribute_ids;
+  const codec::DracoAttributeIds& ids = decoded->attribute_ids;
   EXPECT_GE(ids.position, 0);
   EXPECT_GE(ids.normal, 0);
   EXPECT_GE(ids.color, 0);
@@ -216,16 +217,16 @@ TEST_P(DracoAttributes, NormalsColoursAndLabelsSurviveTheRoundTrip) {
 INSTANTIATE_TEST_SUITE_P(EntropyCoding, DracoAttributes, testing::Bool());
 
 TEST(DracoEncoder, RejectsBadOptionsAndMissingAttributes) {
-  const Mesh m = test::tetrahedron();
+  const model::Mesh m = test::tetrahedron();
   std::vector<std::uint8_t> bytes;
-  DracoEncoder encoder;
-  DracoOptions bad_speed;
+  codec::DracoEncoder encoder;
+  codec::DracoOptions bad_speed;
   bad_speed.speed = 11;
   EXPECT_FALSE(encoder.encode({m.positions, {}, {}, m.triangles}, bad_speed, bytes).ok());
-  DracoOptions want_normals;
+  codec::DracoOptions want_normals;
   want_normals.normals = true;
   EXPECT_FALSE(encoder.encode({m.positions, {}, {}, m.triangles}, want_normals, bytes).ok());
-  DracoOptions want_colours;
+  codec::DracoOptions want_colours;
   want_colours.colors = true;
   EXPECT_FALSE(encoder.encode({m.positions, {}, {}, m.triangles}, want_colours, bytes).ok());
   EXPECT_FALSE(encoder.encode({m.positions, {}, {}, {}}, {}, bytes).ok());
@@ -236,13 +237,13 @@ TEST(DracoEncoder, RejectsBadOptionsAndMissingAttributes) {
 class GooglesDecoder : public testing::TestWithParam<bool> {};
 
 TEST_P(GooglesDecoder, ReadsThePayload) {
-  const Mesh m = sphere(5'000);
+  const model::Mesh m = sphere(5'000);
   std::vector<std::uint8_t> bytes;
-  DracoOptions options;
-  if (!GetParam()) options.method = DracoMethod::kSequential, options.entropy_coding = false;
+  codec::DracoOptions options;
+  if (!GetParam()) options.method = codec::DracoMethod::kSequential, options.entropy_coding = false;
   options.colors = true;
   const std::vector<std::uint8_t> colours = colours_of(m.vertex_count());
-  ASSERT_TRUE(DracoEncoder().encode({m.positions, {}, {}, m.triangles, colours}, options, bytes).ok());
+  ASSERT_TRUE(codec::DracoEncoder().encode({m.positions, {}, {}, m.triangles, colours}, options, bytes).ok());
   auto loaded =
       test::googles_draco_decode(bytes, test::scratch_dir("draco-cli"), GetParam() ? "coded" : "raw");
   ASSERT_TRUE(loaded.ok()) << loaded.error().message;

@@ -17,8 +17,8 @@
 #include <string>
 #include <vector>
 
-#include "core/draco_decode.hpp"
-#include "core/draco_encode.hpp"
+#include "core/codec/draco_decode.hpp"
+#include "core/codec/draco_encode.hpp"
 #include "core/eval/mesh_gen.hpp"
 #include "nlohmann/json.hpp"
 #include "tests/core/mesh_compare.hpp"
@@ -49,10 +49,10 @@ std::string test_name(const testing::TestParamInfo<Variant>& info) {
 
 // A noisy sphere with distinct colours per vertex and, when asked, normals of every length: the
 // normalised position scaled by 1, 2 or 3, except vertex 0 whose normal is zero.
-Mesh test_mesh(const Variant& variant) {
-  GenerateOptions o;
+model::Mesh test_mesh(const Variant& variant) {
+  eval::GenerateOptions o;
   o.target_triangles = 2'000;
-  Mesh m = generate_mesh(o);
+  model::Mesh m = eval::generate_mesh(o);
   for (std::size_t v = 0; variant.normals && v < m.vertex_count(); ++v) {
     const float* p = &m.positions[3 * v];
     const float scale = v == 0 ? 0.0f : float(1 + v % 3) / std::sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
@@ -65,7 +65,7 @@ Mesh test_mesh(const Variant& variant) {
 }
 
 // The same sphere with unit normals (the normalised position), for Draco, which stores directions.
-Mesh unit_normals(Mesh m) {
+model::Mesh unit_normals(model::Mesh m) {
   for (std::size_t v = 0; v < m.vertex_count() && m.has_normals(); ++v) {
     const float* p = &m.positions[3 * v];
     const float length = std::sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
@@ -167,7 +167,7 @@ TEST(GltfGlb, TetrahedronFileIsHeaderJsonChunkAndBinChunkOfTheArrays) {
   // data) padded to four bytes: JSON first, then BIN holding 4 positions (48 bytes) and 12 uint32
   // indices (48 bytes), nothing else for a mesh without normals and colours.
   const auto dir = test::scratch_dir("gltf-tetrahedron");
-  ASSERT_TRUE(write_glb(dir / "t.glb", test::tetrahedron()).ok());
+  ASSERT_TRUE(io::write_glb(dir / "t.glb", test::tetrahedron()).ok());
   const std::string bytes = test::read_file(dir / "t.glb");
   ASSERT_GE(bytes.size(), 28u);
   EXPECT_EQ(bytes.substr(0, 4), "glTF");
@@ -179,7 +179,7 @@ TEST(GltfGlb, TetrahedronFileIsHeaderJsonChunkAndBinChunkOfTheArrays) {
   ASSERT_EQ(bytes.size(), 20 + json_length + 8 + 96);
   EXPECT_EQ(u32_at(bytes, 20 + json_length), 96u);
   EXPECT_EQ(bytes.substr(24 + json_length, 4), std::string("BIN\0", 4));
-  const core::Mesh t = test::tetrahedron();
+  const core::model::Mesh t = test::tetrahedron();
   EXPECT_EQ(std::memcmp(bytes.data() + 28 + json_length, t.positions.data(), 48), 0);
   EXPECT_EQ(std::memcmp(bytes.data() + 28 + json_length + 48, t.triangles.data(), 48), 0);
 }
@@ -187,10 +187,10 @@ TEST(GltfGlb, TetrahedronFileIsHeaderJsonChunkAndBinChunkOfTheArrays) {
 class GltfPlain : public testing::TestWithParam<Variant> {};
 
 TEST_P(GltfPlain, ReadsBackAsTheSameMesh) {
-  const Mesh mesh = test_mesh(GetParam());
+  const model::Mesh mesh = test_mesh(GetParam());
   const auto dir = test::scratch_dir("gltf-plain-" + name_of(GetParam()));
   const auto path = dir / "mesh.glb";
-  const Status written = write_glb(path, mesh);
+  const Status written = io::write_glb(path, mesh);
   ASSERT_TRUE(written.ok()) << written.error().message;
   const tinygltf::Model model = load(path);
   EXPECT_TRUE(model.extensionsUsed.empty());
@@ -239,27 +239,27 @@ INSTANTIATE_TEST_SUITE_P(Attributes, GltfPlain, kEveryVariant, test_name);
 class GltfDraco : public testing::TestWithParam<Variant> {};
 
 TEST_P(GltfDraco, EmbedsThePayloadUnchangedAndItDecodesToTheMesh) {
-  const Mesh mesh = unit_normals(test_mesh(GetParam()));
+  const model::Mesh mesh = unit_normals(test_mesh(GetParam()));
   // Labels ride along in the payload with normals and colours; glTF has no attribute for them.
   std::vector<std::uint32_t> labels(mesh.vertex_count());
   for (std::size_t v = 0; v < labels.size(); ++v) labels[v] = static_cast<std::uint32_t>(v % 5);
-  DracoOptions options;
+  codec::DracoOptions options;
   options.normals = mesh.has_normals();
   options.colors = mesh.has_colors();
   options.labels = mesh.has_normals() && mesh.has_colors();
-  DracoInput input;
+  codec::DracoInput input;
   input.positions = mesh.positions;
   input.normals = mesh.normals;
   input.colors = mesh.colors;
   input.triangles = mesh.triangles;
   if (options.labels) input.labels = labels;
   std::vector<std::uint8_t> payload;
-  const auto encoded = DracoEncoder().encode(input, options, payload);
+  const auto encoded = codec::DracoEncoder().encode(input, options, payload);
   ASSERT_TRUE(encoded.ok()) << encoded.error().message;
 
   const auto dir = test::scratch_dir("gltf-draco-" + name_of(GetParam()));
   const auto path = dir / "mesh.glb";
-  const Status written = write_glb_draco(path, payload);
+  const Status written = io::write_glb_draco(path, payload);
   ASSERT_TRUE(written.ok()) << written.error().message;
   const Glb glb = split_glb(test::read_file(path));
   const json& gltf = glb.gltf;
@@ -289,9 +289,9 @@ TEST_P(GltfDraco, EmbedsThePayloadUnchangedAndItDecodesToTheMesh) {
 
   // It decodes to the mesh: the same triangles over vertices within Draco's quantization, the same
   // colours, and normals within 10-bit quantization (as in draco_encode_test).
-  const auto decoded = decode_draco(embedded);
+  const auto decoded = codec::decode_draco(embedded);
   ASSERT_TRUE(decoded.ok()) << decoded.error().message;
-  const Mesh& out = decoded->mesh;
+  const model::Mesh& out = decoded->mesh;
   const float tolerance = test::draco_tolerance(test::used_extent(mesh.positions, mesh.triangles), 14);
   const auto match =
       test::match_vertices(out.positions, mesh.positions, mesh.triangles, 4 * tolerance, tolerance);
@@ -360,10 +360,10 @@ INSTANTIATE_TEST_SUITE_P(Attributes, GltfDraco, kEveryVariant, test_name);
 
 TEST(GltfGlb, BadInputIsNamed) {
   const auto dir = test::scratch_dir("gltf-bad");
-  Mesh mesh = test::tetrahedron();
+  model::Mesh mesh = test::tetrahedron();
 
   const auto missing = dir / "no-such-dir" / "t.glb";
-  Status s = write_glb(missing, mesh);
+  Status s = io::write_glb(missing, mesh);
   ASSERT_FALSE(s.ok());
   EXPECT_EQ(s.error().code, ErrorCode::kIoError);
   EXPECT_NE(s.error().message.find(missing.string() + ": cannot open for writing"), std::string::npos)
@@ -371,24 +371,24 @@ TEST(GltfGlb, BadInputIsNamed) {
   EXPECT_FALSE(std::filesystem::exists(missing));
 
   mesh.triangles[4] = 4;  // a tetrahedron has vertices 0..3
-  s = write_glb(dir / "t.glb", mesh);
+  s = io::write_glb(dir / "t.glb", mesh);
   ASSERT_FALSE(s.ok());
   EXPECT_EQ(s.error().code, ErrorCode::kInvalidArgument);
   EXPECT_EQ(s.error().message, "triangle 1 refers to vertex 4, but the mesh has 4 vertices");
 
   mesh = test::tetrahedron();
   mesh.positions[7] = NAN;
-  s = write_glb(dir / "t.glb", mesh);
+  s = io::write_glb(dir / "t.glb", mesh);
   ASSERT_FALSE(s.ok());
   EXPECT_EQ(s.error().message, "vertex 2 has a non-finite coordinate");
 
   mesh.triangles.clear();
-  s = write_glb(dir / "t.glb", mesh);
+  s = io::write_glb(dir / "t.glb", mesh);
   ASSERT_FALSE(s.ok());
   EXPECT_EQ(s.error().message, "the mesh has no triangles");
 
   const std::vector<std::uint8_t> not_draco = {'n', 'o', 't', ' ', 'd', 'r', 'a', 'c', 'o'};
-  s = write_glb_draco(dir / "d.glb", not_draco);
+  s = io::write_glb_draco(dir / "d.glb", not_draco);
   ASSERT_FALSE(s.ok());
   EXPECT_EQ(s.error().code, ErrorCode::kCorrupt);
   EXPECT_FALSE(std::filesystem::exists(dir / "d.glb"));
@@ -422,26 +422,26 @@ Validation khronos_validate(const std::vector<std::filesystem::path>& files,
 // without normals and colours.
 std::vector<std::filesystem::path> write_every_variant(const std::filesystem::path& dir) {
   std::vector<std::filesystem::path> files = {dir / "tetrahedron.glb"};
-  EXPECT_TRUE(write_glb(files[0], test::tetrahedron()).ok());
+  EXPECT_TRUE(io::write_glb(files[0], test::tetrahedron()).ok());
   for (const Variant v :
        {Variant{false, false}, Variant{true, false}, Variant{false, true}, Variant{true, true}}) {
-    const Mesh mesh = test_mesh(v);
+    const model::Mesh mesh = test_mesh(v);
     files.push_back(dir / ("plain-" + name_of(v) + ".glb"));
-    const Status plain = write_glb(files.back(), mesh);
+    const Status plain = io::write_glb(files.back(), mesh);
     EXPECT_TRUE(plain.ok()) << plain.error().message;
-    DracoOptions options;
+    codec::DracoOptions options;
     options.normals = v.normals;
     options.colors = v.colors;
-    const Mesh unit = unit_normals(mesh);
-    DracoInput input;
+    const model::Mesh unit = unit_normals(mesh);
+    codec::DracoInput input;
     input.positions = unit.positions;
     input.normals = unit.normals;
     input.colors = unit.colors;
     input.triangles = unit.triangles;
     std::vector<std::uint8_t> payload;
-    EXPECT_TRUE(DracoEncoder().encode(input, options, payload).ok());
+    EXPECT_TRUE(codec::DracoEncoder().encode(input, options, payload).ok());
     files.push_back(dir / ("draco-" + name_of(v) + ".glb"));
-    const Status draco = write_glb_draco(files.back(), payload);
+    const Status draco = io::write_glb_draco(files.back(), payload);
     EXPECT_TRUE(draco.ok()) << draco.error().message;
   }
   return files;
@@ -465,7 +465,7 @@ TEST(GltfValidator, ReportsABrokenFile) {
   // The check above must be able to fail: a file cut short by its last four bytes (the GLB header
   // still claims the full length) has errors.
   const auto dir = test::scratch_dir("gltf-validator-broken");
-  ASSERT_TRUE(write_glb(dir / "whole.glb", test::tetrahedron()).ok());
+  ASSERT_TRUE(io::write_glb(dir / "whole.glb", test::tetrahedron()).ok());
   const std::string bytes = test::read_file(dir / "whole.glb");
   test::write_file(dir / "cut.glb", bytes.substr(0, bytes.size() - 4));
   const Validation v = khronos_validate({dir / "cut.glb"}, dir);

@@ -15,8 +15,9 @@
 
 namespace mtlod::test {
 
-inline Result<core::Mesh> googles_draco_decode(std::span<const std::uint8_t> bytes,
-                                               const std::filesystem::path& dir, const std::string& name) {
+inline Result<core::model::Mesh> googles_draco_decode(std::span<const std::uint8_t> bytes,
+                                                      const std::filesystem::path& dir,
+                                                      const std::string& name) {
   const auto drc = dir / (name + ".drc"), ply = dir / (name + ".ply"), log = dir / (name + ".log");
   std::ofstream(drc, std::ios::binary)
       .write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));

@@ -1,4 +1,4 @@
-// The grid stages of a request chained together (DESIGN.md §1.1–1.5): mapping, occupancy, silhouette
+// The grid stages of a request in a chain (core/ARCHITECTURE.md §1): mapping, occupancy, silhouette
 // and focus transforms, labels and allowed error, on a sphere seen in perspective and on the shared
 // dragon scans; plus the PNG debug dumps. The refinement itself is tested with the MT.
 #include <gtest/gtest.h>
@@ -8,13 +8,13 @@
 #include <cstring>
 #include <vector>
 
-#include "core/allowed_error.hpp"
-#include "core/distance_transform.hpp"
 #include "core/io/image_io.hpp"
 #include "core/io/mesh_io.hpp"
-#include "core/labels.hpp"
-#include "core/occupancy.hpp"
-#include "core/view_grid.hpp"
+#include "core/view/allowed_error.hpp"
+#include "core/view/distance_transform.hpp"
+#include "core/view/labels.hpp"
+#include "core/view/occupancy.hpp"
+#include "core/view/view_grid.hpp"
 #include "tests/core/test_meshes.hpp"
 #include "tests/core/test_scenes.hpp"
 
@@ -24,29 +24,29 @@ namespace {
 // Unit sphere seen from (0, 0, 4) with a 40° field of view on a 128×128 grid.
 struct SphereRequest {
   test::Scene sphere = test::uv_sphere(1.0f, 48, 96);
-  ViewMapping mapping;
+  view::ViewMapping mapping;
   std::vector<std::uint32_t> cells;
   std::vector<float> clip_w;
   std::vector<std::uint8_t> occupancy;
   std::vector<std::uint16_t> silhouette, focus;
   std::vector<std::uint32_t> foci;
   SphereRequest() {
-    Camera camera;
+    view::Camera camera;
     camera.view = glm::lookAt(glm::vec3(0, 0, 4), glm::vec3(0, 0, 0), glm::vec3(0, 1, 0));
     camera.projection = glm::perspective(glm::radians(40.0f), 1.0f, 0.1f, 10.0f);
-    mapping = ViewMapping(camera, GridSize{128, 128});
-    const GridSize grid = mapping.grid();
+    mapping = view::ViewMapping(camera, view::GridSize{128, 128});
+    const view::GridSize grid = mapping.grid();
     cells.resize(sphere.vertex_count());
     clip_w.resize(sphere.vertex_count());
-    map_vertices(mapping, sphere.positions, cells, clip_w);
+    view::map_vertices(mapping, sphere.positions, cells, clip_w);
     occupancy.resize(grid.cell_count());
-    rasterize_occupancy(mapping, sphere.positions, sphere.triangles, occupancy);
-    DistanceTransformer transformer;
+    view::rasterize_occupancy(mapping, sphere.positions, sphere.triangles, occupancy);
+    view::DistanceTransformer transformer;
     silhouette.resize(grid.cell_count());
-    transformer.chamfer(DistanceMetric::kChamfer5711, occupancy, grid, silhouette);
-    foci = {focus_cell(grid, 0.5f, 0.5f)};
+    transformer.chamfer(view::DistanceMetric::kChamfer5711, occupancy, grid, silhouette);
+    foci = {view::focus_cell(grid, 0.5f, 0.5f)};
     focus.resize(grid.cell_count());
-    transformer.chamfer_from_cells(DistanceMetric::kChamfer5711, foci, grid, focus);
+    transformer.chamfer_from_cells(view::DistanceMetric::kChamfer5711, foci, grid, focus);
   }
 };
 
@@ -55,7 +55,7 @@ TEST(GridPipeline, EveryMappedVertexLiesInAnObjectCell) {
   const SphereRequest r;
   std::size_t mapped = 0;
   for (const std::uint32_t c : r.cells) {
-    if (c == kNoCell) continue;
+    if (c == view::kNoCell) continue;
     ++mapped;
     ASSERT_NE(r.occupancy[c], 0);
   }
@@ -66,13 +66,13 @@ TEST(GridPipeline, SphereSilhouetteZeroFactorBandKeepsContourAtFullResolution) {
   // Silhouette mode with f = 0 and d = 2 px: every vertex whose cell is within 2 px of the background
   // (label ≤ 10) gets allowed error 0; the vertex facing the camera (the +z pole region) keeps e.
   const SphereRequest r;
-  AllowedErrorOptions options;
+  view::AllowedErrorOptions options;
   options.error = 0.01f;
   options.use_silhouette = true;
-  options.silhouette = {FalloffLaw::kStep, 2.0f, 0.0f, 0.0f, 2.3f};
+  options.silhouette = {view::FalloffLaw::kStep, 2.0f, 0.0f, 0.0f, 2.3f};
   std::vector<float> allowed(r.sphere.vertex_count());
-  compute_vertex_allowed_error(r.mapping, options, {r.silhouette, {}, {}, r.sphere.positions, {}, {}},
-                               allowed);
+  view::compute_vertex_allowed_error(r.mapping, options, {r.silhouette, {}, {}, r.sphere.positions, {}, {}},
+                                     allowed);
   std::size_t band = 0;
   for (std::size_t v = 0; v < allowed.size(); ++v) {
     const bool near_contour = r.silhouette[r.cells[v]] <= 10;
@@ -115,7 +115,7 @@ TEST(GridPipeline, SphereFocusLabelsGrowWithImageDistance) {
 TEST(GridPipeline, DebugImagesAreWrittenAsPng) {
   const SphereRequest r;
   const auto dir = mtlod::test::scratch_dir("grid-pipeline");
-  const GridSize grid = r.mapping.grid();
+  const view::GridSize grid = r.mapping.grid();
   ASSERT_TRUE(io::write_occupancy_png(dir / "occupancy.png", r.occupancy, grid).ok());
   ASSERT_TRUE(io::write_distance_png(dir / "silhouette.png", r.silhouette, grid, 5).ok());
   ASSERT_TRUE(io::write_distance_png(dir / "focus.png", r.focus, grid, 5).ok());
@@ -145,7 +145,7 @@ TEST(GridPipeline, DragonCoarseOccupancyIsCloseToFullAndConservative) {
   auto full = io::load_mesh(dir / "dragon-vrip-871k.ply", load);
   auto coarse = io::load_mesh(dir / "dragon-vrip-res4-11k.ply", load);
   ASSERT_TRUE(full.ok() && coarse.ok());
-  const Mesh& mesh = full->mesh;
+  const model::Mesh& mesh = full->mesh;
   glm::vec3 lo(1e30f), hi(-1e30f);
   for (std::size_t v = 0; v < mesh.vertex_count(); ++v) {
     const glm::vec3 p(mesh.positions[3 * v], mesh.positions[3 * v + 1], mesh.positions[3 * v + 2]);
@@ -154,22 +154,22 @@ TEST(GridPipeline, DragonCoarseOccupancyIsCloseToFullAndConservative) {
   }
   const glm::vec3 centre = 0.5f * (lo + hi);
   const float radius = 0.5f * glm::length(hi - lo);
-  Camera camera;
+  view::Camera camera;
   camera.view = glm::lookAt(centre + glm::vec3(0.0f, 0.0f, 2.6f * radius), centre, glm::vec3(0, 1, 0));
   camera.projection = glm::perspective(glm::radians(45.0f), 1.0f, 0.1f * radius, 10.0f * radius);
-  const ViewMapping mapping(camera, GridSize{256, 256});
+  const view::ViewMapping mapping(camera, view::GridSize{256, 256});
   std::vector<std::uint8_t> occupancy_full(mapping.grid().cell_count()),
       occupancy_coarse(occupancy_full.size());
-  rasterize_occupancy(mapping, mesh.positions, mesh.triangles, occupancy_full);
-  rasterize_occupancy(mapping, coarse->mesh.positions, coarse->mesh.triangles, occupancy_coarse);
+  view::rasterize_occupancy(mapping, mesh.positions, mesh.triangles, occupancy_full);
+  view::rasterize_occupancy(mapping, coarse->mesh.positions, coarse->mesh.triangles, occupancy_coarse);
   std::vector<std::uint32_t> cells(mesh.vertex_count());
   std::vector<float> clip_w(mesh.vertex_count());
-  map_vertices(mapping, mesh.positions, cells, clip_w);
+  view::map_vertices(mapping, mesh.positions, cells, clip_w);
   std::size_t used = 0;
   std::vector<std::uint8_t> referenced(mesh.vertex_count());
   for (const std::uint32_t v : mesh.triangles) referenced[v] = 1;
   for (std::size_t v = 0; v < cells.size(); ++v) {
-    if (cells[v] == kNoCell || !referenced[v]) continue;
+    if (cells[v] == view::kNoCell || !referenced[v]) continue;
     ++used;
     ASSERT_NE(occupancy_full[cells[v]], 0) << "vertex " << v;
   }

@@ -25,7 +25,7 @@ namespace fs = std::filesystem;
 constexpr std::array<std::uint8_t, 3> kBackground{32, 36, 40};  // the viewer's background, #202428
 
 // A disc of shaded "model" on the background, its shading a smooth pattern plus noise (fixed seed).
-std::vector<std::uint8_t> disc_image(GridSize size, std::uint32_t seed) {
+std::vector<std::uint8_t> disc_image(view::GridSize size, std::uint32_t seed) {
   std::mt19937 rng(seed);
   std::uniform_int_distribution<int> noise(-12, 12);
   std::vector<std::uint8_t> rgb(3 * size.cell_count());
@@ -51,7 +51,7 @@ double luma(const std::vector<std::uint8_t>& rgb, std::size_t c) {
 // either image covers, weighted by the acuity at its centre; the eye on the axis through the image
 // centre at focal_px, eccentricity the angle between the rays through the focus and the pixel.
 double direct_foveated_ssim(const std::vector<std::uint8_t>& a, const std::vector<std::uint8_t>& b,
-                            GridSize size, double fx, double fy, double focal_px, double e2) {
+                            view::GridSize size, double fx, double fy, double focal_px, double e2) {
   const int r = 5;
   double w[11][11], total = 0;
   for (int y = -r; y <= r; ++y)
@@ -94,7 +94,7 @@ double direct_foveated_ssim(const std::vector<std::uint8_t>& a, const std::vecto
 }
 
 TEST(ReadPngRgb, ReadsBackWhatWasWrittenBitForBit) {
-  const GridSize size{37, 23};
+  const view::GridSize size{37, 23};
   const std::vector<std::uint8_t> rgb = disc_image(size, 3);
   const fs::path path = fs::path(::testing::TempDir()) / "image_score_rgb.png";
   ASSERT_TRUE(io::write_png_rgb(path, rgb, size));
@@ -119,30 +119,31 @@ TEST(CoverageFromBackground, APixelCountsWhenEitherImageDiffers) {
   const std::vector<std::uint8_t> a{32, 36, 40, 200, 200, 200, 32, 36, 40, 90, 90, 90};
   const std::vector<std::uint8_t> b{32, 36, 40, 32, 36, 40, 32, 36, 41, 10, 10, 10};
   std::vector<std::uint8_t> covered(4);
-  EXPECT_EQ(coverage_from_background(a, b, kBackground, covered), 3u);
+  EXPECT_EQ(eval::coverage_from_background(a, b, kBackground, covered), 3u);
   EXPECT_EQ(covered, (std::vector<std::uint8_t>{0, 1, 1, 1}));
 }
 
 TEST(CompareRgbRenderings, IdenticalPicturesHaveNoError) {
-  const GridSize size{64, 48};
+  const view::GridSize size{64, 48};
   const std::vector<std::uint8_t> a = disc_image(size, 5);
-  const ImageComparison c = compare_rgb_renderings(a, a, size, kBackground, {20.5f, 30.5f, 60.0, 2.3});
+  const eval::ImageComparison c =
+      eval::compare_rgb_renderings(a, a, size, kBackground, {20.5f, 30.5f, 60.0, 2.3});
   EXPECT_EQ(c.foveated_ssim, 1.0);
   EXPECT_EQ(c.ssim, 1.0);
   EXPECT_EQ(c.foveated_mae, 0.0);
 }
 
 TEST(CompareRgbRenderings, MatchesTheDefinitionEvaluatedDirectly) {
-  const GridSize size{71, 53};
+  const view::GridSize size{71, 53};
   const std::vector<std::uint8_t> a = disc_image(size, 1);
   std::vector<std::uint8_t> b = disc_image(size, 2);  // other noise on the model, same coverage
   // And a patch of model where a has background: the coverage is the union.
   for (std::uint32_t j = 2; j < 9; ++j)
     for (std::uint32_t i = 3; i < 12; ++i)
       for (int k = 0; k < 3; ++k) b[3 * size.cell(i, j) + k] = 120;
-  const double fx = 40.25, fy = 20.75, focal = focal_px_from_fov(size.height, 40.0);
-  const ImageComparison c =
-      compare_rgb_renderings(a, b, size, kBackground, {float(fx), float(fy), focal, 2.3});
+  const double fx = 40.25, fy = 20.75, focal = eval::focal_px_from_fov(size.height, 40.0);
+  const eval::ImageComparison c =
+      eval::compare_rgb_renderings(a, b, size, kBackground, {float(fx), float(fy), focal, 2.3});
   const double expected = direct_foveated_ssim(a, b, size, fx, fy, focal, 2.3);
   // The map and the weights are stored in float: agreement to float precision.
   EXPECT_NEAR(c.foveated_ssim, expected, 1e-6);

@@ -1,7 +1,7 @@
-// Label backprojection (DESIGN.md §1.4–1.5) on hand-made scenes: a square and a sphere seen from known
+// Labels (core/ARCHITECTURE.md §1.4–1.5) on hand-made scenes: a square and a sphere seen from known
 // cameras; labels and region membership are checked against the papers' definitions computed
 // directly from the occupancy or from closed forms, not through the same code path.
-#include "core/labels.hpp"
+#include "core/view/labels.hpp"
 
 #include <gtest/gtest.h>
 
@@ -9,7 +9,7 @@
 #include <cstdlib>
 #include <vector>
 
-#include "core/occupancy.hpp"
+#include "core/view/occupancy.hpp"
 #include "tests/core/test_scenes.hpp"
 
 namespace mtlod::core {
@@ -34,18 +34,18 @@ TEST(Labels, SquareSeenHeadOnHasLabelsGrowingInwardFromTheContour) {
   // Ortho 8×8 over [-2, 2]²: the rectangle covers columns 2..5 and rows 1..5 (see the occupancy
   // test), so its cells' nearest background is straight across one of its sides and the 5-7-11 label
   // of cell (i, j) is 5·min(i − 1, 6 − i, j, 6 − j) — 5 on the ring, 10 inside.
-  const ViewMapping mapping = test::ortho_camera(2.0f, 8);
-  const GridSize grid = mapping.grid();
+  const view::ViewMapping mapping = test::ortho_camera(2.0f, 8);
+  const view::GridSize grid = mapping.grid();
   const test::Scene square = tessellated_rectangle(-0.9f, -0.6f, 0.6f, 1.1f, 6);
   std::vector<std::uint8_t> occupancy(grid.cell_count());
-  rasterize_occupancy(mapping, square.positions, square.triangles, occupancy);
+  view::rasterize_occupancy(mapping, square.positions, square.triangles, occupancy);
   std::vector<std::uint16_t> dt(grid.cell_count());
-  chamfer_5_7_11(occupancy, grid, dt);
+  view::chamfer_5_7_11(occupancy, grid, dt);
   const std::size_t n = square.vertex_count();
   std::vector<std::uint32_t> cells(n), labels(n);
   std::vector<float> clip_w(n);
-  map_vertices(mapping, square.positions, cells, clip_w);
-  label_vertices(cells, dt, labels);
+  view::map_vertices(mapping, square.positions, cells, clip_w);
+  view::label_vertices(cells, dt, labels);
   std::size_t inner = 0;
   for (std::size_t v = 0; v < n; ++v) {
     const float x = square.positions[3 * v], y = square.positions[3 * v + 1];
@@ -58,10 +58,10 @@ TEST(Labels, SquareSeenHeadOnHasLabelsGrowingInwardFromTheContour) {
   // Triangle label = min over its vertices; the region d = 1 px (raw 5) holds exactly the triangles
   // with a vertex in a ring cell.
   std::vector<std::uint32_t> triangle_labels(square.triangles.size() / 3);
-  label_triangles(square.triangles, labels, triangle_labels);
+  view::label_triangles(square.triangles, labels, triangle_labels);
   std::vector<std::uint8_t> in_region(triangle_labels.size());
-  const std::size_t count =
-      region_triangles(triangle_labels, raw_threshold(1.0f, DistanceMetric::kChamfer5711), in_region);
+  const std::size_t count = view::region_triangles(
+      triangle_labels, view::raw_threshold(1.0f, view::DistanceMetric::kChamfer5711), in_region);
   std::size_t expected_count = 0;
   for (std::size_t t = 0; t < triangle_labels.size(); ++t) {
     const std::uint32_t* tri = square.triangles.data() + 3 * t;
@@ -79,18 +79,18 @@ TEST(Labels, SphereRegionHoldsExactlyTrianglesTouchingContourCells) {
   // A sphere of radius 1.5 seen orthographically over [-2, 2]² on 64×64: silhouette mode. The papers'
   // region for d = 1 px is the triangles having a vertex in a contour cell, i.e. an object cell with a
   // background edge neighbour; that is computed here from the occupancy alone.
-  const ViewMapping mapping = test::ortho_camera(2.0f, 64);
-  const GridSize grid = mapping.grid();
+  const view::ViewMapping mapping = test::ortho_camera(2.0f, 64);
+  const view::GridSize grid = mapping.grid();
   const test::Scene sphere = test::uv_sphere(1.5f, 40, 80);
   std::vector<std::uint8_t> occupancy(grid.cell_count());
-  rasterize_occupancy(mapping, sphere.positions, sphere.triangles, occupancy);
+  view::rasterize_occupancy(mapping, sphere.positions, sphere.triangles, occupancy);
   std::vector<std::uint16_t> dt(grid.cell_count());
-  chamfer_5_7_11(occupancy, grid, dt);
+  view::chamfer_5_7_11(occupancy, grid, dt);
   const std::size_t n = sphere.vertex_count();
   std::vector<std::uint32_t> cells(n), labels(n);
   std::vector<float> clip_w(n);
-  map_vertices(mapping, sphere.positions, cells, clip_w);
-  label_vertices(cells, dt, labels);
+  view::map_vertices(mapping, sphere.positions, cells, clip_w);
+  view::label_vertices(cells, dt, labels);
   auto contour_cell = [&](std::uint32_t c) {
     const std::uint32_t i = c % grid.width, j = c / grid.width;
     if (occupancy[c] == 0) return false;
@@ -99,9 +99,10 @@ TEST(Labels, SphereRegionHoldsExactlyTrianglesTouchingContourCells) {
            (j + 1 < grid.height && occupancy[c + grid.width] == 0);
   };
   std::vector<std::uint32_t> triangle_labels(sphere.triangles.size() / 3);
-  label_triangles(sphere.triangles, labels, triangle_labels);
+  view::label_triangles(sphere.triangles, labels, triangle_labels);
   std::vector<std::uint8_t> in_region(triangle_labels.size());
-  region_triangles(triangle_labels, raw_threshold(1.0f, DistanceMetric::kChamfer5711), in_region);
+  view::region_triangles(triangle_labels, view::raw_threshold(1.0f, view::DistanceMetric::kChamfer5711),
+                         in_region);
   std::size_t region = 0;
   for (std::size_t t = 0; t < triangle_labels.size(); ++t) {
     const std::uint32_t* tri = sphere.triangles.data() + 3 * t;
@@ -132,18 +133,19 @@ std::uint32_t chamfer_5711_closed_form(int dx, int dy) {
 TEST(Labels, FocusLabelsAreChamferDistanceToTheNearestFocus) {
   // Focus mode on the sphere scene with two foci: every vertex's label is the closed-form 5-7-11
   // distance from its cell to the nearer focus cell.
-  const ViewMapping mapping = test::ortho_camera(2.0f, 64);
-  const GridSize grid = mapping.grid();
+  const view::ViewMapping mapping = test::ortho_camera(2.0f, 64);
+  const view::GridSize grid = mapping.grid();
   const test::Scene sphere = test::uv_sphere(1.5f, 30, 60);
-  const std::vector<std::uint32_t> foci = {focus_cell(grid, 0.5f, 0.5f), focus_cell(grid, 0.2f, 0.7f)};
+  const std::vector<std::uint32_t> foci = {view::focus_cell(grid, 0.5f, 0.5f),
+                                           view::focus_cell(grid, 0.2f, 0.7f)};
   std::vector<std::uint16_t> dt(grid.cell_count());
-  DistanceTransformer().chamfer_from_cells(DistanceMetric::kChamfer5711, foci, grid, dt);
+  view::DistanceTransformer().chamfer_from_cells(view::DistanceMetric::kChamfer5711, foci, grid, dt);
   for (std::uint32_t v = 0; v < sphere.vertex_count(); ++v) {
     const std::uint32_t label =
-        vertex_label(mapping, sphere.positions, v, std::span<const std::uint16_t>(dt));
+        view::vertex_label(mapping, sphere.positions, v, std::span<const std::uint16_t>(dt));
     const std::uint32_t c =
         mapping.map_point(sphere.positions[3 * v], sphere.positions[3 * v + 1], sphere.positions[3 * v + 2]);
-    ASSERT_NE(c, kNoCell);
+    ASSERT_NE(c, view::kNoCell);
     std::uint32_t expected = 0xFFFFFFFFu;
     for (const std::uint32_t f : foci) {
       expected =
@@ -155,19 +157,19 @@ TEST(Labels, FocusLabelsAreChamferDistanceToTheNearestFocus) {
 }
 
 TEST(Labels, VerticesWithoutCellOrSeedGetSentinelsThatLoseTheMinimum) {
-  const std::vector<std::uint16_t> dt = {0, 5, kChamferUnreached, 10};
-  const std::vector<std::uint32_t> cells = {3, kNoCell, 2, 1};
+  const std::vector<std::uint16_t> dt = {0, 5, view::kChamferUnreached, 10};
+  const std::vector<std::uint32_t> cells = {3, view::kNoCell, 2, 1};
   std::vector<std::uint32_t> labels(4);
-  label_vertices(cells, dt, labels);
-  EXPECT_EQ(labels, (std::vector<std::uint32_t>{10, kLabelNoCell, kLabelUnreached, 5}));
+  view::label_vertices(cells, dt, labels);
+  EXPECT_EQ(labels, (std::vector<std::uint32_t>{10, view::kLabelNoCell, view::kLabelUnreached, 5}));
   // A triangle with one vertex in view takes that vertex's label; no-cell and unreached alone stay out
   // of every region.
   const std::vector<std::uint32_t> triangles = {1, 2, 0, 1, 2, 2, 1, 1, 1};
   std::vector<std::uint32_t> triangle_labels(3);
-  label_triangles(triangles, labels, triangle_labels);
-  EXPECT_EQ(triangle_labels, (std::vector<std::uint32_t>{10, kLabelUnreached, kLabelNoCell}));
+  view::label_triangles(triangles, labels, triangle_labels);
+  EXPECT_EQ(triangle_labels, (std::vector<std::uint32_t>{10, view::kLabelUnreached, view::kLabelNoCell}));
   std::vector<std::uint8_t> in_region(3);
-  EXPECT_EQ(region_triangles(triangle_labels, 0xFFFFFFFFu, in_region), 1u);
+  EXPECT_EQ(view::region_triangles(triangle_labels, 0xFFFFFFFFu, in_region), 1u);
 }
 
 }  // namespace

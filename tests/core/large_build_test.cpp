@@ -1,8 +1,8 @@
-// The out-of-core build (core/io/large_build.hpp): with one block it is build_mt byte for byte; with
+// The out-of-core build (core/build/large_build.hpp): with one block it is build_mt byte for byte; with
 // many blocks, side by side or in turn, it gives the same valid MT every time. The MT properties of
 // its results (conformity, error bound, dynamic = static) are checked with build_mt's in
 // mt_builder_test.cpp and refine_test.cpp through test::large_case.
-#include "core/io/large_build.hpp"
+#include "core/build/large_build.hpp"
 
 #include <gtest/gtest.h>
 
@@ -13,11 +13,11 @@
 #include <string>
 #include <vector>
 
+#include "core/build/mt_builder.hpp"
 #include "core/eval/mesh_gen.hpp"
 #include "core/io/mesh_io.hpp"
 #include "core/io/mt_file.hpp"
-#include "core/mt_builder.hpp"
-#include "core/mt_format.hpp"
+#include "core/model/mt_format.hpp"
 #include "core/threads/thread_pool.hpp"
 #include "tests/core/mt_fixtures.hpp"
 #include "tests/core/test_meshes.hpp"
@@ -25,9 +25,9 @@
 namespace mtlod {
 namespace {
 
-using core::Mesh;
-using core::io::LargeBuildOptions;
-using core::io::LargeBuildStats;
+using core::build::LargeBuildOptions;
+using core::build::LargeBuildStats;
+using core::model::Mesh;
 
 std::vector<std::uint8_t> file_bytes(const std::filesystem::path& path) {
   const std::string bytes = test::read_file(path);
@@ -39,16 +39,16 @@ std::vector<std::uint8_t> large_build_bytes(const Mesh& mesh, LargeBuildOptions 
                                             LargeBuildStats* stats = nullptr) {
   const auto dir = test::scratch_dir("large-build");
   EXPECT_TRUE(core::io::save_mesh(dir / "in.ply", mesh).ok());
-  const auto built = core::io::build_mt_file(dir / "in.ply", dir / "out.mt", options, stats);
+  const auto built = core::build::build_mt_file(dir / "in.ply", dir / "out.mt", options, stats);
   EXPECT_TRUE(built.ok()) << (built.ok() ? "" : built.error().message);
   return file_bytes(dir / "out.mt");
 }
 
 std::vector<Mesh> clean_inputs() {
   std::vector<Mesh> meshes = {
-      core::generate_mesh({.shape = core::Shape::kSphere, .target_triangles = 20'000}),
-      core::generate_mesh({.shape = core::Shape::kTerrain, .target_triangles = 5'000}),
-      core::generate_mesh({.shape = core::Shape::kShell, .target_triangles = 8'000})};
+      core::eval::generate_mesh({.shape = core::eval::Shape::kSphere, .target_triangles = 20'000}),
+      core::eval::generate_mesh({.shape = core::eval::Shape::kTerrain, .target_triangles = 5'000}),
+      core::eval::generate_mesh({.shape = core::eval::Shape::kShell, .target_triangles = 8'000})};
   const auto path = test::shared_meshes_dir() / "dragon-vrip-res4-11k.ply";  // non-manifold
   if (std::filesystem::exists(path)) {
     auto loaded = core::io::load_mesh(path);
@@ -60,10 +60,10 @@ std::vector<Mesh> clean_inputs() {
 
 TEST(LargeBuild, OneBlockWritesBuildMtsFileByteForByte) {
   for (const Mesh& mesh : clean_inputs()) {
-    auto mt = core::build_mt(mesh);
+    auto mt = core::build::build_mt(mesh);
     ASSERT_TRUE(mt.ok());
     std::vector<std::uint8_t> expected;
-    core::serialize_mt(*mt, expected);
+    core::model::serialize_mt(*mt, expected);
     LargeBuildOptions options;
     options.block_triangles = mesh.triangle_count();
     LargeBuildStats stats;
@@ -71,7 +71,7 @@ TEST(LargeBuild, OneBlockWritesBuildMtsFileByteForByte) {
     EXPECT_EQ(stats.blocks, 1u);
     EXPECT_EQ(stats.nodes, mt->node_count());
     // The same with the stage's passes on two threads.
-    core::ThreadPool pool(2);
+    core::threads::ThreadPool pool(2);
     pool.attach(options.build);
     options.threads = 2;
     EXPECT_EQ(large_build_bytes(mesh, options), expected) << mesh.triangle_count() << " triangles, 2 threads";
@@ -88,15 +88,15 @@ TEST(LargeBuild, OneBlockOfARawScanIsTheBuildOfTheCleanedScan) {
     ++meshes;
     auto loaded = core::io::load_mesh(path);
     ASSERT_TRUE(loaded.ok());
-    auto mt = core::build_mt(loaded->mesh);
+    auto mt = core::build::build_mt(loaded->mesh);
     ASSERT_TRUE(mt.ok());
     std::vector<std::uint8_t> expected;
-    core::serialize_mt(*mt, expected);
+    core::model::serialize_mt(*mt, expected);
     const auto dir = test::scratch_dir("large-build-raw");
     LargeBuildOptions options;
     options.block_triangles = std::size_t{1} << 20;
     LargeBuildStats stats;
-    ASSERT_TRUE(core::io::build_mt_file(path, dir / "out.mt", options, &stats).ok());
+    ASSERT_TRUE(core::build::build_mt_file(path, dir / "out.mt", options, &stats).ok());
     EXPECT_EQ(file_bytes(dir / "out.mt"), expected) << file;
     EXPECT_EQ(stats.dropped_degenerate, loaded->cleanup.dropped_degenerate_triangles) << file;
     EXPECT_EQ(stats.dropped_duplicate, loaded->cleanup.dropped_duplicate_triangles) << file;
@@ -105,7 +105,8 @@ TEST(LargeBuild, OneBlockOfARawScanIsTheBuildOfTheCleanedScan) {
 }
 
 TEST(LargeBuild, ManyBlocksGiveTheSameFileInTurnAndSideBySide) {
-  const Mesh mesh = core::generate_mesh({.shape = core::Shape::kShell, .target_triangles = 30'000});
+  const Mesh mesh =
+      core::eval::generate_mesh({.shape = core::eval::Shape::kShell, .target_triangles = 30'000});
   LargeBuildOptions options;
   options.block_triangles = 2'000;
   LargeBuildStats stats;
@@ -113,23 +114,23 @@ TEST(LargeBuild, ManyBlocksGiveTheSameFileInTurnAndSideBySide) {
   EXPECT_GE(stats.blocks, 15u);
   EXPECT_GE(stats.levels, 5u);
   EXPECT_EQ(stats.stages, 2 * stats.blocks - 1);  // a binary tree over the leaves
-  auto mt = core::deserialize_mt(serial);         // validates the DAG, the indices and the checksum
+  auto mt = core::model::deserialize_mt(serial);  // validates the DAG, the indices and the checksum
   ASSERT_TRUE(mt.ok()) << mt.error().message;
   EXPECT_EQ(mt->vertex_count(), mesh.vertex_count());
   EXPECT_EQ(stats.mt_triangles, mt->triangle_count());
   // Every input triangle is in the MT, created by some node and removed by none.
-  EXPECT_EQ(std::count(mt->triangle_remover.begin(), mt->triangle_remover.end(), core::kNoNode),
+  EXPECT_EQ(std::count(mt->triangle_remover.begin(), mt->triangle_remover.end(), core::model::kNoNode),
             std::ptrdiff_t(mesh.triangle_count()));
   EXPECT_LT(mt->root_triangle_count(), mesh.triangle_count() / 4);
 
-  core::ThreadPool pool(2);
+  core::threads::ThreadPool pool(2);
   pool.attach(options.build);
   options.threads = 2;
   EXPECT_EQ(large_build_bytes(mesh, options), serial);
 }
 
 TEST(LargeBuild, DropsDegenerateAndDuplicateTrianglesAndCountsThem) {
-  Mesh mesh = core::generate_mesh({.shape = core::Shape::kSphere, .target_triangles = 3'000});
+  Mesh mesh = core::eval::generate_mesh({.shape = core::eval::Shape::kSphere, .target_triangles = 3'000});
   const std::size_t faces = mesh.triangle_count();
   mesh.triangles.insert(mesh.triangles.end(), {0, 0, 1});  // repeated id
   mesh.triangles.insert(mesh.triangles.end(),
@@ -137,21 +138,22 @@ TEST(LargeBuild, DropsDegenerateAndDuplicateTrianglesAndCountsThem) {
   LargeBuildOptions options;
   options.block_triangles = 500;
   LargeBuildStats stats;
-  auto mt = core::deserialize_mt(large_build_bytes(mesh, options, &stats));
+  auto mt = core::model::deserialize_mt(large_build_bytes(mesh, options, &stats));
   ASSERT_TRUE(mt.ok()) << mt.error().message;
   EXPECT_EQ(stats.input_triangles, faces + 2);
   EXPECT_EQ(stats.dropped_degenerate, 1u);
   EXPECT_EQ(stats.dropped_duplicate, 1u);
-  EXPECT_EQ(std::count(mt->triangle_remover.begin(), mt->triangle_remover.end(), core::kNoNode),
+  EXPECT_EQ(std::count(mt->triangle_remover.begin(), mt->triangle_remover.end(), core::model::kNoNode),
             std::ptrdiff_t(faces));
 }
 
 TEST(LargeBuild, DerivesItsBlocksFromTheMemoryLimitAndRefusesOneTooSmall) {
-  const Mesh mesh = core::generate_mesh({.shape = core::Shape::kSphere, .target_triangles = 20'000});
+  const Mesh mesh =
+      core::eval::generate_mesh({.shape = core::eval::Shape::kSphere, .target_triangles = 20'000});
   LargeBuildOptions options;
   options.memory_limit = std::uint64_t{132} << 20;  // a few MiB over the fixed part
   LargeBuildStats stats;
-  auto mt = core::deserialize_mt(large_build_bytes(mesh, options, &stats));
+  auto mt = core::model::deserialize_mt(large_build_bytes(mesh, options, &stats));
   ASSERT_TRUE(mt.ok()) << mt.error().message;
   EXPECT_GT(stats.blocks, 1u);
   EXPECT_LT(stats.block_triangles, mesh.triangle_count());
@@ -159,7 +161,7 @@ TEST(LargeBuild, DerivesItsBlocksFromTheMemoryLimitAndRefusesOneTooSmall) {
   const auto dir = test::scratch_dir("large-build-limit");
   ASSERT_TRUE(core::io::save_mesh(dir / "in.ply", mesh).ok());
   options.memory_limit = std::uint64_t{1} << 20;
-  const auto refused = core::io::build_mt_file(dir / "in.ply", dir / "out.mt", options);
+  const auto refused = core::build::build_mt_file(dir / "in.ply", dir / "out.mt", options);
   ASSERT_FALSE(refused.ok());
   EXPECT_EQ(refused.error().code, ErrorCode::kLimitExceeded);
   EXPECT_NE(refused.error().message.find("too small"), std::string::npos) << refused.error().message;
@@ -168,17 +170,18 @@ TEST(LargeBuild, DerivesItsBlocksFromTheMemoryLimitAndRefusesOneTooSmall) {
 
 TEST(LargeBuild, BadInputsAreClearErrorsAndLeaveNoFiles) {
   const auto dir = test::scratch_dir("large-build-bad");
-  const Mesh mesh = core::generate_mesh({.shape = core::Shape::kSphere, .target_triangles = 2'000});
+  const Mesh mesh =
+      core::eval::generate_mesh({.shape = core::eval::Shape::kSphere, .target_triangles = 2'000});
   ASSERT_TRUE(core::io::save_mesh(dir / "in.ply", mesh).ok());
   const auto whole = file_bytes(dir / "in.ply");
   {
     std::ofstream out(dir / "cut.ply", std::ios::binary);
     out.write(reinterpret_cast<const char*>(whole.data()), std::streamsize(whole.size() - 100));
   }
-  const auto missing = core::io::build_mt_file(dir / "none.ply", dir / "out.mt", {});
+  const auto missing = core::build::build_mt_file(dir / "none.ply", dir / "out.mt", {});
   ASSERT_FALSE(missing.ok());
   EXPECT_NE(missing.error().message.find("none.ply"), std::string::npos) << missing.error().message;
-  const auto truncated = core::io::build_mt_file(dir / "cut.ply", dir / "out.mt", {});
+  const auto truncated = core::build::build_mt_file(dir / "cut.ply", dir / "out.mt", {});
   ASSERT_FALSE(truncated.ok());
   EXPECT_EQ(truncated.error().code, ErrorCode::kCorrupt) << truncated.error().message;
   // Neither the output nor a temporary directory is left behind.

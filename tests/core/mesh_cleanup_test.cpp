@@ -1,6 +1,6 @@
 // Topology counts and clean-up on hand-made meshes whose defects are known, and against a
 // brute-force edge census on random triangle soups.
-#include "core/mesh_cleanup.hpp"
+#include "core/model/mesh_cleanup.hpp"
 
 #include <gtest/gtest.h>
 
@@ -15,12 +15,12 @@
 namespace mtlod::core {
 namespace {
 
-TopologyReport analyze(const Mesh& m) {
-  return analyze_topology(m.positions, m.triangles);
+model::TopologyReport analyze(const model::Mesh& m) {
+  return model::analyze_topology(m.positions, m.triangles);
 }
 
 TEST(AnalyzeTopology, TetrahedronIsClosedManifoldWithEulerTwo) {
-  const TopologyReport r = analyze(test::tetrahedron());
+  const model::TopologyReport r = analyze(test::tetrahedron());
   EXPECT_EQ(r.vertices, 4u);
   EXPECT_EQ(r.edges, 6u);
   EXPECT_EQ(r.euler_characteristic, 2);
@@ -29,7 +29,7 @@ TEST(AnalyzeTopology, TetrahedronIsClosedManifoldWithEulerTwo) {
 }
 
 TEST(AnalyzeTopology, SquareHasOneBoundaryLoopOfFourEdges) {
-  const TopologyReport r = analyze(test::square());
+  const model::TopologyReport r = analyze(test::square());
   EXPECT_EQ(r.boundary_edges, 4u);
   EXPECT_EQ(r.boundary_loops, 1u);
   EXPECT_EQ(r.euler_characteristic, 1);  // a disk
@@ -37,18 +37,18 @@ TEST(AnalyzeTopology, SquareHasOneBoundaryLoopOfFourEdges) {
 }
 
 TEST(AnalyzeTopology, CountsUnusedVerticesAndDuplicatePositions) {
-  Mesh m = test::tetrahedron();
+  model::Mesh m = test::tetrahedron();
   m.positions.insert(m.positions.end(), {1, 1, 1, 5, 5, 5});  // vertex 4 repeats vertex 0; both unused
-  const TopologyReport r = analyze(m);
+  const model::TopologyReport r = analyze(m);
   EXPECT_EQ(r.unused_vertices, 2u);
   EXPECT_EQ(r.duplicate_positions, 1u);
 }
 
 TEST(AnalyzeTopology, RepeatedFaceMakesItsThreeEdgesNonManifold) {
   // Each edge of the repeated face now has three triangles.
-  Mesh m = test::tetrahedron();
+  model::Mesh m = test::tetrahedron();
   m.triangles.insert(m.triangles.end(), {0, 1, 2});
-  const TopologyReport r = analyze(m);
+  const model::TopologyReport r = analyze(m);
   EXPECT_EQ(r.duplicate_triangles, 1u);
   EXPECT_EQ(r.non_manifold_edges, 3u);
   EXPECT_FALSE(r.is_closed_manifold());
@@ -56,17 +56,17 @@ TEST(AnalyzeTopology, RepeatedFaceMakesItsThreeEdgesNonManifold) {
 
 TEST(AnalyzeTopology, FlippedTriangleGivesClashingEdge) {
   // Square with its second triangle wound the other way: the diagonal is walked 0->2 twice.
-  Mesh m = test::square();
+  model::Mesh m = test::square();
   std::swap(m.triangles[4], m.triangles[5]);
   EXPECT_EQ(analyze(m).inconsistent_edges, 1u);
 }
 
 TEST(AnalyzeTopology, TwoTetrahedraSharingOneVertexMakeANonManifoldVertex) {
-  Mesh m = test::tetrahedron();
+  model::Mesh m = test::tetrahedron();
   // Second tetrahedron: vertex 0 shared, three new vertices far away.
   m.positions.insert(m.positions.end(), {3, 3, 1, 1, 3, 3, 3, 1, 3});
   m.triangles.insert(m.triangles.end(), {0, 4, 5, 0, 5, 6, 0, 6, 4, 4, 6, 5});
-  const TopologyReport r = analyze(m);
+  const model::TopologyReport r = analyze(m);
   EXPECT_EQ(r.components, 1u);
   EXPECT_EQ(r.non_manifold_edges, 0u);
   EXPECT_EQ(r.non_manifold_vertices, 1u);
@@ -74,20 +74,20 @@ TEST(AnalyzeTopology, TwoTetrahedraSharingOneVertexMakeANonManifoldVertex) {
 }
 
 TEST(AnalyzeTopology, DegenerateTrianglesByRepeatedIdAndByZeroArea) {
-  Mesh m = test::square();
+  model::Mesh m = test::square();
   m.positions.insert(m.positions.end(), {2, 0, 0});  // 4: on the line through 0 and 1
   m.triangles.insert(m.triangles.end(), {0, 0, 2, 0, 1, 4});
   EXPECT_EQ(analyze(m).degenerate_triangles, 2u);
 }
 
 TEST(CleanMesh, DropsDegenerateDuplicateAndUnusedKeepingGeometry) {
-  Mesh m = test::tetrahedron();
+  model::Mesh m = test::tetrahedron();
   m.positions.insert(m.positions.end(), {9, 9, 9});  // 4: unused
   m.triangles.insert(m.triangles.end(), {0, 1, 1});  // degenerate
   m.triangles.insert(m.triangles.end(), {2, 0, 1});  // duplicate of {0,1,2}, same winding
   m.normals.assign(3 * 5, 0.0f);
   m.normals[3 * 3] = 7.0f;  // marks vertex 3 so we can see it follow its vertex
-  const CleanupSummary s = clean_mesh(m);
+  const model::CleanupSummary s = model::clean_mesh(m);
   EXPECT_EQ(s.dropped_degenerate_triangles, 1u);
   EXPECT_EQ(s.dropped_duplicate_triangles, 1u);
   EXPECT_EQ(s.dropped_unused_vertices, 1u);
@@ -100,16 +100,16 @@ TEST(CleanMesh, DropsDegenerateDuplicateAndUnusedKeepingGeometry) {
 
 TEST(CleanMesh, WeldingSeparateCornersRestoresAClosedTetrahedron) {
   // STL-style: every triangle has its own three vertices.
-  const Mesh tet = test::tetrahedron();
-  Mesh soup;
+  const model::Mesh tet = test::tetrahedron();
+  model::Mesh soup;
   for (std::uint32_t v : tet.triangles) {
     soup.positions.insert(soup.positions.end(), &tet.positions[3 * v], &tet.positions[3 * v] + 3);
     soup.triangles.push_back(static_cast<std::uint32_t>(soup.triangles.size()));
   }
   EXPECT_EQ(analyze(soup).boundary_edges, 12u);
-  CleanupOptions options;
+  model::CleanupOptions options;
   options.weld_duplicate_positions = true;
-  const CleanupSummary s = clean_mesh(soup, options);
+  const model::CleanupSummary s = model::clean_mesh(soup, options);
   EXPECT_EQ(s.welded_vertices, 8u);  // 12 corners become 4 vertices
   EXPECT_EQ(s.dropped_unused_vertices, 0u);
   EXPECT_EQ(soup.vertex_count(), 4u);
@@ -120,7 +120,7 @@ TEST(CleanMesh, WeldingSeparateCornersRestoresAClosedTetrahedron) {
 TEST(AnalyzeTopology, EdgeCountsMatchBruteForceOnRandomSoups) {
   std::mt19937 rng(7);
   for (int round = 0; round < 50; ++round) {
-    Mesh m;
+    model::Mesh m;
     const std::uint32_t n = 4 + rng() % 30;
     for (std::uint32_t v = 0; v < n; ++v) {
       for (int c = 0; c < 3; ++c) m.positions.push_back(static_cast<float>(rng() % 1000));
@@ -149,7 +149,7 @@ TEST(AnalyzeTopology, EdgeCountsMatchBruteForceOnRandomSoups) {
       non_manifold += count > 2;
       clashing += count == 2 && e.first != e.second;
     }
-    const TopologyReport r = analyze(m);
+    const model::TopologyReport r = analyze(m);
     EXPECT_EQ(r.edges, edges.size());
     EXPECT_EQ(r.boundary_edges, boundary);
     EXPECT_EQ(r.non_manifold_edges, non_manifold);

@@ -12,7 +12,7 @@
 #include <unordered_map>
 #include <vector>
 
-#include "core/bounds.hpp"
+#include "core/model/bounds.hpp"
 
 namespace mtlod::test {
 
@@ -69,7 +69,7 @@ inline std::vector<std::array<std::uint32_t, 3>> canonical_triangles(
 
 // Largest side of the bounding box of the vertices `triangles` use.
 inline float used_extent(std::span<const float> positions, std::span<const std::uint32_t> triangles) {
-  return core::bounds_of(positions, triangles).largest_side();
+  return core::model::bounds_of(positions, triangles).largest_side();
 }
 
 // Draco quantizes over the encoded vertices' largest extent: one step is extent / (2^bits − 1), and

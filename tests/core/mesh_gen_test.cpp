@@ -9,13 +9,13 @@
 #include <utility>
 #include <vector>
 
-#include "core/mesh_cleanup.hpp"
+#include "core/model/mesh_cleanup.hpp"
 
 namespace mtlod::core {
 namespace {
 
 // Six times the signed volume of a closed mesh (divergence theorem); positive when outward.
-double signed_volume6(const Mesh& m) {
+double signed_volume6(const model::Mesh& m) {
   double sum = 0;
   for (std::size_t t = 0; t < m.triangle_count(); ++t) {
     const float* a = &m.positions[3 * m.triangles[3 * t]];
@@ -28,19 +28,19 @@ double signed_volume6(const Mesh& m) {
   return sum;
 }
 
-Mesh generate(Shape shape, std::size_t triangles, std::uint32_t seed = 1) {
-  GenerateOptions o;
+model::Mesh generate(eval::Shape shape, std::size_t triangles, std::uint32_t seed = 1) {
+  eval::GenerateOptions o;
   o.shape = shape;
   o.target_triangles = triangles;
   o.seed = seed;
-  return generate_mesh(o);
+  return eval::generate_mesh(o);
 }
 
 TEST(GenerateMesh, ClosedShapesAreOutwardGenusZeroManifoldsNearTheTarget) {
-  for (Shape shape : {Shape::kSphere, Shape::kShell}) {
+  for (eval::Shape shape : {eval::Shape::kSphere, eval::Shape::kShell}) {
     for (std::size_t target : {200u, 5'000u, 120'000u}) {
-      const Mesh m = generate(shape, target);
-      const TopologyReport r = analyze_topology(m.positions, m.triangles);
+      const model::Mesh m = generate(shape, target);
+      const model::TopologyReport r = model::analyze_topology(m.positions, m.triangles);
       SCOPED_TRACE(testing::Message() << "shape " << int(shape) << " target " << target);
       EXPECT_TRUE(r.is_closed_manifold()) << r.summary();
       EXPECT_EQ(r.euler_characteristic, 2);
@@ -55,8 +55,8 @@ TEST(GenerateMesh, ClosedShapesAreOutwardGenusZeroManifoldsNearTheTarget) {
 }
 
 TEST(GenerateMesh, TerrainIsOneDiskFacingUp) {
-  const Mesh m = generate(Shape::kTerrain, 20'000);
-  const TopologyReport r = analyze_topology(m.positions, m.triangles);
+  const model::Mesh m = generate(eval::Shape::kTerrain, 20'000);
+  const model::TopologyReport r = model::analyze_topology(m.positions, m.triangles);
   EXPECT_EQ(r.boundary_loops, 1u);
   EXPECT_EQ(r.euler_characteristic, 1);
   EXPECT_EQ(r.non_manifold_edges + r.inconsistent_edges + r.non_manifold_vertices, 0u);
@@ -71,20 +71,21 @@ TEST(GenerateMesh, TerrainIsOneDiskFacingUp) {
 }
 
 TEST(GenerateMesh, SameSeedSameMeshOtherSeedOtherSurface) {
-  const Mesh a = generate(Shape::kSphere, 3'000, 5), b = generate(Shape::kSphere, 3'000, 5);
-  const Mesh c = generate(Shape::kSphere, 3'000, 6);
+  const model::Mesh a = generate(eval::Shape::kSphere, 3'000, 5),
+                    b = generate(eval::Shape::kSphere, 3'000, 5);
+  const model::Mesh c = generate(eval::Shape::kSphere, 3'000, 6);
   EXPECT_EQ(a.positions, b.positions);
   EXPECT_EQ(a.triangles, c.triangles);
   EXPECT_NE(a.positions, c.positions);
 }
 
 TEST(GenerateMesh, ColoursGrowAlongTheAxesOverTheWholeByteRange) {
-  GenerateOptions o;
-  o.shape = Shape::kShell;
+  eval::GenerateOptions o;
+  o.shape = eval::Shape::kShell;
   o.target_triangles = 5'000;
-  const Mesh plain = generate_mesh(o);
+  const model::Mesh plain = eval::generate_mesh(o);
   o.colors = true;
-  const Mesh painted = generate_mesh(o);
+  const model::Mesh painted = eval::generate_mesh(o);
   EXPECT_FALSE(plain.has_colors());
   ASSERT_EQ(painted.positions, plain.positions);  // the same surface, coloured
   ASSERT_EQ(painted.colors.size(), painted.positions.size());
@@ -102,8 +103,8 @@ TEST(GenerateMesh, ColoursGrowAlongTheAxesOverTheWholeByteRange) {
 }
 
 TEST(GenerateMesh, MillionTriangleShellIsClosedManifold) {
-  const Mesh m = generate(Shape::kShell, 1'000'000);
-  const TopologyReport r = analyze_topology(m.positions, m.triangles);
+  const model::Mesh m = generate(eval::Shape::kShell, 1'000'000);
+  const model::TopologyReport r = model::analyze_topology(m.positions, m.triangles);
   EXPECT_TRUE(r.is_closed_manifold()) << r.summary();
   EXPECT_EQ(r.euler_characteristic, 2);
   EXPECT_NEAR(static_cast<double>(m.triangle_count()), 1e6, 1e4);

@@ -22,8 +22,8 @@ using test::read_file;
 using test::write_file;
 
 // Positions with awkward float values: tiny, huge, negative zero, many significant digits.
-Mesh awkward_mesh(bool with_attributes) {
-  Mesh m = test::tetrahedron();
+model::Mesh awkward_mesh(bool with_attributes) {
+  model::Mesh m = test::tetrahedron();
   std::mt19937 rng(3);
   std::uniform_real_distribution<float> any(-1e4f, 1e4f);
   for (float& x : m.positions) x = x * any(rng);
@@ -42,17 +42,17 @@ void expect_same_bits(const std::vector<float>& a, const std::vector<float>& b) 
   EXPECT_EQ(std::memcmp(a.data(), b.data(), a.size() * sizeof(float)), 0);
 }
 
-LoadOptions as_read() {
-  LoadOptions o;
+io::LoadOptions as_read() {
+  io::LoadOptions o;
   o.clean = false;
   return o;
 }
 
 TEST(MeshIo, BinaryPlyRoundTripIsBitExactWithNormalsAndColours) {
   const auto dir = test::scratch_dir("ply-roundtrip");
-  const Mesh m = awkward_mesh(true);
-  ASSERT_TRUE(save_mesh(dir / "m.ply", m).ok());
-  auto loaded = load_mesh(dir / "m.ply", as_read());
+  const model::Mesh m = awkward_mesh(true);
+  ASSERT_TRUE(io::save_mesh(dir / "m.ply", m).ok());
+  auto loaded = io::load_mesh(dir / "m.ply", as_read());
   ASSERT_TRUE(loaded.ok()) << loaded.error().message;
   expect_same_bits(loaded->mesh.positions, m.positions);
   expect_same_bits(loaded->mesh.normals, m.normals);
@@ -62,9 +62,9 @@ TEST(MeshIo, BinaryPlyRoundTripIsBitExactWithNormalsAndColours) {
 
 TEST(MeshIo, ObjRoundTripKeepsPositionsExactly) {
   const auto dir = test::scratch_dir("obj-roundtrip");
-  const Mesh m = awkward_mesh(false);
-  ASSERT_TRUE(save_mesh(dir / "m.obj", m).ok());
-  auto loaded = load_mesh(dir / "m.obj", as_read());
+  const model::Mesh m = awkward_mesh(false);
+  ASSERT_TRUE(io::save_mesh(dir / "m.obj", m).ok());
+  auto loaded = io::load_mesh(dir / "m.obj", as_read());
   ASSERT_TRUE(loaded.ok()) << loaded.error().message;
   expect_same_bits(loaded->mesh.positions, m.positions);
   EXPECT_EQ(loaded->mesh.triangles, m.triangles);
@@ -79,7 +79,7 @@ TEST(MeshIo, ReadsAsciiPlyOffAndObjPolygons) {
   write_file(dir / "sq.off", "OFF\n4 1 0\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n4 0 1 2 3\n");
   write_file(dir / "sq.obj", "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n");
   for (const char* name : {"sq.ply", "sq.off", "sq.obj"}) {
-    auto loaded = load_mesh(dir / name);
+    auto loaded = io::load_mesh(dir / name);
     ASSERT_TRUE(loaded.ok()) << name << ": " << loaded.error().message;
     // A quad becomes two triangles, fanned from its first corner.
     EXPECT_EQ(loaded->polygons_triangulated, 1u) << name;
@@ -95,7 +95,7 @@ TEST(MeshIo, StlCornersAreWeldedAndReported) {
              "facet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 1 1 0\nendloop\nendfacet\n"
              "facet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 1 0\nvertex 0 1 0\nendloop\nendfacet\n"
              "endsolid sq\n");
-  auto loaded = load_mesh(dir / "sq.stl");
+  auto loaded = io::load_mesh(dir / "sq.stl");
   ASSERT_TRUE(loaded.ok()) << loaded.error().message;
   EXPECT_EQ(loaded->mesh.vertex_count(), 4u);
   EXPECT_EQ(loaded->cleanup.welded_vertices, 2u);  // six corners, four distinct positions
@@ -104,7 +104,7 @@ TEST(MeshIo, StlCornersAreWeldedAndReported) {
 
 // Each corrupt input must fail with a message naming the file and containing `expected`.
 void expect_rejected(const fs::path& path, const std::string& expected) {
-  auto loaded = load_mesh(path);
+  auto loaded = io::load_mesh(path);
   ASSERT_FALSE(loaded.ok()) << path << " was accepted";
   EXPECT_NE(loaded.error().message.find(path.string()), std::string::npos) << loaded.error().message;
   EXPECT_NE(loaded.error().message.find(expected), std::string::npos) << loaded.error().message;
@@ -125,7 +125,7 @@ TEST(MeshIo, RejectsMissingEmptyDirectoryAndUnknownFiles) {
 
 TEST(MeshIo, RejectsEveryTruncationOfABinaryPly) {
   const auto dir = test::scratch_dir("truncated");
-  ASSERT_TRUE(save_mesh(dir / "full.ply", test::tetrahedron()).ok());
+  ASSERT_TRUE(io::save_mesh(dir / "full.ply", test::tetrahedron()).ok());
   const std::string bytes = read_file(dir / "full.ply");
   const std::size_t header_end = bytes.find("end_header\n") + 11;
   for (std::size_t length = header_end; length < bytes.size(); ++length) {
@@ -136,7 +136,7 @@ TEST(MeshIo, RejectsEveryTruncationOfABinaryPly) {
   }
   // A header cut short has no vertices to offer.
   write_file(dir / "cut.ply", bytes.substr(0, header_end / 2));
-  EXPECT_FALSE(load_mesh(dir / "cut.ply").ok());
+  EXPECT_FALSE(io::load_mesh(dir / "cut.ply").ok());
 }
 
 TEST(MeshIo, RejectsFaceIndexOutOfRange) {
@@ -146,20 +146,20 @@ TEST(MeshIo, RejectsFaceIndexOutOfRange) {
       "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
       "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n");
   expect_rejected(dir / "oob.ply", "refers to vertex 7, but the file has 3 vertices");
-  Mesh m = test::tetrahedron();
+  model::Mesh m = test::tetrahedron();
   m.triangles[5] = 4;
-  ASSERT_TRUE(save_mesh(dir / "oob-binary.ply", m).ok());
+  ASSERT_TRUE(io::save_mesh(dir / "oob-binary.ply", m).ok());
   expect_rejected(dir / "oob-binary.ply", "refers to vertex 4");
   write_file(dir / "oob.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n");
-  EXPECT_FALSE(load_mesh(dir / "oob.obj").ok());
+  EXPECT_FALSE(io::load_mesh(dir / "oob.obj").ok());
 }
 
 TEST(MeshIo, RejectsNonFiniteCoordinates) {
   const auto dir = test::scratch_dir("nan");
   for (float bad : {std::numeric_limits<float>::quiet_NaN(), std::numeric_limits<float>::infinity()}) {
-    Mesh m = test::tetrahedron();
+    model::Mesh m = test::tetrahedron();
     m.positions[7] = bad;  // vertex 2, y
-    ASSERT_TRUE(save_mesh(dir / "bad.ply", m).ok());
+    ASSERT_TRUE(io::save_mesh(dir / "bad.ply", m).ok());
     expect_rejected(dir / "bad.ply", "vertex 2 has a non-finite coordinate");
   }
 }
@@ -173,8 +173,8 @@ TEST(MeshIo, RejectsMeshWithoutFaces) {
 }
 
 TEST(MeshIo, WritingToAnUnknownExtensionOrMissingFolderFails) {
-  EXPECT_FALSE(save_mesh("/nonexistent-folder/m.ply", test::square()).ok());
-  EXPECT_FALSE(save_mesh(test::scratch_dir("ext") / "m.stl", test::square()).ok());
+  EXPECT_FALSE(io::save_mesh("/nonexistent-folder/m.ply", test::square()).ok());
+  EXPECT_FALSE(io::save_mesh(test::scratch_dir("ext") / "m.stl", test::square()).ok());
 }
 
 }  // namespace

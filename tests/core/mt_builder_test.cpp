@@ -1,6 +1,6 @@
 // MT builder: hand-made cases whose answer is known, and structural invariants of the DAG on
-// synthetic and real meshes (DESIGN.md §2 "Nodes", "Arcs", "Triangle error").
-#include "core/mt_builder.hpp"
+// synthetic and real meshes (core/ARCHITECTURE.md §2.1–2.2).
+#include "core/build/mt_builder.hpp"
 
 #include <gtest/gtest.h>
 
@@ -13,7 +13,7 @@
 #include <vector>
 
 #include "core/eval/subdivide.hpp"
-#include "core/mt_format.hpp"
+#include "core/model/mt_format.hpp"
 #include "core/threads/thread_pool.hpp"
 #include "tests/core/cut_validator.hpp"
 #include "tests/core/mt_fixtures.hpp"
@@ -24,10 +24,10 @@ namespace {
 using test::MtCase;
 
 // Triangles of the cut made of every node: created by someone, removed by no one.
-std::vector<std::uint32_t> all_nodes_cut(const Mt& mt) {
+std::vector<std::uint32_t> all_nodes_cut(const model::Mt& mt) {
   std::vector<std::uint32_t> out;
   for (std::uint32_t t = 0; t < mt.triangle_count(); ++t) {
-    if (mt.triangle_remover[t] != kNoNode) continue;
+    if (mt.triangle_remover[t] != model::kNoNode) continue;
     std::uint32_t v[3];
     mt.triangle_vertices(t, v);
     out.insert(out.end(), v, v + 3);
@@ -37,12 +37,12 @@ std::vector<std::uint32_t> all_nodes_cut(const Mt& mt) {
 
 // The static cut for a uniform error e: triangles created by a node of error > e (or the root) and
 // removed by none of them.
-std::vector<std::uint32_t> uniform_cut(const Mt& mt, float e) {
+std::vector<std::uint32_t> uniform_cut(const model::Mt& mt, float e) {
   std::vector<std::uint32_t> out;
   for (std::uint32_t t = 0; t < mt.triangle_count(); ++t) {
     const std::uint32_t creator = mt.triangle_creator(t), remover = mt.triangle_remover[t];
     const bool created = creator == 0 || mt.node_error[creator] > e;
-    const bool removed = remover != kNoNode && mt.node_error[remover] > e;
+    const bool removed = remover != model::kNoNode && mt.node_error[remover] > e;
     if (!created || removed) continue;
     std::uint32_t v[3];
     mt.triangle_vertices(t, v);
@@ -51,7 +51,7 @@ std::vector<std::uint32_t> uniform_cut(const Mt& mt, float e) {
   return out;
 }
 
-std::vector<std::uint32_t> root_cut(const Mt& mt) {
+std::vector<std::uint32_t> root_cut(const model::Mt& mt) {
   std::vector<std::uint32_t> out;
   for (std::uint32_t t = 0; t < mt.root_triangle_count(); ++t) {
     std::uint32_t v[3];
@@ -63,10 +63,10 @@ std::vector<std::uint32_t> root_cut(const Mt& mt) {
 
 TEST(MtBuilder, TetrahedronHasNoCollapseThatKeepsItsTopology) {
   // Any edge collapse of a tetrahedron folds it into two copies of one triangle; refused.
-  const Mesh mesh = test::tetrahedron();
-  BuildOptions keep;
+  const model::Mesh mesh = test::tetrahedron();
+  build::BuildOptions keep;
   keep.coarse_topology = false;
-  auto mt = build_mt(mesh, keep);
+  auto mt = build::build_mt(mesh, keep);
   ASSERT_TRUE(mt.ok());
   EXPECT_EQ(mt->node_count(), 1u);
   EXPECT_EQ(test::triangle_set(root_cut(*mt)), test::triangle_set(mesh.triangles));
@@ -76,8 +76,8 @@ TEST(MtBuilder, TetrahedronFoldsIntoTwoCopiesOfOneTriangleAtTheStackingStage) {
   // The stacking stage takes the collapse: the root is one triangle twice, opposite ways round (no
   // face counted mod 2, like the closed tetrahedron's outline), and its error is at least the
   // removed corner's distance to it, the tetrahedron's height 4/sqrt(3).
-  Mesh mesh = test::tetrahedron();
-  BuildStats stats;
+  model::Mesh mesh = test::tetrahedron();
+  build::BuildStats stats;
   auto mt = test::build_mt_renumbering(mesh, {}, &stats);
   ASSERT_TRUE(mt.ok());
   EXPECT_EQ(mt->node_count(), 2u);
@@ -102,10 +102,10 @@ TEST(MtBuilder, SquareCollapsesOneCornerAlongItsBoundary) {
   // one triangle. After that every corner has one triangle, and removing it would empty the mesh.
   // The removed corner lies 1/√2 from the remaining triangle's long edge (the line x + y = 1 seen
   // from (0,0) or (1,1)): the node's error is that distance, rounded up to the next float.
-  Mesh mesh = test::square();
-  BuildStats stats;
+  model::Mesh mesh = test::square();
+  build::BuildStats stats;
   std::vector<std::uint32_t> ids;
-  auto mt = build_mt(mesh, {}, &stats, &ids);
+  auto mt = build::build_mt(mesh, {}, &stats, &ids);
   ASSERT_TRUE(mt.ok());
   ASSERT_EQ(mt->node_count(), 2u);
   EXPECT_EQ(mt->root_triangle_count(), 1u);
@@ -119,45 +119,45 @@ TEST(MtBuilder, SquareCollapsesOneCornerAlongItsBoundary) {
 }
 
 TEST(MtBuilder, EmptyMeshGivesAnEmptyRootThatRoundTrips) {
-  Mesh mesh;
+  model::Mesh mesh;
   mesh.positions = {0, 0, 0};  // one unused vertex
-  auto mt = build_mt(mesh);
+  auto mt = build::build_mt(mesh);
   ASSERT_TRUE(mt.ok());
   EXPECT_EQ(mt->node_count(), 1u);
   EXPECT_EQ(mt->triangle_count(), 0u);
   std::vector<std::uint8_t> bytes;
-  serialize_mt(*mt, bytes);
-  EXPECT_TRUE(deserialize_mt(bytes).ok());
+  model::serialize_mt(*mt, bytes);
+  EXPECT_TRUE(model::deserialize_mt(bytes).ok());
 }
 
 TEST(MtBuilder, RejectsANonFiniteCoordinate) {
-  Mesh mesh = test::square();
+  model::Mesh mesh = test::square();
   mesh.positions[4] = std::numeric_limits<float>::quiet_NaN();
-  auto mt = build_mt(mesh);
+  auto mt = build::build_mt(mesh);
   ASSERT_FALSE(mt.ok());
   EXPECT_EQ(mt.error().code, ErrorCode::kInvalidArgument);
   EXPECT_NE(mt.error().message.find("vertex 1"), std::string::npos) << mt.error().message;
 }
 
 TEST(MtBuilder, RejectsAnIndexOutOfRange) {
-  Mesh mesh = test::square();
+  model::Mesh mesh = test::square();
   mesh.triangles[4] = 4;
-  auto mt = build_mt(mesh);
+  auto mt = build::build_mt(mesh);
   ASSERT_FALSE(mt.ok());
   EXPECT_EQ(mt.error().code, ErrorCode::kInvalidArgument);
   EXPECT_NE(mt.error().message.find("vertex id 4"), std::string::npos) << mt.error().message;
 }
 
-// The DAG promised by DESIGN.md §2: parents before children, parents exactly the creators of what a
+// The DAG (core/ARCHITECTURE.md §2.1): parents first, parents exactly the creators of what a
 // node removes, each vertex split once, errors non-increasing from parent to child, and all
 // triangles a node creates contain its split vertex.
-void expect_valid_dag(const Mt& mt) {
+void expect_valid_dag(const model::Mt& mt) {
   const std::size_t n = mt.node_count();
   std::vector<std::set<std::uint32_t>> creators(n);
   for (std::uint32_t c = 0; c < n; ++c)
     for (std::uint32_t t = mt.node_triangle_offsets[c]; t < mt.node_triangle_offsets[c + 1]; ++t) {
       const std::uint32_t r = mt.triangle_remover[t];
-      if (r == kNoNode) continue;
+      if (r == model::kNoNode) continue;
       ASSERT_GT(r, c) << "triangle " << t;
       ASSERT_LT(r, n);
       creators[r].insert(c);
@@ -181,7 +181,7 @@ void expect_valid_dag(const Mt& mt) {
 }
 
 TEST(MtBuilder, SphereDagIsTopologicalWithMonotoneErrors) {
-  const MtCase* c = test::shape_case(Shape::kSphere, 20'000);
+  const MtCase* c = test::shape_case(eval::Shape::kSphere, 20'000);
   ASSERT_NE(c, nullptr);
   expect_valid_dag(c->mt);
   // A closed genus-0 surface simplifies to a handful of triangles.
@@ -190,15 +190,16 @@ TEST(MtBuilder, SphereDagIsTopologicalWithMonotoneErrors) {
 }
 
 TEST(MtBuilder, AllNodesReproduceTheInputAndTheRootIsAConformingCoarsestMesh) {
-  std::vector<const MtCase*> cases = {test::shape_case(Shape::kSphere, 20'000),
-                                      test::shape_case(Shape::kTerrain, 5'000),
-                                      test::shape_case(Shape::kShell, 8'000)};
+  std::vector<const MtCase*> cases = {test::shape_case(eval::Shape::kSphere, 20'000),
+                                      test::shape_case(eval::Shape::kTerrain, 5'000),
+                                      test::shape_case(eval::Shape::kShell, 8'000)};
   for (const char* file :
        {"bunny-npm-3k.ply", "dragon-vrip-res4-11k.ply", "bunny-zipper-69k.ply", "armadillo-52k.ply"})
     if (const MtCase* c = test::scan_case(file)) cases.push_back(c);
-  // Built out of core in blocks (core/io/large_build.hpp): the same guarantees.
+  // Built out of core in blocks (core/build/large_build.hpp): the same guarantees.
   cases.push_back(test::large_case(
-      "shell-8k/1000", generate_mesh({.shape = Shape::kShell, .target_triangles = 8'000}), 1'000));
+      "shell-8k/1000", eval::generate_mesh({.shape = eval::Shape::kShell, .target_triangles = 8'000}),
+      1'000));
   for (const char* file : {"dragon-vrip-res4-11k.ply", "armadillo-52k.ply"})
     if (const MtCase* c = test::large_scan_case(file, 3'000)) cases.push_back(c);
   // Built keeping the topology at every level: their roots have the input's topology too.
@@ -223,7 +224,7 @@ TEST(MtBuilder, AllNodesReproduceTheInputAndTheRootIsAConformingCoarsestMesh) {
 // conforming, and every input vertex is within the root's error of it.
 TEST(MtBuilder, TopologyPhaseCollapsesANonManifoldSpine) {
   constexpr int kSegments = 24, kRows = 6;
-  Mesh book;
+  model::Mesh book;
   auto add = [&](float x, float y, float z) {
     book.positions.insert(book.positions.end(), {x, y, z});
     return std::uint32_t(book.positions.size() / 3 - 1);
@@ -243,12 +244,12 @@ TEST(MtBuilder, TopologyPhaseCollapsesANonManifoldSpine) {
       row = std::move(next);
     }
   }
-  BuildOptions keep;
+  build::BuildOptions keep;
   keep.coarse_topology = false;
-  BuildStats kept_stats, stats;
-  auto kept = build_mt(book, keep, &kept_stats);
+  build::BuildStats kept_stats, stats;
+  auto kept = build::build_mt(book, keep, &kept_stats);
   std::vector<std::uint32_t> ids;
-  auto mt = build_mt(book, {}, &stats, &ids);
+  auto mt = build::build_mt(book, {}, &stats, &ids);
   ASSERT_TRUE(kept.ok() && mt.ok());
   EXPECT_EQ(kept_stats.topology_collapses, 0u);
   EXPECT_GE(kept->root_triangle_count(), 3u * kSegments);  // every spine segment keeps its three faces
@@ -349,10 +350,10 @@ TEST(MtBuilder, AFinelySplitScanStillGetsASmallRoot) {
   if (!std::filesystem::exists(path)) GTEST_SKIP() << "no shared meshes";
   auto loaded = io::load_mesh(path);
   ASSERT_TRUE(loaded.ok());
-  SubdivideOptions split;
+  eval::SubdivideOptions split;
   split.split = 3;
   split.noise = 0.05f;
-  const MtCase* c = test::build_case("res4-split-3", subdivide(loaded->mesh, split));
+  const MtCase* c = test::build_case("res4-split-3", eval::subdivide(loaded->mesh, split));
   ASSERT_NE(c, nullptr);
   EXPECT_GT(c->stacking_collapses, 0u);
   EXPECT_LE(c->mt.root_triangle_count(), 2000u);
@@ -366,20 +367,20 @@ TEST(MtBuilder, AFinelySplitScanStillGetsASmallRoot) {
 }
 
 TEST(MtBuilder, VerticesAreNumberedRootMeshFirstThenByNode) {
-  // build_mt's numbering (core/mt.hpp): root-mesh vertices by input id, node n's split vertex as
+  // build_mt's numbering (core/model/mt.hpp): root-mesh vertices by input id, node n's split vertex as
   // R + n − 1, unused vertices last; vertex_ids maps every input vertex to its MT id.
-  Mesh mesh = generate_mesh({.shape = Shape::kShell, .target_triangles = 3'000});
+  model::Mesh mesh = eval::generate_mesh({.shape = eval::Shape::kShell, .target_triangles = 3'000});
   const std::size_t used = mesh.vertex_count();
   mesh.positions.insert(mesh.positions.begin() + 6, {7.0f, 8.0f, 9.0f});  // an unused vertex 2
   for (std::uint32_t& v : mesh.triangles) v += v >= 2 ? 1 : 0;
   std::vector<std::uint32_t> ids;
-  auto mt = build_mt(mesh, {}, nullptr, &ids);
+  auto mt = build::build_mt(mesh, {}, nullptr, &ids);
   ASSERT_TRUE(mt.ok());
   ASSERT_EQ(ids.size(), mesh.vertex_count());
-  std::vector<std::uint32_t> input_of(mesh.vertex_count(), kNoVertex);
+  std::vector<std::uint32_t> input_of(mesh.vertex_count(), model::kNoVertex);
   for (std::uint32_t v = 0; v < ids.size(); ++v) {
     ASSERT_LT(ids[v], mesh.vertex_count());
-    ASSERT_EQ(input_of[ids[v]], kNoVertex) << "two input vertices share MT id " << ids[v];
+    ASSERT_EQ(input_of[ids[v]], model::kNoVertex) << "two input vertices share MT id " << ids[v];
     input_of[ids[v]] = v;
     for (int k = 0; k < 3; ++k) ASSERT_EQ(mt->positions[3 * ids[v] + k], mesh.positions[3 * v + k]);
   }
@@ -431,46 +432,47 @@ TEST(MtBuilder, NonManifoldAndMisorientedEdgesAreNeverTouched) {
 }
 
 TEST(MtBuilder, BuildIsDeterministic) {
-  GenerateOptions options;
-  options.shape = Shape::kShell;
+  eval::GenerateOptions options;
+  options.shape = eval::Shape::kShell;
   options.target_triangles = 6'000;
-  const Mesh mesh = generate_mesh(options);
-  auto a = build_mt(mesh);
-  auto b = build_mt(mesh);
+  const model::Mesh mesh = eval::generate_mesh(options);
+  auto a = build::build_mt(mesh);
+  auto b = build::build_mt(mesh);
   ASSERT_TRUE(a.ok() && b.ok());
   std::vector<std::uint8_t> bytes_a, bytes_b;
-  serialize_mt(*a, bytes_a);
-  serialize_mt(*b, bytes_b);
+  model::serialize_mt(*a, bytes_a);
+  model::serialize_mt(*b, bytes_b);
   EXPECT_EQ(bytes_a, bytes_b);
 }
 
 TEST(MtBuilder, ConcurrentBuildGivesTheSameFileAsTheSerialOne) {
   // The collapses of a pass are chosen before any runs and touch disjoint fans, so neither threads
   // nor the order in which chunks run may change a byte. The reversed runner runs chunks backwards.
-  std::vector<Mesh> meshes;
-  GenerateOptions options;
-  options.shape = Shape::kShell;
+  std::vector<model::Mesh> meshes;
+  eval::GenerateOptions options;
+  options.shape = eval::Shape::kShell;
   options.target_triangles = 60'000;
-  meshes.push_back(generate_mesh(options));
+  meshes.push_back(eval::generate_mesh(options));
   if (const MtCase* c = test::scan_case("bunny-zipper-69k.ply")) meshes.push_back(c->mesh);
-  const ParallelForFn reversed = [](void*, std::size_t count, void (*task)(void*, std::size_t),
-                                    void* context) {
+  const build::ParallelForFn reversed = [](void*, std::size_t count, void (*task)(void*, std::size_t),
+                                           void* context) {
     for (std::size_t i = count; i-- > 0;) task(context, i);
   };
-  for (const Mesh& mesh : meshes) {
-    auto serial = build_mt(mesh);
+  for (const model::Mesh& mesh : meshes) {
+    auto serial = build::build_mt(mesh);
     ASSERT_TRUE(serial.ok());
     std::vector<std::uint8_t> expected;
-    serialize_mt(*serial, expected);
-    core::ThreadPool pool;
-    for (const ParallelForFn runner : {reversed, ParallelForFn{core::ThreadPool::parallel_for}}) {
-      BuildOptions concurrent;
+    model::serialize_mt(*serial, expected);
+    core::threads::ThreadPool pool;
+    for (const build::ParallelForFn runner :
+         {reversed, build::ParallelForFn{core::threads::ThreadPool::parallel_for}}) {
+      build::BuildOptions concurrent;
       concurrent.parallel_for = runner;
       concurrent.parallel_user = &pool;
-      auto mt = build_mt(mesh, concurrent);
+      auto mt = build::build_mt(mesh, concurrent);
       ASSERT_TRUE(mt.ok());
       std::vector<std::uint8_t> bytes;
-      serialize_mt(*mt, bytes);
+      model::serialize_mt(*mt, bytes);
       EXPECT_EQ(bytes, expected);
     }
   }
@@ -482,7 +484,7 @@ TEST(MtBuilder, ProgressIsReportedUpToOne) {
     double last = -1;
     bool monotone = true;
   } seen;
-  BuildOptions options;
+  build::BuildOptions options;
   options.progress = [](void* user, double fraction) {
     auto* s = static_cast<Seen*>(user);
     s->monotone &= fraction >= s->last;
@@ -490,9 +492,9 @@ TEST(MtBuilder, ProgressIsReportedUpToOne) {
     ++s->calls;
   };
   options.progress_user = &seen;
-  GenerateOptions shape;
+  eval::GenerateOptions shape;
   shape.target_triangles = 2'000;
-  ASSERT_TRUE(build_mt(generate_mesh(shape), options).ok());
+  ASSERT_TRUE(build::build_mt(eval::generate_mesh(shape), options).ok());
   EXPECT_GT(seen.calls, 1);
   EXPECT_TRUE(seen.monotone);
   EXPECT_EQ(seen.last, 1.0);

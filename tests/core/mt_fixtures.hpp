@@ -9,19 +9,19 @@
 #include <string>
 #include <vector>
 
+#include "core/build/large_build.hpp"
+#include "core/build/mt_builder.hpp"
 #include "core/eval/mesh_gen.hpp"
-#include "core/io/large_build.hpp"
 #include "core/io/mesh_io.hpp"
 #include "core/io/mt_file.hpp"
-#include "core/mt_builder.hpp"
 #include "tests/core/cut_validator.hpp"
 #include "tests/core/test_meshes.hpp"
 
 namespace mtlod::test {
 
 struct MtCase {
-  core::Mesh mesh;
-  core::Mt mt;
+  core::model::Mesh mesh;
+  core::model::Mt mt;
   CutReference reference;
   // Collapses of the builder's topology phase and their smallest error (core::BuildStats).
   std::size_t topology_collapses = 0;
@@ -42,7 +42,7 @@ struct MtCase {
 
 // The same mesh with its vertices numbered as the MT numbers them (ids[v]: MT id of input vertex v),
 // so cuts can be compared with it id for id.
-inline void renumber_like_mt(core::Mesh& mesh, const std::vector<std::uint32_t>& ids) {
+inline void renumber_like_mt(core::model::Mesh& mesh, const std::vector<std::uint32_t>& ids) {
   const auto renumber = [&](auto& values) {
     if (values.empty()) return;
     auto by_id = values;
@@ -57,23 +57,24 @@ inline void renumber_like_mt(core::Mesh& mesh, const std::vector<std::uint32_t>&
 }
 
 // Builds the MT of mesh and renumbers mesh like it.
-inline Result<core::Mt> build_mt_renumbering(core::Mesh& mesh, const core::BuildOptions& options = {},
-                                             core::BuildStats* stats = nullptr) {
+inline Result<core::model::Mt> build_mt_renumbering(core::model::Mesh& mesh,
+                                                    const core::build::BuildOptions& options = {},
+                                                    core::build::BuildStats* stats = nullptr) {
   std::vector<std::uint32_t> ids;
-  auto mt = core::build_mt(mesh, options, stats, &ids);
+  auto mt = core::build::build_mt(mesh, options, stats, &ids);
   if (mt.ok()) renumber_like_mt(mesh, ids);
   return mt;
 }
 
 // The input mesh is kept numbered as the MT numbers its vertices.
-inline const MtCase* build_case(const std::string& key, core::Mesh mesh,
-                                const core::BuildOptions& options = {}) {
+inline const MtCase* build_case(const std::string& key, core::model::Mesh mesh,
+                                const core::build::BuildOptions& options = {}) {
   static std::map<std::string, std::unique_ptr<MtCase>> cache;
   auto& slot = cache[key];
   if (!slot) {
     auto c = std::make_unique<MtCase>();
     c->mesh = std::move(mesh);
-    core::BuildStats stats;
+    core::build::BuildStats stats;
     auto mt = build_mt_renumbering(c->mesh, options, &stats);
     EXPECT_TRUE(mt.ok()) << key << ": " << (mt.ok() ? "" : mt.error().message);
     if (!mt.ok()) return nullptr;
@@ -85,9 +86,9 @@ inline const MtCase* build_case(const std::string& key, core::Mesh mesh,
   return slot.get();
 }
 
-// The same mesh built out of core (core/io/large_build.hpp) in leaf blocks of block_triangles, through
+// The same mesh built out of core (core/build/large_build.hpp) in leaf blocks of block_triangles, through
 // a PLY file and an .mt file; mesh is kept numbered as the MT numbers its vertices.
-inline const MtCase* large_case(const std::string& key, core::Mesh mesh, std::size_t block_triangles) {
+inline const MtCase* large_case(const std::string& key, core::model::Mesh mesh, std::size_t block_triangles) {
   static std::map<std::string, std::unique_ptr<MtCase>> cache;
   auto& slot = cache[key];
   if (!slot) {
@@ -95,11 +96,11 @@ inline const MtCase* large_case(const std::string& key, core::Mesh mesh, std::si
     const auto ply = dir / "input.ply", mt_path = dir / "output.mt";
     EXPECT_TRUE(core::io::save_mesh(ply, mesh).ok()) << key;
     std::vector<std::uint32_t> ids;
-    core::io::LargeBuildOptions options;
+    core::build::LargeBuildOptions options;
     options.block_triangles = block_triangles;
     options.vertex_ids = &ids;
-    core::io::LargeBuildStats stats;
-    const auto built = core::io::build_mt_file(ply, mt_path, options, &stats);
+    core::build::LargeBuildStats stats;
+    const auto built = core::build::build_mt_file(ply, mt_path, options, &stats);
     EXPECT_TRUE(built.ok()) << key << ": " << (built.ok() ? "" : built.error().message);
     if (!built.ok()) return nullptr;
     auto mt = core::io::read_mt_file(mt_path);
@@ -124,7 +125,7 @@ inline const MtCase* scan_case(const std::string& file, bool keep_topology = fal
   auto loaded = core::io::load_mesh(path);
   EXPECT_TRUE(loaded.ok()) << file;
   if (!loaded.ok()) return nullptr;
-  core::BuildOptions options;
+  core::build::BuildOptions options;
   options.coarse_topology = !keep_topology;
   return build_case(keep_topology ? file + "/keep-topology" : file, std::move(loaded->mesh), options);
 }
@@ -140,14 +141,14 @@ inline const MtCase* large_scan_case(const std::string& file, std::size_t block_
 }
 
 // A synthetic shape of about the given size.
-inline const MtCase* shape_case(core::Shape shape, std::size_t triangles, std::uint32_t seed = 1) {
-  core::GenerateOptions options;
+inline const MtCase* shape_case(core::eval::Shape shape, std::size_t triangles, std::uint32_t seed = 1) {
+  core::eval::GenerateOptions options;
   options.shape = shape;
   options.target_triangles = triangles;
   options.seed = seed;
   return build_case(
       "shape" + std::to_string(int(shape)) + "-" + std::to_string(triangles) + "-" + std::to_string(seed),
-      core::generate_mesh(options));
+      core::eval::generate_mesh(options));
 }
 
 }  // namespace mtlod::test

@@ -1,6 +1,6 @@
 // .mt format: bit-exact round trips, and rejection of every truncation, random byte corruptions and
-// well-checksummed files with bad contents (DESIGN.md §2 "Storage"; core/FORMAT.md).
-#include "core/mt_format.hpp"
+// well-checksummed files with bad contents (core/ARCHITECTURE.md §2.8; core/model/FORMAT.md).
+#include "core/model/mt_format.hpp"
 
 #include <gtest/gtest.h>
 
@@ -11,8 +11,8 @@
 #include <random>
 #include <vector>
 
+#include "core/cut/refine.hpp"
 #include "core/io/mt_file.hpp"
-#include "core/refine.hpp"
 #include "tests/core/mt_fixtures.hpp"
 #include "tests/core/mt_reseal.hpp"
 
@@ -20,26 +20,26 @@ namespace mtlod::core {
 namespace {
 
 // A small MT with normals and colours, so every optional array is present.
-const Mt& small_mt() {
-  static const Mt mt = [] {
-    GenerateOptions options;
-    options.shape = Shape::kTerrain;
+const model::Mt& small_mt() {
+  static const model::Mt mt = [] {
+    eval::GenerateOptions options;
+    options.shape = eval::Shape::kTerrain;
     options.target_triangles = 300;
-    Mesh mesh = generate_mesh(options);
+    model::Mesh mesh = eval::generate_mesh(options);
     mesh.normals.assign(mesh.positions.size(), 0.0f);
     for (std::size_t v = 0; v < mesh.vertex_count(); ++v) mesh.normals[3 * v + 2] = 1.0f;
     mesh.colors.resize(mesh.positions.size());
     for (std::size_t i = 0; i < mesh.colors.size(); ++i) mesh.colors[i] = std::uint8_t(i * 7);
-    auto built = build_mt(mesh);
+    auto built = build::build_mt(mesh);
     EXPECT_TRUE(built.ok());
     return std::move(built).value();
   }();
   return mt;
 }
 
-std::vector<std::uint8_t> bytes_of(const Mt& mt) {
+std::vector<std::uint8_t> bytes_of(const model::Mt& mt) {
   std::vector<std::uint8_t> bytes;
-  serialize_mt(mt, bytes);
+  model::serialize_mt(mt, bytes);
   return bytes;
 }
 
@@ -48,7 +48,7 @@ void expect_equal(std::span<const T> a, std::span<const T> b, const char* name) 
   EXPECT_TRUE(std::ranges::equal(a, b)) << name;
 }
 
-void expect_same(const Mt& a, const Mt& b) {
+void expect_same(const model::Mt& a, const model::Mt& b) {
   expect_equal(a.positions, b.positions, "positions");
   expect_equal(a.normals, b.normals, "normals");
   expect_equal(a.colors, b.colors, "colors");
@@ -66,10 +66,10 @@ void expect_same(const Mt& a, const Mt& b) {
 }
 
 TEST(MtFormat, RoundTripIsBitExact) {
-  const Mt& mt = small_mt();
+  const model::Mt& mt = small_mt();
   ASSERT_TRUE(mt.has_normals() && mt.has_colors());
   const std::vector<std::uint8_t> bytes = bytes_of(mt);
-  auto back = deserialize_mt(bytes);
+  auto back = model::deserialize_mt(bytes);
   ASSERT_TRUE(back.ok()) << back.error().message;
   expect_same(mt, *back);
   EXPECT_EQ(bytes_of(*back), bytes);
@@ -100,14 +100,14 @@ TEST(MtFormat, MissingFileIsNotFound) {
 TEST(MtFormat, EveryTruncationIsRejected) {
   const std::vector<std::uint8_t> bytes = bytes_of(small_mt());
   for (std::size_t length = 0; length < bytes.size(); ++length) {
-    auto mt = deserialize_mt(std::span<const std::uint8_t>(bytes.data(), length));
+    auto mt = model::deserialize_mt(std::span<const std::uint8_t>(bytes.data(), length));
     ASSERT_FALSE(mt.ok()) << "length " << length;
     ASSERT_EQ(mt.error().code, ErrorCode::kCorrupt) << length;
   }
   // One byte too many is as wrong as one too few.
   std::vector<std::uint8_t> longer = bytes;
   longer.push_back(0);
-  EXPECT_FALSE(deserialize_mt(longer).ok());
+  EXPECT_FALSE(model::deserialize_mt(longer).ok());
 }
 
 TEST(MtFormat, RandomSingleByteCorruptionsAreRejected) {
@@ -119,7 +119,7 @@ TEST(MtFormat, RandomSingleByteCorruptionsAreRejected) {
     std::vector<std::uint8_t> bad = bytes;
     const std::size_t at = where(rng);
     bad[at] = std::uint8_t(bad[at] + delta(rng));  // never the same value
-    auto mt = deserialize_mt(bad);
+    auto mt = model::deserialize_mt(bad);
     ASSERT_FALSE(mt.ok()) << "byte " << at;
     ASSERT_FALSE(mt.error().message.empty());
   }
@@ -127,31 +127,31 @@ TEST(MtFormat, RandomSingleByteCorruptionsAreRejected) {
 
 // Files whose checksum is right but whose content is not: each names the field it breaks.
 TEST(MtFormat, ContentErrorsBehindAValidChecksumAreNamed) {
-  const Mt& good = small_mt();
+  const model::Mt& good = small_mt();
   struct Case {
     const char* expect;  // substring of the error message
-    void (*mutate)(MtArrays&);
+    void (*mutate)(model::MtArrays&);
   };
   const Case cases[] = {
-      {"node_vertex[0]", [](MtArrays& m) { m.node_vertex[0] = 0; }},
-      {"node_vertex[", [](MtArrays& m) { m.node_vertex[1] = std::uint32_t(m.positions.size() / 3); }},
-      {"node_error", [](MtArrays& m) { m.node_error[1] = std::nanf(""); }},
-      {"node_error", [](MtArrays& m) { m.node_error[2] = -1.0f; }},
-      {"decreasing error", [](MtArrays& m) { m.node_error[1] = 0.0f; }},
+      {"node_vertex[0]", [](model::MtArrays& m) { m.node_vertex[0] = 0; }},
+      {"node_vertex[", [](model::MtArrays& m) { m.node_vertex[1] = std::uint32_t(m.positions.size() / 3); }},
+      {"node_error", [](model::MtArrays& m) { m.node_error[1] = std::nanf(""); }},
+      {"node_error", [](model::MtArrays& m) { m.node_error[2] = -1.0f; }},
+      {"decreasing error", [](model::MtArrays& m) { m.node_error[1] = 0.0f; }},
       {"node_triangle_offsets",
-       [](MtArrays& m) { std::swap(m.node_triangle_offsets[2], m.node_triangle_offsets[3]); }},
-      {"parent", [](MtArrays& m) { m.node_parents[m.node_parent_offsets[1]] = 1; }},
-      {"triangle_corners", [](MtArrays& m) { m.triangle_corners[5] = 1u << 30; }},
+       [](model::MtArrays& m) { std::swap(m.node_triangle_offsets[2], m.node_triangle_offsets[3]); }},
+      {"parent", [](model::MtArrays& m) { m.node_parents[m.node_parent_offsets[1]] = 1; }},
+      {"triangle_corners", [](model::MtArrays& m) { m.triangle_corners[5] = 1u << 30; }},
       {"root_first_corner",
-       [](MtArrays& m) { m.root_first_corner[0] = std::uint32_t(m.positions.size() / 3); }},
-      {"remover", [](MtArrays& m) { m.triangle_remover[m.node_triangle_offsets[1]] = 0; }},
-      {"remover", [](MtArrays& m) { m.triangle_remover[0] = std::uint32_t(m.node_vertex.size()); }},
-      {"positions", [](MtArrays& m) { m.positions[4] = std::numeric_limits<float>::infinity(); }},
+       [](model::MtArrays& m) { m.root_first_corner[0] = std::uint32_t(m.positions.size() / 3); }},
+      {"remover", [](model::MtArrays& m) { m.triangle_remover[m.node_triangle_offsets[1]] = 0; }},
+      {"remover", [](model::MtArrays& m) { m.triangle_remover[0] = std::uint32_t(m.node_vertex.size()); }},
+      {"positions", [](model::MtArrays& m) { m.positions[4] = std::numeric_limits<float>::infinity(); }},
   };
   for (const Case& c : cases) {
-    MtArrays bad = good.arrays();
+    model::MtArrays bad = good.arrays();
     c.mutate(bad);
-    auto mt = deserialize_mt(bytes_of(Mt(std::move(bad))));
+    auto mt = model::deserialize_mt(bytes_of(model::Mt(std::move(bad))));
     ASSERT_FALSE(mt.ok()) << c.expect;
     EXPECT_EQ(mt.error().code, ErrorCode::kCorrupt);
     EXPECT_NE(mt.error().message.find(c.expect), std::string::npos) << mt.error().message;
@@ -159,12 +159,12 @@ TEST(MtFormat, ContentErrorsBehindAValidChecksumAreNamed) {
   // Version and magic are read before any checksum.
   std::vector<std::uint8_t> bytes = bytes_of(good);
   bytes[8] = 3;  // version
-  auto mt = deserialize_mt(bytes);
+  auto mt = model::deserialize_mt(bytes);
   ASSERT_FALSE(mt.ok());
   EXPECT_EQ(mt.error().code, ErrorCode::kUnsupported);
   bytes = bytes_of(good);
   bytes[0] = 'X';
-  EXPECT_NE(deserialize_mt(bytes).error().message.find("magic"), std::string::npos);
+  EXPECT_NE(model::deserialize_mt(bytes).error().message.find("magic"), std::string::npos);
 }
 
 TEST(MtFormat, ResealedRandomWordsAreRejectedOrRefineSafely) {
@@ -172,16 +172,16 @@ TEST(MtFormat, ResealedRandomWordsAreRejectedOrRefineSafely) {
   // MT the refiner walks without leaving its arrays (this runs under ASan/UBSan in CI); read whole
   // or viewed in place with its blocks checked on first use.
   const std::vector<std::uint8_t> bytes = bytes_of(small_mt());
-  const std::size_t table = mt_layout(*mt_header_counts(bytes)).block_table;
+  const std::size_t table = model::mt_layout(*model::mt_header_counts(bytes)).block_table;
   std::mt19937 rng(9);
-  std::uniform_int_distribution<std::size_t> word(kMtHeaderBytes / 4, table / 4 - 1);
+  std::uniform_int_distribution<std::size_t> word(model::kMtHeaderBytes / 4, table / 4 - 1);
   int accepted = 0, viewed = 0;
-  auto walk = [](const Mt& mt) {
-    CutMesh out;
-    Refiner refiner(mt);
-    refiner.refine(AllowedError::everywhere(-1.0f), out);
-    refiner.refine_budget(AllowedError::everywhere(0.0f), 100, out);
-    refiner.update(AllowedError::everywhere(0.01f), out);
+  auto walk = [](const model::Mt& mt) {
+    cut::CutMesh out;
+    cut::Refiner refiner(mt);
+    refiner.refine(cut::AllowedError::everywhere(-1.0f), out);
+    refiner.refine_budget(cut::AllowedError::everywhere(0.0f), 100, out);
+    refiner.update(cut::AllowedError::everywhere(0.01f), out);
     for (const std::uint32_t v : out.triangles) ASSERT_LT(v, mt.vertex_count());
   };
   for (int i = 0; i < 1000; ++i) {
@@ -190,13 +190,13 @@ TEST(MtFormat, ResealedRandomWordsAreRejectedOrRefineSafely) {
     const std::uint32_t value = rng() % 4 == 0 ? std::uint32_t(rng() % 64) : std::uint32_t(rng());
     std::memcpy(bad.data() + at, &value, 4);
     ASSERT_TRUE(test::reseal_mt_image(bad));
-    auto view = view_mt(bad, nullptr);
-    auto mt = deserialize_mt(bad);
+    auto view = model::view_mt(bad, nullptr);
+    auto mt = model::deserialize_mt(bad);
     if (view.ok()) {
       ++viewed;
       try {
         walk(*view);
-      } catch (const CorruptMt&) {
+      } catch (const model::CorruptMt&) {
         EXPECT_FALSE(mt.ok()) << "a block of a valid file failed its check";
       }
     } else {
@@ -215,12 +215,12 @@ TEST(MtFormat, ChecksumSeesEverySingleByteChange) {
   // Each 8-byte step is x -> (h ^ x) * odd, a bijection, so no single-byte change can cancel.
   std::vector<std::uint8_t> bytes(37);
   for (std::size_t i = 0; i < bytes.size(); ++i) bytes[i] = std::uint8_t(i * 31);
-  const std::uint64_t base = mt_checksum(bytes);
+  const std::uint64_t base = model::mt_checksum(bytes);
   for (std::size_t i = 0; i < bytes.size(); ++i)
     for (int d = 1; d < 256; ++d) {
       std::vector<std::uint8_t> changed = bytes;
       changed[i] = std::uint8_t(changed[i] + d);
-      ASSERT_NE(mt_checksum(changed), base) << i << " " << d;
+      ASSERT_NE(model::mt_checksum(changed), base) << i << " " << d;
     }
 }
 

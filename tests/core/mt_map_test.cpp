@@ -1,4 +1,4 @@
-// Mapped .mt files (format 2, core/FORMAT.md): the same cuts as the file read whole, node blocks
+// Mapped .mt files (format 2, core/model/FORMAT.md): the same cuts as the file read whole, node blocks
 // checked the first time a refinement reaches them, and damaged or truncated files refused at open
 // or at first use with an error naming what is wrong, never undefined behaviour (ASan/UBSan).
 #include <gtest/gtest.h>
@@ -11,13 +11,13 @@
 #include <string>
 #include <vector>
 
+#include "core/build/mt_builder.hpp"
+#include "core/build/vertex_normals.hpp"
+#include "core/cut/refine.hpp"
 #include "core/eval/mesh_gen.hpp"
 #include "core/io/mt_file.hpp"
-#include "core/mt_builder.hpp"
-#include "core/mt_format.hpp"
-#include "core/occupancy_levels.hpp"
-#include "core/refine.hpp"
-#include "core/vertex_normals.hpp"
+#include "core/model/mt_format.hpp"
+#include "core/view/occupancy_levels.hpp"
 #include "tests/core/test_meshes.hpp"
 
 namespace mtlod::core {
@@ -28,17 +28,17 @@ namespace fs = std::filesystem;
 // A model of several node blocks, written once.
 struct Model {
   fs::path dir, path;
-  Mt built;
+  model::Mt built;
   std::string bytes;
 };
 
 const Model& model() {
   static const Model m = [] {
     Model m;
-    GenerateOptions options;
-    options.shape = Shape::kShell;
+    eval::GenerateOptions options;
+    options.shape = eval::Shape::kShell;
     options.target_triangles = 40000;
-    auto built = build_mt(generate_mesh(options));
+    auto built = build::build_mt(eval::generate_mesh(options));
     EXPECT_TRUE(built.ok());
     m.built = std::move(built).value();
     m.dir = test::scratch_dir("mt-map");
@@ -60,10 +60,10 @@ fs::path altered(const std::string& name, const std::function<void(std::string&)
 }
 
 std::uint32_t block_of(std::uint32_t node) {
-  return node >> kMtBlockShift;
+  return node >> model::kMtBlockShift;
 }
 
-void expect_same_cut(const CutMesh& a, const CutMesh& b, const std::string& what) {
+void expect_same_cut(const cut::CutMesh& a, const cut::CutMesh& b, const std::string& what) {
   EXPECT_EQ(a.triangles, b.triangles) << what;
   EXPECT_EQ(a.ids, b.ids) << what;
   EXPECT_EQ(a.node_count, b.node_count) << what;
@@ -72,7 +72,8 @@ void expect_same_cut(const CutMesh& a, const CutMesh& b, const std::string& what
 
 TEST(MtMap, OpensInPlace) {
   const Model& m = model();
-  ASSERT_GE(mt_block_count(std::uint32_t(m.built.node_count())), 4u) << "the test needs several blocks";
+  ASSERT_GE(model::mt_block_count(std::uint32_t(m.built.node_count())), 4u)
+      << "the test needs several blocks";
   auto mapped = io::read_mt_file(m.path);
   ASSERT_TRUE(mapped.ok()) << mapped.error().message;
   EXPECT_TRUE(mapped->mapped());
@@ -90,17 +91,17 @@ TEST(MtMap, OpensInPlace) {
 
 TEST(MtMap, NormalsComputedForAFileWithoutThemAreCountedInMemory) {
   const Model& m = model();
-  MtArrays arrays = m.built.arrays();
+  model::MtArrays arrays = m.built.arrays();
   const std::vector<float> stored = arrays.normals;
   ASSERT_EQ(stored.size(), arrays.positions.size()) << "every build stores normals";
   arrays.normals.clear();
   const fs::path path = model().dir / "no-normals.mt";
-  ASSERT_TRUE(io::write_mt_file(path, Mt(std::move(arrays))).ok());
+  ASSERT_TRUE(io::write_mt_file(path, model::Mt(std::move(arrays))).ok());
   auto mapped = io::read_mt_file(path);
   ASSERT_TRUE(mapped.ok()) << mapped.error().message;
   ASSERT_TRUE(mapped->mapped());
   const std::size_t mapped_before = mapped->mapped_bytes();
-  ASSERT_TRUE(ensure_normals(*mapped));
+  ASSERT_TRUE(build::ensure_normals(*mapped));
   EXPECT_EQ(mapped->memory_bytes(), stored.size() * sizeof(float));
   EXPECT_EQ(mapped->mapped_bytes(), mapped_before);
   // From the full-resolution triangles the MT holds: the builder's normals, up to summation order.
@@ -113,17 +114,17 @@ TEST(MtMap, CutsEqualThoseOfTheFileReadWhole) {
   auto mapped = io::read_mt_file(m.path);
   auto read = io::read_mt_file(m.path, io::MtLoad::kRead);
   ASSERT_TRUE(mapped.ok() && read.ok());
-  Refiner a(*mapped), b(*read);
-  CutMesh ca, cb;
+  cut::Refiner a(*mapped), b(*read);
+  cut::CutMesh ca, cb;
   const float top = m.built.node_error[1];
   for (const float fraction : {1.0f, 0.3f, 0.05f, 0.01f, 0.0f}) {
-    a.refine(AllowedError::everywhere(top * fraction), ca);
-    b.refine(AllowedError::everywhere(top * fraction), cb);
+    a.refine(cut::AllowedError::everywhere(top * fraction), ca);
+    b.refine(cut::AllowedError::everywhere(top * fraction), cb);
     expect_same_cut(ca, cb, "uniform " + std::to_string(fraction));
   }
   for (const std::size_t budget : {500, 5000, 30000}) {
-    a.refine_budget(AllowedError::everywhere(0.0f), budget, ca);
-    b.refine_budget(AllowedError::everywhere(0.0f), budget, cb);
+    a.refine_budget(cut::AllowedError::everywhere(0.0f), budget, ca);
+    b.refine_budget(cut::AllowedError::everywhere(0.0f), budget, cb);
     expect_same_cut(ca, cb, "budget " + std::to_string(budget));
   }
   // Per-vertex fields moved by dynamic updates, as a gaze moves them.
@@ -133,12 +134,12 @@ TEST(MtMap, CutsEqualThoseOfTheFileReadWhole) {
     const float centre = std::uniform_real_distribution<float>(-1, 1)(rng);
     for (std::size_t v = 0; v < field.size(); ++v)
       field[v] = top * 0.02f * (0.05f + std::abs(m.built.positions[3 * v] - centre));
-    a.update(AllowedError::from_vertices(field), ca);
-    b.update(AllowedError::from_vertices(field), cb);
+    a.update(cut::AllowedError::from_vertices(field), ca);
+    b.update(cut::AllowedError::from_vertices(field), cb);
     expect_same_cut(ca, cb, "update " + std::to_string(step));
   }
   // The occupancy stage's coarse cuts too.
-  const OccupancyLevels la(*mapped), lb(*read);
+  const view::OccupancyLevels la(*mapped), lb(*read);
   ASSERT_EQ(la.levels().size(), lb.levels().size());
   for (std::size_t i = 0; i < la.levels().size(); ++i) {
     EXPECT_EQ(la.levels()[i].triangles, lb.levels()[i].triangles);
@@ -148,12 +149,12 @@ TEST(MtMap, CutsEqualThoseOfTheFileReadWhole) {
 
 TEST(MtMap, ADamagedBlockFailsAtFirstUseOnly) {
   const Model& m = model();
-  const std::uint32_t last_block = mt_block_count(std::uint32_t(m.built.node_count())) - 1;
+  const std::uint32_t last_block = model::mt_block_count(std::uint32_t(m.built.node_count())) - 1;
   // A removed-by entry of a triangle created in the last block, not resealed.
-  const MtCounts counts = mt_counts(m.built);
+  const model::MtCounts counts = model::mt_counts(m.built);
   const std::uint32_t first_triangle =
-      m.built.node_triangle_offsets[std::size_t{last_block} << kMtBlockShift];
-  const std::uint64_t at = mt_layout(counts).triangle_remover + 4 * std::uint64_t{first_triangle};
+      m.built.node_triangle_offsets[std::size_t{last_block} << model::kMtBlockShift];
+  const std::uint64_t at = model::mt_layout(counts).triangle_remover + 4 * std::uint64_t{first_triangle};
   const fs::path path = altered("damaged-block.mt", [&](std::string& bytes) { bytes[at] ^= 0x40; });
 
   auto read = io::read_mt_file(path, io::MtLoad::kRead);
@@ -164,22 +165,22 @@ TEST(MtMap, ADamagedBlockFailsAtFirstUseOnly) {
 
   auto mapped = io::read_mt_file(path);
   ASSERT_TRUE(mapped.ok()) << "only the root's block is checked at open: " << mapped.error().message;
-  Refiner refiner(*mapped);
-  CutMesh cut;
-  refiner.refine(AllowedError::everywhere(m.built.node_error[1]), cut);  // the root alone
+  cut::Refiner refiner(*mapped);
+  cut::CutMesh cut;
+  refiner.refine(cut::AllowedError::everywhere(m.built.node_error[1]), cut);  // the root alone
   EXPECT_EQ(cut.node_count, 1u);
   try {
-    refiner.refine(AllowedError::everywhere(0.0f), cut);  // every node
+    refiner.refine(cut::AllowedError::everywhere(0.0f), cut);  // every node
     ADD_FAILURE() << "the damaged block was used without a complaint";
-  } catch (const CorruptMt& e) {
+  } catch (const model::CorruptMt& e) {
     EXPECT_NE(std::string(e.what()).find("block " + std::to_string(last_block)), std::string::npos)
         << e.what();
   }
   // The same MT keeps serving the cuts that do not reach the block, and keeps refusing those that do.
-  Refiner fresh(*mapped);
-  fresh.refine(AllowedError::everywhere(m.built.node_error[1] * 0.5f), cut);
+  cut::Refiner fresh(*mapped);
+  fresh.refine(cut::AllowedError::everywhere(m.built.node_error[1] * 0.5f), cut);
   EXPECT_GT(cut.node_count, 1u);
-  EXPECT_THROW(fresh.refine(AllowedError::everywhere(0.0f), cut), CorruptMt);
+  EXPECT_THROW(fresh.refine(cut::AllowedError::everywhere(0.0f), cut), model::CorruptMt);
 }
 
 // A budgeted view orders its heap by the errors of the nodes that would refine its mesh (on a large
@@ -192,35 +193,35 @@ TEST(MtMap, ABudgetedViewChecksOnlyTheBlocksItForces) {
   // Allowed errors that vary from vertex to vertex (a uniform one refines in node order, no heap).
   std::vector<float> field(m.built.vertex_count());
   for (std::size_t v = 0; v < field.size(); ++v) field[v] = 1e-6f * float(1 + v % 5);
-  const AllowedError everywhere = AllowedError::from_vertices(field);
+  const cut::AllowedError everywhere = cut::AllowedError::from_vertices(field);
   std::size_t budget = 0;
   std::uint32_t far = 0;
-  CutMesh intact;
+  cut::CutMesh intact;
   for (std::size_t extra = 10; extra < m.built.triangle_count() && budget == 0; extra *= 2) {
-    Refiner(m.built).refine_budget(everywhere, m.built.root_triangle_count() + extra, intact);
+    cut::Refiner(m.built).refine_budget(everywhere, m.built.root_triangle_count() + extra, intact);
     std::uint32_t last_in_cut = 0;
     far = 0;
     for (const std::uint32_t t : intact.ids) {
       last_in_cut = std::max(last_in_cut, m.built.triangle_creator(t));
-      if (m.built.triangle_remover[t] != kNoNode) far = std::max(far, m.built.triangle_remover[t]);
+      if (m.built.triangle_remover[t] != model::kNoNode) far = std::max(far, m.built.triangle_remover[t]);
     }
     if (block_of(far) > block_of(last_in_cut)) budget = m.built.root_triangle_count() + extra;
   }
   ASSERT_GT(budget, 0u) << "no budget reads the error of a node beyond its cut's blocks";
-  const std::uint64_t at =
-      mt_layout(mt_counts(m.built)).triangle_remover + 4 * std::uint64_t{m.built.node_triangle_offsets[far]};
+  const std::uint64_t at = model::mt_layout(model::mt_counts(m.built)).triangle_remover +
+                           4 * std::uint64_t{m.built.node_triangle_offsets[far]};
   const fs::path path = altered("damaged-far-block.mt", [&](std::string& bytes) { bytes[at] ^= 0x40; });
   auto mapped = io::read_mt_file(path);
   ASSERT_TRUE(mapped.ok()) << mapped.error().message;
 
-  CutMesh cut;
-  Refiner(*mapped).refine_budget(everywhere, budget, cut);
+  cut::CutMesh cut;
+  cut::Refiner(*mapped).refine_budget(everywhere, budget, cut);
   EXPECT_GT(cut.node_count, 1u);
   expect_same_cut(cut, intact, "budget of " + std::to_string(budget));
   try {
-    Refiner(*mapped).refine_budget(everywhere, m.built.triangle_count(), cut);
+    cut::Refiner(*mapped).refine_budget(everywhere, m.built.triangle_count(), cut);
     ADD_FAILURE() << "the damaged block was used without a complaint";
-  } catch (const CorruptMt& e) {
+  } catch (const model::CorruptMt& e) {
     EXPECT_NE(std::string(e.what()).find("block " + std::to_string(block_of(far))), std::string::npos)
         << e.what();
   }
@@ -242,11 +243,12 @@ TEST(MtMap, TruncatedOrDamagedHeadersAreRefusedAtOpen) {
     std::size_t at;
     const char* expect;
   };
-  const std::size_t table = size - kMtBlockEntryBytes * mt_block_count(std::uint32_t(m.built.node_count()));
+  const std::size_t table =
+      size - model::kMtBlockEntryBytes * model::mt_block_count(std::uint32_t(m.built.node_count()));
   const Case cases[] = {
       {"bounds", 64, "header checksum"},
       {"block-table", table + 3, "header checksum"},
-      {"root-block", kMtHeaderBytes + 5, "block 0"},  // a position of a root vertex
+      {"root-block", model::kMtHeaderBytes + 5, "block 0"},  // a position of a root vertex
       {"reserved", 200, "reserved"},
   };
   for (const Case& c : cases) {
@@ -259,7 +261,7 @@ TEST(MtMap, TruncatedOrDamagedHeadersAreRefusedAtOpen) {
 
 TEST(MtMap, FormatOneFilesAreReadWhole) {
   // An MT whose vertices are not in node order is written as version 1 and read whole.
-  MtArrays arrays = model().built.arrays();
+  model::MtArrays arrays = model().built.arrays();
   const std::uint32_t v = arrays.node_vertex[1], w = arrays.node_vertex[2];
   arrays.node_vertex[1] = w;
   arrays.node_vertex[2] = v;
@@ -270,7 +272,7 @@ TEST(MtMap, FormatOneFilesAreReadWhole) {
     if (!arrays.normals.empty()) std::swap(arrays.normals[3 * v + k], arrays.normals[3 * w + k]);
     if (!arrays.colors.empty()) std::swap(arrays.colors[3 * v + k], arrays.colors[3 * w + k]);
   }
-  const Mt swapped(std::move(arrays));
+  const model::Mt swapped(std::move(arrays));
   ASSERT_FALSE(swapped.vertices_in_node_order());
   const fs::path path = model().dir / "v1.mt";
   ASSERT_TRUE(io::write_mt_file(path, swapped).ok());
@@ -278,10 +280,10 @@ TEST(MtMap, FormatOneFilesAreReadWhole) {
   auto mt = io::read_mt_file(path);
   ASSERT_TRUE(mt.ok()) << mt.error().message;
   EXPECT_FALSE(mt->mapped());
-  Refiner a(*mt), b(swapped);
-  CutMesh ca, cb;
-  a.refine(AllowedError::everywhere(0.0f), ca);
-  b.refine(AllowedError::everywhere(0.0f), cb);
+  cut::Refiner a(*mt), b(swapped);
+  cut::CutMesh ca, cb;
+  a.refine(cut::AllowedError::everywhere(0.0f), ca);
+  b.refine(cut::AllowedError::everywhere(0.0f), cb);
   expect_same_cut(ca, cb, "version 1");
 }
 

@@ -8,7 +8,7 @@
 #include <span>
 #include <vector>
 
-#include "core/mt_format.hpp"
+#include "core/model/mt_format.hpp"
 
 namespace mtlod::test {
 
@@ -22,17 +22,17 @@ inline bool reseal_mt_image(std::vector<std::uint8_t>& bytes) {
     std::memcpy(&x, bytes.data() + at, 4);
     return x;
   };
-  if (bytes.size() >= core::kMtHeaderBytesV1 && word(8) == 1) {
+  if (bytes.size() >= core::model::kMtHeaderBytesV1 && word(8) == 1) {
     std::memset(bytes.data() + kChecksumOffset, 0, 8);
-    const std::uint64_t sum = core::mt_checksum(bytes);
+    const std::uint64_t sum = core::model::mt_checksum(bytes);
     std::memcpy(bytes.data() + kChecksumOffset, &sum, 8);
     return true;
   }
-  if (bytes.size() < core::kMtHeaderBytes || word(8) != 2) return false;
-  auto counts = core::mt_header_counts(bytes);
+  if (bytes.size() < core::model::kMtHeaderBytes || word(8) != 2) return false;
+  auto counts = core::model::mt_header_counts(bytes);
   if (!counts.ok()) return false;
-  const std::size_t table = core::mt_layout(*counts).block_table;
-  auto seal = core::seal_mt(*counts, [&](std::uint64_t offset, std::span<std::uint8_t> out) -> Status {
+  const std::size_t table = core::model::mt_layout(*counts).block_table;
+  auto seal = core::model::seal_mt(*counts, [&](std::uint64_t offset, std::span<std::uint8_t> out) -> Status {
     // seal_mt checks the block table's order before it reads by it: never outside the image.
     if (offset > bytes.size() || out.size() > bytes.size() - offset) std::abort();
     std::memcpy(out.data(), bytes.data() + offset, out.size());
@@ -42,8 +42,10 @@ inline bool reseal_mt_image(std::vector<std::uint8_t>& bytes) {
   std::memcpy(bytes.data() + table, seal->block_table.data(), seal->block_table.size());
   // The header checksum covers the header as the image has it, then the block table.
   std::memset(bytes.data() + kChecksumOffset, 0, 8);
-  std::uint64_t sum = core::mt_checksum(std::span<const std::uint8_t>(bytes.data(), core::kMtHeaderBytes));
-  sum = core::mt_checksum(std::span<const std::uint8_t>(bytes.data() + table, seal->block_table.size()), sum);
+  std::uint64_t sum =
+      core::model::mt_checksum(std::span<const std::uint8_t>(bytes.data(), core::model::kMtHeaderBytes));
+  sum = core::model::mt_checksum(
+      std::span<const std::uint8_t>(bytes.data() + table, seal->block_table.size()), sum);
   std::memcpy(bytes.data() + kChecksumOffset, &sum, 8);
   return true;
 }

@@ -58,7 +58,7 @@ struct Streamed {
 
 // Reads everything reader has left, vertex_chunk vertices and room for triangle_chunk triangles at
 // a time; normals and colours only when the file has them.
-Result<Streamed> stream_rest(PlyReader& reader, std::size_t vertex_chunk, std::size_t triangle_chunk) {
+Result<Streamed> stream_rest(io::PlyReader& reader, std::size_t vertex_chunk, std::size_t triangle_chunk) {
   Streamed out;
   std::vector<float> p(3 * vertex_chunk), n(3 * vertex_chunk);
   std::vector<std::uint8_t> c(3 * vertex_chunk);
@@ -80,7 +80,7 @@ Result<Streamed> stream_rest(PlyReader& reader, std::size_t vertex_chunk, std::s
 
 Result<Streamed> stream_file(const fs::path& path, std::size_t vertex_chunk = 1000,
                              std::size_t triangle_chunk = 1000) {
-  MTLOD_TRY(PlyReader reader, PlyReader::open(path));
+  MTLOD_TRY(io::PlyReader reader, io::PlyReader::open(path));
   return stream_rest(reader, vertex_chunk, triangle_chunk);
 }
 
@@ -99,12 +99,12 @@ void expect_error(const fs::path& path, ErrorCode code, const std::string& words
 }
 
 // A fixed-seed mesh with awkward floats and indices anywhere in range.
-Mesh random_mesh(std::size_t vertices, std::size_t triangles, bool normals, bool colors) {
+model::Mesh random_mesh(std::size_t vertices, std::size_t triangles, bool normals, bool colors) {
   std::mt19937 rng(11);
   std::uniform_real_distribution<float> coordinate(-1e3f, 1e3f);
   std::uniform_int_distribution<std::uint32_t> vertex(0, static_cast<std::uint32_t>(vertices - 1));
   std::uniform_int_distribution<int> byte(0, 255);
-  Mesh m;
+  model::Mesh m;
   for (std::size_t i = 0; i < 3 * vertices; ++i) m.positions.push_back(coordinate(rng));
   m.positions[0] = -0.0f;
   m.positions[1] = 1e-40f;  // subnormal
@@ -119,10 +119,10 @@ Mesh random_mesh(std::size_t vertices, std::size_t triangles, bool normals, bool
 }
 
 // Writes m through PlyWriter in chunks of the given sizes.
-Status write_in_chunks(const fs::path& path, const Mesh& m, std::size_t vertex_chunk,
+Status write_in_chunks(const fs::path& path, const model::Mesh& m, std::size_t vertex_chunk,
                        std::size_t triangle_chunk) {
-  MTLOD_TRY(PlyWriter writer,
-            PlyWriter::create(path, m.vertex_count(), m.triangle_count(), m.has_normals(), m.has_colors()));
+  MTLOD_TRY(io::PlyWriter writer, io::PlyWriter::create(path, m.vertex_count(), m.triangle_count(),
+                                                        m.has_normals(), m.has_colors()));
   for (std::size_t v = 0; v < m.vertex_count(); v += vertex_chunk) {
     const std::size_t n = std::min(vertex_chunk, m.vertex_count() - v);
     const auto part = [&](const auto& values) {
@@ -142,9 +142,9 @@ TEST(PlyStream, RoundTripsInChunksThatDoNotDivideTheCounts) {
   for (const bool normals : {false, true}) {
     for (const bool colors : {false, true}) {
       SCOPED_TRACE(testing::Message() << "normals " << normals << ", colours " << colors);
-      const Mesh m = random_mesh(1000, 1999, normals, colors);
+      const model::Mesh m = random_mesh(1000, 1999, normals, colors);
       ASSERT_TRUE(write_in_chunks(dir / "m.ply", m, 7, 11).ok());
-      auto reader = PlyReader::open(dir / "m.ply");
+      auto reader = io::PlyReader::open(dir / "m.ply");
       ASSERT_TRUE(reader.ok()) << reader.error().message;
       EXPECT_EQ(reader->header().vertex_count, 1000u);
       EXPECT_EQ(reader->header().face_count, 1999u);
@@ -166,9 +166,9 @@ TEST(PlyStream, RoundTripsInChunksThatDoNotDivideTheCounts) {
 TEST(PlyStream, ReadingTrianglesFirstSkipsTheVertices) {
   // A million vertices of 12 bytes are three times the reader's buffer: the skip seeks past them.
   const auto dir = test::scratch_dir("ply-stream-skip");
-  const Mesh m = random_mesh(1000000, 5000, false, false);
-  ASSERT_TRUE(save_mesh(dir / "m.ply", m).ok());
-  auto reader = PlyReader::open(dir / "m.ply");
+  const model::Mesh m = random_mesh(1000000, 5000, false, false);
+  ASSERT_TRUE(io::save_mesh(dir / "m.ply", m).ok());
+  auto reader = io::PlyReader::open(dir / "m.ply");
   ASSERT_TRUE(reader.ok()) << reader.error().message;
   std::vector<std::uint32_t> triangles(3 * 10000);
   auto got = reader->read_triangles(triangles);
@@ -190,9 +190,9 @@ TEST(PlyStream, AgreesWithLoadMeshOnTheSharedScans) {
     if (entry.path().extension() != ".ply") continue;
     SCOPED_TRACE(entry.path().string());
     ++files;
-    auto expected = load_mesh(entry.path(), {.clean = false});
+    auto expected = io::load_mesh(entry.path(), {.clean = false});
     ASSERT_TRUE(expected.ok()) << expected.error().message;
-    auto reader = PlyReader::open(entry.path());
+    auto reader = io::PlyReader::open(entry.path());
     ASSERT_TRUE(reader.ok()) << reader.error().message;
     EXPECT_EQ(reader->header().vertex_count, expected->mesh.vertex_count());
     auto read = stream_rest(*reader, 4099, 3001);
@@ -214,7 +214,7 @@ TEST(PlyStream, AgreesWithLoadMeshOnTheAsciiModels) {
     if (!fs::exists(path)) continue;
     SCOPED_TRACE(path.string());
     ++files;
-    auto expected = load_mesh(path, {.clean = false});
+    auto expected = io::load_mesh(path, {.clean = false});
     ASSERT_TRUE(expected.ok()) << expected.error().message;
     auto read = stream_file(path, 777, 999);
     ASSERT_TRUE(read.ok()) << read.error().message;
@@ -290,7 +290,7 @@ const std::vector<std::uint8_t> kHandAsciiColors = {255, 0, 0, 0, 255, 0,   0,  
 TEST(PlyStream, ReadsAHandWrittenAsciiFile) {
   const auto dir = test::scratch_dir("ply-stream-ascii");
   write_file(dir / "hand.ply", kHandAscii);
-  auto reader = PlyReader::open(dir / "hand.ply");
+  auto reader = io::PlyReader::open(dir / "hand.ply");
   ASSERT_TRUE(reader.ok()) << reader.error().message;
   EXPECT_FALSE(reader->header().binary);
   EXPECT_EQ(reader->header().vertex_count, 7u);
@@ -307,7 +307,7 @@ TEST(PlyStream, ReadsAHandWrittenAsciiFile) {
   EXPECT_EQ(reader->faces_dropped(), 1u);
 
   // Triangles first: the material, vertex and edge records are skipped token by token.
-  auto triangles_only = PlyReader::open(dir / "hand.ply");
+  auto triangles_only = io::PlyReader::open(dir / "hand.ply");
   ASSERT_TRUE(triangles_only.ok());
   std::vector<std::uint32_t> room(3 * 253);
   auto got = triangles_only->read_triangles(room);
@@ -372,7 +372,7 @@ std::string hand_big_endian() {
 TEST(PlyStream, ReadsAHandWrittenBigEndianFile) {
   const auto dir = test::scratch_dir("ply-stream-big-endian");
   write_file(dir / "hand.ply", hand_big_endian());
-  auto reader = PlyReader::open(dir / "hand.ply");
+  auto reader = io::PlyReader::open(dir / "hand.ply");
   ASSERT_TRUE(reader.ok()) << reader.error().message;
   EXPECT_TRUE(reader->header().binary);
   EXPECT_TRUE(reader->header().has_normals);
@@ -395,7 +395,7 @@ TEST(PlyStream, PolygonsWaitForRoomAndTooLittleRoomIsAnError) {
   const auto dir = test::scratch_dir("ply-stream-room");
   write_file(dir / "hand.ply", kHandAscii);
   // Room for 4 triangles: the triangle and the quad take 3, the 5-gon's 3 wait for the next call.
-  auto reader = PlyReader::open(dir / "hand.ply");
+  auto reader = io::PlyReader::open(dir / "hand.ply");
   ASSERT_TRUE(reader.ok());
   std::vector<std::uint32_t> room(12), all;
   std::vector<std::size_t> counts;
@@ -409,7 +409,7 @@ TEST(PlyStream, PolygonsWaitForRoomAndTooLittleRoomIsAnError) {
   EXPECT_EQ(counts, (std::vector<std::size_t>{3, 4}));
   EXPECT_EQ(all, kHandTriangles);
   // Room for 2: the quad waits once; the 5-gon's 3 triangles never fit.
-  auto small = PlyReader::open(dir / "hand.ply");
+  auto small = io::PlyReader::open(dir / "hand.ply");
   ASSERT_TRUE(small.ok());
   room.resize(6);
   counts.clear();
@@ -426,9 +426,9 @@ TEST(PlyStream, PolygonsWaitForRoomAndTooLittleRoomIsAnError) {
 
 TEST(PlyStream, TruncatedBinaryFilesNameTheVertexOrFace) {
   const auto dir = test::scratch_dir("ply-stream-truncated");
-  Mesh m = test::tetrahedron();
+  model::Mesh m = test::tetrahedron();
   m.normals.assign(12, 0.5f);
-  ASSERT_TRUE(save_mesh(dir / "full.ply", m).ok());
+  ASSERT_TRUE(io::save_mesh(dir / "full.ply", m).ok());
   const std::string bytes = read_file(dir / "full.ply");
   const std::size_t header = bytes.find("end_header\n") + 11;
   // 4 vertices of 24 bytes, then 4 faces of 13 (a length byte and 3 uint32).
@@ -471,9 +471,9 @@ TEST(PlyStream, TruncatedAsciiFileNamesTheVertexOrFace) {
 
 TEST(PlyStream, IndexOutOfRangeNamesTheFace) {
   const auto dir = test::scratch_dir("ply-stream-index");
-  Mesh m = test::tetrahedron();
+  model::Mesh m = test::tetrahedron();
   m.triangles[5] = 4;  // face 1
-  ASSERT_TRUE(save_mesh(dir / "oob.ply", m).ok());
+  ASSERT_TRUE(io::save_mesh(dir / "oob.ply", m).ok());
   expect_error(dir / "oob.ply", ErrorCode::kCorrupt,
                "face 1 refers to vertex 4, but the file has 4 vertices");
   // A negative int32 index, in the layout the copy-only loop takes.
@@ -499,9 +499,9 @@ TEST(PlyStream, IndexOutOfRangeNamesTheFace) {
 
 TEST(PlyStream, NonFiniteCoordinateNamesTheVertex) {
   const auto dir = test::scratch_dir("ply-stream-nan");
-  Mesh m = test::tetrahedron();
+  model::Mesh m = test::tetrahedron();
   m.positions[7] = std::numeric_limits<float>::quiet_NaN();  // vertex 2, y
-  ASSERT_TRUE(save_mesh(dir / "nan.ply", m).ok());
+  ASSERT_TRUE(io::save_mesh(dir / "nan.ply", m).ok());
   expect_error(dir / "nan.ply", ErrorCode::kCorrupt, "vertex 2 has a non-finite coordinate");
 }
 
@@ -590,7 +590,7 @@ TEST(PlyWriter, RejectsMisuse) {
   const std::vector<float> three = {0, 0, 0, 1, 0, 0, 0, 1, 0};
   const std::vector<std::uint32_t> one = {0, 1, 2};
   {
-    auto writer = PlyWriter::create(dir / "a.ply", 2, 1, false, false);
+    auto writer = io::PlyWriter::create(dir / "a.ply", 2, 1, false, false);
     ASSERT_TRUE(writer.ok());
     EXPECT_EQ(writer->write_triangles(one).error().code, ErrorCode::kInvalidArgument);  // before the vertices
     EXPECT_EQ(writer->write_vertices(three).error().code, ErrorCode::kInvalidArgument);  // 3 > 2 declared
@@ -607,14 +607,14 @@ TEST(PlyWriter, RejectsMisuse) {
     EXPECT_EQ(writer->write_triangles(one).error().code, ErrorCode::kInvalidArgument);  // after close
   }
   {
-    auto writer = PlyWriter::create(dir / "b.ply", 3, 1, false, false);
+    auto writer = io::PlyWriter::create(dir / "b.ply", 3, 1, false, false);
     ASSERT_TRUE(writer.ok());
     ASSERT_TRUE(writer->write_vertices(three).ok());
     ASSERT_TRUE(writer->write_triangles(one).ok());
     EXPECT_EQ(writer->write_triangles(one).error().code, ErrorCode::kInvalidArgument);  // 2 > 1 declared
     EXPECT_TRUE(writer->close().ok());
   }
-  auto missing = PlyWriter::create("/nonexistent-folder/m.ply", 3, 1, false, false);
+  auto missing = io::PlyWriter::create("/nonexistent-folder/m.ply", 3, 1, false, false);
   ASSERT_FALSE(missing.ok());
   EXPECT_EQ(missing.error().code, ErrorCode::kIoError);
 }
@@ -622,7 +622,7 @@ TEST(PlyWriter, RejectsMisuse) {
 TEST(PlyWriter, CloseReportsAFailedWrite) {
   if (!fs::exists("/dev/full")) GTEST_SKIP() << "no /dev/full";
   // /dev/full accepts the open and fails every write with ENOSPC.
-  auto writer = PlyWriter::create("/dev/full", 3, 1, false, false);
+  auto writer = io::PlyWriter::create("/dev/full", 3, 1, false, false);
   ASSERT_TRUE(writer.ok()) << writer.error().message;
   const std::vector<float> three = {0, 0, 0, 1, 0, 0, 0, 1, 0};
   ASSERT_TRUE(writer->write_vertices(three).ok());  // still in the writer's buffer
@@ -637,11 +637,11 @@ TEST(PlyWriter, SaveMeshWritesTheDocumentedBytes) {
   // The header and records spelled out: little-endian float x y z, float nx ny nz, uchar colour,
   // then faces as a length byte 3 and three uint32.
   const auto dir = test::scratch_dir("ply-writer-bytes");
-  Mesh m = test::tetrahedron();
+  model::Mesh m = test::tetrahedron();
   for (int i = 0; i < 12; ++i) m.normals.push_back(static_cast<float>(i) / 8.0f);
   for (int i = 0; i < 12; ++i) m.colors.push_back(static_cast<std::uint8_t>(20 * i));
   for (const bool attributes : {false, true}) {
-    Mesh written = m;
+    model::Mesh written = m;
     if (!attributes) {
       written.normals.clear();
       written.colors.clear();
@@ -665,7 +665,7 @@ TEST(PlyWriter, SaveMeshWritesTheDocumentedBytes) {
       put_le(expected, std::uint8_t{3});
       for (int c = 0; c < 3; ++c) put_le(expected, m.triangles[3 * t + c]);
     }
-    ASSERT_TRUE(save_mesh(dir / "m.ply", written).ok());
+    ASSERT_TRUE(io::save_mesh(dir / "m.ply", written).ok());
     EXPECT_EQ(read_file(dir / "m.ply"), expected) << "attributes " << attributes;
   }
 }

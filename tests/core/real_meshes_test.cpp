@@ -62,7 +62,7 @@ TEST(RealMeshes, EveryScanLoadsWithTheCountsItsReadmeStates) {
     options.clean = false;
     auto loaded = io::load_mesh(dir / row.file, options);
     ASSERT_TRUE(loaded.ok()) << loaded.error().message;
-    const TopologyReport& t = loaded->input_topology;
+    const model::TopologyReport& t = loaded->input_topology;
     EXPECT_EQ(t.vertices, row.vertices);
     EXPECT_EQ(t.triangles, row.triangles);
     EXPECT_EQ(t.boundary_edges, count_before(row.topology, "boundary edges").value_or(0));
@@ -85,9 +85,9 @@ TEST(RealMeshes, EveryScanLoadsWithTheCountsItsReadmeStates) {
     }
 
     // Clean-up leaves a mesh with no unused vertices, no degenerate and no duplicate triangles.
-    Mesh cleaned = loaded->mesh;
-    clean_mesh(cleaned);
-    const TopologyReport after = analyze_topology(cleaned.positions, cleaned.triangles);
+    model::Mesh cleaned = loaded->mesh;
+    model::clean_mesh(cleaned);
+    const model::TopologyReport after = model::analyze_topology(cleaned.positions, cleaned.triangles);
     EXPECT_EQ(after.unused_vertices, 0u);
     EXPECT_EQ(after.degenerate_triangles, 0u);
     EXPECT_EQ(after.duplicate_triangles, 0u);

@@ -1,7 +1,7 @@
-// Selective refinement (DESIGN.md §2): hand-made cases, a naive fixpoint reference for minimality,
+// Refinement (core/ARCHITECTURE.md §2.4): hand-made cases, a naive fixpoint for minimality,
 // conformity and the error bound on real scans, budgets, and dynamic == static after random field
 // sequences.
-#include "core/refine.hpp"
+#include "core/cut/refine.hpp"
 
 #include <gtest/gtest.h>
 
@@ -14,7 +14,7 @@
 #include <string_view>
 #include <vector>
 
-#include "core/cut_delta.hpp"
+#include "core/cut/cut_delta.hpp"
 #include "tests/core/cut_validator.hpp"
 #include "tests/core/mt_fixtures.hpp"
 
@@ -26,7 +26,7 @@ constexpr float kInf = std::numeric_limits<float>::infinity();
 
 // Reference: the minimal passing cut by the definition, recomputed from scratch each round — add the
 // remover (and its ancestors) of every failing triangle of the current mesh until none fails.
-std::vector<std::uint8_t> naive_minimal_cut(const Mt& mt, const AllowedError& allowed) {
+std::vector<std::uint8_t> naive_minimal_cut(const model::Mt& mt, const cut::AllowedError& allowed) {
   std::vector<std::uint8_t> in(mt.node_count(), 0);
   in[0] = 1;
   std::vector<std::uint32_t> creator(mt.triangle_count());
@@ -41,7 +41,7 @@ std::vector<std::uint8_t> naive_minimal_cut(const Mt& mt, const AllowedError& al
     changed = false;
     for (std::uint32_t t = 0; t < mt.triangle_count(); ++t) {
       const std::uint32_t r = mt.triangle_remover[t];
-      if (!in[creator[t]] || r == kNoNode || in[r]) continue;
+      if (!in[creator[t]] || r == model::kNoNode || in[r]) continue;
       std::uint32_t v[3];
       mt.triangle_vertices(t, v);
       const float a =
@@ -57,13 +57,13 @@ std::vector<std::uint8_t> naive_minimal_cut(const Mt& mt, const AllowedError& al
   return in;
 }
 
-std::vector<std::uint32_t> sorted_nodes(const Refiner& r) {
+std::vector<std::uint32_t> sorted_nodes(const cut::Refiner& r) {
   std::vector<std::uint32_t> nodes(r.cut_nodes().begin(), r.cut_nodes().end());
   std::sort(nodes.begin(), nodes.end());
   return nodes;
 }
 
-float bbox_diagonal(const Mesh& mesh) {
+float bbox_diagonal(const model::Mesh& mesh) {
   float lo[3] = {kInf, kInf, kInf}, hi[3] = {-kInf, -kInf, -kInf};
   for (std::size_t v = 0; v < mesh.vertex_count(); ++v)
     for (int k = 0; k < 3; ++k)
@@ -74,7 +74,7 @@ float bbox_diagonal(const Mesh& mesh) {
 
 // Allowed error growing with distance from a focus vertex (a stand-in for the DT labels of the
 // next issue): fine near the focus, coarse far away.
-std::vector<float> focus_field(const Mesh& mesh, std::mt19937& rng, float fine, float coarse) {
+std::vector<float> focus_field(const model::Mesh& mesh, std::mt19937& rng, float fine, float coarse) {
   std::uniform_int_distribution<std::size_t> pick(0, mesh.vertex_count() - 1);
   const float* f = &mesh.positions[3 * pick(rng)];
   const float radius = bbox_diagonal(mesh) * std::uniform_real_distribution<float>(0.05f, 0.5f)(rng);
@@ -89,7 +89,7 @@ std::vector<float> focus_field(const Mesh& mesh, std::mt19937& rng, float fine, 
 }
 
 // "FILE": a shared scan built by build_mt; "large:FILE": the same scan built out of core in blocks of
-// 3,000 triangles (core/io/large_build.hpp). Null when the file is absent.
+// 3,000 triangles (core/build/large_build.hpp). Null when the file is absent.
 const MtCase* scan_or_large_case(std::string_view name) {
   constexpr std::string_view kLarge = "large:";
   if (name.starts_with(kLarge)) return test::large_scan_case(std::string(name.substr(kLarge.size())), 3'000);
@@ -104,30 +104,30 @@ std::vector<float> noise_field(std::size_t n, std::mt19937& rng, float lo, float
   return field;
 }
 
-float max_node_error(const Mt& mt) {
+float max_node_error(const model::Mt& mt) {
   return *std::max_element(mt.node_error.begin(), mt.node_error.end());
 }
 
 TEST(Refine, SquareSwitchesBetweenItsTwoCutsAtTheNodeError) {
   // The square's MT has one collapse, of error e1 ≈ 1/√2: at allowed ≥ e1 the root triangle
   // passes; any smaller allowed error needs the two input triangles.
-  Mesh square = test::square();
+  model::Mesh square = test::square();
   auto mt = test::build_mt_renumbering(square);
   ASSERT_TRUE(mt.ok());
   const float e1 = mt->node_error[1];
-  CutMesh out;
-  refine_static(*mt, AllowedError::everywhere(e1), out);
+  cut::CutMesh out;
+  cut::refine_static(*mt, cut::AllowedError::everywhere(e1), out);
   EXPECT_EQ(out.triangle_count(), 1u);
   EXPECT_EQ(out.max_error, e1);
   EXPECT_EQ(out.node_count, 1u);
-  refine_static(*mt, AllowedError::everywhere(std::nextafter(e1, 0.0f)), out);
+  cut::refine_static(*mt, cut::AllowedError::everywhere(std::nextafter(e1, 0.0f)), out);
   EXPECT_EQ(test::triangle_set(out.triangles), test::triangle_set(square.triangles));
   EXPECT_EQ(out.max_error, 0.0f);
   EXPECT_EQ(out.node_count, 2u);
   // Per vertex: one fine corner is enough, since a triangle takes the minimum of its corners.
   std::vector<float> field = {kInf, kInf, kInf, kInf};
   field[mt->root_first_corner[0]] = 0.5f;
-  refine_static(*mt, AllowedError::from_vertices(field), out);
+  cut::refine_static(*mt, cut::AllowedError::from_vertices(field), out);
   EXPECT_EQ(out.triangle_count(), 2u);
 }
 
@@ -135,12 +135,12 @@ TEST(Refine, ExtremeThresholdsGiveTheInputAndTheRoot) {
   for (const char* file : {"bunny-npm-3k.ply", "dragon-vrip-res4-11k.ply"}) {
     const MtCase* c = test::scan_case(file);
     if (!c) continue;
-    CutMesh out;
+    cut::CutMesh out;
     // Error ≥ 0 > -1 for every triangle that has a remover: everything is refined.
-    refine_static(c->mt, AllowedError::everywhere(-1.0f), out);
+    cut::refine_static(c->mt, cut::AllowedError::everywhere(-1.0f), out);
     EXPECT_EQ(test::triangle_set(out.triangles), test::triangle_set(c->mesh.triangles)) << file;
     EXPECT_EQ(out.node_count, c->mt.node_count());
-    refine_static(c->mt, AllowedError::everywhere(kInf), out);
+    cut::refine_static(c->mt, cut::AllowedError::everywhere(kInf), out);
     EXPECT_EQ(out.triangle_count(), c->mt.root_triangle_count()) << file;
     EXPECT_EQ(out.node_count, 1u);
   }
@@ -148,17 +148,18 @@ TEST(Refine, ExtremeThresholdsGiveTheInputAndTheRoot) {
 
 TEST(Refine, StaticEqualsTheNaiveFixpointOnRandomFields) {
   std::mt19937 rng(7);
-  for (const MtCase* c : {test::shape_case(Shape::kSphere, 8'000), test::shape_case(Shape::kTerrain, 3'000),
-                          test::scan_case("bunny-npm-3k.ply"), test::scan_case("dragon-vrip-res4-11k.ply")}) {
+  for (const MtCase* c :
+       {test::shape_case(eval::Shape::kSphere, 8'000), test::shape_case(eval::Shape::kTerrain, 3'000),
+        test::scan_case("bunny-npm-3k.ply"), test::scan_case("dragon-vrip-res4-11k.ply")}) {
     if (!c) continue;
     const float top = max_node_error(c->mt);
-    Refiner refiner(c->mt);
-    CutMesh out;
+    cut::Refiner refiner(c->mt);
+    cut::CutMesh out;
     for (int round = 0; round < 6; ++round) {
       std::vector<float> field = round % 2
                                      ? focus_field(c->mesh, rng, top * 1e-3f, top * 0.3f)
                                      : noise_field(c->mesh.vertex_count(), rng, top * 1e-3f, top * 0.5f);
-      const AllowedError allowed = AllowedError::from_vertices(field);
+      const cut::AllowedError allowed = cut::AllowedError::from_vertices(field);
       refiner.refine(allowed, out);
       const std::vector<std::uint8_t> expected = naive_minimal_cut(c->mt, allowed);
       std::vector<std::uint32_t> expected_nodes;
@@ -171,7 +172,7 @@ TEST(Refine, StaticEqualsTheNaiveFixpointOnRandomFields) {
 }
 
 // A field's values, counting how often each vertex is asked for.
-class Recorder final : public VertexErrorSource {
+class Recorder final : public cut::VertexErrorSource {
  public:
   explicit Recorder(const std::vector<float>& field) : field_(field), asked_(field.size(), 0) {}
   float vertex_allowed_error(std::uint32_t v) const override {
@@ -190,17 +191,17 @@ class Recorder final : public VertexErrorSource {
 TEST(Refine, OnDemandEqualsTheFullFieldAndAsksOnlyForTheCutsVertices) {
   std::mt19937 rng(5);
   for (const MtCase* c :
-       {test::shape_case(Shape::kSphere, 8'000), test::scan_case("bunny-npm-3k.ply"),
+       {test::shape_case(eval::Shape::kSphere, 8'000), test::scan_case("bunny-npm-3k.ply"),
         test::scan_case("dragon-vrip-res4-11k.ply"), test::scan_case("armadillo-52k.ply")}) {
     if (!c) continue;
     const float top = max_node_error(c->mt);
-    Refiner full(c->mt), lazy(c->mt);
-    CutMesh expected, out;
+    cut::Refiner full(c->mt), lazy(c->mt);
+    cut::CutMesh expected, out;
     for (int round = 0; round < 6; ++round) {
       const std::vector<float> field =
           round % 2 ? focus_field(c->mesh, rng, top * 1e-3f, top * 0.3f)
                     : noise_field(c->mesh.vertex_count(), rng, top * 1e-3f, top * 0.5f);
-      full.refine(AllowedError::from_vertices(field), expected);
+      full.refine(cut::AllowedError::from_vertices(field), expected);
       const Recorder source(field);
       std::vector<float> written(field.size(), -1.0f);
       lazy.refine_on_demand(source, written, out);
@@ -231,7 +232,8 @@ TEST(Refine, OnDemandEqualsTheFullFieldAndAsksOnlyForTheCutsVertices) {
 // of the cut.
 TEST(Refine, BudgetOnDemandEqualsTheFullField) {
   std::mt19937 rng(8);
-  for (const MtCase* c : {test::shape_case(Shape::kSphere, 8'000), test::scan_case("armadillo-52k.ply")}) {
+  for (const MtCase* c :
+       {test::shape_case(eval::Shape::kSphere, 8'000), test::scan_case("armadillo-52k.ply")}) {
     if (!c) continue;
     const float top = max_node_error(c->mt);
     for (int round = 0; round < 4; ++round) {
@@ -240,16 +242,16 @@ TEST(Refine, BudgetOnDemandEqualsTheFullField) {
                     : noise_field(c->mesh.vertex_count(), rng, top * 1e-3f, top * 0.5f);
       const std::size_t budget = 500 + 1500 * std::size_t(round);
       for (const bool keep : {false, true}) {
-        Refiner full(c->mt), lazy(c->mt);
-        CutMesh expected, out;
+        cut::Refiner full(c->mt), lazy(c->mt);
+        cut::CutMesh expected, out;
         const Recorder source(field);
         std::vector<float> written(field.size(), -1.0f);
         if (keep) {
-          full.start_budget(AllowedError::from_vertices(field), budget, expected);
+          full.start_budget(cut::AllowedError::from_vertices(field), budget, expected);
           lazy.start_budget_on_demand(source, written, budget, out);
           EXPECT_EQ(lazy.budget_threshold(), full.budget_threshold());
         } else {
-          full.refine_budget(AllowedError::from_vertices(field), budget, expected);
+          full.refine_budget(cut::AllowedError::from_vertices(field), budget, expected);
           lazy.refine_budget_on_demand(source, written, budget, out);
         }
         EXPECT_EQ(test::triangle_set(out.triangles), test::triangle_set(expected.triangles)) << round;
@@ -265,8 +267,8 @@ TEST(Refine, BudgetOnDemandEqualsTheFullField) {
         // A gaze after a kept start moves the cut as with the full field.
         if (keep) {
           std::vector<float> moved = focus_field(c->mesh, rng, top * 1e-3f, top * 0.3f);
-          full.update_budget(AllowedError::from_vertices(moved), {}, budget, expected);
-          lazy.update_budget(AllowedError::from_vertices(moved), {}, budget, out);
+          full.update_budget(cut::AllowedError::from_vertices(moved), {}, budget, expected);
+          lazy.update_budget(cut::AllowedError::from_vertices(moved), {}, budget, out);
           EXPECT_EQ(test::triangle_set(out.triangles), test::triangle_set(expected.triangles)) << round;
         }
       }
@@ -277,13 +279,13 @@ TEST(Refine, BudgetOnDemandEqualsTheFullField) {
 TEST(Refine, UniformStaticEqualsTheNaiveFixpoint) {
   // The uniform case reads the cut off a prefix of the node order; the reference forces from the root.
   for (const MtCase* c :
-       {test::shape_case(Shape::kSphere, 8'000), test::scan_case("dragon-vrip-res4-11k.ply")}) {
+       {test::shape_case(eval::Shape::kSphere, 8'000), test::scan_case("dragon-vrip-res4-11k.ply")}) {
     if (!c) continue;
     const float top = max_node_error(c->mt);
-    Refiner refiner(c->mt);
-    CutMesh out;
+    cut::Refiner refiner(c->mt);
+    cut::CutMesh out;
     for (const float e : {top * 2, top, top * 0.3f, top * 0.01f, top * 1e-4f, 0.0f, -1.0f}) {
-      const AllowedError allowed = AllowedError::everywhere(e);
+      const cut::AllowedError allowed = cut::AllowedError::everywhere(e);
       refiner.refine(allowed, out);
       const std::vector<std::uint8_t> expected = naive_minimal_cut(c->mt, allowed);
       std::vector<std::uint32_t> expected_nodes;
@@ -308,16 +310,16 @@ TEST(Refine, RandomThresholdsGiveConformingCutsOnRealScans) {
     ++meshes;
     const float top = max_node_error(c->mt);
     std::uniform_real_distribution<float> exponent(-5.0f, 0.0f);
-    Refiner refiner(c->mt);
-    CutMesh out;
+    cut::Refiner refiner(c->mt);
+    cut::CutMesh out;
     for (int round = 0; round < 8; ++round) {
       const float e = top * std::pow(10.0f, exponent(rng));
       if (round % 2 == 0) {
-        refiner.refine(AllowedError::everywhere(e), out);
+        refiner.refine(cut::AllowedError::everywhere(e), out);
         EXPECT_LE(out.max_error, e);
       } else {
         const std::vector<float> field = focus_field(c->mesh, rng, e * 0.01f, e);
-        refiner.refine(AllowedError::from_vertices(field), out);
+        refiner.refine(cut::AllowedError::from_vertices(field), out);
       }
       ASSERT_TRUE(test::validate_cut(c->reference, out.triangles))
           << file << " round " << round << " e " << e;
@@ -337,10 +339,10 @@ TEST(Refine, EveryInputVertexIsWithinTheThresholdOfTheCut) {
     if (!c) continue;
     ++meshes;
     const float diagonal = bbox_diagonal(c->mesh);
-    CutMesh out;
+    cut::CutMesh out;
     for (const float relative : {0.001f, 0.004f, 0.02f, 0.1f}) {
       const float e = diagonal * relative;
-      refine_static(c->mt, AllowedError::everywhere(e), out);
+      cut::refine_static(c->mt, cut::AllowedError::everywhere(e), out);
       ASSERT_LE(out.max_error, e);
       std::vector<double> bound(c->mesh.vertex_count(), double(e) * (1 + 1e-5));
       EXPECT_TRUE(test::every_vertex_within(c->mesh, out.triangles, bound))
@@ -352,11 +354,12 @@ TEST(Refine, EveryInputVertexIsWithinTheThresholdOfTheCut) {
 
 TEST(Refine, BudgetIsNeverExceededAndCutsStayConforming) {
   std::mt19937 rng(5);
-  for (const MtCase* c : {test::scan_case("bunny-npm-3k.ply"), test::scan_case("dragon-vrip-res4-11k.ply"),
-                          test::scan_case("armadillo-52k.ply"), test::shape_case(Shape::kTerrain, 3'000)}) {
+  for (const MtCase* c :
+       {test::scan_case("bunny-npm-3k.ply"), test::scan_case("dragon-vrip-res4-11k.ply"),
+        test::scan_case("armadillo-52k.ply"), test::shape_case(eval::Shape::kTerrain, 3'000)}) {
     if (!c) continue;
-    Refiner refiner(c->mt);
-    CutMesh out;
+    cut::Refiner refiner(c->mt);
+    cut::CutMesh out;
     const std::size_t root = c->mt.root_triangle_count(), full = c->mesh.triangle_count();
     std::size_t previous = 0;
     std::vector<std::size_t> budgets;
@@ -365,7 +368,7 @@ TEST(Refine, BudgetIsNeverExceededAndCutsStayConforming) {
     std::sort(budgets.begin(), budgets.end());
     for (const std::size_t budget : budgets) {
       // allowed 0 everywhere: every triangle with an error fails, ranked by error.
-      refiner.refine_budget(AllowedError::everywhere(0.0f), budget, out);
+      refiner.refine_budget(cut::AllowedError::everywhere(0.0f), budget, out);
       EXPECT_TRUE(out.within_budget);
       ASSERT_LE(out.triangle_count(), budget);
       EXPECT_GE(out.triangle_count(), previous) << "a larger budget gave fewer triangles";
@@ -374,14 +377,14 @@ TEST(Refine, BudgetIsNeverExceededAndCutsStayConforming) {
       // A per-vertex field goes through the ratio heap instead of the node order.
       const float top = max_node_error(c->mt);
       const std::vector<float> field = focus_field(c->mesh, rng, top * 1e-4f, top * 0.1f);
-      refiner.refine_budget(AllowedError::from_vertices(field), budget, out);
+      refiner.refine_budget(cut::AllowedError::from_vertices(field), budget, out);
       ASSERT_LE(out.triangle_count(), budget);
       ASSERT_TRUE(test::validate_cut(c->reference, out.triangles));
     }
     // Allowed -1: every triangle with a remover fails, so an ample budget ends at the input.
-    refiner.refine_budget(AllowedError::everywhere(-1.0f), full, out);
+    refiner.refine_budget(cut::AllowedError::everywhere(-1.0f), full, out);
     EXPECT_EQ(test::triangle_set(out.triangles), test::triangle_set(c->mesh.triangles));
-    refiner.refine_budget(AllowedError::everywhere(0.0f), root - 1, out);
+    refiner.refine_budget(cut::AllowedError::everywhere(0.0f), root - 1, out);
     EXPECT_FALSE(out.within_budget);
     EXPECT_EQ(out.triangle_count(), root);
   }
@@ -389,16 +392,17 @@ TEST(Refine, BudgetIsNeverExceededAndCutsStayConforming) {
 
 TEST(Refine, UnlimitedBudgetEqualsStaticRefinement) {
   std::mt19937 rng(3);
-  for (const MtCase* c : {test::scan_case("bunny-npm-3k.ply"), test::shape_case(Shape::kSphere, 8'000)}) {
+  for (const MtCase* c :
+       {test::scan_case("bunny-npm-3k.ply"), test::shape_case(eval::Shape::kSphere, 8'000)}) {
     if (!c) continue;
     const float top = max_node_error(c->mt);
-    Refiner refiner(c->mt);
-    CutMesh budgeted, fixed;
+    cut::Refiner refiner(c->mt);
+    cut::CutMesh budgeted, fixed;
     for (int round = 0; round < 4; ++round) {
       const std::vector<float> field = focus_field(c->mesh, rng, top * 1e-3f, top * 0.2f);
-      const AllowedError allowed = AllowedError::from_vertices(field);
+      const cut::AllowedError allowed = cut::AllowedError::from_vertices(field);
       refiner.refine_budget(allowed, std::numeric_limits<std::size_t>::max(), budgeted);
-      refine_static(c->mt, allowed, fixed);
+      cut::refine_static(c->mt, allowed, fixed);
       EXPECT_EQ(test::triangle_set(budgeted.triangles), test::triangle_set(fixed.triangles));
     }
   }
@@ -409,17 +413,18 @@ TEST(Refine, BudgetRefinesTheWorstRatioFirst) {
   // refinement with max error m left in the cut, every triangle above m was refined (so the cut
   // contains the static cut for m), and only triangles of error ≥ m were (so it lies inside the
   // static cut for the float just below m). Any other order breaks the second inclusion.
-  for (const MtCase* c : {test::scan_case("bunny-npm-3k.ply"), test::shape_case(Shape::kSphere, 8'000)}) {
+  for (const MtCase* c :
+       {test::scan_case("bunny-npm-3k.ply"), test::shape_case(eval::Shape::kSphere, 8'000)}) {
     if (!c) continue;
-    Refiner budgeted(c->mt), fixed(c->mt);
-    CutMesh out, reference;
+    cut::Refiner budgeted(c->mt), fixed(c->mt);
+    cut::CutMesh out, reference;
     for (std::size_t budget = c->mt.root_triangle_count() + 10; budget < c->mesh.triangle_count();
          budget += 397) {
-      budgeted.refine_budget(AllowedError::everywhere(0.0f), budget, out);
+      budgeted.refine_budget(cut::AllowedError::everywhere(0.0f), budget, out);
       const std::vector<std::uint32_t> nodes = sorted_nodes(budgeted);
-      fixed.refine(AllowedError::everywhere(out.max_error), reference);
+      fixed.refine(cut::AllowedError::everywhere(out.max_error), reference);
       const std::vector<std::uint32_t> lower = sorted_nodes(fixed);
-      fixed.refine(AllowedError::everywhere(std::nextafter(out.max_error, 0.0f)), reference);
+      fixed.refine(cut::AllowedError::everywhere(std::nextafter(out.max_error, 0.0f)), reference);
       const std::vector<std::uint32_t> upper = sorted_nodes(fixed);
       EXPECT_TRUE(std::includes(nodes.begin(), nodes.end(), lower.begin(), lower.end())) << budget;
       EXPECT_TRUE(std::includes(upper.begin(), upper.end(), nodes.begin(), nodes.end())) << budget;
@@ -428,7 +433,7 @@ TEST(Refine, BudgetRefinesTheWorstRatioFirst) {
 }
 
 // CutMesh::ids names each triangle: the MT triangle with that id has exactly those corners.
-void expect_ids_name_triangles(const Mt& mt, const CutMesh& cut) {
+void expect_ids_name_triangles(const model::Mt& mt, const cut::CutMesh& cut) {
   ASSERT_EQ(cut.ids.size(), cut.triangle_count());
   for (std::size_t i = 0; i < cut.ids.size(); ++i) {
     std::uint32_t corners[3];
@@ -442,8 +447,8 @@ void expect_ids_name_triangles(const Mt& mt, const CutMesh& cut) {
 void expect_dynamic_matches_static(const MtCase* c, std::uint32_t seed, int steps) {
   std::mt19937 rng(seed);
   const float top = max_node_error(c->mt);
-  Refiner dynamic(c->mt), fixed(c->mt);
-  CutMesh moving, reference;
+  cut::Refiner dynamic(c->mt), fixed(c->mt);
+  cut::CutMesh moving, reference;
   std::vector<float> field = focus_field(c->mesh, rng, top * 1e-3f, top * 0.3f);
   std::vector<std::uint32_t> changed;
   for (int step = 0; step < steps; ++step) {
@@ -465,10 +470,10 @@ void expect_dynamic_matches_static(const MtCase* c, std::uint32_t seed, int step
         field[changed.back()] *= scale(rng);
       }
     }  // kind 6: the same field again
-    const AllowedError allowed =
-        uniform >= 0 ? AllowedError::everywhere(uniform) : AllowedError::from_vertices(field);
+    const cut::AllowedError allowed =
+        uniform >= 0 ? cut::AllowedError::everywhere(uniform) : cut::AllowedError::from_vertices(field);
     if (kind == 5) {
-      CutMesh other;  // interleaved budgeted and static calls reset the kept cut
+      cut::CutMesh other;  // interleaved budgeted and static calls reset the kept cut
       if (std::uniform_int_distribution<int>(0, 1)(rng))
         dynamic.refine_budget(allowed, 500, other);
       else
@@ -479,7 +484,7 @@ void expect_dynamic_matches_static(const MtCase* c, std::uint32_t seed, int step
       dynamic.update(allowed, changed, moving);
     } else if (kind == 4) {
       // The same through a view (of the kept mesh, or of the scratch after a restart).
-      CutMesh scratch;
+      cut::CutMesh scratch;
       moving.assign(dynamic.update_view(allowed, changed, scratch));
     } else if (kind == 6) {
       const std::size_t unchanged = dynamic.unchanged_updates();
@@ -508,11 +513,11 @@ void expect_dynamic_matches_static(const MtCase* c, std::uint32_t seed, int step
   EXPECT_GT(dynamic.unchanged_updates(), 0u);  // and returning the kept cut when nothing changed
 }
 
-// What a session does with an on-demand field (core/view_extract.cpp): values for the vertices asked
+// What a session does with an on-demand field (core/view/view_extract.cpp): values for the vertices asked
 // for, which become known; at each new field the known vertices whose value changed are updated
 // and listed; at times everything but the cut's vertices is forgotten. Unknown entries hold -1,
 // which fails every triangle: a refinement that read one would refine more than the reference.
-class KnownField final : public VertexErrorSource {
+class KnownField final : public cut::VertexErrorSource {
  public:
   explicit KnownField(std::size_t n) : field(n, -1.0f), known_(n, 0) {}
   float vertex_allowed_error(std::uint32_t v) const override {
@@ -530,7 +535,7 @@ class KnownField final : public VertexErrorSource {
       changed.push_back(v);
     }
   }
-  void forget_all_but_the_cut(Refiner& refiner) {
+  void forget_all_but_the_cut(cut::Refiner& refiner) {
     std::vector<std::uint8_t> read(field.size(), 0);
     refiner.for_each_cut_vertex([&](std::uint32_t v) { read[v] = 1; });
     for (std::uint32_t v = 0; v < field.size(); ++v) {
@@ -550,14 +555,15 @@ class KnownField final : public VertexErrorSource {
 // they asked for since the view began, with or without a budget, whatever was forgotten meanwhile.
 TEST(Refine, OnDemandUpdatesEqualTheFullFieldAndReadOnlyWhatWasAskedFor) {
   std::mt19937 rng(19);
-  for (const MtCase* c : {test::shape_case(Shape::kSphere, 8'000), test::scan_case("armadillo-52k.ply")}) {
+  for (const MtCase* c :
+       {test::shape_case(eval::Shape::kSphere, 8'000), test::scan_case("armadillo-52k.ply")}) {
     if (!c) continue;
-    const Mt& mt = c->mt;
+    const model::Mt& mt = c->mt;
     const float top = max_node_error(mt);
     for (const bool budgeted : {false, true}) {
-      Refiner lazy(mt), full(mt);
+      cut::Refiner lazy(mt), full(mt);
       KnownField known(mt.vertex_count());
-      CutMesh out, expected;
+      cut::CutMesh out, expected;
       std::vector<std::uint32_t> changed;
       std::vector<float> field;
       const std::size_t budget = 3'000;
@@ -565,24 +571,24 @@ TEST(Refine, OnDemandUpdatesEqualTheFullFieldAndReadOnlyWhatWasAskedFor) {
         // Mostly small moves of a focus, a jump now and then.
         field = focus_field(c->mesh, rng, top * 1e-3f, top * 0.3f);
         known.set(field, changed);
-        CutSpan cut;
+        cut::CutSpan cut;
         if (step == 0) {
           if (budgeted) {
             lazy.start_budget_on_demand(known, known.field, budget, out);
           } else {
             lazy.refine_on_demand(known, known.field, out);
           }
-          cut = CutSpan::of(out);
+          cut = cut::CutSpan::of(out);
         } else if (budgeted) {
           lazy.update_budget_on_demand(known, known.field, changed, budget, out);
-          cut = CutSpan::of(out);
+          cut = cut::CutSpan::of(out);
         } else {
           cut = lazy.update_view_on_demand(known, known.field, changed, out);
         }
         if (budgeted) {
-          full.refine_budget(AllowedError::from_vertices(field), budget, expected);
+          full.refine_budget(cut::AllowedError::from_vertices(field), budget, expected);
         } else {
-          full.refine(AllowedError::from_vertices(field), expected);
+          full.refine(cut::AllowedError::from_vertices(field), expected);
         }
         ASSERT_EQ(test::triangle_set(cut.triangles), test::triangle_set(expected.triangles))
             << "step " << step << (budgeted ? ", budgeted" : "");
@@ -603,27 +609,27 @@ TEST(Refine, DynamicEqualsStaticAfterRandomSequences) {
       expect_dynamic_matches_static(c, 17, 40);
     }
   }
-  expect_dynamic_matches_static(test::shape_case(Shape::kTerrain, 3'000), 23, 60);
-  expect_dynamic_matches_static(test::shape_case(Shape::kSphere, 8'000), 29, 60);
+  expect_dynamic_matches_static(test::shape_case(eval::Shape::kTerrain, 3'000), 23, 60);
+  expect_dynamic_matches_static(test::shape_case(eval::Shape::kSphere, 8'000), 29, 60);
 }
 
 // Budgeted dynamic refinement after sequences of fields equals the budgeted refinement from the root
 // of the last field: a focus moving in steps (told which vertices changed), jumping, per-vertex
 // noise, budgets from near the root's size to more than the whole error-bound cut.
 void expect_dynamic_budget_matches_static(const MtCase* c, std::uint32_t seed, int steps) {
-  const Mt& mt = c->mt;
+  const model::Mt& mt = c->mt;
   // What the method relies on: every node adds triangles, so a cut's size grows with its nodes.
   std::vector<std::uint32_t> removed(mt.node_count(), 0);
   for (std::uint32_t t = 0; t < mt.triangle_count(); ++t)
-    if (mt.triangle_remover[t] != kNoNode) ++removed[mt.triangle_remover[t]];
+    if (mt.triangle_remover[t] != model::kNoNode) ++removed[mt.triangle_remover[t]];
   for (std::uint32_t n = 1; n < mt.node_count(); ++n)
     ASSERT_GT(mt.node_triangle_offsets[n + 1] - mt.node_triangle_offsets[n], removed[n]) << "node " << n;
 
   std::mt19937 rng(seed);
   const float top = max_node_error(mt);
   const float diagonal = bbox_diagonal(c->mesh);
-  Refiner dynamic(mt), fixed(mt);
-  CutMesh moving, reference, other;
+  cut::Refiner dynamic(mt), fixed(mt);
+  cut::CutMesh moving, reference, other;
   std::vector<float> field(c->mesh.vertex_count()), previous;
   std::vector<std::uint32_t> changed;
   // Budgets from just above the root's size to twice the error-bound cut's (chosen anew at times).
@@ -664,7 +670,7 @@ void expect_dynamic_budget_matches_static(const MtCase* c, std::uint32_t seed, i
     changed.clear();
     for (std::uint32_t v = 0; v < field.size(); ++v)
       if (previous.empty() || field[v] != previous[v]) changed.push_back(v);
-    const AllowedError allowed = AllowedError::from_vertices(field);
+    const cut::AllowedError allowed = cut::AllowedError::from_vertices(field);
     fixed.refine(allowed, other);
     if (step == 0 || kind == 8) pick_budget(other.triangle_count());
     binding += other.triangle_count() > budget;
@@ -675,7 +681,7 @@ void expect_dynamic_budget_matches_static(const MtCase* c, std::uint32_t seed, i
       else
         dynamic.refine_budget(allowed, budget / 2, other);
     }
-    const std::optional<Rank> before = dynamic.budget_threshold();
+    const std::optional<cut::Rank> before = dynamic.budget_threshold();
     if (step % 7 == 3)
       dynamic.start_budget(allowed, budget, moving);
     else
@@ -704,24 +710,24 @@ void expect_dynamic_budget_matches_static(const MtCase* c, std::uint32_t seed, i
 TEST(Refine, DynamicBudgetEqualsBudgetFromTheRoot) {
   for (const char* file : {"bunny-npm-3k.ply", "dragon-vrip-res4-11k.ply", "armadillo-52k.ply"})
     if (const MtCase* c = test::scan_case(file)) expect_dynamic_budget_matches_static(c, 41, 60);
-  expect_dynamic_budget_matches_static(test::shape_case(Shape::kTerrain, 3'000), 43, 80);
-  expect_dynamic_budget_matches_static(test::shape_case(Shape::kSphere, 8'000), 47, 80);
+  expect_dynamic_budget_matches_static(test::shape_case(eval::Shape::kTerrain, 3'000), 43, 80);
+  expect_dynamic_budget_matches_static(test::shape_case(eval::Shape::kSphere, 8'000), 47, 80);
 }
 
 TEST(CutDelta, AppliedChangesRebuildEveryCutOfASequence) {
   // A client that applies each delta to a set of ids holds exactly the latest cut's ids.
-  const MtCase* c = test::shape_case(Shape::kSphere, 8'000);
+  const MtCase* c = test::shape_case(eval::Shape::kSphere, 8'000);
   std::mt19937 rng(31);
   const float top = max_node_error(c->mt);
-  Refiner refiner(c->mt);
-  CutMesh cut;
-  CutDelta delta;
+  cut::Refiner refiner(c->mt);
+  cut::CutMesh cut;
+  cut::CutDelta delta;
   std::set<std::uint32_t> client;
   std::vector<std::uint32_t> added, removed;
   std::size_t partial = 0;
   for (int step = 0; step < 30; ++step) {
     if (step == 20) delta.reset();  // the client starts over
-    refiner.update(AllowedError::from_vertices(focus_field(c->mesh, rng, top * 1e-3f, top * 0.3f)), cut);
+    refiner.update(cut::AllowedError::from_vertices(focus_field(c->mesh, rng, top * 1e-3f, top * 0.3f)), cut);
     const bool from_empty = delta.update(cut.ids, c->mt.triangle_count(), added, removed);
     EXPECT_EQ(from_empty, step == 0 || step == 20) << step;
     if (from_empty) client.clear();
@@ -757,8 +763,8 @@ TEST(Refine, DynamicAfterSmallMovesOfTheFocusEqualsStatic) {
   if (!c) GTEST_SKIP();
   const float top = max_node_error(c->mt);
   const float diagonal = bbox_diagonal(c->mesh);
-  Refiner dynamic(c->mt);
-  CutMesh moving, reference;
+  cut::Refiner dynamic(c->mt);
+  cut::CutMesh moving, reference;
   std::vector<float> field(c->mesh.vertex_count());
   for (int step = 0; step < 12; ++step) {
     const float fx = -0.05f + 0.01f * step;  // the focus walks along x through the model
@@ -767,8 +773,8 @@ TEST(Refine, DynamicAfterSmallMovesOfTheFocusEqualsStatic) {
       const float d = std::sqrt((p[0] - fx) * (p[0] - fx) + (p[1] - 0.1f) * (p[1] - 0.1f) + p[2] * p[2]);
       field[v] = top * (1e-3f + 0.1f * std::min(1.0f, d / (0.2f * diagonal)));
     }
-    dynamic.update(AllowedError::from_vertices(field), moving);
-    refine_static(c->mt, AllowedError::from_vertices(field), reference);
+    dynamic.update(cut::AllowedError::from_vertices(field), moving);
+    cut::refine_static(c->mt, cut::AllowedError::from_vertices(field), reference);
     ASSERT_EQ(test::triangle_set(moving.triangles), test::triangle_set(reference.triangles))
         << "step " << step;
   }
@@ -779,21 +785,21 @@ TEST(Refine, DynamicAfterSmallMovesOfTheFocusEqualsStatic) {
 TEST(Refine, FullResolutionDragonCutsAreConformingAndDynamicMatchesStatic) {
   const MtCase* c = test::scan_case("dragon-vrip-871k.ply");
   if (!c) GTEST_SKIP() << "dragon-vrip-871k.ply absent";
-  CutMesh out;
-  refine_static(c->mt, AllowedError::everywhere(-1.0f), out);
+  cut::CutMesh out;
+  cut::refine_static(c->mt, cut::AllowedError::everywhere(-1.0f), out);
   EXPECT_EQ(test::triangle_set(out.triangles), test::triangle_set(c->mesh.triangles));
   const float diagonal = bbox_diagonal(c->mesh);
-  Refiner dynamic(c->mt);
-  CutMesh moving;
+  cut::Refiner dynamic(c->mt);
+  cut::CutMesh moving;
   std::mt19937 rng(1);
   for (const float relative : {0.02f, 0.002f}) {
-    refine_static(c->mt, AllowedError::everywhere(diagonal * relative), out);
+    cut::refine_static(c->mt, cut::AllowedError::everywhere(diagonal * relative), out);
     EXPECT_LE(out.max_error, diagonal * relative);
     EXPECT_TRUE(test::validate_cut(c->reference, out.triangles)) << relative;
     const std::vector<float> field =
         focus_field(c->mesh, rng, diagonal * relative * 0.1f, diagonal * relative);
-    dynamic.update(AllowedError::from_vertices(field), moving);
-    refine_static(c->mt, AllowedError::from_vertices(field), out);
+    dynamic.update(cut::AllowedError::from_vertices(field), moving);
+    cut::refine_static(c->mt, cut::AllowedError::from_vertices(field), out);
     EXPECT_EQ(test::triangle_set(moving.triangles), test::triangle_set(out.triangles));
   }
 }

@@ -17,7 +17,7 @@
 
 #include "core/eval/mesh_gen.hpp"
 #include "core/io/mesh_io.hpp"
-#include "core/mesh_cleanup.hpp"
+#include "core/model/mesh_cleanup.hpp"
 #include "tests/core/test_meshes.hpp"
 
 namespace mtlod::core {
@@ -25,7 +25,7 @@ namespace {
 
 using Vec = std::array<double, 3>;
 
-Vec position(const Mesh& m, std::uint32_t v) {
+Vec position(const model::Mesh& m, std::uint32_t v) {
   return {m.positions[3 * std::size_t{v}], m.positions[3 * std::size_t{v} + 1],
           m.positions[3 * std::size_t{v} + 2]};
 }
@@ -43,7 +43,7 @@ double norm(const Vec& a) {
 }
 
 // Base edges as a set of unordered id pairs, independent of the subdivider's hash table.
-std::set<std::pair<std::uint32_t, std::uint32_t>> edge_set(const Mesh& m) {
+std::set<std::pair<std::uint32_t, std::uint32_t>> edge_set(const model::Mesh& m) {
   std::set<std::pair<std::uint32_t, std::uint32_t>> edges;
   for (std::size_t t = 0; t < m.triangle_count(); ++t) {
     for (int k = 0; k < 3; ++k) {
@@ -54,14 +54,14 @@ std::set<std::pair<std::uint32_t, std::uint32_t>> edge_set(const Mesh& m) {
   return edges;
 }
 
-double mean_edge_length(const Mesh& m) {
+double mean_edge_length(const model::Mesh& m) {
   const auto edges = edge_set(m);
   double sum = 0.0;
   for (const auto& [a, b] : edges) sum += norm(sub(position(m, a), position(m, b)));
   return sum / static_cast<double>(edges.size());
 }
 
-double total_area(const Mesh& m) {
+double total_area(const model::Mesh& m) {
   double sum = 0.0;
   for (std::size_t t = 0; t < m.triangle_count(); ++t) {
     const Vec a = position(m, m.triangles[3 * t]);
@@ -71,25 +71,25 @@ double total_area(const Mesh& m) {
   return sum;
 }
 
-Mesh generate(Shape shape, std::size_t triangles, float noise = 0.05f) {
-  GenerateOptions o;
+model::Mesh generate(eval::Shape shape, std::size_t triangles, float noise = 0.05f) {
+  eval::GenerateOptions o;
   o.shape = shape;
   o.target_triangles = triangles;
   o.noise = noise;
-  return generate_mesh(o);
+  return eval::generate_mesh(o);
 }
 
-Mesh split(const Mesh& base, std::uint32_t n, float noise = 0.0f, std::uint32_t seed = 1) {
-  SubdivideOptions o;
+model::Mesh split(const model::Mesh& base, std::uint32_t n, float noise = 0.0f, std::uint32_t seed = 1) {
+  eval::SubdivideOptions o;
   o.split = n;
   o.noise = noise;
   o.seed = seed;
-  return subdivide(base, o);
+  return eval::subdivide(base, o);
 }
 
 // Three triangles on the edge 0–1, a fin: one non-manifold edge, six boundary edges.
-Mesh fin() {
-  Mesh m;
+model::Mesh fin() {
+  model::Mesh m;
   m.positions = {0, 0, 0, 1, 0, 0, 0, 1, 0, 0, -1, 0, 0.5f, 0.3f, 1};
   m.triangles = {0, 1, 2, 1, 0, 3, 0, 1, 4};
   return m;
@@ -99,28 +99,28 @@ Mesh fin() {
 // 4 and 5 are copies of corners 2 and 0, so the diagonal is a closed crack between two components
 // whose faces, hence per-piece normals, differ. The copies' ids run against the originals' (4 < 5
 // but 4 sits at 2's place) to catch cuts ordered by id instead of position.
-Mesh cracked_square() {
-  Mesh m;
+model::Mesh cracked_square() {
+  model::Mesh m;
   m.positions = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0.5f, 1, 1, 0, 0, 0, 0};
   m.triangles = {0, 1, 2, 5, 4, 3};
   return m;
 }
 
 TEST(Subdivide, CountsMatchTheFormulas) {
-  const Mesh bases[] = {test::tetrahedron(), test::square(), fin(), generate(Shape::kTerrain, 500),
-                        generate(Shape::kSphere, 700)};
-  for (const Mesh& base : bases) {
+  const model::Mesh bases[] = {test::tetrahedron(), test::square(), fin(),
+                               generate(eval::Shape::kTerrain, 500), generate(eval::Shape::kSphere, 700)};
+  for (const model::Mesh& base : bases) {
     const std::uint64_t v = base.vertex_count(), e = edge_set(base).size(), f = base.triangle_count();
     for (std::uint64_t n : {1u, 2u, 3u, 5u, 8u}) {
       SCOPED_TRACE(testing::Message() << "V " << v << " split " << n);
-      SubdivideOptions options;
+      eval::SubdivideOptions options;
       options.split = static_cast<std::uint32_t>(n);
-      const Subdivider subdivider(base, options);
+      const eval::Subdivider subdivider(base, options);
       const std::uint64_t interior = n >= 2 ? (n - 1) * (n - 2) / 2 : 0;
       EXPECT_EQ(subdivider.counts().base_edges, e);
       EXPECT_EQ(subdivider.counts().vertices, v + e * (n - 1) + f * interior);
       EXPECT_EQ(subdivider.counts().triangles, f * n * n);
-      const Mesh out = subdivide(base, options);
+      const model::Mesh out = eval::subdivide(base, options);
       EXPECT_EQ(out.vertex_count(), subdivider.counts().vertices);
       EXPECT_EQ(out.triangle_count(), subdivider.counts().triangles);
       EXPECT_FALSE(out.has_colors());
@@ -132,10 +132,10 @@ TEST(Subdivide, CountsMatchTheFormulas) {
 TEST(Subdivide, TriangleSplitInFourHasTheDocumentedIds) {
   // Edges in order of first use: 0–1, 1–2, 2–0. Each is cut from its lexicographically smaller
   // end: 0–1 from 0, 1–2 from 2 (x = 0 < 2), 2–0 from 0; with n = 2 each gets one midpoint.
-  Mesh base;
+  model::Mesh base;
   base.positions = {0, 0, 0, 2, 0, 0, 0, 2, 0};
   base.triangles = {0, 1, 2};
-  const Mesh out = split(base, 2);
+  const model::Mesh out = split(base, 2);
   EXPECT_EQ(out.positions, (std::vector<float>{0, 0, 0, 2, 0, 0, 0, 2, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0}));
   // Corner 0, the inverted middle, corner 1, corner 2; all counter-clockwise like the base.
   EXPECT_EQ(out.triangles, (std::vector<std::uint32_t>{0, 3, 5, 3, 4, 5, 3, 1, 4, 5, 4, 2}));
@@ -145,25 +145,25 @@ TEST(Subdivide, ReversedTriangleReusesTheCutsInReverse) {
   // The square's triangles 0 1 2 and 0 2 3 walk the diagonal 2–0 and 0–2. It is the third edge
   // used, so with n = 3 its cuts are 4 + 2·2 = 8 and 9, and both triangles must use exactly those.
   const std::uint32_t n = 3;
-  const Mesh out = split(test::square(), n);
+  const model::Mesh out = split(test::square(), n);
   std::set<std::uint32_t> first(out.triangles.begin(), out.triangles.begin() + 3 * n * n);
   std::set<std::uint32_t> second(out.triangles.begin() + 3 * n * n, out.triangles.end());
   std::vector<std::uint32_t> shared;
   std::set_intersection(first.begin(), first.end(), second.begin(), second.end(), std::back_inserter(shared));
   EXPECT_EQ(shared, (std::vector<std::uint32_t>{0, 2, 8, 9}));
-  const TopologyReport r = analyze_topology(out.positions, out.triangles);
+  const model::TopologyReport r = model::analyze_topology(out.positions, out.triangles);
   EXPECT_EQ(r.boundary_edges, 4 * n);
   EXPECT_EQ(r.inconsistent_edges, 0u);
   EXPECT_EQ(r.duplicate_positions, 0u);
 }
 
 TEST(Subdivide, FlatSplitKeepsEveryVertexOnItsBaseTriangleAndTheArea) {
-  const Mesh bases[] = {test::tetrahedron(), fin(), generate(Shape::kTerrain, 800),
-                        generate(Shape::kShell, 1500)};
-  for (const Mesh& base : bases) {
+  const model::Mesh bases[] = {test::tetrahedron(), fin(), generate(eval::Shape::kTerrain, 800),
+                               generate(eval::Shape::kShell, 1500)};
+  for (const model::Mesh& base : bases) {
     for (std::uint32_t n : {2u, 3u, 7u}) {
       SCOPED_TRACE(testing::Message() << "V " << base.vertex_count() << " split " << n);
-      const Mesh out = split(base, n);
+      const model::Mesh out = split(base, n);
       // float32 coordinates of these unit-sized meshes round at about 1e-7, which is a few 1e-6
       // of their shortest base edges in barycentric terms.
       constexpr double kBarycentricSlack = 1e-4, kPlaneSlack = 1e-6;
@@ -198,9 +198,9 @@ TEST(Subdivide, FlatSplitKeepsEveryVertexOnItsBaseTriangleAndTheArea) {
 // The invariants of a split of a base without duplicate or repeated-id triangles: every base edge
 // becomes n edges of the same kind, and V − E + F is unchanged (ΔV = E(n−1) + F(n−1)(n−2)/2,
 // ΔE = E(n−1) + 3F·n(n−1)/2, ΔF = F(n²−1) cancel).
-void expect_topology_carried_over(const Mesh& base, const Mesh& out, std::uint32_t n) {
-  const TopologyReport b = analyze_topology(base.positions, base.triangles);
-  const TopologyReport r = analyze_topology(out.positions, out.triangles);
+void expect_topology_carried_over(const model::Mesh& base, const model::Mesh& out, std::uint32_t n) {
+  const model::TopologyReport b = model::analyze_topology(base.positions, base.triangles);
+  const model::TopologyReport r = model::analyze_topology(out.positions, out.triangles);
   EXPECT_EQ(r.boundary_edges, n * b.boundary_edges);
   EXPECT_EQ(r.non_manifold_edges, n * b.non_manifold_edges);
   EXPECT_EQ(r.inconsistent_edges, n * b.inconsistent_edges);
@@ -212,27 +212,27 @@ void expect_topology_carried_over(const Mesh& base, const Mesh& out, std::uint32
 }
 
 TEST(Subdivide, TopologyCarriesOver) {
-  Mesh two_pieces = test::tetrahedron();
+  model::Mesh two_pieces = test::tetrahedron();
   // A second, separate tetrahedron beside the first.
   for (std::size_t i = 0; i < 12; ++i)
     two_pieces.positions.push_back(two_pieces.positions[i] + (i % 3 == 0 ? 5 : 0));
   for (std::size_t i = 0; i < 12; ++i) two_pieces.triangles.push_back(two_pieces.triangles[i] + 4);
-  const Mesh bases[] = {test::tetrahedron(),
-                        test::square(),
-                        fin(),
-                        two_pieces,
-                        generate(Shape::kSphere, 600),
-                        generate(Shape::kTerrain, 600),
-                        generate(Shape::kShell, 900)};
-  for (const Mesh& base : bases) {
+  const model::Mesh bases[] = {test::tetrahedron(),
+                               test::square(),
+                               fin(),
+                               two_pieces,
+                               generate(eval::Shape::kSphere, 600),
+                               generate(eval::Shape::kTerrain, 600),
+                               generate(eval::Shape::kShell, 900)};
+  for (const model::Mesh& base : bases) {
     for (std::uint32_t n : {1u, 2u, 3u, 6u}) {
       for (float noise : {0.0f, 0.3f}) {
         SCOPED_TRACE(testing::Message()
                      << "V " << base.vertex_count() << " split " << n << " noise " << noise);
-        const Mesh out = split(base, n, noise);
+        const model::Mesh out = split(base, n, noise);
         expect_topology_carried_over(base, out, n);
         // Each cut is made once and shared by both triangles of its edge: no two vertices in one place.
-        const TopologyReport r = analyze_topology(out.positions, out.triangles);
+        const model::TopologyReport r = model::analyze_topology(out.positions, out.triangles);
         EXPECT_EQ(r.duplicate_positions, 0u);
         EXPECT_EQ(r.degenerate_triangles, 0u);
         EXPECT_EQ(r.duplicate_triangles, 0u);
@@ -242,20 +242,20 @@ TEST(Subdivide, TopologyCarriesOver) {
 }
 
 TEST(Subdivide, ClosedManifoldStaysClosedWithItsEulerCharacteristic) {
-  const Mesh base = generate(Shape::kSphere, 2000);
-  const Mesh out = split(base, 4, 0.2f);
-  const TopologyReport r = analyze_topology(out.positions, out.triangles);
+  const model::Mesh base = generate(eval::Shape::kSphere, 2000);
+  const model::Mesh out = split(base, 4, 0.2f);
+  const model::TopologyReport r = model::analyze_topology(out.positions, out.triangles);
   EXPECT_TRUE(r.is_closed_manifold()) << r.summary();
   EXPECT_EQ(r.euler_characteristic, 2);
   EXPECT_EQ(r.non_manifold_vertices, 0u);
 }
 
 TEST(Subdivide, CrackBetweenDuplicateVerticesStaysClosed) {
-  const Mesh base = cracked_square();
+  const model::Mesh base = cracked_square();
   for (float noise : {0.0f, 0.25f}) {
     const std::uint32_t n = 3;
-    const Mesh out = split(base, n, noise);
-    const TopologyReport r = analyze_topology(out.positions, out.triangles);
+    const model::Mesh out = split(base, n, noise);
+    const model::TopologyReport r = model::analyze_topology(out.positions, out.triangles);
     // The base's 2 duplicates, and the diagonal's n−1 cuts made twice, once per piece.
     EXPECT_EQ(r.duplicate_positions, 2u + (n - 1));
     EXPECT_EQ(r.components, 2u);
@@ -267,17 +267,17 @@ TEST(Subdivide, CrackBetweenDuplicateVerticesStaysClosed) {
 }
 
 TEST(Subdivide, NoiseIsBoundedDeterministicAndSeeded) {
-  const Mesh base = generate(Shape::kShell, 1200);
+  const model::Mesh base = generate(eval::Shape::kShell, 1200);
   const float noise = 0.3f;
-  SubdivideOptions options;
+  eval::SubdivideOptions options;
   options.split = 5;
   options.noise = noise;
-  const Subdivider subdivider(base, options);
+  const eval::Subdivider subdivider(base, options);
   const double amplitude = noise * mean_edge_length(base);
   // Both means are double sums of the same lengths in different orders.
   EXPECT_NEAR(subdivider.amplitude(), amplitude, 1e-12 * amplitude);
 
-  const Mesh flat = split(base, 5), noisy = subdivide(base, options);
+  const model::Mesh flat = split(base, 5), noisy = eval::subdivide(base, options);
   ASSERT_EQ(flat.positions.size(), noisy.positions.size());
   EXPECT_EQ(flat.triangles, noisy.triangles);
   double largest = 0.0, sum = 0.0;
@@ -291,9 +291,9 @@ TEST(Subdivide, NoiseIsBoundedDeterministicAndSeeded) {
   // Not trivially small: value noise's mean magnitude is a sizeable fraction of its bound.
   EXPECT_GT(sum / static_cast<double>(flat.vertex_count()), 0.05 * amplitude);
 
-  EXPECT_EQ(subdivide(base, options).positions, noisy.positions);
+  EXPECT_EQ(eval::subdivide(base, options).positions, noisy.positions);
   options.seed = 2;
-  const Mesh reseeded = subdivide(base, options);
+  const model::Mesh reseeded = eval::subdivide(base, options);
   EXPECT_NE(reseeded.positions, noisy.positions);
   EXPECT_EQ(reseeded.triangles, noisy.triangles);
 }
@@ -304,13 +304,13 @@ TEST(Subdivide, NoiseIsSmoothAcrossTheSurface) {
   // four octaves give at most 4 · 6.5 / 1.875 < 14 per coarsest-lattice unit (the wavelength). The
   // displacement's length is amplitude · |noise| along a unit normal, so along every output edge
   // it changes by at most amplitude · 14 · (flat edge length) / wavelength; white noise would not.
-  const Mesh base = generate(Shape::kSphere, 300, 0.0f);
-  SubdivideOptions options;
+  const model::Mesh base = generate(eval::Shape::kSphere, 300, 0.0f);
+  eval::SubdivideOptions options;
   options.split = 12;
   options.noise = 0.5f;
   options.wavelength = 4.0f;
-  const Mesh noisy = subdivide(base, options);
-  const Mesh flat = split(base, options.split);
+  const model::Mesh noisy = eval::subdivide(base, options);
+  const model::Mesh flat = split(base, options.split);
   const double amplitude = 0.5 * mean_edge_length(base), wavelength = 4.0 * mean_edge_length(base);
   double largest_ratio = 0.0;
   for (std::size_t t = 0; t < flat.triangle_count(); ++t) {
@@ -330,8 +330,8 @@ TEST(Subdivide, NoiseIsSmoothAcrossTheSurface) {
 TEST(Subdivide, TetrahedronCornersMoveAlongTheirRadialNormals) {
   // A regular tetrahedron centred on the origin: by symmetry each corner's area-weighted normal
   // points away from the centre, so a displaced corner stays on its ray.
-  const Mesh base = test::tetrahedron();
-  const Mesh out = split(base, 3, 0.4f);
+  const model::Mesh base = test::tetrahedron();
+  const model::Mesh out = split(base, 3, 0.4f);
   const double amplitude = 0.4 * mean_edge_length(base);
   for (std::uint32_t v = 0; v < 4; ++v) {
     const Vec before = position(base, v), after = position(out, v);
@@ -341,11 +341,11 @@ TEST(Subdivide, TetrahedronCornersMoveAlongTheirRadialNormals) {
 }
 
 TEST(Subdivide, ColoursAreInterpolated) {
-  Mesh base;
+  model::Mesh base;
   base.positions = {0, 0, 0, 3, 0, 0, 0, 3, 0};
   base.colors = {0, 0, 0, 255, 90, 30, 0, 30, 201};
   base.triangles = {0, 1, 2};
-  const Mesh out = split(base, 3, 0.1f);
+  const model::Mesh out = split(base, 3, 0.1f);
   ASSERT_EQ(out.colors.size(), out.positions.size());
   EXPECT_TRUE(std::equal(base.colors.begin(), base.colors.end(), out.colors.begin()));
   // Edge 0–1 is cut from 0 (x = 0 < 3): cuts at 1/3 and 2/3 of the way to corner 1.
@@ -358,8 +358,8 @@ TEST(Subdivide, ColoursAreInterpolated) {
 }
 
 // Records every call, copying the chunks, and can fail on a chosen triangle call.
-struct RecordingSink final : SubdivisionSink {
-  Mesh mesh;
+struct RecordingSink final : eval::SubdivisionSink {
+  model::Mesh mesh;
   std::size_t largest_vertex_chunk = 0, largest_triangle_chunk = 0, triangle_calls = 0;
   bool vertices_after_triangles = false;
   std::size_t fail_on_triangle_call = SIZE_MAX;
@@ -379,16 +379,16 @@ struct RecordingSink final : SubdivisionSink {
 };
 
 TEST(Subdivide, ChunkSizesDoNotChangeTheOutput) {
-  const Mesh base = generate(Shape::kTerrain, 300);
-  SubdivideOptions options;
+  const model::Mesh base = generate(eval::Shape::kTerrain, 300);
+  eval::SubdivideOptions options;
   options.split = 4;
   options.noise = 0.1f;
-  const Mesh whole = subdivide(base, options);
+  const model::Mesh whole = eval::subdivide(base, options);
   for (std::size_t chunk : {1u, 7u, 1000u}) {
     options.chunk_vertices = chunk;
     options.chunk_triangles = chunk + 2;
     RecordingSink sink;
-    ASSERT_TRUE(Subdivider(base, options).run(sink).ok());
+    ASSERT_TRUE(eval::Subdivider(base, options).run(sink).ok());
     EXPECT_EQ(sink.mesh.positions, whole.positions);
     EXPECT_EQ(sink.mesh.triangles, whole.triangles);
     EXPECT_FALSE(sink.vertices_after_triangles);
@@ -398,19 +398,19 @@ TEST(Subdivide, ChunkSizesDoNotChangeTheOutput) {
 }
 
 TEST(Subdivide, SinkErrorStopsTheRun) {
-  SubdivideOptions options;
+  eval::SubdivideOptions options;
   options.split = 4;
   options.chunk_triangles = 5;
   RecordingSink sink;
   sink.fail_on_triangle_call = 2;
-  const Status status = Subdivider(generate(Shape::kSphere, 200), options).run(sink);
+  const Status status = eval::Subdivider(generate(eval::Shape::kSphere, 200), options).run(sink);
   ASSERT_FALSE(status.ok());
   EXPECT_EQ(status.error().message, "disk full");
   EXPECT_EQ(sink.triangle_calls, 3u);
 }
 
 // Triangles grouped by vertex set: the number of sets used more than once.
-std::size_t repeated_vertex_sets(const Mesh& m) {
+std::size_t repeated_vertex_sets(const model::Mesh& m) {
   std::map<std::array<std::uint32_t, 3>, std::size_t> uses;
   for (std::size_t t = 0; t < m.triangle_count(); ++t) {
     std::array<std::uint32_t, 3> key{m.triangles[3 * t], m.triangles[3 * t + 1], m.triangles[3 * t + 2]};
@@ -430,10 +430,10 @@ TEST(Subdivide, RealScansKeepTheirDefects) {
   {
     auto loaded = io::load_mesh(dir / "bunny-zipper-69k.ply", {.clean = false});
     ASSERT_TRUE(loaded.ok()) << loaded.error().message;
-    const Mesh& base = loaded->mesh;
-    const Mesh out = split(base, 2, 0.1f);
+    const model::Mesh& base = loaded->mesh;
+    const model::Mesh out = split(base, 2, 0.1f);
     expect_topology_carried_over(base, out, 2);
-    EXPECT_GT(analyze_topology(base.positions, base.triangles).boundary_edges, 0u);
+    EXPECT_GT(model::analyze_topology(base.positions, base.triangles).boundary_edges, 0u);
   }
   // The non-manifold dragon with 502 duplicate triangles. A triangle and its copies share their
   // edges' cuts, so at each corner the edge between the two first cuts, used by two triangles of
@@ -443,14 +443,14 @@ TEST(Subdivide, RealScansKeepTheirDefects) {
   {
     auto loaded = io::load_mesh(dir / "dragon-vrip-res4-11k.ply", {.clean = false});
     ASSERT_TRUE(loaded.ok()) << loaded.error().message;
-    const Mesh& base = loaded->mesh;
-    const TopologyReport b = analyze_topology(base.positions, base.triangles);
+    const model::Mesh& base = loaded->mesh;
+    const model::TopologyReport b = model::analyze_topology(base.positions, base.triangles);
     ASSERT_GT(b.non_manifold_edges, 0u);
     ASSERT_GT(b.duplicate_triangles, 0u);
     ASSERT_EQ(b.degenerate_triangles, 0u);
     const std::uint32_t n = 3;
-    const Mesh out = split(base, n, 0.1f);
-    const TopologyReport r = analyze_topology(out.positions, out.triangles);
+    const model::Mesh out = split(base, n, 0.1f);
+    const model::TopologyReport r = model::analyze_topology(out.positions, out.triangles);
     EXPECT_EQ(r.non_manifold_edges, n * b.non_manifold_edges + 3 * repeated_vertex_sets(base));
     EXPECT_EQ(r.euler_characteristic,
               b.euler_characteristic + 3 * static_cast<std::int64_t>(b.duplicate_triangles));

@@ -75,17 +75,17 @@ TEST(PointTriangleDistance, HandMadeRegions) {
   const double a[3] = {0, 0, 0}, b[3] = {1, 0, 0}, c[3] = {0, 1, 0};
   // Above the face: the height.
   const double above[3] = {0.25, 0.25, 2};
-  EXPECT_DOUBLE_EQ(point_triangle_distance(above, a, b, c), 2.0);
+  EXPECT_DOUBLE_EQ(eval::point_triangle_distance(above, a, b, c), 2.0);
   // Beyond vertex b along the x axis: the distance to b.
   const double beyond[3] = {3, 0, 0};
-  EXPECT_DOUBLE_EQ(point_triangle_distance(beyond, a, b, c), 2.0);
+  EXPECT_DOUBLE_EQ(eval::point_triangle_distance(beyond, a, b, c), 2.0);
   // Outside the hypotenuse, in the plane: distance to the line x + y = 1 is (x + y − 1)/√2.
   const double outside[3] = {1, 1, 0};
-  EXPECT_NEAR(point_triangle_distance(outside, a, b, c), 1.0 / std::sqrt(2.0), 1e-15);
+  EXPECT_NEAR(eval::point_triangle_distance(outside, a, b, c), 1.0 / std::sqrt(2.0), 1e-15);
   // A collinear (zero-area) triangle behaves as its longest segment.
   const double d[3] = {2, 0, 0};
   const double p[3] = {1, 3, 0};
-  EXPECT_DOUBLE_EQ(point_triangle_distance(p, a, b, d), 3.0);
+  EXPECT_DOUBLE_EQ(eval::point_triangle_distance(p, a, b, d), 3.0);
 }
 
 TEST(TriangleIndex, MatchesBruteForceOnRandomTriangles) {
@@ -98,7 +98,7 @@ TEST(TriangleIndex, MatchesBruteForceOnRandomTriangles) {
       s.positions.insert(s.positions.end(), {cx + small(rng), cy + small(rng), cz + small(rng)});
     s.triangles.insert(s.triangles.end(), {3 * t, 3 * t + 1, 3 * t + 2});
   }
-  TriangleIndex index(s.positions, s.triangles);
+  eval::TriangleIndex index(s.positions, s.triangles);
   for (int q = 0; q < 2000; ++q) {
     // Half the queries inside the box, half far outside it.
     const float x = q % 2 ? far(rng) : coord(rng), y = q % 2 ? far(rng) : coord(rng),
@@ -109,7 +109,7 @@ TEST(TriangleIndex, MatchesBruteForceOnRandomTriangles) {
       double v[3][3];
       for (int k = 0; k < 3; ++k)
         for (int c = 0; c < 3; ++c) v[k][c] = s.positions[3 * s.triangles[3 * t + k] + c];
-      expected = std::min(expected, point_triangle_distance(p, v[0], v[1], v[2]));
+      expected = std::min(expected, eval::point_triangle_distance(p, v[0], v[1], v[2]));
     }
     // The index evaluates the same exact function on a subset that must contain the nearest triangle.
     ASSERT_EQ(index.distance(x, y, z), expected) << "query " << q;
@@ -118,8 +118,8 @@ TEST(TriangleIndex, MatchesBruteForceOnRandomTriangles) {
 
 TEST(SurfaceMetrics, IdenticalMeshesHaveZeroError) {
   const Soup s = sphere(3);
-  const SurfaceError e =
-      compare_surfaces(s.positions, s.triangles, s.positions, s.triangles, {20000, true, 3});
+  const eval::SurfaceError e =
+      eval::compare_surfaces(s.positions, s.triangles, s.positions, s.triangles, {20000, true, 3});
   // Area samples are rounded to float, so they sit up to ~1 ulp of a unit coordinate off the plane.
   EXPECT_LT(e.hausdorff(), 1e-6);
   EXPECT_LT(e.rms(), 1e-6);
@@ -128,8 +128,8 @@ TEST(SurfaceMetrics, IdenticalMeshesHaveZeroError) {
 
 TEST(SurfaceMetrics, PlaneOffsetByKnownDistance) {
   const Soup a = plane(8, 2.0f, 0.0f), b = plane(3, 2.0f, 0.25f);
-  const SurfaceError e =
-      compare_surfaces(a.positions, a.triangles, b.positions, b.triangles, {5000, true, 11});
+  const eval::SurfaceError e =
+      eval::compare_surfaces(a.positions, a.triangles, b.positions, b.triangles, {5000, true, 11});
   // Both planes cover the same square, so every sample's nearest point is straight above or below it:
   // every distance is 0.25 (float rounding of 0.25 is exact; the samples' z is exactly 0 or 0.25).
   EXPECT_NEAR(e.a_to_b.max, 0.25, 1e-7);
@@ -140,8 +140,8 @@ TEST(SurfaceMetrics, PlaneOffsetByKnownDistance) {
 
 TEST(SurfaceMetrics, SphereAgainstInscribedOctahedron) {
   const Soup ball = sphere(5), octa = octahedron();  // 8192 triangles on the unit sphere
-  const SurfaceError e =
-      compare_surfaces(ball.positions, ball.triangles, octa.positions, octa.triangles, {50000, true, 5});
+  const eval::SurfaceError e = eval::compare_surfaces(ball.positions, ball.triangles, octa.positions,
+                                                      octa.triangles, {50000, true, 5});
   // The farthest points are the face centres of the octahedron, at 1/√3 from the centre, against the
   // sphere point straight outside them: 1 − 1/√3 both ways. Tolerance: the polyhedral sphere's chords
   // (edge ≈ π/64 → sag ≈ edge²/8 ≈ 3e-4) and the sampling near the maximum (quadratic in the angle).
@@ -169,16 +169,16 @@ TEST(SurfaceMetrics, MaskRestrictsSamples) {
   const Soup s = plane(4, 1.0f, 0.0f);
   std::vector<std::uint8_t> mask(s.triangles.size() / 3, 0);
   for (std::size_t t = 0; t < mask.size(); t += 3) mask[t] = 1;
-  SurfaceSamples samples;
-  sample_surface(s.positions, s.triangles, mask, {1000, true, 1}, samples);
+  eval::SurfaceSamples samples;
+  eval::sample_surface(s.positions, s.triangles, mask, {1000, true, 1}, samples);
   ASSERT_GT(samples.size(), 1000u);
   for (const std::uint32_t t : samples.triangle_ids) EXPECT_EQ(mask[t], 1);
   // The same mask in the distance pass: only the masked samples count; a plane 1 above is 1 away.
   const Soup above = plane(1, 1.0f, 1.0f);
-  TriangleIndex index(above.positions, above.triangles);
-  SurfaceSamples all;
-  sample_surface(s.positions, s.triangles, {}, {1000, false, 1}, all);
-  const DistanceStats masked = sample_distances_masked(all, mask, index);
+  eval::TriangleIndex index(above.positions, above.triangles);
+  eval::SurfaceSamples all;
+  eval::sample_surface(s.positions, s.triangles, {}, {1000, false, 1}, all);
+  const eval::DistanceStats masked = eval::sample_distances_masked(all, mask, index);
   std::size_t expected = 0;
   for (const std::uint32_t t : all.triangle_ids) expected += mask[t];
   EXPECT_EQ(masked.samples, expected);
@@ -187,7 +187,7 @@ TEST(SurfaceMetrics, MaskRestrictsSamples) {
 
 TEST(SurfaceMetrics, EmptyTargetIsInfinitelyFar) {
   const Soup s = plane(1, 1.0f, 0.0f);
-  TriangleIndex empty(s.positions, std::span<const std::uint32_t>());
+  eval::TriangleIndex empty(s.positions, std::span<const std::uint32_t>());
   EXPECT_TRUE(std::isinf(empty.distance(0, 0, 0)));
 }
 

@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "core/mesh.hpp"
+#include "core/model/mesh.hpp"
 
 namespace mtlod::test {
 
@@ -51,16 +51,16 @@ inline void write_file(const std::filesystem::path& path, const std::string& byt
 }
 
 // Regular tetrahedron, outward: closed 2-manifold, V=4 E=6 F=4, Euler characteristic 2.
-inline core::Mesh tetrahedron() {
-  core::Mesh m;
+inline core::model::Mesh tetrahedron() {
+  core::model::Mesh m;
   m.positions = {1, 1, 1, 1, -1, -1, -1, 1, -1, -1, -1, 1};
   m.triangles = {0, 1, 2, 0, 3, 1, 0, 2, 3, 1, 3, 2};
   return m;
 }
 
 // Unit square in z=0 as two triangles: one boundary loop of 4 edges, 5 edges, Euler characteristic 1.
-inline core::Mesh square() {
-  core::Mesh m;
+inline core::model::Mesh square() {
+  core::model::Mesh m;
   m.positions = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0};
   m.triangles = {0, 1, 2, 0, 2, 3};
   return m;

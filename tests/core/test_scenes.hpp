@@ -1,4 +1,4 @@
-// Small hand-made scenes for the grid-stage tests (DESIGN.md §1): an axis-aligned rectangle and a UV
+// Small scenes for grid-stage tests (core/ARCHITECTURE.md §1): an axis-aligned rectangle and a UV
 // sphere, as flat position and triangle arrays, with the cameras the tests reason about.
 #pragma once
 
@@ -9,7 +9,7 @@
 
 #include <glm/gtc/matrix_transform.hpp>
 
-#include "core/view_grid.hpp"
+#include "core/view/view_grid.hpp"
 
 namespace mtlod::core::test {
 
@@ -74,11 +74,11 @@ inline Scene uv_sphere(float radius, std::uint32_t stacks, std::uint32_t slices)
 
 // Orthographic camera on the +z axis seeing [-half, half]² on a side×side grid: model point (x, y)
 // has grid coordinates ((x + half)·side/(2·half), (half − y)·side/(2·half)), and clip.w = 1.
-inline ViewMapping ortho_camera(float half, std::uint32_t side) {
-  Camera camera;
+inline view::ViewMapping ortho_camera(float half, std::uint32_t side) {
+  view::Camera camera;
   camera.view = glm::lookAt(glm::vec3(0, 0, 5), glm::vec3(0, 0, 0), glm::vec3(0, 1, 0));
   camera.projection = glm::ortho(-half, half, -half, half, 0.1f, 10.0f);
-  return ViewMapping(camera, GridSize{side, side});
+  return view::ViewMapping(camera, view::GridSize{side, side});
 }
 
 }  // namespace mtlod::core::test

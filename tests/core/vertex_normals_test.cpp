@@ -1,7 +1,7 @@
 // Vertex normals against hand-computed ones (a cube corner, a flat fan however it is split), a
 // sphere's radial directions, the repair of NaN, zero and missing normals, and the MT's normals
 // against the mesh it was built from.
-#include "core/vertex_normals.hpp"
+#include "core/build/vertex_normals.hpp"
 
 #include <gtest/gtest.h>
 
@@ -9,8 +9,8 @@
 #include <limits>
 #include <vector>
 
+#include "core/build/mt_builder.hpp"
 #include "core/eval/mesh_gen.hpp"
-#include "core/mt_builder.hpp"
 #include "tests/core/test_meshes.hpp"
 
 namespace mtlod::core {
@@ -24,8 +24,8 @@ double length3(const float* a) {
 }
 
 // The unit cube, each face split along a diagonal; counter-clockwise seen from outside.
-Mesh cube(bool other_diagonals) {
-  Mesh m;
+model::Mesh cube(bool other_diagonals) {
+  model::Mesh m;
   for (int i = 0; i < 8; ++i)
     m.positions.insert(m.positions.end(), {float(i & 1), float(i >> 1 & 1), float(i >> 2 & 1)});
   // Each face as a quad a, b, c, d counter-clockwise from outside.
@@ -44,8 +44,8 @@ TEST(VertexNormals, CubeCornersPointAlongTheDiagonalHoweverTheFacesAreSplit) {
   // Every corner meets three faces at 90° each, whichever diagonal splits them: angle weighting
   // gives the corner the direction (±1, ±1, ±1)/√3 exactly (area or plain averaging would not).
   for (const bool other : {false, true}) {
-    const Mesh m = cube(other);
-    const std::vector<float> n = vertex_normals(m.positions, m.triangles);
+    const model::Mesh m = cube(other);
+    const std::vector<float> n = build::vertex_normals(m.positions, m.triangles);
     ASSERT_EQ(n.size(), m.positions.size());
     for (std::size_t v = 0; v < 8; ++v) {
       double want[3];
@@ -56,19 +56,19 @@ TEST(VertexNormals, CubeCornersPointAlongTheDiagonalHoweverTheFacesAreSplit) {
 }
 
 TEST(VertexNormals, FlatFanGivesThePlaneNormalAndDegenerateTrianglesAddNothing) {
-  Mesh m = test::square();
+  model::Mesh m = test::square();
   m.triangles.insert(m.triangles.end(), {0, 0, 1});  // a repeated corner: no direction
-  const std::vector<float> n = vertex_normals(m.positions, m.triangles);
+  const std::vector<float> n = build::vertex_normals(m.positions, m.triangles);
   const double z[3] = {0, 0, 1};
   for (std::size_t v = 0; v < m.vertex_count(); ++v) EXPECT_NEAR(dot3(&n[3 * v], z), 1.0, 1e-6) << v;
 }
 
 TEST(VertexNormals, SphereNormalsAreRadial) {
-  GenerateOptions o;
+  eval::GenerateOptions o;
   o.target_triangles = 20'000;
   o.noise = 0;
-  const Mesh m = generate_mesh(o);
-  const std::vector<float> n = vertex_normals(m.positions, m.triangles);
+  const model::Mesh m = eval::generate_mesh(o);
+  const std::vector<float> n = build::vertex_normals(m.positions, m.triangles);
   double worst = 1;
   for (std::size_t v = 0; v < m.vertex_count(); ++v) {
     const float* p = &m.positions[3 * v];
@@ -80,23 +80,23 @@ TEST(VertexNormals, SphereNormalsAreRadial) {
 }
 
 TEST(VertexNormals, IsolatedVertexGetsAUnitNormalNotNaN) {
-  Mesh m = test::square();
+  model::Mesh m = test::square();
   m.positions.insert(m.positions.end(), {5, 5, 5});
-  const std::vector<float> n = vertex_normals(m.positions, m.triangles);
+  const std::vector<float> n = build::vertex_normals(m.positions, m.triangles);
   const float* lonely = &n[3 * (m.vertex_count() - 1)];
   EXPECT_NEAR(length3(lonely), 1.0, 1e-6);
 }
 
 TEST(RepairNormals, ReplacesNaNAndZeroNormalsKeepsAndNormalisesTheRest) {
-  Mesh m = cube(false);
-  const std::vector<float> computed = vertex_normals(m.positions, m.triangles);
+  model::Mesh m = cube(false);
+  const std::vector<float> computed = build::vertex_normals(m.positions, m.triangles);
   m.normals.assign(m.positions.size(), 0.0f);
   for (std::size_t v = 0; v < 8; ++v) {
     m.normals[3 * v] = 3.0f;  // the file's own (odd but valid) direction +x, not unit length
   }
   m.normals[3 * 2 + 1] = std::numeric_limits<float>::quiet_NaN();  // vertex 2: NaN
   std::fill_n(&m.normals[3 * 5], 3, 0.0f);                         // vertex 5: zero length
-  const NormalRepair r = repair_normals(m.normals, m.positions, m.triangles);
+  const build::NormalRepair r = build::repair_normals(m.normals, m.positions, m.triangles);
   EXPECT_TRUE(r.had_normals);
   EXPECT_EQ(r.computed, 2u);
   for (std::size_t v = 0; v < 8; ++v) {
@@ -111,39 +111,39 @@ TEST(RepairNormals, ReplacesNaNAndZeroNormalsKeepsAndNormalisesTheRest) {
 }
 
 TEST(RepairNormals, ComputesAllWhenThereAreNone) {
-  Mesh m = cube(true);
-  const NormalRepair r = repair_normals(m.normals, m.positions, m.triangles);
+  model::Mesh m = cube(true);
+  const build::NormalRepair r = build::repair_normals(m.normals, m.positions, m.triangles);
   EXPECT_FALSE(r.had_normals);
   EXPECT_EQ(r.computed, 8u);
-  EXPECT_EQ(m.normals, vertex_normals(m.positions, m.triangles));
+  EXPECT_EQ(m.normals, build::vertex_normals(m.positions, m.triangles));
 }
 
 TEST(BuildMt, EveryMtHasTheInputSurfaceNormals) {
-  GenerateOptions o;
+  eval::GenerateOptions o;
   o.target_triangles = 5'000;
   o.noise = 0.1f;
-  const Mesh m = generate_mesh(o);
+  const model::Mesh m = eval::generate_mesh(o);
   ASSERT_FALSE(m.has_normals());
-  BuildStats stats;
+  build::BuildStats stats;
   std::vector<std::uint32_t> ids;
-  auto mt = build_mt(m, {}, &stats, &ids);
+  auto mt = build::build_mt(m, {}, &stats, &ids);
   ASSERT_TRUE(mt.ok()) << mt.error().message;
   EXPECT_EQ(stats.normals_computed, m.vertex_count());
   ASSERT_TRUE(mt->has_normals());
-  const std::vector<float> want = vertex_normals(m.positions, m.triangles);
+  const std::vector<float> want = build::vertex_normals(m.positions, m.triangles);
   // The same normals, under the MT's numbering; and the MT computes them from its own
   // full-resolution triangles as an MT stored without normals gets them at load.
-  MtArrays arrays = mt->arrays();
+  model::MtArrays arrays = mt->arrays();
   arrays.normals.clear();
-  Mt without(std::move(arrays));
-  ASSERT_TRUE(ensure_normals(without));
+  model::Mt without(std::move(arrays));
+  ASSERT_TRUE(build::ensure_normals(without));
   for (std::size_t v = 0; v < m.vertex_count(); ++v) {
     for (int k = 0; k < 3; ++k) {
       EXPECT_FLOAT_EQ(mt->normals[3 * std::size_t{ids[v]} + k], want[3 * v + k]) << v;
       EXPECT_NEAR(without.normals[3 * std::size_t{ids[v]} + k], want[3 * v + k], 1e-5) << v;
     }
   }
-  EXPECT_FALSE(ensure_normals(without)) << "normals computed twice";
+  EXPECT_FALSE(build::ensure_normals(without)) << "normals computed twice";
 }
 
 }  // namespace

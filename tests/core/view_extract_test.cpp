@@ -1,7 +1,7 @@
 // The request pipeline in core (view_extract), end to end on a real MT: the papers' silhouette
 // guarantee on the 871k dragon, falling density around a focus, exact Euclidean labels against
 // brute force, and occupancy cuts chosen by the model's size on the grid.
-#include "core/view_extract.hpp"
+#include "core/view/view_extract.hpp"
 
 #include <gtest/gtest.h>
 
@@ -13,14 +13,14 @@
 #include <random>
 #include <set>
 
-#include "core/bounds.hpp"
-#include "core/distance_transform.hpp"
+#include "core/build/mt_builder.hpp"
 #include "core/eval/mesh_gen.hpp"
 #include "core/io/mesh_io.hpp"
-#include "core/labels.hpp"
-#include "core/mt_builder.hpp"
-#include "core/occupancy.hpp"
-#include "core/occupancy_levels.hpp"
+#include "core/model/bounds.hpp"
+#include "core/view/distance_transform.hpp"
+#include "core/view/labels.hpp"
+#include "core/view/occupancy.hpp"
+#include "core/view/occupancy_levels.hpp"
 #include "tests/core/cut_validator.hpp"
 #include "tests/core/mt_fixtures.hpp"
 #include "tests/core/test_meshes.hpp"
@@ -35,47 +35,47 @@ namespace mtlod::core {
 namespace {
 
 struct Built {
-  Mesh input;
-  Mt mt;
-  std::unique_ptr<OccupancyLevels> levels;
+  model::Mesh input;
+  model::Mt mt;
+  std::unique_ptr<view::OccupancyLevels> levels;
   bool coarse_topology_changes = false;  // the builder's topology phase made collapses
   bool stacked_faces = false;            // some of them may stack two faces
 };
 
-std::unique_ptr<Built> build(Mesh mesh) {
+std::unique_ptr<Built> build(model::Mesh mesh) {
   auto b = std::make_unique<Built>();
   b->input = std::move(mesh);
-  BuildStats stats;
+  build::BuildStats stats;
   auto mt = test::build_mt_renumbering(b->input, {}, &stats);
   EXPECT_TRUE(mt.ok()) << mt.error().message;
   if (!mt.ok()) return nullptr;
   b->mt = std::move(*mt);
   b->coarse_topology_changes = stats.topology_collapses > 0;
   b->stacked_faces = stats.stacking_collapses > 0;
-  b->levels = std::make_unique<OccupancyLevels>(b->mt);
+  b->levels = std::make_unique<view::OccupancyLevels>(b->mt);
   return b;
 }
 
 // A perspective camera at centre + distance·axis looking at the bounding-box centre of `positions`,
 // the whole box in view (for an axis of about unit length).
-Camera camera_along(std::span<const float> positions, glm::vec3 axis, float aspect) {
-  const Bounds box = bounds_of(positions);
+view::Camera camera_along(std::span<const float> positions, glm::vec3 axis, float aspect) {
+  const model::Bounds box = model::bounds_of(positions);
   const std::array<float, 3> middle = box.centre();
   const glm::vec3 centre(middle[0], middle[1], middle[2]);
   const float distance = 1.1f * box.radius() / std::sin(glm::radians(22.5f));
-  Camera c;
+  view::Camera c;
   c.view = glm::lookAt(centre + distance * axis, centre, glm::vec3(0, 1, 0));
   c.projection = glm::perspective(glm::radians(45.0f), aspect, distance / 100, distance * 100);
   return c;
 }
 
 // The same from +z.
-Camera front_camera(const Mesh& m, float aspect) {
+view::Camera front_camera(const model::Mesh& m, float aspect) {
   return camera_along(m.positions, glm::vec3(0, 0, 1), aspect);
 }
 
-void run(ViewExtractor& x, const ViewRequest& r, Refiner& refiner, CutMesh& cut,
-         ViewCache* session = nullptr) {
+void run(view::ViewExtractor& x, const view::ViewRequest& r, cut::Refiner& refiner, cut::CutMesh& cut,
+         view::ViewCache* session = nullptr) {
   x.map(r, session);
   x.occupancy();
   x.distance_transforms();
@@ -85,8 +85,8 @@ void run(ViewExtractor& x, const ViewRequest& r, Refiner& refiner, CutMesh& cut,
 
 // What the session tests compare with: a static extraction from nothing that computes every
 // vertex's allowed error (with r's budget, if any), in a fresh refiner.
-void run_fresh(ViewExtractor& x, const Mt& mt, ViewRequest r, CutMesh& cut) {
-  Refiner fresh(mt);
+void run_fresh(view::ViewExtractor& x, const model::Mt& mt, view::ViewRequest r, cut::CutMesh& cut) {
+  cut::Refiner fresh(mt);
   r.dynamic = false;
   r.allowed_error_on_demand = false;
   run(x, r, fresh, cut);
@@ -106,25 +106,25 @@ const Built* dragon() {
 TEST(ViewExtract, DragonSilhouetteRegionIsAtFullResolutionAndTheRestIsCoarser) {
   const Built* d = dragon();
   if (!d) GTEST_SKIP() << "no shared dragon-vrip-871k.ply";
-  ViewRequest r;
+  view::ViewRequest r;
   r.camera = front_camera(d->input, 1.0f);
   r.grid = {256, 256};
   r.allowed.error = 8.0f;  // pixels, outside the region
-  r.allowed.units = ErrorUnits::kScreenPixels;
+  r.allowed.units = view::ErrorUnits::kScreenPixels;
   r.allowed.viewport_height_px = 256;
   r.allowed.use_silhouette = true;
-  r.allowed.silhouette = RegionLaw{FalloffLaw::kStep, 2.0f, 0.0f};  // d = 2 px, f = 0
+  r.allowed.silhouette = view::RegionLaw{view::FalloffLaw::kStep, 2.0f, 0.0f};  // d = 2 px, f = 0
   r.labels = true;
-  ViewExtractor x(d->mt, *d->levels);
-  Refiner refiner(d->mt);
-  CutMesh cut;
+  view::ViewExtractor x(d->mt, *d->levels);
+  cut::Refiner refiner(d->mt);
+  cut::CutMesh cut;
   run(x, r, refiner, cut);
 
   // Independent labels: the 5-7-11 transform of the extractor's occupancy, each vertex projected
   // through the mapping again.
   std::vector<std::uint16_t> dt(r.grid.cell_count());
-  chamfer_5_7_11(x.occupancy_grid(), r.grid, dt);
-  const std::uint32_t d_raw = raw_threshold(2.0f, DistanceMetric::kChamfer5711);  // 10
+  view::chamfer_5_7_11(x.occupancy_grid(), r.grid, dt);
+  const std::uint32_t d_raw = view::raw_threshold(2.0f, view::DistanceMetric::kChamfer5711);  // 10
   std::set<std::array<std::uint32_t, 3>> input;
   for (std::size_t t = 0; t < d->input.triangle_count(); ++t) {
     input.insert(test::canonical(d->input.triangles[3 * t], d->input.triangles[3 * t + 1],
@@ -133,10 +133,10 @@ TEST(ViewExtract, DragonSilhouetteRegionIsAtFullResolutionAndTheRestIsCoarser) {
   std::size_t in_region = 0, coarse = 0, contour_vertices = 0;
   for (std::size_t t = 0; t < cut.triangle_count(); ++t) {
     const std::uint32_t* v = &cut.triangles[3 * t];
-    std::uint32_t label = kLabelNoCell;
+    std::uint32_t label = view::kLabelNoCell;
     for (int c = 0; c < 3; ++c) {
-      const std::uint32_t l = vertex_label(x.mapping(), std::span<const float>(d->mt.positions), v[c],
-                                           std::span<const std::uint16_t>(dt));
+      const std::uint32_t l = view::vertex_label(x.mapping(), std::span<const float>(d->mt.positions), v[c],
+                                                 std::span<const std::uint16_t>(dt));
       label = std::min(label, l);
       contour_vertices += l == 5;  // on a contour cell: one step from the background
     }
@@ -158,33 +158,33 @@ TEST(ViewExtract, DragonSilhouetteRegionIsAtFullResolutionAndTheRestIsCoarser) {
   // The labels handed to the encoder are the same labels.
   for (std::size_t i = 0; i < std::min<std::size_t>(cut.triangles.size(), 3000); ++i) {
     const std::uint32_t v = cut.triangles[i];
-    ASSERT_EQ(x.vertex_labels()[v], vertex_label(x.mapping(), std::span<const float>(d->mt.positions), v,
-                                                 std::span<const std::uint16_t>(dt)));
+    ASSERT_EQ(x.vertex_labels()[v], view::vertex_label(x.mapping(), std::span<const float>(d->mt.positions),
+                                                       v, std::span<const std::uint16_t>(dt)));
   }
 }
 
 TEST(ViewExtract, DragonTriangleDensityFallsWithDistanceFromTheFocus) {
   const Built* d = dragon();
   if (!d) GTEST_SKIP() << "no shared dragon-vrip-871k.ply";
-  ViewRequest r;
+  view::ViewRequest r;
   r.camera = front_camera(d->input, 1.0f);
   r.grid = {256, 256};
   r.allowed.error = 2.0f;
-  r.allowed.units = ErrorUnits::kScreenPixels;
+  r.allowed.units = view::ErrorUnits::kScreenPixels;
   r.allowed.viewport_height_px = 256;
   r.allowed.use_focus = true;
-  r.allowed.focus = RegionLaw{FalloffLaw::kLinear, 10.0f, 0.05f, 80.0f};
+  r.allowed.focus = view::RegionLaw{view::FalloffLaw::kLinear, 10.0f, 0.05f, 80.0f};
   r.focus = {{0.5f, 0.5f}};
-  ViewExtractor x(d->mt, *d->levels);
-  Refiner refiner(d->mt);
-  CutMesh cut;
+  view::ViewExtractor x(d->mt, *d->levels);
+  cut::Refiner refiner(d->mt);
+  cut::CutMesh cut;
   run(x, r, refiner, cut);
   // Mean projected area of the cut's triangles by rings of 20 cells around the focus cell (128, 128),
   // out to 80 cells: inside the dragon's outline, where grazing triangles at the rim do not blur it.
   constexpr int kRings = 4;
   std::vector<double> areas[kRings];
   for (std::size_t t = 0; t < cut.triangle_count(); ++t) {
-    GridPoint g[3];
+    view::GridPoint g[3];
     bool visible = true;
     for (int c = 0; c < 3; ++c) {
       const float* p = &d->mt.positions[3 * std::size_t{cut.triangles[3 * t + c]}];
@@ -216,24 +216,25 @@ TEST(ViewExtract, DragonTriangleDensityFallsWithDistanceFromTheFocus) {
 }
 
 TEST(ViewExtract, EuclideanLabelsAreExactDistancesInFifthsOfAPixel) {
-  GenerateOptions o;
+  eval::GenerateOptions o;
   o.target_triangles = 3000;
-  auto b = build(generate_mesh(o));
+  auto b = build(eval::generate_mesh(o));
   ASSERT_NE(b, nullptr);
-  ViewRequest r;
+  view::ViewRequest r;
   r.camera = front_camera(b->input, 1.0f);
   r.grid = {48, 40};
   r.allowed.error = 0.01f;
   r.allowed.use_silhouette = true;
-  r.allowed.metric = DistanceMetric::kEuclidean;
+  r.allowed.metric = view::DistanceMetric::kEuclidean;
   r.focus = {{0.25f, 0.5f}, {0.8f, 0.1f}};
   r.allowed.use_focus = true;
-  ViewExtractor x(b->mt, *b->levels);
-  Refiner refiner(b->mt);
-  CutMesh cut;
+  view::ViewExtractor x(b->mt, *b->levels);
+  cut::Refiner refiner(b->mt);
+  cut::CutMesh cut;
   run(x, r, refiner, cut);
   const std::span<const std::uint8_t> occ = x.occupancy_grid();
-  std::vector<std::uint32_t> focus_cells = {focus_cell(r.grid, 0.25f, 0.5f), focus_cell(r.grid, 0.8f, 0.1f)};
+  std::vector<std::uint32_t> focus_cells = {view::focus_cell(r.grid, 0.25f, 0.5f),
+                                            view::focus_cell(r.grid, 0.8f, 0.1f)};
   for (std::uint32_t j = 0; j < r.grid.height; ++j) {
     for (std::uint32_t i = 0; i < r.grid.width; ++i) {
       // Brute force: the nearest background cell, and the nearest focus.
@@ -254,7 +255,7 @@ TEST(ViewExtract, EuclideanLabelsAreExactDistancesInFifthsOfAPixel) {
 }
 
 // Sorted triangles (each rotated to start at its smallest id) of a cut: its set, in any order.
-std::vector<std::array<std::uint32_t, 3>> triangle_set(const CutMesh& cut) {
+std::vector<std::array<std::uint32_t, 3>> triangle_set(const cut::CutMesh& cut) {
   std::vector<std::array<std::uint32_t, 3>> out;
   for (std::size_t t = 0; t < cut.triangle_count(); ++t) {
     std::array<std::uint32_t, 3> tri{cut.triangles[3 * t], cut.triangles[3 * t + 1],
@@ -268,7 +269,7 @@ std::vector<std::array<std::uint32_t, 3>> triangle_set(const CutMesh& cut) {
 
 // Whether the segment from `from` to `to` crosses a triangle of `mesh` before the last `end_gap`
 // of its length (Möller–Trumbore in double): the reference visibility of a point.
-bool segment_blocked(const Mesh& mesh, glm::dvec3 from, glm::dvec3 to, double end_gap) {
+bool segment_blocked(const model::Mesh& mesh, glm::dvec3 from, glm::dvec3 to, double end_gap) {
   const glm::dvec3 dir = to - from;
   auto corner = [&](std::uint32_t v) {
     const float* p = mesh.positions.data() + 3 * std::size_t{v};
@@ -298,13 +299,13 @@ bool segment_blocked(const Mesh& mesh, glm::dvec3 from, glm::dvec3 to, double en
 // coarse occupancy cut, so the bounds leave room for its error (and the reference counts a ray that
 // grazes the vertex's own neighbourhood as blocked).
 TEST(ViewExtract, HiddenSurfaceCoarseningFindsWhatRayCastingFindsHidden) {
-  GenerateOptions o;
-  o.shape = Shape::kShell;
+  eval::GenerateOptions o;
+  o.shape = eval::Shape::kShell;
   o.target_triangles = 6'000;
-  const auto b = build(generate_mesh(o));
+  const auto b = build(eval::generate_mesh(o));
   ASSERT_NE(b, nullptr);
   for (const glm::vec3 axis : {glm::vec3(0, 0, 1), glm::normalize(glm::vec3(1, 0.5f, 0.3f))}) {
-    ViewRequest r;
+    view::ViewRequest r;
     r.camera = camera_along(b->input.positions, axis, 1.0f);
     r.grid = {256, 256};
     r.allowed.error = 1.0f;
@@ -312,16 +313,16 @@ TEST(ViewExtract, HiddenSurfaceCoarseningFindsWhatRayCastingFindsHidden) {
     r.allowed.hidden_factor = 4.0f;
     r.dynamic = false;
     r.allowed_error_on_demand = false;
-    ViewExtractor x(b->mt, *b->levels);
-    Refiner refiner(b->mt);
-    CutMesh cut;
+    view::ViewExtractor x(b->mt, *b->levels);
+    cut::Refiner refiner(b->mt);
+    cut::CutMesh cut;
     run(x, r, refiner, cut);
     const std::span<const float> field = x.vertex_allowed_error();
     const glm::dvec3 eye = glm::inverse(glm::dmat4(r.camera.view))[3];
     std::size_t in_view = 0, blocked = 0, coarsened = 0, coarsened_blocked = 0;
     for (std::uint32_t v = 0; v < b->mt.vertex_count(); ++v) {
       const float* p = b->mt.positions.data() + 3 * std::size_t{v};
-      if (x.mapping().map_point(p[0], p[1], p[2]) == kNoCell) continue;
+      if (x.mapping().map_point(p[0], p[1], p[2]) == view::kNoCell) continue;
       ++in_view;
       ASSERT_TRUE(field[v] == 1.0f || field[v] == 4.0f) << field[v];
       const bool is_blocked = segment_blocked(b->input, eye, glm::dvec3(p[0], p[1], p[2]), 1e-3);
@@ -342,31 +343,31 @@ TEST(ViewExtract, HiddenSurfaceCoarseningFindsWhatRayCastingFindsHidden) {
 }
 
 TEST(ViewExtract, OccupancyCutGrowsAsTheModelFillsMoreOfTheGrid) {
-  GenerateOptions o;
+  eval::GenerateOptions o;
   o.target_triangles = 200'000;
-  auto b = build(generate_mesh(o));
+  auto b = build(eval::generate_mesh(o));
   ASSERT_NE(b, nullptr);
   ASSERT_GE(b->levels->levels().size(), 3u);
   // Each level's compact mesh is a cut of the model: its positions are the model's at its ids, and
   // mapped back to model ids its triangles are the budgeted cut of that size.
-  for (const OccupancyLevel& level : b->levels->levels()) {
+  for (const view::OccupancyLevel& level : b->levels->levels()) {
     ASSERT_EQ(level.positions.size(), 3 * level.model_ids.size());
     for (std::size_t i = 0; i < level.model_ids.size(); ++i) {
       for (int c = 0; c < 3; ++c)
         ASSERT_EQ(level.positions[3 * i + c], b->mt.positions[3 * level.model_ids[i] + c]);
     }
-    CutMesh cut;
-    refine_budget(b->mt, AllowedError::everywhere(0.0f), level.triangle_count(), cut);
-    CutMesh compact;
+    cut::CutMesh cut;
+    cut::refine_budget(b->mt, cut::AllowedError::everywhere(0.0f), level.triangle_count(), cut);
+    cut::CutMesh compact;
     for (const std::uint32_t local : level.cut_triangles())
       compact.triangles.push_back(level.model_ids.at(local));
     EXPECT_EQ(triangle_set(compact), triangle_set(cut));
     EXPECT_TRUE(level.closed);
   }
-  ViewExtractor x(b->mt, *b->levels);
+  view::ViewExtractor x(b->mt, *b->levels);
   std::size_t previous = 0;
   for (std::uint32_t side : {16u, 64u, 256u, 1024u}) {
-    ViewRequest r;
+    view::ViewRequest r;
     r.camera = front_camera(b->input, 1.0f);
     r.grid = {side, side};
     x.map(r);
@@ -388,17 +389,17 @@ TEST(ViewExtract, DragonOccupancyLevelsAreCappedAndClosed) {
   // when this test was written).
   const Built* b = dragon();
   if (!b) GTEST_SKIP() << "dragon mesh not found";
-  std::vector<ProjectedCorner> scratch;
-  for (const OccupancyLevel& level : b->levels->levels()) {
+  std::vector<view::ProjectedCorner> scratch;
+  for (const view::OccupancyLevel& level : b->levels->levels()) {
     if (level.triangle_count() > 70'000) break;
     ASSERT_TRUE(level.closed) << level.triangle_count();
     EXPECT_GT(level.cap_triangles, 0u);
     for (const glm::vec3 axis : {glm::vec3(0, 0, 1), glm::vec3(0, 0, -1), glm::vec3(1, 0, 0),
                                  glm::vec3(-1, 0, 0), glm::vec3(0, 1, 0.01f), glm::vec3(0, -1, 0.01f)}) {
-      const ViewMapping mapping(camera_along(b->mt.positions, axis, 1.0f), GridSize{256, 256});
+      const view::ViewMapping mapping(camera_along(b->mt.positions, axis, 1.0f), view::GridSize{256, 256});
       std::vector<std::uint8_t> own(mapping.grid().cell_count()), capped(own.size());
-      rasterize_occupancy_compact(mapping, level.positions, level.cut_triangles(), own, {}, scratch);
-      rasterize_occupancy_compact(mapping, level.positions, level.triangles, capped, {}, scratch, true);
+      view::rasterize_occupancy_compact(mapping, level.positions, level.cut_triangles(), own, {}, scratch);
+      view::rasterize_occupancy_compact(mapping, level.positions, level.triangles, capped, {}, scratch, true);
       std::size_t object = 0, added = 0;
       for (std::size_t c = 0; c < own.size(); ++c) {
         ASSERT_TRUE(own[c] == 0 || capped[c] != 0) << "cell " << c;
@@ -416,17 +417,17 @@ TEST(ViewExtract, DragonOccupancyLevelsAreCappedAndClosed) {
 // front, and turned by 0.3 rad for a second view.
 struct SessionScene {
   const Built* built;
-  Camera front, turned;
+  view::Camera front, turned;
 };
 SessionScene session_scene() {
   static const std::unique_ptr<Built> built = [] {
-    GenerateOptions o;
+    eval::GenerateOptions o;
     o.target_triangles = 30'000;
-    return build(generate_mesh(o));
+    return build(eval::generate_mesh(o));
   }();
   if (!built) return {nullptr, {}, {}};
-  const Camera front = front_camera(built->input, 1.0f);
-  Camera turned = front;
+  const view::Camera front = front_camera(built->input, 1.0f);
+  view::Camera turned = front;
   turned.view = glm::rotate(front.view, 0.3f, glm::vec3(0, 1, 0));
   return {built.get(), front, turned};
 }
@@ -444,36 +445,40 @@ TEST(ViewExtract, SessionGazePathEqualsAFreshExtractionEveryTime) {
   std::uniform_real_distribution<float> unit(0.1f, 0.9f);
   // 64² has fewer cells than the mesh has vertices (the field tabulates per cell), 160² more.
   struct Focus {
-    FalloffLaw law;
+    view::FalloffLaw law;
     float factor;
     bool silhouette;
     float hidden = 1.0f;
   };
   for (const auto [law, factor, silhouette, hidden] :
-       {Focus{FalloffLaw::kStep, 0.1f, true}, Focus{FalloffLaw::kLinear, 0.1f, true},
-        Focus{FalloffLaw::kSmoothstep, 0.1f, true}, Focus{FalloffLaw::kFoveal, 0.1f, true},
-        Focus{FalloffLaw::kFoveal, 1.0f, false}, Focus{FalloffLaw::kFoveal, 1.0f, false, 16.0f}}) {
-    for (const ErrorUnits units : {ErrorUnits::kModel, ErrorUnits::kScreenPixels}) {
+       {Focus{view::FalloffLaw::kStep, 0.1f, true}, Focus{view::FalloffLaw::kLinear, 0.1f, true},
+        Focus{view::FalloffLaw::kSmoothstep, 0.1f, true}, Focus{view::FalloffLaw::kFoveal, 0.1f, true},
+        Focus{view::FalloffLaw::kFoveal, 1.0f, false},
+        Focus{view::FalloffLaw::kFoveal, 1.0f, false, 16.0f}}) {
+    for (const view::ErrorUnits units : {view::ErrorUnits::kModel, view::ErrorUnits::kScreenPixels}) {
       for (const std::uint32_t side : {64u, 160u}) {
-        for (const DistanceMetric metric :
-             {DistanceMetric::kChamfer5711, DistanceMetric::kChamfer34, DistanceMetric::kEuclidean}) {
+        for (const view::DistanceMetric metric :
+             {view::DistanceMetric::kChamfer5711, view::DistanceMetric::kChamfer34,
+              view::DistanceMetric::kEuclidean}) {
           // The other transforms for one law and grid: a pixel step costs each its own number of units.
-          if (metric != DistanceMetric::kChamfer5711 && (law != FalloffLaw::kStep || side != 160u)) continue;
-          ViewRequest r;
+          if (metric != view::DistanceMetric::kChamfer5711 &&
+              (law != view::FalloffLaw::kStep || side != 160u))
+            continue;
+          view::ViewRequest r;
           r.camera = camera;
           r.grid = {side, side};
           r.allowed.metric = metric;
           r.allowed.units = units;
-          r.allowed.error = units == ErrorUnits::kModel ? 0.02f : 1.0f;
+          r.allowed.error = units == view::ErrorUnits::kModel ? 0.02f : 1.0f;
           r.allowed.use_silhouette = silhouette;
-          r.allowed.silhouette = RegionLaw{FalloffLaw::kStep, 2.0f, 0.25f};
+          r.allowed.silhouette = view::RegionLaw{view::FalloffLaw::kStep, 2.0f, 0.25f};
           r.allowed.use_focus = true;
-          r.allowed.focus = RegionLaw{law, 8.0f, factor, 16.0f};
+          r.allowed.focus = view::RegionLaw{law, 8.0f, factor, 16.0f};
           r.allowed.hidden_factor = hidden;
-          ViewExtractor session_extractor(b->mt, *b->levels), fresh_extractor(b->mt, *b->levels);
-          ViewCache session;
-          Refiner kept(b->mt);
-          CutMesh cut, expected;
+          view::ViewExtractor session_extractor(b->mt, *b->levels), fresh_extractor(b->mt, *b->levels);
+          view::ViewCache session;
+          cut::Refiner kept(b->mt);
+          cut::CutMesh cut, expected;
           std::size_t reused = 0, recomputed = 0;
           for (int step = 0; step < 12; ++step) {
             r.focus = {{unit(rng), unit(rng)}};
@@ -499,7 +504,7 @@ TEST(ViewExtract, SessionGazePathEqualsAFreshExtractionEveryTime) {
           }
           EXPECT_EQ(reused, 10u);
           // The step law changes only cells near the old and new foci: far fewer vertices than all.
-          if (law == FalloffLaw::kStep) {
+          if (law == view::FalloffLaw::kStep) {
             EXPECT_LT(recomputed, reused * b->mt.vertex_count() / 4);
           }
         }
@@ -515,17 +520,17 @@ TEST(ViewExtract, SessionForgetsWhatItsCutNoLongerReadsAndStaysExact) {
   // and every cut equals a fresh extraction's.
   const auto [b, camera, other] = session_scene();
   ASSERT_NE(b, nullptr);
-  ViewRequest r;
+  view::ViewRequest r;
   r.camera = camera;
   r.grid = {128, 128};
-  r.allowed.units = ErrorUnits::kScreenPixels;
+  r.allowed.units = view::ErrorUnits::kScreenPixels;
   r.allowed.error = 8.0f;
   r.allowed.use_focus = true;
-  r.allowed.focus = RegionLaw{FalloffLaw::kStep, 6.0f, 0.02f};
-  ViewExtractor session_extractor(b->mt, *b->levels), fresh_extractor(b->mt, *b->levels);
-  ViewCache session;
-  Refiner kept(b->mt);
-  CutMesh cut, expected;
+  r.allowed.focus = view::RegionLaw{view::FalloffLaw::kStep, 6.0f, 0.02f};
+  view::ViewExtractor session_extractor(b->mt, *b->levels), fresh_extractor(b->mt, *b->levels);
+  view::ViewCache session;
+  cut::Refiner kept(b->mt);
+  cut::CutMesh cut, expected;
   std::size_t most_known = 0;
   for (int step = 0; step < 60; ++step) {
     // Left to right and back, row by row.
@@ -551,26 +556,26 @@ TEST(ViewExtract, SessionBudgetedGazesEqualBudgetedRefinementFromTheRoot) {
   ASSERT_NE(b, nullptr);
   std::mt19937 rng(13);
   std::uniform_real_distribution<float> unit(0.1f, 0.9f);
-  ViewRequest r;
+  view::ViewRequest r;
   r.camera = camera;
   r.grid = {160, 160};
-  r.allowed.units = ErrorUnits::kScreenPixels;
+  r.allowed.units = view::ErrorUnits::kScreenPixels;
   r.allowed.error = 0.25f;
   r.allowed.use_silhouette = true;
-  r.allowed.silhouette = RegionLaw{FalloffLaw::kStep, 2.0f, 0.25f};
+  r.allowed.silhouette = view::RegionLaw{view::FalloffLaw::kStep, 2.0f, 0.25f};
   r.allowed.use_focus = true;
-  r.allowed.focus = RegionLaw{FalloffLaw::kSmoothstep, 8.0f, 0.1f, 16.0f};
-  ViewExtractor session_extractor(b->mt, *b->levels), fresh_extractor(b->mt, *b->levels);
-  ViewCache session;
-  Refiner kept(b->mt);
-  CutMesh cut, expected, unbounded;
+  r.allowed.focus = view::RegionLaw{view::FalloffLaw::kSmoothstep, 8.0f, 0.1f, 16.0f};
+  view::ViewExtractor session_extractor(b->mt, *b->levels), fresh_extractor(b->mt, *b->levels);
+  view::ViewCache session;
+  cut::Refiner kept(b->mt);
+  cut::CutMesh cut, expected, unbounded;
   std::size_t binding = 0;
   for (int step = 0; step < 16; ++step) {
     r.focus = {{unit(rng), unit(rng)}};
     if (step == 8) {
       // A new view, keeping full resolution along the silhouette: those triangles rank first.
       r.camera = other;
-      r.allowed.silhouette = RegionLaw{FalloffLaw::kStep, 2.0f, 0.0f};
+      r.allowed.silhouette = view::RegionLaw{view::FalloffLaw::kStep, 2.0f, 0.0f};
     }
     r.budget = step < 12 ? 2'500 : 3'000;  // a new budget starts from the root as well
     run(session_extractor, r, kept, cut, &session);
@@ -581,7 +586,7 @@ TEST(ViewExtract, SessionBudgetedGazesEqualBudgetedRefinementFromTheRoot) {
     run_fresh(fresh_extractor, b->mt, r, expected);
     ASSERT_EQ(triangle_set(cut), triangle_set(expected)) << "step " << step;
     EXPECT_LE(cut.triangle_count(), *r.budget);
-    ViewRequest error_bound = r;
+    view::ViewRequest error_bound = r;
     error_bound.budget.reset();
     run_fresh(fresh_extractor, b->mt, error_bound, unbounded);
     binding += unbounded.triangle_count() > *r.budget;

@@ -1,6 +1,6 @@
-// Grid mapping (DESIGN.md §1.1): known cameras put known points in known cells, points behind the
+// Grid mapping (core/ARCHITECTURE.md §1.1): known cameras, points and cells; points behind the
 // camera or off the grid get no cell, and the hand-written projection equals GLM's matrix product.
-#include "core/view_grid.hpp"
+#include "core/view/view_grid.hpp"
 
 #include <gtest/gtest.h>
 
@@ -15,25 +15,25 @@ namespace {
 
 // Orthographic camera on the z axis seeing [-2, 2]²: ndc = (x/2, y/2), so on an 8×8 grid
 // i = floor((x + 2)·2) and j = floor((2 − y)·2).
-ViewMapping ortho_mapping() {
-  Camera camera;
+view::ViewMapping ortho_mapping() {
+  view::Camera camera;
   camera.view = glm::lookAt(glm::vec3(0, 0, 5), glm::vec3(0, 0, 0), glm::vec3(0, 1, 0));
   camera.projection = glm::ortho(-2.0f, 2.0f, -2.0f, 2.0f, 0.1f, 10.0f);
-  return ViewMapping(camera, GridSize{8, 8});
+  return view::ViewMapping(camera, view::GridSize{8, 8});
 }
 
 // Perspective camera at the origin looking down −z with a 90° field of view: ndc = (x, y) / −z, so on a
 // 10×10 grid i = floor((x/−z + 1)·5), j = floor((1 − y/−z)·5), and clip.w = −z.
-ViewMapping perspective_mapping() {
-  Camera camera;
+view::ViewMapping perspective_mapping() {
+  view::Camera camera;
   camera.view = glm::lookAt(glm::vec3(0, 0, 0), glm::vec3(0, 0, -1), glm::vec3(0, 1, 0));
   camera.projection = glm::perspective(glm::radians(90.0f), 1.0f, 0.1f, 100.0f);
-  return ViewMapping(camera, GridSize{10, 10});
+  return view::ViewMapping(camera, view::GridSize{10, 10});
 }
 
 TEST(ViewMapping, OrthographicCameraPutsKnownPointsInKnownCells) {
-  const ViewMapping mapping = ortho_mapping();
-  const GridSize grid = mapping.grid();
+  const view::ViewMapping mapping = ortho_mapping();
+  const view::GridSize grid = mapping.grid();
   float w = 0.0f;
   EXPECT_EQ(mapping.map_point(0.0f, 0.0f, 0.0f, &w), grid.cell(4, 4));
   EXPECT_EQ(w, 1.0f);                                                // orthographic: clip.w is 1
@@ -44,51 +44,51 @@ TEST(ViewMapping, OrthographicCameraPutsKnownPointsInKnownCells) {
 }
 
 TEST(ViewMapping, OffGridPointsHaveNoCell) {
-  const ViewMapping mapping = ortho_mapping();
-  EXPECT_EQ(mapping.map_point(2.5f, 0.0f, 0.0f), kNoCell);
-  EXPECT_EQ(mapping.map_point(2.0f, 0.0f, 0.0f), kNoCell);  // x = W exactly is past the last cell
-  EXPECT_EQ(mapping.map_point(0.0f, -2.1f, 0.0f), kNoCell);
-  EXPECT_EQ(mapping.map_point(0.0f, 2.0001f, 0.0f), kNoCell);
+  const view::ViewMapping mapping = ortho_mapping();
+  EXPECT_EQ(mapping.map_point(2.5f, 0.0f, 0.0f), view::kNoCell);
+  EXPECT_EQ(mapping.map_point(2.0f, 0.0f, 0.0f), view::kNoCell);  // x = W exactly is past the last cell
+  EXPECT_EQ(mapping.map_point(0.0f, -2.1f, 0.0f), view::kNoCell);
+  EXPECT_EQ(mapping.map_point(0.0f, 2.0001f, 0.0f), view::kNoCell);
 }
 
 TEST(ViewMapping, PerspectiveCameraPutsKnownPointsInKnownCells) {
-  const ViewMapping mapping = perspective_mapping();
-  const GridSize grid = mapping.grid();
+  const view::ViewMapping mapping = perspective_mapping();
+  const view::GridSize grid = mapping.grid();
   float w = 0.0f;
   EXPECT_EQ(mapping.map_point(0.0f, 0.0f, -5.0f, &w), grid.cell(5, 5));
   EXPECT_EQ(w, 5.0f);
   EXPECT_EQ(mapping.map_point(2.0f, 1.0f, -4.0f, &w), grid.cell(7, 3));  // ndc (0.5, 0.25): (7.5, 3.75)
   EXPECT_EQ(w, 4.0f);
   EXPECT_EQ(mapping.map_point(-30.0f, -30.0f, -31.0f), grid.cell(0, 9));  // ndc ≈ (−0.968, −0.968)
-  EXPECT_EQ(mapping.map_point(6.0f, 0.0f, -5.0f), kNoCell);               // ndc.x = 1.2
+  EXPECT_EQ(mapping.map_point(6.0f, 0.0f, -5.0f), view::kNoCell);         // ndc.x = 1.2
 }
 
 TEST(ViewMapping, PointsBehindTheCameraHaveNoCell) {
-  const ViewMapping mapping = perspective_mapping();
+  const view::ViewMapping mapping = perspective_mapping();
   float w = 0.0f;
-  EXPECT_EQ(mapping.map_point(0.0f, 0.0f, 5.0f, &w), kNoCell);
+  EXPECT_EQ(mapping.map_point(0.0f, 0.0f, 5.0f, &w), view::kNoCell);
   EXPECT_EQ(w, -5.0f);
-  EXPECT_EQ(mapping.map_point(0.0f, 0.0f, 0.0f), kNoCell);  // clip.w = 0: on the eye plane
+  EXPECT_EQ(mapping.map_point(0.0f, 0.0f, 0.0f), view::kNoCell);  // clip.w = 0: on the eye plane
   // Behind the camera and mirrored into the grid's range by the division: still no cell.
-  EXPECT_EQ(mapping.map_point(1.0f, 1.0f, 4.0f), kNoCell);
+  EXPECT_EQ(mapping.map_point(1.0f, 1.0f, 4.0f), view::kNoCell);
 }
 
 TEST(ViewMapping, HandWrittenProjectionEqualsGlmMatrixProduct) {
   // A skewed camera and random points, some behind it or off the grid; 1003 points so the 4-wide loop
   // has a scalar tail. The summation order is GLM's, so cells and depths are equal bit for bit.
-  Camera camera;
+  view::Camera camera;
   camera.model =
       glm::rotate(glm::scale(glm::mat4(1.0f), glm::vec3(1.5f, 0.7f, 1.1f)), 0.4f, glm::vec3(1, 2, 3));
   camera.view = glm::lookAt(glm::vec3(0.3f, 1.2f, 2.5f), glm::vec3(0.1f, 0.0f, -0.2f), glm::vec3(0, 1, 0));
   camera.projection = glm::perspective(glm::radians(50.0f), 1.3f, 0.05f, 20.0f);
-  const ViewMapping mapping(camera, GridSize{317, 243});
+  const view::ViewMapping mapping(camera, view::GridSize{317, 243});
   std::mt19937 rng(5);
   std::uniform_real_distribution<float> u(-3.0f, 3.0f);
   std::vector<float> positions(3 * 1003);
   for (float& p : positions) p = u(rng);
   std::vector<std::uint32_t> cells(1003);
   std::vector<float> clip_w(1003);
-  map_vertices(mapping, positions, cells, clip_w);
+  view::map_vertices(mapping, positions, cells, clip_w);
   const glm::mat4 mvp = camera.projection * camera.view * camera.model;
   std::size_t with_cell = 0, behind = 0;
   for (std::size_t v = 0; v < 1003; ++v) {
@@ -99,7 +99,7 @@ TEST(ViewMapping, HandWrittenProjectionEqualsGlmMatrixProduct) {
                 fy = std::floor((1.0f - ndc.y) / 2.0f * 243.0f);
     const bool inside = clip.w > 0.0f && fx >= 0.0f && fx < 317.0f && fy >= 0.0f && fy < 243.0f;
     const std::uint32_t expected =
-        inside ? static_cast<std::uint32_t>(fy) * 317u + static_cast<std::uint32_t>(fx) : kNoCell;
+        inside ? static_cast<std::uint32_t>(fy) * 317u + static_cast<std::uint32_t>(fx) : view::kNoCell;
     ASSERT_EQ(cells[v], expected) << "vertex " << v;
     ASSERT_EQ(clip_w[v], clip.w) << "vertex " << v;
     EXPECT_EQ(mapping.map_point(positions[3 * v], positions[3 * v + 1], positions[3 * v + 2]), expected);
@@ -115,7 +115,7 @@ TEST(ViewMapping, HandWrittenProjectionEqualsGlmMatrixProduct) {
 TEST(ViewMapping, PixelSizeInModelUnitsFollowsDepthAndFieldOfView) {
   // 90° perspective, 10 px tall: one pixel at depth 5 spans 2·5·tan(45°)/10 = 1 model unit.
   // Tolerance: P[1][1] = 1/tan(π/4) is 1 only up to float rounding (a few ulp).
-  const ViewMapping perspective = perspective_mapping();
+  const view::ViewMapping perspective = perspective_mapping();
   EXPECT_NEAR(perspective.model_units_per_pixel(5.0f, 10.0f), 1.0f, 1e-6f);
   EXPECT_NEAR(perspective.model_units_per_pixel(5.0f, 1000.0f), 0.01f, 1e-8f);
   // Orthographic over 4 units and 8 px: 0.5 units per pixel at any depth (P[1][1] = 2/4 exactly).
@@ -124,11 +124,11 @@ TEST(ViewMapping, PixelSizeInModelUnitsFollowsDepthAndFieldOfView) {
 
 TEST(ViewMapping, EyeInModelSpace) {
   // Tolerance: the eye comes out of a float matrix inverse (relative error ~1e-6).
-  Camera camera;
+  view::Camera camera;
   camera.model = glm::translate(glm::mat4(1.0f), glm::vec3(1, 0, 0));
   camera.view = glm::lookAt(glm::vec3(1, 2, 3), glm::vec3(0, 0, 0), glm::vec3(0, 1, 0));
   camera.projection = glm::perspective(glm::radians(60.0f), 1.0f, 0.1f, 10.0f);
-  const glm::vec4 eye = ViewMapping(camera, GridSize{4, 4}).eye_model();
+  const glm::vec4 eye = view::ViewMapping(camera, view::GridSize{4, 4}).eye_model();
   // The model is shifted by +1 in x, so the world eye (1, 2, 3) is (0, 2, 3) in model space.
   EXPECT_NEAR(eye.x, 0.0f, 1e-5f);
   EXPECT_NEAR(eye.y, 2.0f, 1e-5f);
@@ -141,12 +141,12 @@ TEST(ViewMapping, EyeInModelSpace) {
 }
 
 TEST(FocusCell, NormalisedViewportCoordinatesMapToCells) {
-  const GridSize grid{10, 20};
-  EXPECT_EQ(focus_cell(grid, 0.0f, 0.0f), grid.cell(0, 0));
-  EXPECT_EQ(focus_cell(grid, 0.55f, 0.5f), grid.cell(5, 10));
-  EXPECT_EQ(focus_cell(grid, 1.0f, 1.0f), grid.cell(9, 19));  // the far edge belongs to the last cell
-  EXPECT_EQ(focus_cell(grid, -0.01f, 0.5f), kNoCell);
-  EXPECT_EQ(focus_cell(grid, 0.5f, 1.5f), kNoCell);
+  const view::GridSize grid{10, 20};
+  EXPECT_EQ(view::focus_cell(grid, 0.0f, 0.0f), grid.cell(0, 0));
+  EXPECT_EQ(view::focus_cell(grid, 0.55f, 0.5f), grid.cell(5, 10));
+  EXPECT_EQ(view::focus_cell(grid, 1.0f, 1.0f), grid.cell(9, 19));  // the far edge belongs to the last cell
+  EXPECT_EQ(view::focus_cell(grid, -0.01f, 0.5f), view::kNoCell);
+  EXPECT_EQ(view::focus_cell(grid, 0.5f, 1.5f), view::kNoCell);
 }
 
 }  // namespace

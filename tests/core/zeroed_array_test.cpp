@@ -1,6 +1,6 @@
 // ZeroedArray: zeros without writing them, and only the pages written count as resident, so a
 // session's per-node and per-vertex state costs what its cut touches.
-#include "core/zeroed_array.hpp"
+#include "core/util/zeroed_array.hpp"
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -13,7 +13,7 @@ namespace {
 TEST(ZeroedArray, ReadsZeroAndOnlyWrittenPagesAreResident) {
   const std::size_t page = static_cast<std::size_t>(::sysconf(_SC_PAGESIZE));
   constexpr std::size_t kCount = std::size_t{64} << 20;  // 256 MiB of floats
-  ZeroedArray<float> a(kCount);
+  util::ZeroedArray<float> a(kCount);
   ASSERT_EQ(a.size(), kCount);
   EXPECT_EQ(a.resident_bytes(), 0u);
   // One write per MiB: 256 pages.
@@ -26,9 +26,9 @@ TEST(ZeroedArray, ReadsZeroAndOnlyWrittenPagesAreResident) {
   a.reset(kCount);
   EXPECT_EQ(a[stride], 0.0f);
   EXPECT_LE(a.resident_bytes(), page);  // the page just read may map the shared zero page
-  ZeroedArray<std::uint64_t> moved(16);
+  util::ZeroedArray<std::uint64_t> moved(16);
   moved[3] = 7;
-  ZeroedArray<std::uint64_t> to = std::move(moved);
+  util::ZeroedArray<std::uint64_t> to = std::move(moved);
   EXPECT_EQ(to[3], 7u);
   EXPECT_TRUE(moved.empty());
 }
@@ -37,7 +37,7 @@ TEST(PagedArray, ReadsOfPagesNeverWrittenTouchNothing) {
   const std::size_t page = static_cast<std::size_t>(::sysconf(_SC_PAGESIZE));
   if (page != 4096) GTEST_SKIP() << "pages of " << page << " bytes";
   constexpr std::size_t kCount = std::size_t{64} << 20;  // 64 MiB of bytes
-  PagedArray<std::uint8_t> a(kCount);
+  util::PagedArray<std::uint8_t> a(kCount);
   ASSERT_EQ(a.size(), kCount);
   const std::size_t bitmap = a.resident_bytes();  // the bitmap alone
   EXPECT_LT(bitmap, std::size_t{4096});

@@ -6,10 +6,10 @@
 #include <atomic>
 
 #include "clients/common/server_connection.hpp"
-#include "core/draco_decode.hpp"
+#include "core/build/mt_builder.hpp"
+#include "core/codec/draco_decode.hpp"
 #include "core/eval/mesh_gen.hpp"
 #include "core/io/mt_file.hpp"
-#include "core/mt_builder.hpp"
 #include "protocol/camera.hpp"
 #include "protocol/frame.hpp"
 #include "protocol/parse.hpp"
@@ -24,9 +24,9 @@ using namespace std::chrono_literals;
 using Clock = std::chrono::steady_clock;
 
 std::filesystem::path write_sphere(const std::filesystem::path& dir, std::size_t triangles) {
-  core::GenerateOptions o;
+  core::eval::GenerateOptions o;
   o.target_triangles = triangles;
-  auto mt = core::build_mt(core::generate_mesh(o));
+  auto mt = core::build::build_mt(core::eval::generate_mesh(o));
   EXPECT_TRUE(mt.ok());
   EXPECT_TRUE(core::io::write_mt_file(dir / "sphere.mt", *mt).ok());
   return dir / "sphere.mt";
@@ -106,7 +106,7 @@ TEST(Drain, SigtermRefusesNewConnectionsFinishesInFlightAndExitsWithinTheBound) 
   ASSERT_TRUE(reply.ok()) << reply.error().message;
   const auto* mesh = std::get_if<protocol::MeshReply>(&reply->header.reply);
   ASSERT_NE(mesh, nullptr) << reply->json;
-  auto decoded = core::decode_draco(reply->payload);
+  auto decoded = core::codec::decode_draco(reply->payload);
   ASSERT_TRUE(decoded.ok()) << decoded.error().message;
   EXPECT_EQ(decoded->mesh.triangle_count(), mesh->triangles);
 

@@ -10,9 +10,9 @@
 #include <sstream>
 
 #include "clients/common/server_connection.hpp"
+#include "core/build/mt_builder.hpp"
 #include "core/eval/mesh_gen.hpp"
 #include "core/io/mt_file.hpp"
-#include "core/mt_builder.hpp"
 #include "nlohmann/json.hpp"
 #include "tests/core/test_meshes.hpp"
 #include "tests/deploy/deploy_support.hpp"
@@ -27,9 +27,9 @@ using namespace std::chrono_literals;
 
 // A generated sphere's MT in dir/models, the folder the replicas share.
 std::filesystem::path write_model(const std::filesystem::path& dir, std::size_t triangles) {
-  core::GenerateOptions o;
+  core::eval::GenerateOptions o;
   o.target_triangles = triangles;
-  auto mt = core::build_mt(core::generate_mesh(o));
+  auto mt = core::build::build_mt(core::eval::generate_mesh(o));
   EXPECT_TRUE(mt.ok());
   std::filesystem::create_directories(dir / "models");
   EXPECT_TRUE(core::io::write_mt_file(dir / "models" / "sphere.mt", *mt).ok());

@@ -12,9 +12,9 @@
 #include <fstream>
 #include <memory>
 
+#include "core/build/mt_builder.hpp"
 #include "core/eval/mesh_gen.hpp"
 #include "core/io/mt_file.hpp"
-#include "core/mt_builder.hpp"
 #include "nlohmann/json.hpp"
 #include "tests/core/test_meshes.hpp"
 #include "tests/deploy/deploy_support.hpp"
@@ -28,11 +28,11 @@ namespace fs = std::filesystem;
 using nlohmann::json;
 using namespace std::chrono_literals;
 
-void write_model(const fs::path& path, core::Shape shape, std::size_t triangles) {
-  core::GenerateOptions o;
+void write_model(const fs::path& path, core::eval::Shape shape, std::size_t triangles) {
+  core::eval::GenerateOptions o;
   o.shape = shape;
   o.target_triangles = triangles;
-  auto mt = core::build_mt(core::generate_mesh(o));
+  auto mt = core::build::build_mt(core::eval::generate_mesh(o));
   ASSERT_TRUE(mt.ok());
   ASSERT_TRUE(core::io::write_mt_file(path, *mt).ok());
 }
@@ -68,9 +68,9 @@ TEST(FleetChange, ReplicasBehindHaproxySurviveFileChangesAndAKill) {
   const fs::path dir = test::scratch_dir("fleet-change");
   const fs::path models = dir / "models";
   fs::create_directories(models);
-  write_model(dir / "a.mt", core::Shape::kSphere, 20000);
-  write_model(dir / "b.mt", core::Shape::kShell, 20000);
-  write_model(models / "steady.mt", core::Shape::kTerrain, 20000);
+  write_model(dir / "a.mt", core::eval::Shape::kSphere, 20000);
+  write_model(dir / "b.mt", core::eval::Shape::kShell, 20000);
+  write_model(models / "steady.mt", core::eval::Shape::kTerrain, 20000);
   fs::copy_file(dir / "a.mt", models / "changing.mt");
 
   struct Replica {

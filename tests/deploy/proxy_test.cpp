@@ -19,10 +19,10 @@
 #include <sstream>
 #include <thread>
 
-#include "core/draco_decode.hpp"
+#include "core/build/mt_builder.hpp"
+#include "core/codec/draco_decode.hpp"
 #include "core/eval/mesh_gen.hpp"
 #include "core/io/mt_file.hpp"
-#include "core/mt_builder.hpp"
 #include "nlohmann/json.hpp"
 #include "tests/core/test_meshes.hpp"
 #include "tests/deploy/deploy_support.hpp"
@@ -155,7 +155,7 @@ void open_all(AddressClients& a, std::uint16_t lb_port, std::uint16_t lb_http_po
         const auto mesh = c.receive(60s);
         const auto* m = mesh ? std::get_if<protocol::MeshReply>(&mesh->parsed.reply) : nullptr;
         const auto decoded =
-            m ? core::decode_draco(mesh->payload) : make_error(ErrorCode::kCorrupt, "no mesh");
+            m ? core::codec::decode_draco(mesh->payload) : make_error(ErrorCode::kCorrupt, "no mesh");
         meshes += decoded.ok() && m->triangles > 0 && decoded->mesh.triangle_count() == m->triangles;
       }
       if (meshes == 2) {
@@ -197,9 +197,9 @@ void ping_all(AddressClients& a, std::uint64_t id) {
 }
 
 std::filesystem::path write_model(const std::filesystem::path& dir) {
-  core::GenerateOptions o;
+  core::eval::GenerateOptions o;
   o.target_triangles = 2000;
-  auto mt = core::build_mt(core::generate_mesh(o));
+  auto mt = core::build::build_mt(core::eval::generate_mesh(o));
   EXPECT_TRUE(mt.ok());
   std::filesystem::create_directories(dir / "models");
   EXPECT_TRUE(core::io::write_mt_file(dir / "models" / "sphere.mt", *mt).ok());

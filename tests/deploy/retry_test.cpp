@@ -6,9 +6,9 @@
 #include <fstream>
 
 #include "clients/common/retry.hpp"
+#include "core/build/mt_builder.hpp"
 #include "core/eval/mesh_gen.hpp"
 #include "core/io/mt_file.hpp"
-#include "core/mt_builder.hpp"
 #include "nlohmann/json.hpp"
 #include "tests/core/test_meshes.hpp"
 #include "tests/deploy/deploy_support.hpp"
@@ -20,9 +20,9 @@ namespace {
 using namespace std::chrono_literals;
 
 std::filesystem::path write_sphere(const std::filesystem::path& dir) {
-  core::GenerateOptions o;
+  core::eval::GenerateOptions o;
   o.target_triangles = 4000;
-  auto mt = core::build_mt(core::generate_mesh(o));
+  auto mt = core::build::build_mt(core::eval::generate_mesh(o));
   EXPECT_TRUE(mt.ok());
   EXPECT_TRUE(core::io::write_mt_file(dir / "sphere.mt", *mt).ok());
   return dir / "sphere.mt";

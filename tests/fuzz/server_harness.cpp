@@ -18,10 +18,10 @@
 #include <string>
 #include <utility>
 
-#include "core/draco_decode.hpp"
+#include "core/build/mt_builder.hpp"
+#include "core/codec/draco_decode.hpp"
 #include "core/eval/mesh_gen.hpp"
 #include "core/io/mt_file.hpp"
-#include "core/mt_builder.hpp"
 #include "fmt/format.h"
 #include "protocol/frame.hpp"
 #include "protocol/parse.hpp"
@@ -150,7 +150,7 @@ void Transcript::check_mesh(const protocol::MeshReply& mesh, std::span<const std
     fail(fmt::format("mesh reply {} announces {} bytes and carries {}", n, mesh.bytes, payload.size()));
   }
   if (!mesh.delta) {
-    const auto decoded = core::decode_draco(payload);
+    const auto decoded = core::codec::decode_draco(payload);
     if (!decoded)
       fail(fmt::format("mesh reply {}: the payload does not decode: {}", n, decoded.error().message));
     if (decoded->mesh.triangle_count() != mesh.triangles || decoded->mesh.vertex_count() != mesh.vertices) {
@@ -165,7 +165,7 @@ void Transcript::check_mesh(const protocol::MeshReply& mesh, std::span<const std
   const auto parts = protocol::split_delta_payload(*mesh.delta, payload);
   if (!parts) fail(fmt::format("delta reply {}: {}", n, parts.error().message));
   if (!parts->draco.empty()) {
-    const auto decoded = core::decode_draco(parts->draco);
+    const auto decoded = core::codec::decode_draco(parts->draco);
     if (!decoded)
       fail(fmt::format("delta reply {}: the Draco part does not decode: {}", n, decoded.error().message));
     if (decoded->mesh.triangle_count() != parts->added_ids.size() ||
@@ -289,16 +289,16 @@ FuzzServer::FuzzServer() : memory_(kMemoryLimitBytes) {
 
   // The model: a noisy sphere of about 2000 triangles, with normals so that requests for them take
   // the encoder's normal path (a sphere's normals are its directions).
-  core::GenerateOptions options;
+  core::eval::GenerateOptions options;
   options.target_triangles = 2000;
-  core::Mesh mesh = core::generate_mesh(options);
+  core::model::Mesh mesh = core::eval::generate_mesh(options);
   mesh.normals.resize(mesh.positions.size());
   for (std::size_t v = 0; v < mesh.positions.size(); v += 3) {
     const float* p = &mesh.positions[v];
     const float length = std::sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
     for (int c = 0; c < 3; ++c) mesh.normals[v + c] = p[c] / length;
   }
-  auto mt = core::build_mt(mesh);
+  auto mt = core::build::build_mt(mesh);
   if (!mt) fail("building the model: " + mt.error().message);
   model_triangles_ = mt->triangle_count();
   // The registry loads models from files only; the file is read whole and can go at once.

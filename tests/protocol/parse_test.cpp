@@ -21,12 +21,12 @@ Extract sample_extract() {
   e.viewport = {1024, 768};
   e.grid = {512, 384};
   e.error = 0.5;
-  e.error_unit = core::ErrorUnits::kScreenPixels;
+  e.error_unit = core::view::ErrorUnits::kScreenPixels;
   e.criteria.silhouette = Silhouette{3, 0.1};
   e.criteria.focus = {{0.25, 0.75, 15, 0.2}, {0.5, 0.5, 5, 0}};
   e.criteria.neglect = {{0.9, 0.1, 40, 3}};
-  e.criteria.falloff = core::FalloffLaw::kFoveal;
-  e.criteria.distance = core::DistanceMetric::kEuclidean;
+  e.criteria.falloff = core::view::FalloffLaw::kFoveal;
+  e.criteria.distance = core::view::DistanceMetric::kEuclidean;
   e.criteria.units = DistanceUnit::kChamfer;
   e.criteria.internal_silhouettes = true;
   e.criteria.frustum_factor = 4;
@@ -35,7 +35,7 @@ Extract sample_extract() {
   e.budget = 50'000;
   e.normals = true;
   e.labels = true;
-  e.draco = {core::DracoMethod::kSequential, 3, 12, 8, false};
+  e.draco = {core::codec::DracoMethod::kSequential, 3, 12, 8, false};
   return e;
 }
 
@@ -60,15 +60,15 @@ TEST(ParseRequest, ReadsBackEveryFieldAClientWrote) {
   EXPECT_EQ(got.criteria.focus[1].factor, 0);
   ASSERT_EQ(got.criteria.neglect.size(), 1u);
   EXPECT_EQ(got.criteria.neglect[0].factor, 3);
-  EXPECT_EQ(got.criteria.falloff, core::FalloffLaw::kFoveal);
-  EXPECT_EQ(got.criteria.distance, core::DistanceMetric::kEuclidean);
+  EXPECT_EQ(got.criteria.falloff, core::view::FalloffLaw::kFoveal);
+  EXPECT_EQ(got.criteria.distance, core::view::DistanceMetric::kEuclidean);
   EXPECT_EQ(got.criteria.units, DistanceUnit::kChamfer);
   EXPECT_TRUE(got.criteria.internal_silhouettes);
   EXPECT_EQ(got.criteria.backface_factor, 2);
   EXPECT_EQ(got.criteria.hidden_factor, 16);
   EXPECT_EQ(got.budget, 50'000u);
   EXPECT_TRUE(got.normals && got.labels);
-  EXPECT_EQ(got.draco.method, core::DracoMethod::kSequential);
+  EXPECT_EQ(got.draco.method, core::codec::DracoMethod::kSequential);
   EXPECT_EQ(got.draco.speed, 3);
   EXPECT_EQ(got.draco.position_bits, 12);
   EXPECT_EQ(got.draco.entropy_coding, false);
@@ -99,7 +99,7 @@ TEST(ParseRequest, DefaultsFillWhatAMinimalExtractLeavesOut) {
   const auto& e = std::get<Extract>(parsed->request);
   const Extract defaults;
   EXPECT_EQ(e.grid, defaults.grid);
-  EXPECT_EQ(e.error_unit, core::ErrorUnits::kModel);
+  EXPECT_EQ(e.error_unit, core::view::ErrorUnits::kModel);
   EXPECT_FALSE(e.criteria.silhouette);
   EXPECT_FALSE(e.budget);
   EXPECT_FALSE(e.draco.method);

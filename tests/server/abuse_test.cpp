@@ -14,7 +14,7 @@
 #include <thread>
 
 #include "clients/common/server_connection.hpp"
-#include "core/draco_decode.hpp"
+#include "core/codec/draco_decode.hpp"
 #include "protocol/camera.hpp"
 #include "protocol/text.hpp"
 #include "server/engine.hpp"
@@ -83,7 +83,7 @@ bool served_from(const Served& s, const std::string& source) {
   RawClient c(source, s.port());
   if (!c.send_request(s.extract, 1)) return false;
   auto reply = c.receive(60s);
-  return reply && as_mesh(*reply) && core::decode_draco(reply->payload).ok();
+  return reply && as_mesh(*reply) && core::codec::decode_draco(reply->payload).ok();
 }
 
 TEST(Abuse, IdleSocketsFromOneAddressNeitherLockOthersOutNorStay) {

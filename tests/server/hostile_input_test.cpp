@@ -12,7 +12,7 @@
 #include <random>
 
 #include "clients/common/server_connection.hpp"
-#include "core/draco_decode.hpp"
+#include "core/codec/draco_decode.hpp"
 #include "protocol/camera.hpp"
 #include "protocol/frame.hpp"
 #include "protocol/parse.hpp"
@@ -106,7 +106,7 @@ class HostileInputTest : public testing::Test {
     auto reply = c.receive(std::chrono::seconds(60));
     ASSERT_TRUE(reply.ok()) << reply.error().message << "\n" << server_->log();
     ASSERT_TRUE(std::holds_alternative<protocol::MeshReply>(reply->header.reply)) << reply->json;
-    EXPECT_TRUE(core::decode_draco(reply->payload).ok());
+    EXPECT_TRUE(core::codec::decode_draco(reply->payload).ok());
   }
 
   static test::ServerProcess* server_;
@@ -198,7 +198,7 @@ TEST_F(HostileInputTest, InvalidUtf8OverWebSocketGetsErrorRepliesAndAnExtractFol
   auto mesh = ws.receive();
   ASSERT_TRUE(mesh.ok()) << mesh.error().message;
   ASSERT_TRUE(std::holds_alternative<protocol::MeshReply>(mesh->header.reply)) << mesh->json;
-  EXPECT_TRUE(core::decode_draco(mesh->payload).ok());
+  EXPECT_TRUE(core::codec::decode_draco(mesh->payload).ok());
 
   // A text message that is not UTF-8 breaks the WebSocket protocol: that connection ends, no other.
   WebSocketClient broken(server_->http_port());

@@ -1,4 +1,4 @@
-// A server on mapped .mt files (core/FORMAT.md, version 2): a file damaged in a block that only fine
+// A server on mapped .mt files (core/model/FORMAT.md, version 2): a file damaged in a block that only fine
 // cuts reach is served; the requests that reach the block get an error naming it, every other
 // request is answered, and the process runs on. A file damaged in the root's block is refused at
 // start with the file and the block named.
@@ -8,10 +8,10 @@
 #include <string>
 
 #include "clients/common/server_connection.hpp"
+#include "core/build/mt_builder.hpp"
 #include "core/eval/mesh_gen.hpp"
 #include "core/io/mt_file.hpp"
-#include "core/mt_builder.hpp"
-#include "core/mt_format.hpp"
+#include "core/model/mt_format.hpp"
 #include "core/threads/thread_pool.hpp"
 #include "tests/core/test_meshes.hpp"
 #include "tests/server/server_process.hpp"
@@ -31,22 +31,23 @@ struct Damaged {
 };
 
 Damaged build_shell(std::size_t triangles) {
-  core::GenerateOptions options;
-  options.shape = core::Shape::kShell;
+  core::eval::GenerateOptions options;
+  options.shape = core::eval::Shape::kShell;
   options.target_triangles = triangles;
-  core::ThreadPool pool;
-  core::BuildOptions build;
+  core::threads::ThreadPool pool;
+  core::build::BuildOptions build;
   pool.attach(build);
-  auto mt = core::build_mt(core::generate_mesh(options), build);
+  auto mt = core::build::build_mt(core::eval::generate_mesh(options), build);
   EXPECT_TRUE(mt.ok());
   Damaged d;
   const auto path = test::scratch_dir("mapped-model") / "built.mt";
   EXPECT_TRUE(core::io::write_mt_file(path, *mt).ok());
   d.bytes = test::read_file(path);
-  const core::MtCounts counts = core::mt_counts(*mt);
-  d.last_block = core::mt_block_count(counts.nodes) - 1;
-  const std::uint32_t first = mt->node_triangle_offsets[std::size_t{d.last_block} << core::kMtBlockShift];
-  d.last_block_byte = core::mt_layout(counts).triangle_remover + 4 * std::size_t{first};
+  const core::model::MtCounts counts = core::model::mt_counts(*mt);
+  d.last_block = core::model::mt_block_count(counts.nodes) - 1;
+  const std::uint32_t first =
+      mt->node_triangle_offsets[std::size_t{d.last_block} << core::model::kMtBlockShift];
+  d.last_block_byte = core::model::mt_layout(counts).triangle_remover + 4 * std::size_t{first};
   return d;
 }
 
@@ -101,7 +102,7 @@ TEST(MappedModel, ADamagedBlockFailsOnlyTheRequestsThatReachIt) {
 
 TEST(MappedModel, ADamagedRootBlockIsRefusedAtStart) {
   // A position of a root vertex: block 0, checked when the file is opened.
-  const fs::path dir = models_with(build_shell(3000), "root", core::kMtHeaderBytes + 6);
+  const fs::path dir = models_with(build_shell(3000), "root", core::model::kMtHeaderBytes + 6);
   test::ServerProcess server({"--models", (dir / "models").string()}, dir);
   EXPECT_FALSE(server.running());
   const std::string log = server.log();

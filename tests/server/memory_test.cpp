@@ -6,9 +6,9 @@
 #include <algorithm>
 #include <string>
 
+#include "core/build/mt_builder.hpp"
 #include "core/eval/mesh_gen.hpp"
 #include "core/io/mt_file.hpp"
-#include "core/mt_builder.hpp"
 #include "protocol/camera.hpp"
 #include "server/engine.hpp"
 #include "server/model_registry.hpp"
@@ -25,10 +25,10 @@ struct ShellModel {
 };
 void serve_shell(const std::string& name, std::uint32_t triangles, ShellModel& out) {
   const auto dir = test::scratch_dir("memory-estimate-" + name);
-  core::GenerateOptions shape;
-  shape.shape = core::Shape::kShell;
+  core::eval::GenerateOptions shape;
+  shape.shape = core::eval::Shape::kShell;
   shape.target_triangles = triangles;
-  auto mt = core::build_mt(core::generate_mesh(shape));
+  auto mt = core::build::build_mt(core::eval::generate_mesh(shape));
   ASSERT_TRUE(mt.ok()) << mt.error().message;
   ASSERT_TRUE(core::io::write_mt_file(dir / (name + ".mt"), *mt).ok());
   ASSERT_TRUE(out.models.add_file(dir / (name + ".mt")).ok());
@@ -51,11 +51,11 @@ TEST(MemoryEstimate, BoundsSessionAndScratchOfExtremeRequests) {
       protocol::Extract e = base;
       e.grid = {side, side};
       e.error = 0;  // every triangle: the largest cut
-      e.error_unit = core::ErrorUnits::kModel;
+      e.error_unit = core::view::ErrorUnits::kModel;
       e.delta = delta;
       requests.push_back(e);
       e.error = 1;
-      e.error_unit = core::ErrorUnits::kScreenPixels;
+      e.error_unit = core::view::ErrorUnits::kScreenPixels;
       e.criteria.silhouette = protocol::Silhouette{2, 0};
       e.criteria.focus = {protocol::Focus{0.5, 0.5, 20, 0.1}};
       requests.push_back(e);
@@ -95,7 +95,7 @@ TEST(MemoryEstimate, FollowsTheBudgetOnAModelManyTimesTheCut) {
   protocol::Extract e = big.front;
   e.grid = {256, 256};
   e.error = 0.25;
-  e.error_unit = core::ErrorUnits::kScreenPixels;
+  e.error_unit = core::view::ErrorUnits::kScreenPixels;
   e.criteria.silhouette = protocol::Silhouette{2, 0.25};
   e.budget = 4000;
   e.delta = true;

@@ -21,10 +21,10 @@
 #include <vector>
 
 #include "clients/common/server_connection.hpp"
-#include "core/draco_decode.hpp"
+#include "core/build/mt_builder.hpp"
+#include "core/codec/draco_decode.hpp"
 #include "core/eval/mesh_gen.hpp"
 #include "core/io/mt_file.hpp"
-#include "core/mt_builder.hpp"
 #include "protocol/camera.hpp"
 #include "tests/core/test_meshes.hpp"
 #include "tests/server/http_client.hpp"
@@ -63,13 +63,13 @@ struct Content {
 };
 
 // A generated shape moved `shift` along x, built and written to dir/NAME.mt.
-Content make_content(const fs::path& dir, const std::string& name, core::Shape shape, float shift) {
-  core::GenerateOptions options;
+Content make_content(const fs::path& dir, const std::string& name, core::eval::Shape shape, float shift) {
+  core::eval::GenerateOptions options;
   options.shape = shape;
   options.target_triangles = 20000;
-  core::Mesh mesh = core::generate_mesh(options);
+  core::model::Mesh mesh = core::eval::generate_mesh(options);
   for (std::size_t i = 0; i < mesh.positions.size(); i += 3) mesh.positions[i] += shift;
-  auto mt = core::build_mt(mesh);
+  auto mt = core::build::build_mt(mesh);
   EXPECT_TRUE(mt.ok());
   Content c;
   c.name = name;
@@ -110,7 +110,7 @@ class Stream {
   void check_mesh(const clients::ReplyFrame& frame) {
     const auto& mesh = std::get<protocol::MeshReply>(frame.header.reply);
     ++meshes;
-    auto decoded = core::decode_draco(frame.payload);
+    auto decoded = core::codec::decode_draco(frame.payload);
     if (!decoded) return fail("payload does not decode: " + decoded.error().message);
     if (decoded->mesh.triangle_count() != mesh.triangles)
       return fail("decoded " + std::to_string(decoded->mesh.triangle_count()) + " triangles, reply says " +
@@ -237,9 +237,9 @@ TEST(ModelChange, EveryWayOfChangingAServedFileLeavesTheProcessServing) {
   const fs::path contents_dir = dir / "contents", models = dir / "models";
   fs::create_directories(contents_dir);
   fs::create_directories(models);
-  const Content a = make_content(contents_dir, "a", core::Shape::kSphere, 0.0f);
-  const Content b = make_content(contents_dir, "b", core::Shape::kShell, 10.0f);
-  const Content other = make_content(contents_dir, "other", core::Shape::kTerrain, -10.0f);
+  const Content a = make_content(contents_dir, "a", core::eval::Shape::kSphere, 0.0f);
+  const Content b = make_content(contents_dir, "b", core::eval::Shape::kShell, 10.0f);
+  const Content other = make_content(contents_dir, "other", core::eval::Shape::kTerrain, -10.0f);
   const fs::path served = models / "changing.mt";
   fs::copy_file(a.file, served);
   fs::copy_file(other.file, models / "steady.mt");
@@ -353,7 +353,7 @@ TEST(ModelChange, AServerStartsWhileAModelFileIsBadAndServesItOnceWhole) {
   const fs::path contents_dir = dir / "contents", models = dir / "models";
   fs::create_directories(contents_dir);
   fs::create_directories(models / "changing.mt");
-  const Content a = make_content(contents_dir, "a", core::Shape::kSphere, 0.0f);
+  const Content a = make_content(contents_dir, "a", core::eval::Shape::kSphere, 0.0f);
   fs::copy_file(a.file, models / "steady.mt");
 
   test::ServerProcess server({"--models", models.string()}, dir);
@@ -376,8 +376,8 @@ TEST(ModelChange, SignalAndAdminMessageReloadInSignalMode) {
   const fs::path contents_dir = dir / "contents", models = dir / "models";
   fs::create_directories(contents_dir);
   fs::create_directories(models);
-  const Content a = make_content(contents_dir, "a", core::Shape::kSphere, 0.0f);
-  const Content b = make_content(contents_dir, "b", core::Shape::kShell, 10.0f);
+  const Content a = make_content(contents_dir, "a", core::eval::Shape::kSphere, 0.0f);
+  const Content b = make_content(contents_dir, "b", core::eval::Shape::kShell, 10.0f);
   fs::copy_file(a.file, models / "m.mt");
   test::write_file(dir / "admins", "# who may reload\nsecret-admin-token\n");
 

@@ -12,10 +12,10 @@
 #include <numeric>
 #include <random>
 
+#include "core/build/mt_builder.hpp"
 #include "core/eval/mesh_gen.hpp"
 #include "core/io/mesh_io.hpp"
 #include "core/io/mt_file.hpp"
-#include "core/mt_builder.hpp"
 #include "tests/core/test_meshes.hpp"
 
 namespace mtlod {
@@ -24,8 +24,8 @@ namespace {
 namespace fs = std::filesystem;
 
 // The same MT with its vertices numbered by a random permutation: valid, not in node order.
-core::Mt shuffled_vertices(const core::Mt& built, std::uint32_t seed) {
-  core::MtArrays mt = built.arrays();
+core::model::Mt shuffled_vertices(const core::model::Mt& built, std::uint32_t seed) {
+  core::model::MtArrays mt = built.arrays();
   std::vector<std::uint32_t> to(built.vertex_count());
   std::iota(to.begin(), to.end(), 0u);
   std::shuffle(to.begin(), to.end(), std::mt19937(seed));
@@ -34,10 +34,10 @@ core::Mt shuffled_vertices(const core::Mt& built, std::uint32_t seed) {
     std::copy_n(&mt.positions[3 * v], 3, &positions[3 * std::size_t{to[v]}]);
   mt.positions = std::move(positions);
   for (std::uint32_t& v : mt.node_vertex)
-    if (v != core::kNoVertex) v = to[v];
+    if (v != core::model::kNoVertex) v = to[v];
   for (std::uint32_t& v : mt.triangle_corners) v = to[v];
   for (std::uint32_t& v : mt.root_first_corner) v = to[v];
-  return core::Mt(std::move(mt));
+  return core::model::Mt(std::move(mt));
 }
 
 class ModelRegistryTest : public testing::Test {
@@ -46,24 +46,24 @@ class ModelRegistryTest : public testing::Test {
     dir_ = test::scratch_dir("registry");
     mesh_path_ = dir_ / "shell.ply";
     mt_path_ = dir_ / "shell.mt";
-    core::GenerateOptions o;
-    o.shape = core::Shape::kShell;
+    core::eval::GenerateOptions o;
+    o.shape = core::eval::Shape::kShell;
     o.target_triangles = 3000;
-    const core::Mesh mesh = core::generate_mesh(o);
+    const core::model::Mesh mesh = core::eval::generate_mesh(o);
     ASSERT_TRUE(core::io::save_mesh(mesh_path_, mesh).ok());
-    auto mt = core::build_mt(mesh);
+    auto mt = core::build::build_mt(mesh);
     ASSERT_TRUE(mt.ok());
     built_ = std::move(*mt);
     ASSERT_TRUE(built_.vertices_in_node_order());
   }
   // Writes mt as the mesh's cached file, newer than the mesh.
-  void write_cache(const core::Mt& mt) {
+  void write_cache(const core::model::Mt& mt) {
     ASSERT_TRUE(core::io::write_mt_file(mt_path_, mt).ok());
     fs::last_write_time(mt_path_, fs::last_write_time(mesh_path_) + std::chrono::seconds(5));
   }
 
   fs::path dir_, mesh_path_, mt_path_;
-  core::Mt built_;
+  core::model::Mt built_;
 };
 
 TEST_F(ModelRegistryTest, CurrentCacheIsReusedAsItIs) {
@@ -77,7 +77,7 @@ TEST_F(ModelRegistryTest, CurrentCacheIsReusedAsItIs) {
 }
 
 TEST_F(ModelRegistryTest, CacheFromAnOlderBuilderIsBuiltAgain) {
-  const core::Mt older = shuffled_vertices(built_, 7);
+  const core::model::Mt older = shuffled_vertices(built_, 7);
   ASSERT_FALSE(older.vertices_in_node_order());
   write_cache(older);
   server::ModelRegistry registry;
@@ -103,7 +103,7 @@ TEST_F(ModelRegistryTest, UnreadableCacheIsBuiltAgain) {
 }
 
 TEST_F(ModelRegistryTest, OlderFileGivenByItselfIsServedAsItIs) {
-  const core::Mt older = shuffled_vertices(built_, 11);
+  const core::model::Mt older = shuffled_vertices(built_, 11);
   const fs::path path = dir_ / "older.mt";
   ASSERT_TRUE(core::io::write_mt_file(path, older).ok());
   server::ModelRegistry registry;

@@ -21,7 +21,7 @@
 #include <cstring>
 #include <thread>
 
-#include "core/draco_decode.hpp"
+#include "core/codec/draco_decode.hpp"
 #include "tests/core/test_meshes.hpp"
 #include "tests/server/raw_client.hpp"
 #include "tests/server/raw_websocket.hpp"
@@ -233,7 +233,7 @@ TEST_F(ProxyProtocolTest, ReadsExactlyTheHeaderHoweverItArrives) {
   const auto mesh = e.receive(60s);
   ASSERT_TRUE(mesh);
   ASSERT_TRUE(std::holds_alternative<protocol::MeshReply>(mesh->parsed.reply)) << mesh->json;
-  const auto decoded = core::decode_draco(mesh->payload);
+  const auto decoded = core::codec::decode_draco(mesh->payload);
   ASSERT_TRUE(decoded.ok()) << decoded.error().message;
   EXPECT_EQ(decoded->mesh.triangle_count(), std::get<protocol::MeshReply>(mesh->parsed.reply).triangles);
 }

@@ -9,14 +9,14 @@
 
 #include "clients/common/delta_mesh.hpp"
 #include "clients/common/server_connection.hpp"
-#include "core/bounds.hpp"
-#include "core/draco_decode.hpp"
+#include "core/build/mt_builder.hpp"
+#include "core/codec/draco_decode.hpp"
 #include "core/eval/mesh_gen.hpp"
 #include "core/io/mesh_io.hpp"
 #include "core/io/mt_file.hpp"
-#include "core/mt_builder.hpp"
-#include "core/occupancy_levels.hpp"
-#include "core/view_extract.hpp"
+#include "core/model/bounds.hpp"
+#include "core/view/occupancy_levels.hpp"
+#include "core/view/view_extract.hpp"
 #include "protocol/camera.hpp"
 #include "protocol/frame.hpp"
 #include "protocol/parse.hpp"
@@ -37,8 +37,8 @@ using clients::ServerConnection;
 // saved as bunny.mt in a scratch folder.
 struct Fixture {
   std::filesystem::path dir;
-  core::Mt mt;
-  std::unique_ptr<core::OccupancyLevels> levels;
+  core::model::Mt mt;
+  std::unique_ptr<core::view::OccupancyLevels> levels;
   std::unique_ptr<test::ServerProcess> server;
 };
 
@@ -49,19 +49,19 @@ class ServerTest : public testing::Test {
   static void SetUpTestSuite() {
     g_fixture = new Fixture;
     g_fixture->dir = test::scratch_dir("server");
-    core::Mesh mesh;
+    core::model::Mesh mesh;
     if (auto bunny = core::io::load_mesh(test::models_dir() / "bunny.ply"); bunny.ok()) {
       mesh = std::move(bunny->mesh);
     } else {
-      core::GenerateOptions o;
+      core::eval::GenerateOptions o;
       o.target_triangles = 4000;
-      mesh = core::generate_mesh(o);
+      mesh = core::eval::generate_mesh(o);
     }
-    auto mt = core::build_mt(mesh);
+    auto mt = core::build::build_mt(mesh);
     ASSERT_TRUE(mt.ok()) << mt.error().message;
     ASSERT_TRUE(core::io::write_mt_file(g_fixture->dir / "bunny.mt", *mt).ok());
     g_fixture->mt = std::move(*mt);
-    g_fixture->levels = std::make_unique<core::OccupancyLevels>(g_fixture->mt);
+    g_fixture->levels = std::make_unique<core::view::OccupancyLevels>(g_fixture->mt);
     g_fixture->server = std::make_unique<test::ServerProcess>(
         std::vector<std::string>{(g_fixture->dir / "bunny.mt").string(), "--workers", "2", "--log-level",
                                  "warn"},
@@ -87,12 +87,13 @@ class ServerTest : public testing::Test {
   static protocol::Extract extract_request(double focus_x = 0.5, double focus_y = 0.5) {
     protocol::Extract e;
     e.model = "bunny";
-    const core::Bounds box = core::bounds_of(g_fixture->mt.positions);
-    protocol::look_at_camera(protocol::frame_bounds(core::to_double(box.lo), core::to_double(box.hi)),
-                             4.0 / 3.0, e.view, e.projection);
+    const core::model::Bounds box = core::model::bounds_of(g_fixture->mt.positions);
+    protocol::look_at_camera(
+        protocol::frame_bounds(core::model::to_double(box.lo), core::model::to_double(box.hi)), 4.0 / 3.0,
+        e.view, e.projection);
     e.grid = {128, 96};
     e.error = 2;
-    e.error_unit = core::ErrorUnits::kScreenPixels;
+    e.error_unit = core::view::ErrorUnits::kScreenPixels;
     e.criteria.silhouette = protocol::Silhouette{2, 0};
     e.criteria.focus = {protocol::Focus{focus_x, focus_y, 10, 0.2}};
     return e;
@@ -132,11 +133,11 @@ TEST_F(ServerTest, ExtractDecodesToTheInProcessCut) {
   EXPECT_EQ(mesh->bytes, reply->payload.size());
 
   // The same request computed here, from the same MT file, with a fresh session cut.
-  core::ViewExtractor extractor(g_fixture->mt, *g_fixture->levels);
-  core::Refiner refiner(g_fixture->mt);
-  core::ViewCache session;
-  core::CutMesh cut;
-  const core::ViewRequest view = protocol::to_view_request(request, g_fixture->mt.has_normals());
+  core::view::ViewExtractor extractor(g_fixture->mt, *g_fixture->levels);
+  core::cut::Refiner refiner(g_fixture->mt);
+  core::view::ViewCache session;
+  core::cut::CutMesh cut;
+  const core::view::ViewRequest view = protocol::to_view_request(request, g_fixture->mt.has_normals());
   extractor.map(view, &session);
   extractor.occupancy();
   extractor.distance_transforms();
@@ -150,7 +151,7 @@ TEST_F(ServerTest, ExtractDecodesToTheInProcessCut) {
   EXPECT_GE(session.memory_bytes(), g_fixture->mt.vertex_count() * sizeof(float));
   EXPECT_GE(mesh->scratch_bytes, g_fixture->mt.vertex_count() * sizeof(float));
 
-  auto decoded = core::decode_draco(reply->payload);
+  auto decoded = core::codec::decode_draco(reply->payload);
   ASSERT_TRUE(decoded.ok()) << decoded.error().message;
   ASSERT_EQ(decoded->mesh.triangle_count(), cut.triangle_count());
   EXPECT_EQ(decoded->mesh.vertex_count(), mesh->vertices);
@@ -165,7 +166,7 @@ TEST_F(ServerTest, ExtractDecodesToTheInProcessCut) {
 TEST_F(ServerTest, GooglesDracoDecoderReadsAServerPayload) {
   ServerConnection c = connect();
   protocol::Extract request = extract_request();
-  request.draco.method = core::DracoMethod::kSequential;
+  request.draco.method = core::codec::DracoMethod::kSequential;
   auto reply = c.call(request, 1);
   ASSERT_TRUE(reply.ok()) << reply.error().message;
   ASSERT_NE(as_mesh(*reply), nullptr) << reply->json;
@@ -264,7 +265,7 @@ TEST_F(ServerTest, ThirtyTwoConcurrentClientsMixingExtractAndGaze) {
           ++failures;
           continue;
         }
-        if (core::decode_draco(reply->payload).ok()) ++meshes;
+        if (core::codec::decode_draco(reply->payload).ok()) ++meshes;
       }
     });
   }
@@ -398,9 +399,9 @@ TEST_F(ServerTest, CancelAnswersTheCancelledRequestOrSaysItHadStarted) {
 
 TEST(ServerShutdown, SigtermFinishesInFlightWorkThenExits) {
   const auto dir = test::scratch_dir("server-drain");
-  core::GenerateOptions o;
+  core::eval::GenerateOptions o;
   o.target_triangles = 60'000;
-  auto mt = core::build_mt(core::generate_mesh(o));
+  auto mt = core::build::build_mt(core::eval::generate_mesh(o));
   ASSERT_TRUE(mt.ok());
   ASSERT_TRUE(core::io::write_mt_file(dir / "sphere.mt", *mt).ok());
   test::ServerProcess server({(dir / "sphere.mt").string(), "--workers", "1", "--log-level", "info"}, dir);
@@ -420,7 +421,7 @@ TEST(ServerShutdown, SigtermFinishesInFlightWorkThenExits) {
     ASSERT_TRUE(r.ok()) << r.error().message;
     if (as_mesh(*r)) {
       ++meshes;
-      EXPECT_TRUE(core::decode_draco(r->payload).ok());
+      EXPECT_TRUE(core::codec::decode_draco(r->payload).ok());
     } else {
       ASSERT_NE(as_error(*r), nullptr);
       EXPECT_EQ(as_error(*r)->code, protocol::ErrorKind::kShuttingDown);

@@ -25,7 +25,7 @@ inline protocol::Extract framing_extract(const std::string& name, const std::arr
   protocol::look_at_camera(protocol::frame_bounds(lo, hi), 4.0 / 3.0, e.view, e.projection);
   e.grid = grid;
   e.error = error_px;
-  e.error_unit = core::ErrorUnits::kScreenPixels;
+  e.error_unit = core::view::ErrorUnits::kScreenPixels;
   return e;
 }
 inline protocol::Extract framing_extract(const std::string& name, const protocol::ModelInfoReply& model,

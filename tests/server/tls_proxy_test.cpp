@@ -10,7 +10,7 @@
 #include <thread>
 
 #include "clients/common/server_connection.hpp"
-#include "core/draco_decode.hpp"
+#include "core/codec/draco_decode.hpp"
 #include "protocol/camera.hpp"
 #include "tests/core/test_meshes.hpp"
 #include "tests/deploy/deploy_support.hpp"
@@ -86,7 +86,7 @@ void run_layout(const std::string& mode) {
   auto mesh = c->call(e, 3, 60s);
   ASSERT_TRUE(mesh.ok()) << mesh.error().message;
   ASSERT_TRUE(std::holds_alternative<protocol::MeshReply>(mesh->header.reply)) << mesh->json;
-  EXPECT_TRUE(core::decode_draco(mesh->payload).ok());
+  EXPECT_TRUE(core::codec::decode_draco(mesh->payload).ok());
 
   // The token is the replica's to check, whichever side holds the certificate.
   auto stranger = clients::ServerConnection::open("127.0.0.1", lb_port, 5s, tls);

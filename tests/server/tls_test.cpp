@@ -18,7 +18,7 @@
 
 #include "clients/common/retry.hpp"
 #include "clients/common/server_connection.hpp"
-#include "core/draco_decode.hpp"
+#include "core/codec/draco_decode.hpp"
 #include "protocol/camera.hpp"
 #include "protocol/frame.hpp"
 #include "protocol/parse.hpp"
@@ -108,7 +108,7 @@ class TlsTest : public testing::Test {
     const auto* mesh = std::get_if<protocol::MeshReply>(&reply->header.reply);
     ASSERT_NE(mesh, nullptr) << reply->json;
     EXPECT_GT(mesh->triangles, 0u);
-    auto decoded = core::decode_draco(reply->payload);
+    auto decoded = core::codec::decode_draco(reply->payload);
     ASSERT_TRUE(decoded.ok()) << decoded.error().message;
     EXPECT_EQ(decoded->mesh.triangle_count(), mesh->triangles);
   }

@@ -15,14 +15,14 @@
 #include <string_view>
 
 #include "clients/tools/eval/support.hpp"
-#include "core/allowed_error.hpp"
-#include "core/bounds.hpp"
-#include "core/draco_encode.hpp"
+#include "core/codec/draco_encode.hpp"
+#include "core/cut/refine.hpp"
 #include "core/eval/render.hpp"
 #include "core/io/image_io.hpp"
-#include "core/occupancy_levels.hpp"
-#include "core/refine.hpp"
-#include "core/view_extract.hpp"
+#include "core/model/bounds.hpp"
+#include "core/view/allowed_error.hpp"
+#include "core/view/occupancy_levels.hpp"
+#include "core/view/view_extract.hpp"
 #include "fmt/format.h"
 
 namespace mtlod::eval_tool {
@@ -36,12 +36,12 @@ namespace fs = std::filesystem;
 // transforms, back-face, hidden-surface and frustum coarsening. Under a budget only the ratios between
 // vertices matter, so the bound itself is a tiny constant that every triangle fails.
 struct Criteria {
-  ErrorUnits units = ErrorUnits::kScreenPixels;
+  view::ErrorUnits units = view::ErrorUnits::kScreenPixels;
   bool use_silhouette = false, use_focus = false;
-  RegionLaw silhouette{FalloffLaw::kStep, 2.0f, 0.2f, 16.0f, 2.3f};
-  RegionLaw focus{FalloffLaw::kStep, 20.0f, 0.1f, 16.0f, 2.3f};
+  view::RegionLaw silhouette{view::FalloffLaw::kStep, 2.0f, 0.2f, 16.0f, 2.3f};
+  view::RegionLaw focus{view::FalloffLaw::kStep, 20.0f, 0.1f, 16.0f, 2.3f};
   float back_face = 1.0f, hidden = 1.0f, frustum = 1.0f;
-  float hidden_margin = AllowedErrorOptions{}.hidden_depth_margin;
+  float hidden_margin = view::AllowedErrorOptions{}.hidden_depth_margin;
 };
 
 enum class Kind { kUniform, kMeshopt, kCriteria };
@@ -56,16 +56,16 @@ struct Method {
 struct LawKey {
   const char* key;
   bool silhouette;
-  FalloffLaw law;
+  view::FalloffLaw law;
   std::size_t values;
 };
-constexpr std::array<LawKey, 7> kLawKeys{{{"sil", true, FalloffLaw::kStep, 2},
-                                          {"sil-linear", true, FalloffLaw::kLinear, 3},
-                                          {"sil-smooth", true, FalloffLaw::kSmoothstep, 3},
-                                          {"focus", false, FalloffLaw::kStep, 2},
-                                          {"focus-linear", false, FalloffLaw::kLinear, 3},
-                                          {"focus-smooth", false, FalloffLaw::kSmoothstep, 3},
-                                          {"focus-foveal", false, FalloffLaw::kFoveal, 1}}};
+constexpr std::array<LawKey, 7> kLawKeys{{{"sil", true, view::FalloffLaw::kStep, 2},
+                                          {"sil-linear", true, view::FalloffLaw::kLinear, 3},
+                                          {"sil-smooth", true, view::FalloffLaw::kSmoothstep, 3},
+                                          {"focus", false, view::FalloffLaw::kStep, 2},
+                                          {"focus-linear", false, view::FalloffLaw::kLinear, 3},
+                                          {"focus-smooth", false, view::FalloffLaw::kSmoothstep, 3},
+                                          {"focus-foveal", false, view::FalloffLaw::kFoveal, 1}}};
 
 // SPEC: `uniform`, `meshopt`, or comma-separated criteria: `px` (default) or `model` units;
 // `sil=D/F`, `sil-linear=D/F/W`, `sil-smooth=D/F/W` (distances in grid pixels); `focus=R/F`,
@@ -96,13 +96,13 @@ Result<Method> parse_method(const std::string& text) {
                           fmt::format("--method {}: bad number in '{}'", m.name, token));
       v.push_back(x);
     }
-    const auto law = [&](RegionLaw& out, FalloffLaw kind, std::size_t count) -> bool {
+    const auto law = [&](view::RegionLaw& out, view::FalloffLaw kind, std::size_t count) -> bool {
       // The foveal law: F, or F/E2 (the eccentricity at which the error doubles, 2.3° unless given).
-      if (kind == FalloffLaw::kFoveal && v.size() == 2)
+      if (kind == view::FalloffLaw::kFoveal && v.size() == 2)
         return out.law = kind, out.factor = v[0], out.foveal_e2_deg = v[1], true;
       if (v.size() != count) return false;
       out.law = kind;
-      if (kind == FalloffLaw::kFoveal) return out.factor = v[0], true;
+      if (kind == view::FalloffLaw::kFoveal) return out.factor = v[0], true;
       out.distance_px = v[0], out.factor = v[1];
       if (count == 3) out.falloff_px = v[2];
       return true;
@@ -110,9 +110,9 @@ Result<Method> parse_method(const std::string& text) {
     Criteria& c = m.criteria;
     bool ok = true;
     if (key == "px" && v.empty())
-      c.units = ErrorUnits::kScreenPixels;
+      c.units = view::ErrorUnits::kScreenPixels;
     else if (key == "model" && v.empty())
-      c.units = ErrorUnits::kModel;
+      c.units = view::ErrorUnits::kModel;
     else if (const auto* k = std::find_if(kLawKeys.begin(), kLawKeys.end(),
                                           [&](const LawKey& l) { return key == l.key; });
              k != kLawKeys.end()) {
@@ -189,9 +189,9 @@ struct Candidate {
 // Everything one mesh's cameras share.
 struct MeshContext {
   ShadedModel* model = nullptr;
-  ViewExtractor* extractor = nullptr;
-  Refiner* refiner = nullptr;
-  DracoEncoder encoder;
+  view::ViewExtractor* extractor = nullptr;
+  cut::Refiner* refiner = nullptr;
+  codec::DracoEncoder encoder;
   std::vector<std::uint8_t> payload;
   std::vector<std::uint32_t> meshopt_scratch;
   std::map<std::size_t, std::vector<std::uint32_t>> meshopt_cache;  // target triangles -> result
@@ -205,14 +205,14 @@ std::size_t encoded_bytes(MeshContext& ctx, const Candidate& c) {
 }
 
 // The per-vertex allowed error of a criteria method at this camera and focus (whole field).
-void criteria_field(MeshContext& ctx, const Criteria& c, const Camera& camera, GridSize grid,
+void criteria_field(MeshContext& ctx, const Criteria& c, const view::Camera& camera, view::GridSize grid,
                     std::array<float, 2> focus, std::vector<float>& out) {
-  ViewRequest request;
+  view::ViewRequest request;
   request.camera = camera;
   request.grid = grid;
-  AllowedErrorOptions& a = request.allowed;
+  view::AllowedErrorOptions& a = request.allowed;
   a.units = c.units;
-  a.error = c.units == ErrorUnits::kModel ? 1e-9f * ctx.model->bounds.radius() : 1e-6f;
+  a.error = c.units == view::ErrorUnits::kModel ? 1e-9f * ctx.model->bounds.radius() : 1e-6f;
   a.use_silhouette = c.use_silhouette, a.silhouette = c.silhouette;
   a.use_focus = c.use_focus, a.focus = c.focus;
   a.back_face_factor = c.back_face, a.hidden_factor = c.hidden, a.outside_view_factor = c.frustum;
@@ -229,11 +229,11 @@ void criteria_field(MeshContext& ctx, const Criteria& c, const Camera& camera, G
 
 // The cut of at most n triangles of a method (meshopt: its simplification to n triangles).
 void make_cut(MeshContext& ctx, const Method& m, std::span<const float> field, std::size_t n,
-              CutMesh& scratch, Candidate& out) {
+              cut::CutMesh& scratch, Candidate& out) {
   if (m.kind == Kind::kMeshopt) {
     auto it = ctx.meshopt_cache.find(n);
     if (it == ctx.meshopt_cache.end()) {
-      const Mesh& mesh = ctx.model->mesh;
+      const model::Mesh& mesh = ctx.model->mesh;
       std::vector<std::uint32_t>& s = ctx.meshopt_scratch;
       s.resize(mesh.triangles.size());
       s.resize(meshopt_simplify(s.data(), mesh.triangles.data(), mesh.triangles.size(), mesh.positions.data(),
@@ -243,8 +243,8 @@ void make_cut(MeshContext& ctx, const Method& m, std::span<const float> field, s
     out.triangles = it->second;
     out.mesh_vertices = true;
   } else {
-    const AllowedError allowed =
-        m.kind == Kind::kUniform ? AllowedError::everywhere(0.0f) : AllowedError::from_vertices(field);
+    const cut::AllowedError allowed = m.kind == Kind::kUniform ? cut::AllowedError::everywhere(0.0f)
+                                                               : cut::AllowedError::from_vertices(field);
     ctx.refiner->refine_budget(allowed, n, scratch);
     out.triangles = scratch.triangles;
     out.mesh_vertices = false;
@@ -255,7 +255,7 @@ void make_cut(MeshContext& ctx, const Method& m, std::span<const float> field, s
 // The method's cut whose payload is closest to `bytes`: secant steps on the triangle count (the
 // payload grows about linearly with it), at most 8, stopping within 0.5 %.
 void cut_at_bytes(MeshContext& ctx, const Method& m, std::span<const float> field, std::size_t start_n,
-                  std::size_t bytes, std::size_t max_n, CutMesh& scratch, Candidate& best) {
+                  std::size_t bytes, std::size_t max_n, cut::CutMesh& scratch, Candidate& best) {
   Candidate c;
   std::size_t n = start_n;
   best.bytes = 0;
@@ -282,7 +282,7 @@ struct Views {
   ImageScratch scratch;
 };
 
-Score score_cut(MeshContext& ctx, const ViewMapping& image, const Candidate& c, Views& v) {
+Score score_cut(MeshContext& ctx, const view::ViewMapping& image, const Candidate& c, Views& v) {
   if (c.mesh_vertices)
     render_shaded(image, ctx.model->mesh.positions, c.triangles, ctx.model->normals, v.cut);
   else
@@ -293,13 +293,13 @@ Score score_cut(MeshContext& ctx, const ViewMapping& image, const Candidate& c, 
   s.ssim = m.image.ssim, s.foveated_ssim = m.image.foveated_ssim;
   s.mae_covered = m.image.mae_covered, s.foveated_mae = m.image.foveated_mae;
   s.xor_px = double(m.xor_px);
-  s.near_ssim = weighted_ssim(v.scratch.map, image.grid(), {v.scratch.covered, v.near_weights});
+  s.near_ssim = eval::weighted_ssim(v.scratch.map, image.grid(), {v.scratch.covered, v.near_weights});
   return s;
 }
 
 // Figures: renders side by side and |ΔY| images side by side, with the focus marked.
-void draw_cross(std::vector<std::uint8_t>& rgb, GridSize grid, std::uint32_t x0, std::array<float, 2> focus,
-                std::uint32_t panel) {
+void draw_cross(std::vector<std::uint8_t>& rgb, view::GridSize grid, std::uint32_t x0,
+                std::array<float, 2> focus, std::uint32_t panel) {
   const int cx = int(focus[0] * float(panel)), cy = int(focus[1] * float(grid.height));
   for (int d = -6; d <= 6; ++d) {
     for (const auto& [x, y] : {std::pair{cx + d, cy}, std::pair{cx, cy + d}}) {
@@ -312,7 +312,7 @@ void draw_cross(std::vector<std::uint8_t>& rgb, GridSize grid, std::uint32_t x0,
 
 Status write_panels(const fs::path& path, const std::vector<const std::vector<std::uint8_t>*>& panels,
                     std::uint32_t side, std::array<float, 2> focus) {
-  const GridSize grid{side * std::uint32_t(panels.size()), side};
+  const view::GridSize grid{side * std::uint32_t(panels.size()), side};
   std::vector<std::uint8_t> rgb(3 * grid.cell_count());
   for (std::size_t k = 0; k < panels.size(); ++k)
     for (std::uint32_t y = 0; y < side; ++y)
@@ -327,7 +327,7 @@ std::vector<std::uint8_t> difference_image(const ShadedView& a, const ShadedView
   std::vector<std::uint8_t> rgb(3 * n, 255);
   for (std::size_t c = 0; c < n; ++c) {
     if (!std::isfinite(a.depth[c]) && !std::isfinite(b.depth[c])) continue;
-    const auto colour = ramp_color(float(std::abs(a.luminance[c] - b.luminance[c]) / scale));
+    const auto colour = eval::ramp_color(float(std::abs(a.luminance[c] - b.luminance[c]) / scale));
     std::copy(colour.begin(), colour.end(), &rgb[3 * c]);
   }
   return rgb;
@@ -459,7 +459,7 @@ int run_fidelity(const FidelityOptions& o, const std::string& command) {
   if (ec)
     return fmt::print(stderr, "mtlod-eval: cannot create {}: {}\n", figure_dir.string(), ec.message()), 1;
 
-  const GridSize image_grid{o.image_px, o.image_px}, dt_grid{o.grid_px, o.grid_px};
+  const view::GridSize image_grid{o.image_px, o.image_px}, dt_grid{o.grid_px, o.grid_px};
   std::vector<Row> rows;
   Curves curves;
   std::vector<std::pair<std::string, std::string>> mesh_info;
@@ -470,13 +470,13 @@ int run_fidelity(const FidelityOptions& o, const std::string& command) {
     if (!loaded) return fmt::print(stderr, "mtlod-eval: {}\n", loaded.error().message), 1;
     ShadedModel& model = **loaded;
     const std::string& name = model.name;
-    const Mesh* mesh = &model.mesh;
-    Mt* mt = &model.mt;
+    const model::Mesh* mesh = &model.mesh;
+    model::Mt* mt = &model.mt;
     MeshContext ctx;
     ctx.model = &model;
-    const OccupancyLevels levels(*mt);
-    ViewExtractor extractor(*mt, levels);
-    Refiner refiner(*mt);
+    const view::OccupancyLevels levels(*mt);
+    view::ViewExtractor extractor(*mt, levels);
+    cut::Refiner refiner(*mt);
     ctx.extractor = &extractor, ctx.refiner = &refiner;
     mesh_info.push_back({name, fmt::format("{} | {} | {} | {}", model.path, mesh->vertex_count(),
                                            mesh->triangle_count(), mt->root_triangle_count())});
@@ -487,25 +487,25 @@ int run_fidelity(const FidelityOptions& o, const std::string& command) {
     views.weights.resize(image_grid.cell_count());
     std::vector<std::uint8_t> mask(image_grid.cell_count());
     std::vector<std::vector<float>> fields(methods.size());
-    CutMesh scratch;
+    cut::CutMesh scratch;
     for (int k = 0; k < o.cameras; ++k) {
-      const Camera camera = orbit_camera(ctx.model->bounds, k, o.cameras);
-      const ViewMapping image(camera, image_grid);
+      const view::Camera camera = orbit_camera(ctx.model->bounds, k, o.cameras);
+      const view::ViewMapping image(camera, image_grid);
       render_shaded(image, mesh->positions, mesh->triangles, ctx.model->normals, views.reference);
       for (std::size_t c = 0; c < mask.size(); ++c) mask[c] = std::isfinite(views.reference.depth[c]);
       const std::array<float, 2> focus = focus_point(mask, image_grid);
-      Foveation foveation;
+      eval::Foveation foveation;
       foveation.focus_x_px = focus[0] * float(o.image_px),
       foveation.focus_y_px = focus[1] * float(o.image_px);
-      foveation.focal_px = focal_px_from_fov(o.image_px, kOrbitFovDeg);
-      foveation_weights(image_grid, foveation, views.weights);
+      foveation.focal_px = eval::focal_px_from_fov(o.image_px, kOrbitFovDeg);
+      eval::foveation_weights(image_grid, foveation, views.weights);
       views.near_weights.resize(views.weights.size());
       near_weights(views.weights, foveation.e2_deg, kNearDeg, views.near_weights);
       for (std::size_t m = 0; m < methods.size(); ++m)
         if (methods[m].kind == Kind::kCriteria)
           criteria_field(ctx, methods[m].criteria, camera, dt_grid, focus, fields[m]);
       // The turned views: the gaze stays at the same point of the image, so do its weights.
-      std::vector<ViewMapping> turned_image;
+      std::vector<view::ViewMapping> turned_image;
       for (std::size_t i = 0; i < o.turns.size(); ++i) {
         turned_image.emplace_back(turned_camera(camera, ctx.model->bounds, o.turns[i]), image_grid);
         render_shaded(turned_image[i], mesh->positions, mesh->triangles, ctx.model->normals,

@@ -11,10 +11,10 @@
 #include "clients/common/extract_flags.hpp"
 #include "clients/gaze/trace.hpp"
 #include "clients/tools/eval/support.hpp"
-#include "core/draco_encode.hpp"
-#include "core/occupancy_levels.hpp"
-#include "core/refine.hpp"
-#include "core/view_extract.hpp"
+#include "core/codec/draco_encode.hpp"
+#include "core/cut/refine.hpp"
+#include "core/view/occupancy_levels.hpp"
+#include "core/view/view_extract.hpp"
 #include "fmt/format.h"
 
 namespace mtlod::eval_tool {
@@ -34,37 +34,37 @@ struct ScoredCut {
 };
 
 struct Scorer {
-  GridSize grid;
+  view::GridSize grid;
   ShadedView reference, cut;
 
-  void score(const ShadedModel& m, const ViewMapping& image, std::span<const std::uint32_t> triangles,
+  void score(const ShadedModel& m, const view::ViewMapping& image, std::span<const std::uint32_t> triangles,
              ScoredCut& out) {
     render_shaded(image, m.mt.positions, triangles, m.mt_normals, cut);
     out.covered.resize(grid.cell_count());
     for (std::size_t c = 0; c < out.covered.size(); ++c)
       out.covered[c] = std::isfinite(reference.depth[c]) || std::isfinite(cut.depth[c]);
-    out.map.resize(ssim_map_size(grid).cell_count());
-    ssim(reference.luminance, cut.luminance, grid, out.map);
+    out.map.resize(eval::ssim_map_size(grid).cell_count());
+    eval::ssim(reference.luminance, cut.luminance, grid, out.map);
     out.triangles = triangles.size() / 3;
   }
 
   // 1 − SSIM over the covered windows, weighted.
   double error(const ScoredCut& c, std::span<const float> weights) const {
-    return 1.0 - weighted_ssim(c.map, grid, {c.covered, weights});
+    return 1.0 - eval::weighted_ssim(c.map, grid, {c.covered, weights});
   }
 };
 
 // The default criteria's budgeted cut for a focus (the budget alone decides the size: the bound is
 // far below what any cut reaches, as in FIDELITY.md).
-void default_cut(ViewExtractor& extractor, Refiner& refiner, const Camera& camera, GridSize grid,
-                 std::array<float, 2> focus, std::size_t budget, CutMesh& out) {
-  ViewRequest r;
+void default_cut(view::ViewExtractor& extractor, cut::Refiner& refiner, const view::Camera& camera,
+                 view::GridSize grid, std::array<float, 2> focus, std::size_t budget, cut::CutMesh& out) {
+  view::ViewRequest r;
   r.camera = camera;
   r.grid = grid;
-  r.allowed.units = ErrorUnits::kScreenPixels;
+  r.allowed.units = view::ErrorUnits::kScreenPixels;
   r.allowed.error = 1e-6f;
   r.allowed.use_focus = true;
-  r.allowed.focus = {FalloffLaw::kFoveal, 0.0f, 1.0f, 16.0f, 2.3f};
+  r.allowed.focus = {view::FalloffLaw::kFoveal, 0.0f, 1.0f, 16.0f, 2.3f};
   r.allowed.outside_view_factor = 8.0f;
   r.allowed.hidden_factor = static_cast<float>(protocol::kDefaultHiddenFactor);
   r.focus = {focus};
@@ -133,20 +133,20 @@ int run_gaze_study(const GazeStudyOptions& o, const std::string& command) {
   }
   if (trace.size() < 2) return fmt::print(stderr, "mtlod-eval: the trace needs at least two samples\n"), 2;
 
-  const GridSize grid{o.image_px, o.image_px}, dt_grid{o.grid_px, o.grid_px};
-  const double focal_px = focal_px_from_fov(o.image_px, kOrbitFovDeg);
+  const view::GridSize grid{o.image_px, o.image_px}, dt_grid{o.grid_px, o.grid_px};
+  const double focal_px = eval::focal_px_from_fov(o.image_px, kOrbitFovDeg);
   const auto pixel = [&](const clients::GazeSample& s) {
     return std::array<double, 2>{s.x * o.image_px, s.y * o.image_px};
   };
   // I-VT: a sample is in a saccade when the eye moved faster than the threshold since the previous.
   std::vector<std::uint8_t> in_saccade(trace.size(), 0);
   for (std::size_t k = 1; k < trace.size(); ++k) {
-    Foveation f;
+    eval::Foveation f;
     f.focal_px = focal_px;
     const auto a = pixel(trace[k - 1]), b = pixel(trace[k]);
     f.focus_x_px = float(a[0]), f.focus_y_px = float(a[1]);
     const double dt = std::max(1e-6, trace[k].time_ms - trace[k - 1].time_ms) / 1000.0;
-    in_saccade[k] = pixel_eccentricity_deg(grid, f, b[0], b[1]) / dt > o.saccade_deg_per_s;
+    in_saccade[k] = eval::pixel_eccentricity_deg(grid, f, b[0], b[1]) / dt > o.saccade_deg_per_s;
   }
   // Fixations after saccades: [end, next start) in sample indices.
   std::vector<std::pair<std::size_t, std::size_t>> fixations;
@@ -170,14 +170,14 @@ int run_gaze_study(const GazeStudyOptions& o, const std::string& command) {
       return fmt::print(stderr, "mtlod-eval: {}: --budget {} is outside the MT's {}..{} triangles\n",
                         model.name, o.budget, model.mt.root_triangle_count(), model.mesh.triangle_count()),
              2;
-    const OccupancyLevels levels(model.mt);
-    ViewExtractor extractor(model.mt, levels);
-    Refiner refiner(model.mt);
-    DracoEncoder encoder;
+    const view::OccupancyLevels levels(model.mt);
+    view::ViewExtractor extractor(model.mt, levels);
+    cut::Refiner refiner(model.mt);
+    codec::DracoEncoder encoder;
     std::vector<std::uint8_t> payload;
-    CutMesh cut;
-    const Camera camera = orbit_camera(model.bounds, 0, 8);
-    const ViewMapping image(camera, grid);
+    cut::CutMesh cut;
+    const view::Camera camera = orbit_camera(model.bounds, 0, 8);
+    const view::ViewMapping image(camera, grid);
     Scorer scorer;
     scorer.grid = grid;
     render_shaded(image, model.mesh.positions, model.mesh.triangles, model.normals, scorer.reference);
@@ -197,9 +197,9 @@ int run_gaze_study(const GazeStudyOptions& o, const std::string& command) {
     ScoredCut uniform;
     {
       std::size_t n = o.budget, best_bytes = 0;
-      CutMesh best;
+      cut::CutMesh best;
       for (int step = 0; step < 8; ++step) {
-        refiner.refine_budget(AllowedError::everywhere(0.0f), n, cut);
+        refiner.refine_budget(cut::AllowedError::everywhere(0.0f), n, cut);
         const std::size_t bytes = draco_payload_bytes(encoder, model.mt.positions, cut.triangles, payload);
         if (best_bytes == 0 ||
             std::abs(double(bytes) - target_bytes) < std::abs(double(best_bytes) - target_bytes))
@@ -222,11 +222,11 @@ int run_gaze_study(const GazeStudyOptions& o, const std::string& command) {
     std::vector<float> weights(grid.cell_count()), near(grid.cell_count());
     for (std::size_t k = 0; k < trace.size(); ++k) {
       // The eye is at sample k now: acuity weights around it, and the same within near_deg only.
-      Foveation f;
+      eval::Foveation f;
       f.focal_px = focal_px;
       const auto eye = pixel(trace[k]);
       f.focus_x_px = float(eye[0]), f.focus_y_px = float(eye[1]);
-      foveation_weights(grid, f, weights);
+      eval::foveation_weights(grid, f, weights);
       near_weights(weights, f.e2_deg, o.near_deg, near);
       const double uniform_error = scorer.error(uniform, weights), uniform_near = scorer.error(uniform, near);
       for (LatencyResult& l : result.latencies) {

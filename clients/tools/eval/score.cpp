@@ -32,8 +32,8 @@ int run_score(const ScoreOptions& o) {
   if (!a) return fmt::print(stderr, "mtlod-eval: {}\n", a.error().message), 1;
   auto b = io::read_png_rgb(o.candidate);
   if (!b) return fmt::print(stderr, "mtlod-eval: {}\n", b.error().message), 1;
-  const GridSize size = a->size;
-  const std::uint32_t min_side = 2 * SsimOptions{}.window_radius + 1;
+  const view::GridSize size = a->size;
+  const std::uint32_t min_side = 2 * eval::SsimOptions{}.window_radius + 1;
   if (b->size.width != size.width || b->size.height != size.height)
     return fmt::print(stderr, "mtlod-eval: {} is {}x{}, {} is {}x{}\n", o.reference, size.width, size.height,
                       o.candidate, b->size.width, b->size.height),
@@ -52,17 +52,17 @@ int run_score(const ScoreOptions& o) {
 
   // The reference alone gives the model's coverage and so the default focus.
   std::vector<std::uint8_t> reference_mask(size.cell_count());
-  const std::size_t reference_px = coverage_from_background(a->rgb, a->rgb, background, reference_mask);
+  const std::size_t reference_px = eval::coverage_from_background(a->rgb, a->rgb, background, reference_mask);
   const std::array<float, 2> centroid = focus_point(reference_mask, size);
   const std::array<float, 2> focus =
       o.focus.empty() ? centroid : std::array<float, 2>{float(o.focus[0]), float(o.focus[1])};
-  Foveation foveation;
+  eval::Foveation foveation;
   foveation.focus_x_px = focus[0] * float(size.width);
   foveation.focus_y_px = focus[1] * float(size.height);
   foveation.focal_px =
-      o.viewing_distance_px > 0 ? o.viewing_distance_px : focal_px_from_fov(size.height, o.fov_deg);
+      o.viewing_distance_px > 0 ? o.viewing_distance_px : eval::focal_px_from_fov(size.height, o.fov_deg);
   foveation.e2_deg = o.e2_deg;
-  const ImageComparison c = compare_rgb_renderings(a->rgb, b->rgb, size, background, foveation);
+  const eval::ImageComparison c = eval::compare_rgb_renderings(a->rgb, b->rgb, size, background, foveation);
 
   fmt::print(
       "{{\"foveated_error\":{:.9g},\"foveated_ssim\":{:.9g},\"ssim\":{:.9g},\"ssim_covered\":{:.9g},"

@@ -10,10 +10,10 @@
 #include <glm/ext/matrix_transform.hpp>
 #include <glm/geometric.hpp>
 
+#include "core/build/mt_builder.hpp"
 #include "core/eval/render.hpp"
 #include "core/io/mesh_io.hpp"
 #include "core/io/mt_file.hpp"
-#include "core/mt_builder.hpp"
 #include "fmt/format.h"
 
 namespace mtlod::eval_tool {
@@ -25,9 +25,9 @@ double seconds_since(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
 }
 
-Result<Camera> make_camera(const std::array<double, 3>& eye, const std::array<double, 3>& target,
-                           const std::array<double, 3>& up, double fov_deg, double near, double far,
-                           double aspect) {
+Result<view::Camera> make_camera(const std::array<double, 3>& eye, const std::array<double, 3>& target,
+                                 const std::array<double, 3>& up, double fov_deg, double near, double far,
+                                 double aspect) {
   const glm::vec3 e(eye[0], eye[1], eye[2]), t(target[0], target[1], target[2]), u(up[0], up[1], up[2]);
   for (int c = 0; c < 3; ++c)
     if (!std::isfinite(e[c]) || !std::isfinite(t[c]) || !std::isfinite(u[c]))
@@ -42,13 +42,13 @@ Result<Camera> make_camera(const std::array<double, 3>& eye, const std::array<do
   if (!(near > 0.0 && far > near))
     return make_error(ErrorCode::kInvalidArgument,
                       fmt::format("camera: near {} / far {} planes invalid", near, far));
-  Camera camera;
+  view::Camera camera;
   camera.view = glm::lookAt(e, t, u);
   camera.projection = glm::perspective(glm::radians(float(fov_deg)), float(aspect), float(near), float(far));
   return camera;
 }
 
-Camera orbit_camera(const Bounds& b, int k, int n) {
+view::Camera orbit_camera(const model::Bounds& b, int k, int n) {
   const double azimuth = 2.0 * M_PI * k / n, elevation = glm::radians(k % 2 == 0 ? 25.0 : -10.0);
   const double fov = kOrbitFovDeg, distance = b.radius() / std::sin(glm::radians(fov / 2)) / 0.9;
   const glm::vec3 dir(std::cos(elevation) * std::sin(azimuth), std::sin(elevation),
@@ -61,35 +61,35 @@ Camera orbit_camera(const Bounds& b, int k, int n) {
   return *camera;  // never degenerate: the direction is never parallel to +y
 }
 
-Camera turned_camera(const Camera& camera, const Bounds& b, double degrees) {
+view::Camera turned_camera(const view::Camera& camera, const model::Bounds& b, double degrees) {
   const std::array<float, 3> c = b.centre();
   const glm::vec3 centre(c[0], c[1], c[2]);
-  Camera turned = camera;
+  view::Camera turned = camera;
   turned.model = glm::translate(glm::mat4(1.0f), centre) *
                  glm::rotate(glm::mat4(1.0f), glm::radians(float(degrees)), glm::vec3(0, 1, 0)) *
                  glm::translate(glm::mat4(1.0f), -centre) * camera.model;
   return turned;
 }
 
-Result<Mesh> load(const fs::path& path) {
+Result<model::Mesh> load(const fs::path& path) {
   MTLOD_TRY(io::LoadedMesh loaded, io::load_mesh(path));
   if (loaded.mesh.triangle_count() == 0)
     return make_error(ErrorCode::kInvalidArgument, path.string() + ": no triangles");
   return std::move(loaded.mesh);
 }
 
-void render_shaded(const ViewMapping& mapping, std::span<const float> positions,
+void render_shaded(const view::ViewMapping& mapping, std::span<const float> positions,
                    std::span<const std::uint32_t> triangles, std::span<const float> normals,
                    ShadedView& out) {
   const std::size_t n = mapping.grid().cell_count();
   out.rgb.resize(3 * n), out.luminance.resize(n), out.depth.resize(n);
-  RenderOptions options;
+  eval::RenderOptions options;
   options.vertex_normals = normals;
-  out.covered_px = render_mesh(mapping, positions, triangles, {}, options, out.rgb, out.depth);
-  luminance_from_rgb(out.rgb, out.luminance);
+  out.covered_px = eval::render_mesh(mapping, positions, triangles, {}, options, out.rgb, out.depth);
+  eval::luminance_from_rgb(out.rgb, out.luminance);
 }
 
-ImageMeasure measure_image(const ShadedView& a, const ShadedView& b, GridSize grid,
+ImageMeasure measure_image(const ShadedView& a, const ShadedView& b, view::GridSize grid,
                            std::span<const float> acuity_weights, ImageScratch& scratch) {
   ImageMeasure m;
   scratch.covered.resize(grid.cell_count());
@@ -104,8 +104,9 @@ ImageMeasure measure_image(const ShadedView& a, const ShadedView& b, GridSize gr
     }
   }
   m.depth_mean = m.both_px ? depth_sum / double(m.both_px) : 0.0;
-  scratch.map.resize(ssim_map_size(grid).cell_count());
-  m.image = compare_images(a.luminance, b.luminance, grid, scratch.covered, acuity_weights, scratch.map);
+  scratch.map.resize(eval::ssim_map_size(grid).cell_count());
+  m.image =
+      eval::compare_images(a.luminance, b.luminance, grid, scratch.covered, acuity_weights, scratch.map);
   return m;
 }
 
@@ -122,7 +123,7 @@ std::size_t normals_from_original(std::span<const float> a_positions, std::span<
     by_position[v] = {key(a_positions, v), std::uint32_t(v)};
   std::sort(by_position.begin(), by_position.end());
   b_normals.resize(b_positions.size());
-  area_weighted_normals(b_positions, b_triangles, b_normals);
+  eval::area_weighted_normals(b_positions, b_triangles, b_normals);
   std::size_t matched = 0;
   for (std::size_t v = 0; v < b_positions.size() / 3; ++v) {
     const auto k = key(b_positions, v);
@@ -134,13 +135,13 @@ std::size_t normals_from_original(std::span<const float> a_positions, std::span<
   return matched;
 }
 
-Result<Mt> cached_mt(const Mesh& mesh, const std::string& name, const fs::path& cache_dir) {
+Result<model::Mt> cached_mt(const model::Mesh& mesh, const std::string& name, const fs::path& cache_dir) {
   const fs::path path = cache_dir / (name + ".mt");
   if (fs::exists(path)) {
     auto mt = io::read_mt_file(path);
     if (mt && mt->vertex_count() == mesh.vertex_count()) return mt;
   }
-  MTLOD_TRY(Mt mt, build_mt(mesh));
+  MTLOD_TRY(model::Mt mt, build::build_mt(mesh));
   std::error_code ec;
   fs::create_directories(cache_dir, ec);
   MTLOD_TRY(auto bytes, io::write_mt_file(path, mt));
@@ -148,7 +149,7 @@ Result<Mt> cached_mt(const Mesh& mesh, const std::string& name, const fs::path& 
   return mt;
 }
 
-std::array<float, 2> focus_point(std::span<const std::uint8_t> mask, GridSize grid) {
+std::array<float, 2> focus_point(std::span<const std::uint8_t> mask, view::GridSize grid) {
   double sx = 0, sy = 0, n = 0;
   for (std::uint32_t j = 0; j < grid.height; ++j)
     for (std::uint32_t i = 0; i < grid.width; ++i)
@@ -167,7 +168,7 @@ std::array<float, 2> focus_point(std::span<const std::uint8_t> mask, GridSize gr
   return out;
 }
 
-bool parse_viewport(const std::string& text, GridSize& out) {
+bool parse_viewport(const std::string& text, view::GridSize& out) {
   unsigned w = 0, h = 0;
   char x = 0, rest = 0;
   const int n = std::sscanf(text.c_str(), "%u%c%u%c", &w, &x, &h, &rest);
@@ -179,23 +180,23 @@ bool parse_viewport(const std::string& text, GridSize& out) {
   return true;
 }
 
-std::size_t draco_payload_bytes(DracoEncoder& encoder, std::span<const float> positions,
+std::size_t draco_payload_bytes(codec::DracoEncoder& encoder, std::span<const float> positions,
                                 std::span<const std::uint32_t> triangles,
                                 std::vector<std::uint8_t>& payload) {
-  DracoInput input;
+  codec::DracoInput input;
   input.positions = positions;
   input.triangles = triangles;
-  auto stats = encoder.encode(input, DracoOptions{}, payload);
+  auto stats = encoder.encode(input, codec::DracoOptions{}, payload);
   return stats ? stats->bytes : 0;
 }
 
 void near_weights(std::span<const float> acuity, double e2_deg, double near_deg, std::span<float> out) {
-  const float threshold = float(acuity_weight(near_deg, e2_deg));
+  const float threshold = float(eval::acuity_weight(near_deg, e2_deg));
   for (std::size_t c = 0; c < acuity.size(); ++c) out[c] = acuity[c] >= threshold ? acuity[c] : 0.0f;
 }
 
-std::vector<std::size_t> usable_budgets(const std::vector<std::size_t>& budgets, const Mesh& mesh,
-                                        const Mt& mt, const std::string& name,
+std::vector<std::size_t> usable_budgets(const std::vector<std::size_t>& budgets, const model::Mesh& mesh,
+                                        const model::Mt& mt, const std::string& name,
                                         std::vector<std::string>& notes) {
   std::vector<std::size_t> out;
   for (const std::size_t b : budgets) {
@@ -218,12 +219,12 @@ Result<std::unique_ptr<ShadedModel>> load_shaded_model(const std::string& spec, 
   auto mt = cached_mt(model->mesh, model->name, cache_dir);
   if (!mt) return make_error(mt.error().code, fmt::format("{}: {}", model->name, mt.error().message));
   model->mt = std::move(*mt);
-  const Mesh& mesh = model->mesh;
-  model->bounds = bounds_of(mesh.positions);
+  const model::Mesh& mesh = model->mesh;
+  model->bounds = model::bounds_of(mesh.positions);
   model->normals = mesh.normals;
   if (model->normals.size() != mesh.positions.size()) {
     model->normals.assign(mesh.positions.size(), 0.0f);
-    area_weighted_normals(mesh.positions, mesh.triangles, model->normals);
+    eval::area_weighted_normals(mesh.positions, mesh.triangles, model->normals);
   }
   normals_from_original(mesh.positions, model->normals, model->mt.positions, {}, model->mt_normals);
   model->mt.normals = model->mt_normals;

@@ -1,0 +1,149 @@
+// Angle-weighted vertex normals (see vertex_normals.hpp).
+#include "core/build/vertex_normals.hpp"
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+
+namespace mtlod::core::build {
+namespace {
+
+struct Vec {
+  double x, y, z;
+};
+Vec sub(const Vec& a, const Vec& b) {
+  return {a.x - b.x, a.y - b.y, a.z - b.z};
+}
+Vec cross(const Vec& a, const Vec& b) {
+  return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
+}
+double dot(const Vec& a, const Vec& b) {
+  return a.x * b.x + a.y * b.y + a.z * b.z;
+}
+double length(const Vec& a) {
+  return std::sqrt(dot(a, a));
+}
+
+// The angle between a and b (both non-zero), robust near 0 and π where acos is not.
+double angle(const Vec& a, const Vec& b) {
+  return std::atan2(length(cross(a, b)), dot(a, b));
+}
+
+}  // namespace
+
+bool usable_normal(const float* n) {
+  return std::isfinite(n[0]) && std::isfinite(n[1]) && std::isfinite(n[2]) &&
+         (n[0] != 0.0f || n[1] != 0.0f || n[2] != 0.0f);
+}
+
+void make_unit(float* n) {
+  const double l = std::sqrt(double{n[0]} * n[0] + double{n[1]} * n[1] + double{n[2]} * n[2]);
+  for (int k = 0; k < 3; ++k) n[k] = static_cast<float>(n[k] / l);
+}
+
+void NormalAccumulator::add(std::uint32_t a, std::uint32_t b, std::uint32_t c, bool concurrently) {
+  const std::uint32_t v[3] = {a, b, c};
+  Vec p[3];
+  for (int k = 0; k < 3; ++k) {
+    const float* q = positions_.data() + 3 * std::size_t{v[k]};
+    p[k] = {q[0], q[1], q[2]};
+  }
+  const Vec n = cross(sub(p[1], p[0]), sub(p[2], p[0]));
+  const double area2 = length(n);
+  if (!(area2 > 0.0) || !std::isfinite(area2)) return;
+  const double unit[3] = {n.x / area2, n.y / area2, n.z / area2};
+  for (int k = 0; k < 3; ++k) {
+    const Vec e1 = sub(p[(k + 1) % 3], p[k]);
+    const Vec e2 = sub(p[(k + 2) % 3], p[k]);
+    if (length(e1) == 0.0 || length(e2) == 0.0) continue;
+    const double w = angle(e1, e2) * kScale;
+    std::int64_t* s = sums_.data() + 3 * std::size_t{v[k]};
+    for (int c = 0; c < 3; ++c) {
+      // Rounded half away from zero, as llround, without its library call (|x| < 2^33 here).
+      const double x = w * unit[c];
+      const auto units = static_cast<std::int64_t>(x < 0 ? x - 0.5 : x + 0.5);
+      if (concurrently)
+        std::atomic_ref<std::int64_t>(s[c]).fetch_add(units, std::memory_order_relaxed);
+      else
+        s[c] += units;
+    }
+  }
+}
+
+std::size_t NormalAccumulator::finish(std::span<const std::int64_t> sums, std::span<float> normals) {
+  std::size_t undirected = 0;
+  for (std::size_t i = 0; i + 2 < sums.size(); i += 3) {
+    const double x = static_cast<double>(sums[i]), y = static_cast<double>(sums[i + 1]),
+                 z = static_cast<double>(sums[i + 2]);
+    const double l = std::sqrt(x * x + y * y + z * z);
+    float* n = normals.data() + i;
+    if (l > 0) {
+      n[0] = static_cast<float>(x / l), n[1] = static_cast<float>(y / l), n[2] = static_cast<float>(z / l);
+    } else {
+      n[0] = 0.0f, n[1] = 0.0f, n[2] = 1.0f;
+      ++undirected;
+    }
+  }
+  return undirected;
+}
+
+std::vector<float> vertex_normals(std::span<const float> positions,
+                                  std::span<const std::uint32_t> triangles) {
+  std::vector<std::int64_t> sums(positions.size(), 0);
+  NormalAccumulator accumulator(positions, sums);
+  for (std::size_t t = 0; t + 2 < triangles.size(); t += 3)
+    accumulator.add(triangles[t], triangles[t + 1], triangles[t + 2]);
+  std::vector<float> normals(positions.size());
+  NormalAccumulator::finish(sums, normals);
+  return normals;
+}
+
+std::vector<float> vertex_normals(const model::Mt& mt) {
+  std::vector<std::int64_t> sums(mt.positions.size(), 0);
+  NormalAccumulator accumulator(mt.positions, sums);
+  for (std::uint32_t n = 0; n < mt.node_count(); ++n) {
+    mt.require_node(n);
+    for (std::uint32_t t = mt.node_triangle_offsets[n]; t < mt.node_triangle_offsets[n + 1]; ++t) {
+      if (mt.triangle_remover[t] != model::kNoNode) continue;  // not part of the full-resolution mesh
+      accumulator.add(mt.first_corner(model::TriangleId{t}, model::NodeId{n}),
+                      mt.triangle_corners[2 * std::size_t{t}], mt.triangle_corners[2 * std::size_t{t} + 1]);
+    }
+  }
+  std::vector<float> normals(mt.positions.size());
+  NormalAccumulator::finish(sums, normals);
+  return normals;
+}
+
+bool ensure_normals(model::Mt& mt) {
+  if (mt.has_normals()) return false;
+  mt.attach_normals(std::make_shared<const std::vector<float>>(vertex_normals(mt)));
+  return true;
+}
+
+NormalRepair repair_normals(std::vector<float>& normals, std::span<const float> positions,
+                            std::span<const std::uint32_t> triangles) {
+  NormalRepair repair;
+  repair.had_normals = !normals.empty();
+  const std::size_t n = positions.size() / 3;
+  if (normals.size() != 3 * n) {
+    normals = vertex_normals(positions, triangles);
+    repair.computed = n;
+    return repair;
+  }
+  std::size_t bad = 0;
+  for (std::size_t v = 0; v < n; ++v) bad += !usable_normal(&normals[3 * v]);
+  std::vector<float> computed;
+  if (bad) computed = vertex_normals(positions, triangles);
+  for (std::size_t v = 0; v < n; ++v) {
+    float* own = &normals[3 * v];
+    if (!usable_normal(own)) {
+      std::copy_n(&computed[3 * v], 3, own);
+      continue;
+    }
+    make_unit(own);
+  }
+  repair.computed = bad;
+  return repair;
+}
+
+}  // namespace mtlod::core::build

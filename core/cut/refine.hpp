@@ -1,0 +1,396 @@
+// Selective refinement of a Multi-Tessellation (core/ARCHITECTURE.md §2.3 "Cuts", §2.4: static,
+// budgeted, dynamic and on-demand refinement).
+//
+// A triangle t passes when error(t) ≤ allowed(t). allowed(t) is either one uniform value or the
+// minimum of a per-vertex array over t's three vertices (core/ARCHITECTURE.md §1.4: the papers label
+// a triangle with its vertices' smallest label; for laws non-decreasing in the label both agree).
+//
+// Static refinement returns the unique minimal cut whose triangles all pass: starting from the root,
+// a failing triangle forces the node that removes it, and that node's missing ancestors. Any cut in
+// which all triangles pass contains every forced node, so the result does not depend on the order.
+#pragma once
+
+#include <algorithm>
+#include <cstddef>
+#include <cstdint>
+#include <optional>
+#include <span>
+#include <vector>
+
+#include "core/model/mt.hpp"
+#include "core/util/zeroed_array.hpp"
+
+namespace mtlod::core::cut {
+
+// A place in the budgeted refinement's worst-first order: triangles whose allowed error is positive
+// rank by error / allowed (tier 0), above all of them those whose allowed error is ≤ 0 by error
+// alone (tier 1).
+struct Rank {
+  std::uint32_t tier = 0;
+  float key = 1.0f;
+  friend bool operator<(Rank x, Rank y) { return x.tier != y.tier ? x.tier < y.tier : x.key < y.key; }
+  friend bool operator==(Rank x, Rank y) { return x.tier == y.tier && x.key == y.key; }
+};
+
+// The allowed error per triangle, in model units.
+struct AllowedError {
+  float uniform = 0.0f;               // used when per_vertex is empty
+  std::span<const float> per_vertex;  // empty, or one value per MT vertex (mt.vertex_count())
+  // A triangle fails when its error exceeds its allowed error and its rank is above this threshold
+  // (at least {0, 1}, the plain test). The budgeted dynamic refinement keeps the minimal cut of a
+  // threshold (Refiner::update_budget).
+  Rank threshold;
+
+  static AllowedError everywhere(float error) { return {error, {}, {}}; }
+  static AllowedError from_vertices(std::span<const float> vertex_allowed_error) {
+    return {0.0f, vertex_allowed_error, {}};
+  }
+  // Of a triangle with corners a, b, c: the uniform value, or the smallest of theirs.
+  float of_triangle(std::uint32_t a, std::uint32_t b, std::uint32_t c) const {
+    if (per_vertex.empty()) return uniform;
+    const float* field = per_vertex.data();
+    return std::min(field[a], std::min(field[b], field[c]));
+  }
+  // Whether a triangle of this error and allowed error fails. At the plain threshold the division
+  // agrees with error > allowed (for allowed > 0 both are true together), so it is skipped.
+  bool exceeded_by(float error, float allowed) const {
+    if (!(error > allowed)) return false;
+    if (threshold.tier == 0 && threshold.key == 1.0f) return true;
+    if (!(allowed > 0.0f)) return threshold.tier == 0 || error > threshold.key;
+    return threshold.tier == 0 && error / allowed > threshold.key;
+  }
+};
+
+// Allowed errors vertex by vertex, for Refiner::refine_on_demand.
+class VertexErrorSource {
+ public:
+  virtual float vertex_allowed_error(std::uint32_t vertex) const = 0;
+  // field[v] = vertex_allowed_error(v) for every v of `vertices` (a source may do several at once).
+  virtual void fill(std::span<const std::uint32_t> vertices, std::span<float> field) const {
+    for (const std::uint32_t v : vertices) field[v] = vertex_allowed_error(v);
+  }
+
+ protected:
+  ~VertexErrorSource() = default;
+};
+
+struct CutSpan;
+
+// A cut's mesh, ready for an encoder. Caller-owned and reused between calls.
+struct CutMesh {
+  std::vector<std::uint32_t> triangles;  // 3 vertex ids per triangle (CCW), ids into mt.positions; any order
+  std::vector<std::uint32_t> ids;        // the MT triangle id of each triangle (same order): stable names
+                                         // a client can keep between cuts (see core/cut/cut_delta.hpp)
+  std::size_t node_count = 0;            // nodes in the cut, root included
+  float max_error = 0.0f;                // largest error(t) over the cut's triangles, model units
+  bool within_budget = true;             // false only when a budget is below the root's size
+
+  std::size_t triangle_count() const { return triangles.size() / 3; }
+  // Becomes a copy of `view` (which may be a view of this mesh).
+  void assign(const CutSpan& view);
+};
+
+// A read-only span of a cut, with CutMesh's fields: into a CutMesh, or into a refiner's kept mesh
+// (valid until that refiner's next call).
+struct CutSpan {
+  std::span<const std::uint32_t> triangles;
+  std::span<const std::uint32_t> ids;
+  std::size_t node_count = 0;
+  float max_error = 0.0f;
+  bool within_budget = true;
+
+  std::size_t triangle_count() const { return triangles.size() / 3; }
+  static CutSpan of(const CutMesh& m) {
+    return {m.triangles, m.ids, m.node_count, m.max_error, m.within_budget};
+  }
+};
+
+inline void CutMesh::assign(const CutSpan& view) {
+  if (view.triangles.data() != triangles.data())
+    triangles.assign(view.triangles.begin(), view.triangles.end());
+  if (view.ids.data() != ids.data()) ids.assign(view.ids.begin(), view.ids.end());
+  node_count = view.node_count;
+  max_error = view.max_error;
+  within_budget = view.within_budget;
+}
+
+// Keeps a cut and its scratch memory between requests (one per worker or client session). No
+// allocation once the buffers have grown to the model's size.
+class Refiner {
+ public:
+  explicit Refiner(const model::Mt& mt);
+
+  // Static refinement from the root: the minimal cut in which every triangle passes.
+  void refine(const AllowedError& allowed, CutMesh& out);
+
+  // The same cut as refine(AllowedError::from_vertices(field of every vertex)), asking `source` only
+  // for the vertices the refinement reads: the root's and the split vertices of the cut's nodes
+  // (every corner of a triangle a node creates belongs to the root or to one of its ancestors).
+  // Their values are written to `field` (one entry per MT vertex, the caller's scratch); the other
+  // entries are left as they were. Records witnesses like refine, for a later update.
+  void refine_on_demand(const VertexErrorSource& source, std::span<float> field, CutMesh& out);
+
+  // Budgeted refinement from the root: repeatedly refines the failing triangle with the largest
+  // error/allowed ratio (allowed ≤ 0 ranks by error alone) and stops before the next refinement
+  // would take the mesh over max_triangles. out.within_budget is false when the root alone is larger.
+  void refine_budget(const AllowedError& allowed, std::size_t max_triangles, CutMesh& out);
+
+  // Dynamic refinement: moves the kept cut to the minimal cut for the new allowed error, by dropping
+  // the nodes whose reason to be in the cut no longer holds and refining from what is left. The
+  // result equals refine(allowed) as a set of triangles (the order differs). Without a kept cut (the
+  // first call, or after a uniform refine or refine_budget, which record no witnesses) it runs a
+  // static refinement that does; the next call then takes that cut's triangles (O(cut)). Changed
+  // vertices are found by comparing with a copy of the previous field (one sequential O(vertices)
+  // pass); everything else costs O(cut) in sequential passes plus work proportional to the change.
+  void update(const AllowedError& allowed, CutMesh& out);
+  // The same, when the caller knows which vertices changed since the previous update: every other
+  // vertex must have the same allowed error as then (duplicates in the list are fine). Skips the
+  // O(vertices) comparison. A uniform field, or a previous uniform one, counts as all changed.
+  void update(const AllowedError& allowed, std::span<const std::uint32_t> changed_vertices, CutMesh& out);
+  // The same without copying the result out: a view of the refiner's kept mesh, or of `scratch`
+  // when there was no kept cut to start from (scratch is written then).
+  CutSpan update_view(const AllowedError& allowed, std::span<const std::uint32_t> changed_vertices,
+                      CutMesh& scratch);
+  // update_view with the allowed error asked of `source` as nodes join the cut (their split
+  // vertices, before any of their triangles is read; from the root, the root's vertices too), as
+  // refine_on_demand does. `field` must hold the values of every vertex read since the cut was
+  // started from the root (by refine_on_demand, start_budget_on_demand or an update), updated to
+  // the new view, and changed_vertices must list those that changed: then no other entry is read,
+  // and the cost follows the cut and the change, not the model.
+  CutSpan update_view_on_demand(const VertexErrorSource& source, std::span<float> field,
+                                std::span<const std::uint32_t> changed_vertices, CutMesh& scratch);
+
+  // Budgeted dynamic refinement: the same cut as refine_budget(allowed, max_triangles) (worst
+  // error/allowed ratio first from the root, stopping before the budget would be exceeded), found
+  // from the kept cut. The refiner keeps the minimal cut of a threshold in that order (see
+  // AllowedError::threshold) a little below the budget: the root's worst-first refinement passes
+  // through exactly that cut, so refining worst first from it gives the same result. A gaze moves
+  // the kept cut to the new field's minimal cut for the same threshold; past the budget the
+  // threshold rises until it fits, far below it the threshold falls to where the refinement passed.
+  // `allowed` must be per vertex at the plain threshold; every node must add triangles (true of vertex
+  // splits), so a cut's size grows with its nodes. The result is written to `out`.
+  // start_budget refines from the root (a new view); update_budget takes the vertices whose
+  // allowed error changed, as update does, and starts from the root when there is no kept cut.
+  void start_budget(const AllowedError& allowed, std::size_t max_triangles, CutMesh& out);
+  // refine_budget and start_budget with the allowed error asked of `source` only for the vertices
+  // they read (as refine_on_demand): the same cuts.
+  void refine_budget_on_demand(const VertexErrorSource& source, std::span<float> field,
+                               std::size_t max_triangles, CutMesh& out);
+  void start_budget_on_demand(const VertexErrorSource& source, std::span<float> field,
+                              std::size_t max_triangles, CutMesh& out);
+  void update_budget(const AllowedError& allowed, std::span<const std::uint32_t> changed_vertices,
+                     std::size_t max_triangles, CutMesh& out);
+  // update_budget asking `source` as update_view_on_demand does.
+  void update_budget_on_demand(const VertexErrorSource& source, std::span<float> field,
+                               std::span<const std::uint32_t> changed_vertices, std::size_t max_triangles,
+                               CutMesh& out);
+  // The threshold of the kept cut after a budgeted update (none when no threshold's cut fitted).
+  std::optional<Rank> budget_threshold() const { return budget_threshold_; }
+  // Budgeted updates that raised the threshold to fit the budget, and that refined from the root.
+  std::size_t budget_raises() const { return budget_raises_; }
+  std::size_t budget_starts() const { return budget_starts_; }
+
+  // Nodes of the kept cut, in the order they were added (parents before children).
+  std::span<const std::uint32_t> cut_nodes() const { return cut_; }
+  // Calls f(v) for every vertex whose allowed error the kept cut depends on (what its on-demand
+  // refinement asks for): the root's vertices, then the split vertices of the cut's other nodes.
+  template <class F>
+  void for_each_cut_vertex(F&& f) {
+    find_root_vertices();
+    for (const std::uint32_t v : root_vertices_) f(v);
+    for (const std::uint32_t n : cut_)
+      if (n != 0) f(mt_.node_vertex[n]);
+  }
+
+  // Updates that found it cheaper to refine afresh than to move the kept cut (a quarter of the cut's
+  // nodes dropped, or the nodes a move added outnumbered a third of those kept): forcing from the
+  // nodes in the cut by then, as a static refinement forces from the root. Their result is the same.
+  std::size_t restarts() const { return restarts_; }
+  // Updates that moved the kept cut (the others refined afresh, or found nothing changed).
+  std::size_t moves() const { return moves_; }
+  // Updates given an empty list of changed vertices after a cut this refiner moved before: the
+  // kept mesh is returned as it is.
+  std::size_t unchanged_updates() const { return unchanged_; }
+
+  // Bytes this refiner holds (buffer capacities): the memory a session's cut costs.
+  std::size_t memory_bytes() const;
+
+ private:
+  void refine_uniform(float allowed_error, CutMesh& out);
+  // The cut of nodes [0, end): the uniform static and budgeted results.
+  void refine_prefix(std::uint32_t end, CutMesh& out);
+  // Calls f(t, p) for every triangle t node x removes, p being t's creator (one of x's parents).
+  template <class F>
+  void for_each_removed(std::uint32_t x, F&& f) const;
+  // Triangles node x removes.
+  std::size_t removed_count(std::uint32_t x) const;
+  // refine_on_demand's source and the field it fills (allowed.per_vertex views the same floats).
+  struct OnDemand {
+    const VertexErrorSource& source;
+    std::span<float> field;
+  };
+  // The source of an on-demand update, for the duration of the call (also when it throws).
+  class Filling {
+   public:
+    Filling(const OnDemand*& slot, const OnDemand& on_demand) : slot_(slot) { slot_ = &on_demand; }
+    ~Filling() { slot_ = nullptr; }
+    Filling(const Filling&) = delete;
+    Filling& operator=(const Filling&) = delete;
+
+   private:
+    const OnDemand*& slot_;
+  };
+  const OnDemand* filling_ = nullptr;
+  // refine_forced from the root, on demand when on_demand is set.
+  void refine_from_root(const AllowedError& allowed, CutMesh& out, const OnDemand* on_demand);
+  // The root mesh's vertices (listed in root_vertices_ on first use), and the split vertices of
+  // cut_ from position `first` on.
+  void find_root_vertices();
+  void fill_root_vertices(const OnDemand& on_demand);
+  void fill_split_vertices(const OnDemand& on_demand, std::size_t first);
+  // Static refinement by forcing from the root; records witnesses so update can start from it.
+  // from_cut: start from the nodes in cut_ instead (a subset of the new minimal cut, with their
+  // witnesses, parents and witness creators before them).
+  // out null: the result becomes the kept mesh (from_cut only), the field stays known.
+  void refine_forced(const AllowedError& allowed, CutMesh* out, const OnDemand* on_demand = nullptr,
+                     bool from_cut = false);
+  // Prefetches what refine_forced will read for the nodes queued after cut_[i].
+  void fetch_ahead(std::size_t i, const float* field, bool on_demand) const;
+  bool fails(std::uint32_t t, std::uint32_t creator, const AllowedError& allowed) const;
+  bool fails_at(std::uint32_t remover, const std::uint32_t* corners, const AllowedError& allowed) const;
+  void reset_to_root();
+  // Takes the nodes from position `length` of cut_ on out of the cut (the last ones added).
+  void truncate_cut(std::size_t length);
+  // Adds node r and its missing ancestors, parents first; witness_triangle forced r.
+  void force(std::uint32_t r, std::uint32_t witness_triangle, std::uint32_t witness_creator);
+  void add_node(std::uint32_t x, std::uint32_t witness_triangle, std::uint32_t witness_creator);
+  void examine(std::uint32_t n, const AllowedError& allowed);
+  // Examines cut_ from position first on, forcing what fails (asking filling_ for the split
+  // vertices of those nodes first); false, leaving the rest unexamined, once cut_ holds more than
+  // max_nodes.
+  bool close_over(const AllowedError& allowed, std::size_t first, std::size_t max_nodes);
+  void emit(CutMesh& out) const;
+  // The kept mesh (maintained by move_cut) as a cut, and its largest error.
+  CutSpan kept_view() const;
+  float kept_max_error() const;
+  // The field of the kept cut: its kind and threshold, and with `copy` its values (for update
+  // without a list of changes).
+  void remember_field(const AllowedError& allowed, bool copy);
+  // Takes the mesh of the cut refine_forced left from its passing list: at the end of a restart, or
+  // once move_cut's witness pass has run (kept nodes kIn, dropped kDropped).
+  void take_kept_mesh();
+  // Truncates the kept mesh's arrays (all five) to this many triangles.
+  void resize_kept_mesh(std::size_t triangles);
+  void mesh_push(std::uint32_t t, std::uint32_t creator, std::uint32_t remover, const std::uint32_t* corners,
+                 float error);
+  // Moves the kept cut, or refines it afresh from the nodes that stay; the kept mesh holds the result.
+  void move_cut(const AllowedError& allowed, bool all_changed);
+  // update(allowed, changed, ·) up to the output: true when the kept mesh holds the result (false:
+  // a static refinement wrote `out`, there being no kept cut to move).
+  bool update_kept(const AllowedError& allowed, std::span<const std::uint32_t> changed_vertices,
+                   CutMesh& out);
+  bool vertex_changed(std::uint32_t v) const { return util::test_bit(changed_bits_, v); }
+
+  const model::Mt& mt_;
+  util::PagedArray<std::uint8_t> in_cut_;  // per node: 0 out, 1 in, 2 being added, 3 dropped
+  std::vector<std::uint32_t> cut_;         // nodes in the cut, in the order added
+  // Per entry of cut_ (same index): the failing triangle that forced the node, its creator and its
+  // three corners, so moving the cut reads them in one sequential pass.
+  struct Witness {
+    std::uint32_t triangle, creator, corners[3];
+  };
+  std::vector<Witness> witnesses_;
+  std::vector<std::uint32_t> batch_;          // split vertices computed together (on demand)
+  std::vector<std::uint32_t> root_vertices_;  // distinct corners of the root's triangles (on demand)
+  std::vector<std::uint32_t> stack_;          // DFS over missing ancestors: node, next parent index
+  // What the refiner keeps between calls: which cut, and where its mesh is. It says where the
+  // next update starts.
+  enum class Kept : std::uint8_t {
+    kNone,       // no cut to move (none yet, or one without witnesses): the next update refines
+                 // from the root
+    kPassing,    // a forced refinement's minimal cut, with witnesses; its mesh is among passing_
+    kThreshold,  // start_budget's cut of a threshold, with witnesses; its mesh not built yet
+    kMesh,       // a minimal cut with witnesses, and its mesh in mesh_*
+    kAdding,     // within a move: nodes are being added; mesh_* is the cut's mesh before them
+  };
+  Kept kept_ = Kept::kNone;
+  // What the refiner knows of the field its kept cut is minimal for (at previous_threshold_).
+  enum class Field : std::uint8_t {
+    kUnknown,  // nothing: the next update retests every triangle of the cut
+    kUniform,  // one value, previous_uniform_
+    kListed,   // per vertex; the caller lists the vertices that change
+    kCopied,   // per vertex, with its values in previous_field_ (update without a list compares)
+  };
+  Field field_ = Field::kUnknown;
+  std::vector<float> previous_field_;
+  float previous_uniform_ = 0.0f;
+  std::size_t restarts_ = 0;
+  std::size_t moves_ = 0;
+  std::size_t unchanged_ = 0;
+  // The kept cut's mesh, maintained by update: per triangle its id, creator, remover (kNoNode for
+  // an input triangle), corners and error (for the cut's max error).
+  std::vector<std::uint32_t> mesh_triangles_;
+  std::vector<std::uint32_t> mesh_creators_;
+  std::vector<std::uint32_t> mesh_removers_;
+  std::vector<std::uint32_t> mesh_corners_;
+  std::vector<float> mesh_errors_;
+  util::ZeroedArray<std::uint64_t> changed_bits_;  // per vertex, during update (clear between)
+  std::vector<std::uint32_t> dropped_;             // nodes dropped during one update
+  std::vector<std::uint32_t> seeds_;               // uncovered triangle, creator pairs of one update
+  util::ZeroedArray<std::uint64_t> node_changed_;  // per node: dropped or added by the update (clear between)
+  // Triangles seen passing in refine_forced, with what the output needs of them.
+  struct Passing {
+    std::uint32_t triangle, creator, remover, corners[3];
+    float error;  // 0 for an input triangle
+  };
+  std::vector<Passing> passing_;
+  struct HeapEntry {
+    std::uint32_t tier;  // 1: allowed ≤ 0, ranked by error; 0: ranked by error / allowed
+    float key;
+    std::uint32_t triangle;
+    std::uint32_t creator;
+  };
+  HeapEntry heap_entry(std::uint32_t t, std::uint32_t creator, const AllowedError& allowed) const;
+  static bool heap_less(const HeapEntry& x, const HeapEntry& y);
+  // Pushes node n's triangles that fail and are in the mesh.
+  void push_failing(std::uint32_t n, const AllowedError& allowed);
+  // Worst ratio first from the cut, heap_ holding its mesh's failing triangles (count of them in
+  // all): refines until the next refinement would take the mesh over max_triangles or nothing fails.
+  // At each new smallest ratio ℓ popped, the cut is the minimal cut of
+  // threshold ℓ: the last such ℓ whose cut had at most `target` triangles, and the cut's length
+  // then, are written to level and level_end (left as they were when there is none).
+  void fill_budget(const AllowedError& allowed, std::size_t count, std::size_t max_triangles,
+                   std::size_t target, Rank& level, std::size_t& level_end,
+                   const OnDemand* on_demand = nullptr);
+  // Worst first from the root (fill_budget); returns level_end and sets level. on_demand: the
+  // field is filled as nodes are added.
+  std::size_t budget_from_root(const AllowedError& allowed, std::size_t max_triangles, std::size_t target,
+                               const OnDemand* on_demand, Rank& level, CutMesh& out);
+  void start_budget_from(const AllowedError& allowed, std::size_t max_triangles, const OnDemand* on_demand,
+                         CutMesh& out);
+  // The size a changed threshold's cut aims at: a little below the budget.
+  std::size_t budget_target(std::size_t max_triangles) const;
+  // The threshold at which at least `nodes` of the cut's nodes lose their witness.
+  Rank threshold_dropping(const AllowedError& allowed, std::size_t nodes);
+  // Writes the kept mesh with the nodes of cut_ from position `added` on refined into it.
+  void write_refined(std::size_t added, std::size_t max_triangles, CutMesh& out);
+  // Extends the kept mesh after nodes were dropped (dropped_, their uncovered triangles in seeds_)
+  // or added (cut_ from position `added` on): move_cut's last step.
+  void rebuild_kept_mesh(std::size_t added);
+  // The kept mesh of the whole cut (after start_budget, before the next move).
+  void kept_mesh_from_cut();
+  std::vector<HeapEntry> heap_;
+  std::vector<Rank> ranks_;               // threshold_dropping's scratch
+  std::optional<Rank> budget_threshold_;  // the kept cut's threshold for budget_max_
+  std::size_t budget_max_ = 0;
+  std::size_t budget_raises_ = 0;
+  std::size_t budget_starts_ = 0;
+  Rank previous_threshold_;  // the threshold of the kept cut (unless field_ is kUnknown)
+};
+
+// One-off static refinement (allocates a Refiner).
+void refine_static(const model::Mt& mt, const AllowedError& allowed, CutMesh& out);
+// One-off budgeted refinement.
+void refine_budget(const model::Mt& mt, const AllowedError& allowed, std::size_t max_triangles, CutMesh& out);
+
+}  // namespace mtlod::core::cut

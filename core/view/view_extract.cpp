@@ -1,0 +1,422 @@
+// One view-dependent extraction, stage by stage (see view_extract.hpp).
+#include "core/view/view_extract.hpp"
+
+#include <algorithm>
+#include <cassert>
+#include <cmath>
+
+#include "core/model/bounds.hpp"
+#include "core/view/labels.hpp"
+#include "core/view/occupancy.hpp"
+
+namespace mtlod::core::view {
+namespace {
+
+// Exact squared distances → distances in fifths of a pixel: the 5-per-pixel scale of the papers'
+// labels, so the allowed-error laws read them as 5-7-11 units. Fits 16 bits on grids up to 4096².
+void to_fifths_of_pixel(std::span<const std::uint32_t> squared, std::span<std::uint16_t> out) {
+  for (std::size_t c = 0; c < out.size(); ++c) {
+    out[c] = squared[c] == kEuclideanUnreached
+                 ? kChamferUnreached
+                 : static_cast<std::uint16_t>(std::lround(5.0 * std::sqrt(static_cast<double>(squared[c]))));
+  }
+}
+
+}  // namespace
+
+// What the refiner asks for in a session: forwarded to ViewExtractor::fill_known.
+class ViewExtractor::KnownSource final : public cut::VertexErrorSource {
+ public:
+  explicit KnownSource(ViewExtractor& extractor) : extractor_(extractor) {}
+  float vertex_allowed_error(std::uint32_t vertex) const override {
+    extractor_.fill_known(std::span(&vertex, 1), extractor_.allowed_);
+    return extractor_.allowed_[vertex];
+  }
+  void fill(std::span<const std::uint32_t> vertices, std::span<float> field) const override {
+    extractor_.fill_known(vertices, field);
+  }
+
+ private:
+  ViewExtractor& extractor_;
+};
+
+ViewExtractor::ViewExtractor(const model::Mt& mt, const OccupancyLevels& levels) : mt_(mt), levels_(levels) {
+  // Bounding sphere (box centre and half diagonal): enough to pick the occupancy cut's error.
+  const model::Bounds& box = mt.bounds;
+  centre_ = box.centre();
+  radius_ = box.radius();
+}
+
+std::size_t ViewCache::memory_bytes() const {
+  auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
+  return allowed_error_.resident_bytes() + known_bits_.resident_bytes() + bytes(silhouette_dt_) +
+         bytes(neglect_dt_) + bytes(visible_depth_) + bytes(focus_factor_) + bytes(known_vertices_) +
+         bytes(known_cells_) + bytes(known_clip_w_) + bytes(cell_changed_) + bytes(cell_multiplier_) +
+         bytes(changed_cells_) + bytes(changed_) + bytes(neglect_) + bytes(focus_cells_);
+}
+
+bool ViewExtractor::same_view(const ViewCache& s, const ViewRequest& r) {
+  return s.valid_ && s.camera_.model == r.camera.model && s.camera_.view == r.camera.view &&
+         s.camera_.projection == r.camera.projection && s.grid_.width == r.grid.width &&
+         s.grid_.height == r.grid.height && s.allowed_ == r.allowed && s.neglect_ == r.neglect &&
+         s.has_focus_ == !r.focus.empty() && s.internal_silhouettes_ == r.internal_silhouettes &&
+         s.depth_jump_ == r.depth_jump;
+}
+
+void ViewExtractor::map(const ViewRequest& request, ViewCache* session) {
+  assert(request.grid.valid());
+  request_ = &request;
+  session_ = session;
+  mapping_ = ViewMapping(request.camera, request.grid);
+  incremental_ = session != nullptr && same_view(*session, request) &&
+                 session->allowed_error_.size() == mt_.vertex_count();
+  if (session) session->reused_ = incremental_;
+}
+
+double ViewExtractor::covered_cells() const {
+  // The bounding sphere's projected radius in cells at its centre's depth; a centre at or behind
+  // the eye means the model surrounds the camera: the whole grid.
+  float clip_w = 0;
+  mapping_.map_point(centre_[0], centre_[1], centre_[2], &clip_w);
+  const double grid_cells = static_cast<double>(request_->grid.cell_count());
+  if (!(clip_w > radius_)) return grid_cells;
+  const double cell = mapping_.model_units_per_pixel(clip_w, static_cast<float>(request_->grid.height));
+  const double radius_cells = radius_ / cell;
+  return std::min(grid_cells, 3.14159265358979 * radius_cells * radius_cells);
+}
+
+std::size_t ViewExtractor::occupancy() {
+  const bool hidden = request_->allowed.hidden_factor != 1.0f;
+  if (incremental_) {
+    occupancy_level_ = nullptr;  // the silhouette transform and the visible depths are the session's
+    visible_depth_ = session_->visible_depth_;
+    return 0;
+  }
+  const OccupancyLevel& level = levels_.for_covered_cells(covered_cells());
+  occupancy_level_ = &level;
+  const std::size_t cells = request_->grid.cell_count();
+  occupancy_.resize(cells);
+  if (request_->internal_silhouettes || hidden) {
+    // Depths come from the cut's own triangles: a hole's cap is not a surface.
+    depth_.resize(cells);
+    rasterize_occupancy_compact(mapping_, level.positions, level.cut_triangles(), occupancy_, depth_,
+                                projected_);
+  } else {
+    rasterize_occupancy_compact(mapping_, level.positions, level.triangles, occupancy_, {}, projected_,
+                                level.closed);
+  }
+  if (hidden) {
+    visible_depth_bound_.resize(cells);
+    visible_depth_bound(depth_, request_->grid, visible_depth_bound_);
+    visible_depth_ = visible_depth_bound_;
+  } else {
+    visible_depth_ = {};
+  }
+  return level.triangle_count();
+}
+
+void ViewExtractor::transform(std::span<const std::uint8_t> image, std::span<std::uint16_t> out) {
+  const DistanceMetric metric = request_->allowed.metric;
+  if (metric != DistanceMetric::kEuclidean) return transformer_.chamfer(metric, image, request_->grid, out);
+  euclidean_.resize(out.size());
+  transformer_.euclidean_squared(image, request_->grid, euclidean_);
+  to_fifths_of_pixel(euclidean_, out);
+}
+
+void ViewExtractor::transform_from_cells(std::span<const std::uint32_t> cells, std::span<std::uint16_t> out) {
+  const DistanceMetric metric = request_->allowed.metric;
+  if (metric != DistanceMetric::kEuclidean)
+    return transformer_.chamfer_from_cells(metric, cells, request_->grid, out);
+  euclidean_.resize(out.size());
+  transformer_.euclidean_squared_from_cells(cells, request_->grid, euclidean_);
+  to_fifths_of_pixel(euclidean_, out);
+}
+
+void ViewExtractor::distance_transforms() {
+  const ViewRequest& r = *request_;
+  const std::size_t cells = r.grid.cell_count();
+  auto seeded = [&](const std::vector<std::array<float, 2>>& points, std::vector<std::uint16_t>& out) {
+    out.clear();
+    if (points.empty()) return;
+    cells_.clear();
+    for (const auto& p : points) cells_.push_back(focus_cell(r.grid, p[0], p[1]));
+    out.resize(cells);
+    transform_from_cells(cells_, out);
+  };
+  seeded(r.allowed.use_focus ? r.focus : std::vector<std::array<float, 2>>{}, focus_dt_);
+  if (incremental_) {
+    silhouette_ = session_->silhouette_dt_;
+    neglect_ = session_->neglect_dt_;
+    return;
+  }
+  if (r.allowed.use_silhouette || (r.labels && r.focus.empty())) {
+    silhouette_dt_.resize(cells);
+    if (r.internal_silhouettes) {
+      seeds_image_ = occupancy_;
+      mark_depth_discontinuities(depth_, r.grid, r.depth_jump, seeds_image_);
+      transform(seeds_image_, silhouette_dt_);
+    } else {
+      transform(occupancy_, silhouette_dt_);
+    }
+  } else {
+    silhouette_dt_.clear();
+  }
+  seeded(r.allowed.use_neglect ? r.neglect : std::vector<std::array<float, 2>>{}, neglect_dt_);
+  silhouette_ = silhouette_dt_;
+  neglect_ = neglect_dt_;
+}
+
+void ViewExtractor::allowed_error() {
+  const ViewRequest& r = *request_;
+  on_demand_ = false;
+  AllowedErrorOptions options = r.allowed;
+  if (options.metric == DistanceMetric::kEuclidean)
+    options.metric = DistanceMetric::kChamfer5711;  // see transform()
+  options.use_silhouette = options.use_silhouette && !silhouette_.empty();
+  options.use_focus = options.use_focus && !focus_dt_.empty();
+  options.use_neglect = options.use_neglect && !neglect_.empty();
+  field_.bind(mapping_, options,
+              {silhouette_, focus_dt_, neglect_, mt_.positions, mt_.normals, visible_depth_});
+  if (!incremental_) {
+    util::ZeroedArray<float>& field = session_ ? session_->allowed_error_ : vertex_allowed_error_;
+    // Only the entries written are read: on demand, the pages of the cut's vertices.
+    if (field.size() != mt_.vertex_count()) field.reset(mt_.vertex_count());
+    allowed_ = field;
+    // From the root anyway: a static request, or a session's new view. Without a session a
+    // dynamic request moves the refiner's cut, which compares every vertex's value.
+    on_demand_ = r.allowed_error_on_demand && (!r.dynamic || session_ != nullptr);
+    if (!on_demand_) field_.compute_all(allowed_);
+    if (session_) {
+      remember_view(*session_);
+      forget_known(*session_);
+      session_->allowed_error_complete_ = !on_demand_;
+    }
+    return;
+  }
+  ViewCache& s = *session_;
+  allowed_ = s.allowed_error_;
+  on_demand_ = !s.allowed_error_complete_;
+  if (s.allowed_error_complete_ && !s.known_all_) list_all_vertices(s);
+  // Only the foci moved: a vertex's allowed error changes only where its cell's focus multiplier did.
+  s.changed_.clear();
+  s.changed_cells_.clear();
+  auto visit = [&](std::uint32_t c) {
+    const float factor = field_.focus_factor(c);
+    if (factor == s.focus_factor_[c]) return;
+    s.focus_factor_[c] = factor;
+    if (s.cell_changed_[c]) return;
+    s.cell_changed_[c] = 1;
+    s.changed_cells_.push_back(c);
+  };
+  // The focus multiplier is 1 from the label focus_reach() on, and a label below it lies within
+  // reach / units cells (Chebyshev) of a focus: a pixel step costs at least `units` in every
+  // transform (the Euclidean one rounds, hence one cell more). So only boxes around the old and the
+  // new foci can hold a changed multiplier; everywhere else it was 1 and still is.
+  const GridSize grid = request_->grid;
+  const std::uint32_t radius = std::uint32_t(std::min<std::size_t>(
+      field_.focus_reach() / units_per_pixel(options.metric) + 1, std::max(grid.width, grid.height)));
+  std::size_t foci = 0;  // on the grid, old and new
+  for (const std::uint32_t f : s.focus_cells_) foci += f != kNoCell;
+  for (const auto& p : request_->focus) foci += focus_cell(grid, p[0], p[1]) != kNoCell;
+  const bool whole_grid =
+      foci * (2 * std::size_t{radius} + 1) * (2 * std::size_t{radius} + 1) >= grid.cell_count();
+  // A cell in two boxes is visited twice; the second visit finds its multiplier stored.
+  auto visit_boxes = [&] {
+    for (const std::uint32_t f : s.focus_cells_) {
+      if (f == kNoCell) continue;
+      const std::uint32_t fx = f % grid.width, fy = f / grid.width;
+      const std::uint32_t x0 = fx > radius ? fx - radius : 0, x1 = std::min(grid.width - 1, fx + radius);
+      const std::uint32_t y0 = fy > radius ? fy - radius : 0, y1 = std::min(grid.height - 1, fy + radius);
+      for (std::uint32_t y = y0; y <= y1; ++y)
+        for (std::uint32_t x = x0; x <= x1; ++x) visit(grid.cell(x, y));
+    }
+  };
+  if (whole_grid) {
+    for (std::uint32_t c = 0; c < grid.cell_count(); ++c) visit(c);
+  } else {
+    visit_boxes();  // around the old foci
+  }
+  remember_focus_cells(s);
+  if (!whole_grid) visit_boxes();  // around the new ones
+  if (s.changed_cells_.empty()) return;
+  // The cell's labels give one multiplier for all its vertices, and each known vertex's depth was
+  // kept with it: no vertex is projected again (the same values as field_.vertex_allowed_error(v),
+  // which maps the vertex to this cell and depth).
+  for (const std::uint32_t c : s.changed_cells_) s.cell_multiplier_[c] = field_.cell_multiplier(c);
+  for (std::size_t k = 0; k < s.known_vertices_.size(); ++k) {
+    const std::uint32_t c = s.known_cells_[k];
+    if (c == kNoCell || !s.cell_changed_[c]) continue;
+    const std::uint32_t v = s.known_vertices_[k];
+    allowed_[v] = field_.vertex_allowed_error_in_cell(s.cell_multiplier_[c], c, s.known_clip_w_[k], v);
+    s.changed_.push_back(v);
+  }
+  for (const std::uint32_t c : s.changed_cells_) s.cell_changed_[c] = 0;
+  vertices_computed_ += s.changed_.size();
+}
+
+void ViewExtractor::remember_focus_cells(ViewCache& s) const {
+  s.focus_cells_.clear();
+  for (const auto& p : request_->focus) s.focus_cells_.push_back(focus_cell(request_->grid, p[0], p[1]));
+}
+
+void ViewExtractor::remember_foci(ViewCache& s) const {
+  const std::size_t cells = request_->grid.cell_count();
+  s.focus_factor_.resize(cells);
+  for (std::uint32_t c = 0; c < cells; ++c) s.focus_factor_[c] = field_.focus_factor(c);
+  s.cell_changed_.assign(cells, 0);
+  s.cell_multiplier_.resize(cells);
+  remember_focus_cells(s);
+}
+
+void ViewExtractor::remember_view(ViewCache& s) const {
+  const ViewRequest& r = *request_;
+  s.valid_ = true;
+  s.camera_ = r.camera;
+  s.grid_ = r.grid;
+  s.allowed_ = r.allowed;
+  s.neglect_ = r.neglect;
+  s.has_focus_ = !r.focus.empty();
+  s.internal_silhouettes_ = r.internal_silhouettes;
+  s.depth_jump_ = r.depth_jump;
+  s.silhouette_dt_.assign(silhouette_.begin(), silhouette_.end());
+  s.neglect_dt_.assign(neglect_.begin(), neglect_.end());
+  s.visible_depth_.assign(visible_depth_.begin(), visible_depth_.end());
+  remember_foci(s);
+  s.changed_.clear();
+}
+
+void ViewExtractor::list_all_vertices(ViewCache& s) {
+  // The cells compute_all saw (map_vertices is bit-identical to the per-vertex mapping).
+  const std::size_t n = mt_.vertex_count();
+  s.known_vertices_.resize(n);
+  s.known_cells_.resize(n);
+  s.known_clip_w_.resize(n);
+  for (std::uint32_t v = 0; v < n; ++v) s.known_vertices_[v] = v;
+  map_vertices(mapping_, mt_.positions, s.known_cells_, s.known_clip_w_);
+  s.known_all_ = true;
+}
+
+void ViewExtractor::forget_known(ViewCache& s) {
+  if (!s.known_all_)
+    for (const std::uint32_t v : s.known_vertices_) util::clear_bit(s.known_bits_, v);
+  s.known_all_ = false;
+  s.known_vertices_.clear();
+  s.known_cells_.clear();
+  s.known_clip_w_.clear();
+}
+
+void ViewExtractor::fill_known(std::span<const std::uint32_t> vertices, std::span<float> field) {
+  ViewCache& s = *session_;
+  const std::size_t words = (mt_.vertex_count() + 63) / 64;
+  if (s.known_bits_.size() != words) s.known_bits_.reset(words);
+  unknown_.clear();
+  for (const std::uint32_t v : vertices) {
+    if (util::test_bit(s.known_bits_, v))
+      continue;  // up to date: computed for this view, changed by its gazes
+    util::set_bit(s.known_bits_, v);
+    unknown_.push_back(v);
+  }
+  if (unknown_.empty()) return;
+  const std::size_t first = s.known_vertices_.size(), count = unknown_.size();
+  s.known_vertices_.insert(s.known_vertices_.end(), unknown_.begin(), unknown_.end());
+  s.known_cells_.resize(first + count);
+  s.known_clip_w_.resize(first + count);
+  field_.fill_mapped(unknown_, field, std::span(s.known_cells_).subspan(first),
+                     std::span(s.known_clip_w_).subspan(first));
+  vertices_computed_ += count;
+}
+
+void ViewExtractor::forget_unread(cut::Refiner& refiner) {
+  // Known vertices are updated at every gaze, so those of cuts long gone cost time until forgotten.
+  // They are forgotten in one pass once they are four times those the cut reads: the cut's own
+  // stay known, and a vertex forgotten is asked for again should a later cut read it.
+  ViewCache& s = *session_;
+  const std::size_t read = refiner.cut_nodes().size() + mt_.root_triangle_count();  // about, from above
+  if (s.known_vertices_.size() <= 4 * read) return;
+  ++s.forgets_;
+  for (const std::uint32_t v : s.known_vertices_) util::clear_bit(s.known_bits_, v);
+  refiner.for_each_cut_vertex([&](std::uint32_t v) { util::set_bit(s.known_bits_, v); });
+  std::size_t kept = 0;
+  for (std::size_t k = 0; k < s.known_vertices_.size(); ++k) {
+    const std::uint32_t v = s.known_vertices_[k];
+    if (!util::test_bit(s.known_bits_, v)) continue;
+    s.known_vertices_[kept] = v;
+    s.known_cells_[kept] = s.known_cells_[k];
+    s.known_clip_w_[kept] = s.known_clip_w_[k];
+    ++kept;
+  }
+  s.known_vertices_.resize(kept);
+  s.known_cells_.resize(kept);
+  s.known_clip_w_.resize(kept);
+  // Every vertex the cut reads was asked for (fill_known), so the bits set above are exactly those
+  // of the entries kept.
+}
+
+void ViewExtractor::refine(cut::Refiner& session, cut::CutMesh& out) {
+  out.assign(refine_view(session, out));
+}
+
+cut::CutSpan ViewExtractor::refine_view(cut::Refiner& session, cut::CutMesh& scratch) {
+  const cut::AllowedError allowed = cut::AllowedError::from_vertices(allowed_);
+  // In a session, what the refinement asks for becomes known to the view's gazes.
+  const KnownSource known(*this);
+  const cut::VertexErrorSource& source =
+      session_ ? static_cast<const cut::VertexErrorSource&>(known) : field_;
+  const bool gaze = request_->dynamic && incremental_;
+  const std::span<const std::uint32_t> changed =
+      session_ ? session_->changed_ : std::span<const std::uint32_t>();
+  const cut::CutSpan cut = [&] {
+    if (request_->budget) {
+      const std::size_t budget = *request_->budget;
+      if (gaze) {
+        if (on_demand_) {
+          session.update_budget_on_demand(source, allowed_, changed, budget, scratch);
+        } else {
+          session.update_budget(allowed, changed, budget, scratch);
+        }
+      } else if (request_->dynamic && session_) {
+        // Kept for the gazes that follow.
+        if (on_demand_) {
+          session.start_budget_on_demand(source, allowed_, budget, scratch);
+        } else {
+          session.start_budget(allowed, budget, scratch);
+        }
+      } else if (on_demand_) {
+        session.refine_budget_on_demand(source, allowed_, budget, scratch);
+      } else {
+        session.refine_budget(allowed, budget, scratch);
+      }
+    } else if (gaze) {
+      // Even after a saccade: cheaper than from the root.
+      return on_demand_ ? session.update_view_on_demand(source, allowed_, changed, scratch)
+                        : session.update_view(allowed, changed, scratch);
+    } else if (on_demand_) {
+      session.refine_on_demand(source, allowed_, scratch);
+    } else if (request_->dynamic) {
+      session.update(allowed, scratch);
+    } else {
+      session.refine(allowed, scratch);
+    }
+    return cut::CutSpan::of(scratch);  // taken once scratch holds the cut
+  }();
+  if (session_ && on_demand_) forget_unread(session);
+  if (request_->labels) {
+    // Labels of the cut's vertices only: the silhouette distance when it was computed, else the focus's.
+    const std::span<const std::uint16_t> dt =
+        !silhouette_.empty() ? silhouette_ : std::span<const std::uint16_t>(focus_dt_);
+    if (vertex_labels_.size() != mt_.vertex_count()) vertex_labels_.reset(mt_.vertex_count());
+    for (std::uint32_t v : cut.triangles)
+      vertex_labels_[v] = dt.empty() ? 0 : vertex_label(mapping_, mt_.positions, v, dt);
+  }
+  return cut;
+}
+
+std::size_t ViewExtractor::memory_bytes() const {
+  auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
+  return transformer_.memory_bytes() + bytes(occupancy_) + bytes(seeds_image_) + bytes(depth_) +
+         bytes(visible_depth_bound_) + bytes(silhouette_dt_) + bytes(focus_dt_) + bytes(neglect_dt_) +
+         bytes(euclidean_) + bytes(cells_) + vertex_allowed_error_.resident_bytes() +
+         vertex_labels_.resident_bytes() + bytes(projected_) + bytes(unknown_) + field_.memory_bytes();
+}
+
+}  // namespace mtlod::core::view
