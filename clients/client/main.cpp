@@ -66,8 +66,8 @@ int main(int argc, char** argv) {
                    "decoded into plain arrays, for readers without Draco")
       ->check(CLI::IsMember({"on", "off"}))
       ->capture_default_str();
-  protocol::ExtractFlags flags;
-  protocol::add_extract_flags(*extract, flags);
+  clients::ExtractFlags flags;
+  clients::add_extract_flags(*extract, flags);
   CLI11_PARSE(app, argc, argv);
 
   // Every request here is idempotent, so each is retried on a new connection when one drops.
@@ -123,8 +123,8 @@ int main(int argc, char** argv) {
   }
 
   // The criteria the flags leave open are the clients' defaults (1 px, a foveal focus at the centre).
-  protocol::apply_default_criteria(flags);
-  auto request = protocol::make_extract(flags, model, m.bounds_min, m.bounds_max);
+  clients::apply_default_criteria(flags);
+  auto request = clients::make_extract(flags, model, m.bounds_min, m.bounds_max);
   if (!request) return fail(request.error().message);
   const auto start = std::chrono::steady_clock::now();
   auto reply = c.call(*request, std::chrono::seconds(120));

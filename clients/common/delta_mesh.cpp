@@ -25,7 +25,7 @@ Status DeltaMesh::apply(const protocol::MeshReply& reply, std::span<const std::u
     if (r + kAhead < parts.removed_ids.size()) slot_.prefetch(parts.removed_ids[r + kAhead]);
     if (ids_.size() > kAhead) slot_.prefetch(ids_[ids_.size() - 1 - kAhead]);
     const std::size_t entry = slot_.find(id);
-    if (entry == core::SlotTable::kAbsent) {
+    if (entry == SlotTable::kAbsent) {
       return make_error(ErrorCode::kCorrupt,
                         fmt::format("the delta removes triangle {}, which the mesh does not hold", id));
     }
@@ -49,7 +49,7 @@ Status DeltaMesh::apply(const protocol::MeshReply& reply, std::span<const std::u
     }
     for (std::size_t f = 0; f < parts.added_ids.size(); ++f) {
       const std::uint32_t id = parts.added_ids[f];
-      if (id == core::SlotTable::kEmpty) {
+      if (id == SlotTable::kEmpty) {
         return make_error(ErrorCode::kCorrupt,
                           fmt::format("the delta adds triangle {}, not a triangle id", id));
       }

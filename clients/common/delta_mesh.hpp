@@ -30,7 +30,7 @@ class DeltaMesh {
  private:
   std::vector<std::uint32_t> ids_;
   std::vector<float> corners_;
-  core::SlotTable slot_;  // id → index into ids_ (flat: a saccade's delta edits tens of thousands)
+  SlotTable slot_;  // id → index into ids_ (flat: a saccade's delta edits tens of thousands)
 };
 
 }  // namespace mtlod::clients

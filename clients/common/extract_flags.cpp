@@ -12,7 +12,22 @@
 #include "protocol/camera.hpp"
 #include "protocol/parse.hpp"
 
-namespace mtlod::protocol {
+namespace mtlod::clients {
+
+using protocol::enum_from_name;
+using protocol::Extract;
+using protocol::Focus;
+using protocol::frame_bounds;
+using protocol::kDistanceMetricNames;
+using protocol::kDistanceUnitNames;
+using protocol::kDracoMethodNames;
+using protocol::kFalloffNames;
+using protocol::Limits;
+using protocol::look_at_camera;
+using protocol::LookAt;
+using protocol::parse_request;
+using protocol::Silhouette;
+
 namespace {
 
 // "a,b,c" → exactly `count` numbers.
@@ -119,9 +134,9 @@ void apply_default_criteria(ExtractFlags& flags) {
   if (!flags.hidden_factor) flags.hidden_factor = kDefaultHiddenFactor;
 }
 
-Result<Extract> make_extract(const ExtractFlags& f, const std::string& model,
-                             const std::array<double, 3>& bounds_min,
-                             const std::array<double, 3>& bounds_max) {
+Result<protocol::Extract> make_extract(const ExtractFlags& f, const std::string& model,
+                                       const std::array<double, 3>& bounds_min,
+                                       const std::array<double, 3>& bounds_max) {
   Extract e;
   e.model = model;
   MTLOD_TRY(e.viewport, parse_size(f.viewport, "--viewport"));
@@ -200,4 +215,4 @@ Result<Extract> make_extract(const ExtractFlags& f, const std::string& model,
   return std::get<Extract>(std::move(parsed->request));
 }
 
-}  // namespace mtlod::protocol
+}  // namespace mtlod::clients

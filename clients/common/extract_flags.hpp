@@ -14,7 +14,7 @@ namespace CLI {
 class App;
 }
 
-namespace mtlod::protocol {
+namespace mtlod::clients {
 
 struct ExtractFlags {
   std::string eye, target, up = "0,1,0";  // "X,Y,Z"; without --eye the model is framed from the front
@@ -59,8 +59,8 @@ inline constexpr double kDefaultHiddenFactor = 16;
 
 // Builds the request for `model` whose bounding box is given (for the default camera). The result
 // is checked by the same parser the server uses; errors name the flag.
-Result<Extract> make_extract(const ExtractFlags& flags, const std::string& model,
-                             const std::array<double, 3>& bounds_min,
-                             const std::array<double, 3>& bounds_max);
+Result<protocol::Extract> make_extract(const ExtractFlags& flags, const std::string& model,
+                                       const std::array<double, 3>& bounds_min,
+                                       const std::array<double, 3>& bounds_max);
 
-}  // namespace mtlod::protocol
+}  // namespace mtlod::clients

@@ -3,7 +3,7 @@
 
 #include <cassert>
 
-namespace mtlod::core {
+namespace mtlod::clients {
 
 void SlotTable::reset(std::size_t expected) {
   std::size_t capacity = 16;
@@ -80,4 +80,4 @@ void SlotTable::erase_at(std::size_t i) {
   --size_;
 }
 
-}  // namespace mtlod::core
+}  // namespace mtlod::clients

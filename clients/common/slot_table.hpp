@@ -9,7 +9,7 @@
 #include <limits>
 #include <vector>
 
-namespace mtlod::core {
+namespace mtlod::clients {
 
 class SlotTable {
  public:
@@ -51,4 +51,4 @@ class SlotTable {
   unsigned shift_ = 64;
 };
 
-}  // namespace mtlod::core
+}  // namespace mtlod::clients

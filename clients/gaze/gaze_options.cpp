@@ -5,7 +5,7 @@
 
 namespace mtlod::clients {
 
-void add_gaze_flags(CLI::App& app, GazeOptions& o, protocol::ExtractFlags& flags) {
+void add_gaze_flags(CLI::App& app, GazeOptions& o, clients::ExtractFlags& flags) {
   // Registered in the order --help lists them.
   add_endpoint_flags(app, o.endpoint);
   app.add_option("--model", o.model, "model name")->capture_default_str();
@@ -34,11 +34,11 @@ void add_gaze_flags(CLI::App& app, GazeOptions& o, protocol::ExtractFlags& flags
   app.add_flag("-q,--quiet", o.quiet, "no progress line");
   app.add_option("--write-trace", o.write_trace,
                  "write the (first stream's) trace as CSV to this file and exit");
-  protocol::add_extract_flags(app, flags);
+  clients::add_extract_flags(app, flags);
 }
 
-void complete_gaze_flags(protocol::ExtractFlags& flags) {
-  protocol::apply_default_criteria(flags);
+void complete_gaze_flags(clients::ExtractFlags& flags) {
+  clients::apply_default_criteria(flags);
   // A gaze moves the focus: without one the trace would change nothing.
   if (flags.focus.empty()) flags.focus.push_back("0.5,0.5,20,0.1");
 }

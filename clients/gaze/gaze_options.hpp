@@ -27,10 +27,10 @@ struct GazeOptions {
 };
 
 // Registers mtlod-gaze's flags on `app`, writing into `options` and `flags`.
-void add_gaze_flags(CLI::App& app, GazeOptions& options, protocol::ExtractFlags& flags);
+void add_gaze_flags(CLI::App& app, GazeOptions& options, clients::ExtractFlags& flags);
 
-// After parsing: mtlod-gaze's criteria where the flags leave them open (protocol::apply_default_criteria;
+// After parsing: mtlod-gaze's criteria where the flags leave them open (clients::apply_default_criteria;
 // given other criteria but no focus, a step law ×0.1 within 20 px of the gaze).
-void complete_gaze_flags(protocol::ExtractFlags& flags);
+void complete_gaze_flags(clients::ExtractFlags& flags);
 
 }  // namespace mtlod::clients

@@ -15,7 +15,7 @@ namespace {
 using Streams = std::vector<std::unique_ptr<GazeStream>>;
 
 // Every stream opens its view with one extract first; that set-up is not measured.
-Status open_streams(GazeReplay& replay, const protocol::ExtractFlags& flags,
+Status open_streams(GazeReplay& replay, const clients::ExtractFlags& flags,
                     const std::vector<GazeSample>& file_trace, Streams& streams) {
   const GazeOptions& options = replay.options;
   for (unsigned k = 0; k < options.streams; ++k) {
@@ -63,7 +63,7 @@ void wait_for_replies(GazeReplay& replay, Streams& streams) {
 
 }  // namespace
 
-Result<GazeReplayEnd> run_gaze_replay(const GazeOptions& options, const protocol::ExtractFlags& flags,
+Result<GazeReplayEnd> run_gaze_replay(const GazeOptions& options, const clients::ExtractFlags& flags,
                                       const std::vector<GazeSample>& file_trace, GazeTotals& totals) {
   GazeReplay replay(options, totals);
   Streams streams;

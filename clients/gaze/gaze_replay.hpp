@@ -22,7 +22,7 @@ struct GazeReplayEnd {
 
 // Replays `file_trace` on every stream, or without it a trace synthesised per stream, recording
 // into `totals`. Errors: set-up failed (a connection, the model, the first extract).
-Result<GazeReplayEnd> run_gaze_replay(const GazeOptions& options, const protocol::ExtractFlags& flags,
+Result<GazeReplayEnd> run_gaze_replay(const GazeOptions& options, const clients::ExtractFlags& flags,
                                       const std::vector<GazeSample>& file_trace, GazeTotals& totals);
 
 }  // namespace mtlod::clients

@@ -21,7 +21,7 @@ nlohmann::ordered_json percentiles_ms(const LatencyHistogram& h) {
           {"count", h.count()}};
 }
 
-nlohmann::ordered_json report_json(const GazeOptions& o, const protocol::ExtractFlags& flags,
+nlohmann::ordered_json report_json(const GazeOptions& o, const clients::ExtractFlags& flags,
                                    const GazeTotals& r, const GazeReplayEnd& end) {
   const double per_mesh = std::max<double>(1, static_cast<double>(r.meshes));
   return {
@@ -56,7 +56,7 @@ nlohmann::ordered_json report_json(const GazeOptions& o, const protocol::Extract
   };
 }
 
-void print_report(const GazeOptions& o, const protocol::ExtractFlags& flags, const GazeTotals& r,
+void print_report(const GazeOptions& o, const clients::ExtractFlags& flags, const GazeTotals& r,
                   const GazeReplayEnd& end) {
   const double per_mesh = std::max<double>(1, static_cast<double>(r.meshes));
   fmt::print(
@@ -84,7 +84,7 @@ void print_report(const GazeOptions& o, const protocol::ExtractFlags& flags, con
 
 }  // namespace
 
-Status report_gaze(const GazeOptions& options, const protocol::ExtractFlags& flags, const GazeTotals& totals,
+Status report_gaze(const GazeOptions& options, const clients::ExtractFlags& flags, const GazeTotals& totals,
                    const GazeReplayEnd& end) {
   const nlohmann::ordered_json report = report_json(options, flags, totals, end);
   print_report(options, flags, totals, end);

@@ -11,7 +11,7 @@ namespace mtlod::clients {
 
 // Prints the report, and writes it to options.json_file when one is given. Errors: the file could
 // not be written.
-Status report_gaze(const GazeOptions& options, const protocol::ExtractFlags& flags, const GazeTotals& totals,
+Status report_gaze(const GazeOptions& options, const clients::ExtractFlags& flags, const GazeTotals& totals,
                    const GazeReplayEnd& end);
 
 }  // namespace mtlod::clients

@@ -26,14 +26,14 @@ GazeStream::GazeStream(GazeReplay& replay, unsigned index, std::vector<GazeSampl
       session_(*this, replay.options.endpoint, "mtlod-gaze/0.1", replay.options.retry,
                replay.options.synthesis.seed * 7919 + index, replay.finished) {}
 
-Status GazeStream::open_view(const protocol::ExtractFlags& flags) {
+Status GazeStream::open_view(const clients::ExtractFlags& flags) {
   const std::string& model = replay_.options.model;
   MTLOD_RETURN_IF_ERROR(session_.connect());
   ServerConnection& connection = session_.connection();
   MTLOD_TRY(const ReplyFrame info, connection.call(protocol::ModelInfo{model}, 0));
   const auto* m = std::get_if<protocol::ModelInfoReply>(&info.header.reply);
   if (!m) return make_error(ErrorCode::kNotFound, fmt::format("model '{}' is not served", model));
-  MTLOD_TRY(protocol::Extract request, protocol::make_extract(flags, model, m->bounds_min, m->bounds_max));
+  MTLOD_TRY(protocol::Extract request, clients::make_extract(flags, model, m->bounds_min, m->bounds_max));
   request.criteria.focus.front().x = trace_.front().x;
   request.criteria.focus.front().y = trace_.front().y;
   // A model whose file is being rewritten answers `unavailable` until the new file is loaded

@@ -63,7 +63,7 @@ class GazeStream : public StreamSession::Handler {
 
   // Connects and opens the stream's view: one extract of the model, focused on the first sample
   // (set-up, not measured). Errors name what failed.
-  Status open_view(const protocol::ExtractFlags& flags);
+  Status open_view(const clients::ExtractFlags& flags);
 
   StreamSession& session() { return session_; }
   const std::vector<GazeSample>& trace() const { return trace_; }

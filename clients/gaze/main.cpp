@@ -32,7 +32,7 @@ int main(int argc, char** argv) {
       "mtlod-gaze: replay a gaze trace (CSV time_ms,x,y) or a synthetic one against mtlod-server and "
       "measure gaze-to-mesh latency."};
   clients::GazeOptions options;
-  protocol::ExtractFlags flags;
+  clients::ExtractFlags flags;
   clients::add_gaze_flags(app, options, flags);
   CLI11_PARSE(app, argc, argv);
   clients::complete_gaze_flags(flags);

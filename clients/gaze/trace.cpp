@@ -20,7 +20,7 @@ Result<std::vector<GazeSample>> parse_gaze_trace(const std::string& text) {
     const auto first = line.find_first_not_of(" \t");
     if (first == std::string::npos || line[first] == '#') continue;
     std::vector<double> v;
-    if (!protocol::parse_number_list(line, v) || v.size() != 3) {
+    if (!clients::parse_number_list(line, v) || v.size() != 3) {
       if (samples.empty() && number == 1) continue;  // a header line such as "time_ms,x,y"
       return make_error(ErrorCode::kInvalidArgument,
                         fmt::format("line {}: expected time_ms,x,y, got '{}'", number, line));

@@ -85,17 +85,17 @@ Result<std::vector<ScriptedCamera>> read_camera_script(const std::string& path) 
 
 }  // namespace
 
-void add_load_flags(CLI::App& app, LoadOptions& options, protocol::ExtractFlags& flags) {
+void add_load_flags(CLI::App& app, LoadOptions& options, clients::ExtractFlags& flags) {
   // Registered in the order --help lists them.
   add_endpoint_flags(app, options.endpoint);
   add_run_flags(app, options);
   add_request_flags(app, options);
   add_session_flags(app, options);
-  protocol::add_extract_flags(app, flags);
+  clients::add_extract_flags(app, flags);
 }
 
-Result<RequestSettings> complete_load_options(LoadOptions& o, protocol::ExtractFlags& flags) {
-  protocol::apply_default_criteria(flags);
+Result<RequestSettings> complete_load_options(LoadOptions& o, clients::ExtractFlags& flags) {
+  clients::apply_default_criteria(flags);
   if (o.gaze_hz > 0) {
     o.mix = "gaze=1";
     o.rate = o.gaze_hz * o.connections;

@@ -41,10 +41,10 @@ struct LoadOptions {
 };
 
 // Registers mtlod-load's flags on `app`, writing into `options` and `flags`.
-void add_load_flags(CLI::App& app, LoadOptions& options, protocol::ExtractFlags& flags);
+void add_load_flags(CLI::App& app, LoadOptions& options, clients::ExtractFlags& flags);
 
 // After parsing: fills the defaults that depend on other flags (mtlod-load's criteria, --gaze-hz's
 // mix and rate) and reads what the flags name. Errors name the flag or the file.
-Result<RequestSettings> complete_load_options(LoadOptions& options, protocol::ExtractFlags& flags);
+Result<RequestSettings> complete_load_options(LoadOptions& options, clients::ExtractFlags& flags);
 
 }  // namespace mtlod::clients

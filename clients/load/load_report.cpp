@@ -39,7 +39,7 @@ nlohmann::ordered_json server_json(const LoadTotals& r) {
           {"total_p99", r.server_total_us.value_at_percentile(99)}};
 }
 
-nlohmann::ordered_json report_json(const LoadOptions& o, const protocol::ExtractFlags& flags,
+nlohmann::ordered_json report_json(const LoadOptions& o, const clients::ExtractFlags& flags,
                                    const LoadTotals& r, const LoadRunEnd& end) {
   const double elapsed_s = end.elapsed_s;
   const double mean_div = std::max<double>(1, static_cast<double>(r.ok));
@@ -116,7 +116,7 @@ void print_report(const LoadOptions& o, const LoadTotals& r, const LoadRunEnd& e
 
 }  // namespace
 
-Status report_load(const LoadOptions& options, const protocol::ExtractFlags& flags, const LoadTotals& totals,
+Status report_load(const LoadOptions& options, const clients::ExtractFlags& flags, const LoadTotals& totals,
                    const LoadRunEnd& end) {
   const nlohmann::ordered_json report = report_json(options, flags, totals, end);
   print_report(options, totals, end);

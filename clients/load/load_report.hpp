@@ -11,7 +11,7 @@ namespace mtlod::clients {
 
 // Prints the report, and writes it to options.json_file when one is given. Errors: the file could
 // not be written.
-Status report_load(const LoadOptions& options, const protocol::ExtractFlags& flags, const LoadTotals& totals,
+Status report_load(const LoadOptions& options, const clients::ExtractFlags& flags, const LoadTotals& totals,
                    const LoadRunEnd& end);
 
 }  // namespace mtlod::clients

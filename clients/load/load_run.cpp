@@ -30,7 +30,7 @@ Result<std::uint32_t> connect_streams(LoadRun& run, Streams& streams) {
 // Each model's bounds, and the extract the flags make for it.
 Result<std::vector<ModelView>> describe_models(ServerConnection& connection,
                                                const std::vector<std::string>& names,
-                                               const protocol::ExtractFlags& flags) {
+                                               const clients::ExtractFlags& flags) {
   std::vector<ModelView> models;
   for (const std::string& name : names) {
     MTLOD_TRY(const ReplyFrame info, connection.call(protocol::ModelInfo{name}, 0));
@@ -40,7 +40,7 @@ Result<std::vector<ModelView>> describe_models(ServerConnection& connection,
           ErrorCode::kNotFound,
           fmt::format("model '{}': {}", name, std::get<protocol::ErrorReply>(info.header.reply).message));
     }
-    MTLOD_TRY(protocol::Extract base, protocol::make_extract(flags, name, m->bounds_min, m->bounds_max));
+    MTLOD_TRY(protocol::Extract base, clients::make_extract(flags, name, m->bounds_min, m->bounds_max));
     models.push_back(ModelView{name, m->bounds_min, m->bounds_max, std::move(base)});
   }
   return models;
@@ -85,7 +85,7 @@ void wait_for_replies(LoadRun& run, Streams& streams) {
 }  // namespace
 
 Result<LoadRunEnd> run_load(const LoadOptions& options, const RequestSettings& requests,
-                            const protocol::ExtractFlags& flags, LoadTotals& totals) {
+                            const clients::ExtractFlags& flags, LoadTotals& totals) {
   LoadRun run(options, requests, totals);
   Streams streams;
   MTLOD_TRY(const std::uint32_t server_window, connect_streams(run, streams));

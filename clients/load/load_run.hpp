@@ -22,6 +22,6 @@ struct LoadRunEnd {
 // Runs the load test the options describe, recording into `totals`. Errors: set-up failed (a
 // connection, a model that is not served, an extract the flags cannot make).
 Result<LoadRunEnd> run_load(const LoadOptions& options, const RequestSettings& requests,
-                            const protocol::ExtractFlags& flags, LoadTotals& totals);
+                            const clients::ExtractFlags& flags, LoadTotals& totals);
 
 }  // namespace mtlod::clients

@@ -29,7 +29,7 @@ int main(int argc, char** argv) {
       "mtlod-load: load test for mtlod-server: closed loop (N connections, each waits for its reply) "
       "or open loop (--rate: a fixed arrival schedule, latency from each request's due time)."};
   clients::LoadOptions options;
-  protocol::ExtractFlags flags;
+  clients::ExtractFlags flags;
   clients::add_load_flags(app, options, flags);
   CLI11_PARSE(app, argc, argv);
 

@@ -19,7 +19,7 @@ Result<std::vector<ScriptedCamera>> parse_camera_script(const std::string& text)
     if (!line.empty() && line.back() == '\r') line.pop_back();
     if (line.find_first_not_of(" \t") == std::string::npos || line[line.find_first_not_of(" \t")] == '#')
       continue;
-    if (!protocol::parse_number_list(line, v) || (v.size() != 6 && v.size() != 8)) {
+    if (!clients::parse_number_list(line, v) || (v.size() != 6 && v.size() != 8)) {
       return make_error(
           ErrorCode::kInvalidArgument,
           fmt::format("camera script line {}: expected ex,ey,ez,tx,ty,tz[,fx,fy], got '{}'", number, line));

@@ -32,7 +32,7 @@ struct ExtractOptions {
   std::string gltf_draco = "on";       // .glb: Draco-compressed (KHR_draco_mesh_compression) or plain
   std::string dump_dt;                 // PNG of the silhouette (else focus) distance transform
   std::string dump_occupancy;          // PNG of the occupancy grid
-  mtlod::protocol::ExtractFlags view;  // --error, --budget, camera, criteria, grid, Draco
+  mtlod::clients::ExtractFlags view;  // --error, --budget, camera, criteria, grid, Draco
 };
 
 void add_extract_options(CLI::App& app, ExtractOptions& o) {
@@ -49,7 +49,7 @@ void add_extract_options(CLI::App& app, ExtractOptions& o) {
   app.add_option("--dump-dt", o.dump_dt, "write the distance transform as PNG (view-dependent mode)");
   app.add_option("--dump-occupancy", o.dump_occupancy,
                  "write the occupancy grid as PNG (view-dependent mode)");
-  mtlod::protocol::add_extract_flags(app, o.view);
+  mtlod::clients::add_extract_flags(app, o.view);
 }
 
 // View-dependent when a camera, a criterion or a pixel bound is given; otherwise uniform.
@@ -156,7 +156,7 @@ int run(int argc, char** argv) {
   double refine_s = 0;
   if (view) {
     const model::Bounds& box = mt->bounds;
-    auto made = mtlod::protocol::make_extract(options.view, options.model, model::to_double(box.lo),
+    auto made = mtlod::clients::make_extract(options.view, options.model, model::to_double(box.lo),
                                               model::to_double(box.hi));
     if (!made) {
       fmt::print(stderr, "mtlod-extract: {}\n", made.error().message);

@@ -1,4 +1,4 @@
-// The viewing clients' default criteria (protocol::apply_default_criteria): the image-space study's
+// The viewing clients' default criteria (clients::apply_default_criteria): the image-space study's
 // winner (foveal bound, hidden surfaces coarsened) when the user names no criterion, and nothing
 // changed when they do. Checked on the request
 // make_extract builds, which the server's own parser has accepted.
@@ -6,8 +6,10 @@
 
 #include <gtest/gtest.h>
 
-namespace mtlod::protocol {
+namespace mtlod::clients {
 namespace {
+
+using protocol::Extract;
 
 Extract request_for(const ExtractFlags& flags) {
   auto e = make_extract(flags, "box", {-1, -1, -1}, {1, 1, 1});
@@ -80,4 +82,4 @@ TEST(DefaultCriteria, WithoutTheDefaultNoFalloffMeansStep) {
 }
 
 }  // namespace
-}  // namespace mtlod::protocol
+}  // namespace mtlod::clients

@@ -1,4 +1,4 @@
-// SlotTable (core/slot_table.hpp) against std::unordered_map over random inserts, lookups and
+// SlotTable (clients/common/slot_table.hpp) against std::unordered_map over random inserts, lookups and
 // erasures, growth included: every key present maps to its value, every other key is absent.
 #include "clients/common/slot_table.hpp"
 
@@ -8,7 +8,7 @@
 #include <unordered_map>
 #include <vector>
 
-namespace mtlod::core {
+namespace mtlod::clients {
 namespace {
 
 TEST(SlotTable, AgreesWithAHashMapUnderRandomEdits) {
@@ -52,4 +52,4 @@ TEST(SlotTable, AgreesWithAHashMapUnderRandomEdits) {
 }
 
 }  // namespace
-}  // namespace mtlod::core
+}  // namespace mtlod::clients

@@ -136,7 +136,7 @@ Result<Method> parse_method(const std::string& text) {
 
 // The standard set. `previous`: the criteria mtlod-gaze sent when given none, before the study picked
 // `default` (silhouette 2 px ×0, focus 20 grid px ×0.1, frustum ×8). `default`: what the viewing
-// clients send when given none (protocol::apply_default_criteria, clients/common/extract_flags.hpp).
+// clients send when given none (clients::apply_default_criteria, clients/common/extract_flags.hpp).
 const std::vector<std::string> kStandardMethods{
     "uniform=uniform",
     "silhouette-DT=model,sil=2/0.2",

@@ -66,7 +66,7 @@ void default_cut(view::ViewExtractor& extractor, cut::Refiner& refiner, const vi
   r.allowed.use_focus = true;
   r.allowed.focus = {view::FalloffLaw::kFoveal, 0.0f, 1.0f, 16.0f, 2.3f};
   r.allowed.outside_view_factor = 8.0f;
-  r.allowed.hidden_factor = static_cast<float>(protocol::kDefaultHiddenFactor);
+  r.allowed.hidden_factor = static_cast<float>(clients::kDefaultHiddenFactor);
   r.focus = {focus};
   r.budget = budget;
   r.dynamic = false;

@@ -1,6 +1,6 @@
 // mtlod-eval gaze: a gaze study in numbers. A fixation/saccade trace (a file, or mtlod-gaze's
 // synthesiser) is replayed against one view of a model: every frame shows the budgeted cut the
-// default criteria (protocol::apply_default_criteria) gave for the gaze sample that had reached the
+// default criteria (clients::apply_default_criteria) gave for the gaze sample that had reached the
 // viewer `latency` ms earlier, and is scored by the foveated image error around where the eye is
 // at that frame, against one uniform cut of about the same bytes. After each saccade (I-VT
 // velocity threshold), the time until the error near the new fixation is back within a tolerance
