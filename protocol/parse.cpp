@@ -4,8 +4,13 @@
 #include "protocol/parse.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <set>
+#include <string_view>
+#include <type_traits>
+#include <utility>
+#include <variant>
 
 #include "fmt/format.h"
 #include "fmt/ranges.h"
@@ -323,36 +328,64 @@ Extract read_extract(ObjectReader& r, const Limits& limits) {
   return e;
 }
 
+// One reader per request type, found by overload: read_request's table is built from the variant's
+// alternatives, so a request type without a reader does not compile.
+Hello read(std::type_identity<Hello>, ObjectReader& r, const Limits&) {
+  Hello h;
+  h.version = static_cast<int>(r.integer("version", kProtocolVersion, 0, 1000));
+  h.client = r.optional_string("client", "", 256);
+  h.token = r.optional_string("token", "", 256);
+  if (h.version != kProtocolVersion) {
+    fail(ErrorKind::kUnsupportedVersion,
+         fmt::format("protocol version {} is not supported; this server speaks version {}", h.version,
+                     kProtocolVersion));
+  }
+  return h;
+}
+ListModels read(std::type_identity<ListModels>, ObjectReader&, const Limits&) {
+  return {};
+}
+ModelInfo read(std::type_identity<ModelInfo>, ObjectReader& r, const Limits&) {
+  return ModelInfo{r.string("model", 256)};
+}
+Extract read(std::type_identity<Extract>, ObjectReader& r, const Limits& limits) {
+  return read_extract(r, limits);
+}
+Gaze read(std::type_identity<Gaze>, ObjectReader& r, const Limits&) {
+  Gaze g;
+  g.x = r.required_number("x", 0, 1);
+  g.y = r.required_number("y", 0, 1);
+  if (r.has("distance")) g.distance = r.number("distance", 0, 0, 1e6);
+  if (r.has("factor")) g.factor = r.number("factor", 0, 0, 1);
+  return g;
+}
+Cancel read(std::type_identity<Cancel>, ObjectReader& r, const Limits&) {
+  return Cancel{r.integer("target", 0, 0, UINT64_MAX)};
+}
+Stats read(std::type_identity<Stats>, ObjectReader&, const Limits&) {
+  return {};
+}
+Ping read(std::type_identity<Ping>, ObjectReader&, const Limits&) {
+  return {};
+}
+Reload read(std::type_identity<Reload>, ObjectReader& r, const Limits&) {
+  return Reload{r.string("token", 256)};
+}
+
 Request read_request(ObjectReader& r, const std::string& type, const Limits& limits) {
-  if (type == "hello") {
-    Hello h;
-    h.version = static_cast<int>(r.integer("version", kProtocolVersion, 0, 1000));
-    h.client = r.optional_string("client", "", 256);
-    h.token = r.optional_string("token", "", 256);
-    if (h.version != kProtocolVersion) {
-      fail(ErrorKind::kUnsupportedVersion,
-           fmt::format("protocol version {} is not supported; this server speaks version {}", h.version,
-                       kProtocolVersion));
-    }
-    return h;
+  using Reader = Request (*)(ObjectReader&, const Limits&);
+  static constexpr auto kReaders = []<std::size_t... I>(std::index_sequence<I...>) {
+    return std::array<Reader, sizeof...(I)>{+[](ObjectReader& r, const Limits& limits) -> Request {
+      return read(std::type_identity<std::variant_alternative_t<I, Request>>{}, r, limits);
+    }...};
   }
-  if (type == "list_models") return ListModels{};
-  if (type == "model_info") return ModelInfo{r.string("model", 256)};
-  if (type == "extract") return read_extract(r, limits);
-  if (type == "gaze") {
-    Gaze g;
-    g.x = r.required_number("x", 0, 1);
-    g.y = r.required_number("y", 0, 1);
-    if (r.has("distance")) g.distance = r.number("distance", 0, 0, 1e6);
-    if (r.has("factor")) g.factor = r.number("factor", 0, 0, 1);
-    return g;
+  (std::make_index_sequence<std::variant_size_v<Request>>{});
+  const auto* name = std::find(kRequestTypeNames.begin(), kRequestTypeNames.end(), std::string_view(type));
+  if (name == kRequestTypeNames.end()) {
+    fail(ErrorKind::kUnknownType, fmt::format("unknown request type '{}'; expected one of {}", type,
+                                              fmt::join(kRequestTypeNames, ", ")));
   }
-  if (type == "cancel") return Cancel{r.integer("target", 0, 0, UINT64_MAX)};
-  if (type == "stats") return Stats{};
-  if (type == "ping") return Ping{};
-  if (type == "reload") return Reload{r.string("token", 256)};
-  fail(ErrorKind::kUnknownType, fmt::format("unknown request type '{}'; expected one of {}", type,
-                                            fmt::join(kRequestTypeNames, ", ")));
+  return kReaders[static_cast<std::size_t>(name - kRequestTypeNames.begin())](r, limits);
 }
 
 }  // namespace
@@ -465,30 +498,45 @@ json extract_json(const Extract& e) {
   return j;
 }
 
+// One writer per request type, found by overload (no generic fallback: a request type without a
+// writer does not compile).
+json write(const Hello& r) {
+  json h = {{"version", r.version}, {"client", r.client}};
+  if (!r.token.empty()) h["token"] = r.token;
+  return h;
+}
+json write(const ListModels&) {
+  return json::object();
+}
+json write(const ModelInfo& r) {
+  return {{"model", r.model}};
+}
+json write(const Extract& r) {
+  return extract_json(r);
+}
+json write(const Gaze& r) {
+  json g = {{"x", r.x}, {"y", r.y}};
+  if (r.distance) g["distance"] = *r.distance;
+  if (r.factor) g["factor"] = *r.factor;
+  return g;
+}
+json write(const Cancel& r) {
+  return {{"target", r.target}};
+}
+json write(const Stats&) {
+  return json::object();
+}
+json write(const Ping&) {
+  return json::object();
+}
+json write(const Reload& r) {
+  return {{"token", r.token}};
+}
+
 }  // namespace
 
 std::string to_json(const Request& request, std::uint64_t id) {
-  json j = std::visit(
-      [](const auto& r) -> json {
-        using T = std::decay_t<decltype(r)>;
-        if constexpr (std::is_same_v<T, Hello>) {
-          json h = {{"version", r.version}, {"client", r.client}};
-          if (!r.token.empty()) h["token"] = r.token;
-          return h;
-        }
-        if constexpr (std::is_same_v<T, ModelInfo>) return {{"model", r.model}};
-        if constexpr (std::is_same_v<T, Extract>) return extract_json(r);
-        if constexpr (std::is_same_v<T, Gaze>) {
-          json g = {{"x", r.x}, {"y", r.y}};
-          if (r.distance) g["distance"] = *r.distance;
-          if (r.factor) g["factor"] = *r.factor;
-          return g;
-        }
-        if constexpr (std::is_same_v<T, Cancel>) return {{"target", r.target}};
-        if constexpr (std::is_same_v<T, Reload>) return {{"token", r.token}};
-        return json::object();
-      },
-      request);
+  json j = std::visit([](const auto& r) { return write(r); }, request);
   j["type"] = request_type_name(request);
   j["id"] = id;
   return j.dump(-1, ' ', false, json::error_handler_t::replace);

@@ -1,6 +1,13 @@
 // Reply serialisation and the clients' lenient reply parser (PROTOCOL.md, "Replies").
 #include "protocol/replies.hpp"
 
+#include <algorithm>
+#include <array>
+#include <string_view>
+#include <type_traits>
+#include <utility>
+#include <variant>
+
 #include "fmt/format.h"
 #include "nlohmann/json.hpp"
 #include "protocol/frame.hpp"
@@ -96,68 +103,154 @@ const char* reply_type_name(const Reply& reply) {
   return kReplyTypeNames[reply.index()];
 }
 
+namespace {
+
+// One writer and one reader per reply type, found by overload: to_json visits the writers and
+// parse_reply's table is built from the variant's alternatives, so a reply type without either
+// does not compile.
+json write(const HelloReply& r) {
+  return {{"version", r.version},
+          {"server", r.server},
+          {"limits", limits_json(r.limits)},
+          {"instance", r.instance},
+          {"auth_required", r.auth_required}};
+}
+HelloReply read(std::type_identity<HelloReply>, const json& j) {
+  return HelloReply{j.value("version", 0), j.value("server", ""),
+                    limits_from(j.value("limits", json::object())), j.value("instance", ""),
+                    j.value("auth_required", false)};
+}
+
+json write(const ModelsReply& r) {
+  json models = json::array();
+  for (const ModelSummary& m : r.models) models.push_back(summary_json(m));
+  return {{"models", models}};
+}
+ModelsReply read(std::type_identity<ModelsReply>, const json& j) {
+  ModelsReply r;
+  for (const json& m : j.value("models", json::array())) r.models.push_back(summary_from(m));
+  return r;
+}
+
+json write(const ModelInfoReply& r) {
+  json m = summary_json(r.model);
+  m["bounds_min"] = r.bounds_min;
+  m["bounds_max"] = r.bounds_max;
+  m["min_error"] = r.min_error;
+  m["normals"] = r.normals;
+  m["colors"] = r.colors;
+  return m;
+}
+ModelInfoReply read(std::type_identity<ModelInfoReply>, const json& j) {
+  ModelInfoReply r;
+  r.model = summary_from(j);
+  r.bounds_min = j.value("bounds_min", r.bounds_min);
+  r.bounds_max = j.value("bounds_max", r.bounds_max);
+  r.min_error = j.value("min_error", 0.0);
+  r.normals = j.value("normals", false);
+  r.colors = j.value("colors", false);
+  return r;
+}
+
+json write(const MeshReply& r) {
+  json m = {{"model", r.model},
+            {"triangles", r.triangles},
+            {"vertices", r.vertices},
+            {"max_error", r.max_error},
+            {"bytes", r.bytes},
+            {"superseded", r.superseded},
+            {"timings_us", timings_json(r.timings)},
+            {"memory", {{"session_bytes", r.session_bytes}, {"scratch_bytes", r.scratch_bytes}}}};
+  if (r.focus) m["focus"] = *r.focus;
+  m["model_version"] = r.model_version;
+  if (r.model_changed) m["model_changed"] = true;
+  if (r.delta) {
+    m["delta"] = {{"reset", r.delta->reset},
+                  {"draco_bytes", r.delta->draco_bytes},
+                  {"added", r.delta->added},
+                  {"removed", r.delta->removed}};
+  }
+  return m;
+}
+MeshReply read(std::type_identity<MeshReply>, const json& j) {
+  MeshReply r;
+  r.model = j.value("model", "");
+  r.triangles = j.value("triangles", std::uint64_t{0});
+  r.vertices = j.value("vertices", std::uint64_t{0});
+  r.max_error = j.value("max_error", 0.0);
+  r.bytes = j.value("bytes", std::uint64_t{0});
+  r.superseded = j.value("superseded", std::uint64_t{0});
+  const json memory = j.value("memory", json::object());
+  r.session_bytes = memory.value("session_bytes", std::uint64_t{0});
+  r.scratch_bytes = memory.value("scratch_bytes", std::uint64_t{0});
+  if (j.contains("focus")) r.focus = j["focus"].get<std::array<double, 2>>();
+  r.model_version = j.value("model_version", std::uint64_t{0});
+  r.model_changed = j.value("model_changed", false);
+  if (j.contains("delta")) {
+    const json& d = j["delta"];
+    r.delta = MeshDelta{d.value("reset", false), d.value("draco_bytes", std::uint64_t{0}),
+                        d.value("added", std::uint64_t{0}), d.value("removed", std::uint64_t{0})};
+  }
+  r.timings = timings_from(j.value("timings_us", json::object()));
+  return r;
+}
+
+json write(const ErrorReply& r) {
+  return {{"code", to_string(r.code)}, {"message", r.message}};
+}
+ErrorReply read(std::type_identity<ErrorReply>, const json& j) {
+  return ErrorReply{error_kind_from(j.value("code", "")), j.value("message", "")};
+}
+
+json write(const CancelReply& r) {
+  return {{"target", r.target}, {"cancelled", r.cancelled}};
+}
+CancelReply read(std::type_identity<CancelReply>, const json& j) {
+  return CancelReply{j.value("target", std::uint64_t{0}), j.value("cancelled", false)};
+}
+
+json write(const StatsReply& r) {
+  json counters = json::object();
+  for (const auto& [name, value] : r.counters) counters[name] = value;
+  return {{"counters", counters}};
+}
+StatsReply read(std::type_identity<StatsReply>, const json& j) {
+  StatsReply r;
+  const json counters = j.value("counters", json::object());  // items() must not outlive it
+  for (const auto& [name, value] : counters.items())
+    r.counters.emplace_back(name, value.is_number() ? value.get<double>() : 0.0);
+  return r;
+}
+
+json write(const Pong&) {
+  return json::object();
+}
+Pong read(std::type_identity<Pong>, const json&) {
+  return {};
+}
+
+json write(const ReloadReply& r) {
+  json models = json::array();
+  for (const ModelReload& m : r.models) {
+    json entry = {{"name", m.name}, {"change", m.change}, {"version", m.version}};
+    if (!m.message.empty()) entry["message"] = m.message;
+    models.push_back(std::move(entry));
+  }
+  return {{"models", models}};
+}
+ReloadReply read(std::type_identity<ReloadReply>, const json& j) {
+  ReloadReply r;
+  for (const json& m : j.value("models", json::array())) {
+    r.models.push_back(ModelReload{m.value("name", ""), m.value("change", ""),
+                                   m.value("version", std::uint64_t{0}), m.value("message", "")});
+  }
+  return r;
+}
+
+}  // namespace
+
 std::string to_json(const Reply& reply, std::optional<std::uint64_t> id) {
-  json j = std::visit(
-      [](const auto& r) -> json {
-        using T = std::decay_t<decltype(r)>;
-        if constexpr (std::is_same_v<T, HelloReply>) {
-          return {{"version", r.version},
-                  {"server", r.server},
-                  {"limits", limits_json(r.limits)},
-                  {"instance", r.instance},
-                  {"auth_required", r.auth_required}};
-        } else if constexpr (std::is_same_v<T, ModelsReply>) {
-          json models = json::array();
-          for (const ModelSummary& m : r.models) models.push_back(summary_json(m));
-          return {{"models", models}};
-        } else if constexpr (std::is_same_v<T, ModelInfoReply>) {
-          json m = summary_json(r.model);
-          m["bounds_min"] = r.bounds_min;
-          m["bounds_max"] = r.bounds_max;
-          m["min_error"] = r.min_error;
-          m["normals"] = r.normals;
-          m["colors"] = r.colors;
-          return m;
-        } else if constexpr (std::is_same_v<T, MeshReply>) {
-          json m = {{"model", r.model},
-                    {"triangles", r.triangles},
-                    {"vertices", r.vertices},
-                    {"max_error", r.max_error},
-                    {"bytes", r.bytes},
-                    {"superseded", r.superseded},
-                    {"timings_us", timings_json(r.timings)},
-                    {"memory", {{"session_bytes", r.session_bytes}, {"scratch_bytes", r.scratch_bytes}}}};
-          if (r.focus) m["focus"] = *r.focus;
-          m["model_version"] = r.model_version;
-          if (r.model_changed) m["model_changed"] = true;
-          if (r.delta) {
-            m["delta"] = {{"reset", r.delta->reset},
-                          {"draco_bytes", r.delta->draco_bytes},
-                          {"added", r.delta->added},
-                          {"removed", r.delta->removed}};
-          }
-          return m;
-        } else if constexpr (std::is_same_v<T, ErrorReply>) {
-          return {{"code", to_string(r.code)}, {"message", r.message}};
-        } else if constexpr (std::is_same_v<T, CancelReply>) {
-          return {{"target", r.target}, {"cancelled", r.cancelled}};
-        } else if constexpr (std::is_same_v<T, StatsReply>) {
-          json counters = json::object();
-          for (const auto& [name, value] : r.counters) counters[name] = value;
-          return {{"counters", counters}};
-        } else if constexpr (std::is_same_v<T, ReloadReply>) {
-          json models = json::array();
-          for (const ModelReload& m : r.models) {
-            json entry = {{"name", m.name}, {"change", m.change}, {"version", m.version}};
-            if (!m.message.empty()) entry["message"] = m.message;
-            models.push_back(std::move(entry));
-          }
-          return {{"models", models}};
-        } else {
-          return json::object();
-        }
-      },
-      reply);
+  json j = std::visit([](const auto& r) { return write(r); }, reply);
   j["type"] = reply_type_name(reply);
   if (id) j["id"] = *id;
   // Replace, never throw: a reply may quote client bytes, and a throw here would escape the server.
@@ -165,73 +258,22 @@ std::string to_json(const Reply& reply, std::optional<std::uint64_t> id) {
 }
 
 Result<ParsedReply> parse_reply(std::string_view text) {
+  using Reader = Reply (*)(const json&);
+  static constexpr auto kReaders = []<std::size_t... I>(std::index_sequence<I...>) {
+    return std::array<Reader, sizeof...(I)>{+[](const json& j) -> Reply {
+      return read(std::type_identity<std::variant_alternative_t<I, Reply>>{}, j);
+    }...};
+  }
+  (std::make_index_sequence<std::variant_size_v<Reply>>{});
   try {
     const json j = json::parse(text.begin(), text.end());
     ParsedReply out{std::nullopt, Pong{}};
     if (j.contains("id") && j["id"].is_number_unsigned()) out.id = j["id"].get<std::uint64_t>();
     const std::string type = j.value("type", "");
-    if (type == "hello") {
-      out.reply = HelloReply{j.value("version", 0), j.value("server", ""),
-                             limits_from(j.value("limits", json::object())), j.value("instance", ""),
-                             j.value("auth_required", false)};
-    } else if (type == "models") {
-      ModelsReply r;
-      const json models = j.value("models", json::array());
-      for (const json& m : models) r.models.push_back(summary_from(m));
-      out.reply = std::move(r);
-    } else if (type == "model_info") {
-      ModelInfoReply r;
-      r.model = summary_from(j);
-      r.bounds_min = j.value("bounds_min", r.bounds_min);
-      r.bounds_max = j.value("bounds_max", r.bounds_max);
-      r.min_error = j.value("min_error", 0.0);
-      r.normals = j.value("normals", false);
-      r.colors = j.value("colors", false);
-      out.reply = std::move(r);
-    } else if (type == "mesh") {
-      MeshReply r;
-      r.model = j.value("model", "");
-      r.triangles = j.value("triangles", std::uint64_t{0});
-      r.vertices = j.value("vertices", std::uint64_t{0});
-      r.max_error = j.value("max_error", 0.0);
-      r.bytes = j.value("bytes", std::uint64_t{0});
-      r.superseded = j.value("superseded", std::uint64_t{0});
-      const json memory = j.value("memory", json::object());
-      r.session_bytes = memory.value("session_bytes", std::uint64_t{0});
-      r.scratch_bytes = memory.value("scratch_bytes", std::uint64_t{0});
-      if (j.contains("focus")) r.focus = j["focus"].get<std::array<double, 2>>();
-      r.model_version = j.value("model_version", std::uint64_t{0});
-      r.model_changed = j.value("model_changed", false);
-      if (j.contains("delta")) {
-        const json& d = j["delta"];
-        r.delta = MeshDelta{d.value("reset", false), d.value("draco_bytes", std::uint64_t{0}),
-                            d.value("added", std::uint64_t{0}), d.value("removed", std::uint64_t{0})};
-      }
-      r.timings = timings_from(j.value("timings_us", json::object()));
-      out.reply = std::move(r);
-    } else if (type == "error") {
-      out.reply = ErrorReply{error_kind_from(j.value("code", "")), j.value("message", "")};
-    } else if (type == "cancel") {
-      out.reply = CancelReply{j.value("target", std::uint64_t{0}), j.value("cancelled", false)};
-    } else if (type == "stats") {
-      StatsReply r;
-      const json counters = j.value("counters", json::object());
-      for (const auto& [name, value] : counters.items()) {
-        r.counters.emplace_back(name, value.is_number() ? value.get<double>() : 0.0);
-      }
-      out.reply = std::move(r);
-    } else if (type == "pong") {
-      out.reply = Pong{};
-    } else if (type == "reloaded") {
-      ReloadReply r;
-      for (const json& m : j.value("models", json::array())) {
-        r.models.push_back(ModelReload{m.value("name", ""), m.value("change", ""),
-                                       m.value("version", std::uint64_t{0}), m.value("message", "")});
-      }
-      out.reply = std::move(r);
-    } else {
+    const auto* name = std::find(kReplyTypeNames.begin(), kReplyTypeNames.end(), std::string_view(type));
+    if (name == kReplyTypeNames.end())
       return make_error(ErrorCode::kCorrupt, fmt::format("unknown reply type '{}'", type));
-    }
+    out.reply = kReaders[static_cast<std::size_t>(name - kReplyTypeNames.begin())](j);
     return out;
   } catch (const json::exception& e) {
     return make_error(ErrorCode::kCorrupt, fmt::format("reply does not parse: {}", e.what()));

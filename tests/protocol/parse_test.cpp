@@ -6,6 +6,7 @@
 
 #include <fstream>
 #include <random>
+#include <variant>
 
 #include "nlohmann/json.hpp"
 #include "tests/protocol/protocol_cases.hpp"
@@ -74,16 +75,26 @@ TEST(ParseRequest, ReadsBackEveryFieldAClientWrote) {
   EXPECT_EQ(got.draco.entropy_coding, false);
 }
 
-TEST(ParseRequest, EveryOtherRequestTypeRoundTrips) {
+TEST(ParseRequest, EveryRequestTypeRoundTrips) {
   const Limits limits;
-  const std::vector<Request> requests = {
-      Hello{1, "test"}, ListModels{}, ModelInfo{"dragon"}, Gaze{0.1, 0.9, 12.0, 0.5}, Cancel{77},
-      Stats{},          Ping{}};
+  const std::vector<Request> requests = {Hello{1, "test", ""},
+                                         ListModels{},
+                                         ModelInfo{"dragon"},
+                                         sample_extract(),
+                                         Gaze{0.1, 0.9, 12.0, 0.5},
+                                         Cancel{77},
+                                         Stats{},
+                                         Ping{},
+                                         Reload{"admin"}};
+  std::vector<bool> seen(std::variant_size_v<Request>);
   for (const Request& r : requests) {
     const auto parsed = parse_request(to_json(r, 5), limits);
     ASSERT_TRUE(parsed.ok()) << request_type_name(r) << ": " << parsed.error().message;
     EXPECT_EQ(parsed->request.index(), r.index());
+    seen[r.index()] = true;
   }
+  for (std::size_t i = 0; i < seen.size(); ++i) EXPECT_TRUE(seen[i]) << kRequestTypeNames[i] << " not tried";
+  EXPECT_EQ(std::get<Reload>(parse_request(to_json(Reload{"admin"}, 5), limits)->request).token, "admin");
   const auto gaze = std::get<Gaze>(parse_request(to_json(Gaze{0.1, 0.9, 12.0, 0.5}, 5), limits)->request);
   EXPECT_EQ(gaze.x, 0.1);
   EXPECT_EQ(gaze.distance, 12.0);

@@ -4,6 +4,9 @@
 
 #include <gtest/gtest.h>
 
+#include <variant>
+#include <vector>
+
 namespace mtlod::protocol {
 namespace {
 
@@ -77,12 +80,18 @@ TEST(Replies, EveryReplyTypeKeepsItsType) {
                                       ErrorReply{ErrorKind::kNoView, "gaze needs an earlier extract"},
                                       CancelReply{4, true},
                                       StatsReply{{{"requests", 10}, {"errors", 1}}},
-                                      Pong{}};
+                                      Pong{},
+                                      ReloadReply{{ModelReload{"bunny", "replaced", 2, ""}}}};
+  std::vector<bool> seen(std::variant_size_v<Reply>);
   for (const Reply& reply : replies) {
     auto parsed = parse_reply(to_json(reply, 1));
     ASSERT_TRUE(parsed.ok());
     EXPECT_EQ(parsed->reply.index(), reply.index()) << reply_type_name(reply);
+    seen[reply.index()] = true;
   }
+  for (std::size_t i = 0; i < seen.size(); ++i) EXPECT_TRUE(seen[i]) << kReplyTypeNames[i] << " not tried";
+  auto reload = parse_reply(to_json(replies[8], 1));
+  EXPECT_EQ(std::get<ReloadReply>(reload->reply).models.at(0).version, 2u);
   auto hello = parse_reply(to_json(replies[0], 1));
   EXPECT_EQ(std::get<HelloReply>(hello->reply).limits.max_grid, 1024u);
   EXPECT_EQ(std::get<HelloReply>(hello->reply).instance, "replica-1@00c0ffee");
