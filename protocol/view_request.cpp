@@ -1,6 +1,8 @@
 // protocol::Extract → core::ViewRequest (see view_request.hpp).
 #include "protocol/view_request.hpp"
 
+#include <algorithm>
+
 namespace mtlod::protocol {
 namespace {
 
@@ -58,6 +60,30 @@ core::view::ViewRequest to_view_request(const Extract& e, bool model_has_normals
   if (e.budget) v.budget = *e.budget;
   v.labels = e.labels;
   return v;
+}
+
+core::codec::DracoOptions to_draco_options(const Extract& e, const EncodeContext& context) {
+  core::codec::DracoOptions draco;
+  const bool fast = context.gaze || e.delta;
+  draco.method = e.draco.method.value_or(fast ? core::codec::DracoMethod::kSequential
+                                              : core::codec::DracoMethod::kEdgebreaker);
+  draco.speed = e.draco.speed;
+  draco.position_bits = e.draco.position_bits;
+  draco.normal_bits = e.draco.normal_bits;
+  draco.entropy_coding = e.draco.entropy_coding.value_or(!context.gaze);
+  if (e.delta) {
+    // One grid for every payload of the model: a vertex kept from an earlier delta and the same
+    // vertex in a new one decode to the same floats.
+    core::codec::DracoOptions::Grid grid;
+    grid.origin = context.bounds_min;
+    for (int c = 0; c < 3; ++c)
+      grid.range = std::max(grid.range, context.bounds_max[c] - context.bounds_min[c]);
+    draco.position_grid = grid;
+  }
+  draco.normals = e.normals;
+  draco.colors = e.colors.value_or(context.model_has_colors) && context.model_has_colors;
+  draco.labels = e.labels;
+  return draco;
 }
 
 }  // namespace mtlod::protocol

@@ -4,6 +4,7 @@
 #include "server/engine.hpp"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <unordered_map>
 
@@ -39,6 +40,20 @@ std::uint64_t elapsed_us(Clock::time_point& since) {
   since = now;
   return static_cast<std::uint64_t>(us);
 }
+
+// The stages' times, each from the end of the one before.
+struct StageClock final : core::view::StageObserver {
+  explicit StageClock(protocol::StageTimings& timings) : timings(timings) {}
+  void finished(core::view::Stage stage) override {
+    static constexpr std::array<std::uint64_t protocol::StageTimings::*, core::view::kStageCount> kField{
+        &protocol::StageTimings::map_us, &protocol::StageTimings::occupancy_us,
+        &protocol::StageTimings::dt_us, &protocol::StageTimings::labels_us,
+        &protocol::StageTimings::refine_us};
+    timings.*kField[static_cast<std::size_t>(stage)] = elapsed_us(clock);
+  }
+  protocol::StageTimings& timings;
+  Clock::time_point clock = Clock::now();
+};
 
 // A worker's extractor for one version of a model (which it reads): dropped once that version is
 // no longer served.
@@ -174,41 +189,13 @@ ExtractResult Engine::run(const ModelPtr& model, const protocol::Extract& reques
 
   const core::view::ViewRequest view = protocol::to_view_request(request, model->mt.has_normals());
   ExtractOutcome outcome;
-  protocol::StageTimings& t = outcome.reply.timings;
-  auto clock = Clock::now();
-  extractor->map(view, &state.view);
-  t.map_us = elapsed_us(clock);
-  extractor->occupancy();
-  t.occupancy_us = elapsed_us(clock);
-  extractor->distance_transforms();
-  t.dt_us = elapsed_us(clock);
-  extractor->allowed_error();
-  t.labels_us = elapsed_us(clock);
+  StageClock stages(outcome.reply.timings);
   // A gaze's cut is read in place from the session's refiner (no copy of the whole mesh).
-  const core::cut::CutSpan cut = extractor->refine_view(*state.refiner, worker.cut);
-  t.refine_us = elapsed_us(clock);
+  const core::cut::CutSpan cut = extractor->extract(view, *state.refiner, worker.cut, &state.view, &stages);
   state.error_bound_cut = request.budget ? 0 : cut.triangle_count();
 
-  core::codec::DracoOptions draco;
-  // Deltas are sequential (the parser refuses them with an explicit edgebreaker).
-  draco.method = request.draco.method.value_or(
-      gaze || request.delta ? core::codec::DracoMethod::kSequential : core::codec::DracoMethod::kEdgebreaker);
-  draco.speed = request.draco.speed;
-  draco.position_bits = request.draco.position_bits;
-  draco.normal_bits = request.draco.normal_bits;
-  draco.entropy_coding = request.draco.entropy_coding.value_or(!gaze);
-  if (request.delta) {
-    // One grid for every payload of the model: a vertex kept from an earlier delta and the same
-    // vertex in a new one decode to the same floats.
-    core::codec::DracoOptions::Grid grid;
-    grid.origin = model->bounds_min;
-    for (int c = 0; c < 3; ++c)
-      grid.range = std::max(grid.range, model->bounds_max[c] - model->bounds_min[c]);
-    draco.position_grid = grid;
-  }
-  draco.normals = request.normals;
-  draco.colors = request.colors.value_or(model->mt.has_colors());
-  draco.labels = request.labels;
+  const core::codec::DracoOptions draco = protocol::to_draco_options(
+      request, {gaze, model->mt.has_colors(), model->bounds_min, model->bounds_max});
   std::span<const std::uint32_t> triangles = cut.triangles;
   if (request.delta) {
     // Only what the client does not have: the new triangles, in cut order, named by their ids.
@@ -243,7 +230,7 @@ ExtractResult Engine::run(const ModelPtr& model, const protocol::Extract& reques
     outcome.reply.delta->draco_bytes = outcome.payload.size();
     protocol::append_delta_ids(worker.added_ids, worker.removed, outcome.payload);
   }
-  t.encode_us = elapsed_us(clock);
+  outcome.reply.timings.encode_us = elapsed_us(stages.clock);
 
   outcome.reply.model = model->name;
   outcome.reply.model_version = model->version;

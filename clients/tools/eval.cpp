@@ -444,13 +444,8 @@ int run_experiment(const ExperimentOptions& o, const std::string& command) {
         request.allowed.focus = {view::FalloffLaw::kStep, o.focus[0] * float(o.grid_px), o.focus[1], 16.0f,
                                  2.3f};
         if (!silhouette) request.focus = {focus};
-        request.dynamic = false;
-        request.allowed_error_on_demand = false;  // the whole field is read below
-        extractor.map(request);
-        extractor.occupancy();
-        extractor.distance_transforms();
-        extractor.allowed_error();
-        out.assign(extractor.vertex_allowed_error().begin(), extractor.vertex_allowed_error().end());
+        const std::span<const float> f = extractor.allowed_error_field(request);
+        out.assign(f.begin(), f.end());
         if (silhouette && k == 0) {
           sil_dt0.assign(extractor.silhouette_dt().begin(), extractor.silhouette_dt().end());
           dt_mapping0 = extractor.mapping();

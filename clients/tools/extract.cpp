@@ -95,14 +95,8 @@ Status write_output(const std::string& path, bool gltf_draco, const model::Mt& m
   if (!glb && extension != ".drc") return io::save_mesh(path, compact(mt, cut.triangles));
   codec::DracoOptions draco;
   if (request) {
-    draco.method = request->draco.method.value_or(codec::DracoMethod::kEdgebreaker);
-    draco.speed = request->draco.speed;
-    draco.position_bits = request->draco.position_bits;
-    draco.normal_bits = request->draco.normal_bits;
-    draco.entropy_coding = request->draco.entropy_coding.value_or(true);  // as the server's extract
-    draco.normals = request->normals;
-    draco.colors = request->colors.value_or(mt.has_colors()) && mt.has_colors();
-    draco.labels = request->labels && !labels.empty();
+    draco = protocol::to_draco_options(*request, {false, mt.has_colors(), mt.bounds.lo, mt.bounds.hi});
+    draco.labels = draco.labels && !labels.empty();
   }
   if (glb) {
     draco.normals = mt.has_normals();
@@ -168,11 +162,7 @@ int run(int argc, char** argv) {
     view::ViewRequest v = mtlod::protocol::to_view_request(*request, mt->has_normals());
     v.dynamic = false;
     start = std::chrono::steady_clock::now();
-    extractor->map(v);
-    extractor->occupancy();
-    extractor->distance_transforms();
-    extractor->allowed_error();
-    extractor->refine(refiner, cut);
+    cut.assign(extractor->extract(v, refiner, cut));
     refine_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     const view::GridSize grid{request->grid[0], request->grid[1]};
     if (!options.dump_occupancy.empty()) {

@@ -352,6 +352,35 @@ void ViewExtractor::forget_unread(cut::Refiner& refiner) {
   // of the entries kept.
 }
 
+cut::CutSpan ViewExtractor::extract(const ViewRequest& request, cut::Refiner& refiner, cut::CutMesh& scratch,
+                                    ViewCache* session, StageObserver* observer) {
+  const auto finished = [observer](Stage stage) {
+    if (observer) observer->finished(stage);
+  };
+  map(request, session);
+  finished(Stage::kMap);
+  occupancy();
+  finished(Stage::kOccupancy);
+  distance_transforms();
+  finished(Stage::kTransforms);
+  allowed_error();
+  finished(Stage::kAllowedError);
+  const cut::CutSpan cut = refine_view(refiner, scratch);
+  finished(Stage::kRefine);
+  return cut;
+}
+
+std::span<const float> ViewExtractor::allowed_error_field(const ViewRequest& request) {
+  field_request_ = request;
+  field_request_.dynamic = false;
+  field_request_.allowed_error_on_demand = false;
+  map(field_request_);
+  occupancy();
+  distance_transforms();
+  allowed_error();
+  return allowed_;
+}
+
 void ViewExtractor::refine(cut::Refiner& session, cut::CutMesh& out) {
   out.assign(refine_view(session, out));
 }

@@ -101,6 +101,19 @@ class ViewCache {
   std::size_t forgets_ = 0;
 };
 
+// The five stages of a request, in the order they run.
+enum class Stage : std::uint8_t { kMap, kOccupancy, kTransforms, kAllowedError, kRefine };
+inline constexpr std::size_t kStageCount = 5;
+
+// Told each stage as it finishes: how a caller times the stages (core has no clock).
+class StageObserver {
+ public:
+  virtual void finished(Stage stage) = 0;
+
+ protected:
+  ~StageObserver() = default;
+};
+
 class ViewExtractor {
  public:
   // levels: the model's precomputed occupancy cuts, shared by every extractor of the model.
@@ -108,6 +121,16 @@ class ViewExtractor {
 
   const model::Mt& mt() const { return mt_; }
 
+  // One request, every stage in order: what the server, mtlod-extract and the studies run. With a
+  // session, the stages read and update it (a gaze takes the incremental path). Returns
+  // refine_view's cut.
+  cut::CutSpan extract(const ViewRequest& request, cut::Refiner& refiner, cut::CutMesh& scratch,
+                       ViewCache* session = nullptr, StageObserver* observer = nullptr);
+  // Stages 1 to 4 of a static request with every vertex's allowed error computed, whatever the
+  // request's allowed_error_on_demand: the field a study ranks cuts by. Valid until the next call.
+  std::span<const float> allowed_error_field(const ViewRequest& request);
+
+  // The stages one by one (tests and benchmarks time or check each).
   // Stage 1: binds the request and builds the mapping. With a session, the stages below read and
   // update it, and take the incremental path when the view is the session's previous one.
   void map(const ViewRequest& request, ViewCache* session = nullptr);
@@ -174,6 +197,7 @@ class ViewExtractor {
   std::array<float, 3> centre_{};
   float radius_ = 0.0f;
   const ViewRequest* request_ = nullptr;
+  ViewRequest field_request_;  // allowed_error_field's copy of its request
   ViewCache* session_ = nullptr;
   bool incremental_ = false;
   bool on_demand_ = false;  // stage 5 computes the allowed error it reads

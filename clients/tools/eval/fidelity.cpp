@@ -218,13 +218,8 @@ void criteria_field(MeshContext& ctx, const Criteria& c, const view::Camera& cam
   a.back_face_factor = c.back_face, a.hidden_factor = c.hidden, a.outside_view_factor = c.frustum;
   a.hidden_depth_margin = c.hidden_margin;
   if (c.use_focus) request.focus = {focus};
-  request.dynamic = false;
-  request.allowed_error_on_demand = false;  // the whole field is read below
-  ctx.extractor->map(request);
-  ctx.extractor->occupancy();
-  ctx.extractor->distance_transforms();
-  ctx.extractor->allowed_error();
-  out.assign(ctx.extractor->vertex_allowed_error().begin(), ctx.extractor->vertex_allowed_error().end());
+  const std::span<const float> f = ctx.extractor->allowed_error_field(request);
+  out.assign(f.begin(), f.end());
 }
 
 // The cut of at most n triangles of a method (meshopt: its simplification to n triangles).

@@ -70,11 +70,7 @@ void default_cut(view::ViewExtractor& extractor, cut::Refiner& refiner, const vi
   r.focus = {focus};
   r.budget = budget;
   r.dynamic = false;
-  extractor.map(r);
-  extractor.occupancy();
-  extractor.distance_transforms();
-  extractor.allowed_error();
-  extractor.refine(refiner, out);
+  out.assign(extractor.extract(r, refiner, out));
 }
 
 double percentile(std::vector<double> v, double p) {
