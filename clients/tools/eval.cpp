@@ -462,7 +462,8 @@ int run_experiment(const ExperimentOptions& o, const std::string& command) {
         std::array<cut::CutMesh, 3> cuts;
         std::size_t target = b;
         for (int round = 0; round < 6; ++round) {
-          for (int m = 0; m < 3; ++m) refiner.refine_budget(allowed[m], target, cuts[m]);
+          for (int m = 0; m < 3; ++m)
+            refiner.refine(cut::Refinement::from_root(allowed[m]).within(target), cuts[m]);
           const std::size_t lo =
               std::min({cuts[0].triangle_count(), cuts[1].triangle_count(), cuts[2].triangle_count()});
           const std::size_t hi =

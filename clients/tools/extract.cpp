@@ -27,11 +27,11 @@
 namespace {
 
 struct ExtractOptions {
-  std::string model;                   // .mt file to read
-  std::string output;                  // mesh to write (.ply, .obj, .drc or .glb)
-  std::string gltf_draco = "on";       // .glb: Draco-compressed (KHR_draco_mesh_compression) or plain
-  std::string dump_dt;                 // PNG of the silhouette (else focus) distance transform
-  std::string dump_occupancy;          // PNG of the occupancy grid
+  std::string model;                  // .mt file to read
+  std::string output;                 // mesh to write (.ply, .obj, .drc or .glb)
+  std::string gltf_draco = "on";      // .glb: Draco-compressed (KHR_draco_mesh_compression) or plain
+  std::string dump_dt;                // PNG of the silhouette (else focus) distance transform
+  std::string dump_occupancy;         // PNG of the occupancy grid
   mtlod::clients::ExtractFlags view;  // --error, --budget, camera, criteria, grid, Draco
 };
 
@@ -151,7 +151,7 @@ int run(int argc, char** argv) {
   if (view) {
     const model::Bounds& box = mt->bounds;
     auto made = mtlod::clients::make_extract(options.view, options.model, model::to_double(box.lo),
-                                              model::to_double(box.hi));
+                                             model::to_double(box.hi));
     if (!made) {
       fmt::print(stderr, "mtlod-extract: {}\n", made.error().message);
       return 2;
@@ -190,11 +190,14 @@ int run(int argc, char** argv) {
     start = std::chrono::steady_clock::now();
     if (options.view.budget) {
       // Without --error every triangle that has a finer version competes, ranked by its error.
-      refiner.refine_budget(
-          cut::AllowedError::everywhere(static_cast<float>(options.view.error.value_or(0.0))),
-          *options.view.budget, cut);
+      refiner.refine(cut::Refinement::from_root(
+                         cut::AllowedError::everywhere(static_cast<float>(options.view.error.value_or(0.0))))
+                         .within(*options.view.budget),
+                     cut);
     } else {
-      refiner.refine(cut::AllowedError::everywhere(static_cast<float>(*options.view.error)), cut);
+      refiner.refine(
+          cut::Refinement::from_root(cut::AllowedError::everywhere(static_cast<float>(*options.view.error))),
+          cut);
     }
     refine_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   }

@@ -296,7 +296,45 @@ void Refiner::remember_field(const AllowedError& allowed, bool copy) {
   if (field_ == Field::kCopied) previous_field_.assign(allowed.per_vertex.begin(), allowed.per_vertex.end());
 }
 
-void Refiner::refine(const AllowedError& allowed, CutMesh& out) {
+void Refiner::refine(const Refinement& what, CutMesh& out) {
+  out.assign(refine_view(what, out));
+}
+
+CutSpan Refiner::refine_view(const Refinement& what, CutMesh& scratch) {
+  using Start = Refinement::Start;
+  const bool on_demand = what.source != nullptr;
+  assert(!on_demand || what.field.size() == mt_.vertex_count());
+  // On demand and budgeted moves are told what changed; only an error-bound move may compare.
+  assert(what.start != Start::kMove || what.changed || (!on_demand && !what.budget));
+  if (what.budget) {
+    const std::size_t budget = *what.budget;
+    switch (what.start) {
+      case Start::kRoot:
+        on_demand ? refine_budget_on_demand(*what.source, what.field, budget, scratch)
+                  : refine_budget(what.allowed, budget, scratch);
+        break;
+      case Start::kKeep:
+        on_demand ? start_budget_on_demand(*what.source, what.field, budget, scratch)
+                  : start_budget(what.allowed, budget, scratch);
+        break;
+      case Start::kMove:
+        on_demand ? update_budget_on_demand(*what.source, what.field, *what.changed, budget, scratch)
+                  : update_budget(what.allowed, *what.changed, budget, scratch);
+        break;
+    }
+    return CutSpan::of(scratch);
+  }
+  if (what.start != Start::kMove) {
+    on_demand ? refine_on_demand(*what.source, what.field, scratch) : refine_minimal(what.allowed, scratch);
+    return CutSpan::of(scratch);
+  }
+  if (on_demand) return update_view_on_demand(*what.source, what.field, *what.changed, scratch);
+  if (what.changed) return update_view(what.allowed, *what.changed, scratch);
+  update_compared(what.allowed, scratch);
+  return CutSpan::of(scratch);
+}
+
+void Refiner::refine_minimal(const AllowedError& allowed, CutMesh& out) {
   assert(allowed.per_vertex.empty() || allowed.per_vertex.size() == mt_.vertex_count());
   if (allowed.per_vertex.empty()) return refine_uniform(allowed.uniform, out);
   refine_forced(allowed, &out);
@@ -475,7 +513,7 @@ void Refiner::take_kept_mesh() {
   kept_ = Kept::kMesh;
 }
 
-void Refiner::update(const AllowedError& allowed, CutMesh& out) {
+void Refiner::update_compared(const AllowedError& allowed, CutMesh& out) {
   assert(allowed.per_vertex.empty() || allowed.per_vertex.size() == mt_.vertex_count());
   if (kept_ == Kept::kNone) return refine_forced(allowed, &out);
   bool all_changed = allowed.per_vertex.empty() || field_ != Field::kCopied;
@@ -510,11 +548,6 @@ void Refiner::update(const AllowedError& allowed, CutMesh& out) {
   if (field_all_changed) remember_field(allowed, true);
   previous_threshold_ = allowed.threshold;
   std::fill(changed_bits_.begin(), changed_bits_.end(), 0);  // the list overload expects it clear
-}
-
-void Refiner::update(const AllowedError& allowed, std::span<const std::uint32_t> changed_vertices,
-                     CutMesh& out) {
-  if (update_kept(allowed, changed_vertices, out)) out.assign(kept_view());
 }
 
 CutSpan Refiner::update_view_on_demand(const VertexErrorSource& source, std::span<float> field,
@@ -993,13 +1026,13 @@ void Refiner::update_budget_on_demand(const VertexErrorSource& source, std::span
 
 void refine_static(const model::Mt& mt, const AllowedError& allowed, CutMesh& out) {
   Refiner refiner(mt);
-  refiner.refine(allowed, out);
+  refiner.refine(Refinement::from_root(allowed), out);
 }
 
 void refine_budget(const model::Mt& mt, const AllowedError& allowed, std::size_t max_triangles,
                    CutMesh& out) {
   Refiner refiner(mt);
-  refiner.refine_budget(allowed, max_triangles, out);
+  refiner.refine(Refinement::from_root(allowed).within(max_triangles), out);
 }
 
 std::size_t Refiner::memory_bytes() const {

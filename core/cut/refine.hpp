@@ -38,7 +38,7 @@ struct AllowedError {
   std::span<const float> per_vertex;  // empty, or one value per MT vertex (mt.vertex_count())
   // A triangle fails when its error exceeds its allowed error and its rank is above this threshold
   // (at least {0, 1}, the plain test). The budgeted dynamic refinement keeps the minimal cut of a
-  // threshold (Refiner::update_budget).
+  // threshold (Refinement::move with a budget).
   Rank threshold;
 
   static AllowedError everywhere(float error) { return {error, {}, {}}; }
@@ -72,6 +72,73 @@ class VertexErrorSource {
 
  protected:
   ~VertexErrorSource() = default;
+};
+
+// What one refinement is asked for, as a value: where it starts, what stops it, and where the
+// allowed error comes from. Refiner::refine and refine_view take it and choose the algorithm from it
+// in one place. Made by the factories below, e.g.
+//   Refinement::from_root(allowed)                      the minimal cut in which every triangle passes
+//   Refinement::from_root(allowed).within(n)            worst first, at most n triangles
+//   Refinement::from_root(source, field).within(n).keeping()   on demand, kept for later moves
+//   Refinement::move(allowed, changed)                  the kept cut moved to a new field
+struct Refinement {
+  enum class Start : std::uint8_t {
+    kRoot,  // from the root. Without a budget the cut is kept for later moves anyway (its
+            // witnesses cost nothing extra); with one, nothing is kept.
+    kKeep,  // from the root, keeping the cut for later moves (with a budget: the cut of a
+            // threshold a little below it, see Refiner::refine_view)
+    kMove,  // from the kept cut, moved to the new allowed error (from the root when none is kept)
+  };
+  Start start = Start::kRoot;
+  AllowedError allowed;               // on demand: views `field`
+  std::optional<std::size_t> budget;  // at most this many triangles, worst error/allowed first
+  // On demand: the allowed error is asked of `source` for only the vertices the refinement reads
+  // and written to `field` (one entry per MT vertex, the caller's scratch; other entries are left
+  // as they were). A move on demand needs `field` to hold every vertex read since the cut was
+  // started from the root, updated to the new view, and `changed` to list those that changed.
+  const VertexErrorSource* source = nullptr;
+  std::span<float> field;
+  // kMove: the vertices whose allowed error changed since the previous refinement (every other
+  // vertex must have the same value as then; duplicates are fine). Unset: found by comparing with
+  // a copy of the previous field (error-bound moves without a source only).
+  std::optional<std::span<const std::uint32_t>> changed;
+
+  static Refinement from_root(const AllowedError& allowed) {
+    Refinement r;
+    r.allowed = allowed;
+    return r;
+  }
+  static Refinement from_root(const VertexErrorSource& source, std::span<float> field) {
+    Refinement r = from_root(AllowedError::from_vertices(field));
+    r.source = &source;
+    r.field = field;
+    return r;
+  }
+  static Refinement move(const AllowedError& allowed) {
+    Refinement r = from_root(allowed);
+    r.start = Start::kMove;
+    return r;
+  }
+  static Refinement move(const AllowedError& allowed, std::span<const std::uint32_t> changed) {
+    Refinement r = move(allowed);
+    r.changed = changed;
+    return r;
+  }
+  static Refinement move(const VertexErrorSource& source, std::span<float> field,
+                         std::span<const std::uint32_t> changed) {
+    Refinement r = from_root(source, field);
+    r.start = Start::kMove;
+    r.changed = changed;
+    return r;
+  }
+  Refinement& within(std::size_t max_triangles) {
+    budget = max_triangles;
+    return *this;
+  }
+  Refinement& keeping() {
+    if (start == Start::kRoot) start = Start::kKeep;
+    return *this;
+  }
 };
 
 struct CutSpan;
@@ -120,70 +187,37 @@ class Refiner {
  public:
   explicit Refiner(const model::Mt& mt);
 
-  // Static refinement from the root: the minimal cut in which every triangle passes.
-  void refine(const AllowedError& allowed, CutMesh& out);
+  // Refines as `what` asks and writes the cut to `out`.
+  void refine(const Refinement& what, CutMesh& out);
+  // The same without copying a moved cut out: a view of the refiner's kept mesh, or of `scratch`
+  // when the cut was written there (valid until the refiner's next call).
+  //
+  // What each kind of refinement gives:
+  // - From the root without a budget: the unique minimal cut whose triangles all pass. It records
+  //   witnesses (the failing triangle that forced each node), so a later move starts from it.
+  // - On demand: the same cut, asking the source only for the vertices the refinement reads: the
+  //   root's and the split vertices of the cut's nodes (every corner of a triangle a node creates
+  //   belongs to the root or to one of its ancestors).
+  // - With a budget from the root: repeatedly refines the failing triangle with the largest
+  //   error/allowed ratio (allowed ≤ 0 ranks by error alone) and stops before the next refinement
+  //   would take the mesh over the budget; out.within_budget is false when the root alone is larger.
+  // - A move without a budget: the kept cut goes to the minimal cut for the new allowed error, by
+  //   dropping the nodes whose reason to be in the cut no longer holds and refining from what is
+  //   left; the same triangles as from the root (the order differs). Without a kept cut (the first
+  //   call, or after a uniform field or a budget from the root, which keep none) it refines from the
+  //   root and keeps that cut. Without a list of changed vertices they are found by comparing with a
+  //   copy of the previous field (one sequential O(vertices) pass); everything else costs O(cut) in
+  //   sequential passes plus work proportional to the change.
+  // - Kept or moved with a budget: the same cut as from the root with that budget, found from the
+  //   kept cut. The refiner keeps the minimal cut of a threshold in that order (see
+  //   AllowedError::threshold) a little below the budget: the root's worst-first refinement passes
+  //   through exactly that cut, so refining worst first from it gives the same result. A move takes
+  //   the kept cut to the new field's minimal cut for the same threshold; past the budget the
+  //   threshold rises until it fits, far below it the threshold falls to where the refinement
+  //   passed. The field must be per vertex at the plain threshold, and a move needs the list of
+  //   changed vertices.
+  CutSpan refine_view(const Refinement& what, CutMesh& scratch);
 
-  // The same cut as refine(AllowedError::from_vertices(field of every vertex)), asking `source` only
-  // for the vertices the refinement reads: the root's and the split vertices of the cut's nodes
-  // (every corner of a triangle a node creates belongs to the root or to one of its ancestors).
-  // Their values are written to `field` (one entry per MT vertex, the caller's scratch); the other
-  // entries are left as they were. Records witnesses like refine, for a later update.
-  void refine_on_demand(const VertexErrorSource& source, std::span<float> field, CutMesh& out);
-
-  // Budgeted refinement from the root: repeatedly refines the failing triangle with the largest
-  // error/allowed ratio (allowed ≤ 0 ranks by error alone) and stops before the next refinement
-  // would take the mesh over max_triangles. out.within_budget is false when the root alone is larger.
-  void refine_budget(const AllowedError& allowed, std::size_t max_triangles, CutMesh& out);
-
-  // Dynamic refinement: moves the kept cut to the minimal cut for the new allowed error, by dropping
-  // the nodes whose reason to be in the cut no longer holds and refining from what is left. The
-  // result equals refine(allowed) as a set of triangles (the order differs). Without a kept cut (the
-  // first call, or after a uniform refine or refine_budget, which record no witnesses) it runs a
-  // static refinement that does; the next call then takes that cut's triangles (O(cut)). Changed
-  // vertices are found by comparing with a copy of the previous field (one sequential O(vertices)
-  // pass); everything else costs O(cut) in sequential passes plus work proportional to the change.
-  void update(const AllowedError& allowed, CutMesh& out);
-  // The same, when the caller knows which vertices changed since the previous update: every other
-  // vertex must have the same allowed error as then (duplicates in the list are fine). Skips the
-  // O(vertices) comparison. A uniform field, or a previous uniform one, counts as all changed.
-  void update(const AllowedError& allowed, std::span<const std::uint32_t> changed_vertices, CutMesh& out);
-  // The same without copying the result out: a view of the refiner's kept mesh, or of `scratch`
-  // when there was no kept cut to start from (scratch is written then).
-  CutSpan update_view(const AllowedError& allowed, std::span<const std::uint32_t> changed_vertices,
-                      CutMesh& scratch);
-  // update_view with the allowed error asked of `source` as nodes join the cut (their split
-  // vertices, before any of their triangles is read; from the root, the root's vertices too), as
-  // refine_on_demand does. `field` must hold the values of every vertex read since the cut was
-  // started from the root (by refine_on_demand, start_budget_on_demand or an update), updated to
-  // the new view, and changed_vertices must list those that changed: then no other entry is read,
-  // and the cost follows the cut and the change, not the model.
-  CutSpan update_view_on_demand(const VertexErrorSource& source, std::span<float> field,
-                                std::span<const std::uint32_t> changed_vertices, CutMesh& scratch);
-
-  // Budgeted dynamic refinement: the same cut as refine_budget(allowed, max_triangles) (worst
-  // error/allowed ratio first from the root, stopping before the budget would be exceeded), found
-  // from the kept cut. The refiner keeps the minimal cut of a threshold in that order (see
-  // AllowedError::threshold) a little below the budget: the root's worst-first refinement passes
-  // through exactly that cut, so refining worst first from it gives the same result. A gaze moves
-  // the kept cut to the new field's minimal cut for the same threshold; past the budget the
-  // threshold rises until it fits, far below it the threshold falls to where the refinement passed.
-  // `allowed` must be per vertex at the plain threshold; every node must add triangles (true of vertex
-  // splits), so a cut's size grows with its nodes. The result is written to `out`.
-  // start_budget refines from the root (a new view); update_budget takes the vertices whose
-  // allowed error changed, as update does, and starts from the root when there is no kept cut.
-  void start_budget(const AllowedError& allowed, std::size_t max_triangles, CutMesh& out);
-  // refine_budget and start_budget with the allowed error asked of `source` only for the vertices
-  // they read (as refine_on_demand): the same cuts.
-  void refine_budget_on_demand(const VertexErrorSource& source, std::span<float> field,
-                               std::size_t max_triangles, CutMesh& out);
-  void start_budget_on_demand(const VertexErrorSource& source, std::span<float> field,
-                              std::size_t max_triangles, CutMesh& out);
-  void update_budget(const AllowedError& allowed, std::span<const std::uint32_t> changed_vertices,
-                     std::size_t max_triangles, CutMesh& out);
-  // update_budget asking `source` as update_view_on_demand does.
-  void update_budget_on_demand(const VertexErrorSource& source, std::span<float> field,
-                               std::span<const std::uint32_t> changed_vertices, std::size_t max_triangles,
-                               CutMesh& out);
   // The threshold of the kept cut after a budgeted update (none when no threshold's cut fitted).
   std::optional<Rank> budget_threshold() const { return budget_threshold_; }
   // Budgeted updates that raised the threshold to fit the budget, and that refined from the root.
@@ -216,6 +250,25 @@ class Refiner {
   std::size_t memory_bytes() const;
 
  private:
+  // The kinds of refine_view, one per Refinement it dispatches.
+  void refine_minimal(const AllowedError& allowed, CutMesh& out);
+  void refine_on_demand(const VertexErrorSource& source, std::span<float> field, CutMesh& out);
+  void refine_budget(const AllowedError& allowed, std::size_t max_triangles, CutMesh& out);
+  void refine_budget_on_demand(const VertexErrorSource& source, std::span<float> field,
+                               std::size_t max_triangles, CutMesh& out);
+  void start_budget(const AllowedError& allowed, std::size_t max_triangles, CutMesh& out);
+  void start_budget_on_demand(const VertexErrorSource& source, std::span<float> field,
+                              std::size_t max_triangles, CutMesh& out);
+  void update_compared(const AllowedError& allowed, CutMesh& out);
+  CutSpan update_view(const AllowedError& allowed, std::span<const std::uint32_t> changed_vertices,
+                      CutMesh& scratch);
+  CutSpan update_view_on_demand(const VertexErrorSource& source, std::span<float> field,
+                                std::span<const std::uint32_t> changed_vertices, CutMesh& scratch);
+  void update_budget(const AllowedError& allowed, std::span<const std::uint32_t> changed_vertices,
+                     std::size_t max_triangles, CutMesh& out);
+  void update_budget_on_demand(const VertexErrorSource& source, std::span<float> field,
+                               std::span<const std::uint32_t> changed_vertices, std::size_t max_triangles,
+                               CutMesh& out);
   void refine_uniform(float allowed_error, CutMesh& out);
   // The cut of nodes [0, end): the uniform static and budgeted results.
   void refine_prefix(std::uint32_t end, CutMesh& out);

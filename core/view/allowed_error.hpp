@@ -122,7 +122,7 @@ class AllowedErrorField final : public cut::VertexErrorSource {
   }
 
   // Lazy variant: the same value for one vertex, projecting it on demand (what
-  // Refiner::refine_on_demand asks for).
+  // an on-demand Refinement asks for).
   float vertex_allowed_error(std::uint32_t vertex) const override;
   // The same for a batch, projected together up to 16 at a time (bit for bit the same values).
   void fill(std::span<const std::uint32_t> vertices, std::span<float> field) const override;

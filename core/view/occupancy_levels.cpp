@@ -123,7 +123,7 @@ OccupancyLevels::OccupancyLevels(const model::Mt& mt) {
   // smallest maximum error at that size.
   const cut::AllowedError everywhere_exact = cut::AllowedError::everywhere(0.0f);
   for (std::size_t budget = 2048; budget <= (std::size_t{1} << 18); budget *= 2) {
-    refiner.refine_budget(everywhere_exact, budget, cut);
+    refiner.refine(cut::Refinement::from_root(everywhere_exact).within(budget), cut);
     if (!levels_.empty() && cut.triangle_count() == levels_.back().triangle_count()) break;  // nothing finer
     OccupancyLevel level;
     std::unordered_map<std::uint32_t, std::uint32_t> local;

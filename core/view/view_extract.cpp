@@ -394,40 +394,25 @@ cut::CutSpan ViewExtractor::refine_view(cut::Refiner& session, cut::CutMesh& scr
   const bool gaze = request_->dynamic && incremental_;
   const std::span<const std::uint32_t> changed =
       session_ ? session_->changed_ : std::span<const std::uint32_t>();
-  const cut::CutSpan cut = [&] {
-    if (request_->budget) {
-      const std::size_t budget = *request_->budget;
-      if (gaze) {
-        if (on_demand_) {
-          session.update_budget_on_demand(source, allowed_, changed, budget, scratch);
-        } else {
-          session.update_budget(allowed, changed, budget, scratch);
-        }
-      } else if (request_->dynamic && session_) {
-        // Kept for the gazes that follow.
-        if (on_demand_) {
-          session.start_budget_on_demand(source, allowed_, budget, scratch);
-        } else {
-          session.start_budget(allowed, budget, scratch);
-        }
-      } else if (on_demand_) {
-        session.refine_budget_on_demand(source, allowed_, budget, scratch);
-      } else {
-        session.refine_budget(allowed, budget, scratch);
-      }
-    } else if (gaze) {
-      // Even after a saccade: cheaper than from the root.
-      return on_demand_ ? session.update_view_on_demand(source, allowed_, changed, scratch)
-                        : session.update_view(allowed, changed, scratch);
-    } else if (on_demand_) {
-      session.refine_on_demand(source, allowed_, scratch);
-    } else if (request_->dynamic) {
-      session.update(allowed, scratch);
-    } else {
-      session.refine(allowed, scratch);
-    }
-    return cut::CutSpan::of(scratch);  // taken once scratch holds the cut
-  }();
+  // The one place a request's refinement is chosen. A gaze moves the session's cut (even after a
+  // saccade: cheaper than from the root); a new view with a budget in a session keeps its cut for
+  // the gazes that follow; a dynamic request without a session compares the whole field.
+  cut::Refinement what;
+  if (gaze) {
+    what = on_demand_ ? cut::Refinement::move(source, allowed_, changed)
+                      : cut::Refinement::move(allowed, changed);
+  } else if (on_demand_) {
+    what = cut::Refinement::from_root(source, allowed_);
+  } else if (request_->dynamic && !request_->budget) {
+    what = cut::Refinement::move(allowed);
+  } else {
+    what = cut::Refinement::from_root(allowed);
+  }
+  if (request_->budget) {
+    what.within(*request_->budget);
+    if (request_->dynamic && session_) what.keeping();
+  }
+  const cut::CutSpan cut = session.refine_view(what, scratch);
   if (session_ && on_demand_) forget_unread(session);
   if (request_->labels) {
     // Labels of the cut's vertices only: the silhouette distance when it was computed, else the focus's.

@@ -36,9 +36,9 @@ struct ViewRequest {
                                               // whether from the root or moved, on a session's gaze)
   bool dynamic = true;                        // move the session's cut (false: refine from the root)
   // A new view, static or in a session, with or without a budget, refines from the root asking for
-  // the allowed error of only the vertices the refinement reads (Refiner::refine_on_demand and the
-  // budgeted variants) instead of every vertex's in stage 4; the same cut. false: stage 4 computes
-  // every vertex's (for callers that read the whole field).
+  // the allowed error of only the vertices the refinement reads (an on-demand cut::Refinement)
+  // instead of every vertex's in stage 4; the same cut. false: stage 4 computes every vertex's (for
+  // callers that read the whole field).
   bool allowed_error_on_demand = true;
   bool labels = false;  // fill vertex labels (silhouette, else focus) for encoding
 };

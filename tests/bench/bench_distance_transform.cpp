@@ -482,7 +482,7 @@ void BM_RequestPipelineDragon256(benchmark::State& state) {
     transformer.chamfer(view::DistanceMetric::kChamfer5711, occupancy, grid, silhouette);
     field.bind(mapping, options, {silhouette, {}, {}, mt.positions, {}, {}});
     field.compute_all(allowed);
-    refiner.refine(cut::AllowedError::from_vertices(allowed), cut);
+    refiner.refine(cut::Refinement::from_root(cut::AllowedError::from_vertices(allowed)), cut);
   };
   tune_error_for_size(dragon.radius, 50'000, [&](float bound) {
     options.error = bound;
@@ -624,11 +624,11 @@ void BM_RefineOnlyDragon256(benchmark::State& state) {
   tune_error_for_size(dragon.radius, static_cast<std::size_t>(state.range(0)), [&](float bound) {
     options.error = bound;
     view::compute_vertex_allowed_error(mapping, options, {silhouette, {}, {}, mt.positions, {}, {}}, allowed);
-    refiner.refine(cut::AllowedError::from_vertices(allowed), cut);
+    refiner.refine(cut::Refinement::from_root(cut::AllowedError::from_vertices(allowed)), cut);
     return cut.triangle_count();
   });
   for (auto _ : state) {
-    refiner.refine(cut::AllowedError::from_vertices(allowed), cut);
+    refiner.refine(cut::Refinement::from_root(cut::AllowedError::from_vertices(allowed)), cut);
     benchmark::DoNotOptimize(cut.triangles.data());
   }
   state.counters["cut_triangles"] = static_cast<double>(cut.triangle_count());

@@ -128,7 +128,7 @@ float error_for_size(const model::Mt& mt, std::size_t triangles) {
   float lo = 1e-7f, hi = *std::max_element(mt.node_error.begin(), mt.node_error.end());
   for (int i = 0; i < 40; ++i) {
     const float mid = std::sqrt(lo * hi);
-    refiner.refine(cut::AllowedError::everywhere(mid), cut);
+    refiner.refine(cut::Refinement::from_root(cut::AllowedError::everywhere(mid)), cut);
     (cut.triangle_count() > triangles ? lo : hi) = mid;
   }
   return hi;
@@ -155,7 +155,7 @@ void BM_RefineStatic(benchmark::State& state) {
   cut::Refiner refiner(*mt);
   cut::CutMesh cut;
   for (auto _ : state) {
-    refiner.refine(cut::AllowedError::everywhere(e), cut);
+    refiner.refine(cut::Refinement::from_root(cut::AllowedError::everywhere(e)), cut);
     benchmark::DoNotOptimize(cut.triangles.data());
   }
   state.SetItemsProcessed(state.iterations() * std::int64_t(cut.triangle_count()));
@@ -171,7 +171,9 @@ void BM_RefineBudget(benchmark::State& state) {
   cut::Refiner refiner(*mt);
   cut::CutMesh cut;
   for (auto _ : state) {
-    refiner.refine_budget(cut::AllowedError::everywhere(0.0f), std::size_t(state.range(0)), cut);
+    refiner.refine(
+        cut::Refinement::from_root(cut::AllowedError::everywhere(0.0f)).within(std::size_t(state.range(0))),
+        cut);
     benchmark::DoNotOptimize(cut.triangles.data());
   }
   state.SetItemsProcessed(state.iterations() * std::int64_t(cut.triangle_count()));
@@ -188,7 +190,9 @@ void BM_RefineBudgetPerVertex(benchmark::State& state) {
   cut::Refiner refiner(*mt);
   cut::CutMesh cut;
   for (auto _ : state) {
-    refiner.refine_budget(cut::AllowedError::from_vertices(field), std::size_t(state.range(0)), cut);
+    refiner.refine(cut::Refinement::from_root(cut::AllowedError::from_vertices(field))
+                       .within(std::size_t(state.range(0))),
+                   cut);
     benchmark::DoNotOptimize(cut.triangles.data());
   }
   state.SetItemsProcessed(state.iterations() * std::int64_t(cut.triangle_count()));
@@ -234,7 +238,8 @@ void BM_RefinePerVertexStatic(benchmark::State& state) {
   cut::CutMesh cut;
   bool flip = false;
   for (auto _ : state) {
-    refiner.refine(cut::AllowedError::from_vertices(flip ? fields.b : fields.a), cut);
+    refiner.refine(cut::Refinement::from_root(cut::AllowedError::from_vertices(flip ? fields.b : fields.a)),
+                   cut);
     flip = !flip;
     benchmark::DoNotOptimize(cut.triangles.data());
   }
@@ -250,11 +255,11 @@ void BM_RefinePerVertexDynamic(benchmark::State& state) {
   const FieldPair& fields = fields_for(state.range(0));
   cut::Refiner refiner(*mt);
   cut::CutMesh cut;
-  refiner.update(cut::AllowedError::from_vertices(fields.a), cut);
-  refiner.update(cut::AllowedError::from_vertices(fields.b), cut);
+  refiner.refine(cut::Refinement::move(cut::AllowedError::from_vertices(fields.a)), cut);
+  refiner.refine(cut::Refinement::move(cut::AllowedError::from_vertices(fields.b)), cut);
   bool flip = false;
   for (auto _ : state) {
-    refiner.update(cut::AllowedError::from_vertices(flip ? fields.b : fields.a), cut);
+    refiner.refine(cut::Refinement::move(cut::AllowedError::from_vertices(flip ? fields.b : fields.a)), cut);
     flip = !flip;
     benchmark::DoNotOptimize(cut.triangles.data());
   }
@@ -273,11 +278,12 @@ void BM_RefinePerVertexDynamicChangedList(benchmark::State& state) {
     if (fields.a[v] != fields.b[v]) changed.push_back(v);
   cut::Refiner refiner(*mt);
   cut::CutMesh cut;
-  refiner.update(cut::AllowedError::from_vertices(fields.a), cut);
-  refiner.update(cut::AllowedError::from_vertices(fields.b), cut);
+  refiner.refine(cut::Refinement::move(cut::AllowedError::from_vertices(fields.a)), cut);
+  refiner.refine(cut::Refinement::move(cut::AllowedError::from_vertices(fields.b)), cut);
   bool flip = false;
   for (auto _ : state) {
-    refiner.update(cut::AllowedError::from_vertices(flip ? fields.b : fields.a), changed, cut);
+    refiner.refine(
+        cut::Refinement::move(cut::AllowedError::from_vertices(flip ? fields.b : fields.a), changed), cut);
     flip = !flip;
     benchmark::DoNotOptimize(cut.triangles.data());
   }

@@ -228,9 +228,9 @@ void BM_BudgetNewView(benchmark::State& state) {
   core::cut::CutMesh cut;
   for (auto _ : state) {
     if (state.range(0) == 1) {
-      refiner.start_budget(allowed, 50'000, cut);
+      refiner.refine(core::cut::Refinement::from_root(allowed).within(50'000).keeping(), cut);
     } else {
-      refiner.refine_budget(allowed, 50'000, cut);
+      refiner.refine(core::cut::Refinement::from_root(allowed).within(50'000), cut);
     }
   }
   state.counters["triangles"] = static_cast<double>(cut.triangle_count());

@@ -428,7 +428,7 @@ TEST(ImageMetricsRender, CoarserUniformCutsScoreWorse) {
   cut::CutMesh cut;
   double last_ssim = 0, last_mae = INFINITY, last_fov_ssim = 0, last_fov_mae = INFINITY;
   for (const std::size_t budget : {100u, 400u, 1500u}) {
-    refiner.refine_budget(cut::AllowedError::everywhere(0.0f), budget, cut);
+    refiner.refine(cut::Refinement::from_root(cut::AllowedError::everywhere(0.0f)).within(budget), cut);
     const eval::ImageComparison c =
         compare(full, render(s, sphere_view(), cut.triangles), sphere_view(), {0.5f, 0.5f});
     EXPECT_LT(c.ssim, 1.0) << budget;
@@ -470,8 +470,9 @@ std::pair<eval::ImageComparison, eval::ImageComparison> uniform_and_focused(cons
   cut::CutMesh uniform, focused;
   std::size_t target = budget;
   for (int round = 0; round < 8; ++round) {
-    refiner.refine_budget(cut::AllowedError::everywhere(0.0f), target, uniform);
-    refiner.refine_budget(cut::AllowedError::from_vertices(field), target, focused);
+    refiner.refine(cut::Refinement::from_root(cut::AllowedError::everywhere(0.0f)).within(target), uniform);
+    refiner.refine(cut::Refinement::from_root(cut::AllowedError::from_vertices(field)).within(target),
+                   focused);
     if (uniform.triangle_count() == focused.triangle_count()) break;
     target = std::min(uniform.triangle_count(), focused.triangle_count());
   }

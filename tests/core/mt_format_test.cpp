@@ -179,9 +179,9 @@ TEST(MtFormat, ResealedRandomWordsAreRejectedOrRefineSafely) {
   auto walk = [](const model::Mt& mt) {
     cut::CutMesh out;
     cut::Refiner refiner(mt);
-    refiner.refine(cut::AllowedError::everywhere(-1.0f), out);
-    refiner.refine_budget(cut::AllowedError::everywhere(0.0f), 100, out);
-    refiner.update(cut::AllowedError::everywhere(0.01f), out);
+    refiner.refine(cut::Refinement::from_root(cut::AllowedError::everywhere(-1.0f)), out);
+    refiner.refine(cut::Refinement::from_root(cut::AllowedError::everywhere(0.0f)).within(100), out);
+    refiner.refine(cut::Refinement::move(cut::AllowedError::everywhere(0.01f)), out);
     for (const std::uint32_t v : out.triangles) ASSERT_LT(v, mt.vertex_count());
   };
   for (int i = 0; i < 1000; ++i) {

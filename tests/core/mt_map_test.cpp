@@ -118,13 +118,13 @@ TEST(MtMap, CutsEqualThoseOfTheFileReadWhole) {
   cut::CutMesh ca, cb;
   const float top = m.built.node_error[1];
   for (const float fraction : {1.0f, 0.3f, 0.05f, 0.01f, 0.0f}) {
-    a.refine(cut::AllowedError::everywhere(top * fraction), ca);
-    b.refine(cut::AllowedError::everywhere(top * fraction), cb);
+    a.refine(cut::Refinement::from_root(cut::AllowedError::everywhere(top * fraction)), ca);
+    b.refine(cut::Refinement::from_root(cut::AllowedError::everywhere(top * fraction)), cb);
     expect_same_cut(ca, cb, "uniform " + std::to_string(fraction));
   }
   for (const std::size_t budget : {500, 5000, 30000}) {
-    a.refine_budget(cut::AllowedError::everywhere(0.0f), budget, ca);
-    b.refine_budget(cut::AllowedError::everywhere(0.0f), budget, cb);
+    a.refine(cut::Refinement::from_root(cut::AllowedError::everywhere(0.0f)).within(budget), ca);
+    b.refine(cut::Refinement::from_root(cut::AllowedError::everywhere(0.0f)).within(budget), cb);
     expect_same_cut(ca, cb, "budget " + std::to_string(budget));
   }
   // Per-vertex fields moved by dynamic updates, as a gaze moves them.
@@ -134,8 +134,8 @@ TEST(MtMap, CutsEqualThoseOfTheFileReadWhole) {
     const float centre = std::uniform_real_distribution<float>(-1, 1)(rng);
     for (std::size_t v = 0; v < field.size(); ++v)
       field[v] = top * 0.02f * (0.05f + std::abs(m.built.positions[3 * v] - centre));
-    a.update(cut::AllowedError::from_vertices(field), ca);
-    b.update(cut::AllowedError::from_vertices(field), cb);
+    a.refine(cut::Refinement::move(cut::AllowedError::from_vertices(field)), ca);
+    b.refine(cut::Refinement::move(cut::AllowedError::from_vertices(field)), cb);
     expect_same_cut(ca, cb, "update " + std::to_string(step));
   }
   // The occupancy stage's coarse cuts too.
@@ -167,10 +167,11 @@ TEST(MtMap, ADamagedBlockFailsAtFirstUseOnly) {
   ASSERT_TRUE(mapped.ok()) << "only the root's block is checked at open: " << mapped.error().message;
   cut::Refiner refiner(*mapped);
   cut::CutMesh cut;
-  refiner.refine(cut::AllowedError::everywhere(m.built.node_error[1]), cut);  // the root alone
+  refiner.refine(cut::Refinement::from_root(cut::AllowedError::everywhere(m.built.node_error[1])),
+                 cut);  // the root alone
   EXPECT_EQ(cut.node_count, 1u);
   try {
-    refiner.refine(cut::AllowedError::everywhere(0.0f), cut);  // every node
+    refiner.refine(cut::Refinement::from_root(cut::AllowedError::everywhere(0.0f)), cut);  // every node
     ADD_FAILURE() << "the damaged block was used without a complaint";
   } catch (const model::CorruptMt& e) {
     EXPECT_NE(std::string(e.what()).find("block " + std::to_string(last_block)), std::string::npos)
@@ -178,9 +179,10 @@ TEST(MtMap, ADamagedBlockFailsAtFirstUseOnly) {
   }
   // The same MT keeps serving the cuts that do not reach the block, and keeps refusing those that do.
   cut::Refiner fresh(*mapped);
-  fresh.refine(cut::AllowedError::everywhere(m.built.node_error[1] * 0.5f), cut);
+  fresh.refine(cut::Refinement::from_root(cut::AllowedError::everywhere(m.built.node_error[1] * 0.5f)), cut);
   EXPECT_GT(cut.node_count, 1u);
-  EXPECT_THROW(fresh.refine(cut::AllowedError::everywhere(0.0f), cut), model::CorruptMt);
+  EXPECT_THROW(fresh.refine(cut::Refinement::from_root(cut::AllowedError::everywhere(0.0f)), cut),
+               model::CorruptMt);
 }
 
 // A budgeted view orders its heap by the errors of the nodes that would refine its mesh (on a large
@@ -198,7 +200,8 @@ TEST(MtMap, ABudgetedViewChecksOnlyTheBlocksItForces) {
   std::uint32_t far = 0;
   cut::CutMesh intact;
   for (std::size_t extra = 10; extra < m.built.triangle_count() && budget == 0; extra *= 2) {
-    cut::Refiner(m.built).refine_budget(everywhere, m.built.root_triangle_count() + extra, intact);
+    cut::Refiner(m.built).refine(
+        cut::Refinement::from_root(everywhere).within(m.built.root_triangle_count() + extra), intact);
     std::uint32_t last_in_cut = 0;
     far = 0;
     for (const std::uint32_t t : intact.ids) {
@@ -215,11 +218,12 @@ TEST(MtMap, ABudgetedViewChecksOnlyTheBlocksItForces) {
   ASSERT_TRUE(mapped.ok()) << mapped.error().message;
 
   cut::CutMesh cut;
-  cut::Refiner(*mapped).refine_budget(everywhere, budget, cut);
+  cut::Refiner(*mapped).refine(cut::Refinement::from_root(everywhere).within(budget), cut);
   EXPECT_GT(cut.node_count, 1u);
   expect_same_cut(cut, intact, "budget of " + std::to_string(budget));
   try {
-    cut::Refiner(*mapped).refine_budget(everywhere, m.built.triangle_count(), cut);
+    cut::Refiner(*mapped).refine(cut::Refinement::from_root(everywhere).within(m.built.triangle_count()),
+                                 cut);
     ADD_FAILURE() << "the damaged block was used without a complaint";
   } catch (const model::CorruptMt& e) {
     EXPECT_NE(std::string(e.what()).find("block " + std::to_string(block_of(far))), std::string::npos)
@@ -282,8 +286,8 @@ TEST(MtMap, FormatOneFilesAreReadWhole) {
   EXPECT_FALSE(mt->mapped());
   cut::Refiner a(*mt), b(swapped);
   cut::CutMesh ca, cb;
-  a.refine(cut::AllowedError::everywhere(0.0f), ca);
-  b.refine(cut::AllowedError::everywhere(0.0f), cb);
+  a.refine(cut::Refinement::from_root(cut::AllowedError::everywhere(0.0f)), ca);
+  b.refine(cut::Refinement::from_root(cut::AllowedError::everywhere(0.0f)), cb);
   expect_same_cut(ca, cb, "version 1");
 }
 

@@ -30,8 +30,8 @@ void walk(const model::Mt& mt) {
 void refine(const model::Mt& mt) {
   cut::CutMesh out;
   cut::Refiner refiner(mt);
-  refiner.refine(cut::AllowedError::everywhere(0.0f), out);
-  refiner.refine_budget(cut::AllowedError::everywhere(0.0f), 64, out);
+  refiner.refine(cut::Refinement::from_root(cut::AllowedError::everywhere(0.0f)), out);
+  refiner.refine(cut::Refinement::from_root(cut::AllowedError::everywhere(0.0f)).within(64), out);
   for (const std::uint32_t v : out.triangles)
     if (v >= mt.vertex_count()) __builtin_trap();
 }

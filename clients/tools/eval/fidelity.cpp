@@ -240,7 +240,7 @@ void make_cut(MeshContext& ctx, const Method& m, std::span<const float> field, s
   } else {
     const cut::AllowedError allowed = m.kind == Kind::kUniform ? cut::AllowedError::everywhere(0.0f)
                                                                : cut::AllowedError::from_vertices(field);
-    ctx.refiner->refine_budget(allowed, n, scratch);
+    ctx.refiner->refine(cut::Refinement::from_root(allowed).within(n), scratch);
     out.triangles = scratch.triangles;
     out.mesh_vertices = false;
   }

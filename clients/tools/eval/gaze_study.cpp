@@ -195,7 +195,7 @@ int run_gaze_study(const GazeStudyOptions& o, const std::string& command) {
       std::size_t n = o.budget, best_bytes = 0;
       cut::CutMesh best;
       for (int step = 0; step < 8; ++step) {
-        refiner.refine_budget(cut::AllowedError::everywhere(0.0f), n, cut);
+        refiner.refine(cut::Refinement::from_root(cut::AllowedError::everywhere(0.0f)).within(n), cut);
         const std::size_t bytes = draco_payload_bytes(encoder, model.mt.positions, cut.triangles, payload);
         if (best_bytes == 0 ||
             std::abs(double(bytes) - target_bytes) < std::abs(double(best_bytes) - target_bytes))
