@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cstdio>
+#include <filesystem>
 #include <string>
 #include <vector>
 
@@ -54,29 +55,31 @@ bool write_port_file(const std::string& port_file, unsigned port, unsigned http_
   return std::rename(temporary.c_str(), port_file.c_str()) == 0;
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
-  using namespace mtlod;
-  CLI::App app{
-      "mtlod-server: a network level-of-detail server. Clients send camera matrices and gaze points "
-      "(protocol/PROTOCOL.md) and receive Draco-compressed view-dependent extractions."};
-  server::ServerConfig config;
+// What the command line says beyond the server's own configuration.
+struct Options {
+  mtlod::server::ServerConfig config;
   std::vector<std::string> model_files, meshes;
   std::string models_dir, cache_dir = "build/models", log_level = "info", port_file;
-  app.add_option("models", model_files, "MT files to serve (model name = file stem)");
-  app.add_option("--models", models_dir, "serve every .mt file in this directory");
+  std::string name, tokens_file, admin_tokens_file;
+  std::string log_format = "text", reload_mode = "watch";
+};
+
+// The flags, one statement each: long because the server has many, not because it decides much.
+void add_options(CLI::App& app, Options& o) {
+  mtlod::server::ServerConfig& config = o.config;
+  app.add_option("models", o.model_files, "MT files to serve (model name = file stem)");
+  app.add_option("--models", o.models_dir, "serve every .mt file in this directory");
   app.add_option(
-         "--mesh", meshes,
+         "--mesh", o.meshes,
          "a mesh (PLY/OBJ/OFF/STL) to serve; its MT is built into --cache-dir on first run and reused "
          "while newer than the mesh")
       ->take_all();
-  app.add_option("--cache-dir", cache_dir, "where MT files built from --mesh go")->capture_default_str();
+  app.add_option("--cache-dir", o.cache_dir, "where MT files built from --mesh go")->capture_default_str();
   app.add_option("--host", config.host, "address to listen on")->capture_default_str();
   app.add_option("--port", config.port, "TCP port for the protocol (0: any free port, printed at start)")
       ->capture_default_str();
   app.add_option(
-      "--port-file", port_file,
+      "--port-file", o.port_file,
       "write the bound port to this file once listening (for scripts and tests); with --http-port the "
       "HTTP port follows on a second line");
   app.add_option(
@@ -122,9 +125,8 @@ int main(int argc, char** argv) {
   app.add_option("--drain-timeout-ms", config.drain_timeout_ms,
                  "on SIGINT/SIGTERM, in-flight work gets this long before connections are closed")
       ->capture_default_str();
-  std::string name;
   app.add_option(
-         "--name", name,
+         "--name", o.name,
          "this replica's name in hello replies and /health (letters, digits, '.', '_', '-'); default: the "
          "host name")
       ->check([](const std::string& value) {
@@ -139,9 +141,8 @@ int main(int argc, char** argv) {
       "PEM certificate chain (leaf first): with --tls-key, the protocol and HTTP ports speak TLS only "
       "(https, wss)");
   app.add_option("--tls-key", config.tls_key_file, "PEM private key of --tls-cert (unencrypted)");
-  std::string tokens_file;
   app.add_option(
-      "--auth-tokens", tokens_file,
+      "--auth-tokens", o.tokens_file,
       "access tokens, one per line: TOKEN [model ...] (# comments); connections are served only after "
       "a hello with a valid token (WebSocket: /ws?token=) and see only their token's models (all "
       "when none is listed)");
@@ -153,83 +154,105 @@ int main(int argc, char** argv) {
          "may not send one")
       ->delimiter(',')
       ->type_name("CIDR");
-  app.add_option("--log-level", log_level, "trace, debug, info, warn, error or off")->capture_default_str();
-  std::string log_format = "text";
-  app.add_option("--log-format", log_format,
+  app.add_option("--log-level", o.log_level, "trace, debug, info, warn, error or off")->capture_default_str();
+  app.add_option("--log-format", o.log_format,
                  "text, or json: one JSON object per line (time, level, msg; extraction lines carry their "
                  "fields as members)")
       ->check(CLI::IsMember({"text", "json"}))
       ->capture_default_str();
-  std::string admin_tokens_file;
-  app.add_option("--admin-tokens", admin_tokens_file,
+  app.add_option("--admin-tokens", o.admin_tokens_file,
                  "tokens that may send the `reload` message, one per line (# comments); without them "
                  "`reload` is refused");
-  std::string reload_mode = "watch";
-  app.add_option("--reload", reload_mode,
+  app.add_option("--reload", o.reload_mode,
                  "when changed model files are loaded: watch (as soon as they change, inotify), or signal "
                  "(only on SIGHUP or a `reload` message, which work in both modes)")
       ->check(CLI::IsMember({"watch", "signal"}))
       ->capture_default_str();
-  CLI11_PARSE(app, argc, argv);
-  config.watch_models = reload_mode == "watch";
+}
 
-  spdlog::set_level(spdlog::level::from_str(log_level));
-  server::LogFormat format = server::LogFormat::kText;
-  server::parse_log_format(log_format, format);
-  server::setup_logging(format);
-  if (name.empty()) {
-    char host[256] = {};
-    name = ::gethostname(host, sizeof host - 1) == 0 ? host : "mtlod";
-    name.erase(std::remove_if(name.begin(), name.end(),
-                              [](char c) {
-                                return !std::isalnum(static_cast<unsigned char>(c)) && c != '.' && c != '_' &&
-                                       c != '-';
-                              }),
-               name.end());
-    if (name.empty()) name = "mtlod";
+// The replica's name: --name, else the host name without characters a name may not hold.
+std::string replica_name(std::string name) {
+  if (!name.empty()) return name;
+  char host[256] = {};
+  name = ::gethostname(host, sizeof host - 1) == 0 ? host : "mtlod";
+  name.erase(std::remove_if(name.begin(), name.end(),
+                            [](char c) {
+                              return !std::isalnum(static_cast<unsigned char>(c)) && c != '.' && c != '_' &&
+                                     c != '-';
+                            }),
+             name.end());
+  return name.empty() ? "mtlod" : name;
+}
+
+// Ends the process on a failed step of the start: a server must not run without what it was told to serve.
+void check(const mtlod::Status& status) {
+  if (!status) {
+    spdlog::error("{}", status.error().message);
+    std::exit(1);
   }
-  config.instance = server::instance_id(name);
+}
 
-  server::ModelRegistry registry;
-  auto check = [](const Status& status) {
-    if (!status) {
-      spdlog::error("{}", status.error().message);
-      std::exit(1);
-    }
-  };
-  if (!models_dir.empty()) check(registry.add_directory(models_dir));
-  for (const std::string& file : model_files) check(registry.add_file(file));
-  for (const std::string& mesh : meshes) {
+// Loads the models and the token files the options name (ends the process when one fails).
+void load(Options& o, mtlod::server::ModelRegistry& registry) {
+  if (!o.models_dir.empty()) check(registry.add_directory(o.models_dir));
+  for (const std::string& file : o.model_files) check(registry.add_file(file));
+  for (const std::string& mesh : o.meshes) {
     const std::filesystem::path path(mesh);
-    check(registry.add_mesh(path, std::filesystem::path(cache_dir) / (path.stem().string() + ".mt")));
+    check(registry.add_mesh(path, std::filesystem::path(o.cache_dir) / (path.stem().string() + ".mt")));
   }
   if (registry.models().empty()) {
     spdlog::error("no models: give MT files, --models DIR or --mesh FILE");
-    return 1;
+    std::exit(1);
   }
-  if (!tokens_file.empty()) {
-    config.tokens = load_tokens(tokens_file, "access tokens");
+  if (!o.tokens_file.empty()) {
+    o.config.tokens = load_tokens(o.tokens_file, "access tokens");
     // A name no loaded model has is likely a typo; it may also be a model this replica lacks.
-    for (const std::string& name : config.tokens->listed_models()) {
-      if (!registry.find(name)) spdlog::warn("{}: model '{}' is not loaded here", tokens_file, name);
+    for (const std::string& name : o.config.tokens->listed_models()) {
+      if (!registry.find(name)) spdlog::warn("{}: model '{}' is not loaded here", o.tokens_file, name);
     }
   }
-  if (!admin_tokens_file.empty()) config.admin_tokens = load_tokens(admin_tokens_file, "admin tokens");
+  if (!o.admin_tokens_file.empty()) o.config.admin_tokens = load_tokens(o.admin_tokens_file, "admin tokens");
   for (const auto& model : registry.models()) log_model(*model);
+}
 
-  server::Server server(config, registry);
-  check(server.listen());
+void announce(const mtlod::server::ServerConfig& config, const mtlod::server::Server& server) {
   const bool tls = !config.tls_cert_file.empty();
   spdlog::info("{} listening on {}:{} (protocol version {}{}{}); try: mtlod-client --port {}{}{} list",
-               config.instance, config.host, server.port(), protocol::kProtocolVersion, tls ? ", TLS" : "",
-               config.tokens ? ", access tokens" : "", server.port(), tls ? " --tls" : "",
+               config.instance, config.host, server.port(), mtlod::protocol::kProtocolVersion,
+               tls ? ", TLS" : "", config.tokens ? ", access tokens" : "", server.port(), tls ? " --tls" : "",
                config.tokens ? " --token TOKEN" : "");
   if (config.http_port) {
     spdlog::info("viewer: {}://{}:{}/{} (WebSocket at /ws, files from {})", tls ? "https" : "http",
                  config.host, server.http_port(), config.tokens ? "?token=TOKEN" : "", config.web_root);
   }
-  if (!port_file.empty() && !write_port_file(port_file, server.port(), server.http_port())) {
-    spdlog::error("cannot write {}", port_file);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  using namespace mtlod;
+  CLI::App app{
+      "mtlod-server: a network level-of-detail server. Clients send camera matrices and gaze points "
+      "(protocol/PROTOCOL.md) and receive Draco-compressed view-dependent extractions."};
+  Options o;
+  add_options(app, o);
+  CLI11_PARSE(app, argc, argv);
+  server::ServerConfig& config = o.config;
+  config.watch_models = o.reload_mode == "watch";
+
+  spdlog::set_level(spdlog::level::from_str(o.log_level));
+  server::LogFormat format = server::LogFormat::kText;
+  server::parse_log_format(o.log_format, format);
+  server::setup_logging(format);
+  config.instance = server::instance_id(replica_name(o.name));
+
+  server::ModelRegistry registry;
+  load(o, registry);
+  server::Server server(config, registry);
+  check(server.listen());
+  announce(config, server);
+  if (!o.port_file.empty() && !write_port_file(o.port_file, server.port(), server.http_port())) {
+    spdlog::error("cannot write {}", o.port_file);
     return 1;
   }
   server.run();
