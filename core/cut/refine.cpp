@@ -596,6 +596,8 @@ bool Refiner::update_kept(const AllowedError& allowed, std::span<const std::uint
   return true;
 }
 
+// One function for the five steps of a move, the gaze path BM_GazeStream measures: they share the
+// changed-vertex test, the kept count and the dropped list, and either restart check may end it.
 void Refiner::move_cut(const AllowedError& allowed, bool all_changed) {
   if (kept_ == Kept::kThreshold) kept_mesh_from_cut();
   auto changed = [&](std::uint32_t v) { return all_changed || vertex_changed(v); };

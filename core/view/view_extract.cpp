@@ -197,6 +197,10 @@ void ViewExtractor::allowed_error() {
   allowed_ = s.allowed_error_;
   on_demand_ = !s.allowed_error_complete_;
   if (s.allowed_error_complete_ && !s.known_all_) list_all_vertices(s);
+  update_known_for_foci(s, options.metric);
+}
+
+void ViewExtractor::update_known_for_foci(ViewCache& s, DistanceMetric metric) {
   // Only the foci moved: a vertex's allowed error changes only where its cell's focus multiplier did.
   s.changed_.clear();
   s.changed_cells_.clear();
@@ -214,7 +218,7 @@ void ViewExtractor::allowed_error() {
   // new foci can hold a changed multiplier; everywhere else it was 1 and still is.
   const GridSize grid = request_->grid;
   const std::uint32_t radius = std::uint32_t(std::min<std::size_t>(
-      field_.focus_reach() / units_per_pixel(options.metric) + 1, std::max(grid.width, grid.height)));
+      field_.focus_reach() / units_per_pixel(metric) + 1, std::max(grid.width, grid.height)));
   std::size_t foci = 0;  // on the grid, old and new
   for (const std::uint32_t f : s.focus_cells_) foci += f != kNoCell;
   for (const auto& p : request_->focus) foci += focus_cell(grid, p[0], p[1]) != kNoCell;

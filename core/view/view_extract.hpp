@@ -175,6 +175,9 @@ class ViewExtractor {
 
  private:
   void transform(std::span<const std::uint8_t> image, std::span<std::uint16_t> out);
+  // Stage 4 of a gaze: recomputes the session's known vertices in cells whose focus multiplier
+  // changed, listing them in its changed_ (metric: the labels', as bound to the field).
+  void update_known_for_foci(ViewCache& session, DistanceMetric metric);
   // Whether the request has the session's view (everything but the focus points).
   static bool same_view(const ViewCache& session, const ViewRequest& request);
   void remember_view(ViewCache& session) const;
