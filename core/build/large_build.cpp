@@ -316,6 +316,23 @@ class LargeBuilder {
   Status simplify();
   Status run_stage(std::uint32_t s, bool parallel);
   Status pass_up(std::uint32_t s);
+  // run_stage's steps: the block's faces from its leaf file or its children's remains, its vertices,
+  // and after simplify_block the files the assembly and the parent read.
+  Status read_leaf(std::uint32_t s, bool parallel, std::vector<std::uint32_t>& global,
+                   std::vector<std::uint64_t>& origin);
+  void add_leaf_normals(const std::vector<std::uint32_t>& global, std::size_t out, bool parallel);
+  Status read_merge(std::uint32_t s, BlockInput& block, std::vector<std::uint32_t>& global,
+                    std::vector<std::uint64_t>& origin);
+  std::vector<std::uint32_t> index_block(std::uint32_t s, const std::vector<std::uint32_t>& global,
+                                         BlockInput& block) const;
+  Status write_collapses(std::uint32_t s, const BlockOutput& result,
+                         const std::vector<std::uint32_t>& vertices);
+  Status write_owned(std::uint32_t s, const std::vector<std::uint32_t>& global,
+                     const std::vector<std::uint32_t>& vertices, BlockOutput& result);
+  Status write_creators(std::uint32_t s, std::size_t face_count, const std::vector<std::uint64_t>& origin,
+                        const BlockOutput& result);
+  Status write_remains(std::uint32_t s, std::size_t face_count, const std::vector<std::uint32_t>& global,
+                       const std::vector<std::uint64_t>& origin, const BlockOutput& result);
   Status assemble();
 
   std::uint32_t cell_of(const std::uint32_t* t) const {
@@ -638,85 +655,90 @@ Status LargeBuilder::pass_up(std::uint32_t s) {
   return Ok{};
 }
 
-Status LargeBuilder::run_stage(std::uint32_t s, bool parallel) {
+Status LargeBuilder::read_leaf(std::uint32_t s, bool parallel, std::vector<std::uint32_t>& global,
+                               std::vector<std::uint64_t>& origin) {
   Stage& stage = stages_[s];
-  if (stage.deferred) return pass_up(s);
-  BlockInput block;
-  std::vector<std::uint32_t> global;  // the block's faces over global vertex ids
-  std::vector<std::uint64_t> origin;  // per face: (stage, index) of the triangle
-  if (stage.leaf) {
-    MTLOD_TRY(global, read_array<std::uint32_t>(file(fmt::format("leaf{}", stage.lo))));
-    // Duplicates (the same vertex set as an earlier face) lie in the same cell, so in the same leaf.
-    const std::size_t count = global.size() / 3;
-    std::vector<std::array<std::uint32_t, 4>> keys(count);
-    for (std::size_t f = 0; f < count; ++f) {
-      std::array<std::uint32_t, 3> v = {global[3 * f], global[3 * f + 1], global[3 * f + 2]};
-      std::sort(v.begin(), v.end());
-      keys[f] = {v[0], v[1], v[2], std::uint32_t(f)};
-    }
-    std::sort(keys.begin(), keys.end());
-    std::vector<std::uint8_t> duplicate(count, 0);
-    for (std::size_t i = 1; i < count; ++i)
-      if (std::equal(keys[i].begin(), keys[i].begin() + 3, keys[i - 1].begin())) duplicate[keys[i][3]] = 1;
-    std::size_t out = 0;
-    for (std::size_t f = 0; f < count; ++f) {
-      if (duplicate[f]) continue;
-      std::copy_n(&global[3 * f], 3, &global[3 * out]);
-      ++out;
-    }
-    global.resize(3 * out);
-    if (!normal_sums_.empty()) {
-      // Leaves that run side by side meet in shared vertices, and a lone leaf splits its faces over
-      // the runner: both add concurrently. Fixed-point sums make the result independent of the order.
-      NormalAccumulator normals(std::span<const float>(positions_->data(), 3 * vertex_count_), normal_sums_);
-      const bool side_by_side = !parallel && options_.build.parallel_for != nullptr;
-      if (parallel && options_.build.parallel_for != nullptr) {
-        struct Chunks {
-          NormalAccumulator* normals;
-          const std::uint32_t* faces;
-          std::size_t count;
-        } chunks{&normals, global.data(), out};
-        constexpr std::size_t kChunks = 64;
-        options_.build.parallel_for(
-            options_.build.parallel_user, kChunks,
-            [](void* opaque, std::size_t i) {
-              const auto* c = static_cast<const Chunks*>(opaque);
-              for (std::size_t f = c->count * i / kChunks; f < c->count * (i + 1) / kChunks; ++f)
-                c->normals->add_concurrently(c->faces[3 * f], c->faces[3 * f + 1], c->faces[3 * f + 2]);
-            },
-            &chunks);
-      } else if (side_by_side) {
-        for (std::size_t f = 0; f < out; ++f)
-          normals.add_concurrently(global[3 * f], global[3 * f + 1], global[3 * f + 2]);
-      } else {
-        for (std::size_t f = 0; f < out; ++f)
-          normals.add(global[3 * f], global[3 * f + 1], global[3 * f + 2]);
-      }
-    }
-    stage.duplicates = count - out;
-    stage.inputs = std::uint32_t(out);
-    origin.resize(out);
-    for (std::uint32_t f = 0; f < out; ++f) origin[f] = ref_of(s, f);
-    std::error_code ec;
-    fs::remove(file(fmt::format("leaf{}", stage.lo)), ec);
-  } else {
-    for (const std::uint32_t child : stage.children) {
-      MTLOD_TRY(const auto remains, read_array<RemainingFace>(stage_file(child, "rem")));
-      MTLOD_RETURN_IF_ERROR(append_file(stage_file(child, "pts"), block.points));
-      for (const RemainingFace& r : remains) {
-        global.insert(global.end(), r.v, r.v + 3);
-        origin.push_back(r.origin);
-        block.face_error.push_back(r.error);
-        block.face_points.push_back(r.points);
-      }
-      std::error_code ec;
-      fs::remove(stage_file(child, "rem"), ec);
-      fs::remove(stage_file(child, "pts"), ec);
-    }
+  MTLOD_TRY(global, read_array<std::uint32_t>(file(fmt::format("leaf{}", stage.lo))));
+  // Duplicates (the same vertex set as an earlier face) lie in the same cell, so in the same leaf.
+  const std::size_t count = global.size() / 3;
+  std::vector<std::array<std::uint32_t, 4>> keys(count);
+  for (std::size_t f = 0; f < count; ++f) {
+    std::array<std::uint32_t, 3> v = {global[3 * f], global[3 * f + 1], global[3 * f + 2]};
+    std::sort(v.begin(), v.end());
+    keys[f] = {v[0], v[1], v[2], std::uint32_t(f)};
   }
-  const std::size_t face_count = global.size() / 3;
-  stage.input_faces = std::uint32_t(face_count);
+  std::sort(keys.begin(), keys.end());
+  std::vector<std::uint8_t> duplicate(count, 0);
+  for (std::size_t i = 1; i < count; ++i)
+    if (std::equal(keys[i].begin(), keys[i].begin() + 3, keys[i - 1].begin())) duplicate[keys[i][3]] = 1;
+  std::size_t out = 0;
+  for (std::size_t f = 0; f < count; ++f) {
+    if (duplicate[f]) continue;
+    std::copy_n(&global[3 * f], 3, &global[3 * out]);
+    ++out;
+  }
+  global.resize(3 * out);
+  if (!normal_sums_.empty()) add_leaf_normals(global, out, parallel);
+  stage.duplicates = count - out;
+  stage.inputs = std::uint32_t(out);
+  origin.resize(out);
+  for (std::uint32_t f = 0; f < out; ++f) origin[f] = ref_of(s, f);
+  std::error_code ec;
+  fs::remove(file(fmt::format("leaf{}", stage.lo)), ec);
+  return Ok{};
+}
 
+void LargeBuilder::add_leaf_normals(const std::vector<std::uint32_t>& global, std::size_t out,
+                                    bool parallel) {
+  // Leaves that run side by side meet in shared vertices, and a lone leaf splits its faces over
+  // the runner: both add concurrently. Fixed-point sums make the result independent of the order.
+  NormalAccumulator normals(std::span<const float>(positions_->data(), 3 * vertex_count_), normal_sums_);
+  const bool side_by_side = !parallel && options_.build.parallel_for != nullptr;
+  if (parallel && options_.build.parallel_for != nullptr) {
+    struct Chunks {
+      NormalAccumulator* normals;
+      const std::uint32_t* faces;
+      std::size_t count;
+    } chunks{&normals, global.data(), out};
+    constexpr std::size_t kChunks = 64;
+    options_.build.parallel_for(
+        options_.build.parallel_user, kChunks,
+        [](void* opaque, std::size_t i) {
+          const auto* c = static_cast<const Chunks*>(opaque);
+          for (std::size_t f = c->count * i / kChunks; f < c->count * (i + 1) / kChunks; ++f)
+            c->normals->add_concurrently(c->faces[3 * f], c->faces[3 * f + 1], c->faces[3 * f + 2]);
+        },
+        &chunks);
+  } else if (side_by_side) {
+    for (std::size_t f = 0; f < out; ++f)
+      normals.add_concurrently(global[3 * f], global[3 * f + 1], global[3 * f + 2]);
+  } else {
+    for (std::size_t f = 0; f < out; ++f) normals.add(global[3 * f], global[3 * f + 1], global[3 * f + 2]);
+  }
+}
+
+Status LargeBuilder::read_merge(std::uint32_t s, BlockInput& block, std::vector<std::uint32_t>& global,
+                                std::vector<std::uint64_t>& origin) {
+  for (const std::uint32_t child : stages_[s].children) {
+    MTLOD_TRY(const auto remains, read_array<RemainingFace>(stage_file(child, "rem")));
+    MTLOD_RETURN_IF_ERROR(append_file(stage_file(child, "pts"), block.points));
+    for (const RemainingFace& r : remains) {
+      global.insert(global.end(), r.v, r.v + 3);
+      origin.push_back(r.origin);
+      block.face_error.push_back(r.error);
+      block.face_points.push_back(r.points);
+    }
+    std::error_code ec;
+    fs::remove(stage_file(child, "rem"), ec);
+    fs::remove(stage_file(child, "pts"), ec);
+  }
+  return Ok{};
+}
+
+std::vector<std::uint32_t> LargeBuilder::index_block(std::uint32_t s,
+                                                     const std::vector<std::uint32_t>& global,
+                                                     BlockInput& block) const {
+  const Stage& stage = stages_[s];
   // Block vertex ids: the distinct global ids in increasing order (corners sorted by global id).
   std::vector<std::uint32_t> vertices;
   block.mesh.triangles.resize(global.size());
@@ -736,48 +758,44 @@ Status LargeBuilder::run_stage(std::uint32_t s, bool parallel) {
     std::copy_n(&positions_->data()[3 * std::size_t{g}], 3, &block.mesh.positions[3 * l]);
     block.locked[l] = !(leaf_lo_[g] >= stage.lo && leaf_hi_[g] <= stage.hi);
   }
+  return vertices;
+}
 
-  BuildOptions build = options_.build;
-  build.progress = nullptr;
-  if (!parallel) build.parallel_for = nullptr;
-  // Topology may change only at the top, where the root orders all the remaining faces by error;
-  // a lower stage's topology changes would reach into finer cuts.
-  build.coarse_topology = build.coarse_topology && stage.root;
-  const std::size_t target = stage.root ? options_.build.min_triangles : face_count / kStageReduction;
-  MTLOD_TRY(BlockOutput result, simplify_block(std::move(block), target, build));
-  block = BlockInput{};
-  positions_->release();
-  stage.complex_vertices = result.complex_vertices;
-  stage.topology_collapses = result.topology_collapses;
-  stage.topology_error = result.topology_error;
-  stage.stacking_collapses = result.stacking_collapses;
-  stage.stacking_error = result.stacking_error;
-
+Status LargeBuilder::write_collapses(std::uint32_t s, const BlockOutput& result,
+                                     const std::vector<std::uint32_t>& vertices) {
   // Collapses: global u and error.
-  stage.collapses = std::uint32_t(result.collapse_u.size());
-  {
-    MTLOD_TRY(Writer w, Writer::open(stage_file(s, "col")));
-    std::vector<std::uint32_t> records(2 * result.collapse_u.size());
-    for (std::size_t c = 0; c < result.collapse_u.size(); ++c) {
-      records[2 * c] = vertices[result.collapse_u[c]];
-      std::memcpy(&records[2 * c + 1], &result.collapse_error[c], 4);
-    }
-    MTLOD_RETURN_IF_ERROR(w.write(records));
-    MTLOD_RETURN_IF_ERROR(w.close());
+  stages_[s].collapses = std::uint32_t(result.collapse_u.size());
+  MTLOD_TRY(Writer w, Writer::open(stage_file(s, "col")));
+  std::vector<std::uint32_t> records(2 * result.collapse_u.size());
+  for (std::size_t c = 0; c < result.collapse_u.size(); ++c) {
+    records[2 * c] = vertices[result.collapse_u[c]];
+    std::memcpy(&records[2 * c + 1], &result.collapse_error[c], 4);
   }
+  MTLOD_RETURN_IF_ERROR(w.write(records));
+  MTLOD_RETURN_IF_ERROR(w.close());
+  return Ok{};
+}
+
+Status LargeBuilder::write_owned(std::uint32_t s, const std::vector<std::uint32_t>& global,
+                                 const std::vector<std::uint32_t>& vertices, BlockOutput& result) {
+  Stage& stage = stages_[s];
   // Owned triangles: a leaf's kept inputs, then the made ones; their creators where known here.
   const std::size_t made = result.made_by.size();
   stage.owned = std::uint32_t(stage.inputs + made);
-  {
-    MTLOD_TRY(Writer own, Writer::open(stage_file(s, "own")));
-    if (stage.leaf) MTLOD_RETURN_IF_ERROR(own.write(global));
-    for (std::uint32_t& v : result.made_triangles) v = vertices[v];
-    MTLOD_RETURN_IF_ERROR(own.write(result.made_triangles));
-    MTLOD_RETURN_IF_ERROR(own.close());
-    MTLOD_TRY(Writer made_by, Writer::open(stage_file(s, "madeby")));
-    MTLOD_RETURN_IF_ERROR(made_by.write(result.made_by));
-    MTLOD_RETURN_IF_ERROR(made_by.close());
-  }
+  MTLOD_TRY(Writer own, Writer::open(stage_file(s, "own")));
+  if (stage.leaf) MTLOD_RETURN_IF_ERROR(own.write(global));
+  for (std::uint32_t& v : result.made_triangles) v = vertices[v];
+  MTLOD_RETURN_IF_ERROR(own.write(result.made_triangles));
+  MTLOD_RETURN_IF_ERROR(own.close());
+  MTLOD_TRY(Writer made_by, Writer::open(stage_file(s, "madeby")));
+  MTLOD_RETURN_IF_ERROR(made_by.write(result.made_by));
+  MTLOD_RETURN_IF_ERROR(made_by.close());
+  return Ok{};
+}
+
+Status LargeBuilder::write_creators(std::uint32_t s, std::size_t face_count,
+                                    const std::vector<std::uint64_t>& origin, const BlockOutput& result) {
+  const Stage& stage = stages_[s];
   std::vector<std::uint64_t> creators(stage.owned, kPending);
   // Updates for triangles earlier stages own, grouped by owner.
   std::vector<std::pair<std::uint32_t, std::array<std::uint32_t, 3>>> updates;
@@ -807,31 +825,73 @@ Status LargeBuilder::run_stage(std::uint32_t s, bool parallel) {
       MTLOD_RETURN_IF_ERROR(w.write(std::span<const std::uint32_t>(updates[i].second)));
     MTLOD_RETURN_IF_ERROR(w.close());
   }
+  return Ok{};
+}
+
+Status LargeBuilder::write_remains(std::uint32_t s, std::size_t face_count,
+                                   const std::vector<std::uint32_t>& global,
+                                   const std::vector<std::uint64_t>& origin, const BlockOutput& result) {
+  Stage& stage = stages_[s];
+  std::vector<RemainingFace> remains(result.remaining.size());
+  for (std::size_t i = 0; i < remains.size(); ++i) {
+    const std::uint32_t t = result.remaining[i];
+    RemainingFace& r = remains[i];
+    const std::uint32_t* v = t < face_count ? &global[3 * std::size_t{t}]
+                                            : &result.made_triangles[3 * std::size_t{t - face_count}];
+    std::copy_n(v, 3, r.v);
+    r.points = result.remaining_points[i];
+    r.origin = t < face_count ? origin[t] : ref_of(s, stage.inputs + (t - face_count));
+    r.error = result.remaining_error[i];
+    stage.remaining_points += r.points;
+  }
+  stage.remaining = std::uint32_t(remains.size());
+  MTLOD_TRY(Writer rem, Writer::open(stage_file(s, "rem")));
+  MTLOD_RETURN_IF_ERROR(rem.write(remains));
+  MTLOD_RETURN_IF_ERROR(rem.close());
+  MTLOD_TRY(Writer pts, Writer::open(stage_file(s, "pts")));
+  MTLOD_RETURN_IF_ERROR(pts.write(std::span<const float>(result.points)));
+  MTLOD_RETURN_IF_ERROR(pts.close());
+  return Ok{};
+}
+
+Status LargeBuilder::run_stage(std::uint32_t s, bool parallel) {
+  Stage& stage = stages_[s];
+  if (stage.deferred) return pass_up(s);
+  BlockInput block;
+  std::vector<std::uint32_t> global;  // the block's faces over global vertex ids
+  std::vector<std::uint64_t> origin;  // per face: (stage, index) of the triangle
+  if (stage.leaf) {
+    MTLOD_RETURN_IF_ERROR(read_leaf(s, parallel, global, origin));
+  } else {
+    MTLOD_RETURN_IF_ERROR(read_merge(s, block, global, origin));
+  }
+  const std::size_t face_count = global.size() / 3;
+  stage.input_faces = std::uint32_t(face_count);
+  const std::vector<std::uint32_t> vertices = index_block(s, global, block);
+
+  BuildOptions build = options_.build;
+  build.progress = nullptr;
+  if (!parallel) build.parallel_for = nullptr;
+  // Topology may change only at the top, where the root orders all the remaining faces by error;
+  // a lower stage's topology changes would reach into finer cuts.
+  build.coarse_topology = build.coarse_topology && stage.root;
+  const std::size_t target = stage.root ? options_.build.min_triangles : face_count / kStageReduction;
+  MTLOD_TRY(BlockOutput result, simplify_block(std::move(block), target, build));
+  block = BlockInput{};
+  positions_->release();
+  stage.complex_vertices = result.complex_vertices;
+  stage.topology_collapses = result.topology_collapses;
+  stage.topology_error = result.topology_error;
+  stage.stacking_collapses = result.stacking_collapses;
+  stage.stacking_error = result.stacking_error;
+
+  MTLOD_RETURN_IF_ERROR(write_collapses(s, result, vertices));
+  MTLOD_RETURN_IF_ERROR(write_owned(s, global, vertices, result));
+  MTLOD_RETURN_IF_ERROR(write_creators(s, face_count, origin, result));
   // What remains, for the parent (the root's remains are the MT's root mesh; their creators stay
   // pending, which means the root).
-  if (!stage.root) {
-    std::vector<RemainingFace> remains(result.remaining.size());
-    for (std::size_t i = 0; i < remains.size(); ++i) {
-      const std::uint32_t t = result.remaining[i];
-      RemainingFace& r = remains[i];
-      const std::uint32_t* v = t < face_count ? &global[3 * std::size_t{t}]
-                                              : &result.made_triangles[3 * std::size_t{t - face_count}];
-      std::copy_n(v, 3, r.v);
-      r.points = result.remaining_points[i];
-      r.origin = t < face_count ? origin[t] : ref_of(s, stage.inputs + (t - face_count));
-      r.error = result.remaining_error[i];
-      stage.remaining_points += r.points;
-    }
-    stage.remaining = std::uint32_t(remains.size());
-    MTLOD_TRY(Writer rem, Writer::open(stage_file(s, "rem")));
-    MTLOD_RETURN_IF_ERROR(rem.write(remains));
-    MTLOD_RETURN_IF_ERROR(rem.close());
-    MTLOD_TRY(Writer pts, Writer::open(stage_file(s, "pts")));
-    MTLOD_RETURN_IF_ERROR(pts.write(std::span<const float>(result.points)));
-    MTLOD_RETURN_IF_ERROR(pts.close());
-  } else {
-    stage.remaining = std::uint32_t(result.remaining.size());
-  }
+  if (!stage.root) return write_remains(s, face_count, global, origin, result);
+  stage.remaining = std::uint32_t(result.remaining.size());
   return Ok{};
 }
 
