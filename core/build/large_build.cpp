@@ -207,6 +207,12 @@ Status pwrite_all(int fd, const fs::path& path, const void* data, std::uint64_t 
   return Ok{};
 }
 
+// Writes a whole array at offset.
+template <class Array>
+Status put_array(int fd, const fs::path& path, const Array& values, std::uint64_t offset) {
+  return pwrite_all(fd, path, values.data(), values.size() * sizeof(values[0]), offset);
+}
+
 // A read-only map of a file (the positions as floats; normals and colours as bytes). The kernel
 // pages it in on use, and release() drops the pages from this process so that the model's vertex
 // arrays do not stay resident.
@@ -289,6 +295,24 @@ struct Placed {
   std::uint32_t id, c1, c2, remover;
 };
 
+// The MT's arrays and counts as assemble's steps fill them, each freed once written.
+struct Assembly {
+  std::vector<std::uint64_t> collapse_base;  // per stage, its first collapse in sequence order
+  std::uint64_t triangles = 0;               // owned by all stages
+  std::uint32_t node_count = 0;
+  std::vector<std::uint32_t> node_of;    // per collapse in sequence order, its node
+  std::vector<std::uint32_t> vertex_id;  // per input vertex, its MT id (kNoVertex: left out)
+  std::uint32_t used_vertices = 0, root_vertices = 0;
+  std::vector<std::uint32_t> node_vertex;
+  std::vector<float> node_error;
+  std::vector<std::uint32_t> parents;  // for_parents's list
+  std::vector<std::uint32_t> triangle_offsets, parent_offsets;
+  model::MtCounts counts;
+  model::MtLayout layout{};
+  std::vector<std::uint32_t> node_parents, root_first_corner;
+  std::uint64_t bucket_triangles = 0, buckets = 0;  // placement: triangles per bucket file, and files
+};
+
 class LargeBuilder {
  public:
   LargeBuilder(const fs::path& input, const fs::path& output, const LargeBuildOptions& options, TempDir& temp)
@@ -334,6 +358,17 @@ class LargeBuilder {
   Status write_remains(std::uint32_t s, std::size_t face_count, const std::vector<std::uint32_t>& global,
                        const std::vector<std::uint64_t>& origin, const BlockOutput& result);
   Status assemble();
+  // assemble's steps, in order.
+  Status number_collapses(Assembly& a);
+  Result<std::vector<std::uint32_t>> load_creators(const Assembly& a, std::uint32_t s) const;
+  template <class Each>
+  void for_parents(Assembly& a, std::uint32_t s, const std::vector<std::uint32_t>& creators,
+                   const std::vector<std::uint32_t>& made_by, const Each& each) const;
+  Status count_nodes(Assembly& a);
+  Status place_triangles(Assembly& a);
+  Status write_file(Assembly& a);
+  Status write_vertices(Assembly& a, int fd, const fs::path& partial);
+  Status write_triangles(const Assembly& a, int fd, const fs::path& partial);
 
   std::uint32_t cell_of(const std::uint32_t* t) const {
     const float* p[3] = {&positions_->data()[3 * std::size_t{t[0]}],
@@ -934,175 +969,229 @@ Status LargeBuilder::simplify() {
   return Ok{};
 }
 
-Status LargeBuilder::assemble() {
+Status LargeBuilder::number_collapses(Assembly& a) {
   // Collapses in sequence order: stage by stage, each in its own order.
-  std::vector<std::uint64_t> collapse_base(stages_.size() + 1, 0);
+  a.collapse_base.assign(stages_.size() + 1, 0);
   for (std::size_t s = 0; s < stages_.size(); ++s)
-    collapse_base[s + 1] = collapse_base[s] + stages_[s].collapses;
-  const std::uint64_t k = collapse_base.back();
-  std::uint64_t triangles = 0;
-  for (const Stage& s : stages_) triangles += s.owned;
-  if (k + 1 >= model::kNoNode || triangles >= model::kNoFace)
+    a.collapse_base[s + 1] = a.collapse_base[s] + stages_[s].collapses;
+  const std::uint64_t k = a.collapse_base.back();
+  for (const Stage& s : stages_) a.triangles += s.owned;
+  if (k + 1 >= model::kNoNode || a.triangles >= model::kNoFace)
     return make_error(ErrorCode::kLimitExceeded,
                       fmt::format("{}: the MT's {} nodes and {} triangles exceed 32-bit ids", input_.string(),
-                                  k + 1, triangles));
-  const std::uint32_t node_count = std::uint32_t(k + 1);
+                                  k + 1, a.triangles));
+  a.node_count = std::uint32_t(k + 1);
   std::vector<std::uint32_t> collapse_u(k);
   std::vector<float> collapse_error(k);
   for (std::size_t s = 0; s < stages_.size(); ++s) {
     MTLOD_TRY(const auto records, read_array<std::uint32_t>(stage_file(std::uint32_t(s), "col")));
     for (std::size_t c = 0; c < stages_[s].collapses; ++c) {
-      collapse_u[collapse_base[s] + c] = records[2 * c];
-      std::memcpy(&collapse_error[collapse_base[s] + c], &records[2 * c + 1], 4);
+      collapse_u[a.collapse_base[s] + c] = records[2 * c];
+      std::memcpy(&collapse_error[a.collapse_base[s] + c], &records[2 * c + 1], 4);
     }
   }
-  std::vector<std::uint32_t> node_of = number_nodes(collapse_error);
-  auto node_of_ref = [&](std::uint64_t ref) -> std::uint32_t {
-    return ref == kPending ? 0u : node_of[collapse_base[ref_stage(ref)] + ref_index(ref) - 1];
-  };
+  a.node_of = number_nodes(collapse_error);
 
   // Vertex ids as build_mt gives them: the root mesh's vertices by input id, then node n's split
   // vertex as R + n − 1, then the vertices no triangle uses.
-  std::vector<std::uint32_t> vertex_id(vertex_count_, model::kNoVertex);
-  std::uint32_t used_vertices = 0, root_vertices = 0;
-  std::vector<std::uint32_t> node_vertex(node_count, model::kNoVertex);
-  std::vector<float> node_error(node_count, 0.0f);
+  a.vertex_id.assign(vertex_count_, model::kNoVertex);
+  a.node_vertex.assign(a.node_count, model::kNoVertex);
+  a.node_error.assign(a.node_count, 0.0f);
   {
-    for (const std::uint32_t u : collapse_u) vertex_id[u] = 0;  // split: numbered below
+    for (const std::uint32_t u : collapse_u) a.vertex_id[u] = 0;  // split: numbered below
     std::uint32_t next = 0;
     for (std::uint64_t v = 0; v < vertex_count_; ++v)
-      if (leaf_lo_[v] != model::kNoVertex && vertex_id[v] == model::kNoVertex) vertex_id[v] = next++;
-    root_vertices = next;
+      if (leaf_lo_[v] != model::kNoVertex && a.vertex_id[v] == model::kNoVertex) a.vertex_id[v] = next++;
+    a.root_vertices = next;
     for (std::uint64_t c = 0; c < k; ++c) {
-      vertex_id[collapse_u[c]] = root_vertices + node_of[c] - 1;
-      node_vertex[node_of[c]] = vertex_id[collapse_u[c]];
-      node_error[node_of[c]] = collapse_error[c];
+      a.vertex_id[collapse_u[c]] = a.root_vertices + a.node_of[c] - 1;
+      a.node_vertex[a.node_of[c]] = a.vertex_id[collapse_u[c]];
+      a.node_error[a.node_of[c]] = collapse_error[c];
     }
     // Vertices no kept triangle uses are left out of the file, as clean_mesh leaves them out.
-    used_vertices = next + std::uint32_t(k);
+    a.used_vertices = next + std::uint32_t(k);
   }
-  for (const float e : node_error) stats_->max_error = std::max(stats_->max_error, e);
-  if (options_.vertex_ids) *options_.vertex_ids = vertex_id;
+  for (const float e : a.node_error) stats_->max_error = std::max(stats_->max_error, e);
+  if (options_.vertex_ids) *options_.vertex_ids = a.vertex_id;
   std::vector<std::uint32_t>().swap(collapse_u);
   std::vector<float>().swap(collapse_error);
   std::vector<std::uint32_t>().swap(leaf_hi_);
   std::vector<std::uint32_t>().swap(leaf_lo_);
+  return Ok{};
+}
 
+Result<std::vector<std::uint32_t>> LargeBuilder::load_creators(const Assembly& a, std::uint32_t s) const {
+  auto node_of_ref = [&](std::uint64_t ref) -> std::uint32_t {
+    return ref == kPending ? 0u : a.node_of[a.collapse_base[ref_stage(ref)] + ref_index(ref) - 1];
+  };
+  MTLOD_TRY(const auto refs, read_array<std::uint64_t>(stage_file(s, "cre")));
+  MTLOD_TRY(const auto updates, read_array<std::uint32_t>(stage_file(s, "upd"), true));
+  std::vector<std::uint32_t> nodes(refs.size());
+  for (std::size_t t = 0; t < refs.size(); ++t) nodes[t] = node_of_ref(refs[t]);
+  for (std::size_t i = 0; i + 3 <= updates.size(); i += 3)
+    nodes[updates[i]] = node_of_ref(ref_of(updates[i + 1], updates[i + 2]));
+  return nodes;
+}
+
+// Calls each(collapse, sorted distinct parent nodes) for every collapse of stage s.
+template <class Each>
+void LargeBuilder::for_parents(Assembly& a, std::uint32_t s, const std::vector<std::uint32_t>& creators,
+                               const std::vector<std::uint32_t>& made_by, const Each& each) const {
+  const std::uint32_t inputs = stages_[s].inputs;
+  for (std::size_t t = 0; t < made_by.size();) {
+    const std::uint32_t tag = made_by[t];
+    a.parents.clear();
+    for (; t < made_by.size() && made_by[t] == tag; ++t) a.parents.push_back(creators[inputs + t]);
+    std::sort(a.parents.begin(), a.parents.end());
+    a.parents.erase(std::unique(a.parents.begin(), a.parents.end()), a.parents.end());
+    each(a.node_of[a.collapse_base[s] + tag - 1], a.parents);
+  }
+}
+
+Status LargeBuilder::count_nodes(Assembly& a) {
   // Creators of every owned triangle (with the updates later stages sent), counted by node; parents
   // of every node counted from the creators of the triangles its collapse made.
-  auto load_creators = [&](std::uint32_t s) -> Result<std::vector<std::uint32_t>> {
-    MTLOD_TRY(const auto refs, read_array<std::uint64_t>(stage_file(s, "cre")));
-    MTLOD_TRY(const auto updates, read_array<std::uint32_t>(stage_file(s, "upd"), true));
-    std::vector<std::uint32_t> nodes(refs.size());
-    for (std::size_t t = 0; t < refs.size(); ++t) nodes[t] = node_of_ref(refs[t]);
-    for (std::size_t i = 0; i + 3 <= updates.size(); i += 3)
-      nodes[updates[i]] = node_of_ref(ref_of(updates[i + 1], updates[i + 2]));
-    return nodes;
-  };
-  // Calls each(collapse, sorted distinct parent nodes) for every collapse of stage s.
-  std::vector<std::uint32_t> parents;
-  auto for_parents = [&](std::uint32_t s, const std::vector<std::uint32_t>& creators,
-                         const std::vector<std::uint32_t>& made_by, const auto& each) {
-    const std::uint32_t inputs = stages_[s].inputs;
-    for (std::size_t t = 0; t < made_by.size();) {
-      const std::uint32_t tag = made_by[t];
-      parents.clear();
-      for (; t < made_by.size() && made_by[t] == tag; ++t) parents.push_back(creators[inputs + t]);
-      std::sort(parents.begin(), parents.end());
-      parents.erase(std::unique(parents.begin(), parents.end()), parents.end());
-      each(node_of[collapse_base[s] + tag - 1], parents);
-    }
-  };
-  std::vector<std::uint32_t> triangle_offsets(std::size_t{node_count} + 1, 0);
-  std::vector<std::uint32_t> parent_offsets(std::size_t{node_count} + 1, 0);
+  a.triangle_offsets.assign(std::size_t{a.node_count} + 1, 0);
+  a.parent_offsets.assign(std::size_t{a.node_count} + 1, 0);
   for (std::uint32_t s = 0; s < stages_.size(); ++s) {
-    MTLOD_TRY(const auto creators, load_creators(s));
-    for (const std::uint32_t n : creators) ++triangle_offsets[n + 1];
+    MTLOD_TRY(const auto creators, load_creators(a, s));
+    for (const std::uint32_t n : creators) ++a.triangle_offsets[n + 1];
     MTLOD_TRY(const auto made_by, read_array<std::uint32_t>(stage_file(s, "madeby")));
-    for_parents(s, creators, made_by, [&](std::uint32_t node, const std::vector<std::uint32_t>& list) {
-      parent_offsets[node + 1] = std::uint32_t(list.size());
+    for_parents(a, s, creators, made_by, [&](std::uint32_t node, const std::vector<std::uint32_t>& list) {
+      a.parent_offsets[node + 1] = std::uint32_t(list.size());
     });
     progress("assembling", 0.3 * double(s + 1) / double(stages_.size()));
   }
-  for (std::size_t n = 0; n < node_count; ++n) {
-    triangle_offsets[n + 1] += triangle_offsets[n];
-    parent_offsets[n + 1] += parent_offsets[n];
+  for (std::size_t n = 0; n < a.node_count; ++n) {
+    a.triangle_offsets[n + 1] += a.triangle_offsets[n];
+    a.parent_offsets[n + 1] += a.parent_offsets[n];
   }
-  model::MtCounts counts;
-  counts.normals = normals_;
-  counts.colors = colors_;
-  counts.vertices = used_vertices;
-  counts.nodes = node_count;
-  counts.triangles = std::uint32_t(triangles);
-  counts.root_triangles = triangle_offsets[1];
-  counts.parents = parent_offsets[node_count];
-  counts.root_vertices = root_vertices;
-  const model::MtLayout layout = model::mt_layout(counts);
-  stats_->nodes = node_count;
-  stats_->mt_triangles = triangles;
-  stats_->root_triangles = counts.root_triangles;
+  a.counts.normals = normals_;
+  a.counts.colors = colors_;
+  a.counts.vertices = a.used_vertices;
+  a.counts.nodes = a.node_count;
+  a.counts.triangles = std::uint32_t(a.triangles);
+  a.counts.root_triangles = a.triangle_offsets[1];
+  a.counts.parents = a.parent_offsets[a.node_count];
+  a.counts.root_vertices = a.root_vertices;
+  a.layout = model::mt_layout(a.counts);
+  stats_->nodes = a.node_count;
+  stats_->mt_triangles = a.triangles;
+  stats_->root_triangles = a.counts.root_triangles;
+  return Ok{};
+}
 
+Status LargeBuilder::place_triangles(Assembly& a) {
   // Placement: each triangle's id in creator order, its corners rotated to follow the creator's
   // split vertex, into buckets of ids; parents straight into their array.
-  std::vector<std::uint32_t> node_parents(counts.parents);
-  std::vector<std::uint32_t> root_first_corner(counts.root_triangles);
+  a.node_parents.resize(a.counts.parents);
+  a.root_first_corner.resize(a.counts.root_triangles);
   const std::uint64_t assembly = kFixedBytes + vertex_count_ * kAssemblyBytesPerVertex;
-  const std::uint64_t kBucketTriangles =
-      std::clamp((limit_ > assembly ? limit_ - assembly : 0) / kBucketBytesPerTriangle, kMinBucketTriangles,
-                 kMaxBucketTriangles);
-  const std::uint64_t buckets =
-      std::max<std::uint64_t>(1, (triangles + kBucketTriangles - 1) / kBucketTriangles);
-  {
-    std::vector<Writer> bucket_writers;
-    for (std::uint64_t b = 0; b < buckets; ++b) {
-      MTLOD_TRY(Writer w, Writer::open(file(fmt::format("bucket{}", b)), false, std::size_t{256} << 10));
-      bucket_writers.push_back(std::move(w));
-    }
-    std::vector<std::uint32_t> next(triangle_offsets.begin(), triangle_offsets.end() - 1);
-    // Placements gather per bucket and go out a few thousand at a time.
-    constexpr std::size_t kPendingPlaced = 4096;
-    std::vector<std::vector<Placed>> bucket_pending(buckets);
-    for (auto& pending : bucket_pending) pending.reserve(kPendingPlaced);
-    for (std::uint32_t s = 0; s < stages_.size(); ++s) {
-      MTLOD_TRY(const auto creators, load_creators(s));
-      MTLOD_TRY(const auto made_by, read_array<std::uint32_t>(stage_file(s, "madeby")));
-      MTLOD_TRY(const auto own, read_array<std::uint32_t>(stage_file(s, "own")));
-      const std::uint32_t inputs = stages_[s].inputs;
-      for (std::size_t t = 0; t < creators.size(); ++t) {
-        const std::uint32_t n = creators[t], id = next[n]++;
-        const std::uint32_t tv[3] = {vertex_id[own[3 * t]], vertex_id[own[3 * t + 1]],
-                                     vertex_id[own[3 * t + 2]]};
-        int first = 0;
-        if (n == 0) {
-          root_first_corner[id] = tv[0];
-        } else {
-          first = tv[0] == node_vertex[n] ? 0 : (tv[1] == node_vertex[n] ? 1 : 2);
-        }
-        const std::uint32_t remover =
-            t < inputs ? model::kNoNode : node_of[collapse_base[s] + made_by[t - inputs] - 1];
-        std::vector<Placed>& pending = bucket_pending[id / kBucketTriangles];
-        pending.push_back(Placed{id, tv[(first + 1) % 3], tv[(first + 2) % 3], remover});
-        if (pending.size() == kPendingPlaced) {
-          MTLOD_RETURN_IF_ERROR(bucket_writers[id / kBucketTriangles].write(pending));
-          pending.clear();
-        }
-      }
-      for_parents(s, creators, made_by, [&](std::uint32_t node, const std::vector<std::uint32_t>& list) {
-        std::copy(list.begin(), list.end(), node_parents.begin() + parent_offsets[node]);
-      });
-      for (const char* kind : {"cre", "upd", "madeby", "own", "col"}) {
-        std::error_code ec;
-        fs::remove(stage_file(s, kind), ec);
-      }
-      progress("assembling", 0.3 + 0.4 * double(s + 1) / double(stages_.size()));
-    }
-    for (std::uint64_t b = 0; b < buckets; ++b) {
-      MTLOD_RETURN_IF_ERROR(bucket_writers[b].write(bucket_pending[b]));
-      MTLOD_RETURN_IF_ERROR(bucket_writers[b].close());
-    }
+  a.bucket_triangles = std::clamp((limit_ > assembly ? limit_ - assembly : 0) / kBucketBytesPerTriangle,
+                                  kMinBucketTriangles, kMaxBucketTriangles);
+  a.buckets = std::max<std::uint64_t>(1, (a.triangles + a.bucket_triangles - 1) / a.bucket_triangles);
+  std::vector<Writer> bucket_writers;
+  for (std::uint64_t b = 0; b < a.buckets; ++b) {
+    MTLOD_TRY(Writer w, Writer::open(file(fmt::format("bucket{}", b)), false, std::size_t{256} << 10));
+    bucket_writers.push_back(std::move(w));
   }
-  note_temp();
+  std::vector<std::uint32_t> next(a.triangle_offsets.begin(), a.triangle_offsets.end() - 1);
+  // Placements gather per bucket and go out a few thousand at a time.
+  constexpr std::size_t kPendingPlaced = 4096;
+  std::vector<std::vector<Placed>> bucket_pending(a.buckets);
+  for (auto& pending : bucket_pending) pending.reserve(kPendingPlaced);
+  for (std::uint32_t s = 0; s < stages_.size(); ++s) {
+    MTLOD_TRY(const auto creators, load_creators(a, s));
+    MTLOD_TRY(const auto made_by, read_array<std::uint32_t>(stage_file(s, "madeby")));
+    MTLOD_TRY(const auto own, read_array<std::uint32_t>(stage_file(s, "own")));
+    const std::uint32_t inputs = stages_[s].inputs;
+    for (std::size_t t = 0; t < creators.size(); ++t) {
+      const std::uint32_t n = creators[t], id = next[n]++;
+      const std::uint32_t tv[3] = {a.vertex_id[own[3 * t]], a.vertex_id[own[3 * t + 1]],
+                                   a.vertex_id[own[3 * t + 2]]};
+      int first = 0;
+      if (n == 0) {
+        a.root_first_corner[id] = tv[0];
+      } else {
+        first = tv[0] == a.node_vertex[n] ? 0 : (tv[1] == a.node_vertex[n] ? 1 : 2);
+      }
+      const std::uint32_t remover =
+          t < inputs ? model::kNoNode : a.node_of[a.collapse_base[s] + made_by[t - inputs] - 1];
+      std::vector<Placed>& pending = bucket_pending[id / a.bucket_triangles];
+      pending.push_back(Placed{id, tv[(first + 1) % 3], tv[(first + 2) % 3], remover});
+      if (pending.size() == kPendingPlaced) {
+        MTLOD_RETURN_IF_ERROR(bucket_writers[id / a.bucket_triangles].write(pending));
+        pending.clear();
+      }
+    }
+    for_parents(a, s, creators, made_by, [&](std::uint32_t node, const std::vector<std::uint32_t>& list) {
+      std::copy(list.begin(), list.end(), a.node_parents.begin() + a.parent_offsets[node]);
+    });
+    for (const char* kind : {"cre", "upd", "madeby", "own", "col"}) {
+      std::error_code ec;
+      fs::remove(stage_file(s, kind), ec);
+    }
+    progress("assembling", 0.3 + 0.4 * double(s + 1) / double(stages_.size()));
+  }
+  for (std::uint64_t b = 0; b < a.buckets; ++b) {
+    MTLOD_RETURN_IF_ERROR(bucket_writers[b].write(bucket_pending[b]));
+    MTLOD_RETURN_IF_ERROR(bucket_writers[b].close());
+  }
+  return Ok{};
+}
 
+Status LargeBuilder::write_vertices(Assembly& a, int fd, const fs::path& partial) {
+  // Vertex arrays in the new order: gather from the input order, a chunk of new ids at a time.
+  const std::uint32_t used_vertices = a.used_vertices;
+  std::vector<std::uint32_t> old_of(used_vertices);
+  for (std::uint32_t v = 0; v < vertex_count_; ++v)
+    if (a.vertex_id[v] != model::kNoVertex) old_of[a.vertex_id[v]] = v;
+  std::vector<std::uint32_t>().swap(a.vertex_id);
+  auto permute = [&](const char* name, std::size_t bytes_per_vertex, std::uint64_t offset) -> Status {
+    MTLOD_TRY(const MappedFile mapped, MappedFile::open(file(name)));
+    const std::uint8_t* values = mapped.bytes();
+    std::vector<std::uint8_t> out(bytes_per_vertex * std::min<std::uint64_t>(used_vertices, kChunkTriangles));
+    for (std::uint64_t begin = 0; begin < used_vertices; begin += kChunkTriangles) {
+      const std::uint64_t end = std::min<std::uint64_t>(used_vertices, begin + kChunkTriangles);
+      for (std::uint64_t i = begin; i < end; ++i)
+        std::memcpy(&out[(i - begin) * bytes_per_vertex], &values[old_of[i] * bytes_per_vertex],
+                    bytes_per_vertex);
+      MTLOD_RETURN_IF_ERROR(pwrite_all(fd, partial, out.data(), (end - begin) * bytes_per_vertex,
+                                       offset + begin * bytes_per_vertex));
+      mapped.release();
+    }
+    std::error_code ec;
+    fs::remove(file(name), ec);
+    return Ok{};
+  };
+  positions_.reset();
+  MTLOD_RETURN_IF_ERROR(permute("positions", 12, a.layout.positions));
+  if (normals_) MTLOD_RETURN_IF_ERROR(permute("normals", 12, a.layout.normals));
+  if (colors_) MTLOD_RETURN_IF_ERROR(permute("colors", 3, a.layout.colors));
+  return Ok{};
+}
+
+Status LargeBuilder::write_triangles(const Assembly& a, int fd, const fs::path& partial) {
+  for (std::uint64_t b = 0; b < a.buckets; ++b) {
+    MTLOD_TRY(const auto placed, read_array<Placed>(file(fmt::format("bucket{}", b))));
+    const std::uint64_t first = b * a.bucket_triangles;
+    const std::uint64_t count = std::min<std::uint64_t>(a.bucket_triangles, a.triangles - first);
+    std::vector<std::uint32_t> corners(2 * count), removers(count);
+    for (const Placed& p : placed) {
+      corners[2 * (p.id - first)] = p.c1;
+      corners[2 * (p.id - first) + 1] = p.c2;
+      removers[p.id - first] = p.remover;
+    }
+    MTLOD_RETURN_IF_ERROR(put_array(fd, partial, corners, a.layout.triangle_corners + 8 * first));
+    MTLOD_RETURN_IF_ERROR(put_array(fd, partial, removers, a.layout.triangle_remover + 4 * first));
+    std::error_code ec;
+    fs::remove(file(fmt::format("bucket{}", b)), ec);
+    progress("writing", 0.2 + 0.5 * double(b + 1) / double(a.buckets));
+  }
+  return Ok{};
+}
+
+Status LargeBuilder::write_file(Assembly& a) {
   // The file: every array at its offset, then the checksum over all of it.
   const fs::path partial = output_.string() + ".partial";
   const int fd = ::open(partial.string().c_str(), O_RDWR | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
@@ -1111,70 +1200,27 @@ Status LargeBuilder::assemble() {
     int fd;
     ~Closer() { ::close(fd); }
   } closer{fd};
-  auto put = [&](const auto& values, std::uint64_t offset) {
-    return pwrite_all(fd, partial, values.data(), values.size() * sizeof(values[0]), offset);
-  };
+  auto put = [&](const auto& values, std::uint64_t offset) { return put_array(fd, partial, values, offset); };
   // The node arrays first, so that their memory is free for the vertex arrays and the buckets.
-  MTLOD_RETURN_IF_ERROR(put(node_vertex, layout.node_vertex));
-  MTLOD_RETURN_IF_ERROR(put(node_error, layout.node_error));
-  MTLOD_RETURN_IF_ERROR(put(triangle_offsets, layout.node_triangle_offsets));
-  MTLOD_RETURN_IF_ERROR(put(parent_offsets, layout.node_parent_offsets));
-  MTLOD_RETURN_IF_ERROR(put(node_parents, layout.node_parents));
-  MTLOD_RETURN_IF_ERROR(put(root_first_corner, layout.root_first_corner));
-  for (auto* array : {&node_vertex, &triangle_offsets, &parent_offsets, &node_parents, &root_first_corner})
+  const model::MtLayout& layout = a.layout;
+  MTLOD_RETURN_IF_ERROR(put(a.node_vertex, layout.node_vertex));
+  MTLOD_RETURN_IF_ERROR(put(a.node_error, layout.node_error));
+  MTLOD_RETURN_IF_ERROR(put(a.triangle_offsets, layout.node_triangle_offsets));
+  MTLOD_RETURN_IF_ERROR(put(a.parent_offsets, layout.node_parent_offsets));
+  MTLOD_RETURN_IF_ERROR(put(a.node_parents, layout.node_parents));
+  MTLOD_RETURN_IF_ERROR(put(a.root_first_corner, layout.root_first_corner));
+  for (auto* array :
+       {&a.node_vertex, &a.triangle_offsets, &a.parent_offsets, &a.node_parents, &a.root_first_corner})
     std::vector<std::uint32_t>().swap(*array);
-  std::vector<float>().swap(node_error);
-  std::vector<std::uint32_t>().swap(node_of);
-  {
-    // Vertex arrays in the new order: gather from the input order, a chunk of new ids at a time.
-    std::vector<std::uint32_t> old_of(used_vertices);
-    for (std::uint32_t v = 0; v < vertex_count_; ++v)
-      if (vertex_id[v] != model::kNoVertex) old_of[vertex_id[v]] = v;
-    std::vector<std::uint32_t>().swap(vertex_id);
-    auto permute = [&](const char* name, std::size_t bytes_per_vertex, std::uint64_t offset) -> Status {
-      MTLOD_TRY(const MappedFile mapped, MappedFile::open(file(name)));
-      const std::uint8_t* values = mapped.bytes();
-      std::vector<std::uint8_t> out(bytes_per_vertex *
-                                    std::min<std::uint64_t>(used_vertices, kChunkTriangles));
-      for (std::uint64_t begin = 0; begin < used_vertices; begin += kChunkTriangles) {
-        const std::uint64_t end = std::min<std::uint64_t>(used_vertices, begin + kChunkTriangles);
-        for (std::uint64_t i = begin; i < end; ++i)
-          std::memcpy(&out[(i - begin) * bytes_per_vertex], &values[old_of[i] * bytes_per_vertex],
-                      bytes_per_vertex);
-        MTLOD_RETURN_IF_ERROR(pwrite_all(fd, partial, out.data(), (end - begin) * bytes_per_vertex,
-                                         offset + begin * bytes_per_vertex));
-        mapped.release();
-      }
-      std::error_code ec;
-      fs::remove(file(name), ec);
-      return Ok{};
-    };
-    positions_.reset();
-    MTLOD_RETURN_IF_ERROR(permute("positions", 12, layout.positions));
-    if (normals_) MTLOD_RETURN_IF_ERROR(permute("normals", 12, layout.normals));
-    if (colors_) MTLOD_RETURN_IF_ERROR(permute("colors", 3, layout.colors));
-  }
+  std::vector<float>().swap(a.node_error);
+  std::vector<std::uint32_t>().swap(a.node_of);
+  MTLOD_RETURN_IF_ERROR(write_vertices(a, fd, partial));
   progress("writing", 0.2);
-  for (std::uint64_t b = 0; b < buckets; ++b) {
-    MTLOD_TRY(const auto placed, read_array<Placed>(file(fmt::format("bucket{}", b))));
-    const std::uint64_t first = b * kBucketTriangles;
-    const std::uint64_t count = std::min<std::uint64_t>(kBucketTriangles, triangles - first);
-    std::vector<std::uint32_t> corners(2 * count), removers(count);
-    for (const Placed& p : placed) {
-      corners[2 * (p.id - first)] = p.c1;
-      corners[2 * (p.id - first) + 1] = p.c2;
-      removers[p.id - first] = p.remover;
-    }
-    MTLOD_RETURN_IF_ERROR(put(corners, layout.triangle_corners + 8 * first));
-    MTLOD_RETURN_IF_ERROR(put(removers, layout.triangle_remover + 4 * first));
-    std::error_code ec;
-    fs::remove(file(fmt::format("bucket{}", b)), ec);
-    progress("writing", 0.2 + 0.5 * double(b + 1) / double(buckets));
-  }
+  MTLOD_RETURN_IF_ERROR(write_triangles(a, fd, partial));
   {
     // The header and the block table last: each block's checksum reads its slices back.
     progress("writing", 0.7);
-    auto seal = model::seal_mt(counts, [&](std::uint64_t offset, std::span<std::uint8_t> out) -> Status {
+    auto seal = model::seal_mt(a.counts, [&](std::uint64_t offset, std::span<std::uint8_t> out) -> Status {
       const ssize_t n = ::pread(fd, out.data(), out.size(), off_t(offset));
       if (n != ssize_t(out.size())) return io_error(partial, "read back");
       return Ok{};
@@ -1190,6 +1236,15 @@ Status LargeBuilder::assemble() {
                       fmt::format("{}: cannot rename into place: {}", output_.string(), ec.message()));
   stats_->file_bytes = layout.end;
   return Ok{};
+}
+
+Status LargeBuilder::assemble() {
+  Assembly a;
+  MTLOD_RETURN_IF_ERROR(number_collapses(a));
+  MTLOD_RETURN_IF_ERROR(count_nodes(a));
+  MTLOD_RETURN_IF_ERROR(place_triangles(a));
+  note_temp();
+  return write_file(a);
 }
 
 Status LargeBuilder::run(LargeBuildStats& stats) {
