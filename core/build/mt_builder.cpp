@@ -243,6 +243,7 @@ class Builder {
 
  private:
   Status prepare();
+  Status check_mesh() const;  // the mesh's arrays: sizes, ids, finite positions
   Status check_block() const;
   // The pass loop and its steps, in order.
   void simplify();
@@ -341,6 +342,13 @@ class Builder {
     __builtin_prefetch(&adjacency_[adjacency_begin_[chosen.u]]);
   }
   model::Mt assemble(std::vector<std::uint32_t>* vertex_ids);
+  // assemble's steps: vertex ids in node order, triangles sorted by creating node, parent lists.
+  std::vector<std::uint32_t> number_vertices(const std::vector<std::uint32_t>& node_of) const;
+  void place_triangles(model::MtArrays& mt, const util::GrowOnlyVector<std::uint32_t>& creators,
+                       const util::GrowOnlyVector<std::uint32_t>& removers,
+                       const std::vector<std::uint32_t>& vertex_id);
+  void link_parents(model::MtArrays& mt, const std::vector<std::uint32_t>& node_of,
+                    const util::GrowOnlyVector<std::uint32_t>& creators);
   BlockOutput export_block();
   // Collapses from `first` on (a phase that started there) and their smallest error.
   void phase_stats(bool started, std::size_t first, std::size_t& collapses, float& error) const {
@@ -1143,23 +1151,7 @@ model::Mt Builder::assemble(std::vector<std::uint32_t>* vertex_ids) {
     }
   });
 
-  // Vertex ids follow the nodes: the root mesh's vertices first (by input id), then node n's split
-  // vertex as id R + n − 1, then the vertices no triangle uses. A refinement reads each node's
-  // split vertex (its position, its allowed error) as it reaches the node, and it reaches nodes
-  // roughly in id order, so these reads walk the vertex arrays as they walk the node arrays.
-  std::vector<std::uint32_t> vertex_id(vertex_count_, model::kNoVertex);
-  {
-    std::vector<std::uint8_t> kind(vertex_count_, 0);  // 0 unused, 1 in the root mesh, 2 split
-    for (const std::uint32_t v : mesh_.triangles) kind[v] = 1;
-    for (const std::uint32_t u : collapse_u_) kind[u] = 2;
-    std::uint32_t next = 0;
-    for (std::uint32_t v = 0; v < vertex_count_; ++v)
-      if (kind[v] == 1) vertex_id[v] = next++;
-    for (std::uint32_t c = 0; c < k; ++c) vertex_id[collapse_u_[c]] = next + node_of[c] - 1;
-    next += k;
-    for (std::uint32_t v = 0; v < vertex_count_; ++v)
-      if (kind[v] == 0) vertex_id[v] = next++;
-  }
+  std::vector<std::uint32_t> vertex_id = number_vertices(node_of);
   const auto renumber = [&](auto& values) {
     if (values.empty()) return;
     auto by_id = values;
@@ -1180,6 +1172,37 @@ model::Mt Builder::assemble(std::vector<std::uint32_t>* vertex_ids) {
     mt.node_error[node_of[c]] = collapse_error_[c];
   }
 
+  place_triangles(mt, creators, removers, vertex_id);
+  link_parents(mt, node_of, creators);
+  if (vertex_ids) *vertex_ids = std::move(vertex_id);
+  return model::Mt(std::move(mt));
+}
+
+std::vector<std::uint32_t> Builder::number_vertices(const std::vector<std::uint32_t>& node_of) const {
+  const std::uint32_t k = std::uint32_t(collapse_u_.size());
+  // Vertex ids follow the nodes: the root mesh's vertices first (by input id), then node n's split
+  // vertex as id R + n − 1, then the vertices no triangle uses. A refinement reads each node's
+  // split vertex (its position, its allowed error) as it reaches the node, and it reaches nodes
+  // roughly in id order, so these reads walk the vertex arrays as they walk the node arrays.
+  std::vector<std::uint32_t> vertex_id(vertex_count_, model::kNoVertex);
+  std::vector<std::uint8_t> kind(vertex_count_, 0);  // 0 unused, 1 in the root mesh, 2 split
+  for (const std::uint32_t v : mesh_.triangles) kind[v] = 1;
+  for (const std::uint32_t u : collapse_u_) kind[u] = 2;
+  std::uint32_t next = 0;
+  for (std::uint32_t v = 0; v < vertex_count_; ++v)
+    if (kind[v] == 1) vertex_id[v] = next++;
+  for (std::uint32_t c = 0; c < k; ++c) vertex_id[collapse_u_[c]] = next + node_of[c] - 1;
+  next += k;
+  for (std::uint32_t v = 0; v < vertex_count_; ++v)
+    if (kind[v] == 0) vertex_id[v] = next++;
+  return vertex_id;
+}
+
+void Builder::place_triangles(model::MtArrays& mt, const util::GrowOnlyVector<std::uint32_t>& creators,
+                              const util::GrowOnlyVector<std::uint32_t>& removers,
+                              const std::vector<std::uint32_t>& vertex_id) {
+  const std::size_t node_count = collapse_u_.size() + 1;
+  const std::size_t mt_count = removing_collapse_.size();
   // Counting sort of triangles by creating node.
   mt.node_triangle_offsets.assign(node_count + 1, 0);
   for (std::size_t t = 0; t < mt_count; ++t) ++mt.node_triangle_offsets[creators[t] + 1];
@@ -1217,7 +1240,13 @@ model::Mt Builder::assemble(std::vector<std::uint32_t>* vertex_ids) {
       mt.triangle_remover[id] = removers[t];
     }
   });
+}
 
+void Builder::link_parents(model::MtArrays& mt, const std::vector<std::uint32_t>& node_of,
+                           const util::GrowOnlyVector<std::uint32_t>& creators) {
+  const std::uint32_t k = std::uint32_t(collapse_u_.size());
+  const std::size_t node_count = std::size_t{k} + 1;
+  const std::size_t mt_count = removing_collapse_.size();
   // Parents: distinct creators of each node's removed triangles, sorted. The triangles a collapse
   // made are one run, and the runs follow collapse order (after the input's triangles), so each
   // node's list comes from one run; runs are independent.
@@ -1252,13 +1281,9 @@ model::Mt Builder::assemble(std::vector<std::uint32_t>* vertex_ids) {
                   mt.node_parents.data() + mt.node_parent_offsets[n]);
     }
   });
-  if (vertex_ids) *vertex_ids = std::move(vertex_id);
-  return model::Mt(std::move(mt));
 }
 
-Status Builder::prepare() {
-  vertex_count_ = mesh_.vertex_count();
-  face_count_ = mesh_.triangle_count();
+Status Builder::check_mesh() const {
   if (mesh_.positions.size() % 3 != 0 || mesh_.triangles.size() % 3 != 0)
     return make_error(ErrorCode::kInvalidArgument, "mesh arrays are not multiples of 3");
   if (!mesh_.normals.empty() && mesh_.normals.size() != mesh_.positions.size())
@@ -1278,6 +1303,13 @@ Status Builder::prepare() {
       return make_error(ErrorCode::kInvalidArgument, "triangle " + std::to_string(i / 3) + " has vertex id " +
                                                          std::to_string(mesh_.triangles[i]) +
                                                          " >= vertex count " + std::to_string(vertex_count_));
+  return Ok{};
+}
+
+Status Builder::prepare() {
+  vertex_count_ = mesh_.vertex_count();
+  face_count_ = mesh_.triangle_count();
+  MTLOD_RETURN_IF_ERROR(check_mesh());
   if (block_) MTLOD_RETURN_IF_ERROR(check_block());
 
   alive_faces_ = face_count_;
