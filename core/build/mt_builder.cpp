@@ -771,6 +771,8 @@ void Builder::find_partner(std::uint32_t u, const std::uint32_t* boundary_ends) 
   }
 }
 
+// Asked for every candidate on the chooser's path: the checks share the link marks and one walk of
+// u's fan, and each returns at the first failure, so they stay one function.
 bool Builder::can_collapse(std::uint32_t u, std::uint32_t v, Stamps& stamps) const {
   std::vector<std::uint32_t>& link_stamp = stamps.link;
   const std::uint32_t link = ++stamps.stamp;
@@ -852,6 +854,8 @@ bool Builder::can_collapse(std::uint32_t u, std::uint32_t v, Stamps& stamps) con
   return true;
 }
 
+// The chooser and the guesser are lambdas over one frame: they share the pass's atomics and the
+// blocked test, which as members would be passed by reference into the per-candidate loop.
 void Builder::choose_collapses(std::size_t quota) {
   // The chooser walks the candidates in cost order. can_collapse only reads the pass's starting
   // adjacency, so its answer for a candidate never depends on the choices before it: a guesser
@@ -990,6 +994,8 @@ void Builder::choose_collapses(std::size_t quota) {
   for_ranges(2, candidates_.size(), [&](std::size_t task) { task == 0 ? choose() : guess(); });
 }
 
+// One collapse, the builder's hottest code: the fan rewrite, the points' distances and their
+// placement share the moving points, the new faces and the running error of one fan.
 void Builder::collapse(const Chosen& chosen, Scratch& scratch) {
   // Only faces of u's fan and vertices assigned to them are written, and the pass's choice keeps
   // the fans of its collapses disjoint, so collapses of one pass may run concurrently.
