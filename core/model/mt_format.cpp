@@ -162,20 +162,18 @@ std::size_t block_slices(const MtCounts& c, const MtLayout& l, const NodeRange& 
   return k;
 }
 
-// Checks nodes [n0, n1) with their triangles [t0, t1), parents [p0, p1) and vertices [v0, v1).
-// Split vertices are root_vertices + n − 1 when that is given (version 2), else any vertex. Reads
-// outside the range (a remover's parents, the previous node's error) are bounds-checked: their
-// values are checked with their own block.
-Status check_nodes(const Mt& mt, const NodeRange& r, std::optional<std::uint32_t> root_vertices) {
-  const std::uint64_t v = mt.vertex_count(), n = mt.node_count(), p_total = mt.node_parents.size();
+// A corner's position is checked with its triangle too: in a mapped file the corner's own block
+// may not have been checked yet, and a refinement reads the positions of every corner it emits.
+bool finite_vertex(const Mt& mt, std::uint32_t x) {
+  const float* p = &mt.positions[3 * std::size_t{x}];
+  return std::isfinite(p[0]) && std::isfinite(p[1]) && std::isfinite(p[2]);
+}
+
+// The positions of the range's vertices, and each node's split vertex and error.
+Status check_node_values(const Mt& mt, const NodeRange& r, std::optional<std::uint32_t> root_vertices) {
+  const std::uint64_t v = mt.vertex_count();
   for (std::uint64_t i = 3 * r.v0; i < 3 * r.v1; ++i)
     if (!std::isfinite(mt.positions[i])) return corrupt("positions[" + std::to_string(i) + "] is not finite");
-  // A corner's position is checked with its triangle too: in a mapped file the corner's own block
-  // may not have been checked yet, and a refinement reads the positions of every corner it emits.
-  auto finite_vertex = [&](std::uint32_t x) {
-    const float* p = &mt.positions[3 * std::size_t{x}];
-    return std::isfinite(p[0]) && std::isfinite(p[1]) && std::isfinite(p[2]);
-  };
   for (std::uint64_t i = r.n0; i < r.n1; ++i) {
     const std::uint32_t split = mt.node_vertex[i];
     if (i == 0) {
@@ -193,7 +191,12 @@ Status check_nodes(const Mt& mt, const NodeRange& r, std::optional<std::uint32_t
       return corrupt("node_error[" + std::to_string(i) + "] is larger than node_error[" +
                      std::to_string(i - 1) + "] (nodes must be sorted by decreasing error)");
   }
+  return Ok{};
+}
 
+// The nodes' triangle and parent offsets, and the root's first corners.
+Status check_node_offsets(const Mt& mt, const NodeRange& r) {
+  const std::uint64_t v = mt.vertex_count();
   auto check_offsets = [&](std::span<const std::uint32_t> offsets, std::uint64_t first, std::uint64_t end,
                            const char* name) -> Status {
     if (offsets[r.n0] != first)
@@ -216,13 +219,16 @@ Status check_nodes(const Mt& mt, const NodeRange& r, std::optional<std::uint32_t
                      std::to_string(mt.root_triangle_count()) + " root corners are stored");
     if (mt.node_parent_offsets[1] != 0) return corrupt("the root has parents");
     for (std::uint64_t i = 0; i < mt.root_triangle_count(); ++i)
-      if (mt.root_first_corner[i] >= v || !finite_vertex(mt.root_first_corner[i]))
+      if (mt.root_first_corner[i] >= v || !finite_vertex(mt, mt.root_first_corner[i]))
         return corrupt("root_first_corner[" + std::to_string(i) + "] >= vertex count " + std::to_string(v) +
                        " or its position is not finite");
   }
+  return Ok{};
+}
 
-  // DAG order: parents strictly increasing and smaller than their child; every node has one. This
-  // also bounds the ancestor walk of refinement (ids only decrease along it).
+// DAG order: parents strictly increasing and smaller than their child; every node has one. This
+// also bounds the ancestor walk of refinement (ids only decrease along it).
+Status check_parent_order(const Mt& mt, const NodeRange& r) {
   for (std::uint64_t i = std::max<std::uint64_t>(r.n0, 1); i < r.n1; ++i) {
     const std::uint32_t begin = mt.node_parent_offsets[i], end = mt.node_parent_offsets[i + 1];
     if (begin == end) return corrupt("node " + std::to_string(i) + " has no parent");
@@ -234,9 +240,16 @@ Status check_nodes(const Mt& mt, const NodeRange& r, std::optional<std::uint32_t
         return corrupt("parents of node " + std::to_string(i) + " are not strictly increasing");
     }
   }
-  // The corners' positions and the removers' parent lists lie anywhere in the file: they are
-  // fetched ahead so that the misses overlap (a block's check is otherwise a cache miss per read).
-  constexpr std::uint64_t kAhead = 16;
+  return Ok{};
+}
+
+// The corners' positions and the removers' parent lists lie anywhere in the file: they are
+// fetched ahead so that the misses overlap (a block's check is otherwise a cache miss per read).
+constexpr std::uint64_t kAhead = 16;
+
+// Every corner of the range's triangles: a vertex id with a finite position.
+Status check_corners(const Mt& mt, const NodeRange& r) {
+  const std::uint64_t v = mt.vertex_count();
   for (std::uint64_t i = 2 * r.t0; i < 2 * r.t1; ++i) {
     if (i + kAhead < 2 * r.t1) {
       const std::uint32_t ahead = mt.triangle_corners[i + kAhead];
@@ -246,12 +259,17 @@ Status check_nodes(const Mt& mt, const NodeRange& r, std::optional<std::uint32_t
     if (corner >= v)
       return corrupt("triangle_corners[" + std::to_string(i) + "] = " + std::to_string(corner) +
                      " >= vertex count " + std::to_string(v));
-    if (!finite_vertex(corner))
+    if (!finite_vertex(mt, corner))
       return corrupt("triangle_corners[" + std::to_string(i) + "]: positions of vertex " +
                      std::to_string(corner) + " are not finite");
   }
-  // Each triangle's remover comes after its creator and lists the creator as a parent: refinement
-  // adds a node after its parents and then expects everything the node removes to be in the mesh.
+  return Ok{};
+}
+
+// Each triangle's remover comes after its creator and lists the creator as a parent: refinement
+// adds a node after its parents and then expects everything the node removes to be in the mesh.
+Status check_removers(const Mt& mt, const NodeRange& r) {
+  const std::uint64_t n = mt.node_count(), p_total = mt.node_parents.size();
   const std::uint32_t* removers = mt.triangle_remover.data();
   for (std::uint64_t c = r.n0; c < r.n1; ++c) {
     for (std::uint32_t k = mt.node_triangle_offsets[c]; k < mt.node_triangle_offsets[c + 1]; ++k) {
@@ -286,6 +304,18 @@ Status check_nodes(const Mt& mt, const NodeRange& r, std::optional<std::uint32_t
     }
   }
   return Ok{};
+}
+
+// Checks nodes [n0, n1) with their triangles [t0, t1), parents [p0, p1) and vertices [v0, v1).
+// Split vertices are root_vertices + n − 1 when that is given (version 2), else any vertex. Reads
+// outside the range (a remover's parents, the previous node's error) are bounds-checked: their
+// values are checked with their own block.
+Status check_nodes(const Mt& mt, const NodeRange& r, std::optional<std::uint32_t> root_vertices) {
+  MTLOD_RETURN_IF_ERROR(check_node_values(mt, r, root_vertices));
+  MTLOD_RETURN_IF_ERROR(check_node_offsets(mt, r));
+  MTLOD_RETURN_IF_ERROR(check_parent_order(mt, r));
+  MTLOD_RETURN_IF_ERROR(check_corners(mt, r));
+  return check_removers(mt, r);
 }
 
 // A parsed header with its counts.
