@@ -114,21 +114,11 @@ std::uint64_t edge_key(std::uint32_t a, std::uint32_t b) {
   return (lo << 33) | (hi << 1) | (a > b ? 1u : 0u);
 }
 
-}  // namespace
-
-TopologyReport analyze_topology(std::span<const float> positions, std::span<const std::uint32_t> triangles) {
-  TopologyReport r;
-  r.vertices = positions.size() / 3;
-  r.triangles = triangles.size() / 3;
-
-  std::vector<std::uint8_t> used(r.vertices, 0);
-  for (std::uint32_t v : triangles) used[v] = 1;
-  r.unused_vertices = static_cast<std::size_t>(std::count(used.begin(), used.end(), 0));
-  const std::size_t used_vertices = r.vertices - r.unused_vertices;
-
-  const std::vector<std::uint32_t> first = first_with_same_position(positions);
-  for (std::size_t v = 0; v < r.vertices; ++v) r.duplicate_positions += first[v] != v;
-
+// One pass over the triangles: degenerate and duplicate ones, components (over the used vertices),
+// and the half-edges of those with three distinct ids, returned.
+std::vector<std::uint64_t> scan_triangles(std::span<const float> positions,
+                                          std::span<const std::uint32_t> triangles,
+                                          const std::vector<std::uint8_t>& used, TopologyReport& r) {
   std::unordered_map<std::array<std::uint32_t, 3>, std::uint32_t, TriangleKeyHash> seen_triangles;
   seen_triangles.reserve(r.triangles);
   std::vector<std::uint64_t> half_edges;
@@ -148,7 +138,12 @@ TopologyReport analyze_topology(std::span<const float> positions, std::span<cons
   for (std::size_t v = 0; v < r.vertices; ++v) {
     if (used[v] && components.find(static_cast<std::uint32_t>(v)) == v) ++r.components;
   }
+  return half_edges;
+}
 
+// Edges from the half-edges (sorted here): boundary, non-manifold and inconsistently oriented ones,
+// and the boundary loops.
+void count_edges(std::vector<std::uint64_t>& half_edges, TopologyReport& r) {
   std::sort(half_edges.begin(), half_edges.end());
   DisjointSets boundary(r.vertices);
   std::vector<std::uint8_t> on_boundary(r.vertices, 0);
@@ -176,11 +171,11 @@ TopologyReport analyze_topology(std::span<const float> positions, std::span<cons
   for (std::size_t v = 0; v < r.vertices; ++v) {
     if (on_boundary[v] && boundary.find(static_cast<std::uint32_t>(v)) == v) ++r.boundary_loops;
   }
-  r.euler_characteristic = static_cast<std::int64_t>(used_vertices) - static_cast<std::int64_t>(r.edges) +
-                           static_cast<std::int64_t>(r.triangles);
+}
 
-  // A vertex is manifold when its link (the opposite edges of its triangles) is one path or one
-  // cycle: connected, and no link vertex used more than twice.
+// A vertex is manifold when its link (the opposite edges of its triangles) is one path or one
+// cycle: connected, and no link vertex used more than twice.
+void count_non_manifold_vertices(std::span<const std::uint32_t> triangles, TopologyReport& r) {
   std::vector<std::uint32_t> offsets(r.vertices + 1, 0);
   for (std::uint32_t v : triangles) ++offsets[v + 1];
   std::partial_sum(offsets.begin(), offsets.end(), offsets.begin());
@@ -235,6 +230,29 @@ TopologyReport analyze_topology(std::span<const float> positions, std::span<cons
     }
     if (!manifold || groups != 1) ++r.non_manifold_vertices;
   }
+}
+
+}  // namespace
+
+TopologyReport analyze_topology(std::span<const float> positions, std::span<const std::uint32_t> triangles) {
+  TopologyReport r;
+  r.vertices = positions.size() / 3;
+  r.triangles = triangles.size() / 3;
+
+  std::vector<std::uint8_t> used(r.vertices, 0);
+  for (std::uint32_t v : triangles) used[v] = 1;
+  r.unused_vertices = static_cast<std::size_t>(std::count(used.begin(), used.end(), 0));
+  const std::size_t used_vertices = r.vertices - r.unused_vertices;
+
+  const std::vector<std::uint32_t> first = first_with_same_position(positions);
+  for (std::size_t v = 0; v < r.vertices; ++v) r.duplicate_positions += first[v] != v;
+
+  std::vector<std::uint64_t> half_edges = scan_triangles(positions, triangles, used, r);
+  count_edges(half_edges, r);
+  r.euler_characteristic = static_cast<std::int64_t>(used_vertices) - static_cast<std::int64_t>(r.edges) +
+                           static_cast<std::int64_t>(r.triangles);
+
+  count_non_manifold_vertices(triangles, r);
   return r;
 }
 
