@@ -244,6 +244,11 @@ void Subdivider::displace(float p[3], const float n[3]) const {
 
 Status Subdivider::run(SubdivisionSink& sink) const {
   assert(fits());
+  MTLOD_RETURN_IF_ERROR(stream_vertices(sink));
+  return stream_triangles(sink);
+}
+
+Status Subdivider::stream_vertices(SubdivisionSink& sink) const {
   const std::vector<float>& p = base_.positions;
   const std::vector<std::uint8_t>& colors = base_.colors;
   const bool with_colors = base_.has_colors();
@@ -312,8 +317,13 @@ Status Subdivider::run(SubdivisionSink& sink) const {
       }
     }
   }
-  MTLOD_RETURN_IF_ERROR(chunk.flush());
+  return chunk.flush();
+}
 
+Status Subdivider::stream_triangles(SubdivisionSink& sink) const {
+  const std::uint32_t n = options_.split;
+  const auto vertex_count = static_cast<std::uint32_t>(counts_.base_vertices);
+  const std::size_t triangle_count = counts_.base_triangles;
   const std::uint64_t interior_per_triangle = (std::uint64_t{n} - 1) * (n >= 2 ? n - 2 : 0) / 2;
   const std::uint64_t interior_base = counts_.base_vertices + counts_.base_edges * (n - 1);
   std::vector<std::uint32_t> out;
