@@ -200,6 +200,68 @@ struct ModelRegistry::Impl {
     std::lock_guard lock(mutex);
     return find_locked(name);
   }
+
+  // The file is gone or not a regular file: stops serving the name.
+  void drop(const std::string& name, const fs::path& path, protocol::ModelReload& outcome) {
+    std::error_code ec;
+    outcome.change = "removed";
+    outcome.version = 0;
+    outcome.message =
+        fs::exists(path, ec) ? path.string() + " is not a regular file" : path.string() + " is gone";
+    remove(name);
+    {
+      std::lock_guard lock(mutex);
+      pending.erase(name);
+    }
+    spdlog::warn("model {}: no longer served: {}", name, outcome.message);
+  }
+  // The new file did not load: retried later when a writer holds it, else reported.
+  void reject(const std::string& name, const ModelPtr& current, const Error& error,
+              protocol::ModelReload& outcome) {
+    outcome.message = error.message;
+    if (error.code == ErrorCode::kBusy) {
+      // A writer still has it open: the next reload (its close, or the retry timer) tries again.
+      outcome.change = "pending";
+      std::lock_guard lock(mutex);
+      pending[name] = std::chrono::steady_clock::now();
+      return;
+    }
+    outcome.change = "failed";
+    {
+      std::lock_guard lock(mutex);
+      pending.erase(name);
+    }
+    if (current && current->gate.retired()) {
+      // Its bytes were overwritten in place: nothing is left to serve until a valid file comes.
+      remove(name);
+      outcome.version = 0;
+      spdlog::error("model {}: not served: version {} was rewritten in place and {}", name, current->version,
+                    outcome.message);
+    } else if (current) {
+      spdlog::error("model {}: version {} keeps serving: the new file is rejected: {}", name,
+                    current->version, outcome.message);
+    } else {
+      spdlog::error("model {}: not loaded: {}", name, outcome.message);
+    }
+  }
+  // The new version loaded: serves it in place of the current one, if any.
+  void serve(const std::string& name, const fs::path& path, const std::shared_ptr<Model>& model,
+             double load_ms, bool replaced, protocol::ModelReload& outcome) {
+    outcome.change = replaced ? "replaced" : "loaded";
+    outcome.version = model->version;
+    spdlog::info(
+        "model {}: version {} serving from {} ({}, {} input triangles, {} root triangles; loaded in {:.1f} "
+        "ms)",
+        name, model->version, path.string(), model->lease ? "mapped under a read lease" : "in memory",
+        model->input_triangles, model->mt.root_triangle_count(), load_ms);
+    publish(model);
+    {
+      std::lock_guard lock(mutex);
+      pending.erase(name);
+      last_version[name] = model->version;
+      ++reloads;
+    }
+  }
 };
 
 ModelRegistry::ModelRegistry() : impl_(std::make_unique<Impl>()) {}
@@ -322,16 +384,7 @@ std::vector<protocol::ModelReload> ModelRegistry::reload(const std::vector<std::
     auto identity = regular ? core::io::identify(path) : Result<core::io::FileIdentity>(Error{});
     if (!identity) {
       if (!current) continue;
-      outcome.change = "removed";
-      outcome.version = 0;
-      outcome.message =
-          fs::exists(path, ec) ? path.string() + " is not a regular file" : path.string() + " is gone";
-      impl_->remove(name);
-      {
-        std::lock_guard lock(impl_->mutex);
-        impl_->pending.erase(name);
-      }
-      spdlog::warn("model {}: no longer served: {}", name, outcome.message);
+      impl_->drop(name, path, outcome);
       outcomes.push_back(std::move(outcome));
       continue;
     }
@@ -351,49 +404,11 @@ std::vector<protocol::ModelReload> ModelRegistry::reload(const std::vector<std::
     const double load_ms =
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - load_start).count();
     if (!loaded) {
-      outcome.message = loaded.error().message;
-      if (loaded.error().code == ErrorCode::kBusy) {
-        // A writer still has it open: the next reload (its close, or the retry timer) tries again.
-        outcome.change = "pending";
-        std::lock_guard lock(impl_->mutex);
-        impl_->pending[name] = std::chrono::steady_clock::now();
-      } else {
-        outcome.change = "failed";
-        {
-          std::lock_guard lock(impl_->mutex);
-          impl_->pending.erase(name);
-        }
-        if (current && current->gate.retired()) {
-          // Its bytes were overwritten in place: nothing is left to serve until a valid file comes.
-          impl_->remove(name);
-          outcome.version = 0;
-          spdlog::error("model {}: not served: version {} was rewritten in place and {}", name,
-                        current->version, outcome.message);
-        } else if (current) {
-          spdlog::error("model {}: version {} keeps serving: the new file is rejected: {}", name,
-                        current->version, outcome.message);
-        } else {
-          spdlog::error("model {}: not loaded: {}", name, outcome.message);
-        }
-      }
+      impl_->reject(name, current, loaded.error(), outcome);
       outcomes.push_back(std::move(outcome));
       continue;
     }
-    const std::shared_ptr<Model>& model = *loaded;
-    outcome.change = current ? "replaced" : "loaded";
-    outcome.version = model->version;
-    spdlog::info(
-        "model {}: version {} serving from {} ({}, {} input triangles, {} root triangles; loaded in {:.1f} "
-        "ms)",
-        name, model->version, path.string(), model->lease ? "mapped under a read lease" : "in memory",
-        model->input_triangles, model->mt.root_triangle_count(), load_ms);
-    impl_->publish(model);
-    {
-      std::lock_guard lock(impl_->mutex);
-      impl_->pending.erase(name);
-      impl_->last_version[name] = model->version;
-      ++impl_->reloads;
-    }
+    impl_->serve(name, path, *loaded, load_ms, current != nullptr, outcome);
     outcomes.push_back(std::move(outcome));
   }
   return outcomes;
