@@ -24,6 +24,22 @@ std::string label_value(const std::string& text) {
   return out;
 }
 
+// A metric family's HELP and TYPE lines.
+void family(std::string& out, const char* name, const char* type, const char* help) {
+  fmt::format_to(std::back_inserter(out), "# HELP {} {}\n# TYPE {} {}\n", name, help, name, type);
+}
+// One sample line, with its labels when there are any.
+void sample(std::string& out, const char* name, std::uint64_t value, const std::string& labels = {}) {
+  if (labels.empty()) {
+    fmt::format_to(std::back_inserter(out), "{} {}\n", name, value);
+  } else {
+    fmt::format_to(std::back_inserter(out), "{}{{{}}} {}\n", name, labels, value);
+  }
+}
+std::uint64_t get(const std::atomic<std::uint64_t>& c) {
+  return c.load(std::memory_order_relaxed);
+}
+
 }  // namespace
 
 void PrometheusHistogram::observe(std::uint64_t us) {
@@ -80,41 +96,38 @@ std::string Metrics::prometheus_text(const MetricsGauges& gauges) const {
   // Names and units after https://prometheus.io/docs/practices/naming/: a mtlod_ prefix, base
   // units (seconds, bytes), _total on counters.
   std::string out;
-  auto family = [&out](const char* name, const char* type, const char* help) {
-    fmt::format_to(std::back_inserter(out), "# HELP {} {}\n# TYPE {} {}\n", name, help, name, type);
-  };
-  auto sample = [&out](const char* name, std::uint64_t value, const std::string& labels = {}) {
-    if (labels.empty()) {
-      fmt::format_to(std::back_inserter(out), "{} {}\n", name, value);
-    } else {
-      fmt::format_to(std::back_inserter(out), "{}{{{}}} {}\n", name, labels, value);
-    }
-  };
-  auto get = [](const Counter& c) { return c.load(std::memory_order_relaxed); };
+  append_traffic(out);
+  append_durations(out);
+  append_memory(out, gauges);
+  return out;
+}
 
-  family("mtlod_connections_accepted_total", "counter", "Connections accepted on both ports.");
-  sample("mtlod_connections_accepted_total", get(connections_total_));
-  family("mtlod_connections_refused_total", "counter", "Connections refused by the connection limits.");
-  sample("mtlod_connections_refused_total", get(connections_refused_));
-  family("mtlod_connections_open", "gauge", "Connections open now (protocol and WebSocket).");
-  sample("mtlod_connections_open", get(connections_open_));
-  family("mtlod_requests_total", "counter", "Requests that parsed, by type.");
+void Metrics::append_traffic(std::string& out) const {
+  family(out, "mtlod_connections_accepted_total", "counter", "Connections accepted on both ports.");
+  sample(out, "mtlod_connections_accepted_total", get(connections_total_));
+  family(out, "mtlod_connections_refused_total", "counter", "Connections refused by the connection limits.");
+  sample(out, "mtlod_connections_refused_total", get(connections_refused_));
+  family(out, "mtlod_connections_open", "gauge", "Connections open now (protocol and WebSocket).");
+  sample(out, "mtlod_connections_open", get(connections_open_));
+  family(out, "mtlod_requests_total", "counter", "Requests that parsed, by type.");
   for (std::size_t i = 0; i < kRequestTypes; ++i)
-    sample("mtlod_requests_total", get(requests_[i]),
+    sample(out, "mtlod_requests_total", get(requests_[i]),
            fmt::format("type=\"{}\"", protocol::kRequestTypeNames[i]));
-  family("mtlod_errors_total", "counter", "Error replies, by code.");
+  family(out, "mtlod_errors_total", "counter", "Error replies, by code.");
   for (std::size_t i = 0; i < kErrorKinds; ++i) {
-    sample("mtlod_errors_total", get(errors_[i]),
+    sample(out, "mtlod_errors_total", get(errors_[i]),
            fmt::format("code=\"{}\"", protocol::to_string(static_cast<protocol::ErrorKind>(i))));
   }
-  family("mtlod_received_bytes_total", "counter", "Bytes of request frames received.");
-  sample("mtlod_received_bytes_total", get(bytes_in_));
-  family("mtlod_sent_bytes_total", "counter", "Bytes of reply frames sent.");
-  sample("mtlod_sent_bytes_total", get(bytes_out_));
-  family("mtlod_sent_triangles_total", "counter", "Triangles of the cuts sent.");
-  sample("mtlod_sent_triangles_total", get(triangles_out_));
+  family(out, "mtlod_received_bytes_total", "counter", "Bytes of request frames received.");
+  sample(out, "mtlod_received_bytes_total", get(bytes_in_));
+  family(out, "mtlod_sent_bytes_total", "counter", "Bytes of reply frames sent.");
+  sample(out, "mtlod_sent_bytes_total", get(bytes_out_));
+  family(out, "mtlod_sent_triangles_total", "counter", "Triangles of the cuts sent.");
+  sample(out, "mtlod_sent_triangles_total", get(triangles_out_));
+}
 
-  family("mtlod_extraction_duration_seconds", "histogram",
+void Metrics::append_durations(std::string& out) const {
+  family(out, "mtlod_extraction_duration_seconds", "histogram",
          "Extractions by request type and stage; stage total runs from the request's arrival to its reply.");
   for (std::size_t type = 0; type < stage_histograms_.size(); ++type) {
     for (std::size_t s = 0; s < kStages.size(); ++s) {
@@ -126,42 +139,43 @@ std::string Metrics::prometheus_text(const MetricsGauges& gauges) const {
         const std::string le = b < PrometheusHistogram::kBoundsUs.size()
                                    ? fmt::format("{}", PrometheusHistogram::kBoundsUs[b] / 1e6)
                                    : std::string("+Inf");
-        sample("mtlod_extraction_duration_seconds_bucket", counts[b],
+        sample(out, "mtlod_extraction_duration_seconds_bucket", counts[b],
                fmt::format("{},le=\"{}\"", labels, le));
       }
       fmt::format_to(std::back_inserter(out), "mtlod_extraction_duration_seconds_sum{{{}}} {}\n", labels,
                      static_cast<double>(h.sum_us()) / 1e6);
-      sample("mtlod_extraction_duration_seconds_count", counts.back(), labels);
+      sample(out, "mtlod_extraction_duration_seconds_count", counts.back(), labels);
     }
   }
+}
 
-  family("mtlod_session_memory_bytes", "gauge",
+void Metrics::append_memory(std::string& out, const MetricsGauges& gauges) const {
+  family(out, "mtlod_session_memory_bytes", "gauge",
          "Bytes the connections' sessions hold (cuts, views, deltas).");
-  sample("mtlod_session_memory_bytes", get(session_bytes_));
-  family("mtlod_worker_scratch_bytes", "gauge",
+  sample(out, "mtlod_session_memory_bytes", get(session_bytes_));
+  family(out, "mtlod_worker_scratch_bytes", "gauge",
          "Bytes the workers keep between extractions (grids, per model; at most 64 MiB each).");
-  sample("mtlod_worker_scratch_bytes", get(scratch_bytes_));
-  family("mtlod_memory_held_bytes", "gauge",
+  sample(out, "mtlod_worker_scratch_bytes", get(scratch_bytes_));
+  family(out, "mtlod_memory_held_bytes", "gauge",
          "Sessions plus the running extractions' reservations, as the memory ceiling counts them.");
-  sample("mtlod_memory_held_bytes", gauges.memory_held_bytes);
-  family("mtlod_memory_limit_bytes", "gauge", "The memory ceiling (--max-memory).");
-  sample("mtlod_memory_limit_bytes", gauges.memory_limit_bytes);
-  family("mtlod_models", "gauge", "Models served.");
-  sample("mtlod_models", gauges.models);
-  family("mtlod_model_memory_bytes", "gauge", "Bytes every model holds in memory.");
-  sample("mtlod_model_memory_bytes", gauges.model_bytes);
-  family("mtlod_model_mapped_bytes", "gauge",
+  sample(out, "mtlod_memory_held_bytes", gauges.memory_held_bytes);
+  family(out, "mtlod_memory_limit_bytes", "gauge", "The memory ceiling (--max-memory).");
+  sample(out, "mtlod_memory_limit_bytes", gauges.memory_limit_bytes);
+  family(out, "mtlod_models", "gauge", "Models served.");
+  sample(out, "mtlod_models", gauges.models);
+  family(out, "mtlod_model_memory_bytes", "gauge", "Bytes every model holds in memory.");
+  sample(out, "mtlod_model_memory_bytes", gauges.model_bytes);
+  family(out, "mtlod_model_mapped_bytes", "gauge",
          "Bytes of the model files mapped in place (resident only as far as requests read them).");
-  sample("mtlod_model_mapped_bytes", gauges.model_mapped_bytes);
-  family("mtlod_model_reloads_total", "counter",
+  sample(out, "mtlod_model_mapped_bytes", gauges.model_mapped_bytes);
+  family(out, "mtlod_model_reloads_total", "counter",
          "New model versions loaded from changed files since start-up (SIGHUP, reload, file watch).");
-  sample("mtlod_model_reloads_total", gauges.model_reloads);
+  sample(out, "mtlod_model_reloads_total", gauges.model_reloads);
   if (!gauges.model_versions.empty()) {
-    family("mtlod_model_version", "gauge", "The version of each model served (1 at start-up).");
+    family(out, "mtlod_model_version", "gauge", "The version of each model served (1 at start-up).");
     for (const auto& [name, version] : gauges.model_versions)
-      sample("mtlod_model_version", version, fmt::format("model=\"{}\"", label_value(name)));
+      sample(out, "mtlod_model_version", version, fmt::format("model=\"{}\"", label_value(name)));
   }
-  return out;
 }
 
 }  // namespace mtlod::server

@@ -78,6 +78,10 @@ class Metrics {
  private:
   using Counter = std::atomic<std::uint64_t>;
   static void add(Counter& c, std::uint64_t n = 1) { c.fetch_add(n, std::memory_order_relaxed); }
+  // prometheus_text's sections: traffic counters, extraction durations, memory and model gauges.
+  void append_traffic(std::string& out) const;
+  void append_durations(std::string& out) const;
+  void append_memory(std::string& out, const MetricsGauges& gauges) const;
 
   Counter connections_total_{0}, connections_open_{0}, connections_refused_{0};
   std::array<Counter, kRequestTypes> requests_{};
