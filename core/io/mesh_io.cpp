@@ -226,10 +226,9 @@ Status check_binary_ply_size(const std::filesystem::path& path, std::uintmax_t f
   return Ok{};
 }
 
-}  // namespace
-
-Result<LoadedMesh> load_mesh(const std::filesystem::path& path, const LoadOptions& options) {
-  const std::string name = path.string();
+// The file exists, is a non-empty readable file of a known format, and (for binary PLY) is not
+// truncated. Returns its extension in lower case.
+Result<std::string> check_mesh_file(const std::filesystem::path& path, const std::string& name) {
   std::error_code ec;
   if (!std::filesystem::exists(path, ec)) {
     return make_error(ErrorCode::kNotFound, fmt::format("{}: no such file", name));
@@ -249,6 +248,34 @@ Result<LoadedMesh> load_mesh(const std::filesystem::path& path, const LoadOption
                       fmt::format("{}: unknown mesh format '{}' (use .ply, .obj, .off or .stl)", name, ext));
   }
   if (ext == ".ply") MTLOD_RETURN_IF_ERROR(check_binary_ply_size(path, size));
+  return ext;
+}
+
+// The mesh read has vertices and faces, finite positions and a vertex count under the limit.
+Status check_read_mesh(const model::Mesh& mesh, const std::string& name) {
+  if (mesh.vertex_count() == 0) return make_error(ErrorCode::kCorrupt, fmt::format("{}: no vertices", name));
+  if (mesh.triangle_count() == 0) return make_error(ErrorCode::kCorrupt, fmt::format("{}: no faces", name));
+  // Readers set points through several importer calls; check them all once here.
+  for (std::size_t v = 0; v < mesh.vertex_count(); ++v) {
+    const float* p = &mesh.positions[3 * v];
+    if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2])) {
+      return make_error(
+          ErrorCode::kCorrupt,
+          fmt::format("{}: vertex {} has a non-finite coordinate ({}, {}, {})", name, v, p[0], p[1], p[2]));
+    }
+  }
+  if (mesh.vertex_count() > UINT32_MAX / 2) {
+    return make_error(ErrorCode::kLimitExceeded,
+                      fmt::format("{}: {} vertices is over the limit", name, mesh.vertex_count()));
+  }
+  return Ok{};
+}
+
+}  // namespace
+
+Result<LoadedMesh> load_mesh(const std::filesystem::path& path, const LoadOptions& options) {
+  const std::string name = path.string();
+  MTLOD_TRY(const std::string ext, check_mesh_file(path, name));
 
   FlatImporter importer;
   OM::IO::Options read_options;
@@ -269,21 +296,7 @@ Result<LoadedMesh> load_mesh(const std::filesystem::path& path, const LoadOption
   LoadedMesh loaded;
   loaded.mesh = std::move(importer.mesh);
   model::Mesh& mesh = loaded.mesh;
-  if (mesh.vertex_count() == 0) return make_error(ErrorCode::kCorrupt, fmt::format("{}: no vertices", name));
-  if (mesh.triangle_count() == 0) return make_error(ErrorCode::kCorrupt, fmt::format("{}: no faces", name));
-  // Readers set points through several importer calls; check them all once here.
-  for (std::size_t v = 0; v < mesh.vertex_count(); ++v) {
-    const float* p = &mesh.positions[3 * v];
-    if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2])) {
-      return make_error(
-          ErrorCode::kCorrupt,
-          fmt::format("{}: vertex {} has a non-finite coordinate ({}, {}, {})", name, v, p[0], p[1], p[2]));
-    }
-  }
-  if (mesh.vertex_count() > UINT32_MAX / 2) {
-    return make_error(ErrorCode::kLimitExceeded,
-                      fmt::format("{}: {} vertices is over the limit", name, mesh.vertex_count()));
-  }
+  MTLOD_RETURN_IF_ERROR(check_read_mesh(mesh, name));
   // Attributes the reader set for some vertices only are padded to every vertex; attributes it did
   // not set at all are dropped rather than kept as zeros.
   if (!importer.saw_normal || !read_options.check(OM::IO::Options::VertexNormal))
