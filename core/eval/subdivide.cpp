@@ -129,9 +129,25 @@ Subdivider::Subdivider(const model::Mesh& base, const SubdivideOptions& options)
     : base_(base), options_(options) {
   assert(options.split >= 1 && options.chunk_vertices >= 1 && options.chunk_triangles >= 1);
   assert(base.triangle_count() <= UINT32_MAX / 3);  // edge ids are 32-bit
-  const std::vector<float>& p = base.positions;
   const std::size_t vertex_count = base.vertex_count(), triangle_count = base.triangle_count();
+  number_edges();
+  const std::size_t edge_count = edge_vertices_.size() / 2;
 
+  const std::uint64_t n = options.split;
+  counts_.base_vertices = vertex_count;
+  counts_.base_edges = edge_count;
+  counts_.base_triangles = triangle_count;
+  counts_.vertices = vertex_count + edge_count * (n - 1) + triangle_count * ((n - 1) * (n - 2) / 2);
+  counts_.triangles = triangle_count * n * n;
+
+  measure_edges();
+  compute_normals();
+}
+
+void Subdivider::number_edges() {
+  const model::Mesh& base = base_;
+  const std::vector<float>& p = base.positions;
+  const std::size_t triangle_count = base.triangle_count();
   // Edge table. Capacity 4.5 slots per triangle keeps the load at or below 2/3 even when no edge
   // is shared (3 edges per triangle), and near 1/3 on a closed mesh (1.5).
   const std::size_t capacity = std::bit_ceil(std::max<std::size_t>(16, triangle_count * 9 / 2));
@@ -143,7 +159,7 @@ Subdivider::Subdivider(const model::Mesh& base, const SubdivideOptions& options)
     for (std::size_t t = 0; t < triangle_count; ++t) {
       for (int k = 0; k < 3; ++k) {
         const std::uint32_t a = base.triangles[3 * t + k], b = base.triangles[3 * t + (k + 1) % 3];
-        assert(a < vertex_count && b < vertex_count);
+        assert(a < base.vertex_count() && b < base.vertex_count());
         const std::uint64_t key = (std::uint64_t{std::min(a, b)} << 32) | std::max(a, b);
         std::size_t slot = (key * 0x9E3779B97F4A7C15ull) >> shift;
         while (keys[slot] != kEmptyKey && keys[slot] != key) slot = (slot + 1) & (capacity - 1);
@@ -159,15 +175,11 @@ Subdivider::Subdivider(const model::Mesh& base, const SubdivideOptions& options)
     }
   }
   edge_vertices_.shrink_to_fit();
+}
+
+void Subdivider::measure_edges() {
+  const std::vector<float>& p = base_.positions;
   const std::size_t edge_count = edge_vertices_.size() / 2;
-
-  const std::uint64_t n = options.split;
-  counts_.base_vertices = vertex_count;
-  counts_.base_edges = edge_count;
-  counts_.base_triangles = triangle_count;
-  counts_.vertices = vertex_count + edge_count * (n - 1) + triangle_count * ((n - 1) * (n - 2) / 2);
-  counts_.triangles = triangle_count * n * n;
-
   double length_sum = 0.0;
   for (std::size_t e = 0; e < edge_count; ++e) {
     const float* a = vertex(p, edge_vertices_[2 * e]);
@@ -177,9 +189,15 @@ Subdivider::Subdivider(const model::Mesh& base, const SubdivideOptions& options)
     length_sum += std::sqrt(squared);
   }
   mean_edge_length_ = edge_count == 0 ? 0.0 : length_sum / static_cast<double>(edge_count);
-  amplitude_ = double{options.noise} * mean_edge_length_;
-  const double wavelength = double{options.wavelength} * mean_edge_length_;
+  amplitude_ = double{options_.noise} * mean_edge_length_;
+  const double wavelength = double{options_.wavelength} * mean_edge_length_;
   noise_frequency_ = wavelength > 0.0 ? 1.0 / wavelength : 0.0;
+}
+
+void Subdivider::compute_normals() {
+  const model::Mesh& base = base_;
+  const std::vector<float>& p = base.positions;
+  const std::size_t vertex_count = base.vertex_count(), triangle_count = base.triangle_count();
 
   // Vertex normals, summed in double: the base's own, or area-weighted face normals (the cross
   // product's length is twice the area).

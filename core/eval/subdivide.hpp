@@ -90,6 +90,10 @@ class Subdivider {
  private:
   // Adds the displacement of flat point p with (not necessarily unit) normal n.
   void displace(float p[3], const float n[3]) const;
+  // The constructor's steps: the edge table, the mean edge length and noise scale, unit normals.
+  void number_edges();
+  void measure_edges();
+  void compute_normals();
   // run's two parts: the vertices (base, then edge cuts, then face interiors), then the triangles.
   Status stream_vertices(SubdivisionSink& sink) const;
   Status stream_triangles(SubdivisionSink& sink) const;
