@@ -53,11 +53,8 @@ void add_faces(draco::Mesh& mesh, std::span<const std::uint32_t> triangles, cons
   }
 }
 
-}  // namespace
-
-Result<DracoStats> DracoEncoder::encode(const DracoInput& input, const DracoOptions& options,
-                                        std::vector<std::uint8_t>& out) {
-  out.clear();
+// The options in range and the attributes they ask for present.
+Status check_input(const DracoInput& input, const DracoOptions& options) {
   const std::size_t model_vertices = input.positions.size() / 3;
   if (options.speed < 0 || options.speed > 10) {
     return make_error(ErrorCode::kInvalidArgument,
@@ -82,7 +79,59 @@ Result<DracoStats> DracoEncoder::encode(const DracoInput& input, const DracoOpti
   if (input.triangles.empty()) {
     return make_error(ErrorCode::kInvalidArgument, "the cut has no triangles to encode");
   }
+  return Ok{};
+}
 
+void configure(draco::Encoder& encoder, const DracoOptions& options) {
+  // Edgebreaker splits the vertices of non-manifold corners (a scan's, or two faces stacked at a
+  // coarse level): the reply announces what the payload decodes to, not the cut's vertex count.
+  encoder.SetTrackEncodedProperties(true);
+  encoder.SetSpeedOptions(options.speed, options.speed);
+  if (options.position_bits > 0 && options.position_grid && options.position_grid->range > 0) {
+    encoder.SetAttributeExplicitQuantization(draco::GeometryAttribute::POSITION, options.position_bits, 3,
+                                             options.position_grid->origin.data(),
+                                             options.position_grid->range);
+  } else if (options.position_bits > 0) {
+    encoder.SetAttributeQuantization(draco::GeometryAttribute::POSITION, options.position_bits);
+  }
+  if (options.normals)
+    encoder.SetAttributeQuantization(draco::GeometryAttribute::NORMAL, options.normal_bits);
+  if (!options.entropy_coding) {
+    encoder.options().SetGlobalBool("use_built_in_attribute_compression", false);
+    // Stored raw, a 14-bit coordinate takes two bytes whether or not it is predicted first.
+    encoder.SetAttributePredictionScheme(draco::GeometryAttribute::POSITION, draco::PREDICTION_NONE);
+  }
+  encoder.SetEncodingMethod(options.method == DracoMethod::kSequential ? draco::MESH_SEQUENTIAL_ENCODING
+                                                                       : draco::MESH_EDGEBREAKER_ENCODING);
+}
+
+}  // namespace
+
+void DracoEncoder::list_used(std::span<const std::uint32_t> triangles) {
+  for (std::uint32_t v : triangles) {
+    assert(v < 64 * used_bits_.size());
+    std::uint64_t& word = used_bits_[v >> 6];
+    if (word == 0) touched_words_.push_back(v >> 6);
+    word |= std::uint64_t{1} << (v & 63);
+  }
+  std::sort(touched_words_.begin(), touched_words_.end());
+  used_.clear();
+  std::uint32_t count = 0;
+  for (const std::uint32_t w : touched_words_) {
+    rank_[w] = count;
+    for (std::uint64_t bits = used_bits_[w]; bits != 0; bits &= bits - 1) {
+      used_.push_back(
+          static_cast<std::uint32_t>(64 * std::size_t{w} + static_cast<unsigned>(std::countr_zero(bits))));
+    }
+    count += static_cast<std::uint32_t>(std::popcount(used_bits_[w]));
+  }
+}
+
+Result<DracoStats> DracoEncoder::encode(const DracoInput& input, const DracoOptions& options,
+                                        std::vector<std::uint8_t>& out) {
+  out.clear();
+  const std::size_t model_vertices = input.positions.size() / 3;
+  if (Status checked = check_input(input, options); !checked) return checked.error();
   // Renumber the used vertices: mark, rank, list. Only the words the cut's vertices fall in are
   // visited (sorted, so ids keep the model's order), and cleared again once the faces are written:
   // the cost follows the cut, not the model's vertex count.
@@ -100,23 +149,7 @@ Result<DracoStats> DracoEncoder::encode(const DracoInput& input, const DracoOpti
       for (const std::uint32_t w : words) bits[w] = 0;
     }
   } clear_touched{used_bits_, touched_words_};
-  for (std::uint32_t v : input.triangles) {
-    assert(v < model_vertices);
-    std::uint64_t& word = used_bits_[v >> 6];
-    if (word == 0) touched_words_.push_back(v >> 6);
-    word |= std::uint64_t{1} << (v & 63);
-  }
-  std::sort(touched_words_.begin(), touched_words_.end());
-  used_.clear();
-  std::uint32_t count = 0;
-  for (const std::uint32_t w : touched_words_) {
-    rank_[w] = count;
-    for (std::uint64_t bits = used_bits_[w]; bits != 0; bits &= bits - 1) {
-      used_.push_back(
-          static_cast<std::uint32_t>(64 * std::size_t{w} + static_cast<unsigned>(std::countr_zero(bits))));
-    }
-    count += static_cast<std::uint32_t>(std::popcount(used_bits_[w]));
-  }
+  list_used(input.triangles);
   const std::size_t n = used_.size();
 
   draco::Mesh mesh;
@@ -156,26 +189,7 @@ Result<DracoStats> DracoEncoder::encode(const DracoInput& input, const DracoOpti
   }
 
   draco::Encoder encoder;
-  // Edgebreaker splits the vertices of non-manifold corners (a scan's, or two faces stacked at a
-  // coarse level): the reply announces what the payload decodes to, not the cut's vertex count.
-  encoder.SetTrackEncodedProperties(true);
-  encoder.SetSpeedOptions(options.speed, options.speed);
-  if (options.position_bits > 0 && options.position_grid && options.position_grid->range > 0) {
-    encoder.SetAttributeExplicitQuantization(draco::GeometryAttribute::POSITION, options.position_bits, 3,
-                                             options.position_grid->origin.data(),
-                                             options.position_grid->range);
-  } else if (options.position_bits > 0) {
-    encoder.SetAttributeQuantization(draco::GeometryAttribute::POSITION, options.position_bits);
-  }
-  if (options.normals)
-    encoder.SetAttributeQuantization(draco::GeometryAttribute::NORMAL, options.normal_bits);
-  if (!options.entropy_coding) {
-    encoder.options().SetGlobalBool("use_built_in_attribute_compression", false);
-    // Stored raw, a 14-bit coordinate takes two bytes whether or not it is predicted first.
-    encoder.SetAttributePredictionScheme(draco::GeometryAttribute::POSITION, draco::PREDICTION_NONE);
-  }
-  encoder.SetEncodingMethod(options.method == DracoMethod::kSequential ? draco::MESH_SEQUENTIAL_ENCODING
-                                                                       : draco::MESH_EDGEBREAKER_ENCODING);
+  configure(encoder, options);
   draco::EncoderBuffer buffer;
   const draco::Status status = encoder.EncodeMeshToBuffer(mesh, &buffer);
   if (!status.ok()) {

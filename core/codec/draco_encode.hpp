@@ -64,6 +64,10 @@ class DracoEncoder {
                             std::vector<std::uint8_t>& out);
 
  private:
+  // Marks the triangles' vertices in used_bits_ and lists them in model order in used_, with
+  // rank_ holding each touched word's first encoded id.
+  void list_used(std::span<const std::uint32_t> triangles);
+
   std::vector<std::uint64_t> used_bits_;      // one bit per model vertex: used by the cut (zero between)
   std::vector<std::uint32_t> rank_;           // per touched 64-bit word: used vertices in the words before it
   std::vector<std::uint32_t> touched_words_;  // words of used_bits_ the cut's vertices fall in

@@ -49,6 +49,8 @@ std::array<std::uint8_t, 3> ramp_color(float t) {
   return out;
 }
 
+// One loop over the triangles: the projected corners, the area, the flat shade and the edge
+// lengths of a triangle are what its pixel loop reads, and splitting it would pass them all.
 std::size_t render_mesh(const view::ViewMapping& mapping, std::span<const float> positions,
                         std::span<const std::uint32_t> triangles, const RenderColors& colors,
                         const RenderOptions& options, std::span<std::uint8_t> rgb,
