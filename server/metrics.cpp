@@ -36,6 +36,11 @@ void sample(std::string& out, const char* name, std::uint64_t value, const std::
     fmt::format_to(std::back_inserter(out), "{}{{{}}} {}\n", name, labels, value);
   }
 }
+// A family of one unlabelled sample.
+void single(std::string& out, const char* name, const char* type, const char* help, std::uint64_t value) {
+  family(out, name, type, help);
+  sample(out, name, value);
+}
 std::uint64_t get(const std::atomic<std::uint64_t>& c) {
   return c.load(std::memory_order_relaxed);
 }
@@ -65,7 +70,6 @@ void Metrics::extraction(const protocol::StageTimings& t, std::uint64_t triangle
 }
 
 std::vector<std::pair<std::string, double>> Metrics::snapshot() const {
-  auto get = [](const Counter& c) { return static_cast<double>(c.load(std::memory_order_relaxed)); };
   // Extraction counts and stage sums come from the histograms, extract and gaze together.
   std::uint64_t extractions = 0;
   for (const auto& histograms : stage_histograms_) extractions += histograms.back().cumulative().back();
@@ -103,12 +107,12 @@ std::string Metrics::prometheus_text(const MetricsGauges& gauges) const {
 }
 
 void Metrics::append_traffic(std::string& out) const {
-  family(out, "mtlod_connections_accepted_total", "counter", "Connections accepted on both ports.");
-  sample(out, "mtlod_connections_accepted_total", get(connections_total_));
-  family(out, "mtlod_connections_refused_total", "counter", "Connections refused by the connection limits.");
-  sample(out, "mtlod_connections_refused_total", get(connections_refused_));
-  family(out, "mtlod_connections_open", "gauge", "Connections open now (protocol and WebSocket).");
-  sample(out, "mtlod_connections_open", get(connections_open_));
+  single(out, "mtlod_connections_accepted_total", "counter", "Connections accepted on both ports.",
+         get(connections_total_));
+  single(out, "mtlod_connections_refused_total", "counter", "Connections refused by the connection limits.",
+         get(connections_refused_));
+  single(out, "mtlod_connections_open", "gauge", "Connections open now (protocol and WebSocket).",
+         get(connections_open_));
   family(out, "mtlod_requests_total", "counter", "Requests that parsed, by type.");
   for (std::size_t i = 0; i < kRequestTypes; ++i)
     sample(out, "mtlod_requests_total", get(requests_[i]),
@@ -118,12 +122,9 @@ void Metrics::append_traffic(std::string& out) const {
     sample(out, "mtlod_errors_total", get(errors_[i]),
            fmt::format("code=\"{}\"", protocol::to_string(static_cast<protocol::ErrorKind>(i))));
   }
-  family(out, "mtlod_received_bytes_total", "counter", "Bytes of request frames received.");
-  sample(out, "mtlod_received_bytes_total", get(bytes_in_));
-  family(out, "mtlod_sent_bytes_total", "counter", "Bytes of reply frames sent.");
-  sample(out, "mtlod_sent_bytes_total", get(bytes_out_));
-  family(out, "mtlod_sent_triangles_total", "counter", "Triangles of the cuts sent.");
-  sample(out, "mtlod_sent_triangles_total", get(triangles_out_));
+  single(out, "mtlod_received_bytes_total", "counter", "Bytes of request frames received.", get(bytes_in_));
+  single(out, "mtlod_sent_bytes_total", "counter", "Bytes of reply frames sent.", get(bytes_out_));
+  single(out, "mtlod_sent_triangles_total", "counter", "Triangles of the cuts sent.", get(triangles_out_));
 }
 
 void Metrics::append_durations(std::string& out) const {
@@ -150,27 +151,24 @@ void Metrics::append_durations(std::string& out) const {
 }
 
 void Metrics::append_memory(std::string& out, const MetricsGauges& gauges) const {
-  family(out, "mtlod_session_memory_bytes", "gauge",
-         "Bytes the connections' sessions hold (cuts, views, deltas).");
-  sample(out, "mtlod_session_memory_bytes", get(session_bytes_));
-  family(out, "mtlod_worker_scratch_bytes", "gauge",
-         "Bytes the workers keep between extractions (grids, per model; at most 64 MiB each).");
-  sample(out, "mtlod_worker_scratch_bytes", get(scratch_bytes_));
-  family(out, "mtlod_memory_held_bytes", "gauge",
-         "Sessions plus the running extractions' reservations, as the memory ceiling counts them.");
-  sample(out, "mtlod_memory_held_bytes", gauges.memory_held_bytes);
-  family(out, "mtlod_memory_limit_bytes", "gauge", "The memory ceiling (--max-memory).");
-  sample(out, "mtlod_memory_limit_bytes", gauges.memory_limit_bytes);
-  family(out, "mtlod_models", "gauge", "Models served.");
-  sample(out, "mtlod_models", gauges.models);
-  family(out, "mtlod_model_memory_bytes", "gauge", "Bytes every model holds in memory.");
-  sample(out, "mtlod_model_memory_bytes", gauges.model_bytes);
-  family(out, "mtlod_model_mapped_bytes", "gauge",
-         "Bytes of the model files mapped in place (resident only as far as requests read them).");
-  sample(out, "mtlod_model_mapped_bytes", gauges.model_mapped_bytes);
-  family(out, "mtlod_model_reloads_total", "counter",
-         "New model versions loaded from changed files since start-up (SIGHUP, reload, file watch).");
-  sample(out, "mtlod_model_reloads_total", gauges.model_reloads);
+  single(out, "mtlod_session_memory_bytes", "gauge",
+         "Bytes the connections' sessions hold (cuts, views, deltas).", get(session_bytes_));
+  single(out, "mtlod_worker_scratch_bytes", "gauge",
+         "Bytes the workers keep between extractions (grids, per model; at most 64 MiB each).",
+         get(scratch_bytes_));
+  single(out, "mtlod_memory_held_bytes", "gauge",
+         "Sessions plus the running extractions' reservations, as the memory ceiling counts them.",
+         gauges.memory_held_bytes);
+  single(out, "mtlod_memory_limit_bytes", "gauge", "The memory ceiling (--max-memory).",
+         gauges.memory_limit_bytes);
+  single(out, "mtlod_models", "gauge", "Models served.", gauges.models);
+  single(out, "mtlod_model_memory_bytes", "gauge", "Bytes every model holds in memory.", gauges.model_bytes);
+  single(out, "mtlod_model_mapped_bytes", "gauge",
+         "Bytes of the model files mapped in place (resident only as far as requests read them).",
+         gauges.model_mapped_bytes);
+  single(out, "mtlod_model_reloads_total", "counter",
+         "New model versions loaded from changed files since start-up (SIGHUP, reload, file watch).",
+         gauges.model_reloads);
   if (!gauges.model_versions.empty()) {
     family(out, "mtlod_model_version", "gauge", "The version of each model served (1 at start-up).");
     for (const auto& [name, version] : gauges.model_versions)

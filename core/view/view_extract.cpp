@@ -356,8 +356,7 @@ void ViewExtractor::forget_unread(cut::Refiner& refiner) {
   // of the entries kept.
 }
 
-cut::CutSpan ViewExtractor::extract(const ViewRequest& request, cut::Refiner& refiner, cut::CutMesh& scratch,
-                                    ViewCache* session, StageObserver* observer) {
+void ViewExtractor::prepare(const ViewRequest& request, ViewCache* session, StageObserver* observer) {
   const auto finished = [observer](Stage stage) {
     if (observer) observer->finished(stage);
   };
@@ -369,8 +368,13 @@ cut::CutSpan ViewExtractor::extract(const ViewRequest& request, cut::Refiner& re
   finished(Stage::kTransforms);
   allowed_error();
   finished(Stage::kAllowedError);
+}
+
+cut::CutSpan ViewExtractor::extract(const ViewRequest& request, cut::Refiner& refiner, cut::CutMesh& scratch,
+                                    ViewCache* session, StageObserver* observer) {
+  prepare(request, session, observer);
   const cut::CutSpan cut = refine_view(refiner, scratch);
-  finished(Stage::kRefine);
+  if (observer) observer->finished(Stage::kRefine);
   return cut;
 }
 
@@ -378,10 +382,7 @@ std::span<const float> ViewExtractor::allowed_error_field(const ViewRequest& req
   field_request_ = request;
   field_request_.dynamic = false;
   field_request_.allowed_error_on_demand = false;
-  map(field_request_);
-  occupancy();
-  distance_transforms();
-  allowed_error();
+  prepare(field_request_, nullptr, nullptr);
   return allowed_;
 }
 

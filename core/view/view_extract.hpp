@@ -174,6 +174,8 @@ class ViewExtractor {
   std::size_t memory_bytes() const;
 
  private:
+  // Stages 1 to 4, telling the observer (if any) as each ends.
+  void prepare(const ViewRequest& request, ViewCache* session, StageObserver* observer);
   void transform(std::span<const std::uint8_t> image, std::span<std::uint16_t> out);
   // Stage 4 of a gaze: recomputes the session's known vertices in cells whose focus multiplier
   // changed, listing them in its changed_ (metric: the labels', as bound to the field).
