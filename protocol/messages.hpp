@@ -11,8 +11,8 @@
 #include <vector>
 
 #include "core/codec/draco_encode.hpp"
+#include "core/view/criteria.hpp"
 #include "core/view/distance_transform.hpp"
-#include "core/view/falloff.hpp"
 
 namespace mtlod::protocol {
 
@@ -64,23 +64,49 @@ const char* enum_name(const std::array<const char*, N>& names, Enum value) {
   return names[static_cast<std::size_t>(value)];
 }
 
-// A point of interest in normalised viewport coordinates (0,0 top left, 1,1 bottom right).
-struct Focus {
+// A point in normalised viewport coordinates (0,0 top left, 1,1 bottom right).
+struct Point {
   double x = 0.5;
   double y = 0.5;
-  double distance = 20;  // threshold d, in `Criteria::units`
-  double factor = 0.25;  // f: allowed error is e·f inside (f < 1 for a focus, f > 1 for neglect)
+  bool operator==(const Point&) const = default;
 };
 
-struct Silhouette {
-  double distance = 2;  // threshold d, in `Criteria::units`
-  double factor = 0;    // f: 0 keeps full resolution along the silhouette
+// One criterion in use: allowed error e·f within `distance` of its seeds.
+struct Region {
+  double distance = 0;        // threshold d, in `Criteria::units`
+  double factor = 0;          // f (< 1 refines, > 1 coarsens)
+  std::vector<Point> points;  // the seeds of a point-seeded criterion (core::view::Seeds::kPoints)
+  bool operator==(const Region&) const = default;
 };
+
+// A criterion on the wire: its key in `criteria`, what its distance is measured to (PROTOCOL.md's
+// table), the defaults of `distance` and `factor`, and the factor's range. One entry per
+// core::view::Criterion, in its order.
+struct CriterionWire {
+  const char* name;
+  const char* measured_to;
+  double distance;
+  double factor;
+  double factor_min;
+  double factor_max;
+};
+inline constexpr std::array<CriterionWire, 3> kCriterionWire{{
+    {"silhouette", "the model's outline", 2, 0, 0, 1},
+    {"focus", "the focus points", 20, 0.25, 0, 1},
+    {"neglect", "the regions of neglect", 50, 4, 1, 1e6},
+}};
+static_assert(kCriterionWire.size() == core::view::kCriterionCount);
+
+constexpr const CriterionWire& wire(core::view::Criterion c) {
+  return kCriterionWire[static_cast<std::size_t>(c)];
+}
+// A criterion with its defaults and no points.
+inline Region default_region(core::view::Criterion c) {
+  return Region{wire(c).distance, wire(c).factor, {}};
+}
 
 struct Criteria {
-  std::optional<Silhouette> silhouette;
-  std::vector<Focus> focus;
-  std::vector<Focus> neglect;
+  core::view::PerCriterion<std::optional<Region>> regions;  // unset: the criterion is off
   core::view::FalloffLaw falloff = core::view::FalloffLaw::kStep;
   core::view::DistanceMetric distance = core::view::DistanceMetric::kChamfer5711;
   DistanceUnit units = DistanceUnit::kPixels;
@@ -89,6 +115,16 @@ struct Criteria {
   double backface_factor = 1;         // allowed error multiplier for back faces (1 = off)
   double hidden_factor = 1;           // allowed error multiplier behind the visible surface (1 = off)
 };
+
+// The region a gaze moves (core::view::kGazeCriterion), made with its defaults and one point at the
+// viewport's centre when the criteria have none: gazes, the gaze client and the load tester move
+// its first point.
+inline Region& gaze_region(Criteria& criteria) {
+  std::optional<Region>& region = criteria.regions[core::view::kGazeCriterion];
+  if (!region) region = default_region(core::view::kGazeCriterion);
+  if (region->points.empty()) region->points.emplace_back();
+  return *region;
+}
 
 struct DracoSettings {
   // Unset: edgebreaker for extract (smallest payload), sequential for gaze (lowest latency), the
@@ -130,7 +166,8 @@ struct Extract {
   // sequential coder, which keeps the order of faces.
   bool delta = false;
 };
-// A new focus for the connection's latest extract: the newest gaze replaces a queued one.
+// A new gaze point for the connection's latest extract (the first point of gaze_region): the newest
+// gaze replaces a queued one.
 struct Gaze {
   double x = 0.5;
   double y = 0.5;

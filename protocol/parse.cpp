@@ -209,52 +209,59 @@ std::array<std::uint32_t, 2> read_pair(const json& v, const std::string& name, s
   return out;
 }
 
-Focus read_focus(const json& v, const std::string& path, bool neglect) {
-  ObjectReader r(v, path);
-  Focus f;
-  f.x = r.required_number("x", 0, 1);
-  f.y = r.required_number("y", 0, 1);
-  f.distance = r.number("distance", neglect ? 50 : 20, 0, 1e6);
-  f.factor = neglect ? r.number("factor", 4, 1, 1e6) : r.number("factor", 0.25, 0, 1);
-  r.finish();
-  return f;
-}
-
-std::vector<Focus> read_foci(const json* v, const std::string& path, bool neglect) {
-  std::vector<Focus> out;
-  if (!v) return out;
-  if (v->is_object()) {  // a single focus may be given without the array
-    out.push_back(read_focus(*v, path, neglect));
-    return out;
+// A criterion's entry in `criteria`: for a point-seeded one, a point {x, y, distance, factor} or an
+// array of them (every point shares the first one's distance and factor: one transform); for the
+// others, true/false or {distance, factor}.
+std::optional<Region> read_region(const json& v, core::view::Criterion criterion) {
+  const CriterionWire& w = wire(criterion);
+  const std::string path = fmt::format("criteria.{}", w.name);
+  Region region = default_region(criterion);
+  auto read_law = [&](ObjectReader& r) {
+    region.distance = r.number("distance", w.distance, 0, 1e6);
+    region.factor = r.number("factor", w.factor, w.factor_min, w.factor_max);
+  };
+  if (core::view::traits(criterion).seeds != core::view::Seeds::kPoints) {
+    if (v.is_boolean()) return v.get<bool>() ? std::optional(region) : std::nullopt;
+    ObjectReader r(v, path);
+    read_law(r);
+    r.finish();
+    return region;
   }
-  if (!v->is_array())
+  auto read_point = [&](const json& p, const std::string& point_path) {
+    ObjectReader r(p, point_path);
+    const Point point{r.required_number("x", 0, 1), r.required_number("y", 0, 1)};
+    if (region.points.empty()) {
+      read_law(r);
+    } else {  // checked, then shared
+      r.number("distance", 0, 0, 1e6);
+      r.number("factor", 1, w.factor_min, w.factor_max);
+    }
+    r.finish();
+    region.points.push_back(point);
+  };
+  if (v.is_object()) {  // a single point may be given without the array
+    read_point(v, path);
+  } else if (v.is_array()) {
+    for (std::size_t i = 0; i < v.size(); ++i) read_point(v[i], fmt::format("{}[{}]", path, i));
+  } else {
     fail(ErrorKind::kBadRequest, fmt::format("'{}' must be an array of {{x, y, ...}} objects", path));
-  for (std::size_t i = 0; i < v->size(); ++i)
-    out.push_back(read_focus((*v)[i], fmt::format("{}[{}]", path, i), neglect));
-  return out;
+  }
+  if (region.points.empty()) return std::nullopt;
+  return region;
 }
 
 Criteria read_criteria(const json& v, const Limits& limits) {
   ObjectReader r(v, "criteria");
   Criteria c;
-  if (const json* s = r.find("silhouette")) {
-    if (s->is_boolean()) {
-      if (s->get<bool>()) c.silhouette = Silhouette{};
-    } else {
-      ObjectReader sr(*s, "criteria.silhouette");
-      Silhouette sil;
-      sil.distance = sr.number("distance", sil.distance, 0, 1e6);
-      sil.factor = sr.number("factor", sil.factor, 0, 1);
-      sr.finish();
-      c.silhouette = sil;
-    }
+  std::size_t points = 0;
+  for (const core::view::Criterion criterion : core::view::kAllCriteria) {
+    std::optional<Region>& region = c.regions[criterion];
+    if (const json* entry = r.find(wire(criterion).name)) region = read_region(*entry, criterion);
+    if (region) points += region->points.size();
   }
-  c.focus = read_foci(r.find("focus"), "criteria.focus", false);
-  c.neglect = read_foci(r.find("neglect"), "criteria.neglect", true);
-  if (c.focus.size() + c.neglect.size() > limits.max_foci) {
-    fail(ErrorKind::kLimitExceeded, fmt::format("{} focus and neglect points exceed the server limit {}",
-                                                c.focus.size() + c.neglect.size(), limits.max_foci));
-  }
+  if (points > limits.max_foci)
+    fail(ErrorKind::kLimitExceeded,
+         fmt::format("{} criteria points exceed the server limit {}", points, limits.max_foci));
   c.falloff = static_cast<core::view::FalloffLaw>(r.choice("falloff", kFalloffNames, 0));
   c.distance = static_cast<core::view::DistanceMetric>(r.choice("distance", kDistanceMetricNames, 0));
   c.units = static_cast<DistanceUnit>(r.choice("units", kDistanceUnitNames, 0));
@@ -458,10 +465,12 @@ Result<ParsedRequest, ProtocolError> parse_request(std::string_view text, const 
 
 namespace {
 
-json foci_json(const std::vector<Focus>& foci) {
+json region_json(const Region& region, core::view::Criterion criterion) {
+  if (core::view::traits(criterion).seeds != core::view::Seeds::kPoints)
+    return {{"distance", region.distance}, {"factor", region.factor}};
   json out = json::array();
-  for (const Focus& f : foci)
-    out.push_back({{"x", f.x}, {"y", f.y}, {"distance", f.distance}, {"factor", f.factor}});
+  for (const Point& p : region.points)
+    out.push_back({{"x", p.x}, {"y", p.y}, {"distance", region.distance}, {"factor", region.factor}});
   return out;
 }
 
@@ -472,12 +481,10 @@ json extract_json(const Extract& e) {
   j["grid"] = e.grid;
   j["error"] = {{"value", e.error}, {"unit", enum_name(kErrorUnitNames, e.error_unit)}};
   json c;
-  if (e.criteria.silhouette) {
-    c["silhouette"] = {{"distance", e.criteria.silhouette->distance},
-                       {"factor", e.criteria.silhouette->factor}};
+  for (const core::view::Criterion criterion : core::view::kAllCriteria) {
+    if (const std::optional<Region>& region = e.criteria.regions[criterion])
+      c[wire(criterion).name] = region_json(*region, criterion);
   }
-  if (!e.criteria.focus.empty()) c["focus"] = foci_json(e.criteria.focus);
-  if (!e.criteria.neglect.empty()) c["neglect"] = foci_json(e.criteria.neglect);
   c["falloff"] = enum_name(kFalloffNames, e.criteria.falloff);
   c["distance"] = enum_name(kDistanceMetricNames, e.criteria.distance);
   c["units"] = enum_name(kDistanceUnitNames, e.criteria.units);

@@ -30,28 +30,17 @@ core::view::ViewRequest to_view_request(const Extract& e, bool model_has_normals
                               ? 5.0f
                               : static_cast<float>(core::view::units_per_pixel(a.metric));
   const float to_px = e.criteria.units == DistanceUnit::kChamfer ? 1.0f / per_pixel : 1.0f;
-  const core::view::FalloffLaw law = e.criteria.falloff;
-  if (e.criteria.silhouette) {
-    a.use_silhouette = true;
-    a.silhouette.law = law;
-    a.silhouette.distance_px = static_cast<float>(e.criteria.silhouette->distance) * to_px;
-    a.silhouette.factor = static_cast<float>(e.criteria.silhouette->factor);
-  }
-  if (!e.criteria.focus.empty()) {
-    a.use_focus = true;
-    a.focus.law = law;
-    a.focus.distance_px = static_cast<float>(e.criteria.focus.front().distance) * to_px;
-    a.focus.factor = static_cast<float>(e.criteria.focus.front().factor);
-    for (const auto& f : e.criteria.focus)
-      v.focus.push_back({static_cast<float>(f.x), static_cast<float>(f.y)});
-  }
-  if (!e.criteria.neglect.empty()) {
-    a.use_neglect = true;
-    a.neglect.law = law == core::view::FalloffLaw::kFoveal ? core::view::FalloffLaw::kStep : law;
-    a.neglect.distance_px = static_cast<float>(e.criteria.neglect.front().distance) * to_px;
-    a.neglect.factor = static_cast<float>(e.criteria.neglect.front().factor);
-    for (const auto& f : e.criteria.neglect)
-      v.neglect.push_back({static_cast<float>(f.x), static_cast<float>(f.y)});
+  for (const core::view::Criterion c : core::view::kAllCriteria) {
+    const std::optional<Region>& region = e.criteria.regions[c];
+    if (!region) continue;
+    core::view::RegionLaw law;
+    const bool foveal = e.criteria.falloff == core::view::FalloffLaw::kFoveal;
+    law.law = foveal && !core::view::traits(c).foveal ? core::view::FalloffLaw::kStep : e.criteria.falloff;
+    law.distance_px = static_cast<float>(region->distance) * to_px;
+    law.factor = static_cast<float>(region->factor);
+    a.criteria[c] = law;
+    for (const Point& p : region->points)
+      v.points[c].push_back({static_cast<float>(p.x), static_cast<float>(p.y)});
   }
   a.outside_view_factor = static_cast<float>(e.criteria.frustum_factor);
   a.back_face_factor = model_has_normals ? static_cast<float>(e.criteria.backface_factor) : 1.0f;

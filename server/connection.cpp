@@ -251,12 +251,10 @@ void Connection::on_request(std::uint64_t seq, std::uint64_t id, const protocol:
   // A later hello may have changed the token: the view's model must still be one it sees.
   if (!visible_model(last_extract_->model)) return reply_unknown_model(seq, id, last_extract_->model);
   protocol::Extract request = *last_extract_;
-  if (request.criteria.focus.empty()) request.criteria.focus.emplace_back();
-  protocol::Focus& focus = request.criteria.focus.front();
-  focus.x = gaze.x;
-  focus.y = gaze.y;
-  if (gaze.distance) focus.distance = *gaze.distance;
-  if (gaze.factor) focus.factor = *gaze.factor;
+  protocol::Region& region = protocol::gaze_region(request.criteria);
+  region.points.front() = {gaze.x, gaze.y};
+  if (gaze.distance) region.distance = *gaze.distance;
+  if (gaze.factor) region.factor = *gaze.factor;
   last_extract_ = request;  // later gazes and extracts start from here
   enqueue(Job{seq, id, true, std::move(request), 0, received_ns_});
 }
@@ -354,10 +352,9 @@ void Connection::finish_reply(const Job& job, std::int64_t started_ns, ExtractRe
         static_cast<std::uint64_t>(std::max<std::int64_t>(0, started_ns - job.received_ns) / 1000);
     reply.timings.total_us = static_cast<std::uint64_t>((now_ns() - job.received_ns) / 1000);
     reply.superseded = job.superseded;
-    if (job.gaze && !job.extract.criteria.focus.empty()) {
-      reply.focus =
-          std::array<double, 2>{job.extract.criteria.focus.front().x, job.extract.criteria.focus.front().y};
-    }
+    const std::optional<protocol::Region>& gazed = job.extract.criteria.regions[core::view::kGazeCriterion];
+    if (job.gaze && gazed && !gazed->points.empty())
+      reply.focus = std::array<double, 2>{gazed->points.front().x, gazed->points.front().y};
     log_extraction(number_, job.id, job.gaze, reply);
     server_.metrics.extraction(reply.timings, reply.triangles, job.gaze);
     replies_.fill(job.seq, make_frame(reply, job.id, result.payload));

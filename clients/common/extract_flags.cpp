@@ -2,6 +2,7 @@
 // parse_request, so a bad flag gets exactly the message a bad request would.
 #include "clients/common/extract_flags.hpp"
 
+#include <algorithm>
 #include <cctype>
 #include <cmath>
 #include <sstream>
@@ -16,7 +17,6 @@ namespace mtlod::clients {
 
 using protocol::enum_from_name;
 using protocol::Extract;
-using protocol::Focus;
 using protocol::frame_bounds;
 using protocol::kDistanceMetricNames;
 using protocol::kDistanceUnitNames;
@@ -26,7 +26,6 @@ using protocol::Limits;
 using protocol::look_at_camera;
 using protocol::LookAt;
 using protocol::parse_request;
-using protocol::Silhouette;
 
 namespace {
 
@@ -72,6 +71,12 @@ bool parse_number_list(const std::string& text, std::vector<double>& out) {
   return true;
 }
 
+std::string criterion_flag(core::view::Criterion criterion) {
+  std::string flag = fmt::format("--{}", protocol::wire(criterion).name);
+  std::replace(flag.begin(), flag.end(), '_', '-');
+  return flag;
+}
+
 void add_extract_flags(CLI::App& app, ExtractFlags& f) {
   app.add_option("--eye", f.eye, "camera position X,Y,Z (default: frame the model from its front)");
   app.add_option("--target", f.target, "point looked at X,Y,Z (default: the model's centre)");
@@ -81,13 +86,23 @@ void add_extract_flags(CLI::App& app, ExtractFlags& f) {
   app.add_option("--viewport", f.viewport, "screen size WxH in pixels")->capture_default_str();
   app.add_option("--error", f.error, "error bound e in model units");
   app.add_option("--error-px", f.error_px, "error bound e in screen pixels (converted per vertex by depth)");
-  app.add_option("--silhouette", f.silhouette, "D,F: allowed error e·F within D pixels of the silhouette");
-  app.add_option("--focus", f.focus,
-                 "X,Y,D,F: focus at normalised X,Y (0..1), e·F within D pixels; repeatable")
-      ->take_all();
-  app.add_option("--neglect", f.neglect,
-                 "X,Y,D,F: region of neglect, e·F (F ≥ 1) within D pixels; repeatable")
-      ->take_all();
+  // One flag per criterion, from the protocol's table.
+  for (const core::view::Criterion c : core::view::kAllCriteria) {
+    const protocol::CriterionWire& w = protocol::wire(c);
+    const std::string flag = criterion_flag(c);
+    if (core::view::traits(c).seeds == core::view::Seeds::kPoints) {
+      app.add_option(flag, f.criteria[c],
+                     fmt::format("X,Y,D,F: allowed error e·F (F {} to {}) within D pixels of {}; one "
+                                 "point at normalised X,Y (0..1) per flag, repeatable",
+                                 w.factor_min, w.factor_max, w.measured_to))
+          ->take_all();
+    } else {
+      app.add_option(flag, f.criteria[c],
+                     fmt::format("D,F: allowed error e·F (F {} to {}) within D pixels of {}", w.factor_min,
+                                 w.factor_max, w.measured_to))
+          ->multi_option_policy(CLI::MultiOptionPolicy::TakeLast);
+    }
+  }
   app.add_option("--budget", f.budget, "at most this many triangles (worst first)");
   // The choices come from the protocol's tables, so a new law or metric shows up here by itself.
   app.add_option("--falloff", f.falloff,
@@ -128,9 +143,12 @@ void add_extract_flags(CLI::App& app, ExtractFlags& f) {
 
 void apply_default_criteria(ExtractFlags& flags) {
   if (!flags.error && !flags.error_px) flags.error_px = 1;
-  if (!flags.silhouette.empty() || !flags.focus.empty() || !flags.falloff.empty()) return;
+  if (!flags.falloff.empty()) return;
+  for (const core::view::Criterion c : core::view::kAllCriteria) {
+    if (core::view::traits(c).combine == core::view::Combine::kStricter && !flags.criteria[c].empty()) return;
+  }
   flags.falloff = "foveal";
-  flags.focus.push_back("0.5,0.5,0,1");
+  flags.criteria[core::view::kGazeCriterion].push_back("0.5,0.5,0,1");
   if (!flags.hidden_factor) flags.hidden_factor = kDefaultHiddenFactor;
 }
 
@@ -159,18 +177,17 @@ Result<protocol::Extract> make_extract(const ExtractFlags& f, const std::string&
   e.error = f.error ? *f.error : *f.error_px;
   e.error_unit = f.error ? core::view::ErrorUnits::kModel : core::view::ErrorUnits::kScreenPixels;
   std::vector<double> v;
-  if (!f.silhouette.empty()) {
-    if (!parse_numbers(f.silhouette, 2, v))
-      return make_error(ErrorCode::kInvalidArgument,
-                        fmt::format("--silhouette '{}': expected D,F", f.silhouette));
-    e.criteria.silhouette = Silhouette{v[0], v[1]};
-  }
-  for (const auto& [list, flag, out] : {std::tuple{&f.focus, "--focus", &e.criteria.focus},
-                                        std::tuple{&f.neglect, "--neglect", &e.criteria.neglect}}) {
-    for (const std::string& text : *list) {
-      if (!parse_numbers(text, 4, v))
-        return make_error(ErrorCode::kInvalidArgument, fmt::format("{} '{}': expected X,Y,D,F", flag, text));
-      out->push_back(Focus{v[0], v[1], v[2], v[3]});
+  for (const core::view::Criterion c : core::view::kAllCriteria) {
+    // Points share the first one's D and F (one transform per criterion), as on the wire.
+    const bool points = core::view::traits(c).seeds == core::view::Seeds::kPoints;
+    for (const std::string& text : f.criteria[c]) {
+      if (!parse_numbers(text, points ? 4 : 2, v)) {
+        return make_error(ErrorCode::kInvalidArgument, fmt::format("{} '{}': expected {}", criterion_flag(c),
+                                                                   text, points ? "X,Y,D,F" : "D,F"));
+      }
+      std::optional<protocol::Region>& region = e.criteria.regions[c];
+      if (!region) region = protocol::Region{v[points ? 2 : 0], v[points ? 3 : 1], {}};
+      if (points) region->points.push_back({v[0], v[1]});
     }
   }
   e.budget = f.budget;

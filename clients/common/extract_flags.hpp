@@ -23,9 +23,9 @@ struct ExtractFlags {
   std::string viewport = "800x600";
   std::optional<double> error;     // model units
   std::optional<double> error_px;  // screen pixels
-  std::string silhouette;          // "D,F"
-  std::vector<std::string> focus;  // "X,Y,D,F", repeatable
-  std::vector<std::string> neglect;
+  // Per criterion, its flag's values (--silhouette, --focus, ...: protocol::kCriterionWire's
+  // names): "X,Y,D,F" for each point of a point-seeded criterion (repeatable), else one "D,F".
+  core::view::PerCriterion<std::vector<std::string>> criteria;
   std::optional<std::uint32_t> budget;
   std::string falloff;  // empty: step
   std::string distance = "chamfer-5-7-11", units = "pixels";
@@ -45,6 +45,9 @@ struct ExtractFlags {
 // when a part is not a whole finite number. Shared by every flag and file format of the clients.
 bool parse_number_list(const std::string& text, std::vector<double>& out);
 
+// A criterion's flag: "--" and its wire name with '-' for '_' (--silhouette, --focus, ...).
+std::string criterion_flag(core::view::Criterion criterion);
+
 // Registers the flags on `app`, writing into `flags`.
 void add_extract_flags(CLI::App& app, ExtractFlags& flags);
 
@@ -52,8 +55,9 @@ void add_extract_flags(CLI::App& app, ExtractFlags& flags);
 // winner of the image-space study (tests/evaluation/FIDELITY.md, `default`): a bound in screen
 // pixels (1 unless given) that holds at the focus and grows with eccentricity like the eye's minimum
 // angle of resolution, ×(1 + e/2.3°) (`--falloff foveal --focus X,Y,0,1`), and surfaces hidden from
-// the camera coarsened ×16 (`--hidden-factor 16`, unless that flag was given). Applied only when no
-// criterion flag (--silhouette, --focus, --falloff) was given; the focus starts at the view's centre.
+// the camera coarsened ×16 (`--hidden-factor 16`, unless that flag was given). Applied only when
+// neither --falloff nor a criterion that refines (core::view::Combine::kStricter: --silhouette,
+// --focus) was given; the focus starts at the view's centre.
 void apply_default_criteria(ExtractFlags& flags);
 inline constexpr double kDefaultHiddenFactor = 16;
 

@@ -40,7 +40,8 @@ void add_gaze_flags(CLI::App& app, GazeOptions& o, clients::ExtractFlags& flags)
 void complete_gaze_flags(clients::ExtractFlags& flags) {
   clients::apply_default_criteria(flags);
   // A gaze moves the focus: without one the trace would change nothing.
-  if (flags.focus.empty()) flags.focus.push_back("0.5,0.5,20,0.1");
+  std::vector<std::string>& gaze = flags.criteria[core::view::kGazeCriterion];
+  if (gaze.empty()) gaze.push_back("0.5,0.5,20,0.1");
 }
 
 }  // namespace mtlod::clients

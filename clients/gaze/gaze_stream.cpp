@@ -34,8 +34,7 @@ Status GazeStream::open_view(const clients::ExtractFlags& flags) {
   const auto* m = std::get_if<protocol::ModelInfoReply>(&info.header.reply);
   if (!m) return make_error(ErrorCode::kNotFound, fmt::format("model '{}' is not served", model));
   MTLOD_TRY(protocol::Extract request, clients::make_extract(flags, model, m->bounds_min, m->bounds_max));
-  request.criteria.focus.front().x = trace_.front().x;
-  request.criteria.focus.front().y = trace_.front().y;
+  protocol::gaze_region(request.criteria).points.front() = {trace_.front().x, trace_.front().y};
   // A model whose file is being rewritten answers `unavailable` until the new file is loaded
   // (seconds): the stream waits for it instead of giving up before its first sample.
   const auto patience = std::chrono::steady_clock::now() + kUnavailablePatience;
@@ -111,8 +110,7 @@ void GazeStream::choose_resend(std::vector<OutgoingRequest>& resend) {
   // The view's extract first, focused on the newest sample sent; then that sample, if unanswered.
   protocol::Extract view = view_;
   if (sent_ > 0) {
-    view.criteria.focus.front().x = trace_[sent_ - 1].x;
-    view.criteria.focus.front().y = trace_[sent_ - 1].y;
+    protocol::gaze_region(view.criteria).points.front() = {trace_[sent_ - 1].x, trace_[sent_ - 1].y};
   }
   resend.push_back(OutgoingRequest{std::move(view), 0, true});
   if (sent_ > answered_) {

@@ -103,16 +103,12 @@ protocol::Request RequestSequence::next() {
     const ScriptedCamera& s = script[script_index_++ % script.size()];
     protocol::LookAt look{s.eye, s.target, {0, 1, 0}, settings_.fov_deg};
     protocol::look_at_camera(look, static_cast<double>(e.viewport[0]) / e.viewport[1], e.view, e.projection);
-    if (s.has_focus) {
-      if (e.criteria.focus.empty()) e.criteria.focus.emplace_back();
-      e.criteria.focus.front().x = s.focus[0];
-      e.criteria.focus.front().y = s.focus[1];
-    }
+    if (s.has_focus) protocol::gaze_region(e.criteria).points.front() = {s.focus[0], s.focus[1]};
   }
   if (settings_.random_focus && script.empty()) {
-    if (e.criteria.focus.empty()) e.criteria.focus.emplace_back();
-    e.criteria.focus.front().x = unit_(rng_);
-    e.criteria.focus.front().y = unit_(rng_);
+    protocol::Point& focus = protocol::gaze_region(e.criteria).points.front();
+    focus.x = unit_(rng_);
+    focus.y = unit_(rng_);
   }
   has_view_ = true;
   return e;

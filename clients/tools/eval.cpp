@@ -438,16 +438,19 @@ int run_experiment(const ExperimentOptions& o, const std::string& command) {
         request.camera = camera;
         request.grid = dt_grid;
         request.allowed.error = 1e-9f * bounds.radius();
-        request.allowed.use_silhouette = silhouette;
-        request.allowed.silhouette = {view::FalloffLaw::kStep, o.silhouette[0], o.silhouette[1], 16.0f, 2.3f};
-        request.allowed.use_focus = !silhouette;
-        request.allowed.focus = {view::FalloffLaw::kStep, o.focus[0] * float(o.grid_px), o.focus[1], 16.0f,
-                                 2.3f};
-        if (!silhouette) request.focus = {focus};
+        if (silhouette) {
+          request.allowed.criteria[view::Criterion::kSilhouette] =
+              view::RegionLaw{view::FalloffLaw::kStep, o.silhouette[0], o.silhouette[1], 16.0f, 2.3f};
+        } else {
+          request.allowed.criteria[view::Criterion::kFocus] = view::RegionLaw{
+              view::FalloffLaw::kStep, o.focus[0] * float(o.grid_px), o.focus[1], 16.0f, 2.3f};
+          request.points[view::Criterion::kFocus] = {focus};
+        }
         const std::span<const float> f = extractor.allowed_error_field(request);
         out.assign(f.begin(), f.end());
         if (silhouette && k == 0) {
-          sil_dt0.assign(extractor.silhouette_dt().begin(), extractor.silhouette_dt().end());
+          const auto dt = extractor.distance_transform(view::Criterion::kSilhouette);
+          sil_dt0.assign(dt.begin(), dt.end());
           dt_mapping0 = extractor.mapping();
         }
       };

@@ -3,6 +3,7 @@
 // or, with a camera or criteria, the view-dependent extraction the server computes for the same
 // flags (core/ARCHITECTURE.md §1; the flags are clients/common/extract_flags, shared with
 // mtlod-client), with the occupancy and distance images on request.
+#include <algorithm>
 #include <chrono>
 #include <cstdint>
 #include <optional>
@@ -55,8 +56,10 @@ void add_extract_options(CLI::App& app, ExtractOptions& o) {
 // View-dependent when a camera, a criterion or a pixel bound is given; otherwise uniform.
 bool view_dependent(const ExtractOptions& o) {
   const auto& v = o.view;
-  return !v.eye.empty() || !v.target.empty() || !v.silhouette.empty() || !v.focus.empty() ||
-         !v.neglect.empty() || v.error_px.has_value() || !o.dump_dt.empty() || !o.dump_occupancy.empty();
+  const bool criteria = std::any_of(v.criteria.entries.begin(), v.criteria.entries.end(),
+                                    [](const auto& values) { return !values.empty(); });
+  return !v.eye.empty() || !v.target.empty() || criteria || v.error_px.has_value() || !o.dump_dt.empty() ||
+         !o.dump_occupancy.empty();
 }
 
 // The cut with its used vertices only, renumbered in first-use order; normals and colours follow.
@@ -172,7 +175,8 @@ int run(int argc, char** argv) {
       }
     }
     if (!options.dump_dt.empty()) {
-      const auto dt = extractor->silhouette_dt().empty() ? extractor->focus_dt() : extractor->silhouette_dt();
+      const auto silhouette = extractor->distance_transform(view::Criterion::kSilhouette);
+      const auto dt = silhouette.empty() ? extractor->distance_transform(view::kGazeCriterion) : silhouette;
       if (dt.empty()) {
         fmt::print(stderr, "mtlod-extract: --dump-dt needs --silhouette or --focus\n");
         return 2;

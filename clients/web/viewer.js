@@ -51,10 +51,44 @@ const state = {
   colors: false,        // the model has vertex colours: they are asked for and shown
   deltaNormals: false,  // the kept delta mesh has normals
   displayedTriangles: 0,
-  focus: [0.5, 0.5],
+  focus: [0.5, 0.5],     // the gaze criterion's point: follows the mouse
+  neglect: [0.5, 0.5],   // the neglect region's point: where the last shift-click was
   errors: [],
 };
 window.mtlod = state;
+
+// The criteria of the protocol (protocol/PROTOCOL.md, "Criteria"), each a checkbox `name` with its
+// `name-distance` and `name-factor`: the panel is built from this list and extractRequest sends
+// every checked one. `point` names the state entry holding a point-seeded criterion's point.
+const CRITERIA = [
+  { name: 'silhouette', label: 'silhouette', distance: 2, factor: 0, min: 0, max: 1 },
+  { name: 'focus', label: 'focus follows the mouse', distance: 80, factor: 1, min: 0, max: 1, on: true, point: 'focus' },
+  { name: 'neglect', label: 'neglect (shift-click places it)', distance: 50, factor: 4, min: 1, max: 1e6, point: 'neglect' },
+];
+// The falloff laws (protocol/messages.hpp, kFalloffNames); the default is the study's winner.
+const FALLOFFS = ['step', 'linear', 'smoothstep', 'foveal'];
+const DEFAULT_FALLOFF = 'foveal';
+
+function buildCriteriaPanel() {
+  const panel = $('criteria');
+  const input = (id, attributes) => Object.assign(document.createElement('input'), { id, ...attributes });
+  const row = (text, element) => {
+    const label = document.createElement('label');
+    label.append(text, element);
+    panel.append(label);
+  };
+  for (const c of CRITERIA) {
+    const label = document.createElement('label');
+    const span = document.createElement('span');
+    span.append(input(c.name, { type: 'checkbox', checked: Boolean(c.on) }), ` ${c.label}`);
+    label.append(span);
+    panel.append(label);
+    row('\u00a0 threshold (px) ', input(`${c.name}-distance`, { type: 'number', value: c.distance, min: 0, step: 1 }));
+    row('\u00a0 factor ', input(`${c.name}-factor`, { type: 'number', value: c.factor, min: c.min, max: c.max, step: 0.05 }));
+  }
+  for (const law of FALLOFFS) $('falloff').append(new Option(law, law, law === DEFAULT_FALLOFF, law === DEFAULT_FALLOFF));
+}
+buildCriteriaPanel();
 
 let ws = null;
 let nextId = 1;
@@ -109,12 +143,10 @@ function extractRequest() {
   // the bound holds at the focus and grows with eccentricity, and what the camera cannot see gets few
   // triangles. The bound (index.html) is 0.25 px: at the clients' 1 px the facets show at 1280×720.
   const criteria = { falloff: $('falloff').value, hidden_factor: Math.max(1, Number($('hidden-factor').value) || 1) };
-  if ($('silhouette').checked) {
-    criteria.silhouette = { distance: Number($('silhouette-distance').value), factor: Number($('silhouette-factor').value) };
-  }
-  if ($('focus').checked) {
-    criteria.focus = [{ x: state.focus[0], y: state.focus[1], distance: Number($('focus-distance').value),
-                        factor: Number($('focus-factor').value) }];
+  for (const c of CRITERIA) {
+    if (!$(c.name).checked) continue;
+    const law = { distance: Number($(`${c.name}-distance`).value), factor: Number($(`${c.name}-factor`).value) };
+    criteria[c.name] = c.point ? [{ x: state[c.point][0], y: state[c.point][1], ...law }] : law;
   }
   const request = {
     type: 'extract', model: state.model,
@@ -353,8 +385,15 @@ renderer.domElement.addEventListener('pointermove', (event) => {
   wantGaze = [x, y];
   pump();
 });
-for (const id of ['error', 'budget', 'silhouette', 'silhouette-distance', 'silhouette-factor', 'focus', 'focus-distance',
-                  'focus-factor', 'falloff', 'hidden-factor', 'labels', 'delta']) {
+renderer.domElement.addEventListener('pointerdown', (event) => {
+  if (!event.shiftKey) return;
+  const rect = renderer.domElement.getBoundingClientRect();
+  state.neglect = [Math.min(1, Math.max(0, (event.clientX - rect.left) / rect.width)),
+                   Math.min(1, Math.max(0, (event.clientY - rect.top) / rect.height))];
+  if ($('neglect').checked) requestExtract();
+});
+const criteriaControls = CRITERIA.flatMap((c) => [c.name, `${c.name}-distance`, `${c.name}-factor`]);
+for (const id of ['error', 'budget', ...criteriaControls, 'falloff', 'hidden-factor', 'labels', 'delta']) {
   $(id).addEventListener('change', requestExtract);
 }
 // Wireframe and flat shading change only how the mesh shown is drawn. A mesh without normals

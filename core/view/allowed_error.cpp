@@ -49,9 +49,7 @@ float law_factor(const RegionLaw& law, float distance_px, float tan_per_px) {
 void AllowedErrorField::bind(const ViewMapping& mapping, const AllowedErrorOptions& options,
                              const AllowedErrorInputs& inputs) {
   const std::size_t cells = mapping.grid().cell_count();
-  assert(!options.use_silhouette || inputs.silhouette_dt.size() == cells);
-  assert(!options.use_focus || inputs.focus_dt.size() == cells);
-  assert(!options.use_neglect || inputs.neglect_dt.size() == cells);
+  for (const Criterion c : kAllCriteria) assert(!options.criteria[c] || inputs.transforms[c].size() == cells);
   assert(inputs.normals.empty() || inputs.normals.size() == inputs.positions.size());
   assert(inputs.visible_depth.empty() || inputs.visible_depth.size() == cells);
   (void)cells;
@@ -67,11 +65,10 @@ void AllowedErrorField::bind(const ViewMapping& mapping, const AllowedErrorOptio
   // error · model_units_per_pixel(clip_w) = error · 2·clip_w/(H·P[1][1]), with the constant part folded.
   pixel_bound_per_clip_w_ = options.error * mapping.model_units_per_pixel(1.0f, viewport_height_px_);
   assert(options.metric != DistanceMetric::kEuclidean);
-  if (options.use_silhouette)
-    tabulate(options.silhouette, options.metric, tan_per_px_, inputs.silhouette_dt, silhouette_table_);
-  if (options.use_focus) tabulate(options.focus, options.metric, tan_per_px_, inputs.focus_dt, focus_table_);
-  if (options.use_neglect)
-    tabulate(options.neglect, options.metric, tan_per_px_, inputs.neglect_dt, neglect_table_);
+  for (const Criterion c : kAllCriteria) {
+    if (const std::optional<RegionLaw>& law = options.criteria[c])
+      tabulate(*law, options.metric, tan_per_px_, inputs.transforms[c], tables_[c]);
+  }
 }
 
 void AllowedErrorField::tabulate(const RegionLaw& law, DistanceMetric metric, float tan_per_px,
@@ -91,19 +88,6 @@ void AllowedErrorField::tabulate(const RegionLaw& law, DistanceMetric metric, fl
   }
   for (std::uint32_t raw = std::uint32_t(table.values.size()); raw <= largest; ++raw)
     table.values.push_back(law_factor(law, distance_px(raw, metric), tan_per_px));
-}
-
-float AllowedErrorField::label_multiplier(std::uint32_t silhouette_label, std::uint32_t focus_label,
-                                          std::uint32_t neglect_label) const {
-  const AllowedErrorOptions& o = options_;
-  // Silhouette and focus: the stricter (smaller) multiplier wins. A focus law may grow past 1 (foveal
-  // with f ≥ 1: the bound holds at the focus and grows outwards), which a silhouette law caps at its 1.
-  float m = kInfinity;
-  if (o.use_silhouette) m = lookup(silhouette_table_, silhouette_label);
-  if (o.use_focus) m = std::min(m, lookup(focus_table_, focus_label));
-  if (m == kInfinity) m = 1.0f;
-  if (o.use_neglect) m *= lookup(neglect_table_, neglect_label);
-  return m;
 }
 
 bool AllowedErrorField::hidden(std::uint32_t cell, float clip_w, std::uint32_t vertex) const {
@@ -167,9 +151,19 @@ void AllowedErrorField::compute_all(std::span<float> vertex_allowed_error) {
 }
 
 float AllowedErrorField::cell_multiplier(std::uint32_t cell) const {
-  return label_multiplier(options_.use_silhouette ? cell_label(inputs_.silhouette_dt, cell) : kLabelNoCell,
-                          options_.use_focus ? cell_label(inputs_.focus_dt, cell) : kLabelNoCell,
-                          options_.use_neglect ? cell_label(inputs_.neglect_dt, cell) : kLabelNoCell);
+  // kStricter criteria: the smallest multiplier wins. A focus law may grow past 1 (foveal with
+  // f ≥ 1: the bound holds at the focus and grows outwards), which a silhouette law caps at its 1.
+  // kScales criteria then multiply the result.
+  float m = kInfinity;
+  for (const Criterion c : kAllCriteria) {
+    if (traits(c).combine == Combine::kStricter && options_.criteria[c])
+      m = std::min(m, criterion_factor(c, cell));
+  }
+  if (m == kInfinity) m = 1.0f;
+  for (const Criterion c : kAllCriteria) {
+    if (traits(c).combine == Combine::kScales && options_.criteria[c]) m *= criterion_factor(c, cell);
+  }
+  return m;
 }
 
 float AllowedErrorField::vertex_allowed_error(std::uint32_t vertex) const {

@@ -17,18 +17,19 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <span>
 #include <vector>
 
 #include "core/cut/refine.hpp"
+#include "core/view/criteria.hpp"
 #include "core/view/distance_transform.hpp"
-#include "core/view/falloff.hpp"
 #include "core/view/labels.hpp"
 #include "core/view/view_grid.hpp"
 
 namespace mtlod::core::view {
 
-// How one criterion (silhouette, focus or neglect) scales the allowed error with a label's distance.
+// How one criterion (criteria.hpp) scales the allowed error with a label's distance.
 struct RegionLaw {
   FalloffLaw law = FalloffLaw::kStep;
   // d: the region R = {label ≤ d} (in pixels of the grid). Ignored by kFoveal.
@@ -50,12 +51,9 @@ struct AllowedErrorOptions {
   ErrorUnits units = ErrorUnits::kModel;
   float viewport_height_px = 0.0f;  // kScreenPixels: the screen's height; 0 = the grid's height
   DistanceMetric metric = DistanceMetric::kChamfer5711;  // of the labels, to turn raw units into pixels
-  bool use_silhouette = false;                           // silhouette mode (JVRB 2006)
-  RegionLaw silhouette{};
-  bool use_focus = false;  // focus mode (DGCI 2006); several foci share one transform
-  RegionLaw focus{};
-  bool use_neglect = false;  // focus-of-neglect regions; multiplies the result
-  RegionLaw neglect{FalloffLaw::kStep, 2.0f, 4.0f, 16.0f, 2.3f};
+  // The law of each criterion in use (criteria.hpp: kStricter ones compete, kScales ones multiply);
+  // unset: the criterion is off. The points of a point-seeded criterion share one transform.
+  PerCriterion<std::optional<RegionLaw>> criteria;
   // Frustum coarsening: multiplier for vertices with no cell (1 = off). A vertex-based test: a large
   // triangle whose three vertices all lie outside the view while it crosses the view is coarsened too,
   // so keep it off for close-up views of coarse cuts.
@@ -89,14 +87,12 @@ float eccentricity_deg(float distance_px, float tan_per_px);
 float law_factor(const RegionLaw& law, float distance_px, float tan_per_px);
 
 // Per-request inputs: the grids of the criteria in use (W×H chamfer transforms of the metric in the
-// options, which must not be kEuclidean; an unused criterion's span may be empty) and the mesh's
-// vertex arrays.
+// options, which must not be kEuclidean, seeded as the criterion's traits say; an unused criterion's
+// span may be empty) and the mesh's vertex arrays.
 struct AllowedErrorInputs {
-  std::span<const std::uint16_t> silhouette_dt;  // chamfer transform seeded by the background (+ depth jumps)
-  std::span<const std::uint16_t> focus_dt;       // chamfer transform seeded by the foci
-  std::span<const std::uint16_t> neglect_dt;     // chamfer transform seeded by the neglect foci
-  std::span<const float> positions;              // x, y, z per vertex
-  std::span<const float> normals;                // empty, or unit x, y, z per vertex (back-face coarsening)
+  PerCriterion<std::span<const std::uint16_t>> transforms;
+  std::span<const float> positions;  // x, y, z per vertex
+  std::span<const float> normals;    // empty, or unit x, y, z per vertex (back-face coarsening)
   // Hidden-surface coarsening: per cell, the farthest visible eye depth (−z_eye) in the cell and its 8
   // neighbours (visible_depth_bound), +inf where any of them is background; empty = off.
   std::span<const float> visible_depth;
@@ -115,10 +111,9 @@ class AllowedErrorField final : public cut::VertexErrorSource {
 
   // Bytes of scratch memory held.
   std::size_t memory_bytes() const {
-    return (silhouette_table_.values.capacity() + focus_table_.values.capacity() +
-            neglect_table_.values.capacity() + clip_w_.capacity() + cell_multiplier_.capacity()) *
-               sizeof(float) +
-           cells_.capacity() * sizeof(std::uint32_t);
+    std::size_t floats = clip_w_.capacity() + cell_multiplier_.capacity();
+    for (const LawTable& table : tables_.entries) floats += table.values.capacity();
+    return floats * sizeof(float) + cells_.capacity() * sizeof(std::uint32_t);
   }
 
   // Lazy variant: the same value for one vertex, projecting it on demand (what
@@ -139,28 +134,29 @@ class AllowedErrorField final : public cut::VertexErrorSource {
   }
   // The part of the multiplier the cell's labels give (every law combined), for a grid cell.
   float cell_multiplier(std::uint32_t cell) const;
-  // The focus law's multiplier is 1 for every label from this one on (0: everywhere; the table's
-  // length when it never reaches 1 within it).
-  std::size_t focus_reach() const {
-    if (!options_.use_focus) return 0;
-    const std::vector<float>& f = focus_table_.values;
+  // The gaze criterion's (kGazeCriterion) multiplier is 1 for every label from this one on (0:
+  // everywhere; the table's length when it never reaches 1 within it).
+  std::size_t gaze_reach() const {
+    if (!options_.criteria[kGazeCriterion]) return 0;
+    const std::vector<float>& f = tables_[kGazeCriterion].values;
     std::size_t reach = f.size();
     while (reach > 0 && f[reach - 1] == 1.0f) --reach;
     return reach;
   }
 
-  // The focus law's multiplier in a grid cell (1 when focus mode is off). A vertex's allowed error
-  // depends on the focus transform only through this value of its cell, so when the foci move, only
+  // The gaze criterion's multiplier in a grid cell (1 when it is off). A vertex's allowed error
+  // depends on the gaze transform only through this value of its cell, so when the gaze moves, only
   // vertices in cells where it changed need their allowed error again.
-  float focus_factor(std::uint32_t cell) const {
-    return options_.use_focus ? lookup(focus_table_, cell_label(inputs_.focus_dt, cell)) : 1.0f;
+  float gaze_factor(std::uint32_t cell) const {
+    return options_.criteria[kGazeCriterion] ? criterion_factor(kGazeCriterion, cell) : 1.0f;
   }
 
  private:
   // A vertex's value in two parts: the multiplier of its cell's labels (cell_multiplier), then the
   // per-vertex factors and units.
-  float label_multiplier(std::uint32_t silhouette_label, std::uint32_t focus_label,
-                         std::uint32_t neglect_label) const;
+  float criterion_factor(Criterion c, std::uint32_t cell) const {
+    return lookup(tables_[c], cell_label(inputs_.transforms[c], cell));
+  }
   float finish(float label_multiplier, std::uint32_t cell, float clip_w, std::uint32_t vertex) const;
   // Whether a vertex in a grid cell lies behind the visible surface around it.
   bool hidden(std::uint32_t cell, float clip_w, std::uint32_t vertex) const;
@@ -189,7 +185,7 @@ class AllowedErrorField final : public cut::VertexErrorSource {
   float tan_per_px_ = 0.0f;
   float pixel_bound_per_clip_w_ = 0.0f;
   float viewport_height_px_ = 0.0f;
-  LawTable silhouette_table_, focus_table_, neglect_table_;
+  PerCriterion<LawTable> tables_;
   std::vector<std::uint32_t> cells_;  // full variant scratch
   std::vector<float> cell_multiplier_;
   std::vector<float> clip_w_;

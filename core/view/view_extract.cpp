@@ -49,18 +49,23 @@ ViewExtractor::ViewExtractor(const model::Mt& mt, const OccupancyLevels& levels)
 
 std::size_t ViewCache::memory_bytes() const {
   auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
-  return allowed_error_.resident_bytes() + known_bits_.resident_bytes() + bytes(silhouette_dt_) +
-         bytes(neglect_dt_) + bytes(visible_depth_) + bytes(focus_factor_) + bytes(known_vertices_) +
-         bytes(known_cells_) + bytes(known_clip_w_) + bytes(cell_changed_) + bytes(cell_multiplier_) +
-         bytes(changed_cells_) + bytes(changed_) + bytes(neglect_) + bytes(focus_cells_);
+  std::size_t criteria = 0;
+  for (const Criterion c : kAllCriteria) criteria += bytes(transforms_[c]) + bytes(points_[c]);
+  return allowed_error_.resident_bytes() + known_bits_.resident_bytes() + criteria + bytes(visible_depth_) +
+         bytes(gaze_factor_) + bytes(known_vertices_) + bytes(known_cells_) + bytes(known_clip_w_) +
+         bytes(cell_changed_) + bytes(cell_multiplier_) + bytes(changed_cells_) + bytes(changed_) +
+         bytes(gaze_cells_);
 }
 
 bool ViewExtractor::same_view(const ViewCache& s, const ViewRequest& r) {
+  for (const Criterion c : kAllCriteria) {
+    if (c != kGazeCriterion && s.points_[c] != r.points[c]) return false;
+  }
   return s.valid_ && s.camera_.model == r.camera.model && s.camera_.view == r.camera.view &&
          s.camera_.projection == r.camera.projection && s.grid_.width == r.grid.width &&
-         s.grid_.height == r.grid.height && s.allowed_ == r.allowed && s.neglect_ == r.neglect &&
-         s.has_focus_ == !r.focus.empty() && s.internal_silhouettes_ == r.internal_silhouettes &&
-         s.depth_jump_ == r.depth_jump;
+         s.grid_.height == r.grid.height && s.allowed_ == r.allowed &&
+         s.has_gaze_ == !r.points[kGazeCriterion].empty() &&
+         s.internal_silhouettes_ == r.internal_silhouettes && s.depth_jump_ == r.depth_jump;
 }
 
 void ViewExtractor::map(const ViewRequest& request, ViewCache* session) {
@@ -132,38 +137,50 @@ void ViewExtractor::transform_from_cells(std::span<const std::uint32_t> cells, s
   to_fifths_of_pixel(euclidean_, out);
 }
 
+bool ViewExtractor::transform_needed(Criterion c) const {
+  const ViewRequest& r = *request_;
+  switch (traits(c).seeds) {
+    case Seeds::kBackground:
+      // Labels read the silhouette distance when there is no gaze to measure from.
+      return r.allowed.criteria[c] || (r.labels && r.points[kGazeCriterion].empty());
+    case Seeds::kPoints:
+      return r.allowed.criteria[c] && !r.points[c].empty();
+  }
+  return false;
+}
+
 void ViewExtractor::distance_transforms() {
   const ViewRequest& r = *request_;
   const std::size_t cells = r.grid.cell_count();
-  auto seeded = [&](const std::vector<std::array<float, 2>>& points, std::vector<std::uint16_t>& out) {
-    out.clear();
-    if (points.empty()) return;
-    cells_.clear();
-    for (const auto& p : points) cells_.push_back(focus_cell(r.grid, p[0], p[1]));
-    out.resize(cells);
-    transform_from_cells(cells_, out);
-  };
-  seeded(r.allowed.use_focus ? r.focus : std::vector<std::array<float, 2>>{}, focus_dt_);
-  if (incremental_) {
-    silhouette_ = session_->silhouette_dt_;
-    neglect_ = session_->neglect_dt_;
-    return;
-  }
-  if (r.allowed.use_silhouette || (r.labels && r.focus.empty())) {
-    silhouette_dt_.resize(cells);
-    if (r.internal_silhouettes) {
-      seeds_image_ = occupancy_;
-      mark_depth_discontinuities(depth_, r.grid, r.depth_jump, seeds_image_);
-      transform(seeds_image_, silhouette_dt_);
-    } else {
-      transform(occupancy_, silhouette_dt_);
+  for (const Criterion c : kAllCriteria) {
+    // A gaze keeps the view's transforms but the gaze criterion's.
+    if (incremental_ && c != kGazeCriterion) {
+      transforms_[c] = session_->transforms_[c];
+      continue;
     }
-  } else {
-    silhouette_dt_.clear();
+    std::vector<std::uint16_t>& out = dt_[c];
+    out.clear();
+    if (transform_needed(c)) {
+      out.resize(cells);
+      switch (traits(c).seeds) {
+        case Seeds::kBackground:
+          if (r.internal_silhouettes) {
+            seeds_image_ = occupancy_;
+            mark_depth_discontinuities(depth_, r.grid, r.depth_jump, seeds_image_);
+            transform(seeds_image_, out);
+          } else {
+            transform(occupancy_, out);
+          }
+          break;
+        case Seeds::kPoints:
+          cells_.clear();
+          for (const auto& p : r.points[c]) cells_.push_back(focus_cell(r.grid, p[0], p[1]));
+          transform_from_cells(cells_, out);
+          break;
+      }
+    }
+    transforms_[c] = out;
   }
-  seeded(r.allowed.use_neglect ? r.neglect : std::vector<std::array<float, 2>>{}, neglect_dt_);
-  silhouette_ = silhouette_dt_;
-  neglect_ = neglect_dt_;
 }
 
 void ViewExtractor::allowed_error() {
@@ -172,11 +189,10 @@ void ViewExtractor::allowed_error() {
   AllowedErrorOptions options = r.allowed;
   if (options.metric == DistanceMetric::kEuclidean)
     options.metric = DistanceMetric::kChamfer5711;  // see transform()
-  options.use_silhouette = options.use_silhouette && !silhouette_.empty();
-  options.use_focus = options.use_focus && !focus_dt_.empty();
-  options.use_neglect = options.use_neglect && !neglect_.empty();
-  field_.bind(mapping_, options,
-              {silhouette_, focus_dt_, neglect_, mt_.positions, mt_.normals, visible_depth_});
+  for (const Criterion c : kAllCriteria) {
+    if (transforms_[c].empty()) options.criteria[c].reset();
+  }
+  field_.bind(mapping_, options, {transforms_, mt_.positions, mt_.normals, visible_depth_});
   if (!incremental_) {
     util::ZeroedArray<float>& field = session_ ? session_->allowed_error_ : vertex_allowed_error_;
     // Only the entries written are read: on demand, the pages of the cut's vertices.
@@ -197,36 +213,36 @@ void ViewExtractor::allowed_error() {
   allowed_ = s.allowed_error_;
   on_demand_ = !s.allowed_error_complete_;
   if (s.allowed_error_complete_ && !s.known_all_) list_all_vertices(s);
-  update_known_for_foci(s, options.metric);
+  update_known_for_gaze(s, options.metric);
 }
 
-void ViewExtractor::update_known_for_foci(ViewCache& s, DistanceMetric metric) {
-  // Only the foci moved: a vertex's allowed error changes only where its cell's focus multiplier did.
+void ViewExtractor::update_known_for_gaze(ViewCache& s, DistanceMetric metric) {
+  // Only the gaze moved: a vertex's allowed error changes only where its cell's gaze multiplier did.
   s.changed_.clear();
   s.changed_cells_.clear();
   auto visit = [&](std::uint32_t c) {
-    const float factor = field_.focus_factor(c);
-    if (factor == s.focus_factor_[c]) return;
-    s.focus_factor_[c] = factor;
+    const float factor = field_.gaze_factor(c);
+    if (factor == s.gaze_factor_[c]) return;
+    s.gaze_factor_[c] = factor;
     if (s.cell_changed_[c]) return;
     s.cell_changed_[c] = 1;
     s.changed_cells_.push_back(c);
   };
-  // The focus multiplier is 1 from the label focus_reach() on, and a label below it lies within
-  // reach / units cells (Chebyshev) of a focus: a pixel step costs at least `units` in every
+  // The gaze multiplier is 1 from the label gaze_reach() on, and a label below it lies within
+  // reach / units cells (Chebyshev) of a gaze point: a pixel step costs at least `units` in every
   // transform (the Euclidean one rounds, hence one cell more). So only boxes around the old and the
-  // new foci can hold a changed multiplier; everywhere else it was 1 and still is.
+  // new gaze points can hold a changed multiplier; everywhere else it was 1 and still is.
   const GridSize grid = request_->grid;
   const std::uint32_t radius = std::uint32_t(std::min<std::size_t>(
-      field_.focus_reach() / units_per_pixel(metric) + 1, std::max(grid.width, grid.height)));
+      field_.gaze_reach() / units_per_pixel(metric) + 1, std::max(grid.width, grid.height)));
   std::size_t foci = 0;  // on the grid, old and new
-  for (const std::uint32_t f : s.focus_cells_) foci += f != kNoCell;
-  for (const auto& p : request_->focus) foci += focus_cell(grid, p[0], p[1]) != kNoCell;
+  for (const std::uint32_t f : s.gaze_cells_) foci += f != kNoCell;
+  for (const auto& p : request_->points[kGazeCriterion]) foci += focus_cell(grid, p[0], p[1]) != kNoCell;
   const bool whole_grid =
       foci * (2 * std::size_t{radius} + 1) * (2 * std::size_t{radius} + 1) >= grid.cell_count();
   // A cell in two boxes is visited twice; the second visit finds its multiplier stored.
   auto visit_boxes = [&] {
-    for (const std::uint32_t f : s.focus_cells_) {
+    for (const std::uint32_t f : s.gaze_cells_) {
       if (f == kNoCell) continue;
       const std::uint32_t fx = f % grid.width, fy = f / grid.width;
       const std::uint32_t x0 = fx > radius ? fx - radius : 0, x1 = std::min(grid.width - 1, fx + radius);
@@ -238,9 +254,9 @@ void ViewExtractor::update_known_for_foci(ViewCache& s, DistanceMetric metric) {
   if (whole_grid) {
     for (std::uint32_t c = 0; c < grid.cell_count(); ++c) visit(c);
   } else {
-    visit_boxes();  // around the old foci
+    visit_boxes();  // around the old gaze points
   }
-  remember_focus_cells(s);
+  remember_gaze_cells(s);
   if (!whole_grid) visit_boxes();  // around the new ones
   if (s.changed_cells_.empty()) return;
   // The cell's labels give one multiplier for all its vertices, and each known vertex's depth was
@@ -258,18 +274,19 @@ void ViewExtractor::update_known_for_foci(ViewCache& s, DistanceMetric metric) {
   vertices_computed_ += s.changed_.size();
 }
 
-void ViewExtractor::remember_focus_cells(ViewCache& s) const {
-  s.focus_cells_.clear();
-  for (const auto& p : request_->focus) s.focus_cells_.push_back(focus_cell(request_->grid, p[0], p[1]));
+void ViewExtractor::remember_gaze_cells(ViewCache& s) const {
+  s.gaze_cells_.clear();
+  for (const auto& p : request_->points[kGazeCriterion])
+    s.gaze_cells_.push_back(focus_cell(request_->grid, p[0], p[1]));
 }
 
-void ViewExtractor::remember_foci(ViewCache& s) const {
+void ViewExtractor::remember_gaze(ViewCache& s) const {
   const std::size_t cells = request_->grid.cell_count();
-  s.focus_factor_.resize(cells);
-  for (std::uint32_t c = 0; c < cells; ++c) s.focus_factor_[c] = field_.focus_factor(c);
+  s.gaze_factor_.resize(cells);
+  for (std::uint32_t c = 0; c < cells; ++c) s.gaze_factor_[c] = field_.gaze_factor(c);
   s.cell_changed_.assign(cells, 0);
   s.cell_multiplier_.resize(cells);
-  remember_focus_cells(s);
+  remember_gaze_cells(s);
 }
 
 void ViewExtractor::remember_view(ViewCache& s) const {
@@ -278,14 +295,16 @@ void ViewExtractor::remember_view(ViewCache& s) const {
   s.camera_ = r.camera;
   s.grid_ = r.grid;
   s.allowed_ = r.allowed;
-  s.neglect_ = r.neglect;
-  s.has_focus_ = !r.focus.empty();
+  for (const Criterion c : kAllCriteria) {
+    const bool gaze = c == kGazeCriterion;  // moves with every gaze: recomputed each time
+    s.points_[c] = gaze ? std::vector<std::array<float, 2>>{} : r.points[c];
+    s.transforms_[c].assign(gaze ? transforms_[c].end() : transforms_[c].begin(), transforms_[c].end());
+  }
+  s.has_gaze_ = !r.points[kGazeCriterion].empty();
   s.internal_silhouettes_ = r.internal_silhouettes;
   s.depth_jump_ = r.depth_jump;
-  s.silhouette_dt_.assign(silhouette_.begin(), silhouette_.end());
-  s.neglect_dt_.assign(neglect_.begin(), neglect_.end());
   s.visible_depth_.assign(visible_depth_.begin(), visible_depth_.end());
-  remember_foci(s);
+  remember_gaze(s);
   s.changed_.clear();
 }
 
@@ -420,9 +439,9 @@ cut::CutSpan ViewExtractor::refine_view(cut::Refiner& session, cut::CutMesh& scr
   const cut::CutSpan cut = session.refine_view(what, scratch);
   if (session_ && on_demand_) forget_unread(session);
   if (request_->labels) {
-    // Labels of the cut's vertices only: the silhouette distance when it was computed, else the focus's.
-    const std::span<const std::uint16_t> dt =
-        !silhouette_.empty() ? silhouette_ : std::span<const std::uint16_t>(focus_dt_);
+    // Labels of the cut's vertices only: the silhouette distance when it was computed, else the gaze's.
+    const std::span<const std::uint16_t> silhouette = transforms_[Criterion::kSilhouette];
+    const std::span<const std::uint16_t> dt = !silhouette.empty() ? silhouette : transforms_[kGazeCriterion];
     if (vertex_labels_.size() != mt_.vertex_count()) vertex_labels_.reset(mt_.vertex_count());
     for (std::uint32_t v : cut.triangles)
       vertex_labels_[v] = dt.empty() ? 0 : vertex_label(mapping_, mt_.positions, v, dt);
@@ -432,10 +451,12 @@ cut::CutSpan ViewExtractor::refine_view(cut::Refiner& session, cut::CutMesh& scr
 
 std::size_t ViewExtractor::memory_bytes() const {
   auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
+  std::size_t dt_bytes = 0;
+  for (const auto& dt : dt_.entries) dt_bytes += bytes(dt);
   return transformer_.memory_bytes() + bytes(occupancy_) + bytes(seeds_image_) + bytes(depth_) +
-         bytes(visible_depth_bound_) + bytes(silhouette_dt_) + bytes(focus_dt_) + bytes(neglect_dt_) +
-         bytes(euclidean_) + bytes(cells_) + vertex_allowed_error_.resident_bytes() +
-         vertex_labels_.resident_bytes() + bytes(projected_) + bytes(unknown_) + field_.memory_bytes();
+         bytes(visible_depth_bound_) + dt_bytes + bytes(euclidean_) + bytes(cells_) +
+         vertex_allowed_error_.resident_bytes() + vertex_labels_.resident_bytes() + bytes(projected_) +
+         bytes(unknown_) + field_.memory_bytes();
 }
 
 }  // namespace mtlod::core::view

@@ -28,13 +28,14 @@ struct ViewRequest {
   // Allowed-error settings: bound, units, laws per criterion, coarsening factors. Its `metric` says
   // which distance transform runs; kEuclidean is computed exactly and handed on in fifths of a pixel.
   AllowedErrorOptions allowed;
-  std::vector<std::array<float, 2>> focus;    // normalised viewport coordinates, (0,0) top left
-  std::vector<std::array<float, 2>> neglect;  // the same, for regions of neglect
-  bool internal_silhouettes = false;          // depth jumps seed the silhouette transform too
-  float depth_jump = 0.1f;                    // relative depth difference that counts as a jump
-  std::optional<std::size_t> budget;          // triangle budget: worst-first refinement (the same cut
-                                              // whether from the root or moved, on a session's gaze)
-  bool dynamic = true;                        // move the session's cut (false: refine from the root)
+  // The seeds of each point-seeded criterion (Seeds::kPoints): normalised viewport coordinates,
+  // (0,0) top left.
+  PerCriterion<std::vector<std::array<float, 2>>> points;
+  bool internal_silhouettes = false;  // depth jumps seed the silhouette transform too
+  float depth_jump = 0.1f;            // relative depth difference that counts as a jump
+  std::optional<std::size_t> budget;  // triangle budget: worst-first refinement (the same cut
+                                      // whether from the root or moved, on a session's gaze)
+  bool dynamic = true;                // move the session's cut (false: refine from the root)
   // A new view, static or in a session, with or without a budget, refines from the root asking for
   // the allowed error of only the vertices the refinement reads (an on-demand cut::Refinement)
   // instead of every vertex's in stage 4; the same cut. false: stage 4 computes every vertex's (for
@@ -44,9 +45,9 @@ struct ViewRequest {
 };
 
 // What one client session keeps between its requests, so that a request with the same view as the
-// session's previous one — same camera, grid and criteria, only the focus points moved: a gaze —
-// skips the occupancy and the silhouette transform, recomputes the allowed error only for the
-// known vertices in cells where the focus law's multiplier changed, and hands exactly those
+// session's previous one — same camera, grid and criteria, only the gaze criterion's points moved
+// (kGazeCriterion): a gaze — skips the occupancy and every other transform, recomputes the allowed
+// error only for the known vertices in cells where the gaze law's multiplier changed, and hands exactly those
 // vertices to the refinement. Owned by the session, filled by ViewExtractor; the result is the
 // same as computing every stage again (tests/core/view_extract_test.cpp holds it to that).
 //
@@ -76,17 +77,16 @@ class ViewCache {
   Camera camera_;
   GridSize grid_;
   AllowedErrorOptions allowed_;
-  std::vector<std::array<float, 2>> neglect_;
-  bool has_focus_ = false;
+  PerCriterion<std::vector<std::array<float, 2>>> points_;  // but the gaze criterion's
+  bool has_gaze_ = false;
   bool internal_silhouettes_ = false;
   float depth_jump_ = 0.0f;
-  util::ZeroedArray<float> allowed_error_;    // per vertex: right for the known ones
-  bool allowed_error_complete_ = false;       // every vertex's was computed (else on demand)
-  std::vector<std::uint16_t> silhouette_dt_;  // of the view
-  std::vector<std::uint16_t> neglect_dt_;
-  std::vector<float> visible_depth_;        // of the view, with hidden-surface coarsening
-  std::vector<float> focus_factor_;         // per cell, for the last request's foci
-  std::vector<std::uint32_t> focus_cells_;  // the last request's foci (kNoCell off the grid)
+  util::ZeroedArray<float> allowed_error_;               // per vertex: right for the known ones
+  bool allowed_error_complete_ = false;                  // every vertex's was computed (else on demand)
+  PerCriterion<std::vector<std::uint16_t>> transforms_;  // of the view, but the gaze criterion's
+  std::vector<float> visible_depth_;                     // of the view, with hidden-surface coarsening
+  std::vector<float> gaze_factor_;                       // per cell, for the last request's gaze points
+  std::vector<std::uint32_t> gaze_cells_;  // the last request's gaze points (kNoCell off the grid)
   // The known vertices, their cells (kNoCell off the grid) and clip-space w. With a complete field
   // they are listed on the view's first reuse; on demand, known_bits_ marks them.
   std::vector<std::uint32_t> known_vertices_;
@@ -94,7 +94,7 @@ class ViewCache {
   std::vector<float> known_clip_w_;
   bool known_all_ = false;                       // known_vertices_ lists every vertex (complete field)
   util::ZeroedArray<std::uint64_t> known_bits_;  // on demand: one bit per model vertex
-  std::vector<std::uint8_t> cell_changed_;       // per cell, during a gaze: its focus multiplier changed
+  std::vector<std::uint8_t> cell_changed_;       // per cell, during a gaze: its gaze multiplier changed
   std::vector<float> cell_multiplier_;           // per cell, for the changed ones: its label multiplier
   std::vector<std::uint32_t> changed_cells_;
   std::vector<std::uint32_t> changed_;  // vertices recomputed by the last request
@@ -138,10 +138,10 @@ class ViewExtractor {
   // model covers (see OccupancyLevels), with its depths when internal silhouettes or hidden-surface
   // coarsening need them. Returns that cut's triangle count (0: reused the session's).
   std::size_t occupancy();
-  // Stage 3: the silhouette, focus and neglect transforms the request uses.
+  // Stage 3: the transforms of the criteria the request uses, each seeded as its traits say.
   void distance_transforms();
   // Stage 4: per-vertex allowed error: every vertex, or on the incremental path only the session's
-  // known vertices in cells whose focus multiplier changed; on a new view with
+  // known vertices in cells whose gaze multiplier changed; on a new view with
   // allowed_error_on_demand, none yet: stage 5 asks for those it reads (and, in a session, so do the
   // view's gazes).
   void allowed_error();
@@ -159,8 +159,8 @@ class ViewExtractor {
   // demand, or changed by a gaze), since it was made.
   std::size_t vertices_computed() const { return vertices_computed_; }
   std::span<const std::uint8_t> occupancy_grid() const { return occupancy_; }
-  std::span<const std::uint16_t> silhouette_dt() const { return silhouette_; }
-  std::span<const std::uint16_t> focus_dt() const { return focus_dt_; }
+  // A criterion's transform (empty when the request did not use it).
+  std::span<const std::uint16_t> distance_transform(Criterion c) const { return transforms_[c]; }
   // Every vertex's allowed error, or only the cut's when it was computed on demand.
   std::span<const float> vertex_allowed_error() const { return allowed_; }
   const ViewMapping& mapping() const { return mapping_; }
@@ -177,15 +177,17 @@ class ViewExtractor {
   // Stages 1 to 4, telling the observer (if any) as each ends.
   void prepare(const ViewRequest& request, ViewCache* session, StageObserver* observer);
   void transform(std::span<const std::uint8_t> image, std::span<std::uint16_t> out);
-  // Stage 4 of a gaze: recomputes the session's known vertices in cells whose focus multiplier
+  // Stage 4 of a gaze: recomputes the session's known vertices in cells whose gaze multiplier
   // changed, listing them in its changed_ (metric: the labels', as bound to the field).
-  void update_known_for_foci(ViewCache& session, DistanceMetric metric);
-  // Whether the request has the session's view (everything but the focus points).
+  void update_known_for_gaze(ViewCache& session, DistanceMetric metric);
+  // Whether a criterion's transform is computed for the request.
+  bool transform_needed(Criterion c) const;
+  // Whether the request has the session's view (everything but the gaze points).
   static bool same_view(const ViewCache& session, const ViewRequest& request);
   void remember_view(ViewCache& session) const;
-  void remember_focus_cells(ViewCache& session) const;
-  // The focus multiplier of every cell and the foci, for the request's foci.
-  void remember_foci(ViewCache& session) const;
+  void remember_gaze_cells(ViewCache& session) const;
+  // The gaze multiplier of every cell and the gaze points, for the request's.
+  void remember_gaze(ViewCache& session) const;
   // A complete field's known vertices: every vertex, with its cell and clip-space w.
   void list_all_vertices(ViewCache& session);
   // The session's known vertices become none (a new view).
@@ -207,7 +209,7 @@ class ViewExtractor {
   bool incremental_ = false;
   bool on_demand_ = false;  // stage 5 computes the allowed error it reads
   // The transforms, visible depths and field in use: this extractor's buffers or the session's.
-  std::span<const std::uint16_t> silhouette_, neglect_;
+  PerCriterion<std::span<const std::uint16_t>> transforms_;
   std::span<const float> visible_depth_;
   std::span<float> allowed_;
   ViewMapping mapping_;
@@ -217,7 +219,7 @@ class ViewExtractor {
   AllowedErrorField field_;
   std::vector<std::uint8_t> occupancy_, seeds_image_;
   std::vector<float> depth_, visible_depth_bound_;
-  std::vector<std::uint16_t> silhouette_dt_, focus_dt_, neglect_dt_;
+  PerCriterion<std::vector<std::uint16_t>> dt_;
   std::vector<std::uint32_t> euclidean_, cells_;
   util::ZeroedArray<float> vertex_allowed_error_;
   util::ZeroedArray<std::uint32_t> vertex_labels_;  // written for the cut's vertices only

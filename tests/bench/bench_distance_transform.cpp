@@ -298,10 +298,10 @@ struct LabelScene {
     transformer.chamfer_from_cells(view::DistanceMetric::kChamfer5711, foci, grid, focus);
     options.error = 1.0f;
     options.units = view::ErrorUnits::kScreenPixels;
-    options.use_silhouette = true;
-    options.silhouette = {view::FalloffLaw::kStep, 2.0f, 0.0f, 0.0f, 2.3f};
-    options.use_focus = true;
-    options.focus = {view::FalloffLaw::kFoveal, 0.0f, 0.2f, 0.0f, 2.3f};
+    options.criteria[view::Criterion::kSilhouette] =
+        view::RegionLaw{view::FalloffLaw::kStep, 2.0f, 0.0f, 0.0f, 2.3f};
+    options.criteria[view::Criterion::kFocus] =
+        view::RegionLaw{view::FalloffLaw::kFoveal, 0.0f, 0.2f, 0.0f, 2.3f};
   }
 };
 
@@ -314,7 +314,7 @@ void BM_AllowedErrorFull(benchmark::State& state) {
   const LabelScene scene(dragon);
   view::AllowedErrorField field;
   field.bind(scene.mapping, scene.options,
-             {scene.silhouette, scene.focus, {}, dragon.full->positions, {}, {}});
+             {{scene.silhouette, scene.focus, {}}, dragon.full->positions, {}, {}});
   std::vector<float> allowed(dragon.full->vertex_count());
   for (auto _ : state) {
     field.compute_all(allowed);
@@ -333,7 +333,7 @@ void BM_AllowedErrorLazy(benchmark::State& state) {
   const LabelScene scene(dragon);
   view::AllowedErrorField field;
   field.bind(scene.mapping, scene.options,
-             {scene.silhouette, scene.focus, {}, dragon.full->positions, {}, {}});
+             {{scene.silhouette, scene.focus, {}}, dragon.full->positions, {}, {}});
   // Touched triangles: random (arg 1 = 0) or a contiguous run in file order (arg 1 = 1).
   const auto touched = static_cast<std::size_t>(state.range(0));
   std::vector<std::uint32_t> triangles(touched);
@@ -381,7 +381,7 @@ void BM_GridPipelineDragon256(benchmark::State& state) {
     transformer.chamfer(view::DistanceMetric::kChamfer5711, occupancy, grid, scene.silhouette);
     transformer.chamfer_from_cells(view::DistanceMetric::kChamfer5711, foci, grid, scene.focus);
     field.bind(scene.mapping, scene.options,
-               {scene.silhouette, scene.focus, {}, dragon.full->positions, {}, {}});
+               {{scene.silhouette, scene.focus, {}}, dragon.full->positions, {}, {}});
     field.compute_all(allowed);
     benchmark::DoNotOptimize(allowed.data());
   }
@@ -474,13 +474,13 @@ void BM_RequestPipelineDragon256(benchmark::State& state) {
   view::AllowedErrorField field;
   cut::Refiner refiner(mt);
   view::AllowedErrorOptions options;
-  options.use_silhouette = true;
-  options.silhouette = {view::FalloffLaw::kStep, 2.0f, 0.25f, 0.0f, 2.3f};
+  options.criteria[view::Criterion::kSilhouette] =
+      view::RegionLaw{view::FalloffLaw::kStep, 2.0f, 0.25f, 0.0f, 2.3f};
   auto request = [&] {
     view::rasterize_occupancy_compact(mapping, level.positions, level.triangles, occupancy, {}, projected,
                                       level.closed);
     transformer.chamfer(view::DistanceMetric::kChamfer5711, occupancy, grid, silhouette);
-    field.bind(mapping, options, {silhouette, {}, {}, mt.positions, {}, {}});
+    field.bind(mapping, options, {{silhouette, {}, {}}, mt.positions, {}, {}});
     field.compute_all(allowed);
     refiner.refine(cut::Refinement::from_root(cut::AllowedError::from_vertices(allowed)), cut);
   };
@@ -584,7 +584,7 @@ void BM_VisibleDepthDragon256(benchmark::State& state) {
   view::AllowedErrorOptions options;
   options.hidden_factor = 2.0f;
   std::vector<float> allowed(mt.vertex_count());
-  view::compute_vertex_allowed_error(mapping, options, {{}, {}, {}, mt.positions, {}, visible}, allowed);
+  view::compute_vertex_allowed_error(mapping, options, {{}, mt.positions, {}, visible}, allowed);
   std::vector<std::uint32_t> cells(mt.vertex_count());
   std::vector<float> clip_w(mt.vertex_count());
   view::map_vertices(mapping, mt.positions, cells, clip_w);
@@ -617,13 +617,14 @@ void BM_RefineOnlyDragon256(benchmark::State& state) {
                                     level.closed);
   view::chamfer_5_7_11(occupancy, mapping.grid(), silhouette);
   view::AllowedErrorOptions options;
-  options.use_silhouette = true;
-  options.silhouette = {view::FalloffLaw::kStep, 2.0f, 0.25f, 0.0f, 2.3f};
+  options.criteria[view::Criterion::kSilhouette] =
+      view::RegionLaw{view::FalloffLaw::kStep, 2.0f, 0.25f, 0.0f, 2.3f};
   std::vector<float> allowed(mt.vertex_count());
   cut::Refiner refiner(mt);
   tune_error_for_size(dragon.radius, static_cast<std::size_t>(state.range(0)), [&](float bound) {
     options.error = bound;
-    view::compute_vertex_allowed_error(mapping, options, {silhouette, {}, {}, mt.positions, {}, {}}, allowed);
+    view::compute_vertex_allowed_error(mapping, options, {{silhouette, {}, {}}, mt.positions, {}, {}},
+                                       allowed);
     refiner.refine(cut::Refinement::from_root(cut::AllowedError::from_vertices(allowed)), cut);
     return cut.triangle_count();
   });

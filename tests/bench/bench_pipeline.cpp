@@ -73,8 +73,8 @@ protocol::Extract request_for(const Model& m, double error_px) {
   e.grid = {256, 256};
   e.error = error_px;
   e.error_unit = core::view::ErrorUnits::kScreenPixels;
-  e.criteria.silhouette = protocol::Silhouette{2, 0.1};
-  e.criteria.focus = {protocol::Focus{0.5, 0.5, 40, 0.25}};
+  e.criteria.regions[core::view::Criterion::kSilhouette] = protocol::Region{2, 0.1, {}};
+  e.criteria.regions[core::view::Criterion::kFocus] = protocol::Region{40, 0.25, {{0.5, 0.5}}};
   return e;
 }
 
@@ -177,7 +177,7 @@ void BM_RefineAfterSmallMove(benchmark::State& state) {
   const bool dynamic = state.range(0) == 1;
   const double error_px = error_for_size(*m, 50'000);
   protocol::Extract a = request_for(*m, error_px), b = a;
-  b.criteria.focus[0].x += 0.01;  // the gaze moves by 1% of the screen
+  protocol::gaze_region(b.criteria).points[0].x += 0.01;  // the gaze moves by 1% of the screen
   core::view::ViewRequest va = protocol::to_view_request(a, false), vb = protocol::to_view_request(b, false);
   va.dynamic = vb.dynamic = dynamic;
   core::view::ViewExtractor x(m->mt, *m->levels);
@@ -205,8 +205,8 @@ BENCHMARK(BM_RefineAfterSmallMove)->Arg(0)->Arg(1)->ArgName("dynamic")->Unit(ben
 // full resolution within 20 px of the gaze.
 protocol::Extract gaze_request(const Model& m) {
   protocol::Extract e = request_for(m, 0.5);
-  e.criteria.silhouette = protocol::Silhouette{2, 0.25};
-  e.criteria.focus = {protocol::Focus{0.5, 0.5, 20, 0.1}};
+  e.criteria.regions[core::view::Criterion::kSilhouette] = protocol::Region{2, 0.25, {}};
+  e.criteria.regions[core::view::Criterion::kFocus] = protocol::Region{20, 0.1, {{0.5, 0.5}}};
   return e;
 }
 
@@ -272,7 +272,7 @@ void BM_GazeStream(benchmark::State& state) {
   core::cut::CutDelta delta;  // what a delta reply's diff costs (server, "delta": true)
   std::vector<std::uint32_t> added, removed;
   for (auto _ : state) {
-    auto& f = e.criteria.focus[0];
+    protocol::Point& f = protocol::gaze_region(e.criteria).points[0];
     if (chance(rng) < 0.1) {
       f.x = anywhere(rng), f.y = anywhere(rng);
     } else {

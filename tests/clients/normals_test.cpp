@@ -100,7 +100,7 @@ const Served& served() {
 protocol::Extract request(const std::string& model) {
   protocol::Extract e = test::framing_extract(model, core::model::to_double(served().box.lo),
                                               core::model::to_double(served().box.hi), {256, 256}, 1.0);
-  e.criteria.focus = {protocol::Focus{0.5, 0.5, 20, 0.25}};
+  e.criteria.regions[core::view::Criterion::kFocus] = protocol::Region{20, 0.25, {{0.5, 0.5}}};
   return e;
 }
 

@@ -41,11 +41,12 @@ TEST(RequestSequence, ExtractsOnlyWhenTheMixHasNoGazes) {
     const auto* e = std::get_if<protocol::Extract>(&r);
     ASSERT_NE(e, nullptr) << i;
     // --random-focus: one focus point inside [0.1, 0.9]².
-    ASSERT_EQ(e->criteria.focus.size(), 1u);
-    EXPECT_GE(e->criteria.focus.front().x, 0.1);
-    EXPECT_LT(e->criteria.focus.front().x, 0.9);
-    EXPECT_GE(e->criteria.focus.front().y, 0.1);
-    EXPECT_LT(e->criteria.focus.front().y, 0.9);
+    ASSERT_TRUE(e->criteria.regions[core::view::Criterion::kFocus]);
+    ASSERT_EQ(e->criteria.regions[core::view::Criterion::kFocus]->points.size(), 1u);
+    EXPECT_GE(e->criteria.regions[core::view::Criterion::kFocus]->points.front().x, 0.1);
+    EXPECT_LT(e->criteria.regions[core::view::Criterion::kFocus]->points.front().x, 0.9);
+    EXPECT_GE(e->criteria.regions[core::view::Criterion::kFocus]->points.front().y, 0.1);
+    EXPECT_LT(e->criteria.regions[core::view::Criterion::kFocus]->points.front().y, 0.9);
   }
 }
 
@@ -76,9 +77,14 @@ TEST(RequestSequence, ScriptedCamerasCycleFromTheConnectionsFirstLine) {
   for (std::size_t line : lines) {
     const protocol::Request r = requests.next();
     const auto& e = std::get<protocol::Extract>(r);
-    ASSERT_EQ(e.criteria.focus.size(), 1u);
-    EXPECT_EQ(e.criteria.focus.front().x, settings.script[line].focus[0]) << line;
-    EXPECT_EQ(e.criteria.focus.front().y, settings.script[line].focus[1]) << line;
+    ASSERT_TRUE(e.criteria.regions[core::view::Criterion::kFocus]);
+    ASSERT_EQ(e.criteria.regions[core::view::Criterion::kFocus]->points.size(), 1u);
+    EXPECT_EQ(e.criteria.regions[core::view::Criterion::kFocus]->points.front().x,
+              settings.script[line].focus[0])
+        << line;
+    EXPECT_EQ(e.criteria.regions[core::view::Criterion::kFocus]->points.front().y,
+              settings.script[line].focus[1])
+        << line;
   }
 }
 

@@ -95,11 +95,11 @@ TEST(AllowedError, StricterOfSilhouetteAndFocusWins) {
   ASSERT_EQ(cell, scene.mapping.grid().cell(8, 8));
   view::AllowedErrorOptions options;
   options.error = 2.0f;
-  options.use_silhouette = true;
-  options.silhouette = {view::FalloffLaw::kStep, 2.0f, 0.5f, 0.0f, 2.3f};
-  options.use_focus = true;
-  options.focus = {view::FalloffLaw::kStep, 3.0f, 0.25f, 0.0f, 2.3f};
-  const view::AllowedErrorInputs inputs{scene.silhouette, scene.focus, {}, positions, {}, {}};
+  options.criteria[view::Criterion::kSilhouette] =
+      view::RegionLaw{view::FalloffLaw::kStep, 2.0f, 0.5f, 0.0f, 2.3f};
+  options.criteria[view::Criterion::kFocus] =
+      view::RegionLaw{view::FalloffLaw::kStep, 3.0f, 0.25f, 0.0f, 2.3f};
+  const view::AllowedErrorInputs inputs{{scene.silhouette, scene.focus, {}}, positions, {}, {}};
   std::vector<float> out(1);
   // Label 10 (2 px) is inside the silhouette band only: 2·0.5.
   scene.silhouette[cell] = 10;
@@ -115,11 +115,11 @@ TEST(AllowedError, StricterOfSilhouetteAndFocusWins) {
   view::compute_vertex_allowed_error(scene.mapping, options, inputs, out);
   EXPECT_EQ(out[0], 2.0f);
   // A neglect region multiplies: inside it (label 0) the base error is raised 4×.
-  options.use_neglect = true;
-  options.neglect = {view::FalloffLaw::kStep, 2.0f, 4.0f, 0.0f, 2.3f};
+  options.criteria[view::Criterion::kNeglect] =
+      view::RegionLaw{view::FalloffLaw::kStep, 2.0f, 4.0f, 0.0f, 2.3f};
   scene.neglect[cell] = 0;
-  const view::AllowedErrorInputs with_neglect{scene.silhouette, scene.focus, scene.neglect,
-                                              positions,        {},          {}};
+  const view::AllowedErrorInputs with_neglect{
+      {scene.silhouette, scene.focus, scene.neglect}, positions, {}, {}};
   view::compute_vertex_allowed_error(scene.mapping, options, with_neglect, out);
   EXPECT_EQ(out[0], 8.0f);
 }
@@ -135,13 +135,13 @@ TEST(AllowedError, PixelBoundConvertsWithDepth) {
   options.units = view::ErrorUnits::kScreenPixels;
   options.viewport_height_px = 1000.0f;
   std::vector<float> out(3);
-  view::compute_vertex_allowed_error(scene.mapping, options, {{}, {}, {}, positions, {}, {}}, out);
+  view::compute_vertex_allowed_error(scene.mapping, options, {{}, positions, {}, {}}, out);
   EXPECT_NEAR(out[0], 0.02f, 1e-8f);
   EXPECT_EQ(out[1], kInf);
   EXPECT_NEAR(out[2], 0.02f, 1e-8f);  // off the grid but in front: same depth, same bound
   // Without viewport_height_px the grid's 16 rows are the pixels: 2 · 10/16 = 1.25.
   options.viewport_height_px = 0.0f;
-  view::compute_vertex_allowed_error(scene.mapping, options, {{}, {}, {}, positions, {}, {}}, out);
+  view::compute_vertex_allowed_error(scene.mapping, options, {{}, positions, {}, {}}, out);
   EXPECT_NEAR(out[0], 1.25f, 1e-6f);
 }
 
@@ -156,7 +156,7 @@ TEST(AllowedError, FrustumAndBackFaceCoarsening) {
   options.outside_view_factor = 8.0f;
   options.back_face_factor = 3.0f;
   std::vector<float> out(4);
-  view::compute_vertex_allowed_error(scene.mapping, options, {{}, {}, {}, positions, normals, {}}, out);
+  view::compute_vertex_allowed_error(scene.mapping, options, {{}, positions, normals, {}}, out);
   EXPECT_EQ(out, (std::vector<float>{1.0f, 8.0f, 3.0f, 1.0f}));
 }
 
@@ -178,13 +178,13 @@ TEST(AllowedError, HiddenSurfaceCoarseningComparesDepthWithTheVisibleSurface) {
   options.outside_view_factor = 8.0f;
   options.hidden_factor = 5.0f;
   std::vector<float> out(6);
-  view::compute_vertex_allowed_error(scene.mapping, options, {{}, {}, {}, positions, {}, visible}, out);
+  view::compute_vertex_allowed_error(scene.mapping, options, {{}, positions, {}, visible}, out);
   EXPECT_EQ(out, (std::vector<float>{1.0f, 1.0f, 5.0f, 1.0f, 8.0f, 1.0f}));
   // Off without the depths, and with a factor of 1.
-  view::compute_vertex_allowed_error(scene.mapping, options, {{}, {}, {}, positions, {}, {}}, out);
+  view::compute_vertex_allowed_error(scene.mapping, options, {{}, positions, {}, {}}, out);
   EXPECT_EQ(out, (std::vector<float>{1.0f, 1.0f, 1.0f, 1.0f, 8.0f, 1.0f}));
   options.hidden_factor = 1.0f;
-  view::compute_vertex_allowed_error(scene.mapping, options, {{}, {}, {}, positions, {}, visible}, out);
+  view::compute_vertex_allowed_error(scene.mapping, options, {{}, positions, {}, visible}, out);
   EXPECT_EQ(out, (std::vector<float>{1.0f, 1.0f, 1.0f, 1.0f, 8.0f, 1.0f}));
 }
 
@@ -219,13 +219,13 @@ TEST(AllowedError, LazyVertexEqualsFullArray) {
   view::AllowedErrorOptions options;
   options.error = 1.5f;
   options.units = view::ErrorUnits::kScreenPixels;
-  options.use_silhouette = true;
-  options.use_focus = true;
-  options.focus = {view::FalloffLaw::kFoveal, 0.0f, 0.1f, 0.0f, 2.3f};
+  options.criteria[view::Criterion::kSilhouette] = view::RegionLaw{};
+  options.criteria[view::Criterion::kFocus] =
+      view::RegionLaw{view::FalloffLaw::kFoveal, 0.0f, 0.1f, 0.0f, 2.3f};
   options.back_face_factor = 2.0f;
   view::AllowedErrorField field;
   field.bind(view.mapping, options,
-             {view.silhouette, view.focus, {}, view.sphere.positions, view.sphere.normals, {}});
+             {{view.silhouette, view.focus, {}}, view.sphere.positions, view.sphere.normals, {}});
   std::vector<float> full(view.sphere.vertex_count());
   field.compute_all(full);
   std::size_t distinct = 0;
@@ -268,10 +268,9 @@ TEST(AllowedError, AFieldReusedOverLawsAndFociEqualsAFreshOneEveryTime) {
     options.units = view::ErrorUnits::kScreenPixels;
     options.metric = step.metric;
     options.fovy_deg = step.fovy_deg;
-    options.use_silhouette = true;
-    options.use_focus = true;
-    options.focus = step.focus_law;
-    const view::AllowedErrorInputs inputs{view.silhouette, view.focus, {}, view.sphere.positions, {}, {}};
+    options.criteria[view::Criterion::kSilhouette] = view::RegionLaw{};
+    options.criteria[view::Criterion::kFocus] = step.focus_law;
+    const view::AllowedErrorInputs inputs{{view.silhouette, view.focus, {}}, view.sphere.positions, {}, {}};
     reused.bind(view.mapping, options, inputs);
     reused.compute_all(kept);
     view::AllowedErrorField fresh;
@@ -279,7 +278,7 @@ TEST(AllowedError, AFieldReusedOverLawsAndFociEqualsAFreshOneEveryTime) {
     fresh.compute_all(fresh_values);
     ASSERT_EQ(kept, fresh_values) << "step " << i;
     for (std::uint32_t c = 0; c < view.grid.cell_count(); c += 7)
-      ASSERT_EQ(reused.focus_factor(c), fresh.focus_factor(c));
+      ASSERT_EQ(reused.gaze_factor(c), fresh.gaze_factor(c));
   }
 }
 
@@ -296,8 +295,8 @@ TEST(AllowedError, TriangleMinimumEqualsLawOfTriangleLabel) {
   view::chamfer_5_7_11(occupancy, grid, dt);
   view::AllowedErrorOptions options;
   options.error = 0.01f;
-  options.use_silhouette = true;
-  options.silhouette = {view::FalloffLaw::kStep, 3.0f, 0.25f, 0.0f, 2.3f};
+  options.criteria[view::Criterion::kSilhouette] =
+      view::RegionLaw{view::FalloffLaw::kStep, 3.0f, 0.25f, 0.0f, 2.3f};
   std::vector<float> allowed(sphere.vertex_count());
   view::compute_vertex_allowed_error(mapping, options, {dt, {}, {}, sphere.positions, {}, {}}, allowed);
   const std::size_t n = sphere.vertex_count();

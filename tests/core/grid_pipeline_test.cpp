@@ -68,10 +68,10 @@ TEST(GridPipeline, SphereSilhouetteZeroFactorBandKeepsContourAtFullResolution) {
   const SphereRequest r;
   view::AllowedErrorOptions options;
   options.error = 0.01f;
-  options.use_silhouette = true;
-  options.silhouette = {view::FalloffLaw::kStep, 2.0f, 0.0f, 0.0f, 2.3f};
+  options.criteria[view::Criterion::kSilhouette] =
+      view::RegionLaw{view::FalloffLaw::kStep, 2.0f, 0.0f, 0.0f, 2.3f};
   std::vector<float> allowed(r.sphere.vertex_count());
-  view::compute_vertex_allowed_error(r.mapping, options, {r.silhouette, {}, {}, r.sphere.positions, {}, {}},
+  view::compute_vertex_allowed_error(r.mapping, options, {{r.silhouette, {}, {}}, r.sphere.positions, {}, {}},
                                      allowed);
   std::size_t band = 0;
   for (std::size_t v = 0; v < allowed.size(); ++v) {

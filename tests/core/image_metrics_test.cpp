@@ -454,9 +454,9 @@ std::pair<eval::ImageComparison, eval::ImageComparison> uniform_and_focused(cons
   request.camera = view.camera;
   request.grid = {128, 128};
   request.allowed.error = 1e-9f;  // every triangle fails; the budget alone stops the refinement
-  request.allowed.use_focus = true;
-  request.allowed.focus = {view::FalloffLaw::kStep, radius * 128, factor, 16.0f, 2.3f};
-  request.focus = {focus};
+  request.allowed.criteria[view::Criterion::kFocus] =
+      view::RegionLaw{view::FalloffLaw::kStep, radius * 128, factor, 16.0f, 2.3f};
+  request.points[view::Criterion::kFocus] = {focus};
   request.dynamic = false;
   request.allowed_error_on_demand = false;
   extractor.map(request);

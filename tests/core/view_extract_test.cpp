@@ -112,8 +112,8 @@ TEST(ViewExtract, DragonSilhouetteRegionIsAtFullResolutionAndTheRestIsCoarser) {
   r.allowed.error = 8.0f;  // pixels, outside the region
   r.allowed.units = view::ErrorUnits::kScreenPixels;
   r.allowed.viewport_height_px = 256;
-  r.allowed.use_silhouette = true;
-  r.allowed.silhouette = view::RegionLaw{view::FalloffLaw::kStep, 2.0f, 0.0f};  // d = 2 px, f = 0
+  r.allowed.criteria[view::Criterion::kSilhouette] =
+      view::RegionLaw{view::FalloffLaw::kStep, 2.0f, 0.0f};  // d = 2 px, f = 0
   r.labels = true;
   view::ViewExtractor x(d->mt, *d->levels);
   cut::Refiner refiner(d->mt);
@@ -172,9 +172,9 @@ TEST(ViewExtract, DragonTriangleDensityFallsWithDistanceFromTheFocus) {
   r.allowed.error = 2.0f;
   r.allowed.units = view::ErrorUnits::kScreenPixels;
   r.allowed.viewport_height_px = 256;
-  r.allowed.use_focus = true;
-  r.allowed.focus = view::RegionLaw{view::FalloffLaw::kLinear, 10.0f, 0.05f, 80.0f};
-  r.focus = {{0.5f, 0.5f}};
+  r.allowed.criteria[view::Criterion::kFocus] =
+      view::RegionLaw{view::FalloffLaw::kLinear, 10.0f, 0.05f, 80.0f};
+  r.points[view::Criterion::kFocus] = {{0.5f, 0.5f}};
   view::ViewExtractor x(d->mt, *d->levels);
   cut::Refiner refiner(d->mt);
   cut::CutMesh cut;
@@ -224,10 +224,10 @@ TEST(ViewExtract, EuclideanLabelsAreExactDistancesInFifthsOfAPixel) {
   r.camera = front_camera(b->input, 1.0f);
   r.grid = {48, 40};
   r.allowed.error = 0.01f;
-  r.allowed.use_silhouette = true;
+  r.allowed.criteria[view::Criterion::kSilhouette] = view::RegionLaw{};
   r.allowed.metric = view::DistanceMetric::kEuclidean;
-  r.focus = {{0.25f, 0.5f}, {0.8f, 0.1f}};
-  r.allowed.use_focus = true;
+  r.points[view::Criterion::kFocus] = {{0.25f, 0.5f}, {0.8f, 0.1f}};
+  r.allowed.criteria[view::Criterion::kFocus] = view::RegionLaw{};
   view::ViewExtractor x(b->mt, *b->levels);
   cut::Refiner refiner(b->mt);
   cut::CutMesh cut;
@@ -248,8 +248,10 @@ TEST(ViewExtract, EuclideanLabelsAreExactDistancesInFifthsOfAPixel) {
         }
       }
       const std::uint32_t c = r.grid.cell(i, j);
-      ASSERT_EQ(x.silhouette_dt()[c], std::lround(5 * std::sqrt(best))) << "cell " << i << "," << j;
-      ASSERT_EQ(x.focus_dt()[c], std::lround(5 * std::sqrt(best_focus))) << "cell " << i << "," << j;
+      ASSERT_EQ(x.distance_transform(view::Criterion::kSilhouette)[c], std::lround(5 * std::sqrt(best)))
+          << "cell " << i << "," << j;
+      ASSERT_EQ(x.distance_transform(view::Criterion::kFocus)[c], std::lround(5 * std::sqrt(best_focus)))
+          << "cell " << i << "," << j;
     }
   }
 }
@@ -470,10 +472,11 @@ TEST(ViewExtract, SessionGazePathEqualsAFreshExtractionEveryTime) {
           r.allowed.metric = metric;
           r.allowed.units = units;
           r.allowed.error = units == view::ErrorUnits::kModel ? 0.02f : 1.0f;
-          r.allowed.use_silhouette = silhouette;
-          r.allowed.silhouette = view::RegionLaw{view::FalloffLaw::kStep, 2.0f, 0.25f};
-          r.allowed.use_focus = true;
-          r.allowed.focus = view::RegionLaw{law, 8.0f, factor, 16.0f};
+          r.allowed.criteria[view::Criterion::kSilhouette].reset();
+          if (silhouette)
+            r.allowed.criteria[view::Criterion::kSilhouette] =
+                view::RegionLaw{view::FalloffLaw::kStep, 2.0f, 0.25f};
+          r.allowed.criteria[view::Criterion::kFocus] = view::RegionLaw{law, 8.0f, factor, 16.0f};
           r.allowed.hidden_factor = hidden;
           view::ViewExtractor session_extractor(b->mt, *b->levels), fresh_extractor(b->mt, *b->levels);
           view::ViewCache session;
@@ -481,7 +484,7 @@ TEST(ViewExtract, SessionGazePathEqualsAFreshExtractionEveryTime) {
           cut::CutMesh cut, expected;
           std::size_t reused = 0, recomputed = 0;
           for (int step = 0; step < 12; ++step) {
-            r.focus = {{unit(rng), unit(rng)}};
+            r.points[view::Criterion::kFocus] = {{unit(rng), unit(rng)}};
             if (step == 5) r.camera = other;  // a new view: everything again, then gazes on it
             run(session_extractor, r, kept, cut, &session);
             EXPECT_EQ(session.reused(), step != 0 && step != 5) << "step " << step;
@@ -525,8 +528,7 @@ TEST(ViewExtract, SessionForgetsWhatItsCutNoLongerReadsAndStaysExact) {
   r.grid = {128, 128};
   r.allowed.units = view::ErrorUnits::kScreenPixels;
   r.allowed.error = 8.0f;
-  r.allowed.use_focus = true;
-  r.allowed.focus = view::RegionLaw{view::FalloffLaw::kStep, 6.0f, 0.02f};
+  r.allowed.criteria[view::Criterion::kFocus] = view::RegionLaw{view::FalloffLaw::kStep, 6.0f, 0.02f};
   view::ViewExtractor session_extractor(b->mt, *b->levels), fresh_extractor(b->mt, *b->levels);
   view::ViewCache session;
   cut::Refiner kept(b->mt);
@@ -535,7 +537,8 @@ TEST(ViewExtract, SessionForgetsWhatItsCutNoLongerReadsAndStaysExact) {
   for (int step = 0; step < 60; ++step) {
     // Left to right and back, row by row.
     const float t = static_cast<float>(step % 20) / 19.0f;
-    r.focus = {{0.15f + 0.7f * (step / 20 % 2 ? 1.0f - t : t), 0.3f + 0.2f * static_cast<float>(step / 20)}};
+    r.points[view::Criterion::kFocus] = {
+        {0.15f + 0.7f * (step / 20 % 2 ? 1.0f - t : t), 0.3f + 0.2f * static_cast<float>(step / 20)}};
     run(session_extractor, r, kept, cut, &session);
     EXPECT_EQ(session.reused(), step != 0);
     run_fresh(fresh_extractor, b->mt, r, expected);
@@ -561,21 +564,20 @@ TEST(ViewExtract, SessionBudgetedGazesEqualBudgetedRefinementFromTheRoot) {
   r.grid = {160, 160};
   r.allowed.units = view::ErrorUnits::kScreenPixels;
   r.allowed.error = 0.25f;
-  r.allowed.use_silhouette = true;
-  r.allowed.silhouette = view::RegionLaw{view::FalloffLaw::kStep, 2.0f, 0.25f};
-  r.allowed.use_focus = true;
-  r.allowed.focus = view::RegionLaw{view::FalloffLaw::kSmoothstep, 8.0f, 0.1f, 16.0f};
+  r.allowed.criteria[view::Criterion::kSilhouette] = view::RegionLaw{view::FalloffLaw::kStep, 2.0f, 0.25f};
+  r.allowed.criteria[view::Criterion::kFocus] =
+      view::RegionLaw{view::FalloffLaw::kSmoothstep, 8.0f, 0.1f, 16.0f};
   view::ViewExtractor session_extractor(b->mt, *b->levels), fresh_extractor(b->mt, *b->levels);
   view::ViewCache session;
   cut::Refiner kept(b->mt);
   cut::CutMesh cut, expected, unbounded;
   std::size_t binding = 0;
   for (int step = 0; step < 16; ++step) {
-    r.focus = {{unit(rng), unit(rng)}};
+    r.points[view::Criterion::kFocus] = {{unit(rng), unit(rng)}};
     if (step == 8) {
       // A new view, keeping full resolution along the silhouette: those triangles rank first.
       r.camera = other;
-      r.allowed.silhouette = view::RegionLaw{view::FalloffLaw::kStep, 2.0f, 0.0f};
+      r.allowed.criteria[view::Criterion::kSilhouette] = view::RegionLaw{view::FalloffLaw::kStep, 2.0f, 0.0f};
     }
     r.budget = step < 12 ? 2'500 : 3'000;  // a new budget starts from the root as well
     run(session_extractor, r, kept, cut, &session);

@@ -6,8 +6,11 @@
 
 #include <fstream>
 #include <random>
+#include <regex>
+#include <set>
 #include <variant>
 
+#include "fmt/format.h"
 #include "nlohmann/json.hpp"
 #include "tests/protocol/protocol_cases.hpp"
 
@@ -23,9 +26,14 @@ Extract sample_extract() {
   e.grid = {512, 384};
   e.error = 0.5;
   e.error_unit = core::view::ErrorUnits::kScreenPixels;
-  e.criteria.silhouette = Silhouette{3, 0.1};
-  e.criteria.focus = {{0.25, 0.75, 15, 0.2}, {0.5, 0.5, 5, 0}};
-  e.criteria.neglect = {{0.9, 0.1, 40, 3}};
+  // Every criterion in use, with values other than its defaults.
+  for (const core::view::Criterion c : core::view::kAllCriteria) {
+    const CriterionWire& w = wire(c);
+    Region region{w.distance + 1, (w.factor + w.factor_max) / 2, {}};
+    if (core::view::traits(c).seeds == core::view::Seeds::kPoints)
+      region.points = {{0.25, 0.75}, {0.5, 0.125}};
+    e.criteria.regions[c] = region;
+  }
   e.criteria.falloff = core::view::FalloffLaw::kFoveal;
   e.criteria.distance = core::view::DistanceMetric::kEuclidean;
   e.criteria.units = DistanceUnit::kChamfer;
@@ -53,14 +61,10 @@ TEST(ParseRequest, ReadsBackEveryFieldAClientWrote) {
   EXPECT_EQ(got.grid, e.grid);
   EXPECT_EQ(got.error, e.error);
   EXPECT_EQ(got.error_unit, e.error_unit);
-  ASSERT_TRUE(got.criteria.silhouette);
-  EXPECT_EQ(got.criteria.silhouette->distance, 3);
-  EXPECT_EQ(got.criteria.silhouette->factor, 0.1);
-  ASSERT_EQ(got.criteria.focus.size(), 2u);
-  EXPECT_EQ(got.criteria.focus[0].x, 0.25);
-  EXPECT_EQ(got.criteria.focus[1].factor, 0);
-  ASSERT_EQ(got.criteria.neglect.size(), 1u);
-  EXPECT_EQ(got.criteria.neglect[0].factor, 3);
+  for (const core::view::Criterion c : core::view::kAllCriteria) {
+    ASSERT_TRUE(got.criteria.regions[c]) << wire(c).name;
+    EXPECT_EQ(*got.criteria.regions[c], *e.criteria.regions[c]) << wire(c).name;
+  }
   EXPECT_EQ(got.criteria.falloff, core::view::FalloffLaw::kFoveal);
   EXPECT_EQ(got.criteria.distance, core::view::DistanceMetric::kEuclidean);
   EXPECT_EQ(got.criteria.units, DistanceUnit::kChamfer);
@@ -111,10 +115,63 @@ TEST(ParseRequest, DefaultsFillWhatAMinimalExtractLeavesOut) {
   const Extract defaults;
   EXPECT_EQ(e.grid, defaults.grid);
   EXPECT_EQ(e.error_unit, core::view::ErrorUnits::kModel);
-  EXPECT_FALSE(e.criteria.silhouette);
+  for (const core::view::Criterion c : core::view::kAllCriteria) EXPECT_FALSE(e.criteria.regions[c]);
   EXPECT_FALSE(e.budget);
   EXPECT_FALSE(e.draco.method);
   EXPECT_FALSE(e.draco.entropy_coding);
+}
+
+// A criterion named with nothing else (true, or a point) takes its table's defaults.
+TEST(ParseRequest, CriteriaTakeTheDefaultsOfTheTable) {
+  for (const core::view::Criterion c : core::view::kAllCriteria) {
+    const bool points = core::view::traits(c).seeds == core::view::Seeds::kPoints;
+    nlohmann::json request = nlohmann::json::parse(
+        R"({"type":"extract","id":1,"model":"bunny","error":0.01,
+            "camera":{"view":[1,0,0,0,0,1,0,0,0,0,1,0,0,0,-3,1],"projection":[1,0,0,0,0,1,0,0,0,0,-1,-1,0,0,-0.2,0]}})");
+    request["criteria"][wire(c).name] =
+        points ? nlohmann::json{{"x", 0.25}, {"y", 0.5}} : nlohmann::json(true);
+    const auto parsed = parse_request(request.dump(), Limits{});
+    ASSERT_TRUE(parsed.ok()) << wire(c).name << ": " << parsed.error().message;
+    const Criteria& got = std::get<Extract>(parsed->request).criteria;
+    Region expected{wire(c).distance, wire(c).factor, {}};
+    if (points) expected.points = {{0.25, 0.5}};
+    for (const core::view::Criterion other : core::view::kAllCriteria) {
+      if (other == c) {
+        ASSERT_TRUE(got.regions[c]) << wire(c).name;
+        EXPECT_EQ(*got.regions[c], expected) << wire(c).name;
+      } else {
+        EXPECT_FALSE(got.regions[other]) << wire(other).name << " with only " << wire(c).name << " given";
+      }
+    }
+    // A factor outside the table's range is refused with the field's name.
+    nlohmann::json& entry = request["criteria"][wire(c).name];
+    if (!points) entry = nlohmann::json::object();
+    entry["factor"] = wire(c).factor_max + 1;
+    const auto refused = parse_request(request.dump(), Limits{});
+    ASSERT_FALSE(refused.ok()) << wire(c).name;
+    EXPECT_NE(refused.error().message.find(fmt::format("'criteria.{}.factor'", wire(c).name)),
+              std::string::npos)
+        << refused.error().message;
+  }
+}
+
+// PROTOCOL.md's table of criteria has one row per entry of the table, and no other.
+TEST(ParseRequest, TheDocumentedCriteriaAreTheTable) {
+  std::ifstream in(test::protocol_document());
+  const std::regex row(R"(^\|\s*`criteria\.([a-z_]+)`\s*\|)");
+  std::set<std::string> documented, table;
+  std::string line;
+  bool in_criteria = false;
+  while (std::getline(in, line)) {
+    if (line.rfind("#### Criteria", 0) == 0)
+      in_criteria = true;
+    else if (line.rfind("#", 0) == 0)
+      in_criteria = false;
+    std::smatch m;
+    if (in_criteria && std::regex_search(line, m, row)) documented.insert(m[1]);
+  }
+  for (const CriterionWire& w : kCriterionWire) table.insert(w.name);
+  EXPECT_EQ(documented, table);
 }
 
 TEST(ParseRequest, LimitsComeFromTheServerConfiguration) {

@@ -50,7 +50,7 @@ struct Served {
     if (!info) return;
     extract =
         test::framing_extract("bunny", std::get<protocol::ModelInfoReply>(info->header.reply), {128, 96}, 1);
-    extract.criteria.silhouette = protocol::Silhouette{2, 0};
+    extract.criteria.regions[core::view::Criterion::kSilhouette] = protocol::Region{2, 0, {}};
   }
   bool ok() const { return server && server->running() && server->port() != 0; }
   std::uint16_t port() const { return server->port(); }

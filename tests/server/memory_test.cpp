@@ -56,8 +56,8 @@ TEST(MemoryEstimate, BoundsSessionAndScratchOfExtremeRequests) {
       requests.push_back(e);
       e.error = 1;
       e.error_unit = core::view::ErrorUnits::kScreenPixels;
-      e.criteria.silhouette = protocol::Silhouette{2, 0};
-      e.criteria.focus = {protocol::Focus{0.5, 0.5, 20, 0.1}};
+      e.criteria.regions[core::view::Criterion::kSilhouette] = protocol::Region{2, 0, {}};
+      e.criteria.regions[core::view::Criterion::kFocus] = protocol::Region{20, 0.1, {{0.5, 0.5}}};
       requests.push_back(e);
     }
   }
@@ -96,14 +96,15 @@ TEST(MemoryEstimate, FollowsTheBudgetOnAModelManyTimesTheCut) {
   e.grid = {256, 256};
   e.error = 0.25;
   e.error_unit = core::view::ErrorUnits::kScreenPixels;
-  e.criteria.silhouette = protocol::Silhouette{2, 0.25};
+  e.criteria.regions[core::view::Criterion::kSilhouette] = protocol::Region{2, 0.25, {}};
   e.budget = 4000;
   e.delta = true;
   ExtractionState session;
   std::uint64_t most = 0;
   for (int gaze = 0; gaze < 20; ++gaze) {
     // Sweeps of the focus across the screen: the cut moves to new vertices at every gaze.
-    e.criteria.focus = {protocol::Focus{0.1 + 0.04 * gaze, 0.3 + 0.02 * gaze, 20, 0.1}};
+    e.criteria.regions[core::view::Criterion::kFocus] =
+        protocol::Region{20, 0.1, {{0.1 + 0.04 * gaze, 0.3 + 0.02 * gaze}}};
     auto outcome = engine.extract(e, gaze > 0, session);
     ASSERT_TRUE(outcome) << outcome.error().message;
     const std::uint64_t held = outcome->reply.session_bytes + outcome->reply.scratch_bytes;
@@ -118,7 +119,8 @@ TEST(MemoryEstimate, FollowsTheBudgetOnAModelManyTimesTheCut) {
   // Error-bound gazes: the session's estimate follows its last cut (the server estimates before
   // each run, with the session it will run in).
   for (int gaze = 0; gaze < 10; ++gaze) {
-    unbounded.criteria.focus = {protocol::Focus{0.8 - 0.05 * gaze, 0.5, 20, 0.1}};
+    unbounded.criteria.regions[core::view::Criterion::kFocus] =
+        protocol::Region{20, 0.1, {{0.8 - 0.05 * gaze, 0.5}}};
     const std::uint64_t estimate = engine.estimate_bytes(unbounded, &session);
     auto outcome = engine.extract(unbounded, gaze > 0, session);
     ASSERT_TRUE(outcome) << outcome.error().message;

@@ -163,7 +163,8 @@ class Stream {
       }
       const auto& model = std::get<protocol::ModelInfoReply>(info->header.reply);
       protocol::Extract extract = test::framing_extract(model_, model, {128, 128}, 1.0 + 3.0 * unit(rng));
-      extract.criteria.focus.push_back(protocol::Focus{unit(rng), unit(rng), 20.0, 0.1});
+      extract.criteria.regions[core::view::Criterion::kFocus] =
+          protocol::Region{20.0, 0.1, {{unit(rng), unit(rng)}}};
       for (int step = 0; step < 4 && !stop_; ++step) {
         protocol::Request request = extract;
         if (step > 0) request = protocol::Gaze{unit(rng), unit(rng), std::nullopt, std::nullopt};

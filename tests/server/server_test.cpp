@@ -94,8 +94,8 @@ class ServerTest : public testing::Test {
     e.grid = {128, 96};
     e.error = 2;
     e.error_unit = core::view::ErrorUnits::kScreenPixels;
-    e.criteria.silhouette = protocol::Silhouette{2, 0};
-    e.criteria.focus = {protocol::Focus{focus_x, focus_y, 10, 0.2}};
+    e.criteria.regions[core::view::Criterion::kSilhouette] = protocol::Region{2, 0, {}};
+    e.criteria.regions[core::view::Criterion::kFocus] = protocol::Region{10, 0.2, {{focus_x, focus_y}}};
     return e;
   }
 };
@@ -225,7 +225,7 @@ TEST_F(ServerTest, DeltaRepliesRebuildTheCutAFreshConnectionGets) {
     }
 
     protocol::Extract fresh = request;
-    fresh.criteria.focus[0].x = x, fresh.criteria.focus[0].y = y;
+    protocol::gaze_region(fresh.criteria).points[0] = {x, y};
     ServerConnection other = connect();
     auto whole = other.call(fresh, 1);
     ASSERT_TRUE(whole.ok()) << whole.error().message;

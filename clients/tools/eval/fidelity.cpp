@@ -213,11 +213,13 @@ void criteria_field(MeshContext& ctx, const Criteria& c, const view::Camera& cam
   view::AllowedErrorOptions& a = request.allowed;
   a.units = c.units;
   a.error = c.units == view::ErrorUnits::kModel ? 1e-9f * ctx.model->bounds.radius() : 1e-6f;
-  a.use_silhouette = c.use_silhouette, a.silhouette = c.silhouette;
-  a.use_focus = c.use_focus, a.focus = c.focus;
+  if (c.use_silhouette) a.criteria[view::Criterion::kSilhouette] = c.silhouette;
+  if (c.use_focus) {
+    a.criteria[view::Criterion::kFocus] = c.focus;
+    request.points[view::Criterion::kFocus] = {focus};
+  }
   a.back_face_factor = c.back_face, a.hidden_factor = c.hidden, a.outside_view_factor = c.frustum;
   a.hidden_depth_margin = c.hidden_margin;
-  if (c.use_focus) request.focus = {focus};
   const std::span<const float> f = ctx.extractor->allowed_error_field(request);
   out.assign(f.begin(), f.end());
 }

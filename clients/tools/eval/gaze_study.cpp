@@ -63,11 +63,11 @@ void default_cut(view::ViewExtractor& extractor, cut::Refiner& refiner, const vi
   r.grid = grid;
   r.allowed.units = view::ErrorUnits::kScreenPixels;
   r.allowed.error = 1e-6f;
-  r.allowed.use_focus = true;
-  r.allowed.focus = {view::FalloffLaw::kFoveal, 0.0f, 1.0f, 16.0f, 2.3f};
+  r.allowed.criteria[view::kGazeCriterion] =
+      view::RegionLaw{view::FalloffLaw::kFoveal, 0.0f, 1.0f, 16.0f, 2.3f};
   r.allowed.outside_view_factor = 8.0f;
   r.allowed.hidden_factor = static_cast<float>(clients::kDefaultHiddenFactor);
-  r.focus = {focus};
+  r.points[view::kGazeCriterion] = {focus};
   r.budget = budget;
   r.dynamic = false;
   out.assign(extractor.extract(r, refiner, out));
