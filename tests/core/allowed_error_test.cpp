@@ -298,7 +298,7 @@ TEST(AllowedError, TriangleMinimumEqualsLawOfTriangleLabel) {
   options.criteria[view::Criterion::kSilhouette] =
       view::RegionLaw{view::FalloffLaw::kStep, 3.0f, 0.25f, 0.0f, 2.3f};
   std::vector<float> allowed(sphere.vertex_count());
-  view::compute_vertex_allowed_error(mapping, options, {dt, {}, {}, sphere.positions, {}, {}}, allowed);
+  view::compute_vertex_allowed_error(mapping, options, {{dt}, sphere.positions, {}, {}}, allowed);
   const std::size_t n = sphere.vertex_count();
   std::vector<std::uint32_t> cells(n), labels(n), triangle_labels(sphere.triangles.size() / 3);
   std::vector<float> clip_w(n);
