@@ -90,10 +90,11 @@ struct CriterionWire {
   double factor_min;
   double factor_max;
 };
-inline constexpr std::array<CriterionWire, 3> kCriterionWire{{
+inline constexpr std::array<CriterionWire, 4> kCriterionWire{{
     {"silhouette", "the model's outline", 2, 0, 0, 1},
     {"focus", "the focus points", 20, 0.25, 0, 1},
     {"neglect", "the regions of neglect", 50, 4, 1, 1e6},
+    {"screen_edge", "the screen's edge", 32, 2, 1, 1e6},
 }};
 static_assert(kCriterionWire.size() == core::view::kCriterionCount);
 

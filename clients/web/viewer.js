@@ -64,6 +64,7 @@ const CRITERIA = [
   { name: 'silhouette', label: 'silhouette', distance: 2, factor: 0, min: 0, max: 1 },
   { name: 'focus', label: 'focus follows the mouse', distance: 80, factor: 1, min: 0, max: 1, on: true, point: 'focus' },
   { name: 'neglect', label: 'neglect (shift-click places it)', distance: 50, factor: 4, min: 1, max: 1e6, point: 'neglect' },
+  { name: 'screen_edge', label: 'screen edge coarser', distance: 32, factor: 2, min: 1, max: 1e6 },
 ];
 // The falloff laws (protocol/messages.hpp, kFalloffNames); the default is the study's winner.
 const FALLOFFS = ['step', 'linear', 'smoothstep', 'foveal'];

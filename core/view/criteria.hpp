@@ -34,12 +34,14 @@ enum class Criterion : std::uint8_t {
   kSilhouette,  // distance to the model's outline (JVRB 2006)
   kFocus,       // distance to the focus points (DGCI 2006): the gaze
   kNeglect,     // distance to regions of neglect, coarsened (factor ≥ 1)
+  kScreenEdge,  // distance to the screen's edge, coarsened (factor ≥ 1): the periphery of the view
 };
 
 // What a criterion's distance transform measures the distance to.
 enum class Seeds : std::uint8_t {
   kBackground,  // the empty cells of the occupancy grid (and depth jumps with internal silhouettes)
   kPoints,      // points the request names, in normalised viewport coordinates
+  kBorder,      // the cells on the grid's border
 };
 
 // How a criterion's multiplier joins the others'.
@@ -54,10 +56,11 @@ struct CriterionTraits {
   bool foveal;  // takes the request's foveal law; false: the step law stands in for it
 };
 
-inline constexpr std::array<CriterionTraits, 3> kCriteria{{
+inline constexpr std::array<CriterionTraits, 4> kCriteria{{
     {Seeds::kBackground, Combine::kStricter, true},  // kSilhouette
     {Seeds::kPoints, Combine::kStricter, true},      // kFocus
     {Seeds::kPoints, Combine::kScales, false},       // kNeglect
+    {Seeds::kBorder, Combine::kScales, false},       // kScreenEdge
 }};
 inline constexpr std::size_t kCriterionCount = kCriteria.size();
 

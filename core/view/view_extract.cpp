@@ -145,6 +145,8 @@ bool ViewExtractor::transform_needed(Criterion c) const {
       return r.allowed.criteria[c] || (r.labels && r.points[kGazeCriterion].empty());
     case Seeds::kPoints:
       return r.allowed.criteria[c] && !r.points[c].empty();
+    case Seeds::kBorder:
+      return r.allowed.criteria[c].has_value();
   }
   return false;
 }
@@ -175,6 +177,18 @@ void ViewExtractor::distance_transforms() {
         case Seeds::kPoints:
           cells_.clear();
           for (const auto& p : r.points[c]) cells_.push_back(focus_cell(r.grid, p[0], p[1]));
+          transform_from_cells(cells_, out);
+          break;
+        case Seeds::kBorder:
+          cells_.clear();
+          for (std::uint32_t x = 0; x < r.grid.width; ++x) {
+            cells_.push_back(r.grid.cell(x, 0));
+            cells_.push_back(r.grid.cell(x, r.grid.height - 1));
+          }
+          for (std::uint32_t y = 1; y + 1 < r.grid.height; ++y) {
+            cells_.push_back(r.grid.cell(0, y));
+            cells_.push_back(r.grid.cell(r.grid.width - 1, y));
+          }
           transform_from_cells(cells_, out);
           break;
       }

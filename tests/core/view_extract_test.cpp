@@ -256,6 +256,46 @@ TEST(ViewExtract, EuclideanLabelsAreExactDistancesInFifthsOfAPixel) {
   }
 }
 
+// The screen-edge criterion: its labels are the 5-7-11 distance to the grid's border (5 per cell
+// straight in: the nearest border cell is straight out), and a vertex's allowed error is e·F within
+// D of the edge and e elsewhere.
+TEST(ViewExtract, ScreenEdgeCoarsensWithinItsDistanceOfTheBorder) {
+  eval::GenerateOptions o;
+  o.target_triangles = 3000;
+  auto b = build(eval::generate_mesh(o));
+  ASSERT_NE(b, nullptr);
+  view::ViewRequest r;
+  // Twice as close as framing: the model fills the view and crosses its edges.
+  r.camera = camera_along(b->input.positions, glm::vec3(0, 0, 0.5f), 1.0f);
+  r.grid = {48, 40};
+  r.allowed.error = 0.01f;
+  r.allowed.outside_view_factor = 1.0f;
+  constexpr float kDistance = 6.0f, kFactor = 4.0f;
+  r.allowed.criteria[view::Criterion::kScreenEdge] =
+      view::RegionLaw{view::FalloffLaw::kStep, kDistance, kFactor};
+  view::ViewExtractor x(b->mt, *b->levels);
+  const std::span<const float> allowed = x.allowed_error_field(r);
+  const std::span<const std::uint16_t> dt = x.distance_transform(view::Criterion::kScreenEdge);
+  ASSERT_EQ(dt.size(), r.grid.cell_count());
+  for (std::uint32_t j = 0; j < r.grid.height; ++j) {
+    for (std::uint32_t i = 0; i < r.grid.width; ++i) {
+      const std::uint32_t cells_to_edge = std::min({i, j, r.grid.width - 1 - i, r.grid.height - 1 - j});
+      ASSERT_EQ(dt[r.grid.cell(i, j)], 5 * cells_to_edge) << "cell " << i << "," << j;
+    }
+  }
+  std::size_t near = 0, far = 0;
+  for (std::uint32_t v = 0; v < b->mt.vertex_count(); ++v) {
+    const float* p = &b->mt.positions[3 * std::size_t{v}];
+    const std::uint32_t cell = x.mapping().map_point(p[0], p[1], p[2]);
+    if (cell == view::kNoCell) continue;
+    const bool within = dt[cell] <= 5 * kDistance;
+    ASSERT_EQ(allowed[v], within ? 0.01f * kFactor : 0.01f) << "vertex " << v;
+    ++(within ? near : far);
+  }
+  EXPECT_GT(near, 0u);
+  EXPECT_GT(far, 0u);
+}
+
 // Sorted triangles (each rotated to start at its smallest id) of a cut: its set, in any order.
 std::vector<std::array<std::uint32_t, 3>> triangle_set(const cut::CutMesh& cut) {
   std::vector<std::array<std::uint32_t, 3>> out;
