@@ -153,16 +153,7 @@ ExtractResult Engine::extract(const protocol::Extract& request, bool gaze, Extra
     return protocol::ProtocolError{protocol::ErrorKind::kBadRequest,
                                    fmt::format("model '{}' has no colours to send", request.model)};
   }
-  try {
-    return run(model, request, gaze, session);
-  } catch (const core::model::CorruptMt& e) {
-    // A block of the model's mapped file failed its check on first use. Every request that reaches
-    // it fails the same way; the others are served. The session's cut may be half-updated.
-    spdlog::error("model {}: {}", model->name, e.what());
-    session.state.reset();
-    return protocol::ProtocolError{protocol::ErrorKind::kInternal,
-                                   fmt::format("model '{}' is damaged: {}", model->name, e.what())};
-  }
+  return run(model, request, gaze, session);
 }
 
 ExtractResult Engine::run(const ModelPtr& model, const protocol::Extract& request, bool gaze,
@@ -191,7 +182,18 @@ ExtractResult Engine::run(const ModelPtr& model, const protocol::Extract& reques
   ExtractOutcome outcome;
   StageClock stages(outcome.reply.timings);
   // A gaze's cut is read in place from the session's refiner (no copy of the whole mesh).
-  const core::cut::CutSpan cut = extractor->extract(view, *state.refiner, worker.cut, &state.view, &stages);
+  const Result<core::cut::CutSpan> extracted =
+      extractor->extract(view, *state.refiner, worker.cut, &state.view, &stages);
+  if (!extracted) {
+    // A block of the model's mapped file failed its check on first use. Every request that reaches
+    // it fails the same way; the others are served. The session starts again from nothing.
+    spdlog::error("model {}: {}", model->name, extracted.error().message);
+    session.state.reset();
+    return protocol::ProtocolError{
+        protocol::ErrorKind::kInternal,
+        fmt::format("model '{}' is damaged: {}", model->name, extracted.error().message)};
+  }
+  const core::cut::CutSpan cut = *extracted;
   state.error_bound_cut = request.budget ? 0 : cut.triangle_count();
 
   const core::codec::DracoOptions draco = protocol::to_draco_options(

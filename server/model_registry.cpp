@@ -71,13 +71,16 @@ Result<std::shared_ptr<Model>> describe(std::string name, fs::path path, core::m
   model->mt = std::move(mt);
   model->serial = next_serial++;
   const core::model::Mt& m = model->mt;
-  try {
-    // Every reply carries normals: an MT stored without them gets them now (12 bytes per vertex).
-    model->normals_computed = core::build::ensure_normals(model->mt);
-    model->occupancy = std::make_unique<core::view::OccupancyLevels>(m);
-  } catch (const core::model::CorruptMt& e) {
-    return make_error(ErrorCode::kCorrupt, fmt::format("{}: {}", model->path.string(), e.what()));
-  }
+  const auto damaged = [&](const Error& e) {
+    return make_error(ErrorCode::kCorrupt, fmt::format("{}: {}", model->path.string(), e.message));
+  };
+  // Every reply carries normals: an MT stored without them gets them now (12 bytes per vertex).
+  Result<bool> computed = core::build::ensure_normals(model->mt);
+  if (!computed) return damaged(computed.error());
+  model->normals_computed = *computed;
+  Result<std::unique_ptr<core::view::OccupancyLevels>> occupancy = core::view::OccupancyLevels::make(m);
+  if (!occupancy) return damaged(occupancy.error());
+  model->occupancy = std::move(*occupancy);
   model->memory_bytes = m.memory_bytes() + model->occupancy->memory_bytes();
   model->bounds_min = m.bounds.lo;
   model->bounds_max = m.bounds.hi;

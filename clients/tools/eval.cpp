@@ -382,8 +382,8 @@ int run_experiment(const ExperimentOptions& o, const std::string& command) {
     if (!mesh) return fmt::print(stderr, "mtlod-eval: {}\n", mesh.error().message), 1;
     auto mt = cached_mt(*mesh, name, o.cache_dir);
     if (!mt) return fmt::print(stderr, "mtlod-eval: {}: {}\n", name, mt.error().message), 1;
-    const view::OccupancyLevels levels(*mt);
-    view::ViewExtractor extractor(*mt, levels);
+    const std::unique_ptr<view::OccupancyLevels> levels = must(view::OccupancyLevels::make(*mt));
+    view::ViewExtractor extractor(*mt, *levels);
     cut::Refiner refiner(*mt);
     const model::Bounds bounds = model::bounds_of(mesh->positions);
 
@@ -466,7 +466,7 @@ int run_experiment(const ExperimentOptions& o, const std::string& command) {
         std::size_t target = b;
         for (int round = 0; round < 6; ++round) {
           for (int m = 0; m < 3; ++m)
-            refiner.refine(cut::Refinement::from_root(allowed[m]).within(target), cuts[m]);
+            must(refiner.refine(cut::Refinement::from_root(allowed[m]).within(target), cuts[m]));
           const std::size_t lo =
               std::min({cuts[0].triangle_count(), cuts[1].triangle_count(), cuts[2].triangle_count()});
           const std::size_t hi =

@@ -142,7 +142,10 @@ int run(int argc, char** argv) {
     return 1;
   }
   // An MT stored without normals gets them as the server gives them: computed once at load.
-  build::ensure_normals(*mt);
+  if (const Result<bool> computed = build::ensure_normals(*mt); !computed) {
+    fmt::print(stderr, "mtlod-extract: {}\n", computed.error().message);
+    return 1;
+  }
   const double load_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 
   cut::Refiner refiner(*mt);
@@ -160,12 +163,22 @@ int run(int argc, char** argv) {
       return 2;
     }
     request = std::move(*made);
-    levels = std::make_unique<view::OccupancyLevels>(*mt);
+    auto made_levels = view::OccupancyLevels::make(*mt);
+    if (!made_levels) {
+      fmt::print(stderr, "mtlod-extract: {}\n", made_levels.error().message);
+      return 1;
+    }
+    levels = std::move(*made_levels);
     extractor = std::make_unique<view::ViewExtractor>(*mt, *levels);
     view::ViewRequest v = mtlod::protocol::to_view_request(*request, mt->has_normals());
     v.dynamic = false;
     start = std::chrono::steady_clock::now();
-    cut.assign(extractor->extract(v, refiner, cut));
+    const Result<cut::CutSpan> extracted = extractor->extract(v, refiner, cut);
+    if (!extracted) {
+      fmt::print(stderr, "mtlod-extract: {}\n", extracted.error().message);
+      return 1;
+    }
+    cut.assign(*extracted);
     refine_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     const view::GridSize grid{request->grid[0], request->grid[1]};
     if (!options.dump_occupancy.empty()) {
@@ -192,16 +205,13 @@ int run(int argc, char** argv) {
     }
   } else {
     start = std::chrono::steady_clock::now();
-    if (options.view.budget) {
-      // Without --error every triangle that has a finer version competes, ranked by its error.
-      refiner.refine(cut::Refinement::from_root(
-                         cut::AllowedError::everywhere(static_cast<float>(options.view.error.value_or(0.0))))
-                         .within(*options.view.budget),
-                     cut);
-    } else {
-      refiner.refine(
-          cut::Refinement::from_root(cut::AllowedError::everywhere(static_cast<float>(*options.view.error))),
-          cut);
+    // Without --error every triangle that has a finer version competes, ranked by its error.
+    cut::Refinement uniform = cut::Refinement::from_root(
+        cut::AllowedError::everywhere(static_cast<float>(options.view.error.value_or(0.0))));
+    if (options.view.budget) uniform.within(*options.view.budget);
+    if (const Status refined = refiner.refine(uniform, cut); !refined) {
+      fmt::print(stderr, "mtlod-extract: {}\n", refined.error().message);
+      return 1;
     }
     refine_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   }
@@ -230,11 +240,5 @@ int run(int argc, char** argv) {
 }
 
 int main(int argc, char** argv) {
-  try {
-    return run(argc, argv);
-  } catch (const mtlod::core::model::CorruptMt& e) {
-    // A block of the mapped file failed its check when the refinement reached it.
-    fmt::print(stderr, "mtlod-extract: {}\n", e.what());
-    return 1;
-  }
+  return run(argc, argv);
 }

@@ -98,11 +98,11 @@ std::vector<float> vertex_normals(std::span<const float> positions,
   return normals;
 }
 
-std::vector<float> vertex_normals(const model::Mt& mt) {
+Result<std::vector<float>> vertex_normals(const model::Mt& mt) {
   std::vector<std::int64_t> sums(mt.positions.size(), 0);
   NormalAccumulator accumulator(mt.positions, sums);
   for (std::uint32_t n = 0; n < mt.node_count(); ++n) {
-    mt.require_node(n);
+    if (!mt.require_node(n)) return mt.check_node(n).take_error();
     for (std::uint32_t t = mt.node_triangle_offsets[n]; t < mt.node_triangle_offsets[n + 1]; ++t) {
       if (mt.triangle_remover[t] != model::kNoNode) continue;  // not part of the full-resolution mesh
       accumulator.add(mt.first_corner(model::TriangleId{t}, model::NodeId{n}),
@@ -114,9 +114,10 @@ std::vector<float> vertex_normals(const model::Mt& mt) {
   return normals;
 }
 
-bool ensure_normals(model::Mt& mt) {
+Result<bool> ensure_normals(model::Mt& mt) {
   if (mt.has_normals()) return false;
-  mt.attach_normals(std::make_shared<const std::vector<float>>(vertex_normals(mt)));
+  MTLOD_TRY(std::vector<float> normals, vertex_normals(mt));
+  mt.attach_normals(std::make_shared<const std::vector<float>>(std::move(normals)));
   return true;
 }
 

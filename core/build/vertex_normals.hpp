@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "core/model/mt.hpp"
+#include "core/result.hpp"
 
 namespace mtlod::core::build {
 
@@ -45,11 +46,12 @@ class NormalAccumulator {
 std::vector<float> vertex_normals(std::span<const float> positions, std::span<const std::uint32_t> triangles);
 
 // The angle-weighted normals of an MT's full-resolution mesh (the triangles no node removes), for
-// MTs stored without normals. Reads every node block of a mapped MT (throws CorruptMt).
-std::vector<float> vertex_normals(const model::Mt& mt);
+// MTs stored without normals. Reads every node block of a mapped MT, and fails (kCorrupt) on the
+// first that fails its check.
+Result<std::vector<float>> vertex_normals(const model::Mt& mt);
 
 // Attaches computed normals (vertex_normals(mt)) to an MT stored without them; true when it did.
-bool ensure_normals(model::Mt& mt);
+Result<bool> ensure_normals(model::Mt& mt);
 
 // Whether a given normal can be kept: finite and not zero-length.
 bool usable_normal(const float* n);

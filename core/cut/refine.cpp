@@ -180,8 +180,12 @@ void Refiner::add_node(std::uint32_t x, std::uint32_t witness_triangle, std::uin
 
 void Refiner::force(std::uint32_t r, std::uint32_t witness_triangle, std::uint32_t witness_creator) {
   // Every node whose parents are read is checked first (a mapped file's block on first use); so
-  // is every node add_node gets.
-  mt_.require_node(r);
+  // is every node add_node gets. After a failed check the refinement only runs to its end.
+  if (failed_node_ != model::kNoNode) return;
+  if (!mt_.require_node(r)) {
+    failed_node_ = r;
+    return;
+  }
   const std::uint32_t* offsets = mt_.node_parent_offsets.data();
   const std::uint32_t* parents = mt_.node_parents.data();
   // Usual case: every parent is already in the cut.
@@ -201,7 +205,13 @@ void Refiner::force(std::uint32_t r, std::uint32_t witness_triangle, std::uint32
       stack_[top + 1] = i + 1;
       const std::uint32_t p = parents[i];
       if (in_cut_[p] == kOut || in_cut_[p] == kDropped) {
-        mt_.require_node(p);
+        if (!mt_.require_node(p)) {
+          // None of the nodes on the stack is added: the cut stays a cut.
+          failed_node_ = p;
+          for (std::size_t k = 0; k < stack_.size(); k += 2) in_cut_.set(stack_[k], kOut);
+          stack_.clear();
+          return;
+        }
         in_cut_.set(p, kAdding);
         stack_.push_back(p);
         stack_.push_back(offsets[p]);
@@ -296,11 +306,26 @@ void Refiner::remember_field(const AllowedError& allowed, bool copy) {
   if (field_ == Field::kCopied) previous_field_.assign(allowed.per_vertex.begin(), allowed.per_vertex.end());
 }
 
-void Refiner::refine(const Refinement& what, CutMesh& out) {
-  out.assign(refine_view(what, out));
+Status Refiner::refine(const Refinement& what, CutMesh& out) {
+  MTLOD_TRY(const CutSpan cut, refine_view(what, out));
+  out.assign(cut);
+  return Ok{};
 }
 
-CutSpan Refiner::refine_view(const Refinement& what, CutMesh& scratch) {
+Result<CutSpan> Refiner::refine_view(const Refinement& what, CutMesh& scratch) {
+  failed_node_ = model::kNoNode;
+  const CutSpan cut = run(what, scratch);
+  if (failed_node_ == model::kNoNode) return cut;
+  // The cut holds none of the damaged block's nodes, but it is not the one asked for: start over.
+  Status why = mt_.check_node(failed_node_);
+  reset_to_root();
+  failed_node_ = model::kNoNode;
+  if (why.ok())  // checked by another thread since: the next refinement will do
+    return make_error(ErrorCode::kInternal, "a node block's check failed, then passed");
+  return why.take_error();
+}
+
+CutSpan Refiner::run(const Refinement& what, CutMesh& scratch) {
   using Start = Refinement::Start;
   const bool on_demand = what.source != nullptr;
   assert(!on_demand || what.field.size() == mt_.vertex_count());
@@ -355,7 +380,12 @@ void Refiner::refine_prefix(std::uint32_t end, CutMesh& out) {
   // The cut of nodes [0, end) (every prefix is a cut: parents come first); its mesh is read off the
   // prefix of the triangle array in one sequential pass.
   const float* errors = mt_.node_error.data();
-  for (std::uint32_t n = 0; n < end; n += model::kMtBlockNodes) mt_.require_node(n);
+  for (std::uint32_t n = 0; n < end; n += model::kMtBlockNodes) {
+    if (!mt_.require_node(n)) {
+      failed_node_ = n;
+      return;
+    }
+  }
   for (const std::uint32_t n : cut_) in_cut_.set(n, kOut);
   cut_.resize(end);
   witnesses_.clear();  // none recorded (see below)

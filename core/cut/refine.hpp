@@ -187,8 +187,10 @@ class Refiner {
  public:
   explicit Refiner(const model::Mt& mt);
 
-  // Refines as `what` asks and writes the cut to `out`.
-  void refine(const Refinement& what, CutMesh& out);
+  // Refines as `what` asks and writes the cut to `out`. Fails (kCorrupt) when the refinement reaches
+  // a block of a mapped file that fails its check (model::MtBlockCheck); the refiner then holds the
+  // root alone and keeps no cut, and `out` is not a result.
+  Status refine(const Refinement& what, CutMesh& out);
   // The same without copying a moved cut out: a view of the refiner's kept mesh, or of `scratch`
   // when the cut was written there (valid until the refiner's next call).
   //
@@ -216,7 +218,7 @@ class Refiner {
   //   threshold rises until it fits, far below it the threshold falls to where the refinement
   //   passed. The field must be per vertex at the plain threshold, and a move needs the list of
   //   changed vertices.
-  CutSpan refine_view(const Refinement& what, CutMesh& scratch);
+  Result<CutSpan> refine_view(const Refinement& what, CutMesh& scratch);
 
   // The threshold of the kept cut after a budgeted update (none when no threshold's cut fitted).
   std::optional<Rank> budget_threshold() const { return budget_threshold_; }
@@ -315,7 +317,11 @@ class Refiner {
   // Takes the nodes from position `length` of cut_ on out of the cut (the last ones added).
   void truncate_cut(std::size_t length);
   // Adds node r and its missing ancestors, parents first; witness_triangle forced r.
+  // Adds node r and its missing ancestors. When one of them lies in a block that fails its check,
+  // adds none of them and records the node in failed_node_; every later force returns at once.
   void force(std::uint32_t r, std::uint32_t witness_triangle, std::uint32_t witness_creator);
+  // The refinement of refine_view, by kind.
+  CutSpan run(const Refinement& what, CutMesh& scratch);
   void add_node(std::uint32_t x, std::uint32_t witness_triangle, std::uint32_t witness_creator);
   void examine(std::uint32_t n, const AllowedError& allowed);
   // Examines cut_ from position first on, forcing what fails (asking filling_ for the split
@@ -367,6 +373,8 @@ class Refiner {
     kAdding,     // within a move: nodes are being added; mesh_* is the cut's mesh before them
   };
   Kept kept_ = Kept::kNone;
+  // A node of a block that failed its check during the current refinement (model::kNoNode: none).
+  std::uint32_t failed_node_ = model::kNoNode;
   // What the refiner knows of the field its kept cut is minimal for (at previous_threshold_).
   enum class Field : std::uint8_t {
     kUnknown,  // nothing: the next update retests every triangle of the cut

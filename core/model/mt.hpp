@@ -18,10 +18,10 @@
 #include <limits>
 #include <memory>
 #include <span>
-#include <stdexcept>
 #include <vector>
 
 #include "core/model/bounds.hpp"
+#include "core/result.hpp"
 
 namespace mtlod::core::model {
 
@@ -53,13 +53,6 @@ struct MtArrays {
   std::vector<std::uint32_t> triangle_remover;
 };
 
-// A node block of a memory-mapped file failed its check on first use (core/io/mt_file.hpp). Thrown
-// from deep inside a refinement; the request fails, and so does every later one that reaches the
-// block.
-struct CorruptMt : std::runtime_error {
-  using std::runtime_error::runtime_error;
-};
-
 // Checks a mapped file's node blocks (nodes [b·kMtBlockNodes, (b+1)·kMtBlockNodes), with their
 // triangles, parents and split vertices) the first time a refinement reaches them.
 inline constexpr std::uint32_t kMtBlockShift = 12;
@@ -67,18 +60,22 @@ inline constexpr std::uint32_t kMtBlockNodes = 1u << kMtBlockShift;
 class MtBlockCheck {
  public:
   virtual ~MtBlockCheck() = default;
-  // Returns when node n's block is valid; throws CorruptMt when it is not.
-  void require(std::uint32_t node) const {
+  // Whether node n's block is valid (checked now if it was not yet). A refinement that meets an
+  // invalid block stops adding nodes and fails with check(node)'s error; so does every later one
+  // that reaches the block.
+  [[nodiscard]] bool require(std::uint32_t node) const {
     const std::uint32_t b = node >> kMtBlockShift;
-    if (b >= block_count_ || state_[b].load(std::memory_order_acquire) != kValid) check_block(b);
+    return (b < block_count_ && state_[b].load(std::memory_order_acquire) == kValid) || check_block(b).ok();
   }
+  // Why node n's block fails its check (kCorrupt), or Ok.
+  Status check(std::uint32_t node) const { return check_block(node >> kMtBlockShift); }
 
  protected:
   static constexpr std::uint8_t kValid = 1;
   explicit MtBlockCheck(std::uint32_t blocks)
       : block_count_(blocks), state_(std::make_unique<std::atomic<std::uint8_t>[]>(blocks)) {}
-  // Validates block b (idempotent: two threads may both do it) and stores kValid, or throws.
-  virtual void check_block(std::uint32_t b) const = 0;
+  // Validates block b (idempotent: two threads may both do it) and stores kValid, or says why not.
+  virtual Status check_block(std::uint32_t b) const = 0;
   std::uint32_t block_count_;
   std::unique_ptr<std::atomic<std::uint8_t>[]> state_;
 };
@@ -136,11 +133,12 @@ struct Mt {
   // Whether the arrays live in a mapped file (read on demand) rather than in this process's memory.
   bool mapped() const { return check_ != nullptr; }
 
-  // Makes sure node n's block is valid before a refinement reads its node, triangles and split
-  // vertex: free for MTs in memory (validated whole when read); throws CorruptMt.
-  void require_node(std::uint32_t n) const {
-    if (check_) check_->require(n);
-  }
+  // Whether node n's block is valid, checked before a refinement reads its node, triangles and
+  // split vertex: always for MTs in memory (validated whole when read); a mapped file's block is
+  // checked on first use (MtBlockCheck).
+  [[nodiscard]] bool require_node(std::uint32_t n) const { return !check_ || check_->require(n); }
+  // Why node n's block is invalid (after require_node said so), or Ok.
+  Status check_node(std::uint32_t n) const { return check_ ? check_->check(n) : Status(Ok{}); }
 
   // Error of triangle t in model units: its remover's error, or 0 for an input triangle.
   float triangle_error(std::uint32_t t) const {

@@ -493,11 +493,11 @@ class BlockCheck final : public MtBlockCheck {
   }
 
  protected:
-  void check_block(std::uint32_t b) const override {
+  Status check_block(std::uint32_t b) const override {
     if (b >= block_count_)
-      throw CorruptMt("corrupt MT file: node block " + std::to_string(b) + " does not exist");
-    const Status s = check_now(b);
-    if (!s.ok()) throw CorruptMt(s.error().message);
+      return make_error(ErrorCode::kCorrupt,
+                        "corrupt MT file: node block " + std::to_string(b) + " does not exist");
+    return check_now(b);
   }
 
  private:

@@ -83,7 +83,7 @@ std::uint32_t mt_file_version(std::span<const std::uint8_t> bytes);
 
 // A version-2 image used in place (4-byte aligned, as a memory map is), kept alive by `storage`:
 // checks the header, the block table, the size and the root's block now, every other node block
-// when a refinement first reaches it (Mt::require_node throws CorruptMt then). Errors as deserialize_mt's;
+// when a refinement first reaches it (Mt::require_node, Mt::check_node). Errors as deserialize_mt's;
 // kUnsupported for version 1, which is read whole.
 Result<Mt> view_mt(std::span<const std::uint8_t> bytes, std::shared_ptr<const void> storage);
 

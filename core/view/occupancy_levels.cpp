@@ -116,15 +116,17 @@ std::size_t cap_holes(std::vector<std::uint32_t>& triangles) {
   return (triangles.size() - before) / 3;
 }
 
-OccupancyLevels::OccupancyLevels(const model::Mt& mt) {
+Result<std::unique_ptr<OccupancyLevels>> OccupancyLevels::make(const model::Mt& mt) {
+  std::unique_ptr<OccupancyLevels> made(new OccupancyLevels);
+  std::vector<OccupancyLevel>& levels = made->levels_;
   cut::Refiner refiner(mt);
   cut::CutMesh cut;
   // Uniform allowed error 0 ranks triangles by error alone: each budget gives the cut with the
   // smallest maximum error at that size.
   const cut::AllowedError everywhere_exact = cut::AllowedError::everywhere(0.0f);
   for (std::size_t budget = 2048; budget <= (std::size_t{1} << 18); budget *= 2) {
-    refiner.refine(cut::Refinement::from_root(everywhere_exact).within(budget), cut);
-    if (!levels_.empty() && cut.triangle_count() == levels_.back().triangle_count()) break;  // nothing finer
+    MTLOD_RETURN_IF_ERROR(refiner.refine(cut::Refinement::from_root(everywhere_exact).within(budget), cut));
+    if (!levels.empty() && cut.triangle_count() == levels.back().triangle_count()) break;  // nothing finer
     OccupancyLevel level;
     std::unordered_map<std::uint32_t, std::uint32_t> local;
     level.triangles.reserve(cut.triangles.size());
@@ -146,8 +148,9 @@ OccupancyLevels::OccupancyLevels(const model::Mt& mt) {
       level.triangles.resize(cut_size);
       level.cap_triangles = 0;
     }
-    levels_.push_back(std::move(level));
+    levels.push_back(std::move(level));
   }
+  return made;
 }
 
 const OccupancyLevel& OccupancyLevels::for_covered_cells(double covered_cells) const {

@@ -9,10 +9,12 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <memory>
 #include <span>
 #include <vector>
 
 #include "core/model/mt.hpp"
+#include "core/result.hpp"
 
 namespace mtlod::core::view {
 
@@ -47,8 +49,9 @@ std::size_t cap_holes(std::vector<std::uint32_t>& triangles);
 class OccupancyLevels {
  public:
   // Cuts with at most 2k, 4k, 8k, ... 256k triangles (worst error first), stopping early at the
-  // full-resolution mesh: at most twice the largest level in all.
-  explicit OccupancyLevels(const model::Mt& mt);
+  // full-resolution mesh: at most twice the largest level in all. Fails (kCorrupt) when they reach
+  // a block of a mapped file that fails its check.
+  static Result<std::unique_ptr<OccupancyLevels>> make(const model::Mt& mt);
 
   // The coarsest level with at least covered_cells / 4 triangles (the finest when none has as many).
   const OccupancyLevel& for_covered_cells(double covered_cells) const;
@@ -56,6 +59,7 @@ class OccupancyLevels {
   std::size_t memory_bytes() const;
 
  private:
+  OccupancyLevels() = default;
   std::vector<OccupancyLevel> levels_;  // coarse to fine
 };
 

@@ -403,10 +403,11 @@ void ViewExtractor::prepare(const ViewRequest& request, ViewCache* session, Stag
   finished(Stage::kAllowedError);
 }
 
-cut::CutSpan ViewExtractor::extract(const ViewRequest& request, cut::Refiner& refiner, cut::CutMesh& scratch,
-                                    ViewCache* session, StageObserver* observer) {
+Result<cut::CutSpan> ViewExtractor::extract(const ViewRequest& request, cut::Refiner& refiner,
+                                            cut::CutMesh& scratch, ViewCache* session,
+                                            StageObserver* observer) {
   prepare(request, session, observer);
-  const cut::CutSpan cut = refine_view(refiner, scratch);
+  Result<cut::CutSpan> cut = refine_view(refiner, scratch);
   if (observer) observer->finished(Stage::kRefine);
   return cut;
 }
@@ -419,11 +420,13 @@ std::span<const float> ViewExtractor::allowed_error_field(const ViewRequest& req
   return allowed_;
 }
 
-void ViewExtractor::refine(cut::Refiner& session, cut::CutMesh& out) {
-  out.assign(refine_view(session, out));
+Status ViewExtractor::refine(cut::Refiner& session, cut::CutMesh& out) {
+  MTLOD_TRY(const cut::CutSpan cut, refine_view(session, out));
+  out.assign(cut);
+  return Ok{};
 }
 
-cut::CutSpan ViewExtractor::refine_view(cut::Refiner& session, cut::CutMesh& scratch) {
+Result<cut::CutSpan> ViewExtractor::refine_view(cut::Refiner& session, cut::CutMesh& scratch) {
   const cut::AllowedError allowed = cut::AllowedError::from_vertices(allowed_);
   // In a session, what the refinement asks for becomes known to the view's gazes.
   const KnownSource known(*this);
@@ -450,7 +453,13 @@ cut::CutSpan ViewExtractor::refine_view(cut::Refiner& session, cut::CutMesh& scr
     what.within(*request_->budget);
     if (request_->dynamic && session_) what.keeping();
   }
-  const cut::CutSpan cut = session.refine_view(what, scratch);
+  Result<cut::CutSpan> refined = session.refine_view(what, scratch);
+  if (!refined) {
+    // The session's known vertices belong to a cut the refiner no longer holds.
+    if (session_) session_->reset();
+    return refined;
+  }
+  const cut::CutSpan cut = *refined;
   if (session_ && on_demand_) forget_unread(session);
   if (request_->labels) {
     // Labels of the cut's vertices only: the silhouette distance when it was computed, else the gaze's.

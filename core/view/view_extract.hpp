@@ -123,9 +123,9 @@ class ViewExtractor {
 
   // One request, every stage in order: what the server, mtlod-extract and the studies run. With a
   // session, the stages read and update it (a gaze takes the incremental path). Returns
-  // refine_view's cut.
-  cut::CutSpan extract(const ViewRequest& request, cut::Refiner& refiner, cut::CutMesh& scratch,
-                       ViewCache* session = nullptr, StageObserver* observer = nullptr);
+  // refine_view's cut, or its error (a damaged block of a mapped file).
+  Result<cut::CutSpan> extract(const ViewRequest& request, cut::Refiner& refiner, cut::CutMesh& scratch,
+                               ViewCache* session = nullptr, StageObserver* observer = nullptr);
   // Stages 1 to 4 of a static request with every vertex's allowed error computed, whatever the
   // request's allowed_error_on_demand: the field a study ranks cuts by. Valid until the next call.
   std::span<const float> allowed_error_field(const ViewRequest& request);
@@ -147,10 +147,11 @@ class ViewExtractor {
   void allowed_error();
   // Stage 5: refines `session` (dynamic unless `dynamic` is off; with a budget, dynamic on the
   // session's gazes) and writes the cut to `out`.
-  void refine(cut::Refiner& session, cut::CutMesh& out);
+  Status refine(cut::Refiner& session, cut::CutMesh& out);
   // The same without copying a gaze's cut out of the session's refiner: a view of its kept mesh
   // (valid until the refiner's next call), or of `scratch` when the cut was written there.
-  cut::CutSpan refine_view(cut::Refiner& session, cut::CutMesh& scratch);
+  // Fails as cut::Refiner::refine_view does.
+  Result<cut::CutSpan> refine_view(cut::Refiner& session, cut::CutMesh& scratch);
 
   // After the stages: the per-vertex labels (model vertex count entries; only the cut's vertices are
   // meaningful), the grids, and the occupancy cut, for encoders, tools and debug images.

@@ -31,9 +31,12 @@
 #include "core/view/occupancy.hpp"
 #include "core/view/occupancy_levels.hpp"
 #include "core/view/view_grid.hpp"
+#include "tests/bench/bench_support.hpp"
 
 namespace mtlod::core {
 namespace {
+
+using mtlod::bench::refined;
 
 // Random discs covering about half of the image, fixed seed: object cells are 1, background 0.
 std::vector<std::uint8_t> blob_image(view::GridSize grid) {
@@ -396,7 +399,7 @@ BENCHMARK(BM_GridPipelineDragon256)->Unit(benchmark::kMicrosecond);
 // bench_pipeline.cpp is the request as the server runs it, allowed error on demand.)
 struct DragonMt {
   std::optional<model::Mt> mt;
-  std::optional<view::OccupancyLevels> levels;
+  std::unique_ptr<view::OccupancyLevels> levels;
   view::Camera camera;
   float radius = 0.0f;
   // The occupancy level of at most `triangles` triangles.
@@ -433,7 +436,7 @@ struct DragonMt {
     radius = 0.5f * glm::length(hi - lo);
     camera.view = glm::lookAt(centre + glm::vec3(0.0f, 0.0f, 2.6f * radius), centre, glm::vec3(0, 1, 0));
     camera.projection = glm::perspective(glm::radians(45.0f), 1.0f, 0.1f * radius, 10.0f * radius);
-    levels.emplace(*mt);
+    levels = view::OccupancyLevels::make(*mt).value();  // in memory: cannot fail
   }
 };
 
@@ -482,7 +485,7 @@ void BM_RequestPipelineDragon256(benchmark::State& state) {
     transformer.chamfer(view::DistanceMetric::kChamfer5711, occupancy, grid, silhouette);
     field.bind(mapping, options, {{silhouette, {}, {}}, mt.positions, {}, {}});
     field.compute_all(allowed);
-    refiner.refine(cut::Refinement::from_root(cut::AllowedError::from_vertices(allowed)), cut);
+    refined(refiner.refine(cut::Refinement::from_root(cut::AllowedError::from_vertices(allowed)), cut));
   };
   tune_error_for_size(dragon.radius, 50'000, [&](float bound) {
     options.error = bound;
@@ -625,11 +628,11 @@ void BM_RefineOnlyDragon256(benchmark::State& state) {
     options.error = bound;
     view::compute_vertex_allowed_error(mapping, options, {{silhouette, {}, {}}, mt.positions, {}, {}},
                                        allowed);
-    refiner.refine(cut::Refinement::from_root(cut::AllowedError::from_vertices(allowed)), cut);
+    refined(refiner.refine(cut::Refinement::from_root(cut::AllowedError::from_vertices(allowed)), cut));
     return cut.triangle_count();
   });
   for (auto _ : state) {
-    refiner.refine(cut::Refinement::from_root(cut::AllowedError::from_vertices(allowed)), cut);
+    refined(refiner.refine(cut::Refinement::from_root(cut::AllowedError::from_vertices(allowed)), cut));
     benchmark::DoNotOptimize(cut.triangles.data());
   }
   state.counters["cut_triangles"] = static_cast<double>(cut.triangle_count());

@@ -19,8 +19,11 @@
 #include "core/cut/refine.hpp"
 #include "core/io/mesh_io.hpp"
 #include "core/threads/thread_pool.hpp"
+#include "tests/bench/bench_support.hpp"
 
 namespace {
+
+using mtlod::bench::refined;
 
 using namespace mtlod::core;
 
@@ -128,7 +131,7 @@ float error_for_size(const model::Mt& mt, std::size_t triangles) {
   float lo = 1e-7f, hi = *std::max_element(mt.node_error.begin(), mt.node_error.end());
   for (int i = 0; i < 40; ++i) {
     const float mid = std::sqrt(lo * hi);
-    refiner.refine(cut::Refinement::from_root(cut::AllowedError::everywhere(mid)), cut);
+    refined(refiner.refine(cut::Refinement::from_root(cut::AllowedError::everywhere(mid)), cut));
     (cut.triangle_count() > triangles ? lo : hi) = mid;
   }
   return hi;
@@ -155,7 +158,7 @@ void BM_RefineStatic(benchmark::State& state) {
   cut::Refiner refiner(*mt);
   cut::CutMesh cut;
   for (auto _ : state) {
-    refiner.refine(cut::Refinement::from_root(cut::AllowedError::everywhere(e)), cut);
+    refined(refiner.refine(cut::Refinement::from_root(cut::AllowedError::everywhere(e)), cut));
     benchmark::DoNotOptimize(cut.triangles.data());
   }
   state.SetItemsProcessed(state.iterations() * std::int64_t(cut.triangle_count()));
@@ -171,9 +174,9 @@ void BM_RefineBudget(benchmark::State& state) {
   cut::Refiner refiner(*mt);
   cut::CutMesh cut;
   for (auto _ : state) {
-    refiner.refine(
+    refined(refiner.refine(
         cut::Refinement::from_root(cut::AllowedError::everywhere(0.0f)).within(std::size_t(state.range(0))),
-        cut);
+        cut));
     benchmark::DoNotOptimize(cut.triangles.data());
   }
   state.SetItemsProcessed(state.iterations() * std::int64_t(cut.triangle_count()));
@@ -190,9 +193,9 @@ void BM_RefineBudgetPerVertex(benchmark::State& state) {
   cut::Refiner refiner(*mt);
   cut::CutMesh cut;
   for (auto _ : state) {
-    refiner.refine(cut::Refinement::from_root(cut::AllowedError::from_vertices(field))
-                       .within(std::size_t(state.range(0))),
-                   cut);
+    refined(refiner.refine(cut::Refinement::from_root(cut::AllowedError::from_vertices(field))
+                               .within(std::size_t(state.range(0))),
+                           cut));
     benchmark::DoNotOptimize(cut.triangles.data());
   }
   state.SetItemsProcessed(state.iterations() * std::int64_t(cut.triangle_count()));
@@ -238,8 +241,8 @@ void BM_RefinePerVertexStatic(benchmark::State& state) {
   cut::CutMesh cut;
   bool flip = false;
   for (auto _ : state) {
-    refiner.refine(cut::Refinement::from_root(cut::AllowedError::from_vertices(flip ? fields.b : fields.a)),
-                   cut);
+    refined(refiner.refine(
+        cut::Refinement::from_root(cut::AllowedError::from_vertices(flip ? fields.b : fields.a)), cut));
     flip = !flip;
     benchmark::DoNotOptimize(cut.triangles.data());
   }
@@ -255,11 +258,12 @@ void BM_RefinePerVertexDynamic(benchmark::State& state) {
   const FieldPair& fields = fields_for(state.range(0));
   cut::Refiner refiner(*mt);
   cut::CutMesh cut;
-  refiner.refine(cut::Refinement::move(cut::AllowedError::from_vertices(fields.a)), cut);
-  refiner.refine(cut::Refinement::move(cut::AllowedError::from_vertices(fields.b)), cut);
+  refined(refiner.refine(cut::Refinement::move(cut::AllowedError::from_vertices(fields.a)), cut));
+  refined(refiner.refine(cut::Refinement::move(cut::AllowedError::from_vertices(fields.b)), cut));
   bool flip = false;
   for (auto _ : state) {
-    refiner.refine(cut::Refinement::move(cut::AllowedError::from_vertices(flip ? fields.b : fields.a)), cut);
+    refined(refiner.refine(
+        cut::Refinement::move(cut::AllowedError::from_vertices(flip ? fields.b : fields.a)), cut));
     flip = !flip;
     benchmark::DoNotOptimize(cut.triangles.data());
   }
@@ -278,12 +282,12 @@ void BM_RefinePerVertexDynamicChangedList(benchmark::State& state) {
     if (fields.a[v] != fields.b[v]) changed.push_back(v);
   cut::Refiner refiner(*mt);
   cut::CutMesh cut;
-  refiner.refine(cut::Refinement::move(cut::AllowedError::from_vertices(fields.a)), cut);
-  refiner.refine(cut::Refinement::move(cut::AllowedError::from_vertices(fields.b)), cut);
+  refined(refiner.refine(cut::Refinement::move(cut::AllowedError::from_vertices(fields.a)), cut));
+  refined(refiner.refine(cut::Refinement::move(cut::AllowedError::from_vertices(fields.b)), cut));
   bool flip = false;
   for (auto _ : state) {
-    refiner.refine(
-        cut::Refinement::move(cut::AllowedError::from_vertices(flip ? fields.b : fields.a), changed), cut);
+    refined(refiner.refine(
+        cut::Refinement::move(cut::AllowedError::from_vertices(flip ? fields.b : fields.a), changed), cut));
     flip = !flip;
     benchmark::DoNotOptimize(cut.triangles.data());
   }

@@ -21,8 +21,11 @@
 #include "core/view/view_extract.hpp"
 #include "protocol/camera.hpp"
 #include "protocol/view_request.hpp"
+#include "tests/bench/bench_support.hpp"
 
 namespace {
+
+using mtlod::bench::refined;
 
 using namespace mtlod;
 namespace fs = std::filesystem;
@@ -58,7 +61,7 @@ const Model* model(const std::string& name) {
   if (!mt) return nullptr;
   slot = std::make_unique<Model>();
   slot->mt = std::move(*mt);
-  slot->levels = std::make_unique<core::view::OccupancyLevels>(slot->mt);
+  slot->levels = core::view::OccupancyLevels::make(slot->mt).value();  // in memory: cannot fail
   const core::model::Bounds box = core::model::bounds_of(slot->mt.positions);
   slot->lo = core::model::to_double(box.lo);
   slot->hi = core::model::to_double(box.hi);
@@ -138,7 +141,7 @@ void BM_Request(benchmark::State& state) {
     t_dt += us_since(t);
     extractor.allowed_error();
     t_labels += us_since(t);
-    extractor.refine(refiner, cut);
+    refined(extractor.refine(refiner, cut));
     t_refine += us_since(t);
     auto stats = encoder.encode({m->mt.positions, normals, {}, cut.triangles}, draco, payload);
     t_encode += us_since(t);
@@ -192,7 +195,7 @@ void BM_RefineAfterSmallMove(benchmark::State& state) {
     x.map(v), x.occupancy(), x.distance_transforms(), x.allowed_error();
     state.ResumeTiming();
     auto t = Clock::now();
-    x.refine(refiner, cut);
+    refined(x.refine(refiner, cut));
     refine_us += us_since(t);
   }
   state.counters["refine_us"] = benchmark::Counter(refine_us, benchmark::Counter::kAvgIterations);
@@ -228,9 +231,9 @@ void BM_BudgetNewView(benchmark::State& state) {
   core::cut::CutMesh cut;
   for (auto _ : state) {
     if (state.range(0) == 1) {
-      refiner.refine(core::cut::Refinement::from_root(allowed).within(50'000).keeping(), cut);
+      refined(refiner.refine(core::cut::Refinement::from_root(allowed).within(50'000).keeping(), cut));
     } else {
-      refiner.refine(core::cut::Refinement::from_root(allowed).within(50'000), cut);
+      refined(refiner.refine(core::cut::Refinement::from_root(allowed).within(50'000), cut));
     }
   }
   state.counters["triangles"] = static_cast<double>(cut.triangle_count());
@@ -286,7 +289,7 @@ void BM_GazeStream(benchmark::State& state) {
     x.allowed_error();
     labels_us += us_since(t);
     t = Clock::now();
-    x.refine(refiner, cut);
+    refined(x.refine(refiner, cut));
     refine_us += us_since(t);
     gaze_us.push_back(us_since(start));
     before_us += gaze_us.back();

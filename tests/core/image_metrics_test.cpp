@@ -334,7 +334,7 @@ std::unique_ptr<ModelCase> build_case(const eval::GenerateOptions& options) {
   auto mt = test::build_mt_renumbering(s->mesh);
   EXPECT_TRUE(mt.ok());
   s->mt = std::move(*mt);
-  s->levels = std::make_unique<view::OccupancyLevels>(s->mt);
+  s->levels = view::OccupancyLevels::make(s->mt).value();  // in memory: cannot fail
   s->normals.resize(s->mesh.positions.size());
   eval::area_weighted_normals(s->mesh.positions, s->mesh.triangles, s->normals);
   return s;
@@ -428,7 +428,8 @@ TEST(ImageMetricsRender, CoarserUniformCutsScoreWorse) {
   cut::CutMesh cut;
   double last_ssim = 0, last_mae = INFINITY, last_fov_ssim = 0, last_fov_mae = INFINITY;
   for (const std::size_t budget : {100u, 400u, 1500u}) {
-    refiner.refine(cut::Refinement::from_root(cut::AllowedError::everywhere(0.0f)).within(budget), cut);
+    EXPECT_TRUE(
+        refiner.refine(cut::Refinement::from_root(cut::AllowedError::everywhere(0.0f)).within(budget), cut));
     const eval::ImageComparison c =
         compare(full, render(s, sphere_view(), cut.triangles), sphere_view(), {0.5f, 0.5f});
     EXPECT_LT(c.ssim, 1.0) << budget;
@@ -470,9 +471,10 @@ std::pair<eval::ImageComparison, eval::ImageComparison> uniform_and_focused(cons
   cut::CutMesh uniform, focused;
   std::size_t target = budget;
   for (int round = 0; round < 8; ++round) {
-    refiner.refine(cut::Refinement::from_root(cut::AllowedError::everywhere(0.0f)).within(target), uniform);
-    refiner.refine(cut::Refinement::from_root(cut::AllowedError::from_vertices(field)).within(target),
-                   focused);
+    EXPECT_TRUE(refiner.refine(cut::Refinement::from_root(cut::AllowedError::everywhere(0.0f)).within(target),
+                               uniform));
+    EXPECT_TRUE(refiner.refine(
+        cut::Refinement::from_root(cut::AllowedError::from_vertices(field)).within(target), focused));
     if (uniform.triangle_count() == focused.triangle_count()) break;
     target = std::min(uniform.triangle_count(), focused.triangle_count());
   }

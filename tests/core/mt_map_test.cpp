@@ -101,7 +101,9 @@ TEST(MtMap, NormalsComputedForAFileWithoutThemAreCountedInMemory) {
   ASSERT_TRUE(mapped.ok()) << mapped.error().message;
   ASSERT_TRUE(mapped->mapped());
   const std::size_t mapped_before = mapped->mapped_bytes();
-  ASSERT_TRUE(build::ensure_normals(*mapped));
+  const Result<bool> computed = build::ensure_normals(*mapped);
+  ASSERT_TRUE(computed) << computed.error().message;
+  ASSERT_TRUE(*computed);
   EXPECT_EQ(mapped->memory_bytes(), stored.size() * sizeof(float));
   EXPECT_EQ(mapped->mapped_bytes(), mapped_before);
   // From the full-resolution triangles the MT holds: the builder's normals, up to summation order.
@@ -118,13 +120,13 @@ TEST(MtMap, CutsEqualThoseOfTheFileReadWhole) {
   cut::CutMesh ca, cb;
   const float top = m.built.node_error[1];
   for (const float fraction : {1.0f, 0.3f, 0.05f, 0.01f, 0.0f}) {
-    a.refine(cut::Refinement::from_root(cut::AllowedError::everywhere(top * fraction)), ca);
-    b.refine(cut::Refinement::from_root(cut::AllowedError::everywhere(top * fraction)), cb);
+    EXPECT_TRUE(a.refine(cut::Refinement::from_root(cut::AllowedError::everywhere(top * fraction)), ca));
+    EXPECT_TRUE(b.refine(cut::Refinement::from_root(cut::AllowedError::everywhere(top * fraction)), cb));
     expect_same_cut(ca, cb, "uniform " + std::to_string(fraction));
   }
   for (const std::size_t budget : {500, 5000, 30000}) {
-    a.refine(cut::Refinement::from_root(cut::AllowedError::everywhere(0.0f)).within(budget), ca);
-    b.refine(cut::Refinement::from_root(cut::AllowedError::everywhere(0.0f)).within(budget), cb);
+    EXPECT_TRUE(a.refine(cut::Refinement::from_root(cut::AllowedError::everywhere(0.0f)).within(budget), ca));
+    EXPECT_TRUE(b.refine(cut::Refinement::from_root(cut::AllowedError::everywhere(0.0f)).within(budget), cb));
     expect_same_cut(ca, cb, "budget " + std::to_string(budget));
   }
   // Per-vertex fields moved by dynamic updates, as a gaze moves them.
@@ -134,16 +136,17 @@ TEST(MtMap, CutsEqualThoseOfTheFileReadWhole) {
     const float centre = std::uniform_real_distribution<float>(-1, 1)(rng);
     for (std::size_t v = 0; v < field.size(); ++v)
       field[v] = top * 0.02f * (0.05f + std::abs(m.built.positions[3 * v] - centre));
-    a.refine(cut::Refinement::move(cut::AllowedError::from_vertices(field)), ca);
-    b.refine(cut::Refinement::move(cut::AllowedError::from_vertices(field)), cb);
+    EXPECT_TRUE(a.refine(cut::Refinement::move(cut::AllowedError::from_vertices(field)), ca));
+    EXPECT_TRUE(b.refine(cut::Refinement::move(cut::AllowedError::from_vertices(field)), cb));
     expect_same_cut(ca, cb, "update " + std::to_string(step));
   }
   // The occupancy stage's coarse cuts too.
-  const view::OccupancyLevels la(*mapped), lb(*read);
-  ASSERT_EQ(la.levels().size(), lb.levels().size());
-  for (std::size_t i = 0; i < la.levels().size(); ++i) {
-    EXPECT_EQ(la.levels()[i].triangles, lb.levels()[i].triangles);
-    EXPECT_EQ(la.levels()[i].positions, lb.levels()[i].positions);
+  auto la = view::OccupancyLevels::make(*mapped), lb = view::OccupancyLevels::make(*read);
+  ASSERT_TRUE(la && lb);
+  ASSERT_EQ((*la)->levels().size(), (*lb)->levels().size());
+  for (std::size_t i = 0; i < (*la)->levels().size(); ++i) {
+    EXPECT_EQ((*la)->levels()[i].triangles, (*lb)->levels()[i].triangles);
+    EXPECT_EQ((*la)->levels()[i].positions, (*lb)->levels()[i].positions);
   }
 }
 
@@ -167,22 +170,28 @@ TEST(MtMap, ADamagedBlockFailsAtFirstUseOnly) {
   ASSERT_TRUE(mapped.ok()) << "only the root's block is checked at open: " << mapped.error().message;
   cut::Refiner refiner(*mapped);
   cut::CutMesh cut;
-  refiner.refine(cut::Refinement::from_root(cut::AllowedError::everywhere(m.built.node_error[1])),
-                 cut);  // the root alone
+  EXPECT_TRUE(refiner.refine(cut::Refinement::from_root(cut::AllowedError::everywhere(m.built.node_error[1])),
+                             cut));  // the root alone
   EXPECT_EQ(cut.node_count, 1u);
-  try {
-    refiner.refine(cut::Refinement::from_root(cut::AllowedError::everywhere(0.0f)), cut);  // every node
-    ADD_FAILURE() << "the damaged block was used without a complaint";
-  } catch (const model::CorruptMt& e) {
-    EXPECT_NE(std::string(e.what()).find("block " + std::to_string(last_block)), std::string::npos)
-        << e.what();
-  }
-  // The same MT keeps serving the cuts that do not reach the block, and keeps refusing those that do.
+  const Status every_node =
+      refiner.refine(cut::Refinement::from_root(cut::AllowedError::everywhere(0.0f)), cut);
+  ASSERT_FALSE(every_node) << "the damaged block was used without a complaint";
+  EXPECT_EQ(every_node.error().code, ErrorCode::kCorrupt);
+  EXPECT_NE(every_node.error().message.find("block " + std::to_string(last_block)), std::string::npos)
+      << every_node.error().message;
+  // The same MT, and the same refiner, keep serving the cuts that do not reach the block, and keep
+  // refusing those that do.
+  cut::CutMesh intact;
+  EXPECT_TRUE(cut::Refiner(m.built).refine(
+      cut::Refinement::from_root(cut::AllowedError::everywhere(m.built.node_error[1] * 0.5f)), intact));
   cut::Refiner fresh(*mapped);
-  fresh.refine(cut::Refinement::from_root(cut::AllowedError::everywhere(m.built.node_error[1] * 0.5f)), cut);
-  EXPECT_GT(cut.node_count, 1u);
-  EXPECT_THROW(fresh.refine(cut::Refinement::from_root(cut::AllowedError::everywhere(0.0f)), cut),
-               model::CorruptMt);
+  for (cut::Refiner* r : {&refiner, &fresh}) {
+    EXPECT_TRUE(r->refine(
+        cut::Refinement::from_root(cut::AllowedError::everywhere(m.built.node_error[1] * 0.5f)), cut));
+    EXPECT_GT(cut.node_count, 1u);
+    expect_same_cut(cut, intact, "a cut short of the damaged block");
+    EXPECT_FALSE(r->refine(cut::Refinement::from_root(cut::AllowedError::everywhere(0.0f)), cut));
+  }
 }
 
 // A budgeted view orders its heap by the errors of the nodes that would refine its mesh (on a large
@@ -200,8 +209,8 @@ TEST(MtMap, ABudgetedViewChecksOnlyTheBlocksItForces) {
   std::uint32_t far = 0;
   cut::CutMesh intact;
   for (std::size_t extra = 10; extra < m.built.triangle_count() && budget == 0; extra *= 2) {
-    cut::Refiner(m.built).refine(
-        cut::Refinement::from_root(everywhere).within(m.built.root_triangle_count() + extra), intact);
+    EXPECT_TRUE(cut::Refiner(m.built).refine(
+        cut::Refinement::from_root(everywhere).within(m.built.root_triangle_count() + extra), intact));
     std::uint32_t last_in_cut = 0;
     far = 0;
     for (const std::uint32_t t : intact.ids) {
@@ -218,17 +227,14 @@ TEST(MtMap, ABudgetedViewChecksOnlyTheBlocksItForces) {
   ASSERT_TRUE(mapped.ok()) << mapped.error().message;
 
   cut::CutMesh cut;
-  cut::Refiner(*mapped).refine(cut::Refinement::from_root(everywhere).within(budget), cut);
+  EXPECT_TRUE(cut::Refiner(*mapped).refine(cut::Refinement::from_root(everywhere).within(budget), cut));
   EXPECT_GT(cut.node_count, 1u);
   expect_same_cut(cut, intact, "budget of " + std::to_string(budget));
-  try {
-    cut::Refiner(*mapped).refine(cut::Refinement::from_root(everywhere).within(m.built.triangle_count()),
-                                 cut);
-    ADD_FAILURE() << "the damaged block was used without a complaint";
-  } catch (const model::CorruptMt& e) {
-    EXPECT_NE(std::string(e.what()).find("block " + std::to_string(block_of(far))), std::string::npos)
-        << e.what();
-  }
+  const Status whole = cut::Refiner(*mapped).refine(
+      cut::Refinement::from_root(everywhere).within(m.built.triangle_count()), cut);
+  ASSERT_FALSE(whole) << "the damaged block was used without a complaint";
+  EXPECT_NE(whole.error().message.find("block " + std::to_string(block_of(far))), std::string::npos)
+      << whole.error().message;
 }
 
 TEST(MtMap, TruncatedOrDamagedHeadersAreRefusedAtOpen) {
@@ -286,8 +292,8 @@ TEST(MtMap, FormatOneFilesAreReadWhole) {
   EXPECT_FALSE(mt->mapped());
   cut::Refiner a(*mt), b(swapped);
   cut::CutMesh ca, cb;
-  a.refine(cut::Refinement::from_root(cut::AllowedError::everywhere(0.0f)), ca);
-  b.refine(cut::Refinement::from_root(cut::AllowedError::everywhere(0.0f)), cb);
+  EXPECT_TRUE(a.refine(cut::Refinement::from_root(cut::AllowedError::everywhere(0.0f)), ca));
+  EXPECT_TRUE(b.refine(cut::Refinement::from_root(cut::AllowedError::everywhere(0.0f)), cb));
   expect_same_cut(ca, cb, "version 1");
 }
 

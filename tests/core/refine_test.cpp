@@ -160,7 +160,7 @@ TEST(Refine, StaticEqualsTheNaiveFixpointOnRandomFields) {
                                      ? focus_field(c->mesh, rng, top * 1e-3f, top * 0.3f)
                                      : noise_field(c->mesh.vertex_count(), rng, top * 1e-3f, top * 0.5f);
       const cut::AllowedError allowed = cut::AllowedError::from_vertices(field);
-      refiner.refine(cut::Refinement::from_root(allowed), out);
+      EXPECT_TRUE(refiner.refine(cut::Refinement::from_root(allowed), out));
       const std::vector<std::uint8_t> expected = naive_minimal_cut(c->mt, allowed);
       std::vector<std::uint32_t> expected_nodes;
       for (std::uint32_t n = 0; n < expected.size(); ++n)
@@ -201,10 +201,10 @@ TEST(Refine, OnDemandEqualsTheFullFieldAndAsksOnlyForTheCutsVertices) {
       const std::vector<float> field =
           round % 2 ? focus_field(c->mesh, rng, top * 1e-3f, top * 0.3f)
                     : noise_field(c->mesh.vertex_count(), rng, top * 1e-3f, top * 0.5f);
-      full.refine(cut::Refinement::from_root(cut::AllowedError::from_vertices(field)), expected);
+      EXPECT_TRUE(full.refine(cut::Refinement::from_root(cut::AllowedError::from_vertices(field)), expected));
       const Recorder source(field);
       std::vector<float> written(field.size(), -1.0f);
-      lazy.refine(cut::Refinement::from_root(source, written), out);
+      EXPECT_TRUE(lazy.refine(cut::Refinement::from_root(source, written), out));
       ASSERT_EQ(sorted_nodes(lazy), sorted_nodes(full)) << "round " << round;
       EXPECT_EQ(test::triangle_set(out.triangles), test::triangle_set(expected.triangles));
       EXPECT_EQ(out.max_error, expected.max_error);
@@ -247,15 +247,15 @@ TEST(Refine, BudgetOnDemandEqualsTheFullField) {
         const Recorder source(field);
         std::vector<float> written(field.size(), -1.0f);
         if (keep) {
-          full.refine(
+          EXPECT_TRUE(full.refine(
               cut::Refinement::from_root(cut::AllowedError::from_vertices(field)).within(budget).keeping(),
-              expected);
-          lazy.refine(cut::Refinement::from_root(source, written).within(budget).keeping(), out);
+              expected));
+          EXPECT_TRUE(lazy.refine(cut::Refinement::from_root(source, written).within(budget).keeping(), out));
           EXPECT_EQ(lazy.budget_threshold(), full.budget_threshold());
         } else {
-          full.refine(cut::Refinement::from_root(cut::AllowedError::from_vertices(field)).within(budget),
-                      expected);
-          lazy.refine(cut::Refinement::from_root(source, written).within(budget), out);
+          EXPECT_TRUE(full.refine(
+              cut::Refinement::from_root(cut::AllowedError::from_vertices(field)).within(budget), expected));
+          EXPECT_TRUE(lazy.refine(cut::Refinement::from_root(source, written).within(budget), out));
         }
         EXPECT_EQ(test::triangle_set(out.triangles), test::triangle_set(expected.triangles)) << round;
         EXPECT_EQ(out.max_error, expected.max_error);
@@ -270,9 +270,10 @@ TEST(Refine, BudgetOnDemandEqualsTheFullField) {
         // A gaze after a kept start moves the cut as with the full field.
         if (keep) {
           std::vector<float> moved = focus_field(c->mesh, rng, top * 1e-3f, top * 0.3f);
-          full.refine(cut::Refinement::move(cut::AllowedError::from_vertices(moved), {}).within(budget),
-                      expected);
-          lazy.refine(cut::Refinement::move(cut::AllowedError::from_vertices(moved), {}).within(budget), out);
+          EXPECT_TRUE(full.refine(
+              cut::Refinement::move(cut::AllowedError::from_vertices(moved), {}).within(budget), expected));
+          EXPECT_TRUE(lazy.refine(
+              cut::Refinement::move(cut::AllowedError::from_vertices(moved), {}).within(budget), out));
           EXPECT_EQ(test::triangle_set(out.triangles), test::triangle_set(expected.triangles)) << round;
         }
       }
@@ -290,7 +291,7 @@ TEST(Refine, UniformStaticEqualsTheNaiveFixpoint) {
     cut::CutMesh out;
     for (const float e : {top * 2, top, top * 0.3f, top * 0.01f, top * 1e-4f, 0.0f, -1.0f}) {
       const cut::AllowedError allowed = cut::AllowedError::everywhere(e);
-      refiner.refine(cut::Refinement::from_root(allowed), out);
+      EXPECT_TRUE(refiner.refine(cut::Refinement::from_root(allowed), out));
       const std::vector<std::uint8_t> expected = naive_minimal_cut(c->mt, allowed);
       std::vector<std::uint32_t> expected_nodes;
       for (std::uint32_t n = 0; n < expected.size(); ++n)
@@ -319,11 +320,11 @@ TEST(Refine, RandomThresholdsGiveConformingCutsOnRealScans) {
     for (int round = 0; round < 8; ++round) {
       const float e = top * std::pow(10.0f, exponent(rng));
       if (round % 2 == 0) {
-        refiner.refine(cut::Refinement::from_root(cut::AllowedError::everywhere(e)), out);
+        EXPECT_TRUE(refiner.refine(cut::Refinement::from_root(cut::AllowedError::everywhere(e)), out));
         EXPECT_LE(out.max_error, e);
       } else {
         const std::vector<float> field = focus_field(c->mesh, rng, e * 0.01f, e);
-        refiner.refine(cut::Refinement::from_root(cut::AllowedError::from_vertices(field)), out);
+        EXPECT_TRUE(refiner.refine(cut::Refinement::from_root(cut::AllowedError::from_vertices(field)), out));
       }
       ASSERT_TRUE(test::validate_cut(c->reference, out.triangles))
           << file << " round " << round << " e " << e;
@@ -372,7 +373,8 @@ TEST(Refine, BudgetIsNeverExceededAndCutsStayConforming) {
     std::sort(budgets.begin(), budgets.end());
     for (const std::size_t budget : budgets) {
       // allowed 0 everywhere: every triangle with an error fails, ranked by error.
-      refiner.refine(cut::Refinement::from_root(cut::AllowedError::everywhere(0.0f)).within(budget), out);
+      EXPECT_TRUE(refiner.refine(
+          cut::Refinement::from_root(cut::AllowedError::everywhere(0.0f)).within(budget), out));
       EXPECT_TRUE(out.within_budget);
       ASSERT_LE(out.triangle_count(), budget);
       EXPECT_GE(out.triangle_count(), previous) << "a larger budget gave fewer triangles";
@@ -381,14 +383,17 @@ TEST(Refine, BudgetIsNeverExceededAndCutsStayConforming) {
       // A per-vertex field goes through the ratio heap instead of the node order.
       const float top = max_node_error(c->mt);
       const std::vector<float> field = focus_field(c->mesh, rng, top * 1e-4f, top * 0.1f);
-      refiner.refine(cut::Refinement::from_root(cut::AllowedError::from_vertices(field)).within(budget), out);
+      EXPECT_TRUE(refiner.refine(
+          cut::Refinement::from_root(cut::AllowedError::from_vertices(field)).within(budget), out));
       ASSERT_LE(out.triangle_count(), budget);
       ASSERT_TRUE(test::validate_cut(c->reference, out.triangles));
     }
     // Allowed -1: every triangle with a remover fails, so an ample budget ends at the input.
-    refiner.refine(cut::Refinement::from_root(cut::AllowedError::everywhere(-1.0f)).within(full), out);
+    EXPECT_TRUE(
+        refiner.refine(cut::Refinement::from_root(cut::AllowedError::everywhere(-1.0f)).within(full), out));
     EXPECT_EQ(test::triangle_set(out.triangles), test::triangle_set(c->mesh.triangles));
-    refiner.refine(cut::Refinement::from_root(cut::AllowedError::everywhere(0.0f)).within(root - 1), out);
+    EXPECT_TRUE(refiner.refine(
+        cut::Refinement::from_root(cut::AllowedError::everywhere(0.0f)).within(root - 1), out));
     EXPECT_FALSE(out.within_budget);
     EXPECT_EQ(out.triangle_count(), root);
   }
@@ -405,8 +410,8 @@ TEST(Refine, UnlimitedBudgetEqualsStaticRefinement) {
     for (int round = 0; round < 4; ++round) {
       const std::vector<float> field = focus_field(c->mesh, rng, top * 1e-3f, top * 0.2f);
       const cut::AllowedError allowed = cut::AllowedError::from_vertices(field);
-      refiner.refine(cut::Refinement::from_root(allowed).within(std::numeric_limits<std::size_t>::max()),
-                     budgeted);
+      EXPECT_TRUE(refiner.refine(
+          cut::Refinement::from_root(allowed).within(std::numeric_limits<std::size_t>::max()), budgeted));
       cut::refine_static(c->mt, allowed, fixed);
       EXPECT_EQ(test::triangle_set(budgeted.triangles), test::triangle_set(fixed.triangles));
     }
@@ -425,13 +430,15 @@ TEST(Refine, BudgetRefinesTheWorstRatioFirst) {
     cut::CutMesh out, reference;
     for (std::size_t budget = c->mt.root_triangle_count() + 10; budget < c->mesh.triangle_count();
          budget += 397) {
-      budgeted.refine(cut::Refinement::from_root(cut::AllowedError::everywhere(0.0f)).within(budget), out);
+      EXPECT_TRUE(budgeted.refine(
+          cut::Refinement::from_root(cut::AllowedError::everywhere(0.0f)).within(budget), out));
       const std::vector<std::uint32_t> nodes = sorted_nodes(budgeted);
-      fixed.refine(cut::Refinement::from_root(cut::AllowedError::everywhere(out.max_error)), reference);
+      EXPECT_TRUE(
+          fixed.refine(cut::Refinement::from_root(cut::AllowedError::everywhere(out.max_error)), reference));
       const std::vector<std::uint32_t> lower = sorted_nodes(fixed);
-      fixed.refine(
+      EXPECT_TRUE(fixed.refine(
           cut::Refinement::from_root(cut::AllowedError::everywhere(std::nextafter(out.max_error, 0.0f))),
-          reference);
+          reference));
       const std::vector<std::uint32_t> upper = sorted_nodes(fixed);
       EXPECT_TRUE(std::includes(nodes.begin(), nodes.end(), lower.begin(), lower.end())) << budget;
       EXPECT_TRUE(std::includes(upper.begin(), upper.end(), nodes.begin(), nodes.end())) << budget;
@@ -482,30 +489,30 @@ void expect_dynamic_matches_static(const MtCase* c, std::uint32_t seed, int step
     if (kind == 5) {
       cut::CutMesh other;  // interleaved budgeted and static calls reset the kept cut
       if (std::uniform_int_distribution<int>(0, 1)(rng))
-        dynamic.refine(cut::Refinement::from_root(allowed).within(500), other);
+        EXPECT_TRUE(dynamic.refine(cut::Refinement::from_root(allowed).within(500), other));
       else
-        dynamic.refine(cut::Refinement::from_root(allowed), other);
+        EXPECT_TRUE(dynamic.refine(cut::Refinement::from_root(allowed), other));
       expect_ids_name_triangles(c->mt, other);
     }
     if (kind == 4 && step % 2 == 0) {
-      dynamic.refine(cut::Refinement::move(allowed, changed), moving);
+      EXPECT_TRUE(dynamic.refine(cut::Refinement::move(allowed, changed), moving));
     } else if (kind == 4) {
       // The same through a view (of the kept mesh, or of the scratch after a restart).
       cut::CutMesh scratch;
-      moving.assign(dynamic.refine_view(cut::Refinement::move(allowed, changed), scratch));
+      moving.assign(dynamic.refine_view(cut::Refinement::move(allowed, changed), scratch).value());
     } else if (kind == 6) {
       const std::size_t unchanged = dynamic.unchanged_updates();
       const std::vector<std::uint32_t> before = moving.ids;
-      dynamic.refine(cut::Refinement::move(allowed, std::span<const std::uint32_t>()),
-                     moving);  // nothing changed
+      EXPECT_TRUE(dynamic.refine(cut::Refinement::move(allowed, std::span<const std::uint32_t>()),
+                                 moving));  // nothing changed
       // Returned as kept: the same triangles in the same order (a delta of nothing).
       if (dynamic.unchanged_updates() > unchanged) {
         ASSERT_EQ(moving.ids, before) << "step " << step;
       }
     } else {
-      dynamic.refine(cut::Refinement::move(allowed), moving);
+      EXPECT_TRUE(dynamic.refine(cut::Refinement::move(allowed), moving));
     }
-    fixed.refine(cut::Refinement::from_root(allowed), reference);
+    EXPECT_TRUE(fixed.refine(cut::Refinement::from_root(allowed), reference));
     ASSERT_EQ(test::triangle_set(moving.triangles), test::triangle_set(reference.triangles))
         << "step " << step;
     ASSERT_EQ(sorted_nodes(dynamic), sorted_nodes(fixed)) << "step " << step;
@@ -582,22 +589,24 @@ TEST(Refine, OnDemandUpdatesEqualTheFullFieldAndReadOnlyWhatWasAskedFor) {
         cut::CutSpan cut;
         if (step == 0) {
           if (budgeted) {
-            lazy.refine(cut::Refinement::from_root(known, known.field).within(budget).keeping(), out);
+            EXPECT_TRUE(
+                lazy.refine(cut::Refinement::from_root(known, known.field).within(budget).keeping(), out));
           } else {
-            lazy.refine(cut::Refinement::from_root(known, known.field), out);
+            EXPECT_TRUE(lazy.refine(cut::Refinement::from_root(known, known.field), out));
           }
           cut = cut::CutSpan::of(out);
         } else if (budgeted) {
-          lazy.refine(cut::Refinement::move(known, known.field, changed).within(budget), out);
+          EXPECT_TRUE(lazy.refine(cut::Refinement::move(known, known.field, changed).within(budget), out));
           cut = cut::CutSpan::of(out);
         } else {
-          cut = lazy.refine_view(cut::Refinement::move(known, known.field, changed), out);
+          cut = lazy.refine_view(cut::Refinement::move(known, known.field, changed), out).value();
         }
         if (budgeted) {
-          full.refine(cut::Refinement::from_root(cut::AllowedError::from_vertices(field)).within(budget),
-                      expected);
+          EXPECT_TRUE(full.refine(
+              cut::Refinement::from_root(cut::AllowedError::from_vertices(field)).within(budget), expected));
         } else {
-          full.refine(cut::Refinement::from_root(cut::AllowedError::from_vertices(field)), expected);
+          EXPECT_TRUE(
+              full.refine(cut::Refinement::from_root(cut::AllowedError::from_vertices(field)), expected));
         }
         ASSERT_EQ(test::triangle_set(cut.triangles), test::triangle_set(expected.triangles))
             << "step " << step << (budgeted ? ", budgeted" : "");
@@ -680,24 +689,24 @@ void expect_dynamic_budget_matches_static(const MtCase* c, std::uint32_t seed, i
     for (std::uint32_t v = 0; v < field.size(); ++v)
       if (previous.empty() || field[v] != previous[v]) changed.push_back(v);
     const cut::AllowedError allowed = cut::AllowedError::from_vertices(field);
-    fixed.refine(cut::Refinement::from_root(allowed), other);
+    EXPECT_TRUE(fixed.refine(cut::Refinement::from_root(allowed), other));
     if (step == 0 || kind == 8) pick_budget(other.triangle_count());
     binding += other.triangle_count() > budget;
     if (kind == 9) {
       // Other refinements in between: the next budgeted update starts again or moves from their cut.
       if (std::uniform_int_distribution<int>(0, 1)(rng))
-        dynamic.refine(cut::Refinement::move(allowed), other);
+        EXPECT_TRUE(dynamic.refine(cut::Refinement::move(allowed), other));
       else
-        dynamic.refine(cut::Refinement::from_root(allowed).within(budget / 2), other);
+        EXPECT_TRUE(dynamic.refine(cut::Refinement::from_root(allowed).within(budget / 2), other));
     }
     const std::optional<cut::Rank> before = dynamic.budget_threshold();
     if (step % 7 == 3)
-      dynamic.refine(cut::Refinement::from_root(allowed).within(budget).keeping(), moving);
+      EXPECT_TRUE(dynamic.refine(cut::Refinement::from_root(allowed).within(budget).keeping(), moving));
     else
-      dynamic.refine(cut::Refinement::move(allowed, changed).within(budget), moving);
+      EXPECT_TRUE(dynamic.refine(cut::Refinement::move(allowed, changed).within(budget), moving));
     lowered += before && dynamic.budget_threshold() && *dynamic.budget_threshold() < *before;
     previous = field;
-    fixed.refine(cut::Refinement::from_root(allowed).within(budget), reference);
+    EXPECT_TRUE(fixed.refine(cut::Refinement::from_root(allowed).within(budget), reference));
     ASSERT_EQ(test::triangle_set(moving.triangles), test::triangle_set(reference.triangles))
         << "step " << step << " budget " << budget;
     ASSERT_EQ(moving.max_error, reference.max_error) << "step " << step;
@@ -736,9 +745,9 @@ TEST(CutDelta, AppliedChangesRebuildEveryCutOfASequence) {
   std::size_t partial = 0;
   for (int step = 0; step < 30; ++step) {
     if (step == 20) delta.reset();  // the client starts over
-    refiner.refine(cut::Refinement::move(
-                       cut::AllowedError::from_vertices(focus_field(c->mesh, rng, top * 1e-3f, top * 0.3f))),
-                   cut);
+    EXPECT_TRUE(refiner.refine(cut::Refinement::move(cut::AllowedError::from_vertices(
+                                   focus_field(c->mesh, rng, top * 1e-3f, top * 0.3f))),
+                               cut));
     const bool from_empty = delta.update(cut.ids, c->mt.triangle_count(), added, removed);
     EXPECT_EQ(from_empty, step == 0 || step == 20) << step;
     if (from_empty) client.clear();
@@ -784,7 +793,7 @@ TEST(Refine, DynamicAfterSmallMovesOfTheFocusEqualsStatic) {
       const float d = std::sqrt((p[0] - fx) * (p[0] - fx) + (p[1] - 0.1f) * (p[1] - 0.1f) + p[2] * p[2]);
       field[v] = top * (1e-3f + 0.1f * std::min(1.0f, d / (0.2f * diagonal)));
     }
-    dynamic.refine(cut::Refinement::move(cut::AllowedError::from_vertices(field)), moving);
+    EXPECT_TRUE(dynamic.refine(cut::Refinement::move(cut::AllowedError::from_vertices(field)), moving));
     cut::refine_static(c->mt, cut::AllowedError::from_vertices(field), reference);
     ASSERT_EQ(test::triangle_set(moving.triangles), test::triangle_set(reference.triangles))
         << "step " << step;
@@ -809,7 +818,7 @@ TEST(Refine, FullResolutionDragonCutsAreConformingAndDynamicMatchesStatic) {
     EXPECT_TRUE(test::validate_cut(c->reference, out.triangles)) << relative;
     const std::vector<float> field =
         focus_field(c->mesh, rng, diagonal * relative * 0.1f, diagonal * relative);
-    dynamic.refine(cut::Refinement::move(cut::AllowedError::from_vertices(field)), moving);
+    EXPECT_TRUE(dynamic.refine(cut::Refinement::move(cut::AllowedError::from_vertices(field)), moving));
     cut::refine_static(c->mt, cut::AllowedError::from_vertices(field), out);
     EXPECT_EQ(test::triangle_set(moving.triangles), test::triangle_set(out.triangles));
   }

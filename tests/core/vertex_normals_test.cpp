@@ -136,14 +136,14 @@ TEST(BuildMt, EveryMtHasTheInputSurfaceNormals) {
   model::MtArrays arrays = mt->arrays();
   arrays.normals.clear();
   model::Mt without(std::move(arrays));
-  ASSERT_TRUE(build::ensure_normals(without));
+  ASSERT_TRUE(*build::ensure_normals(without));
   for (std::size_t v = 0; v < m.vertex_count(); ++v) {
     for (int k = 0; k < 3; ++k) {
       EXPECT_FLOAT_EQ(mt->normals[3 * std::size_t{ids[v]} + k], want[3 * v + k]) << v;
       EXPECT_NEAR(without.normals[3 * std::size_t{ids[v]} + k], want[3 * v + k], 1e-5) << v;
     }
   }
-  EXPECT_FALSE(build::ensure_normals(without)) << "normals computed twice";
+  EXPECT_FALSE(*build::ensure_normals(without)) << "normals computed twice";
 }
 
 }  // namespace

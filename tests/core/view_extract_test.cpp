@@ -52,7 +52,7 @@ std::unique_ptr<Built> build(model::Mesh mesh) {
   b->mt = std::move(*mt);
   b->coarse_topology_changes = stats.topology_collapses > 0;
   b->stacked_faces = stats.stacking_collapses > 0;
-  b->levels = std::make_unique<view::OccupancyLevels>(b->mt);
+  b->levels = view::OccupancyLevels::make(b->mt).value();  // in memory: cannot fail
   return b;
 }
 
@@ -80,7 +80,7 @@ void run(view::ViewExtractor& x, const view::ViewRequest& r, cut::Refiner& refin
   x.occupancy();
   x.distance_transforms();
   x.allowed_error();
-  x.refine(refiner, cut);
+  EXPECT_TRUE(x.refine(refiner, cut));
 }
 
 // What the session tests compare with: a static extraction from nothing that computes every

@@ -61,7 +61,7 @@ class ServerTest : public testing::Test {
     ASSERT_TRUE(mt.ok()) << mt.error().message;
     ASSERT_TRUE(core::io::write_mt_file(g_fixture->dir / "bunny.mt", *mt).ok());
     g_fixture->mt = std::move(*mt);
-    g_fixture->levels = std::make_unique<core::view::OccupancyLevels>(g_fixture->mt);
+    g_fixture->levels = core::view::OccupancyLevels::make(g_fixture->mt).value();
     g_fixture->server = std::make_unique<test::ServerProcess>(
         std::vector<std::string>{(g_fixture->dir / "bunny.mt").string(), "--workers", "2", "--log-level",
                                  "warn"},
@@ -142,7 +142,7 @@ TEST_F(ServerTest, ExtractDecodesToTheInProcessCut) {
   extractor.occupancy();
   extractor.distance_transforms();
   extractor.allowed_error();
-  extractor.refine(refiner, cut);
+  EXPECT_TRUE(extractor.refine(refiner, cut));
   EXPECT_EQ(mesh->triangles, cut.triangle_count());
   EXPECT_FLOAT_EQ(static_cast<float>(mesh->max_error), cut.max_error);
   // The memory reported is what the same refinement and view session hold here, and the worker's

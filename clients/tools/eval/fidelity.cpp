@@ -242,7 +242,7 @@ void make_cut(MeshContext& ctx, const Method& m, std::span<const float> field, s
   } else {
     const cut::AllowedError allowed = m.kind == Kind::kUniform ? cut::AllowedError::everywhere(0.0f)
                                                                : cut::AllowedError::from_vertices(field);
-    ctx.refiner->refine(cut::Refinement::from_root(allowed).within(n), scratch);
+    must(ctx.refiner->refine(cut::Refinement::from_root(allowed).within(n), scratch));
     out.triangles = scratch.triangles;
     out.mesh_vertices = false;
   }
@@ -471,8 +471,8 @@ int run_fidelity(const FidelityOptions& o, const std::string& command) {
     model::Mt* mt = &model.mt;
     MeshContext ctx;
     ctx.model = &model;
-    const view::OccupancyLevels levels(*mt);
-    view::ViewExtractor extractor(*mt, levels);
+    const std::unique_ptr<view::OccupancyLevels> levels = must(view::OccupancyLevels::make(*mt));
+    view::ViewExtractor extractor(*mt, *levels);
     cut::Refiner refiner(*mt);
     ctx.extractor = &extractor, ctx.refiner = &refiner;
     mesh_info.push_back({name, fmt::format("{} | {} | {} | {}", model.path, mesh->vertex_count(),

@@ -70,7 +70,7 @@ void default_cut(view::ViewExtractor& extractor, cut::Refiner& refiner, const vi
   r.points[view::kGazeCriterion] = {focus};
   r.budget = budget;
   r.dynamic = false;
-  out.assign(extractor.extract(r, refiner, out));
+  out.assign(must(extractor.extract(r, refiner, out)));
 }
 
 double percentile(std::vector<double> v, double p) {
@@ -166,8 +166,8 @@ int run_gaze_study(const GazeStudyOptions& o, const std::string& command) {
       return fmt::print(stderr, "mtlod-eval: {}: --budget {} is outside the MT's {}..{} triangles\n",
                         model.name, o.budget, model.mt.root_triangle_count(), model.mesh.triangle_count()),
              2;
-    const view::OccupancyLevels levels(model.mt);
-    view::ViewExtractor extractor(model.mt, levels);
+    const std::unique_ptr<view::OccupancyLevels> levels = must(view::OccupancyLevels::make(model.mt));
+    view::ViewExtractor extractor(model.mt, *levels);
     cut::Refiner refiner(model.mt);
     codec::DracoEncoder encoder;
     std::vector<std::uint8_t> payload;
@@ -195,7 +195,7 @@ int run_gaze_study(const GazeStudyOptions& o, const std::string& command) {
       std::size_t n = o.budget, best_bytes = 0;
       cut::CutMesh best;
       for (int step = 0; step < 8; ++step) {
-        refiner.refine(cut::Refinement::from_root(cut::AllowedError::everywhere(0.0f)).within(n), cut);
+        must(refiner.refine(cut::Refinement::from_root(cut::AllowedError::everywhere(0.0f)).within(n), cut));
         const std::size_t bytes = draco_payload_bytes(encoder, model.mt.positions, cut.triangles, payload);
         if (best_bytes == 0 ||
             std::abs(double(bytes) - target_bytes) < std::abs(double(best_bytes) - target_bytes))

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <utility>
 
@@ -135,10 +136,15 @@ std::size_t normals_from_original(std::span<const float> a_positions, std::span<
   return matched;
 }
 
+void fail_study(const Error& error) {
+  fmt::print(stderr, "mtlod-eval: {}\n", error.message);
+  std::exit(1);
+}
+
 Result<model::Mt> cached_mt(const model::Mesh& mesh, const std::string& name, const fs::path& cache_dir) {
   const fs::path path = cache_dir / (name + ".mt");
   if (fs::exists(path)) {
-    auto mt = io::read_mt_file(path);
+    auto mt = io::read_mt_file(path, io::MtLoad::kRead);
     if (mt && mt->vertex_count() == mesh.vertex_count()) return mt;
   }
   MTLOD_TRY(model::Mt mt, build::build_mt(mesh));

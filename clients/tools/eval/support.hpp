@@ -42,11 +42,20 @@ core::view::Camera orbit_camera(const core::model::Bounds& b, int k, int n);
 core::view::Camera turned_camera(const core::view::Camera& camera, const core::model::Bounds& b,
                                  double degrees);
 
+// The value of a step that cannot fail on the studies' MTs, read whole (cached_mt): a failure is a
+// bug, reported before the tool exits with status 1.
+[[noreturn]] void fail_study(const Error& error);
+template <class T>
+T must(Result<T> result) {
+  if (!result) fail_study(result.error());
+  return std::move(*result);
+}
+
 // A mesh file with at least one triangle.
 Result<core::model::Mesh> load(const std::filesystem::path& path);
 
-// The MT of `mesh`, read from cache_dir/NAME.mt when that file holds the same vertex count, else
-// built and written there.
+// The MT of `mesh`, read whole (every block checked) from cache_dir/NAME.mt when that file holds
+// the same vertex count, else built and written there.
 Result<core::model::Mt> cached_mt(const core::model::Mesh& mesh, const std::string& name,
                                   const std::filesystem::path& cache_dir);
 
