@@ -1,0 +1,232 @@
+// meshoptimizer encoding of a cut (layout in meshopt_encode.hpp). The cut's vertices are renumbered by
+// first use through a table over the model's vertices, whose touched entries are reset afterwards, so
+// the cost follows the cut and not the model; a reordering of the triangles then works on those compact
+// ids. Each attribute is quantized into its own stream and handed to meshopt_encodeVertexBuffer, the
+// triangles to meshopt_encodeIndexBuffer, both writing straight into the caller's buffer at their
+// place in the payload.
+#include "core/codec/meshopt_encode.hpp"
+
+#include <meshoptimizer.h>
+
+#include <algorithm>
+#include <array>
+#include <bit>
+#include <cassert>
+#include <cmath>
+#include <cstring>
+#include <limits>
+
+#include "core/model/bounds.hpp"
+#include "fmt/format.h"
+
+namespace mtlod::core::codec {
+namespace {
+
+constexpr std::uint32_t kUnused = std::numeric_limits<std::uint32_t>::max();
+
+// meshoptimizer keeps the codec versions it writes in process-wide variables, and 0.18 writes index
+// version 0 unless told. They are set once, before the first encoding (a function-local static is
+// initialised once even with several workers); each stream's first byte is checked afterwards in case
+// other code in the process set them differently.
+void set_codec_versions() {
+  static const bool set = [] {
+    meshopt_encodeVertexVersion(0);
+    meshopt_encodeIndexVersion(1);
+    return true;
+  }();
+  (void)set;
+}
+
+void put_u32(std::uint8_t* at, std::uint32_t value) {
+  for (int i = 0; i < 4; ++i) at[i] = static_cast<std::uint8_t>(value >> (8 * i));
+}
+
+void put_f32(std::uint8_t* at, float value) {
+  put_u32(at, std::bit_cast<std::uint32_t>(value));
+}
+
+bool finite_grid(const DracoOptions::Grid& grid) {
+  return std::isfinite(grid.origin[0]) && std::isfinite(grid.origin[1]) && std::isfinite(grid.origin[2]) &&
+         std::isfinite(grid.range) && grid.range > 0;
+}
+
+// The options in range and the attributes they ask for present.
+Status check_input(const DracoInput& input, const MeshoptOptions& options) {
+  if (options.position_bits < 1 || options.position_bits > 16 || options.normal_bits < 2 ||
+      options.normal_bits > 16) {
+    return make_error(ErrorCode::kInvalidArgument,
+                      fmt::format("meshopt quantization bits {} / {} outside 1..16 / 2..16",
+                                  options.position_bits, options.normal_bits));
+  }
+  if (options.position_grid && !finite_grid(*options.position_grid)) {
+    return make_error(ErrorCode::kInvalidArgument,
+                      fmt::format("meshopt position grid range {} is not a finite positive size with a "
+                                  "finite origin",
+                                  options.position_grid->range));
+  }
+  if (options.normals && input.normals.size() != input.positions.size()) {
+    return make_error(ErrorCode::kInvalidArgument, "normals requested but the model has none");
+  }
+  if (options.colors && input.colors.size() != input.positions.size()) {
+    return make_error(ErrorCode::kInvalidArgument, "colours requested but the model has none");
+  }
+  if (input.triangles.empty()) {
+    return make_error(ErrorCode::kInvalidArgument, "the cut has no triangles to encode");
+  }
+  return Ok{};
+}
+
+// Appends one vertex stream (length, then meshoptimizer's bytes) at `at`; returns the end, or null when
+// the library wrote another codec version than the payload promises.
+std::uint8_t* put_vertex_stream(std::uint8_t* at, const void* values, std::size_t count, std::size_t stride) {
+  const std::size_t bound = meshopt_encodeVertexBufferBound(count, stride);
+  const std::size_t size = meshopt_encodeVertexBuffer(at + 4, bound, values, count, stride);
+  assert(size > 0);  // only a buffer below the bound makes it fail
+  if (at[4] != kMeshoptVertexStreamHeader) return nullptr;
+  put_u32(at, static_cast<std::uint32_t>(size));
+  return at + 4 + size;
+}
+
+}  // namespace
+
+Result<MeshoptStats> MeshoptEncoder::encode(const DracoInput& input, const MeshoptOptions& options,
+                                            std::vector<std::uint8_t>& out) {
+  out.clear();
+  if (Status checked = check_input(input, options); !checked) return checked.error();
+  assert(input.triangles.size() % 3 == 0);
+  set_codec_versions();
+
+  // Renumber by first use. The table's entries go back to kUnused when the call ends, even when a
+  // buffer below throws, so the next cut starts from a clean table without a pass over the model.
+  const std::size_t model_vertices = input.positions.size() / 3;
+  if (encoded_id_.size() < model_vertices) encoded_id_.resize(model_vertices, kUnused);
+  used_.clear();
+  struct ResetUsed {
+    std::vector<std::uint32_t>& encoded_id;
+    const std::vector<std::uint32_t>& used;
+    ~ResetUsed() {
+      for (const std::uint32_t v : used) encoded_id[v] = kUnused;
+    }
+  } reset_used{encoded_id_, used_};
+  indices_.resize(input.triangles.size());
+  for (std::size_t c = 0; c < input.triangles.size(); ++c) {
+    const std::uint32_t v = input.triangles[c];
+    assert(v < model_vertices);
+    std::uint32_t& id = encoded_id_[v];
+    if (id == kUnused) {
+      id = static_cast<std::uint32_t>(used_.size());
+      used_.push_back(v);
+    }
+    indices_[c] = id;
+  }
+  const std::size_t n = used_.size();
+  const std::size_t triangles = input.triangles.size() / 3;
+  if (!options.keep_triangle_order) {
+    // The FIFO optimizer, with 16 entries like the index codec's own FIFOs: several times cheaper
+    // than meshopt_optimizeVertexCache for a few percent more bytes. The vertices are then numbered
+    // again by first use, now in the new order.
+    reordered_.resize(indices_.size());
+    meshopt_optimizeVertexCacheFifo(reordered_.data(), indices_.data(), indices_.size(), n, 16);
+    renumber_.assign(n, kUnused);
+    reordered_used_.clear();
+    for (std::size_t c = 0; c < reordered_.size(); ++c) {
+      std::uint32_t& id = renumber_[reordered_[c]];
+      if (id == kUnused) {
+        id = static_cast<std::uint32_t>(reordered_used_.size());
+        reordered_used_.push_back(used_[reordered_[c]]);
+      }
+      indices_[c] = id;
+    }
+    used_.swap(reordered_used_);  // the same vertices, so reset_used still clears the right entries
+  }
+
+  // Gather the used positions (sparse in the model's arrays: each read is asked for well ahead, as in
+  // draco_encode) and find the grid.
+  constexpr std::size_t kAhead = 16;
+  gathered_.resize(3 * n);
+  model::Bounds box;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (i + kAhead < n) __builtin_prefetch(&input.positions[3 * std::size_t{used_[i + kAhead]}]);
+    std::memcpy(&gathered_[3 * i], &input.positions[3 * std::size_t{used_[i]}], 12);
+    box.add(&gathered_[3 * i]);
+  }
+  std::array<float, 3> origin = box.lo;
+  float range = box.largest_side();
+  if (options.position_grid) origin = options.position_grid->origin, range = options.position_grid->range;
+  const int levels = (1 << options.position_bits) - 1;
+  const float step = range / static_cast<float>(levels);
+  // Divided in double by the step as stored, so that origin + q · step is within half a step of the
+  // position whatever the size of the coordinates, and a position halfway between two grid points
+  // (the centre of a symmetric box) rounds up as the header says. NaN goes to 0 rather than to an
+  // undefined cast.
+  const double divisor = step > 0 ? double{step} : std::numeric_limits<double>::infinity();
+  quantized_.resize(4 * n);
+  for (std::size_t i = 0; i < n; ++i) {
+    for (int k = 0; k < 3; ++k) {
+      const double q = (double{gathered_[3 * i + k]} - double{origin[k]}) / divisor;
+      const double clamped = q > 0 ? (q < levels ? q : levels) : 0;
+      quantized_[4 * i + k] = static_cast<std::uint16_t>(clamped + 0.5);
+    }
+    quantized_[4 * i + 3] = 0;
+  }
+
+  // The payload at its largest, trimmed at the end.
+  const std::size_t normal_stride = options.normal_bits <= 8 ? 4 : 8;
+  std::size_t bound = kMeshoptHeaderBytes + 4 + meshopt_encodeVertexBufferBound(n, 8) + 4 +
+                      meshopt_encodeIndexBufferBound(input.triangles.size(), n);
+  if (options.normals) bound += 4 + meshopt_encodeVertexBufferBound(n, normal_stride);
+  if (options.colors) bound += 4 + meshopt_encodeVertexBufferBound(n, 4);
+  out.resize(bound);
+  std::uint8_t* const header = out.data();
+  std::memcpy(header, kMeshoptMagic, 4);
+  header[4] = kMeshoptVersion;
+  header[5] = static_cast<std::uint8_t>((options.normals ? kMeshoptHasNormals : 0) |
+                                        (options.colors ? kMeshoptHasColors : 0) |
+                                        (options.normals && normal_stride == 8 ? kMeshoptWideNormals : 0));
+  header[6] = static_cast<std::uint8_t>(options.position_bits);
+  header[7] = static_cast<std::uint8_t>(options.normals ? options.normal_bits : 0);
+  put_u32(header + 8, static_cast<std::uint32_t>(n));
+  put_u32(header + 12, static_cast<std::uint32_t>(triangles));
+  for (int k = 0; k < 3; ++k) put_f32(header + 16 + 4 * k, origin[k]);
+  put_f32(header + 28, step);
+  auto version_error = [&out] {
+    out.clear();
+    return make_error(ErrorCode::kInternal,
+                      "meshoptimizer wrote a codec version the payload does not promise (vertex 0, index 1)");
+  };
+
+  std::uint8_t* at = put_vertex_stream(header + kMeshoptHeaderBytes, quantized_.data(), n, 8);
+  if (!at) return version_error();
+  if (options.normals) {
+    gathered_.resize(4 * n);
+    for (std::size_t i = 0; i < n; ++i) {
+      if (i + kAhead < n) __builtin_prefetch(&input.normals[3 * std::size_t{used_[i + kAhead]}]);
+      std::memcpy(&gathered_[4 * i], &input.normals[3 * std::size_t{used_[i]}], 12);
+      gathered_[4 * i + 3] = 0;  // the fourth component, which the filter keeps: constant, so free
+    }
+    attribute_.resize(normal_stride * n);
+    meshopt_encodeFilterOct(attribute_.data(), n, normal_stride, options.normal_bits, gathered_.data());
+    at = put_vertex_stream(at, attribute_.data(), n, normal_stride);
+    if (!at) return version_error();
+  }
+  if (options.colors) {
+    attribute_.resize(4 * n);
+    for (std::size_t i = 0; i < n; ++i) {
+      std::memcpy(&attribute_[4 * i], &input.colors[3 * std::size_t{used_[i]}], 3);
+      attribute_[4 * i + 3] = 255;
+    }
+    at = put_vertex_stream(at, attribute_.data(), n, 4);
+    if (!at) return version_error();
+  }
+  const std::size_t index_bound = meshopt_encodeIndexBufferBound(indices_.size(), n);
+  const std::size_t index_size =
+      meshopt_encodeIndexBuffer(at + 4, index_bound, indices_.data(), indices_.size());
+  assert(index_size > 0);
+  if (at[4] != kMeshoptIndexStreamHeader) return version_error();
+  put_u32(at, static_cast<std::uint32_t>(index_size));
+  at += 4 + index_size;
+  out.resize(static_cast<std::size_t>(at - out.data()));
+  return MeshoptStats{n, triangles, out.size()};
+}
+
+}  // namespace mtlod::core::codec
