@@ -13,7 +13,10 @@
 #include <random>
 
 #include "core/build/mt_builder.hpp"
+#include "core/codec/draco_decode.hpp"
 #include "core/codec/draco_encode.hpp"
+#include "core/codec/meshopt_decode.hpp"
+#include "core/codec/meshopt_encode.hpp"
 #include "core/cut/cut_delta.hpp"
 #include "core/io/mesh_io.hpp"
 #include "core/model/bounds.hpp"
@@ -172,6 +175,63 @@ void request_args(benchmark::internal::Benchmark* b) {
   b->ArgNames({"model", "triangles", "draco", "normals"})->Unit(benchmark::kMillisecond);
 }
 BENCHMARK(BM_Request)->Apply(request_args);
+
+// The codecs side by side on one cut: the dragon's static front view of about 50k triangles
+// (BM_Request's). The time is the encoding alone; counters give the payload's bytes per triangle
+// and the C++ decoder's time (Draco's decoder, decode_meshopt). Args: codec (0 Draco edgebreaker
+// speed 10, 1 Draco sequential, 2 Draco sequential with raw attribute values, 3 meshopt with the
+// triangles reordered for a vertex cache, 4 meshopt in the cut's order, as deltas need), normals
+// (1: 10-bit octahedral).
+void BM_Codec(benchmark::State& state) {
+  const Model* m = model("dragon");
+  if (!m) return state.SkipWithError("mesh not found");
+  static core::cut::CutMesh cut;
+  if (cut.triangles.empty()) {
+    core::view::ViewRequest view =
+        protocol::to_view_request(request_for(*m, error_for_size(*m, 50'000)), false);
+    view.dynamic = false;
+    core::view::ViewExtractor extractor(m->mt, *m->levels);
+    core::cut::Refiner refiner(m->mt);
+    extractor.map(view), extractor.occupancy(), extractor.distance_transforms(), extractor.allowed_error();
+    refined(extractor.refine(refiner, cut));
+  }
+  const int codec = static_cast<int>(state.range(0));
+  const bool normals = state.range(1) != 0;
+  const core::codec::DracoInput input{
+      m->mt.positions, normals ? m->mt.normals : std::span<const float>(), {}, cut.triangles};
+  core::codec::DracoOptions draco;
+  draco.method = codec == 0 ? core::codec::DracoMethod::kEdgebreaker : core::codec::DracoMethod::kSequential;
+  draco.entropy_coding = codec != 2;
+  draco.normals = normals;
+  core::codec::MeshoptOptions meshopt;
+  meshopt.normals = normals;
+  meshopt.keep_triangle_order = codec == 4;
+  core::codec::DracoEncoder draco_encoder;
+  core::codec::MeshoptEncoder meshopt_encoder;
+  std::vector<std::uint8_t> payload;
+  for (auto _ : state) {
+    const bool ok = codec < 3 ? draco_encoder.encode(input, draco, payload).ok()
+                              : meshopt_encoder.encode(input, meshopt, payload).ok();
+    if (!ok) return state.SkipWithError("encoding failed");
+  }
+  // Decoding, timed apart (a client's cost), a few times for a steadier figure.
+  constexpr int kDecodes = 5;
+  auto t = Clock::now();
+  for (int i = 0; i < kDecodes; ++i) {
+    const bool ok =
+        codec < 3 ? core::codec::decode_draco(payload).ok() : core::codec::decode_meshopt(payload).ok();
+    if (!ok) return state.SkipWithError("decoding failed");
+  }
+  state.counters["decode_us"] = us_since(t) / kDecodes;
+  state.counters["triangles"] = static_cast<double>(cut.triangle_count());
+  state.counters["bytes_per_tri"] =
+      static_cast<double>(payload.size()) / static_cast<double>(cut.triangle_count());
+  state.SetItemsProcessed(state.iterations() * static_cast<std::int64_t>(cut.triangle_count()));
+}
+BENCHMARK(BM_Codec)
+    ->ArgsProduct({{0, 1, 2, 3, 4}, {0, 1}})
+    ->ArgNames({"codec", "normals"})
+    ->Unit(benchmark::kMillisecond);
 
 // Dynamic refinement after a small camera move against refinement from the root, same result size.
 void BM_RefineAfterSmallMove(benchmark::State& state) {
