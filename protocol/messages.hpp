@@ -10,6 +10,7 @@
 #include <variant>
 #include <vector>
 
+#include "core/codec/cut_encoder.hpp"
 #include "core/codec/draco_encode.hpp"
 #include "core/view/criteria.hpp"
 #include "core/view/distance_transform.hpp"
@@ -45,6 +46,8 @@ static_assert(kFalloffNames.size() == core::view::kFalloffLawCount);
 inline constexpr std::array<const char*, 5> kDistanceMetricNames{"chamfer-5-7-11", "chamfer-3-4",
                                                                  "city-block", "chessboard", "euclidean"};
 static_assert(kDistanceMetricNames.size() == core::view::kDistanceMetricCount);
+inline constexpr std::array<const char*, 2> kCodecNames{"draco", "meshopt"};
+static_assert(kCodecNames.size() == core::codec::kCodecCount);
 inline constexpr std::array<const char*, 2> kDracoMethodNames{"edgebreaker", "sequential"};
 static_assert(kDracoMethodNames.size() == core::codec::kDracoMethodCount);
 // The unit of a request's distance thresholds exists on the wire only: core works in pixels.
@@ -161,6 +164,9 @@ struct Extract {
   bool normals = true;                  // every model has normals (stored, or computed at load)
   std::optional<bool> colors;           // unset: the model's colours when it has them
   bool labels = false;
+  // The payload's codec. meshopt quantizes with draco.position_bits (at most 16) and
+  // draco.normal_bits, and carries no labels.
+  core::codec::Codec codec = core::codec::Codec::kDraco;
   DracoSettings draco;
   // Replies (this one and the gazes that follow) carry what changed since the connection's previous
   // mesh, by MT triangle id, instead of the whole cut (PROTOCOL.md, "Delta replies"). Needs the

@@ -312,6 +312,7 @@ Extract read_extract(ObjectReader& r, const Limits& limits) {
     ar.finish();
   }
   e.delta = r.boolean("delta", false);
+  e.codec = static_cast<core::codec::Codec>(r.choice("codec", kCodecNames, 0));
   if (const json* d = r.find("draco")) {
     ObjectReader dr(*d, "draco");
     if (dr.has("method"))
@@ -324,6 +325,14 @@ Extract read_extract(ObjectReader& r, const Limits& limits) {
     e.draco.normal_bits = static_cast<int>(dr.integer("normal_bits", e.draco.normal_bits, 2, 16));
     if (dr.has("entropy_coding")) e.draco.entropy_coding = dr.boolean("entropy_coding", true);
     dr.finish();
+  }
+  if (e.codec == core::codec::Codec::kMeshopt) {
+    if (e.labels) fail(ErrorKind::kBadRequest, "codec 'meshopt' cannot carry attributes.labels: use 'draco'");
+    if (e.draco.position_bits > 16) {
+      fail(ErrorKind::kBadRequest,
+           fmt::format("codec 'meshopt' quantizes positions to at most 16 bits, not draco.position_bits {}",
+                       e.draco.position_bits));
+    }
   }
   if (e.delta && e.draco.method == core::codec::DracoMethod::kEdgebreaker) {
     fail(ErrorKind::kBadRequest, "'delta' needs draco.method 'sequential': edgebreaker reorders the faces");
@@ -497,6 +506,7 @@ json extract_json(const Extract& e) {
   j["attributes"] = {{"normals", e.normals}, {"labels", e.labels}};
   if (e.colors) j["attributes"]["colors"] = *e.colors;
   if (e.delta) j["delta"] = true;
+  j["codec"] = enum_name(kCodecNames, e.codec);
   j["draco"] = {{"speed", e.draco.speed},
                 {"position_bits", e.draco.position_bits},
                 {"normal_bits", e.draco.normal_bits}};

@@ -158,6 +158,7 @@ json write(const MeshReply& r) {
             {"vertices", r.vertices},
             {"max_error", r.max_error},
             {"bytes", r.bytes},
+            {"codec", enum_name(kCodecNames, r.codec)},
             {"superseded", r.superseded},
             {"timings_us", timings_json(r.timings)},
             {"memory", {{"session_bytes", r.session_bytes}, {"scratch_bytes", r.scratch_bytes}}}};
@@ -179,6 +180,9 @@ MeshReply read(std::type_identity<MeshReply>, const json& j) {
   r.vertices = j.value("vertices", std::uint64_t{0});
   r.max_error = j.value("max_error", 0.0);
   r.bytes = j.value("bytes", std::uint64_t{0});
+  // Absent from servers that had one codec: Draco.
+  r.codec = enum_from_name<core::codec::Codec>(kCodecNames, j.value("codec", std::string("draco")))
+                .value_or(core::codec::Codec::kDraco);
   r.superseded = j.value("superseded", std::uint64_t{0});
   const json memory = j.value("memory", json::object());
   r.session_bytes = memory.value("session_bytes", std::uint64_t{0});

@@ -92,12 +92,13 @@ struct MeshReply {
   std::string model;
   std::uint64_t triangles = 0;
   std::uint64_t vertices = 0;
-  double max_error = 0;                        // largest error of a triangle in the cut, model units
-  std::uint64_t bytes = 0;                     // payload size
-  std::optional<std::array<double, 2>> focus;  // the focus this mesh reflects (gaze replies)
-  std::uint64_t superseded = 0;                // gaze updates replaced by this one before they ran
-  std::uint64_t session_bytes = 0;             // memory the connection's cut holds on the server
-  std::uint64_t scratch_bytes = 0;             // memory the worker that ran it holds for this model
+  double max_error = 0;     // largest error of a triangle in the cut, model units
+  std::uint64_t bytes = 0;  // payload size
+  core::codec::Codec codec = core::codec::Codec::kDraco;  // of the payload (of its mesh part, for a delta)
+  std::optional<std::array<double, 2>> focus;             // the focus this mesh reflects (gaze replies)
+  std::uint64_t superseded = 0;                           // gaze updates replaced by this one before they ran
+  std::uint64_t session_bytes = 0;                        // memory the connection's cut holds on the server
+  std::uint64_t scratch_bytes = 0;  // memory the worker that ran it holds for this model
   StageTimings timings;
   std::optional<MeshDelta> delta;   // set when the extract asked for delta replies
   std::uint64_t model_version = 0;  // the version of the model this cut was taken from

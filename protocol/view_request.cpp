@@ -75,4 +75,18 @@ core::codec::DracoOptions to_draco_options(const Extract& e, const EncodeContext
   return draco;
 }
 
+core::codec::EncodeOptions to_encode_options(const Extract& e, const EncodeContext& context) {
+  core::codec::EncodeOptions options;
+  options.codec = e.codec;
+  options.draco = to_draco_options(e, context);
+  core::codec::MeshoptOptions& m = options.meshopt;
+  m.position_bits = options.draco.position_bits;
+  m.normal_bits = options.draco.normal_bits;
+  m.normals = options.draco.normals;
+  m.colors = options.draco.colors;
+  m.keep_triangle_order = e.delta;
+  m.position_grid = options.draco.position_grid;
+  return options;
+}
+
 }  // namespace mtlod::protocol

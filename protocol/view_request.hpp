@@ -26,4 +26,9 @@ struct EncodeContext {
 // sequential without for a gaze, sequential for deltas (the parser refuses explicit edgebreaker).
 core::codec::DracoOptions to_draco_options(const Extract& request, const EncodeContext& context);
 
+// The request's codec and its options: to_draco_options' for Draco; for meshopt the same
+// quantization, attributes and grid, with the cut's triangle order kept for deltas (their ids
+// follow it).
+core::codec::EncodeOptions to_encode_options(const Extract& request, const EncodeContext& context);
+
 }  // namespace mtlod::protocol

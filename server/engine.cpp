@@ -8,7 +8,7 @@
 #include <chrono>
 #include <unordered_map>
 
-#include "core/codec/draco_encode.hpp"
+#include "core/codec/cut_encoder.hpp"
 #include "core/cut/cut_delta.hpp"
 #include "core/view/view_extract.hpp"
 #include "fmt/format.h"
@@ -65,7 +65,7 @@ struct CachedExtractor {
 // Per worker: one extractor per model version and one encoder, created on first use, reused after.
 struct Worker {
   std::unordered_map<std::uint64_t, CachedExtractor> extractors;  // by Model::serial
-  core::codec::DracoEncoder encoder;
+  core::codec::CutEncoder encoder;
   core::cut::CutMesh cut;
   std::vector<std::uint32_t> added, removed, added_ids, added_triangles;  // delta replies
   std::uint64_t accounted = 0;  // scratch bytes last reported to the memory ceiling
@@ -196,7 +196,7 @@ ExtractResult Engine::run(const ModelPtr& model, const protocol::Extract& reques
   const core::cut::CutSpan cut = *extracted;
   state.error_bound_cut = request.budget ? 0 : cut.triangle_count();
 
-  const core::codec::DracoOptions draco = protocol::to_draco_options(
+  const core::codec::EncodeOptions encoding = protocol::to_encode_options(
       request, {gaze, model->mt.has_colors(), model->bounds_min, model->bounds_max});
   std::span<const std::uint32_t> triangles = cut.triangles;
   if (request.delta) {
@@ -221,7 +221,7 @@ ExtractResult Engine::run(const ModelPtr& model, const protocol::Extract& reques
         model->mt.positions, model->mt.normals,
         request.labels ? extractor->vertex_labels() : std::span<const std::uint32_t>(), triangles,
         model->mt.colors};
-    auto encoded = worker.encoder.encode(input, draco, outcome.payload);
+    auto encoded = worker.encoder.encode(input, encoding, outcome.payload);
     if (!encoded) {
       state.sent.reset();  // this change never reaches the client: the next delta starts afresh
       return protocol::ProtocolError{protocol::ErrorKind::kInternal, encoded.error().message};
@@ -240,6 +240,7 @@ ExtractResult Engine::run(const ModelPtr& model, const protocol::Extract& reques
   outcome.reply.triangles = cut.triangle_count();
   outcome.reply.vertices = vertices;
   outcome.reply.bytes = outcome.payload.size();
+  outcome.reply.codec = request.codec;
   outcome.reply.max_error = cut.max_error;
   outcome.reply.session_bytes = session.memory_bytes();
   outcome.reply.scratch_bytes =

@@ -8,7 +8,7 @@
 #include "CLI/CLI.hpp"
 #include "clients/common/extract_flags.hpp"
 #include "clients/common/retry.hpp"
-#include "core/codec/draco_decode.hpp"
+#include "core/codec/cut_encoder.hpp"
 #include "core/io/gltf.hpp"
 #include "core/io/mesh_io.hpp"
 #include "fmt/format.h"
@@ -57,8 +57,8 @@ int main(int argc, char** argv) {
   auto* extract = app.add_subcommand("extract", "fetch a view-dependent extraction");
   extract->add_option("model", model, "model name")->required();
   extract->add_option("-o,--output", output,
-                      "write the mesh: .drc (as received), .ply or .obj (decoded), or .glb (binary glTF 2.0 "
-                      "with the normals and colours the reply carries)");
+                      "write the mesh: .drc or .mopt (as received, by --codec), .ply or .obj (decoded), or "
+                      ".glb (binary glTF 2.0 with the normals and colours the reply carries)");
   std::string gltf_draco = "on";
   extract
       ->add_option("--gltf-draco", gltf_draco,
@@ -157,17 +157,22 @@ int main(int argc, char** argv) {
                  mesh.delta->added, mesh.delta->removed);
     }
     const std::string ext = std::filesystem::path(output).extension().string();
-    if (ext == ".drc") {
+    const bool draco_payload = mesh.codec == core::codec::Codec::kDraco;
+    if ((ext == ".drc" && draco_payload) || (ext == ".mopt" && !draco_payload)) {
       std::ofstream out(output, std::ios::binary);
       out.write(reinterpret_cast<const char*>(draco.data()), static_cast<std::streamsize>(draco.size()));
       if (!out) return fail(fmt::format("{}: write failed", output));
-    } else if (ext == ".glb" && gltf_draco == "on") {
+    } else if (ext == ".drc" || ext == ".mopt") {
+      return fail(fmt::format("{}: the payload is {}; write it as .{} or as a mesh file", output,
+                              protocol::enum_name(protocol::kCodecNames, mesh.codec),
+                              draco_payload ? "drc" : "mopt"));
+    } else if (ext == ".glb" && gltf_draco == "on" && draco_payload) {
       if (auto saved = core::io::write_glb_draco(output, draco); !saved) return fail(saved.error().message);
     } else {
-      auto decoded = core::codec::decode_draco(draco);
+      auto decoded = core::codec::decode_payload(mesh.codec, draco);
       if (!decoded) return fail(decoded.error().message);
-      auto saved = ext == ".glb" ? core::io::write_glb(output, decoded->mesh)
-                                 : core::io::save_mesh(output, decoded->mesh);
+      auto saved =
+          ext == ".glb" ? core::io::write_glb(output, *decoded) : core::io::save_mesh(output, *decoded);
       if (!saved) return fail(saved.error().message);
     }
     fmt::print("wrote {}\n", output);

@@ -3,7 +3,7 @@
 
 #include <algorithm>
 
-#include "core/codec/draco_decode.hpp"
+#include "core/codec/cut_encoder.hpp"
 #include "fmt/format.h"
 
 namespace mtlod::clients {
@@ -40,12 +40,10 @@ Status DeltaMesh::apply(const protocol::MeshReply& reply, std::span<const std::u
     corners_.resize(9 * std::size_t{last});
   }
   if (!parts.added_ids.empty()) {
-    MTLOD_TRY(const core::codec::DecodedMesh decoded, core::codec::decode_draco(parts.draco));
-    const core::model::Mesh& m = decoded.mesh;
+    MTLOD_TRY(const core::model::Mesh m, core::codec::decode_payload(reply.codec, parts.draco));
     if (m.triangle_count() != parts.added_ids.size()) {
-      return make_error(ErrorCode::kCorrupt,
-                        fmt::format("the delta's Draco mesh has {} triangles for {} added ids",
-                                    m.triangle_count(), parts.added_ids.size()));
+      return make_error(ErrorCode::kCorrupt, fmt::format("the delta's mesh has {} triangles for {} added ids",
+                                                         m.triangle_count(), parts.added_ids.size()));
     }
     for (std::size_t f = 0; f < parts.added_ids.size(); ++f) {
       const std::uint32_t id = parts.added_ids[f];

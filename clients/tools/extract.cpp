@@ -13,7 +13,7 @@
 #include "CLI/CLI.hpp"
 #include "clients/common/extract_flags.hpp"
 #include "core/build/vertex_normals.hpp"
-#include "core/codec/draco_encode.hpp"
+#include "core/codec/cut_encoder.hpp"
 #include "core/cut/refine.hpp"
 #include "core/io/gltf.hpp"
 #include "core/io/image_io.hpp"
@@ -39,7 +39,8 @@ struct ExtractOptions {
 void add_extract_options(CLI::App& app, ExtractOptions& o) {
   app.add_option("model", o.model, "MT file written by mtlod-build")->required();
   app.add_option("-o,--output", o.output,
-                 "mesh to write: .ply (binary), .obj, .drc (Draco), or .glb (binary glTF 2.0 with the "
+                 "mesh to write: .ply (binary), .obj, .drc (Draco), .mopt (meshopt), or .glb (binary glTF "
+                 "2.0 with the "
                  "model's normals and colours)")
       ->required();
   app.add_option("--gltf-draco", o.gltf_draco,
@@ -88,28 +89,39 @@ mtlod::core::model::Mesh compact(const mtlod::core::model::Mt& mt,
 using namespace mtlod;
 using namespace mtlod::core;
 
-// Writes the cut as a mesh file, or as the Draco payload the server would send for the request (in
-// a .glb with the model's normals and colours, and no labels: glTF has no meaning for them).
+// Writes the cut as a mesh file, or as the payload the server would send for the request: Draco
+// (.drc, or in a .glb with the model's normals and colours, and no labels: glTF has no meaning for
+// them) or meshopt (.mopt).
 Status write_output(const std::string& path, bool gltf_draco, const model::Mt& mt, const cut::CutMesh& cut,
                     const protocol::Extract* request, std::span<const std::uint32_t> labels) {
   const auto extension = std::filesystem::path(path).extension();
-  const bool glb = extension == ".glb";
+  const bool glb = extension == ".glb", mopt = extension == ".mopt";
   if (glb && !gltf_draco) return io::write_glb(path, compact(mt, cut.triangles));
-  if (!glb && extension != ".drc") return io::save_mesh(path, compact(mt, cut.triangles));
-  codec::DracoOptions draco;
+  if (!glb && !mopt && extension != ".drc") return io::save_mesh(path, compact(mt, cut.triangles));
+  codec::EncodeOptions options;
   if (request) {
-    draco = protocol::to_draco_options(*request, {false, mt.has_colors(), mt.bounds.lo, mt.bounds.hi});
-    draco.labels = draco.labels && !labels.empty();
+    options = protocol::to_encode_options(*request, {false, mt.has_colors(), mt.bounds.lo, mt.bounds.hi});
+    options.draco.labels = options.draco.labels && !labels.empty();
+    if (!glb && options.codec != (mopt ? codec::Codec::kMeshopt : codec::Codec::kDraco)) {
+      return make_error(ErrorCode::kInvalidArgument,
+                        fmt::format("{}: --codec {} writes .{}", path,
+                                    protocol::enum_name(protocol::kCodecNames, options.codec),
+                                    options.codec == codec::Codec::kMeshopt ? "mopt" : "drc"));
+    }
+  } else {
+    options.meshopt.normals = mt.has_normals();
+    options.meshopt.colors = mt.has_colors();
   }
+  options.codec = mopt ? codec::Codec::kMeshopt : codec::Codec::kDraco;
   if (glb) {
-    draco.normals = mt.has_normals();
-    draco.colors = mt.has_colors();
-    draco.labels = false;
+    options.draco.normals = mt.has_normals();
+    options.draco.colors = mt.has_colors();
+    options.draco.labels = false;
   }
   std::vector<std::uint8_t> bytes;
-  MTLOD_TRY(codec::DracoStats stats,
-            codec::DracoEncoder().encode({mt.positions, mt.normals, labels, cut.triangles, mt.colors}, draco,
-                                         bytes));
+  MTLOD_TRY(codec::EncodeStats stats,
+            codec::CutEncoder().encode({mt.positions, mt.normals, labels, cut.triangles, mt.colors}, options,
+                                       bytes));
   if (glb) return io::write_glb_draco(path, bytes);
   std::FILE* f = std::fopen(path.c_str(), "wb");
   const bool ok = f && std::fwrite(bytes.data(), 1, bytes.size(), f) == bytes.size();

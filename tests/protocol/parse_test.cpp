@@ -174,6 +174,24 @@ TEST(ParseRequest, TheDocumentedCriteriaAreTheTable) {
   EXPECT_EQ(documented, table);
 }
 
+TEST(ParseRequest, TheCodecRoundTrips) {
+  for (std::size_t i = 0; i < kCodecNames.size(); ++i) {
+    Extract e = sample_extract();
+    e.codec = static_cast<core::codec::Codec>(i);
+    e.labels = false;  // meshopt carries none
+    const auto parsed = parse_request(to_json(e, 3), Limits{});
+    ASSERT_TRUE(parsed.ok()) << kCodecNames[i] << ": " << parsed.error().message;
+    EXPECT_EQ(std::get<Extract>(parsed->request).codec, e.codec) << kCodecNames[i];
+  }
+  Extract fine = sample_extract();
+  fine.labels = false;
+  fine.codec = core::codec::Codec::kMeshopt;
+  fine.draco.position_bits = 17;
+  const auto refused = parse_request(to_json(fine, 4), Limits{});
+  ASSERT_FALSE(refused.ok());
+  EXPECT_NE(refused.error().message.find("at most 16 bits"), std::string::npos) << refused.error().message;
+}
+
 TEST(ParseRequest, LimitsComeFromTheServerConfiguration) {
   Extract e = sample_extract();
   e.grid = {600, 600};

@@ -17,6 +17,7 @@ TEST(Replies, MeshReplyRoundTripsWithTimingsAndFocus) {
   m.vertices = 25'111;
   m.max_error = 0.0125;
   m.bytes = 61'234;
+  m.codec = core::codec::Codec::kMeshopt;
   m.focus = std::array<double, 2>{0.25, 0.5};
   m.superseded = 3;
   m.session_bytes = 6'000'000;
@@ -29,6 +30,7 @@ TEST(Replies, MeshReplyRoundTripsWithTimingsAndFocus) {
   EXPECT_EQ(r.model, "dragon");
   EXPECT_EQ(r.triangles, 50'000u);
   EXPECT_EQ(r.max_error, 0.0125);
+  EXPECT_EQ(r.codec, core::codec::Codec::kMeshopt);
   EXPECT_EQ(r.focus, m.focus);
   EXPECT_EQ(r.superseded, 3u);
   EXPECT_EQ(r.session_bytes, 6'000'000u);

@@ -2,6 +2,8 @@
 // clients' connection code. Payloads are decoded and compared with an in-process extraction.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <array>
 #include <atomic>
 #include <map>
 #include <random>
@@ -10,6 +12,7 @@
 #include "clients/common/delta_mesh.hpp"
 #include "clients/common/server_connection.hpp"
 #include "core/build/mt_builder.hpp"
+#include "core/codec/cut_encoder.hpp"
 #include "core/codec/draco_decode.hpp"
 #include "core/eval/mesh_gen.hpp"
 #include "core/io/mesh_io.hpp"
@@ -83,6 +86,9 @@ class ServerTest : public testing::Test {
     return std::move(*c);
   }
 
+  void expect_deltas_rebuild_the_cut(core::codec::Codec codec);
+  void expect_extract_decodes_to_the_in_process_cut(core::codec::Codec codec);
+
   // A camera looking at the model from the front, with silhouette and focus criteria.
   static protocol::Extract extract_request(double focus_x = 0.5, double focus_y = 0.5) {
     protocol::Extract e;
@@ -124,13 +130,22 @@ TEST_F(ServerTest, HelloStatesVersionAndLimits) {
 }
 
 TEST_F(ServerTest, ExtractDecodesToTheInProcessCut) {
-  const protocol::Extract request = extract_request(0.3, 0.4);
+  for (const core::codec::Codec codec : {core::codec::Codec::kDraco, core::codec::Codec::kMeshopt}) {
+    SCOPED_TRACE(protocol::enum_name(protocol::kCodecNames, codec));
+    expect_extract_decodes_to_the_in_process_cut(codec);
+  }
+}
+
+void ServerTest::expect_extract_decodes_to_the_in_process_cut(core::codec::Codec codec) {
+  protocol::Extract request = extract_request(0.3, 0.4);
+  request.codec = codec;
   ServerConnection c = connect();
   auto reply = c.call(request, 7);
   ASSERT_TRUE(reply.ok()) << reply.error().message;
   const auto* mesh = as_mesh(*reply);
   ASSERT_NE(mesh, nullptr) << reply->json;
   EXPECT_EQ(mesh->bytes, reply->payload.size());
+  EXPECT_EQ(mesh->codec, codec);
 
   // The same request computed here, from the same MT file, with a fresh session cut.
   core::view::ViewExtractor extractor(g_fixture->mt, *g_fixture->levels);
@@ -151,16 +166,15 @@ TEST_F(ServerTest, ExtractDecodesToTheInProcessCut) {
   EXPECT_GE(session.memory_bytes(), g_fixture->mt.vertex_count() * sizeof(float));
   EXPECT_GE(mesh->scratch_bytes, g_fixture->mt.vertex_count() * sizeof(float));
 
-  auto decoded = core::codec::decode_draco(reply->payload);
+  auto decoded = core::codec::decode_payload(codec, reply->payload);
   ASSERT_TRUE(decoded.ok()) << decoded.error().message;
-  ASSERT_EQ(decoded->mesh.triangle_count(), cut.triangle_count());
-  EXPECT_EQ(decoded->mesh.vertex_count(), mesh->vertices);
+  ASSERT_EQ(decoded->triangle_count(), cut.triangle_count());
+  EXPECT_EQ(decoded->vertex_count(), mesh->vertices);
   const float tolerance = test::draco_tolerance(test::used_extent(g_fixture->mt.positions, cut.triangles),
                                                 request.draco.position_bits);
-  const auto match = test::match_vertices(decoded->mesh.positions, g_fixture->mt.positions, cut.triangles,
+  const auto match = test::match_vertices(decoded->positions, g_fixture->mt.positions, cut.triangles,
                                           4 * tolerance, tolerance);
-  EXPECT_EQ(test::canonical_triangles(decoded->mesh.triangles, &match),
-            test::canonical_triangles(cut.triangles));
+  EXPECT_EQ(test::canonical_triangles(decoded->triangles, &match), test::canonical_triangles(cut.triangles));
 }
 
 TEST_F(ServerTest, GooglesDracoDecoderReadsAServerPayload) {
@@ -175,12 +189,21 @@ TEST_F(ServerTest, GooglesDracoDecoderReadsAServerPayload) {
   EXPECT_EQ(loaded->triangle_count(), as_mesh(*reply)->triangles);
 }
 
-TEST_F(ServerTest, DeltaRepliesRebuildTheCutAFreshConnectionGets) {
-  // One connection asks for deltas and moves its gaze (small steps and jumps); after every reply,
-  // the mesh it keeps holds the same triangles, id for id and corner for corner, as the whole cut a
-  // new connection gets for the same focus.
+// One connection asks for deltas and moves its gaze (small steps and jumps); after every reply, the
+// mesh it keeps holds the same triangles, id for id and corner for corner, as the whole cut a new
+// connection gets for the same focus (meshopt's index codec may start a triangle at another corner
+// of the same winding: for it, corners are compared from the smallest).
+void ServerTest::expect_deltas_rebuild_the_cut(core::codec::Codec codec) {
   protocol::Extract request = extract_request(0.3, 0.4);
   request.delta = true;
+  request.codec = codec;
+  const bool draco = codec == core::codec::Codec::kDraco;
+  // A triangle's nine coordinates, rotated to start at its smallest corner for meshopt.
+  auto corners_of = [draco](std::span<const float, 9> c) {
+    std::array<std::array<float, 3>, 3> t{{{c[0], c[1], c[2]}, {c[3], c[4], c[5]}, {c[6], c[7], c[8]}}};
+    if (!draco) std::rotate(t.begin(), std::min_element(t.begin(), t.end()), t.end());
+    return t;
+  };
   ServerConnection c = connect();
   clients::DeltaMesh kept;
   auto first = c.call(request, 1);
@@ -214,7 +237,7 @@ TEST_F(ServerTest, DeltaRepliesRebuildTheCutAFreshConnectionGets) {
       EXPECT_EQ(mesh->delta->removed, 0u) << "gaze " << id;
       ++repeats;
     }
-    if (!decoder_checked && mesh->delta->added > 0) {
+    if (draco && !decoder_checked && mesh->delta->added > 0) {
       // The Draco part of a delta is a Draco mesh of its own, for Google's decoder too.
       auto parts = protocol::split_delta_payload(*mesh->delta, reply->payload);
       ASSERT_TRUE(parts.ok());
@@ -239,12 +262,19 @@ TEST_F(ServerTest, DeltaRepliesRebuildTheCutAFreshConnectionGets) {
       const auto it = slot.find(kept.ids()[i]);
       ASSERT_NE(it, slot.end()) << "gaze " << id << ": triangle " << kept.ids()[i] << " is not in the cut";
       // Delta payloads share the model's quantization grid: the same floats, not just close ones.
-      for (int k = 0; k < 9; ++k) ASSERT_EQ(kept.corners(i)[k], reference.corners(it->second)[k]);
+      ASSERT_EQ(corners_of(kept.corners(i)), corners_of(reference.corners(it->second)));
     }
   }
   EXPECT_GT(partial, 0u);  // most gazes sent less than the whole cut
   EXPECT_EQ(repeats, 3u);
-  EXPECT_TRUE(decoder_checked);
+  EXPECT_EQ(decoder_checked, draco);
+}
+
+TEST_F(ServerTest, DeltaRepliesRebuildTheCutAFreshConnectionGets) {
+  expect_deltas_rebuild_the_cut(core::codec::Codec::kDraco);
+}
+TEST_F(ServerTest, MeshoptDeltaRepliesRebuildTheCutAFreshConnectionGets) {
+  expect_deltas_rebuild_the_cut(core::codec::Codec::kMeshopt);
 }
 
 TEST_F(ServerTest, ThirtyTwoConcurrentClientsMixingExtractAndGaze) {
