@@ -11,14 +11,10 @@ namespace mtlod::core::codec {
 Result<EncodeStats> CutEncoder::encode(const DracoInput& input, const EncodeOptions& options,
                                        std::vector<std::uint8_t>& out) {
   switch (options.codec) {
-    case Codec::kDraco: {
-      MTLOD_TRY(const DracoStats s, draco_.encode(input, options.draco, out));
-      return EncodeStats{s.vertices, s.triangles, s.bytes};
-    }
-    case Codec::kMeshopt: {
-      MTLOD_TRY(const MeshoptStats s, meshopt_.encode(input, options.meshopt, out));
-      return EncodeStats{s.vertices, s.triangles, s.bytes};
-    }
+    case Codec::kDraco:
+      return draco_.encode(input, options.draco, out);
+    case Codec::kMeshopt:
+      return meshopt_.encode(input, options.meshopt, out);
   }
   return make_error(ErrorCode::kInvalidArgument, "unknown codec");
 }

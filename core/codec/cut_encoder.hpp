@@ -28,12 +28,6 @@ struct EncodeOptions {
   MeshoptOptions meshopt;
 };
 
-struct EncodeStats {
-  std::size_t vertices = 0;   // vertices encoded
-  std::size_t triangles = 0;  // triangles encoded
-  std::size_t bytes = 0;      // size of the payload
-};
-
 // One reusable encoder per worker: each codec's encoder keeps its tables between calls.
 class CutEncoder {
  public:

@@ -127,8 +127,8 @@ void DracoEncoder::list_used(std::span<const std::uint32_t> triangles) {
   }
 }
 
-Result<DracoStats> DracoEncoder::encode(const DracoInput& input, const DracoOptions& options,
-                                        std::vector<std::uint8_t>& out) {
+Result<EncodeStats> DracoEncoder::encode(const DracoInput& input, const DracoOptions& options,
+                                         std::vector<std::uint8_t>& out) {
   out.clear();
   const std::size_t model_vertices = input.positions.size() / 3;
   if (Status checked = check_input(input, options); !checked) return checked.error();
@@ -197,7 +197,7 @@ Result<DracoStats> DracoEncoder::encode(const DracoInput& input, const DracoOpti
                       fmt::format("draco refused the mesh: {}", status.error_msg_string()));
   }
   out.assign(buffer.data(), buffer.data() + buffer.size());
-  return DracoStats{encoder.num_encoded_points(), encoder.num_encoded_faces(), out.size()};
+  return EncodeStats{encoder.num_encoded_points(), encoder.num_encoded_faces(), out.size()};
 }
 
 }  // namespace mtlod::core::codec

@@ -49,7 +49,8 @@ struct DracoInput {
   std::span<const std::uint8_t> colors;      // empty, or r, g, b per model vertex
 };
 
-struct DracoStats {
+// What an encoder reports of a payload (every codec of core/codec).
+struct EncodeStats {
   std::size_t vertices = 0;   // vertices encoded
   std::size_t triangles = 0;  // triangles encoded
   std::size_t bytes = 0;      // size of the payload
@@ -60,8 +61,8 @@ class DracoEncoder {
  public:
   // Encodes into `out` (cleared first). Fails with kInvalidArgument when options are out of range
   // or attributes asked for are missing, and kInternal when Draco refuses the mesh.
-  Result<DracoStats> encode(const DracoInput& input, const DracoOptions& options,
-                            std::vector<std::uint8_t>& out);
+  Result<EncodeStats> encode(const DracoInput& input, const DracoOptions& options,
+                             std::vector<std::uint8_t>& out);
 
  private:
   // Marks the triangles' vertices in used_bits_ and lists them in model order in used_, with

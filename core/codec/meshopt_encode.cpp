@@ -89,8 +89,8 @@ std::uint8_t* put_vertex_stream(std::uint8_t* at, const void* values, std::size_
 
 }  // namespace
 
-Result<MeshoptStats> MeshoptEncoder::encode(const DracoInput& input, const MeshoptOptions& options,
-                                            std::vector<std::uint8_t>& out) {
+Result<EncodeStats> MeshoptEncoder::encode(const DracoInput& input, const MeshoptOptions& options,
+                                           std::vector<std::uint8_t>& out) {
   out.clear();
   if (Status checked = check_input(input, options); !checked) return checked.error();
   assert(input.triangles.size() % 3 == 0);
@@ -226,7 +226,7 @@ Result<MeshoptStats> MeshoptEncoder::encode(const DracoInput& input, const Mesho
   put_u32(at, static_cast<std::uint32_t>(index_size));
   at += 4 + index_size;
   out.resize(static_cast<std::size_t>(at - out.data()));
-  return MeshoptStats{n, triangles, out.size()};
+  return EncodeStats{n, triangles, out.size()};
 }
 
 }  // namespace mtlod::core::codec

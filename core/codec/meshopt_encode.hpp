@@ -73,12 +73,6 @@ struct MeshoptOptions {
   std::optional<DracoOptions::Grid> position_grid;
 };
 
-struct MeshoptStats {
-  std::size_t vertices = 0;   // vertices encoded
-  std::size_t triangles = 0;  // triangles encoded
-  std::size_t bytes = 0;      // size of the payload
-};
-
 // Reusable encoder: keeps its renumbering table (one entry per vertex of the largest model seen) and its
 // stream buffers between calls, so once they have grown a call allocates only meshoptimizer's own
 // scratch for reordering the triangles. Labels in the input are ignored: the payload has no generic
@@ -89,8 +83,8 @@ class MeshoptEncoder {
   // range, the grid is not a finite box, attributes asked for are missing or the cut has no
   // triangles, and kInternal when meshoptimizer writes a codec version other than the one the
   // payload promises (another part of the process changed the library's setting).
-  Result<MeshoptStats> encode(const DracoInput& input, const MeshoptOptions& options,
-                              std::vector<std::uint8_t>& out);
+  Result<EncodeStats> encode(const DracoInput& input, const MeshoptOptions& options,
+                             std::vector<std::uint8_t>& out);
 
  private:
   std::vector<std::uint32_t> encoded_id_;  // per model vertex: its encoded id, kUnused between calls

@@ -311,8 +311,13 @@ void ViewExtractor::remember_view(ViewCache& s) const {
   s.allowed_ = r.allowed;
   for (const Criterion c : kAllCriteria) {
     const bool gaze = c == kGazeCriterion;  // moves with every gaze: recomputed each time
-    s.points_[c] = gaze ? std::vector<std::array<float, 2>>{} : r.points[c];
-    s.transforms_[c].assign(gaze ? transforms_[c].end() : transforms_[c].begin(), transforms_[c].end());
+    if (gaze) {
+      s.points_[c].clear();
+      s.transforms_[c].clear();
+    } else {
+      s.points_[c] = r.points[c];
+      s.transforms_[c].assign(transforms_[c].begin(), transforms_[c].end());
+    }
   }
   s.has_gaze_ = !r.points[kGazeCriterion].empty();
   s.internal_silhouettes_ = r.internal_silhouettes;
