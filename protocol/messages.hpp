@@ -146,6 +146,8 @@ struct Hello {
   int version = kProtocolVersion;
   std::string client;
   std::string token;  // access token (mtlod-server --auth-tokens); empty: none
+  // The connection's codec for extracts that name none; unset: keep the connection's (Draco at first).
+  std::optional<core::codec::Codec> codec;
 };
 struct ListModels {};
 struct ModelInfo {
@@ -164,9 +166,9 @@ struct Extract {
   bool normals = true;                  // every model has normals (stored, or computed at load)
   std::optional<bool> colors;           // unset: the model's colours when it has them
   bool labels = false;
-  // The payload's codec. meshopt quantizes with draco.position_bits (at most 16) and
-  // draco.normal_bits, and carries no labels.
-  core::codec::Codec codec = core::codec::Codec::kDraco;
+  // The payload's codec; unset: the connection's (hello). meshopt quantizes with
+  // draco.position_bits (at most 16) and draco.normal_bits, and carries no labels: codec_refusal.
+  std::optional<core::codec::Codec> codec;
   DracoSettings draco;
   // Replies (this one and the gazes that follow) carry what changed since the connection's previous
   // mesh, by MT triangle id, instead of the whole cut (PROTOCOL.md, "Delta replies"). Needs the

@@ -312,7 +312,7 @@ Extract read_extract(ObjectReader& r, const Limits& limits) {
     ar.finish();
   }
   e.delta = r.boolean("delta", false);
-  e.codec = static_cast<core::codec::Codec>(r.choice("codec", kCodecNames, 0));
+  if (r.has("codec")) e.codec = static_cast<core::codec::Codec>(r.choice("codec", kCodecNames, 0));
   if (const json* d = r.find("draco")) {
     ObjectReader dr(*d, "draco");
     if (dr.has("method"))
@@ -326,13 +326,8 @@ Extract read_extract(ObjectReader& r, const Limits& limits) {
     if (dr.has("entropy_coding")) e.draco.entropy_coding = dr.boolean("entropy_coding", true);
     dr.finish();
   }
-  if (e.codec == core::codec::Codec::kMeshopt) {
-    if (e.labels) fail(ErrorKind::kBadRequest, "codec 'meshopt' cannot carry attributes.labels: use 'draco'");
-    if (e.draco.position_bits > 16) {
-      fail(ErrorKind::kBadRequest,
-           fmt::format("codec 'meshopt' quantizes positions to at most 16 bits, not draco.position_bits {}",
-                       e.draco.position_bits));
-    }
+  if (e.codec) {
+    if (auto refusal = codec_refusal(e, *e.codec)) fail(ErrorKind::kBadRequest, std::move(*refusal));
   }
   if (e.delta && e.draco.method == core::codec::DracoMethod::kEdgebreaker) {
     fail(ErrorKind::kBadRequest, "'delta' needs draco.method 'sequential': edgebreaker reorders the faces");
@@ -351,6 +346,7 @@ Hello read(std::type_identity<Hello>, ObjectReader& r, const Limits&) {
   h.version = static_cast<int>(r.integer("version", kProtocolVersion, 0, 1000));
   h.client = r.optional_string("client", "", 256);
   h.token = r.optional_string("token", "", 256);
+  if (r.has("codec")) h.codec = static_cast<core::codec::Codec>(r.choice("codec", kCodecNames, 0));
   if (h.version != kProtocolVersion) {
     fail(ErrorKind::kUnsupportedVersion,
          fmt::format("protocol version {} is not supported; this server speaks version {}", h.version,
@@ -440,6 +436,16 @@ const char* to_string(ErrorKind kind) {
   return "internal";
 }
 
+std::optional<std::string> codec_refusal(const Extract& e, core::codec::Codec codec) {
+  if (codec != core::codec::Codec::kMeshopt) return std::nullopt;
+  if (e.labels) return "codec 'meshopt' cannot carry attributes.labels: use 'draco'";
+  if (e.draco.position_bits > 16) {
+    return fmt::format("codec 'meshopt' quantizes positions to at most 16 bits, not draco.position_bits {}",
+                       e.draco.position_bits);
+  }
+  return std::nullopt;
+}
+
 Result<ParsedRequest, ProtocolError> parse_request(std::string_view text, const Limits& limits) {
   // Messages quote the request's bytes; what goes back to the client and into logs must be text.
   json doc;
@@ -506,7 +512,7 @@ json extract_json(const Extract& e) {
   j["attributes"] = {{"normals", e.normals}, {"labels", e.labels}};
   if (e.colors) j["attributes"]["colors"] = *e.colors;
   if (e.delta) j["delta"] = true;
-  j["codec"] = enum_name(kCodecNames, e.codec);
+  if (e.codec) j["codec"] = enum_name(kCodecNames, *e.codec);
   j["draco"] = {{"speed", e.draco.speed},
                 {"position_bits", e.draco.position_bits},
                 {"normal_bits", e.draco.normal_bits}};
@@ -520,6 +526,7 @@ json extract_json(const Extract& e) {
 json write(const Hello& r) {
   json h = {{"version", r.version}, {"client", r.client}};
   if (!r.token.empty()) h["token"] = r.token;
+  if (r.codec) h["codec"] = enum_name(kCodecNames, *r.codec);
   return h;
 }
 json write(const ListModels&) {

@@ -22,6 +22,10 @@ struct ParsedRequest {
 // not silently fall back to a default). The error carries the request's id when it could be read.
 Result<ParsedRequest, ProtocolError> parse_request(std::string_view json, const Limits& limits);
 
+// Why `codec` cannot encode what `request` asks for (a bad_request message), or nothing. The parser
+// checks an extract's own codec; the server checks the connection's when the extract names none.
+std::optional<std::string> codec_refusal(const Extract& request, core::codec::Codec codec);
+
 // The JSON a client sends for `request` with id `id`; parse_request reads it back unchanged.
 std::string to_json(const Request& request, std::uint64_t id);
 

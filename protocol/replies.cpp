@@ -17,6 +17,12 @@ namespace {
 
 using nlohmann::json;
 
+// A reply's `codec`; absent from servers that had one codec: Draco.
+core::codec::Codec codec_from(const json& j) {
+  return enum_from_name<core::codec::Codec>(kCodecNames, j.value("codec", std::string("draco")))
+      .value_or(core::codec::Codec::kDraco);
+}
+
 json limits_json(const Limits& l) {
   return {{"max_frame_bytes", l.max_frame_bytes},
           {"max_connections", l.max_connections},
@@ -113,12 +119,16 @@ json write(const HelloReply& r) {
           {"server", r.server},
           {"limits", limits_json(r.limits)},
           {"instance", r.instance},
-          {"auth_required", r.auth_required}};
+          {"auth_required", r.auth_required},
+          {"codec", enum_name(kCodecNames, r.codec)}};
 }
 HelloReply read(std::type_identity<HelloReply>, const json& j) {
-  return HelloReply{j.value("version", 0), j.value("server", ""),
-                    limits_from(j.value("limits", json::object())), j.value("instance", ""),
-                    j.value("auth_required", false)};
+  return HelloReply{j.value("version", 0),
+                    j.value("server", ""),
+                    limits_from(j.value("limits", json::object())),
+                    j.value("instance", ""),
+                    j.value("auth_required", false),
+                    codec_from(j)};
 }
 
 json write(const ModelsReply& r) {
@@ -167,7 +177,10 @@ json write(const MeshReply& r) {
   if (r.model_changed) m["model_changed"] = true;
   if (r.delta) {
     m["delta"] = {{"reset", r.delta->reset},
-                  {"draco_bytes", r.delta->draco_bytes},
+                  {"payload_bytes", r.delta->payload_bytes},
+                  // The name of protocol version 1's first servers, when Draco was the only codec:
+                  // kept for their clients.
+                  {"draco_bytes", r.delta->payload_bytes},
                   {"added", r.delta->added},
                   {"removed", r.delta->removed}};
   }
@@ -180,9 +193,7 @@ MeshReply read(std::type_identity<MeshReply>, const json& j) {
   r.vertices = j.value("vertices", std::uint64_t{0});
   r.max_error = j.value("max_error", 0.0);
   r.bytes = j.value("bytes", std::uint64_t{0});
-  // Absent from servers that had one codec: Draco.
-  r.codec = enum_from_name<core::codec::Codec>(kCodecNames, j.value("codec", std::string("draco")))
-                .value_or(core::codec::Codec::kDraco);
+  r.codec = codec_from(j);
   r.superseded = j.value("superseded", std::uint64_t{0});
   const json memory = j.value("memory", json::object());
   r.session_bytes = memory.value("session_bytes", std::uint64_t{0});
@@ -192,8 +203,9 @@ MeshReply read(std::type_identity<MeshReply>, const json& j) {
   r.model_changed = j.value("model_changed", false);
   if (j.contains("delta")) {
     const json& d = j["delta"];
-    r.delta = MeshDelta{d.value("reset", false), d.value("draco_bytes", std::uint64_t{0}),
-                        d.value("added", std::uint64_t{0}), d.value("removed", std::uint64_t{0})};
+    r.delta =
+        MeshDelta{d.value("reset", false), d.value("payload_bytes", d.value("draco_bytes", std::uint64_t{0})),
+                  d.value("added", std::uint64_t{0}), d.value("removed", std::uint64_t{0})};
   }
   r.timings = timings_from(j.value("timings_us", json::object()));
   return r;
@@ -287,25 +299,25 @@ Result<ParsedReply> parse_reply(std::string_view text) {
 Result<DeltaPayload> split_delta_payload(const MeshDelta& delta, std::span<const std::uint8_t> payload) {
   // Counts come from the network: check them against the payload before any multiplication.
   const std::uint64_t size = payload.size();
-  if (delta.draco_bytes > size || delta.added > size / 4 || delta.removed > size / 4 ||
-      delta.draco_bytes + 4 * (delta.added + delta.removed) != size) {
+  if (delta.payload_bytes > size || delta.added > size / 4 || delta.removed > size / 4 ||
+      delta.payload_bytes + 4 * (delta.added + delta.removed) != size) {
     return make_error(
         ErrorCode::kInvalidArgument,
-        fmt::format("delta payload of {} bytes does not hold {} Draco bytes, {} added and {} removed ids",
-                    size, delta.draco_bytes, delta.added, delta.removed));
+        fmt::format("delta payload of {} bytes does not hold a {}-byte mesh, {} added and {} removed ids",
+                    size, delta.payload_bytes, delta.added, delta.removed));
   }
-  if ((delta.added == 0) != (delta.draco_bytes == 0)) {
-    return make_error(ErrorCode::kInvalidArgument, fmt::format("delta with {} added ids has {} Draco bytes",
-                                                               delta.added, delta.draco_bytes));
+  if ((delta.added == 0) != (delta.payload_bytes == 0)) {
+    return make_error(ErrorCode::kInvalidArgument, fmt::format("delta with {} added ids has a {}-byte mesh",
+                                                               delta.added, delta.payload_bytes));
   }
   DeltaPayload out;
-  out.draco = payload.first(static_cast<std::size_t>(delta.draco_bytes));
+  out.mesh = payload.first(static_cast<std::size_t>(delta.payload_bytes));
   auto read_ids = [&](std::size_t offset, std::uint64_t count, std::vector<std::uint32_t>& ids) {
     ids.resize(static_cast<std::size_t>(count));
     for (std::size_t i = 0; i < ids.size(); ++i) ids[i] = read_u32_le(payload.data() + offset + 4 * i);
   };
-  read_ids(static_cast<std::size_t>(delta.draco_bytes), delta.added, out.added_ids);
-  read_ids(static_cast<std::size_t>(delta.draco_bytes + 4 * delta.added), delta.removed, out.removed_ids);
+  read_ids(static_cast<std::size_t>(delta.payload_bytes), delta.added, out.added_ids);
+  read_ids(static_cast<std::size_t>(delta.payload_bytes + 4 * delta.added), delta.removed, out.removed_ids);
   return out;
 }
 

@@ -28,6 +28,7 @@ struct HelloReply {
   std::string instance;
   // The server wants an access token in hello (mtlod-server --auth-tokens).
   bool auth_required = false;
+  core::codec::Codec codec = core::codec::Codec::kDraco;  // the connection's, for extracts naming none
 };
 
 struct ModelSummary {
@@ -66,28 +67,28 @@ struct StageTimings {
   std::uint64_t total_us = 0;      // from frame received to reply ready
 };
 
-// A delta reply (PROTOCOL.md, "Delta replies"): the payload holds the Draco mesh of the triangles
-// new to the client (draco_bytes), then their MT triangle ids in the Draco mesh's face order, then
-// the ids the client drops: 32-bit little-endian each.
+// A delta reply (PROTOCOL.md, "Delta replies"): the payload holds the mesh of the triangles new to
+// the client in the reply's codec (payload_bytes), then their MT triangle ids in the mesh's face
+// order, then the ids the client drops: 32-bit little-endian each.
 struct MeshDelta {
-  bool reset = false;  // the client clears its mesh first (the first delta, or another model)
-  std::uint64_t draco_bytes = 0;
+  bool reset = false;               // the client clears its mesh first (the first delta, or another model)
+  std::uint64_t payload_bytes = 0;  // the mesh part
   std::uint64_t added = 0;
   std::uint64_t removed = 0;
 };
 
 // A delta payload cut into its parts. Fails when the sizes do not add up to the payload's.
 struct DeltaPayload {
-  std::span<const std::uint8_t> draco;  // empty when nothing was added
+  std::span<const std::uint8_t> mesh;  // empty when nothing was added
   std::vector<std::uint32_t> added_ids;
   std::vector<std::uint32_t> removed_ids;
 };
 Result<DeltaPayload> split_delta_payload(const MeshDelta& delta, std::span<const std::uint8_t> payload);
-// The server's side: appends the ids to a payload holding the Draco bytes.
+// The server's side: appends the ids to a payload holding the mesh part.
 void append_delta_ids(std::span<const std::uint32_t> added_ids, std::span<const std::uint32_t> removed_ids,
                       std::vector<std::uint8_t>& payload);
 
-// Header of an extract or gaze result; the Draco bytes follow as the frame's payload.
+// Header of an extract or gaze result; the encoded mesh follows as the frame's payload.
 struct MeshReply {
   std::string model;
   std::uint64_t triangles = 0;

@@ -77,7 +77,7 @@ core::codec::DracoOptions to_draco_options(const Extract& e, const EncodeContext
 
 core::codec::EncodeOptions to_encode_options(const Extract& e, const EncodeContext& context) {
   core::codec::EncodeOptions options;
-  options.codec = e.codec;
+  options.codec = e.codec.value_or(core::codec::Codec::kDraco);
   options.draco = to_draco_options(e, context);
   core::codec::MeshoptOptions& m = options.meshopt;
   m.position_bits = options.draco.position_bits;

@@ -180,9 +180,11 @@ void Connection::on_request(std::uint64_t seq, std::uint64_t id, const protocol:
                          id);
     }
   }
+  if (request.codec) codec_ = *request.codec;
   protocol::HelloReply reply{protocol::kProtocolVersion, "mtlod/0.1", server_.config.limits,
                              server_.config.instance};
   reply.auth_required = tokens != nullptr;
+  reply.codec = codec_;
   replies_.fill(seq, make_frame(reply, id));
 }
 void Connection::on_request(std::uint64_t seq, std::uint64_t id, const protocol::ListModels&) {
@@ -240,8 +242,13 @@ void Connection::on_request(std::uint64_t seq, std::uint64_t id, const protocol:
 }
 void Connection::on_request(std::uint64_t seq, std::uint64_t id, const protocol::Extract& request) {
   if (!visible_model(request.model)) return reply_unknown_model(seq, id, request.model);
+  if (!request.codec) {
+    if (auto refusal = protocol::codec_refusal(request, codec_))
+      return reply_error(seq, protocol::ErrorKind::kBadRequest, *refusal, id);
+  }
   last_extract_ = request;
-  enqueue(Job{seq, id, false, request, 0, received_ns_});
+  last_extract_->codec = request.codec.value_or(codec_);
+  enqueue(Job{seq, id, false, *last_extract_, 0, received_ns_});
 }
 void Connection::on_request(std::uint64_t seq, std::uint64_t id, const protocol::Gaze& gaze) {
   if (!last_extract_) {

@@ -151,8 +151,9 @@ class Connection : public std::enable_shared_from_this<Connection> {
   ExtractionState cut_;
   const Grant* grant_ = nullptr;  // the access token shown (with --auth-tokens), owned by the server
   bool refusal_logged_ = false;   // a hello's token was refused, and said so in the log
-  std::optional<protocol::Extract> last_extract_;
-  std::int64_t received_ns_ = 0;  // arrival of the request being handled
+  std::optional<protocol::Extract> last_extract_;          // its codec always set
+  core::codec::Codec codec_ = core::codec::Codec::kDraco;  // for extracts that name none (hello)
+  std::int64_t received_ns_ = 0;                           // arrival of the request being handled
   std::vector<std::uint8_t> outgoing_;
   bool writing_ = false;
   bool read_paused_ = false;

@@ -229,7 +229,7 @@ ExtractResult Engine::run(const ModelPtr& model, const protocol::Extract& reques
     vertices = encoded->vertices;
   }
   if (outcome.reply.delta) {
-    outcome.reply.delta->draco_bytes = outcome.payload.size();
+    outcome.reply.delta->payload_bytes = outcome.payload.size();
     protocol::append_delta_ids(worker.added_ids, worker.removed, outcome.payload);
   }
   outcome.reply.timings.encode_us = elapsed_us(stages.clock);
@@ -240,7 +240,7 @@ ExtractResult Engine::run(const ModelPtr& model, const protocol::Extract& reques
   outcome.reply.triangles = cut.triangle_count();
   outcome.reply.vertices = vertices;
   outcome.reply.bytes = outcome.payload.size();
-  outcome.reply.codec = request.codec;
+  outcome.reply.codec = encoding.codec;
   outcome.reply.max_error = cut.max_error;
   outcome.reply.session_bytes = session.memory_bytes();
   outcome.reply.scratch_bytes =

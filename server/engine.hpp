@@ -30,7 +30,7 @@ class ExtractionState {
 
 struct ExtractOutcome {
   protocol::MeshReply reply;          // counts, max error and stage timings (queue and total left 0)
-  std::vector<std::uint8_t> payload;  // Draco bytes
+  std::vector<std::uint8_t> payload;  // the encoded mesh (the reply's codec)
 };
 using ExtractResult = Result<ExtractOutcome, protocol::ProtocolError>;
 

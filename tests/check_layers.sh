@@ -35,13 +35,14 @@ check() {
 }
 
 # core/'s rooms, bottom to top (core/CMakeLists.txt): each may include core/result.hpp and the rooms
-# up to itself. Only io/ reads meshes with OpenMesh, PNG or tinygltf.
+# up to itself. Only io/ reads meshes with OpenMesh, PNG or tinygltf, and writes glTF's JSON with
+# nlohmann-json (tinygltf's own JSON library) where tinygltf cannot.
 rooms=(util model codec cut view eval io build threads)
 below=''
 for room in "${rooms[@]}"; do
   below="${below:+$below|}$room"
-  ban='boost/|CLI/|spdlog/|nlohmann/'
-  [ "$room" = io ] || ban="$ban|OpenMesh/|png.h|tiny_gltf"
+  ban='boost/|CLI/|spdlog/'
+  [ "$room" = io ] || ban="$ban|nlohmann/|OpenMesh/|png.h|tiny_gltf"
   check "core/$room" "^core/(result\.hpp|($below)/.+)$" "$ban"
 done
 check core '^core/result\.hpp$' 'boost/|CLI/|spdlog/|nlohmann/|OpenMesh/' -maxdepth 1

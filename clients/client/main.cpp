@@ -59,11 +59,11 @@ int main(int argc, char** argv) {
   extract->add_option("-o,--output", output,
                       "write the mesh: .drc or .mopt (as received, by --codec), .ply or .obj (decoded), or "
                       ".glb (binary glTF 2.0 with the normals and colours the reply carries)");
-  std::string gltf_draco = "on";
+  std::string gltf_compression = "on";
   extract
-      ->add_option("--gltf-draco", gltf_draco,
-                   "on: the .glb embeds the Draco bytes as received (KHR_draco_mesh_compression); off: "
-                   "decoded into plain arrays, for readers without Draco")
+      ->add_option("--gltf-compression,--gltf-draco", gltf_compression,
+                   "on: the .glb embeds the payload as received (Draco: KHR_draco_mesh_compression; meshopt: "
+                   "EXT_meshopt_compression); off: decoded into plain arrays, for readers without either")
       ->check(CLI::IsMember({"on", "off"}))
       ->capture_default_str();
   clients::ExtractFlags flags;
@@ -147,29 +147,31 @@ int main(int argc, char** argv) {
   fmt::print("served by {}{}\n", c.hello().instance,
              c.retries() ? fmt::format(" after {} retr{}", c.retries(), c.retries() == 1 ? "y" : "ies") : "");
   if (!output.empty()) {
-    // A delta reply (--delta) starts from an empty mesh here: its Draco part is the whole cut.
-    std::span<const std::uint8_t> draco = reply->payload;
+    // A delta reply (--delta) starts from an empty mesh here: its mesh part is the whole cut.
+    std::span<const std::uint8_t> payload = reply->payload;
     if (mesh.delta) {
       auto parts = protocol::split_delta_payload(*mesh.delta, reply->payload);
       if (!parts) return fail(parts.error().message);
-      draco = parts->draco;
-      fmt::print("delta: {} triangles added, {} removed (ids follow the Draco bytes in the payload)\n",
+      payload = parts->mesh;
+      fmt::print("delta: {} triangles added, {} removed (ids follow the mesh in the payload)\n",
                  mesh.delta->added, mesh.delta->removed);
     }
     const std::string ext = std::filesystem::path(output).extension().string();
     const bool draco_payload = mesh.codec == core::codec::Codec::kDraco;
     if ((ext == ".drc" && draco_payload) || (ext == ".mopt" && !draco_payload)) {
       std::ofstream out(output, std::ios::binary);
-      out.write(reinterpret_cast<const char*>(draco.data()), static_cast<std::streamsize>(draco.size()));
+      out.write(reinterpret_cast<const char*>(payload.data()), static_cast<std::streamsize>(payload.size()));
       if (!out) return fail(fmt::format("{}: write failed", output));
     } else if (ext == ".drc" || ext == ".mopt") {
       return fail(fmt::format("{}: the payload is {}; write it as .{} or as a mesh file", output,
                               protocol::enum_name(protocol::kCodecNames, mesh.codec),
                               draco_payload ? "drc" : "mopt"));
-    } else if (ext == ".glb" && gltf_draco == "on" && draco_payload) {
-      if (auto saved = core::io::write_glb_draco(output, draco); !saved) return fail(saved.error().message);
+    } else if (ext == ".glb" && gltf_compression == "on") {
+      auto saved = draco_payload ? core::io::write_glb_draco(output, payload)
+                                 : core::io::write_glb_meshopt(output, payload);
+      if (!saved) return fail(saved.error().message);
     } else {
-      auto decoded = core::codec::decode_payload(mesh.codec, draco);
+      auto decoded = core::codec::decode_payload(mesh.codec, payload);
       if (!decoded) return fail(decoded.error().message);
       auto saved =
           ext == ".glb" ? core::io::write_glb(output, *decoded) : core::io::save_mesh(output, *decoded);

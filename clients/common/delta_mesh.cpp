@@ -40,7 +40,7 @@ Status DeltaMesh::apply(const protocol::MeshReply& reply, std::span<const std::u
     corners_.resize(9 * std::size_t{last});
   }
   if (!parts.added_ids.empty()) {
-    MTLOD_TRY(const core::model::Mesh m, core::codec::decode_payload(reply.codec, parts.draco));
+    MTLOD_TRY(const core::model::Mesh m, core::codec::decode_payload(reply.codec, parts.mesh));
     if (m.triangle_count() != parts.added_ids.size()) {
       return make_error(ErrorCode::kCorrupt, fmt::format("the delta's mesh has {} triangles for {} added ids",
                                                          m.triangle_count(), parts.added_ids.size()));

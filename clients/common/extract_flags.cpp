@@ -120,9 +120,9 @@ void add_extract_flags(CLI::App& app, ExtractFlags& f) {
   app.add_option("--hidden-factor", f.hidden_factor,
                  "error multiplier behind the visible surface (default: 1, or 16 with the default criteria)");
   app.add_option("--codec", f.codec,
-                 fmt::format("payload codec: {} (meshopt: no labels, at most 16 position bits)",
-                             fmt::join(protocol::kCodecNames, ", ")))
-      ->capture_default_str();
+                 fmt::format("payload codec: {} (meshopt: no labels, at most 16 position bits); default: the "
+                             "connection's (draco), or the output file's for mtlod-extract",
+                             fmt::join(protocol::kCodecNames, ", ")));
   app.add_option(
       "--draco", f.draco_method,
       "Draco method: edgebreaker or sequential (default: edgebreaker for extract, sequential for gaze)");
@@ -225,7 +225,11 @@ Result<protocol::Extract> make_extract(const ExtractFlags& f, const std::string&
       named(e.criteria.falloff, kFalloffNames, f.falloff.empty() ? "step" : f.falloff, "--falloff"));
   MTLOD_RETURN_IF_ERROR(named(e.criteria.distance, kDistanceMetricNames, f.distance, "--distance"));
   MTLOD_RETURN_IF_ERROR(named(e.criteria.units, kDistanceUnitNames, f.units, "--units"));
-  MTLOD_RETURN_IF_ERROR(named(e.codec, protocol::kCodecNames, f.codec, "--codec"));
+  if (!f.codec.empty()) {
+    core::codec::Codec codec{};
+    MTLOD_RETURN_IF_ERROR(named(codec, protocol::kCodecNames, f.codec, "--codec"));
+    e.codec = codec;
+  }
   if (!f.draco_method.empty()) {
     core::codec::DracoMethod method{};
     MTLOD_RETURN_IF_ERROR(named(method, kDracoMethodNames, f.draco_method, "--draco"));

@@ -32,7 +32,7 @@ struct ExtractFlags {
   bool internal_silhouettes = false;
   double frustum_factor = 8, backface_factor = 1;
   std::optional<double> hidden_factor;  // 1 (off) unless given, or set by apply_default_criteria
-  std::string codec = "draco";          // the payload's codec (protocol::kCodecNames)
+  std::string codec;                    // the payload's codec (protocol::kCodecNames); empty: the server's
   std::string draco_method;             // empty: the server's default for the request type
   int draco_speed = 10, position_bits = 14, normal_bits = 10;
   std::optional<bool> draco_entropy;       // unset: the server's default for the request type

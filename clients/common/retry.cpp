@@ -60,8 +60,9 @@ Result<Session> open_session(const Endpoint& endpoint, const std::string& client
       }
       continue;
     }
-    auto reply = connection->call(protocol::Hello{protocol::kProtocolVersion, client, endpoint.token}, 0,
-                                  std::chrono::seconds(10));
+    auto reply =
+        connection->call(protocol::Hello{protocol::kProtocolVersion, client, endpoint.token, std::nullopt}, 0,
+                         std::chrono::seconds(10));
     if (!reply) {
       last_error = reply.error().message;
       continue;

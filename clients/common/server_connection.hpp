@@ -18,7 +18,7 @@ namespace mtlod::clients {
 struct ReplyFrame {
   protocol::ParsedReply header;
   std::string json;                   // the reply's JSON text as received
-  std::vector<std::uint8_t> payload;  // Draco bytes for mesh replies
+  std::vector<std::uint8_t> payload;  // the encoded mesh, for mesh replies
 };
 
 // TLS for a connection (mtlod-client, mtlod-load, mtlod-gaze: --tls, --tls-ca). The server's

@@ -23,17 +23,19 @@
 #include "core/view/occupancy_levels.hpp"
 #include "core/view/view_extract.hpp"
 #include "fmt/format.h"
+#include "fmt/ranges.h"
+#include "protocol/parse.hpp"
 #include "protocol/view_request.hpp"
 
 namespace {
 
 struct ExtractOptions {
-  std::string model;                  // .mt file to read
-  std::string output;                 // mesh to write (.ply, .obj, .drc or .glb)
-  std::string gltf_draco = "on";      // .glb: Draco-compressed (KHR_draco_mesh_compression) or plain
-  std::string dump_dt;                // PNG of the silhouette (else focus) distance transform
-  std::string dump_occupancy;         // PNG of the occupancy grid
-  mtlod::clients::ExtractFlags view;  // --error, --budget, camera, criteria, grid, Draco
+  std::string model;                    // .mt file to read
+  std::string output;                   // mesh to write (.ply, .obj, .drc or .glb)
+  std::string gltf_compression = "on";  // .glb: the payload of --codec under its glTF extension, or plain
+  std::string dump_dt;                  // PNG of the silhouette (else focus) distance transform
+  std::string dump_occupancy;           // PNG of the occupancy grid
+  mtlod::clients::ExtractFlags view;    // --error, --budget, camera, criteria, grid, Draco
 };
 
 void add_extract_options(CLI::App& app, ExtractOptions& o) {
@@ -43,9 +45,10 @@ void add_extract_options(CLI::App& app, ExtractOptions& o) {
                  "2.0 with the "
                  "model's normals and colours)")
       ->required();
-  app.add_option("--gltf-draco", o.gltf_draco,
-                 "on: the .glb holds the cut as Draco (KHR_draco_mesh_compression); off: plain arrays, for "
-                 "readers without Draco")
+  app.add_option(
+         "--gltf-compression,--gltf-draco", o.gltf_compression,
+         "on: the .glb holds the cut in --codec's payload (Draco: KHR_draco_mesh_compression; meshopt: "
+         "EXT_meshopt_compression); off: plain arrays, for readers without either")
       ->check(CLI::IsMember({"on", "off"}))
       ->capture_default_str();
   app.add_option("--dump-dt", o.dump_dt, "write the distance transform as PNG (view-dependent mode)");
@@ -90,29 +93,38 @@ using namespace mtlod;
 using namespace mtlod::core;
 
 // Writes the cut as a mesh file, or as the payload the server would send for the request: Draco
-// (.drc, or in a .glb with the model's normals and colours, and no labels: glTF has no meaning for
-// them) or meshopt (.mopt).
-Status write_output(const std::string& path, bool gltf_draco, const model::Mt& mt, const cut::CutMesh& cut,
-                    const protocol::Extract* request, std::span<const std::uint32_t> labels) {
+// (.drc) or meshopt (.mopt), or either in a .glb (--codec; with the model's normals and colours, and
+// no labels: glTF has no meaning for them). `named` is --codec's, when given.
+Status write_output(const std::string& path, bool gltf_compressed, const model::Mt& mt,
+                    const cut::CutMesh& cut, const protocol::Extract* request,
+                    std::optional<codec::Codec> named, std::span<const std::uint32_t> labels) {
   const auto extension = std::filesystem::path(path).extension();
   const bool glb = extension == ".glb", mopt = extension == ".mopt";
-  if (glb && !gltf_draco) return io::write_glb(path, compact(mt, cut.triangles));
+  if (glb && !gltf_compressed) return io::write_glb(path, compact(mt, cut.triangles));
   if (!glb && !mopt && extension != ".drc") return io::save_mesh(path, compact(mt, cut.triangles));
   codec::EncodeOptions options;
   if (request) {
     options = protocol::to_encode_options(*request, {false, mt.has_colors(), mt.bounds.lo, mt.bounds.hi});
     options.draco.labels = options.draco.labels && !labels.empty();
-    if (!glb && options.codec != (mopt ? codec::Codec::kMeshopt : codec::Codec::kDraco)) {
-      return make_error(ErrorCode::kInvalidArgument,
-                        fmt::format("{}: --codec {} writes .{}", path,
-                                    protocol::enum_name(protocol::kCodecNames, options.codec),
-                                    options.codec == codec::Codec::kMeshopt ? "mopt" : "drc"));
-    }
   } else {
     options.meshopt.normals = mt.has_normals();
     options.meshopt.colors = mt.has_colors();
   }
-  options.codec = mopt ? codec::Codec::kMeshopt : codec::Codec::kDraco;
+  // A payload file's extension names its codec; a .glb holds either (--codec, Draco by default).
+  const codec::Codec codec = glb    ? named.value_or(codec::Codec::kDraco)
+                             : mopt ? codec::Codec::kMeshopt
+                                    : codec::Codec::kDraco;
+  if (named && *named != codec) {
+    return make_error(
+        ErrorCode::kInvalidArgument,
+        fmt::format("{}: --codec {} writes .{}", path, protocol::enum_name(protocol::kCodecNames, *named),
+                    *named == codec::Codec::kMeshopt ? "mopt" : "drc"));
+  }
+  if (request) {
+    if (auto refusal = protocol::codec_refusal(*request, codec))
+      return make_error(ErrorCode::kInvalidArgument, fmt::format("{}: {}", path, *refusal));
+  }
+  options.codec = codec;
   if (glb) {
     options.draco.normals = mt.has_normals();
     options.draco.colors = mt.has_colors();
@@ -122,7 +134,9 @@ Status write_output(const std::string& path, bool gltf_draco, const model::Mt& m
   MTLOD_TRY(codec::EncodeStats stats,
             codec::CutEncoder().encode({mt.positions, mt.normals, labels, cut.triangles, mt.colors}, options,
                                        bytes));
-  if (glb) return io::write_glb_draco(path, bytes);
+  if (glb)
+    return codec == codec::Codec::kMeshopt ? io::write_glb_meshopt(path, bytes)
+                                           : io::write_glb_draco(path, bytes);
   std::FILE* f = std::fopen(path.c_str(), "wb");
   const bool ok = f && std::fwrite(bytes.data(), 1, bytes.size(), f) == bytes.size();
   if (f) std::fclose(f);
@@ -233,8 +247,17 @@ int run(int argc, char** argv) {
 
   const std::span<const std::uint32_t> labels =
       extractor ? extractor->vertex_labels() : std::span<const std::uint32_t>();
-  if (auto saved = write_output(options.output, options.gltf_draco == "on", *mt, cut,
-                                request ? &*request : nullptr, labels);
+  std::optional<codec::Codec> named;
+  if (!options.view.codec.empty()) {
+    named = protocol::enum_from_name<codec::Codec>(protocol::kCodecNames, options.view.codec);
+    if (!named) {
+      fmt::print(stderr, "mtlod-extract: --codec '{}': expected one of {}\n", options.view.codec,
+                 fmt::join(protocol::kCodecNames, ", "));
+      return 2;
+    }
+  }
+  if (auto saved = write_output(options.output, options.gltf_compression == "on", *mt, cut,
+                                request ? &*request : nullptr, named, labels);
       !saved) {
     fmt::print(stderr, "mtlod-extract: {}\n", saved.error().message);
     return 1;

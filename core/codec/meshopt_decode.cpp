@@ -8,6 +8,7 @@
 
 #include <meshoptimizer.h>
 
+#include <algorithm>
 #include <bit>
 #include <cmath>
 #include <cstdlib>
@@ -181,14 +182,19 @@ Result<DecodedMeshopt> decode_meshopt(std::span<const std::uint8_t> payload) {
   MTLOD_RETURN_IF_ERROR(decode_stream(p.positions, "positions", n, 8, stored));
   const unsigned highest = (1u << p.position_bits) - 1;
   mesh.positions.resize(3 * n);
+  out.stored_min.fill(UINT16_MAX);
   for (std::size_t i = 0; i < n; ++i) {
     if (stored[4 * i] > highest || stored[4 * i + 1] > highest || stored[4 * i + 2] > highest ||
         stored[4 * i + 3] != 0) {
       return corrupt(
           fmt::format("position {} is not three {}-bit coordinates and a zero", i, p.position_bits));
     }
-    for (int k = 0; k < 3; ++k)
-      mesh.positions[3 * i + k] = p.origin[k] + static_cast<float>(stored[4 * i + k]) * p.step;
+    for (int k = 0; k < 3; ++k) {
+      const std::uint16_t q = stored[4 * i + k];
+      mesh.positions[3 * i + k] = p.origin[k] + static_cast<float>(q) * p.step;
+      out.stored_min[k] = std::min(out.stored_min[k], q);
+      out.stored_max[k] = std::max(out.stored_max[k], q);
+    }
   }
   if (p.normal_stride == 4) {
     MTLOD_RETURN_IF_ERROR(decode_normals<std::int8_t>(p.normals, p, mesh.normals));

@@ -41,6 +41,9 @@ struct DecodedMeshopt {
   float step = 0;
   int position_bits = 0;
   int normal_bits = 0;  // 0 without normals
+  // The smallest and largest stored q per axis (a glTF accessor's min and max of the stream).
+  std::array<std::uint16_t, 3> stored_min{};
+  std::array<std::uint16_t, 3> stored_max{};
 };
 
 // Errors: those of read_meshopt, and kCorrupt when a stream does not decode, a stored value is outside

@@ -13,18 +13,23 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <functional>
 #include <limits>
 #include <sstream>
 #include <string>
 #include <vector>
 
 #include "core/codec/draco_decode.hpp"
+#include "core/codec/meshopt_decode.hpp"
 #include "fmt/format.h"
+#include "nlohmann/json.hpp"
 
 namespace mtlod::core::io {
 namespace {
 
 constexpr const char* kDracoExtension = "KHR_draco_mesh_compression";
+constexpr const char* kMeshoptExtension = "EXT_meshopt_compression";
+constexpr const char* kQuantizationExtension = "KHR_mesh_quantization";
 
 // Appends `bytes` to the binary buffer as a view of its own. glTF wants vertex data on 4-byte
 // boundaries: plain arrays here are all multiples of 4 bytes long, and a Draco payload is the only view.
@@ -113,15 +118,40 @@ Status check_triangles(std::span<const std::uint32_t> triangles, std::size_t ver
   return Ok{};
 }
 
-// Serialises the model as GLB and writes it; the file is only opened once the bytes exist.
-Status write_model(const std::filesystem::path& path, const tinygltf::Model& model) {
+// Rewrites the JSON chunk of a GLB (the first, right after the 12-byte header) with `edit`.
+std::string edit_glb_json(const std::string& glb, const std::function<void(nlohmann::json&)>& edit) {
+  auto u32 = [&](std::size_t at) {
+    std::uint32_t v = 0;
+    std::memcpy(&v, glb.data() + at, 4);
+    return v;
+  };
+  const std::uint32_t json_bytes = u32(12);
+  nlohmann::json json = nlohmann::json::parse(glb.substr(20, json_bytes));
+  edit(json);
+  std::string text = json.dump();
+  text.resize((text.size() + 3) / 4 * 4, ' ');  // chunks end on four bytes; JSON pads with spaces
+  std::string out = glb.substr(0, 12);
+  const std::uint32_t text_bytes = static_cast<std::uint32_t>(text.size());
+  out.append(reinterpret_cast<const char*>(&text_bytes), 4);
+  out.append(glb, 16, 4);  // "JSON"
+  out += text;
+  out.append(glb, 20 + json_bytes);
+  const std::uint32_t total = static_cast<std::uint32_t>(out.size());
+  std::memcpy(out.data() + 8, &total, 4);
+  return out;
+}
+
+// Serialises the model as GLB (its JSON then changed by `edit`, when given) and writes it; the file
+// is only opened once the bytes exist.
+Status write_model(const std::filesystem::path& path, const tinygltf::Model& model,
+                   const std::function<void(nlohmann::json&)>& edit = {}) {
   std::ostringstream glb;
   tinygltf::TinyGLTF writer;
   if (!writer.WriteGltfSceneToStream(&model, glb, /*prettyPrint=*/false, /*writeBinary=*/true) || !glb) {
     return make_error(ErrorCode::kInternal,
                       fmt::format("{}: tinygltf could not serialise the mesh", path.string()));
   }
-  const std::string bytes = std::move(glb).str();
+  const std::string bytes = edit ? edit_glb_json(std::move(glb).str(), edit) : std::move(glb).str();
   std::FILE* f = std::fopen(path.string().c_str(), "wb");
   if (!f) {
     return make_error(ErrorCode::kIoError,
@@ -131,6 +161,45 @@ Status write_model(const std::filesystem::path& path, const tinygltf::Model& mod
   ok = (std::fclose(f) == 0) && ok;
   if (!ok) return make_error(ErrorCode::kIoError, fmt::format("{}: write failed", path.string()));
   return Ok{};
+}
+
+// What tinygltf cannot write (it writes a buffer's length as its data's, and no extensions of
+// buffers or buffer views), added to the JSON afterwards: the fallback buffer's length and each
+// view's EXT_meshopt_compression object.
+struct MeshoptJson {
+  std::size_t fallback_bytes = 0;
+  std::vector<std::pair<int, nlohmann::json>> views;
+};
+
+// EXT_meshopt_compression: a view of the fallback buffer (1), `count` elements of `stride` bytes,
+// whose data are `stream`, appended to the real buffer (0) and decoded with `mode` and `filter`.
+int add_meshopt_view(tinygltf::Model& model, MeshoptJson& extra, std::span<const std::uint8_t> stream,
+                     std::size_t count, std::size_t stride, const char* mode, const char* filter,
+                     int target) {
+  auto& data = model.buffers[0].data;
+  nlohmann::json compressed = {{"buffer", 0},
+                               {"byteOffset", data.size()},
+                               {"byteLength", stream.size()},
+                               {"byteStride", stride},
+                               {"count", count},
+                               {"mode", mode}};
+  if (filter) compressed["filter"] = filter;
+  data.insert(data.end(), stream.begin(), stream.end());
+  // Each stream's data start on four bytes, as its fallback view does.
+  data.resize((data.size() + 3) / 4 * 4);
+
+  tinygltf::BufferView view;
+  view.buffer = 1;
+  view.byteOffset = extra.fallback_bytes;
+  view.byteLength = count * stride;
+  // Index views have no stride in glTF; the extension's byteStride still says each index's size.
+  view.byteStride = target == TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER ? 0 : stride;
+  view.target = target;
+  extra.fallback_bytes += view.byteLength;
+  model.bufferViews.push_back(std::move(view));
+  const int index = static_cast<int>(model.bufferViews.size() - 1);
+  extra.views.emplace_back(index, std::move(compressed));
+  return index;
 }
 
 }  // namespace
@@ -218,6 +287,64 @@ Status write_glb_draco(const std::filesystem::path& path, std::span<const std::u
   model.extensionsUsed = {kDracoExtension};
   model.extensionsRequired = {kDracoExtension};
   return write_model(path, model);
+}
+
+Status write_glb_meshopt(const std::filesystem::path& path, std::span<const std::uint8_t> payload) {
+  // Decoded whole first: only a payload that decodes is written, and the accessors' position bounds
+  // are the stored values' own.
+  MTLOD_TRY(const codec::DecodedMeshopt decoded, codec::decode_meshopt(payload));
+  MTLOD_TRY(const codec::MeshoptPayload streams, codec::read_meshopt(payload));
+  const std::size_t n = streams.vertex_count;
+  tinygltf::Model model = make_model();
+  tinygltf::Primitive& primitive = model.meshes[0].primitives[0];
+
+  // The fallback buffer: no bytes, only a length (what the views decode into).
+  model.buffers.resize(2);
+  MeshoptJson extra;
+
+  const int position = add_accessor(model,
+                                    add_meshopt_view(model, extra, streams.positions, n, 8, "ATTRIBUTES",
+                                                     nullptr, TINYGLTF_TARGET_ARRAY_BUFFER),
+                                    TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT, TINYGLTF_TYPE_VEC3, n);
+  for (int k = 0; k < 3; ++k) {
+    model.accessors[position].minValues.push_back(decoded.stored_min[k]);
+    model.accessors[position].maxValues.push_back(decoded.stored_max[k]);
+  }
+  primitive.attributes["POSITION"] = position;
+  if (streams.normal_stride != 0) {
+    const bool wide = streams.normal_stride == 8;
+    primitive.attributes["NORMAL"] =
+        add_accessor(model,
+                     add_meshopt_view(model, extra, streams.normals, n, streams.normal_stride, "ATTRIBUTES",
+                                      "OCTAHEDRAL", TINYGLTF_TARGET_ARRAY_BUFFER),
+                     wide ? TINYGLTF_COMPONENT_TYPE_SHORT : TINYGLTF_COMPONENT_TYPE_BYTE, TINYGLTF_TYPE_VEC3,
+                     n, /*normalized=*/true);
+  }
+  if (streams.colors) {
+    primitive.attributes["COLOR_0"] =
+        add_accessor(model,
+                     add_meshopt_view(model, extra, streams.colours, n, 4, "ATTRIBUTES", nullptr,
+                                      TINYGLTF_TARGET_ARRAY_BUFFER),
+                     TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE, TINYGLTF_TYPE_VEC3, n, /*normalized=*/true);
+  }
+  const std::size_t indices = 3 * std::size_t{streams.triangle_count};
+  primitive.indices = add_accessor(model,
+                                   add_meshopt_view(model, extra, streams.triangles, indices, 4, "TRIANGLES",
+                                                    nullptr, TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER),
+                                   TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT, TINYGLTF_TYPE_SCALAR, indices);
+
+  // The stored q of a position is origin + q · step in the model's units: the node says so.
+  tinygltf::Node& node = model.nodes[0];
+  node.translation = {streams.origin[0], streams.origin[1], streams.origin[2]};
+  node.scale = {streams.step, streams.step, streams.step};
+  model.extensionsUsed = {kMeshoptExtension, kQuantizationExtension};
+  model.extensionsRequired = {kMeshoptExtension, kQuantizationExtension};
+  return write_model(path, model, [&](nlohmann::json& json) {
+    json["buffers"][1] = {{"byteLength", extra.fallback_bytes},
+                          {"extensions", {{kMeshoptExtension, {{"fallback", true}}}}}};
+    for (auto& [view, compressed] : extra.views)
+      json["bufferViews"][view]["extensions"][kMeshoptExtension] = std::move(compressed);
+  });
 }
 
 }  // namespace mtlod::core::io

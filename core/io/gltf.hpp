@@ -1,7 +1,8 @@
 // Binary glTF 2.0 (.glb) output of a mesh, for tools that hand cuts to other 3D software: one scene,
 // one node, one triangle primitive with POSITION, and NORMAL and COLOR_0 when the mesh has them.
-// Either the arrays are stored plainly, or a Draco payload is embedded unchanged under the
-// KHR_draco_mesh_compression extension (no uncompressed fallback, so the extension is required).
+// Either the arrays are stored plainly, or a payload is embedded unchanged under its extension: Draco
+// under KHR_draco_mesh_compression, meshopt's streams under EXT_meshopt_compression with
+// KHR_mesh_quantization (no uncompressed fallback, so the extensions are required).
 // The JSON side goes through tinygltf inside gltf.cpp; callers see meshes and byte spans only.
 #pragma once
 
@@ -26,5 +27,13 @@ Status write_glb(const std::filesystem::path& path, const model::Mesh& mesh);
 // and colours when the payload has them; a label attribute is left out, glTF has no meaning for it).
 // Errors: kCorrupt when the bytes do not decode, kInvalidArgument without triangles, kIoError as above.
 Status write_glb_draco(const std::filesystem::path& path, std::span<const std::uint8_t> draco);
+
+// Writes a meshopt payload (meshopt_encode.hpp's container, as MeshoptEncoder or the server produces
+// it) as .glb: its streams, unchanged, are the buffer, each the compressed data of a view of an
+// uncompressed fallback buffer that has no bytes: positions as uint16 (KHR_mesh_quantization) under
+// a node whose translation and scale are the payload's origin and step, octahedral normals (filter
+// OCTAHEDRAL) as normalized int8 or int16, colours as normalized uint8 and uint32 indices (mode
+// TRIANGLES). Errors: kCorrupt when the payload does not decode, kIoError as above.
+Status write_glb_meshopt(const std::filesystem::path& path, std::span<const std::uint8_t> payload);
 
 }  // namespace mtlod::core::io

@@ -40,7 +40,7 @@ inline std::size_t check_delta_meshes(clients::ServerConnection& c, protocol::Ex
       auto parts = protocol::split_delta_payload(*mesh->delta, reply->payload);
       EXPECT_TRUE(parts.ok()) << parts.error().message;
       if (!parts) return checked;
-      auto loaded = googles_draco_decode(parts->draco, dir, "delta" + std::to_string(id));
+      auto loaded = googles_draco_decode(parts->mesh, dir, "delta" + std::to_string(id));
       EXPECT_TRUE(loaded.ok()) << loaded.error().message;
       if (!loaded) return checked;
       check(*loaded, mesh->delta->added, what);

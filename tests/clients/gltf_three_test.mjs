@@ -1,10 +1,11 @@
 // .glb files from mtlod-extract, as a viewer reads them: a UV sphere with normals and colours made
 // here (normal = the unit position, colour = a function of the position) is built into an MT with
-// mtlod-build and extracted with a budget into a Draco-compressed and a plain .glb. Both must pass
-// the Khronos validator with no error and no warning (tests/core/gltf_validate.mjs), then load in
-// headless Chromium with three.js's GLTFLoader + DRACOLoader: as many triangles and vertices as the
-// file's accessors say (and as mtlod-extract printed), normals and colours present and equal to what
-// the sphere's formula gives at each decoded position (so the Draco attribute ids name the right data).
+// mtlod-build and extracted with a budget into a Draco-compressed, a meshopt-compressed and a plain
+// .glb. All must pass the Khronos validator with no error and no warning (tests/core/gltf_validate.mjs),
+// then load in headless Chromium with three.js's GLTFLoader + DRACOLoader + MeshoptDecoder: as many
+// triangles and vertices as the file's accessors say (and as mtlod-extract printed), normals and
+// colours present and equal to what the sphere's formula gives at each decoded position, placed by
+// the file's node (meshopt's quantized positions are dequantized by its translation and scale).
 //
 // node gltf_three_test.mjs --build BIN --extract BIN --out DIR
 import { spawnSync } from 'node:child_process';
@@ -71,43 +72,53 @@ function fileCounts(file) {
     }
   }
   return { triangles, vertices, attributes: Object.keys(gltf.meshes[0].primitives[0].attributes).sort(),
-           draco: (gltf.extensionsRequired ?? []).includes('KHR_draco_mesh_compression') };
+           required: (gltf.extensionsRequired ?? []).sort() };
 }
 
 const ply = path.join(args.out, 'coloured-sphere.ply'), mt = path.join(args.out, 'coloured-sphere.mt');
 const inputTriangles = writeSphere(ply, 48, 96);
 run(args.build, [ply, '-o', mt]);
-const files = { draco: path.join(args.out, 'sphere-draco.glb'), plain: path.join(args.out, 'sphere-plain.glb') };
+const files = { draco: path.join(args.out, 'sphere-draco.glb'), meshopt: path.join(args.out, 'sphere-meshopt.glb'),
+                plain: path.join(args.out, 'sphere-plain.glb') };
+const flags = { draco: [], meshopt: ['--codec', 'meshopt'], plain: ['--gltf-compression', 'off'] };
+// The extensions each file must require.
+const required = { draco: ['KHR_draco_mesh_compression'], meshopt: ['EXT_meshopt_compression', 'KHR_mesh_quantization'],
+                   plain: [] };
 const printed = {};
 for (const [name, file] of Object.entries(files)) {
-  const out = run(args.extract, [mt, '--budget', '3000', '-o', file, ...(name === 'plain' ? ['--gltf-draco', 'off'] : [])]);
+  const out = run(args.extract, [mt, '--budget', '3000', '-o', file, ...flags[name]]);
   printed[name] = Number(/: (\d+) triangles/.exec(out)?.[1]);
 }
-check(printed.draco === printed.plain && printed.draco > 1000 && printed.draco <= 3000 && printed.draco < inputTriangles,
-      `mtlod-extract cut ${printed.draco} (Draco) and ${printed.plain} (plain) of ${inputTriangles} triangles, within the budget of 3000`);
+check(printed.draco === printed.plain && printed.meshopt === printed.plain && printed.draco > 1000 &&
+      printed.draco <= 3000 && printed.draco < inputTriangles,
+      `mtlod-extract cut ${printed.draco} (Draco), ${printed.meshopt} (meshopt) and ${printed.plain} (plain) of ${inputTriangles} triangles, within the budget of 3000`);
 
-const validation = spawnSync(process.execPath, [path.join(root, 'tests/core/gltf_validate.mjs'), files.draco, files.plain],
+const validation = spawnSync(process.execPath, [path.join(root, 'tests/core/gltf_validate.mjs'), ...Object.values(files)],
                              { encoding: 'utf8' });
 console.log(validation.stdout.trimEnd().replace(/^/gm, '  '));
 if (validation.status === 77) {
   console.log('skipped: npm gltf-validator is not installed');
   process.exit(77);
 }
-check(validation.status === 0, 'the Khronos validator finds no error and no warning in either file');
+check(validation.status === 0, 'the Khronos validator finds no error and no warning in any file');
 
 // The page: three.js from scripts/node_modules, the files, and a function that loads one and reports
 // what three.js made of it.
 const page = `<!doctype html><html><body>
 <script type="importmap">{ "imports": { "three": "/three/build/three.module.js", "three/addons/": "/three/examples/jsm/" } }</script>
 <script type="module">
+import * as THREE from 'three';
 import { GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
 import { DRACOLoader } from 'three/addons/loaders/DRACOLoader.js';
+import { MeshoptDecoder } from 'three/addons/libs/meshopt_decoder.module.js';
 const draco = new DRACOLoader();
 draco.setDecoderPath('/three/examples/jsm/libs/draco/');
 const loader = new GLTFLoader();
 loader.setDRACOLoader(draco);
+loader.setMeshoptDecoder(MeshoptDecoder);
 window.loadGlb = async (url) => {
   const gltf = await loader.loadAsync(url);
+  gltf.scene.updateMatrixWorld(true);
   let triangles = 0, vertices = 0, attributes = null, worstColor = 0, worstNormalDot = 1;
   gltf.scene.traverse((o) => {
     if (!o.isMesh) return;
@@ -116,8 +127,10 @@ window.loadGlb = async (url) => {
     vertices += g.attributes.position.count;
     attributes ??= Object.keys(g.attributes).sort();
     const p = g.attributes.position, n = g.attributes.normal, c = g.attributes.color;
+    const at = new THREE.Vector3();
     for (let i = 0; i < p.count; ++i) {
-      const x = p.getX(i), y = p.getY(i), z = p.getZ(i);
+      at.set(p.getX(i), p.getY(i), p.getZ(i)).applyMatrix4(o.matrixWorld);
+      const { x, y, z } = at;
       const want = [x, y, z].map((v) => Math.round(255 * Math.min(1, Math.max(0, (v + 1) / 2))));
       if (c) worstColor = Math.max(worstColor, Math.abs(255 * c.getX(i) - want[0]), Math.abs(255 * c.getY(i) - want[1]),
                                    Math.abs(255 * c.getZ(i) - want[2]));
@@ -132,7 +145,7 @@ window.loadGlb = async (url) => {
 window.ready = true;
 </script></body></html>`;
 
-const served = { '/sphere-draco.glb': files.draco, '/sphere-plain.glb': files.plain };
+const served = Object.fromEntries(Object.values(files).map((file) => [`/${path.basename(file)}`, file]));
 const types = { '.js': 'text/javascript', '.wasm': 'application/wasm', '.glb': 'model/gltf-binary' };
 const server = http.createServer((req, res) => {
   const url = new URL(req.url, 'http://localhost').pathname;
@@ -177,17 +190,18 @@ try {
   for (const [name, file] of Object.entries(files)) {
     const want = fileCounts(file);
     const got = await tab.evaluate((url) => window.loadGlb(url), `/${path.basename(file)}`);
-    check(want.draco === (name === 'draco'), `${name}: KHR_draco_mesh_compression is ${want.draco ? '' : 'not '}required`);
+    check(JSON.stringify(want.required) === JSON.stringify(required[name]),
+          `${name}: the file requires [${want.required}], expected [${required[name]}]`);
     check(got.triangles === want.triangles && got.triangles === printed[name],
           `${name}: three.js shows ${got.triangles} triangles, the file's indices say ${want.triangles}, mtlod-extract ${printed[name]}`);
     check(got.vertices === want.vertices, `${name}: three.js has ${got.vertices} vertices, the file's POSITION ${want.vertices}`);
     check(JSON.stringify(want.attributes) === JSON.stringify(['COLOR_0', 'NORMAL', 'POSITION']) &&
           JSON.stringify(got.attributes) === JSON.stringify(['color', 'normal', 'position']),
           `${name}: attributes ${want.attributes} in the file, ${got.attributes} in three.js`);
-    // Colours: the formula at the decoded position, within one unit (14-bit Draco positions move a
+    // Colours: the formula at the decoded position, within one unit (14-bit positions move a
     // coordinate by up to 1.2e-4, a channel by 0.02, and the rounding may fall either side).
     check(got.worstColor <= 1.02, `${name}: every colour matches its position (worst ${got.worstColor.toFixed(3)} of 255)`);
-    // Normals: the unit position, within Draco's 10-bit quantization (float32 exactly for plain).
+    // Normals: the unit position, within the codecs' 10-bit quantization (float32 exactly for plain).
     check(got.worstNormalDot > 0.999, `${name}: every normal points along its position (worst cosine ${got.worstNormalDot.toFixed(6)})`);
   }
 } catch (error) {

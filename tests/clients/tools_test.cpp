@@ -7,11 +7,15 @@
 
 #include <cstdlib>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <map>
+#include <string>
+#include <vector>
 
 #include "clients/common/server_connection.hpp"
 #include "core/codec/draco_decode.hpp"
+#include "core/codec/meshopt_decode.hpp"
 #include "core/eval/mesh_gen.hpp"
 #include "core/io/mesh_io.hpp"
 #include "fmt/format.h"
@@ -194,6 +198,85 @@ TEST_F(ToolsTest, GazeReplayWithDeltasKeepsTheServersCutInFewerBytes) {
   EXPECT_LT(delta_per_mesh, whole_per_mesh);
 }
 
+// A GLB's JSON and BIN chunks, read by hand (a 12-byte header, then length, type, data).
+std::pair<json, std::string> glb_chunks(const std::string& glb) {
+  std::pair<json, std::string> out;
+  EXPECT_EQ(glb.substr(0, 4), "glTF");
+  for (std::size_t at = 12; at + 8 <= glb.size();) {
+    std::uint32_t length;
+    std::memcpy(&length, glb.data() + at, 4);
+    if (glb.compare(at + 4, 4, "JSON") == 0) out.first = json::parse(glb.substr(at + 8, length));
+    if (glb.compare(at + 4, 4, std::string("BIN\0", 4)) == 0) out.second = glb.substr(at + 8, length);
+    at += 8 + length;
+  }
+  return out;
+}
+
+// Runs the Khronos validator on `files`: no error and no warning (skipped when it is not installed).
+void expect_valid_gltf(const std::filesystem::path& dir, const std::vector<std::filesystem::path>& files) {
+#ifdef MTLOD_NODE_BINARY
+  std::string names;
+  for (const auto& file : files) names += " " + file.string();
+  const std::string command = fmt::format("{} {}/tests/core/gltf_validate.mjs{} > {} 2>&1", MTLOD_NODE_BINARY,
+                                          MTLOD_SOURCE_DIR, names, (dir / "validator.log").string());
+  const int status = std::system(command.c_str());
+  const std::string report = test::read_file(dir / "validator.log");
+  if (WIFEXITED(status) && WEXITSTATUS(status) == 77) GTEST_SKIP() << report;
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << report;
+#else
+  (void)dir, (void)files;
+#endif
+}
+
+TEST_F(ToolsTest, ClientGlbEmbedsTheMeshoptStreamsItReceived) {
+  // The same request twice on fresh connections: as .mopt (the payload as received) and as .glb,
+  // whose buffer views' EXT_meshopt_compression data must be the payload's streams, unchanged.
+  const auto client = [&](const std::string& args) {
+    const std::string command =
+        fmt::format("{} --port {} extract bunny --codec meshopt --error-px 0.5 --budget 2000 {} > {} 2>&1",
+                    MTLOD_CLIENT_BINARY, server_->port(), args, (*dir_ / "client.log").string());
+    EXPECT_EQ(std::system(command.c_str()), 0) << command << "\n" << test::read_file(*dir_ / "client.log");
+  };
+  client("-o " + (*dir_ / "cut.mopt").string());
+  client("-o " + (*dir_ / "cut-meshopt.glb").string());
+  const std::string mopt = test::read_file(*dir_ / "cut.mopt");
+  const std::span<const std::uint8_t> bytes(reinterpret_cast<const std::uint8_t*>(mopt.data()), mopt.size());
+  const auto streams = core::codec::read_meshopt(bytes);
+  ASSERT_TRUE(streams.ok()) << streams.error().message;
+  const auto decoded = core::codec::decode_meshopt(bytes);
+  ASSERT_TRUE(decoded.ok()) << decoded.error().message;
+
+  const auto [gltf, bin] = glb_chunks(test::read_file(*dir_ / "cut-meshopt.glb"));
+  EXPECT_EQ(gltf.at("extensionsRequired"), json({"EXT_meshopt_compression", "KHR_mesh_quantization"}));
+  const json& primitive = gltf.at("meshes")[0].at("primitives")[0];
+  const auto stream_of = [&](std::size_t accessor) {
+    const json& view =
+        gltf.at("bufferViews").at(gltf.at("accessors").at(accessor).at("bufferView").get<std::size_t>());
+    const json& compressed = view.at("extensions").at("EXT_meshopt_compression");
+    EXPECT_EQ(compressed.at("buffer"), 0);
+    EXPECT_EQ(view.at("buffer"), 1);  // the fallback buffer, which has no bytes
+    const std::size_t offset = compressed.at("byteOffset"), length = compressed.at("byteLength");
+    EXPECT_LE(offset + length, bin.size());
+    return bin.substr(offset, length);
+  };
+  const auto as_string = [](std::span<const std::uint8_t> s) { return std::string(s.begin(), s.end()); };
+  const std::size_t position = primitive.at("attributes").at("POSITION");
+  EXPECT_EQ(stream_of(position), as_string(streams->positions));
+  EXPECT_EQ(stream_of(primitive.at("attributes").at("NORMAL")), as_string(streams->normals));
+  EXPECT_EQ(stream_of(primitive.at("indices")), as_string(streams->triangles));
+  EXPECT_EQ(gltf.at("accessors").at(primitive.at("indices").get<std::size_t>()).at("count"),
+            3 * std::size_t{streams->triangle_count});
+  // Positions: the stored values' own bounds, dequantized by the node.
+  const json& bounds = gltf.at("accessors").at(position);
+  for (int k = 0; k < 3; ++k) {
+    EXPECT_EQ(bounds.at("min")[k], decoded->stored_min[k]);
+    EXPECT_EQ(bounds.at("max")[k], decoded->stored_max[k]);
+    EXPECT_FLOAT_EQ(gltf.at("nodes")[0].at("translation")[k].get<float>(), streams->origin[k]);
+    EXPECT_FLOAT_EQ(gltf.at("nodes")[0].at("scale")[k].get<float>(), streams->step);
+  }
+  expect_valid_gltf(*dir_, {*dir_ / "cut-meshopt.glb"});
+}
+
 TEST_F(ToolsTest, ClientGlbEmbedsTheDracoBytesItReceived) {
   // One request three times on fresh connections, which the server answers with the same bytes: as
   // .drc (the payload as received), as .glb (that payload as the Draco buffer view, unchanged) and
@@ -206,24 +289,11 @@ TEST_F(ToolsTest, ClientGlbEmbedsTheDracoBytesItReceived) {
   };
   client("-o " + (*dir_ / "cut.drc").string());
   client("-o " + (*dir_ / "cut.glb").string());
-  client("--gltf-draco off -o " + (*dir_ / "cut-plain.glb").string());
+  client("--gltf-compression off -o " + (*dir_ / "cut-plain.glb").string());
   const std::string drc = test::read_file(*dir_ / "cut.drc");
   ASSERT_GT(drc.size(), 0u);
 
-  // A GLB's JSON and BIN chunks, read by hand (a 12-byte header, then length, type, data).
-  const auto chunks = [](const std::string& glb) {
-    std::pair<json, std::string> out;
-    EXPECT_EQ(glb.substr(0, 4), "glTF");
-    for (std::size_t at = 12; at + 8 <= glb.size();) {
-      std::uint32_t length;
-      std::memcpy(&length, glb.data() + at, 4);
-      if (glb.compare(at + 4, 4, "JSON") == 0) out.first = json::parse(glb.substr(at + 8, length));
-      if (glb.compare(at + 4, 4, std::string("BIN\0", 4)) == 0) out.second = glb.substr(at + 8, length);
-      at += 8 + length;
-    }
-    return out;
-  };
-  const auto [gltf, bin] = chunks(test::read_file(*dir_ / "cut.glb"));
+  const auto [gltf, bin] = glb_chunks(test::read_file(*dir_ / "cut.glb"));
   const json& primitive = gltf.at("meshes")[0].at("primitives")[0];
   const json& view = gltf.at("bufferViews")
                          .at(primitive.at("extensions")
@@ -237,7 +307,7 @@ TEST_F(ToolsTest, ClientGlbEmbedsTheDracoBytesItReceived) {
   const auto decoded =
       core::codec::decode_draco(std::span(reinterpret_cast<const std::uint8_t*>(drc.data()), drc.size()));
   ASSERT_TRUE(decoded.ok()) << decoded.error().message;
-  const auto [plain, plain_bin] = chunks(test::read_file(*dir_ / "cut-plain.glb"));
+  const auto [plain, plain_bin] = glb_chunks(test::read_file(*dir_ / "cut-plain.glb"));
   const json& p = plain.at("meshes")[0].at("primitives")[0];
   EXPECT_FALSE(plain.contains("extensionsRequired"));
   EXPECT_EQ(plain.at("accessors").at(p.at("indices").get<std::size_t>()).at("count"),
@@ -245,16 +315,7 @@ TEST_F(ToolsTest, ClientGlbEmbedsTheDracoBytesItReceived) {
   EXPECT_EQ(plain.at("accessors").at(p.at("attributes").at("POSITION").get<std::size_t>()).at("count"),
             decoded->mesh.vertex_count());
 
-#ifdef MTLOD_NODE_BINARY
-  // Both files pass the Khronos validator with no error and no warning (77: it is not installed).
-  const std::string command = fmt::format(
-      "{} {}/tests/core/gltf_validate.mjs {} {} > {} 2>&1", MTLOD_NODE_BINARY, MTLOD_SOURCE_DIR,
-      (*dir_ / "cut.glb").string(), (*dir_ / "cut-plain.glb").string(), (*dir_ / "validator.log").string());
-  const int status = std::system(command.c_str());
-  const std::string report = test::read_file(*dir_ / "validator.log");
-  if (WIFEXITED(status) && WEXITSTATUS(status) == 77) GTEST_SKIP() << report;
-  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << report;
-#endif
+  expect_valid_gltf(*dir_, {*dir_ / "cut.glb", *dir_ / "cut-plain.glb"});
 }
 
 }  // namespace

@@ -19,6 +19,7 @@
 
 #include "core/codec/draco_decode.hpp"
 #include "core/codec/draco_encode.hpp"
+#include "core/codec/meshopt_encode.hpp"
 #include "core/eval/mesh_gen.hpp"
 #include "nlohmann/json.hpp"
 #include "tests/core/mesh_compare.hpp"
@@ -392,6 +393,10 @@ TEST(GltfGlb, BadInputIsNamed) {
   ASSERT_FALSE(s.ok());
   EXPECT_EQ(s.error().code, ErrorCode::kCorrupt);
   EXPECT_FALSE(std::filesystem::exists(dir / "d.glb"));
+  s = io::write_glb_meshopt(dir / "m.glb", not_draco);
+  ASSERT_FALSE(s.ok());
+  EXPECT_EQ(s.error().code, ErrorCode::kCorrupt);
+  EXPECT_FALSE(std::filesystem::exists(dir / "m.glb"));
   EXPECT_FALSE(std::filesystem::exists(dir / "t.glb"));
 }
 
@@ -418,8 +423,8 @@ Validation khronos_validate(const std::vector<std::filesystem::path>& files,
 #endif
 }
 
-// Writes every variant: the tetrahedron, and the sphere plain and Draco-compressed, each with and
-// without normals and colours.
+// Writes every variant: the tetrahedron, and the sphere plain, Draco- and meshopt-compressed, each
+// with and without normals and colours.
 std::vector<std::filesystem::path> write_every_variant(const std::filesystem::path& dir) {
   std::vector<std::filesystem::path> files = {dir / "tetrahedron.glb"};
   EXPECT_TRUE(io::write_glb(files[0], test::tetrahedron()).ok());
@@ -443,6 +448,13 @@ std::vector<std::filesystem::path> write_every_variant(const std::filesystem::pa
     files.push_back(dir / ("draco-" + name_of(v) + ".glb"));
     const Status draco = io::write_glb_draco(files.back(), payload);
     EXPECT_TRUE(draco.ok()) << draco.error().message;
+    codec::MeshoptOptions meshopt;
+    meshopt.normals = v.normals;
+    meshopt.colors = v.colors;
+    EXPECT_TRUE(codec::MeshoptEncoder().encode(input, meshopt, payload).ok());
+    files.push_back(dir / ("meshopt-" + name_of(v) + ".glb"));
+    const Status streams = io::write_glb_meshopt(files.back(), payload);
+    EXPECT_TRUE(streams.ok()) << streams.error().message;
   }
   return files;
 }

@@ -164,8 +164,8 @@ void Transcript::check_mesh(const protocol::MeshReply& mesh, std::span<const std
   // A delta: applied to the client's mesh as a client keyed by id would, it must give the cut.
   const auto parts = protocol::split_delta_payload(*mesh.delta, payload);
   if (!parts) fail(fmt::format("delta reply {}: {}", n, parts.error().message));
-  if (!parts->draco.empty()) {
-    const auto decoded = core::codec::decode_draco(parts->draco);
+  if (!parts->mesh.empty()) {
+    const auto decoded = core::codec::decode_draco(parts->mesh);
     if (!decoded)
       fail(fmt::format("delta reply {}: the Draco part does not decode: {}", n, decoded.error().message));
     if (decoded->mesh.triangle_count() != parts->added_ids.size() ||

@@ -192,6 +192,29 @@ TEST(ParseRequest, TheCodecRoundTrips) {
   EXPECT_NE(refused.error().message.find("at most 16 bits"), std::string::npos) << refused.error().message;
 }
 
+TEST(ParseRequest, AnExtractWithoutACodecLeavesItToTheConnection) {
+  Extract e = sample_extract();
+  e.codec.reset();
+  const auto parsed = parse_request(to_json(e, 5), Limits{});
+  ASSERT_TRUE(parsed.ok()) << parsed.error().message;
+  EXPECT_FALSE(std::get<Extract>(parsed->request).codec.has_value());
+  // The connection's codec is checked against the extract with the parser's own rule.
+  e.labels = true;
+  EXPECT_FALSE(codec_refusal(e, core::codec::Codec::kDraco).has_value());
+  ASSERT_TRUE(codec_refusal(e, core::codec::Codec::kMeshopt).has_value());
+  EXPECT_NE(codec_refusal(e, core::codec::Codec::kMeshopt)->find("labels"), std::string::npos);
+
+  for (std::size_t i = 0; i < kCodecNames.size(); ++i) {
+    const Hello hello{1, "test", "", static_cast<core::codec::Codec>(i)};
+    const auto read = parse_request(to_json(hello, 6), Limits{});
+    ASSERT_TRUE(read.ok()) << read.error().message;
+    EXPECT_EQ(std::get<Hello>(read->request).codec, hello.codec) << kCodecNames[i];
+  }
+  const auto unknown = parse_request(R"({"type":"hello","id":7,"version":1,"codec":"zstd"})", Limits{});
+  ASSERT_FALSE(unknown.ok());
+  EXPECT_NE(unknown.error().message.find("'codec' is 'zstd'"), std::string::npos) << unknown.error().message;
+}
+
 TEST(ParseRequest, LimitsComeFromTheServerConfiguration) {
   Extract e = sample_extract();
   e.grid = {600, 600};

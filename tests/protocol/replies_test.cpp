@@ -7,6 +7,8 @@
 #include <variant>
 #include <vector>
 
+#include "nlohmann/json.hpp"
+
 namespace mtlod::protocol {
 namespace {
 
@@ -44,8 +46,8 @@ TEST(Replies, DeltaHeaderAndPayloadRoundTrip) {
   m.triangles = 9;
   m.delta = MeshDelta{true, 0, 3, 2};
   const std::vector<std::uint32_t> added{7, 0xDEADBEEF, 42}, removed{1, 65'536};
-  std::vector<std::uint8_t> payload{1, 2, 3, 4, 5};  // stands for the Draco bytes
-  m.delta->draco_bytes = payload.size();
+  std::vector<std::uint8_t> payload{1, 2, 3, 4, 5};  // stands for the mesh part
+  m.delta->payload_bytes = payload.size();
   append_delta_ids(added, removed, payload);
   auto parsed = parse_reply(to_json(m, 1));
   ASSERT_TRUE(parsed.ok()) << parsed.error().message;
@@ -54,11 +56,27 @@ TEST(Replies, DeltaHeaderAndPayloadRoundTrip) {
   EXPECT_TRUE(r.delta->reset);
   auto parts = split_delta_payload(*r.delta, payload);
   ASSERT_TRUE(parts.ok()) << parts.error().message;
-  EXPECT_EQ(std::vector<std::uint8_t>(parts->draco.begin(), parts->draco.end()),
+  EXPECT_EQ(std::vector<std::uint8_t>(parts->mesh.begin(), parts->mesh.end()),
             (std::vector<std::uint8_t>{1, 2, 3, 4, 5}));
   EXPECT_EQ(parts->added_ids, added);
   EXPECT_EQ(parts->removed_ids, removed);
   EXPECT_FALSE(std::get<MeshReply>(parse_reply(to_json(MeshReply{}, 1))->reply).delta);
+}
+
+TEST(Replies, ADeltaFromAServerThatNamedItsMeshDracoBytesStillReads) {
+  auto parsed = parse_reply(
+      R"({"type":"mesh","id":2,"triangles":4,"delta":{"reset":false,"draco_bytes":17,"added":2,"removed":1}})");
+  ASSERT_TRUE(parsed.ok()) << parsed.error().message;
+  const auto& delta = std::get<MeshReply>(parsed->reply).delta;
+  ASSERT_TRUE(delta);
+  EXPECT_EQ(delta->payload_bytes, 17u);
+  EXPECT_EQ(delta->added, 2u);
+  // And a reply of this server names it both ways, for those clients.
+  MeshReply m;
+  m.delta = MeshDelta{false, 23, 1, 0};
+  const auto json = nlohmann::json::parse(to_json(m, 3));
+  EXPECT_EQ(json["delta"]["payload_bytes"], 23);
+  EXPECT_EQ(json["delta"]["draco_bytes"], 23);
 }
 
 TEST(Replies, DeltaPayloadWhoseSizesDoNotAddUpIsRejected) {
@@ -68,22 +86,23 @@ TEST(Replies, DeltaPayloadWhoseSizesDoNotAddUpIsRejected) {
   EXPECT_FALSE(split_delta_payload({false, 6, 3, 2}, payload).ok());               // one byte short
   EXPECT_FALSE(split_delta_payload({false, 0, 0, 0}, payload).ok());               // bytes left over
   EXPECT_FALSE(split_delta_payload({false, 5, UINT64_MAX / 2, 2}, payload).ok());  // would overflow
-  EXPECT_FALSE(split_delta_payload({false, 25, 0, 0}, payload).ok());              // Draco bytes, no ids
+  EXPECT_FALSE(split_delta_payload({false, 25, 0, 0}, payload).ok());              // a mesh, no ids
   EXPECT_TRUE(split_delta_payload({false, 0, 0, 0}, {}).ok());                     // nothing changed
 }
 
 TEST(Replies, EveryReplyTypeKeepsItsType) {
   Limits limits;
   limits.max_grid = 1024;
-  const std::vector<Reply> replies = {HelloReply{1, "mtlod/test", limits, "replica-1@00c0ffee"},
-                                      ModelsReply{{ModelSummary{"bunny", 1839, 3674, 12, 900, 4096, 0.5}}},
-                                      ModelInfoReply{},
-                                      MeshReply{},
-                                      ErrorReply{ErrorKind::kNoView, "gaze needs an earlier extract"},
-                                      CancelReply{4, true},
-                                      StatsReply{{{"requests", 10}, {"errors", 1}}},
-                                      Pong{},
-                                      ReloadReply{{ModelReload{"bunny", "replaced", 2, ""}}}};
+  const std::vector<Reply> replies = {
+      HelloReply{1, "mtlod/test", limits, "replica-1@00c0ffee", true, core::codec::Codec::kMeshopt},
+      ModelsReply{{ModelSummary{"bunny", 1839, 3674, 12, 900, 4096, 0.5}}},
+      ModelInfoReply{},
+      MeshReply{},
+      ErrorReply{ErrorKind::kNoView, "gaze needs an earlier extract"},
+      CancelReply{4, true},
+      StatsReply{{{"requests", 10}, {"errors", 1}}},
+      Pong{},
+      ReloadReply{{ModelReload{"bunny", "replaced", 2, ""}}}};
   std::vector<bool> seen(std::variant_size_v<Reply>);
   for (const Reply& reply : replies) {
     auto parsed = parse_reply(to_json(reply, 1));
@@ -97,6 +116,8 @@ TEST(Replies, EveryReplyTypeKeepsItsType) {
   auto hello = parse_reply(to_json(replies[0], 1));
   EXPECT_EQ(std::get<HelloReply>(hello->reply).limits.max_grid, 1024u);
   EXPECT_EQ(std::get<HelloReply>(hello->reply).instance, "replica-1@00c0ffee");
+  EXPECT_TRUE(std::get<HelloReply>(hello->reply).auth_required);
+  EXPECT_EQ(std::get<HelloReply>(hello->reply).codec, core::codec::Codec::kMeshopt);
   auto models = parse_reply(to_json(replies[1], 1));
   EXPECT_EQ(std::get<ModelsReply>(models->reply).models.at(0).root_triangles, 12u);
   auto error = parse_reply(to_json(replies[4], 1));

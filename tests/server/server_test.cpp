@@ -129,6 +129,51 @@ TEST_F(ServerTest, HelloStatesVersionAndLimits) {
   EXPECT_GT(list[0].memory_bytes, 0u);
 }
 
+TEST_F(ServerTest, HelloSetsTheCodecOfExtractsThatNameNone) {
+  using core::codec::Codec;
+  ServerConnection c = connect();
+  auto hello = c.call(protocol::Hello{1, "test", "", Codec::kMeshopt}, 1);
+  ASSERT_TRUE(hello.ok()) << hello.error().message;
+  EXPECT_EQ(std::get<protocol::HelloReply>(hello->header.reply).codec, Codec::kMeshopt);
+
+  protocol::Extract request = extract_request();
+  request.codec.reset();
+  auto meshopt = c.call(request, 2);
+  ASSERT_TRUE(meshopt.ok()) << meshopt.error().message;
+  ASSERT_NE(as_mesh(*meshopt), nullptr) << meshopt->json;
+  EXPECT_EQ(as_mesh(*meshopt)->codec, Codec::kMeshopt);
+  auto decoded = core::codec::decode_payload(Codec::kMeshopt, meshopt->payload);
+  ASSERT_TRUE(decoded.ok()) << decoded.error().message;
+  EXPECT_EQ(decoded->triangle_count(), as_mesh(*meshopt)->triangles);
+
+  // The gazes that follow keep the extract's codec; an extract naming one overrides the connection's.
+  auto gaze = c.call(protocol::Gaze{0.6, 0.5}, 3);
+  ASSERT_TRUE(gaze.ok()) << gaze.error().message;
+  ASSERT_NE(as_mesh(*gaze), nullptr) << gaze->json;
+  EXPECT_EQ(as_mesh(*gaze)->codec, Codec::kMeshopt);
+  EXPECT_TRUE(core::codec::decode_payload(Codec::kMeshopt, gaze->payload).ok());
+  request.codec = Codec::kDraco;
+  auto draco = c.call(request, 4);
+  ASSERT_TRUE(draco.ok()) << draco.error().message;
+  ASSERT_NE(as_mesh(*draco), nullptr) << draco->json;
+  EXPECT_EQ(as_mesh(*draco)->codec, Codec::kDraco);
+  EXPECT_EQ(as_mesh(*draco)->triangles, as_mesh(*meshopt)->triangles);
+
+  // What the connection's codec cannot carry is refused as if the extract had named it.
+  request.codec.reset();
+  request.labels = true;
+  auto labels = c.call(request, 5);
+  ASSERT_TRUE(labels.ok()) << labels.error().message;
+  ASSERT_NE(as_error(*labels), nullptr) << labels->json;
+  EXPECT_EQ(as_error(*labels)->code, protocol::ErrorKind::kBadRequest);
+  EXPECT_NE(as_error(*labels)->message.find("cannot carry attributes.labels"), std::string::npos);
+
+  // A hello without a codec keeps the connection's.
+  auto again = c.call(protocol::Hello{1, "test"}, 6);
+  ASSERT_TRUE(again.ok()) << again.error().message;
+  EXPECT_EQ(std::get<protocol::HelloReply>(again->header.reply).codec, Codec::kMeshopt);
+}
+
 TEST_F(ServerTest, ExtractDecodesToTheInProcessCut) {
   for (const core::codec::Codec codec : {core::codec::Codec::kDraco, core::codec::Codec::kMeshopt}) {
     SCOPED_TRACE(protocol::enum_name(protocol::kCodecNames, codec));
@@ -241,7 +286,7 @@ void ServerTest::expect_deltas_rebuild_the_cut(core::codec::Codec codec) {
       // The Draco part of a delta is a Draco mesh of its own, for Google's decoder too.
       auto parts = protocol::split_delta_payload(*mesh->delta, reply->payload);
       ASSERT_TRUE(parts.ok());
-      auto loaded = test::googles_draco_decode(parts->draco, g_fixture->dir, "delta");
+      auto loaded = test::googles_draco_decode(parts->mesh, g_fixture->dir, "delta");
       ASSERT_TRUE(loaded.ok()) << loaded.error().message;
       EXPECT_EQ(loaded->triangle_count(), mesh->delta->added);
       decoder_checked = true;
