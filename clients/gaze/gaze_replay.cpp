@@ -16,14 +16,16 @@ using Streams = std::vector<std::unique_ptr<GazeStream>>;
 
 // Every stream opens its view with one extract first; that set-up is not measured.
 Status open_streams(GazeReplay& replay, const clients::ExtractFlags& flags,
-                    const std::vector<GazeSample>& file_trace, Streams& streams) {
+                    const std::vector<std::vector<GazeSample>>& file_traces, Streams& streams) {
   const GazeOptions& options = replay.options;
   for (unsigned k = 0; k < options.streams; ++k) {
-    std::vector<GazeSample> trace = file_trace;
-    if (file_trace.empty()) {
+    std::vector<GazeSample> trace;
+    if (file_traces.empty()) {
       SynthesisOptions synthesis = options.synthesis;
       synthesis.seed = options.synthesis.seed + k;
       trace = synthesize_gaze_trace(synthesis);
+    } else {
+      trace = file_traces[k % file_traces.size()];
     }
     streams.push_back(std::make_unique<GazeStream>(replay, k, std::move(trace)));
     MTLOD_RETURN_IF_ERROR(streams.back()->open_view(flags));
@@ -64,10 +66,11 @@ void wait_for_replies(GazeReplay& replay, Streams& streams) {
 }  // namespace
 
 Result<GazeReplayEnd> run_gaze_replay(const GazeOptions& options, const clients::ExtractFlags& flags,
-                                      const std::vector<GazeSample>& file_trace, GazeTotals& totals) {
+                                      const std::vector<std::vector<GazeSample>>& file_traces,
+                                      GazeTotals& totals) {
   GazeReplay replay(options, totals);
   Streams streams;
-  MTLOD_RETURN_IF_ERROR(open_streams(replay, flags, file_trace, streams));
+  MTLOD_RETURN_IF_ERROR(open_streams(replay, flags, file_traces, streams));
 
   replay.start = Clock::now();
   std::vector<std::thread> threads;

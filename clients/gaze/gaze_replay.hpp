@@ -20,9 +20,10 @@ struct GazeReplayEnd {
   std::uint64_t reconnects = 0, resent = 0;
 };
 
-// Replays `file_trace` on every stream, or without it a trace synthesised per stream, recording
-// into `totals`. Errors: set-up failed (a connection, the model, the first extract).
+// Replays `file_traces` (stream k plays trace k mod n), or without any a trace synthesised per
+// stream, recording into `totals`. Errors: set-up failed (a connection, the model, the first extract).
 Result<GazeReplayEnd> run_gaze_replay(const GazeOptions& options, const clients::ExtractFlags& flags,
-                                      const std::vector<GazeSample>& file_trace, GazeTotals& totals);
+                                      const std::vector<std::vector<GazeSample>>& file_traces,
+                                      GazeTotals& totals);
 
 }  // namespace mtlod::clients

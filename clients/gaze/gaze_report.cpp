@@ -27,12 +27,12 @@ nlohmann::ordered_json report_json(const GazeOptions& o, const clients::ExtractF
   return {
       {"model", o.model},
       {"streams", o.streams},
-      {"trace", o.trace_file.empty()
-                    ? fmt::format("synthetic {} Hz, {} ms", o.synthesis.rate_hz, o.synthesis.duration_ms)
-                    : o.trace_file},
+      {"trace", describe_traces(o)},
       {"budget", flags.budget ? nlohmann::json(*flags.budget) : nlohmann::json(nullptr)},
       {"elapsed_s", end.elapsed_s},
       {"samples", r.sent},
+      {"tracker_lost_samples", r.tracker_lost},
+      {"blinks", r.blinks},
       {"requests", r.meshes + r.superseded + r.errors},
       {"meshes", r.meshes},
       {"superseded", r.superseded},
@@ -62,6 +62,8 @@ void print_report(const GazeOptions& o, const clients::ExtractFlags& flags, cons
   fmt::print(
       "{} stream(s) on {}: {} samples, {} meshes, {} superseded (server counted {}), {} errors, {} lost\n",
       o.streams, o.model, r.sent, r.meshes, r.superseded, r.superseded_counted, r.errors, end.lost);
+  fmt::print("  tracker lost the eye: {} samples in {} blinks (not sent; the server kept the last gaze)\n",
+             r.tracker_lost, r.blinks);
   const auto& h = r.mesh_latency_us;
   fmt::print("  gaze-to-mesh ms  p50 {:.2f}  p90 {:.2f}  p99 {:.2f}  p99.9 {:.2f}  max {:.2f}\n",
              h.value_at_percentile(50) / 1e3, h.value_at_percentile(90) / 1e3,

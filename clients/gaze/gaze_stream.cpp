@@ -24,7 +24,11 @@ GazeStream::GazeStream(GazeReplay& replay, unsigned index, std::vector<GazeSampl
     : replay_(replay),
       trace_(std::move(trace)),
       session_(*this, replay.options.endpoint, "mtlod-gaze/0.1", replay.options.retry,
-               replay.options.synthesis.seed * 7919 + index, replay.finished) {}
+               replay.options.synthesis.seed * 7919 + index, replay.finished) {
+  tracked_before_.reserve(trace_.size() + 1);
+  tracked_before_.push_back(0);
+  for (const GazeSample& s : trace_) tracked_before_.push_back(tracked_before_.back() + s.tracked);
+}
 
 Status GazeStream::open_view(const clients::ExtractFlags& flags) {
   const std::string& model = replay_.options.model;
@@ -34,7 +38,9 @@ Status GazeStream::open_view(const clients::ExtractFlags& flags) {
   const auto* m = std::get_if<protocol::ModelInfoReply>(&info.header.reply);
   if (!m) return make_error(ErrorCode::kNotFound, fmt::format("model '{}' is not served", model));
   MTLOD_TRY(protocol::Extract request, clients::make_extract(flags, model, m->bounds_min, m->bounds_max));
-  protocol::gaze_region(request.criteria).points.front() = {trace_.front().x, trace_.front().y};
+  const GazeSample& first_gaze =
+      *std::find_if(trace_.begin(), trace_.end(), [](const GazeSample& s) { return s.tracked; });
+  protocol::gaze_region(request.criteria).points.front() = {first_gaze.x, first_gaze.y};
   // A model whose file is being rewritten answers `unavailable` until the new file is loaded
   // (seconds): the stream waits for it instead of giving up before its first sample.
   const auto patience = std::chrono::steady_clock::now() + kUnavailablePatience;
@@ -57,6 +63,12 @@ Status GazeStream::open_view(const clients::ExtractFlags& flags) {
 void GazeStream::send_samples() {
   for (std::size_t i = 0; i < trace_.size(); ++i) {
     const GazeSample& sample = trace_[i];
+    if (!sample.tracked) {
+      std::lock_guard lock(replay_.totals.mutex);
+      ++replay_.totals.tracker_lost;
+      if (i == 0 || trace_[i - 1].tracked) ++replay_.totals.blinks;
+      continue;
+    }
     std::this_thread::sleep_until(replay_.start + std::chrono::nanoseconds(sample_ns(sample)));
     const bool sent = session_.send([&] {
       sent_ = i + 1;
@@ -103,7 +115,7 @@ void GazeStream::apply_deltas() {
 
 std::size_t GazeStream::outstanding() {
   StreamSession::Locked locked = session_.lock();
-  return locked.closed() ? 0 : sent_ - answered_;
+  return locked.closed() ? 0 : tracked_before_[sent_] - tracked_before_[std::min(answered_, sent_)];
 }
 
 void GazeStream::choose_resend(std::vector<OutgoingRequest>& resend) {
@@ -162,8 +174,9 @@ void GazeStream::record_reply(const protocol::Reply& reply, std::size_t payload_
   if (const auto* mesh = std::get_if<protocol::MeshReply>(&reply)) {
     ++totals.meshes;
     totals.mesh_latency_us.record(microseconds_from(sample_ns(sample), now));
-    for (std::size_t i = newly_from; i < newly_to; ++i)
-      totals.sample_latency_us.record(microseconds_from(sample_ns(trace_[i]), now));
+    for (std::size_t i = newly_from; i < newly_to; ++i) {
+      if (trace_[i].tracked) totals.sample_latency_us.record(microseconds_from(sample_ns(trace_[i]), now));
+    }
     // The reply must say it reflects this sample (JSON carries doubles exactly).
     if (!mesh->focus || (*mesh->focus)[0] != sample.x || (*mesh->focus)[1] != sample.y)
       ++totals.focus_mismatches;

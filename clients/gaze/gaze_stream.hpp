@@ -42,6 +42,8 @@ struct GazeTotals {
   std::uint64_t bytes = 0, triangles = 0, server_total_us = 0;
   std::map<std::string, std::uint64_t> errors_by_code;
   std::uint64_t delta_errors = 0;  // delta replies that did not apply cleanly to the kept mesh
+  // Samples where the tracker lost the eye (not sent), and the runs of them (blinks).
+  std::uint64_t tracker_lost = 0, blinks = 0;
 };
 
 // What every stream of a replay shares. Fixed before the threads start, but for the atomics and
@@ -58,17 +60,18 @@ struct GazeReplay {
 
 class GazeStream : public StreamSession::Handler {
  public:
-  // Stream `index` of `replay`, replaying `trace` (not empty).
+  // Stream `index` of `replay`, replaying `trace` (with at least one tracked sample).
   GazeStream(GazeReplay& replay, unsigned index, std::vector<GazeSample> trace);
 
-  // Connects and opens the stream's view: one extract of the model, focused on the first sample
-  // (set-up, not measured). Errors name what failed.
+  // Connects and opens the stream's view: one extract of the model, focused on the first tracked
+  // sample (set-up, not measured). Errors name what failed.
   Status open_view(const clients::ExtractFlags& flags);
 
   StreamSession& session() { return session_; }
   const std::vector<GazeSample>& trace() const { return trace_; }
 
-  // The sending thread: each sample at its time, until the trace ends or the stream closes.
+  // The sending thread: each tracked sample at its time, until the trace ends or the stream closes;
+  // samples where the tracker lost the eye are counted, not sent (the server keeps the last gaze).
   void send_samples();
   // The receiving thread (StreamSession::receive_replies), then tells the applying thread it is done.
   void receive_replies();
@@ -97,10 +100,11 @@ class GazeStream : public StreamSession::Handler {
 
   GazeReplay& replay_;
   const std::vector<GazeSample> trace_;
-  protocol::Extract view_;  // the extract that opened the stream's view
+  std::vector<std::size_t> tracked_before_;  // [i]: tracked samples among the first i
+  protocol::Extract view_;                   // the extract that opened the stream's view
   // Under the session's lock:
-  std::size_t sent_ = 0;       // samples sent; sample i has request id i + 1
-  std::size_t answered_ = 0;   // samples answered (mesh or error)
+  std::size_t sent_ = 0;       // samples up to the newest sent; sample i has request id i + 1
+  std::size_t answered_ = 0;   // samples up to the newest answered (mesh or error)
   std::size_t reflected_ = 0;  // samples [0, reflected_) have a mesh showing them or a newer sample
   // The applying thread's queue, under its own lock.
   std::mutex apply_mutex_;

@@ -6,7 +6,8 @@
 // time taken for the next; gaze-to-applied (the mesh decoded into the client's copy) is reported
 // too. A dropped connection is reopened with backoff; the view's extract and the newest unanswered
 // sample are sent again (older samples are stale: the newest one supersedes them, as the server's
-// coalescing would).
+// coalescing would). Samples where the tracker lost the eye (blinks) are not sent: the server keeps
+// the last gaze; the report counts them.
 #include <cstdio>
 #include <string>
 
@@ -29,7 +30,7 @@ int fail(const std::string& message) {
 int main(int argc, char** argv) {
   using namespace mtlod;
   CLI::App app{
-      "mtlod-gaze: replay a gaze trace (CSV time_ms,x,y) or a synthetic one against mtlod-server and "
+      "mtlod-gaze: replay gaze traces (CSV time_ms,x,y) or synthetic ones against mtlod-server and "
       "measure gaze-to-mesh latency."};
   clients::GazeOptions options;
   clients::ExtractFlags flags;
@@ -37,10 +38,14 @@ int main(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
   clients::complete_gaze_flags(flags);
 
-  auto file_trace = clients::read_trace_file(options.trace_file);
-  if (!file_trace) return fail(file_trace.error().message);
+  if (auto checked = clients::complete_synthesis(options, flags); !checked)
+    return fail(checked.error().message);
+
+  auto file_traces = clients::read_trace_files(options.trace_paths);
+  if (!file_traces) return fail(file_traces.error().message);
   if (!options.write_trace.empty()) {
-    const auto trace = file_trace->empty() ? clients::synthesize_gaze_trace(options.synthesis) : *file_trace;
+    const auto trace =
+        file_traces->empty() ? clients::synthesize_gaze_trace(options.synthesis) : file_traces->front();
     if (auto written = clients::write_trace_file(options.write_trace, trace); !written)
       return fail(written.error().message);
     fmt::print("wrote {} samples to {}\n", trace.size(), options.write_trace);
@@ -48,7 +53,7 @@ int main(int argc, char** argv) {
   }
 
   clients::GazeTotals totals;
-  auto end = clients::run_gaze_replay(options, flags, *file_trace, totals);
+  auto end = clients::run_gaze_replay(options, flags, *file_traces, totals);
   if (!end) return fail(end.error().message);
   if (auto reported = clients::report_gaze(options, flags, totals, *end); !reported)
     return fail(reported.error().message);

@@ -171,6 +171,41 @@ TEST_F(ToolsTest, GazeReplayMeasuresEverySample) {
   EXPECT_EQ(counters["extractions"], r.at("meshes").get<double>() + 2);
 }
 
+TEST_F(ToolsTest, GazeStreamsPlayTheirOwnTraces) {
+  // A folder of two traces on three streams: streams 0 and 2 play a.csv (30 samples), stream 1
+  // b.csv (40 samples, 6 of them lost in one blink, which are not sent). The server must see
+  // exactly the tracked samples of that assignment.
+  const auto folder = *dir_ / "traces";
+  std::filesystem::create_directories(folder);
+  std::ofstream a(folder / "a.csv"), b(folder / "b.csv");
+  a << "time_ms,x,y\n";
+  b << "time_ms,x,y\n";
+  for (int i = 0; i < 30; ++i) a << fmt::format("{},{:.3f},0.5\n", 20 * i, 0.2 + 0.02 * i);
+  for (int i = 0; i < 40; ++i)
+    b << (i >= 10 && i < 16 ? fmt::format("{},,\n", 15 * i)
+                            : fmt::format("{},0.5,{:.3f}\n", 15 * i, 0.1 + 0.02 * i));
+  a.close(), b.close();
+  const json r = run(MTLOD_GAZE_BINARY, "--model bunny --streams 3 --budget 1500 --trace " + folder.string());
+  ASSERT_TRUE(r.contains("samples")) << r.dump(2);
+  const std::uint64_t samples = r.at("samples");
+  EXPECT_EQ(samples, 30u + 34u + 30u);
+  EXPECT_EQ(r.at("tracker_lost_samples"), 6);
+  EXPECT_EQ(r.at("blinks"), 1);
+  EXPECT_EQ(r.at("meshes").get<std::uint64_t>() + r.at("superseded").get<std::uint64_t>(), samples);
+  EXPECT_EQ(r.at("errors"), 0);
+  EXPECT_EQ(r.at("lost"), 0);
+  EXPECT_EQ(r.at("focus_mismatches"), 0);
+  EXPECT_EQ(r.at("sample_latency_ms").at("count"), samples);
+  EXPECT_EQ(server_counters()["requests_gaze"], static_cast<double>(samples));
+
+  // The same two files as a comma list on two streams.
+  const json two =
+      run(MTLOD_GAZE_BINARY, fmt::format("--model bunny --streams 2 --budget 1500 --trace {},{}",
+                                         (folder / "a.csv").string(), (folder / "b.csv").string()));
+  EXPECT_EQ(two.at("samples"), 30 + 34);
+  EXPECT_EQ(two.at("tracker_lost_samples"), 6);
+}
+
 TEST_F(ToolsTest, GazeReplayWithDeltasKeepsTheServersCutInFewerBytes) {
   // With --delta each stream rebuilds its mesh from the changes; every reply must leave it with the
   // server's triangle count (delta_errors counts any mismatch), in fewer bytes than whole meshes.

@@ -123,10 +123,15 @@ int run_gaze_study(const GazeStudyOptions& o, const std::string& command) {
     if (!parsed) return fmt::print(stderr, "mtlod-eval: {}: {}\n", o.trace, parsed.error().message), 2;
     trace = std::move(*parsed);
   } else {
+    // Fixations and saccades only: the study measures the recovery after saccades. The view is the
+    // square orbit image, kOrbitFovDeg across.
     clients::SynthesisOptions s;
     s.rate_hz = o.hz, s.duration_ms = o.duration_ms, s.seed = o.seed;
+    s.screen_deg = kOrbitFovDeg, s.aspect = 1, s.pursuit_share = 0, s.blink_share = 0;
     trace = clients::synthesize_gaze_trace(s);
   }
+  // Samples where the tracker lost the eye (blinks) move no focus: the cut stays what it was.
+  std::erase_if(trace, [](const clients::GazeSample& s) { return !s.tracked; });
   if (trace.size() < 2) return fmt::print(stderr, "mtlod-eval: the trace needs at least two samples\n"), 2;
 
   const view::GridSize grid{o.image_px, o.image_px}, dt_grid{o.grid_px, o.grid_px};
@@ -296,7 +301,7 @@ int run_gaze_study(const GazeStudyOptions& o, const std::string& command) {
       "- Trace: {} ({} samples over {:.0f} ms). Frames: one per sample, the display running at the trace's "
       "rate.\n",
       o.trace.empty() ? fmt::format("synthesised by mtlod-gaze's generator (seed {}, {} Hz; fixations of "
-                                    "150–400 ms at random points of the view, smoothstep saccades)",
+                                    "150–400 ms, main-sequence saccades of 1–15°, no pursuit or blinks)",
                                     o.seed, o.hz)
                       : "`" + o.trace + "`",
       trace.size(), trace.back().time_ms - trace.front().time_ms);
