@@ -100,7 +100,8 @@ TEST(Retry, GazeStreamReconnectsAfterItsServerIsKilledAndRestarted) {
   std::ifstream in(report);
   ASSERT_TRUE(in) << gaze.log();
   const auto r = nlohmann::json::parse(in);
-  EXPECT_EQ(r.at("samples"), 360) << r.dump(2);
+  // 6 s at 60 Hz: 360 samples, those where the synthetic tracker lost the eye (blinks) not sent.
+  EXPECT_EQ(r.at("samples").get<int>() + r.at("tracker_lost_samples").get<int>(), 360) << r.dump(2);
   EXPECT_GE(r.at("reconnects").get<int>(), 1) << r.dump(2);
   EXPECT_EQ(r.at("lost"), 0) << r.dump(2);
   EXPECT_EQ(r.at("errors"), 0) << r.dump(2);
