@@ -25,8 +25,13 @@ const controls = new OrbitControls(camera, renderer.domElement);
 // scans wound inwards (bunny-zipper) or with clashing orientation (the dragon_vrip_res* files) would
 // otherwise show their far side or holes (tests/evaluation/VIEWER.md); back faces are lit with the
 // normal turned towards the eye.
-const material = new THREE.MeshStandardMaterial({ color: 0xc8c0b0, roughness: 0.8, side: THREE.DoubleSide });
-const vertexColourMaterial = new THREE.MeshStandardMaterial({ vertexColors: true, roughness: 0.8, side: THREE.DoubleSide });
+// The materials start flat, as the empty geometry before the first mesh is drawn: three.js compiles a
+// material drawn on a geometry without normals as flat-shaded whatever its flatShading says, and does not
+// look again when a later geometry brings normals, so setLook keeps flatShading equal to what a program
+// compiled for the mesh shown does and recompiles when that changes.
+const material = new THREE.MeshStandardMaterial({ color: 0xc8c0b0, roughness: 0.8, side: THREE.DoubleSide, flatShading: true });
+const vertexColourMaterial = new THREE.MeshStandardMaterial({ vertexColors: true, roughness: 0.8, side: THREE.DoubleSide,
+                                                              flatShading: true });
 const mesh = new THREE.Mesh(new THREE.BufferGeometry(), material);
 scene.add(mesh);
 

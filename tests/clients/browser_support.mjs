@@ -1,7 +1,7 @@
 // What the browser tests (viewer_test.mjs, gltf_three_test.mjs) and the viewer study share: the
 // repository root, playwright-core from scripts/node_modules, `--name value` arguments, Debian's
 // Chromium or a skip (exit 77, which ctest reports as skipped) and the flags it runs with, waiting
-// for a server's port file, and ok/FAIL lines counted for the exit status.
+// for a server's port file, comparing two screenshots, and ok/FAIL lines counted for the exit status.
 import fs from 'node:fs';
 import { createRequire } from 'node:module';
 import path from 'node:path';
@@ -54,4 +54,38 @@ export const results = { failures: 0 };
 export function check(condition, message) {
   console.log(`${condition ? 'ok  ' : 'FAIL'} ${message}`);
   if (!condition) results.failures += 1;
+}
+
+// Two PNG pictures (Buffers) compared pixel by pixel in `page` (any page of a running Chromium, which
+// decodes them): { pixels, meanDifference (mean over pixels and RGB channels, 0..255), over (pixels whose
+// largest channel difference exceeds `threshold`), covered (pixels of `a` not of the colour
+// `background`, [r, g, b]) }. Pictures of different sizes are an Error.
+export async function comparePictures(page, a, b, threshold, background) {
+  return page.evaluate(async ({ a, b, threshold, background }) => {
+    const pixels = async (base64) => {
+      const bitmap = await createImageBitmap(await (await fetch(`data:image/png;base64,${base64}`)).blob());
+      const canvas = new OffscreenCanvas(bitmap.width, bitmap.height);
+      const context = canvas.getContext('2d');
+      context.drawImage(bitmap, 0, 0);
+      return context.getImageData(0, 0, bitmap.width, bitmap.height);
+    };
+    const [pa, pb] = [await pixels(a), await pixels(b)];
+    if (pa.width !== pb.width || pa.height !== pb.height) {
+      throw new Error(`pictures of ${pa.width}x${pa.height} and ${pb.width}x${pb.height}`);
+    }
+    let sum = 0, over = 0, covered = 0;
+    for (let i = 0; i < pa.data.length; i += 4) {
+      let largest = 0, away = 0;
+      for (let k = 0; k < 3; ++k) {
+        const d = Math.abs(pa.data[i + k] - pb.data[i + k]);
+        sum += d;
+        largest = Math.max(largest, d);
+        away = Math.max(away, Math.abs(pa.data[i + k] - background[k]));
+      }
+      if (largest > threshold) over += 1;
+      if (away > 2) covered += 1;
+    }
+    const count = pa.width * pa.height;
+    return { pixels: count, meanDifference: sum / (3 * count), over, covered };
+  }, { a: a.toString('base64'), b: b.toString('base64'), threshold, background });
 }
