@@ -1,10 +1,10 @@
 // mtlod viewer: orbit the model, and the server sends a view-dependent cut refined near
 // the silhouette and around the mouse (the gaze/focus point of the attention-driven papers). Speaks
 // protocol/PROTOCOL.md over the /ws WebSocket: text messages are JSON, binary messages are whole
-// frames (8-byte header, JSON, Draco payload).
+// frames (8-byte header, JSON, the mesh payload: Draco or meshoptimizer, as the panel's codec asks).
 import * as THREE from 'three';
 import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
-import { DRACOLoader } from 'three/addons/loaders/DRACOLoader.js';
+import { CODECS, decodePayload } from './codecs.js';
 
 const $ = (id) => document.getElementById(id);
 const container = $('view');
@@ -35,13 +35,6 @@ const vertexColourMaterial = new THREE.MeshStandardMaterial({ vertexColors: true
 const mesh = new THREE.Mesh(new THREE.BufferGeometry(), material);
 scene.add(mesh);
 
-// The generic uint16 attribute the server names `label` is Draco's GENERIC attribute: map it by
-// semantic name like position and normal.
-const draco = new DRACOLoader();
-draco.setDecoderPath('/three/examples/jsm/libs/draco/');
-draco.defaultAttributeIDs.label = 'GENERIC';
-draco.defaultAttributeTypes.label = 'Uint16Array';
-
 // State the page shares with tests (tests/clients/viewer_test.mjs).
 const state = {
   connected: false,
@@ -49,7 +42,7 @@ const state = {
   bounds: null,
   meshes: 0,            // mesh replies decoded and shown
   lastReply: null,      // JSON of the last mesh reply
-  lastReplyHadLabels: false,  // its Draco data carried the `label` attribute
+  lastReplyHadLabels: false,  // its payload carried the `label` attribute (Draco only)
   lastReplyHadColors: false,  // the mesh shown has the model's vertex colours
   lastReplyHadNormals: false, // the mesh shown has the server's vertex normals
   flatShading: false,   // the mesh is drawn with its facets' normals
@@ -93,6 +86,11 @@ function buildCriteriaPanel() {
     row('\u00a0 factor ', input(`${c.name}-factor`, { type: 'number', value: c.factor, min: c.min, max: c.max, step: 0.05 }));
   }
   for (const law of FALLOFFS) $('falloff').append(new Option(law, law, law === DEFAULT_FALLOFF, law === DEFAULT_FALLOFF));
+  // The payload's codec (codecs.js): the first is the default, ?codec= in the page's URL picks another.
+  const wanted = new URLSearchParams(location.search).get('codec');
+  const first = Object.hasOwn(CODECS, wanted) ? wanted : Object.keys(CODECS)[0];
+  for (const [name, codec] of Object.entries(CODECS)) $('codec').append(new Option(codec.label, name, name === first, name === first));
+  showCodec();
 }
 buildCriteriaPanel();
 
@@ -102,7 +100,7 @@ const waiting = new Map();   // id → {resolve, sentAt}
 let inFlight = false;        // one extraction at a time from this page: the next waits for the reply
 let wantExtract = false;
 let wantGaze = null;
-let deltaBroken = false;
+let wholeNext = false;       // the next extract asks for a whole mesh (see extractRequest)
 
 function setStatus(text, error = false) {
   $('status').textContent = text;
@@ -161,11 +159,13 @@ function extractRequest() {
     grid: [Math.min(512, Math.round(width / 2)), Math.min(512, Math.round(height / 2))],
     error: { value: Number($('error').value), unit: 'pixels' },
     criteria,
-    attributes: { normals: true, labels: $('labels').checked, colors: state.colors },
+    attributes: { normals: true, labels: wantLabels(), colors: state.colors },
+    codec: $('codec').value,
   };
   // Delta replies send only what changed, named by triangle id; labels would go stale on kept triangles.
-  // After a delta that did not apply, one whole mesh puts the kept mesh right again.
-  if ($('delta').checked && !$('labels').checked && !deltaBroken) request.delta = true;
+  // After a delta that did not apply, or a change of codec (whose grid may round a vertex differently
+  // from the other's), one whole mesh puts the kept mesh right again.
+  if ($('delta').checked && !wantLabels() && !wholeNext) request.delta = true;
   const budget = Number($('budget').value);
   if (budget > 0) request.budget = budget;
   return request;
@@ -190,6 +190,15 @@ function pump() {
     inFlight = false;
     pump();
   });
+}
+
+// Labels come in Draco payloads only: the checkbox is off limits for other codecs.
+function wantLabels() {
+  return $('labels').checked && CODECS[$('codec').value].labels;
+}
+
+function showCodec() {
+  $('labels').disabled = !CODECS[$('codec').value].labels;
 }
 
 function colourByLabel(geometry) {
@@ -245,18 +254,25 @@ function keptAdd(id, corners, normals, colours) {
   kept.slot.set(id, slot);
 }
 
-// Applies a delta reply to the kept mesh and returns a geometry showing it.
-async function applyDelta(delta, payload) {
+// Applies a delta reply to the kept mesh and returns a geometry showing it. The mesh part of the payload
+// keeps the cut's triangle order in every codec: its face f is the f-th added id.
+async function applyDelta(codec, delta, payload) {
   if (delta.reset) {
     kept.ids.length = 0;
     kept.slot.clear();
   }
-  // A reply without payload (nothing changed) comes as a text message: payload is null.
-  const ids = new DataView(payload ?? new ArrayBuffer(0), delta.draco_bytes);
+  // A reply without payload (nothing changed) comes as a text message: payload is null. The mesh part's
+  // length was named `draco_bytes` before meshopt payloads came; servers send both names for now.
+  const meshBytes = delta.payload_bytes ?? delta.draco_bytes;
+  const ids = new DataView(payload ?? new ArrayBuffer(0), meshBytes);
   for (let i = 0; i < delta.removed; ++i) keptRemove(ids.getUint32(4 * (delta.added + i), true));
   if (delta.added > 0) {
-    // The decoder takes its buffer away (it is transferred to a worker): hand it a copy.
-    const added = await new Promise((resolve, reject) => draco.parse(payload.slice(0, delta.draco_bytes), resolve, reject));
+    // The ids are read after decoding: the decoder gets a copy of its part, which it may take away.
+    const added = await decodePayload(codec, payload.slice(0, meshBytes));
+    if (added.index.count !== 3 * delta.added) {
+      added.dispose();
+      throw new Error(`the delta adds ${delta.added} triangles, its ${codec} payload holds ${added.index.count / 3}`);
+    }
     const index = added.index.array, position = added.getAttribute('position');
     const normal = added.getAttribute('normal'), color = added.getAttribute('color');
     const corners = new Float32Array(9), normals = normal ? new Float32Array(9) : null;
@@ -286,21 +302,28 @@ async function showReply({ json, payload, latencyMs }) {
     return;
   }
   if (json.type !== 'mesh') return;
+  // Replies from servers that predate the `codec` field carry Draco.
+  const codec = json.codec ?? 'draco';
   let geometry;
   if (json.delta) {
     try {
-      geometry = await applyDelta(json.delta, payload);
+      geometry = await applyDelta(codec, json.delta, payload);
       if (kept.ids.length !== json.triangles) {
         throw new Error(`the kept mesh has ${kept.ids.length} triangles, the server's cut ${json.triangles}`);
       }
     } catch (error) {
-      deltaBroken = true;
+      wholeNext = true;
       requestExtract();
       return setStatus(String(error.message ?? error), true);
     }
   } else {
-    deltaBroken = false;
-    geometry = await new Promise((resolve, reject) => draco.parse(payload, resolve, reject));
+    // A damaged payload leaves the mesh shown as it was; the next view asks for a whole mesh again.
+    try {
+      geometry = await decodePayload(codec, payload);
+    } catch (error) {
+      return setStatus(String(error.message ?? error), true);
+    }
+    wholeNext = false;
   }
   const labelled = $('labels').checked && colourByLabel(geometry);
   mesh.geometry.dispose();
@@ -378,6 +401,14 @@ state.setView = ({ eye, target, fov }) => {
   requestExtract();
 };
 state.idle = () => !inFlight && !extractTimer && !wantExtract && !wantGaze;
+// The mesh kept from delta replies as the page holds it, for tests that compare codecs triangle by
+// triangle: ids, and per triangle 9 floats of corners (normals, colours when the mesh has them).
+state.keptMesh = () => {
+  const floats = 9 * kept.ids.length;
+  return { ids: Uint32Array.from(kept.ids), positions: kept.positions.slice(0, floats),
+           normals: state.deltaNormals ? kept.normals.slice(0, floats) : null,
+           colors: state.colors ? kept.colors.slice(0, floats) : null };
+};
 window.addEventListener('resize', () => {
   resize();
   requestExtract();
@@ -399,9 +430,13 @@ renderer.domElement.addEventListener('pointerdown', (event) => {
   if ($('neglect').checked) requestExtract();
 });
 const criteriaControls = CRITERIA.flatMap((c) => [c.name, `${c.name}-distance`, `${c.name}-factor`]);
-for (const id of ['error', 'budget', ...criteriaControls, 'falloff', 'hidden-factor', 'labels', 'delta']) {
+for (const id of ['error', 'budget', ...criteriaControls, 'falloff', 'hidden-factor', 'labels', 'delta', 'codec']) {
   $(id).addEventListener('change', requestExtract);
 }
+$('codec').addEventListener('change', () => {
+  showCodec();
+  wholeNext = true;
+});
 // Wireframe and flat shading change only how the mesh shown is drawn. A mesh without normals
 // (none sent) can only be drawn flat.
 function setLook() {
