@@ -1,7 +1,9 @@
-// What the browser tests (viewer_test.mjs, gltf_three_test.mjs) and the viewer study share: the
-// repository root, playwright-core from scripts/node_modules, `--name value` arguments, Debian's
-// Chromium or a skip (exit 77, which ctest reports as skipped) and the flags it runs with, waiting
-// for a server's port file, comparing two screenshots, and ok/FAIL lines counted for the exit status.
+// What the browser tests (viewer_test.mjs, viewer_codecs_test.mjs, gltf_three_test.mjs), the viewer
+// study and the decode benchmark share: the repository root, playwright-core from scripts/node_modules,
+// `--name value` arguments, Debian's Chromium or a skip (exit 77, which ctest reports as skipped) and the
+// flags it runs with, starting a server and waiting for its port file, comparing two screenshots, and
+// ok/FAIL lines counted for the exit status.
+import { spawn } from 'node:child_process';
 import fs from 'node:fs';
 import { createRequire } from 'node:module';
 import path from 'node:path';
@@ -54,6 +56,30 @@ export const results = { failures: 0 };
 export function check(condition, message) {
   console.log(`${condition ? 'ok  ' : 'FAIL'} ${message}`);
   if (!condition) results.failures += 1;
+}
+
+// An mtlod-server on OS-chosen ports (its port file and log in `out`, named after `name`), serving
+// HTTP from this tree (--web-root: the viewer under test is this checkout's, whichever build the binary
+// comes from): { child, httpPort (0 when it did not start), exit ({code, signal} once it has exited), stop() }.
+// stop() sends SIGTERM and waits up to 10 s for the drain; it resolves to the exit, or null.
+export async function startServer(binary, serverArgs, out, name) {
+  const portFile = path.join(out, `${name}-ports`);
+  fs.rmSync(portFile, { force: true });
+  const log = fs.openSync(path.join(out, `${name}-server.log`), 'w');
+  const child = spawn(binary, [...serverArgs, '--cache-dir', out, '--port', '0', '--http-port', '0', '--port-file', portFile,
+                               '--web-root', root, '--workers', '2', '--log-level', 'info'],
+                      { stdio: ['ignore', log, log] });
+  const server = { child, exit: null, httpPort: 0 };
+  child.on('exit', (code, signal) => { server.exit = { code, signal }; });
+  server.stop = async () => {
+    if (!server.exit) {
+      child.kill('SIGTERM');
+      for (let i = 0; i < 200 && !server.exit; ++i) await sleep(50);
+    }
+    return server.exit;
+  };
+  server.httpPort = await waitForHttpPort(portFile, () => !server.exit, 600);
+  return server;
 }
 
 // Two PNG pictures (Buffers) compared pixel by pixel in `page` (any page of a running Chromium, which

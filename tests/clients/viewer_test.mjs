@@ -16,7 +16,7 @@
 import { spawn, spawnSync } from 'node:child_process';
 import fs from 'node:fs';
 import path from 'node:path';
-import { check, chromium, chromiumArgs, chromiumOrSkip, comparePictures, parseArgs, results, sleep, waitForHttpPort }
+import { check, chromium, chromiumArgs, chromiumOrSkip, comparePictures, parseArgs, results, root, sleep, waitForHttpPort }
   from './browser_support.mjs';
 
 const tls = process.argv.includes('--tls');
@@ -47,7 +47,7 @@ fs.rmSync(portFile, { force: true });
 const serverLog = fs.openSync(path.join(args.out, 'viewer-server.log'), 'w');
 const painted = args.painted ? ['--mesh', args.painted] : [];
 const server = spawn(args.server, ['--mesh', args.mesh, ...painted, '--cache-dir', args.out, '--port', '0', '--http-port', '0',
-                                   '--port-file', portFile, '--workers', '2', '--log-level', 'info', ...security],
+                                   '--port-file', portFile, '--web-root', root, '--workers', '2', '--log-level', 'info', ...security],
                      { stdio: ['ignore', serverLog, serverLog] });
 let serverExit = null;
 server.on('exit', (code, signal) => { serverExit = { code, signal }; });
