@@ -137,7 +137,7 @@ async function decodeMeshopt(bytes) {
     const normals = new Float32Array(3 * n);
     for (let i = 0; i < n; ++i) {
       const x = components[4 * i], y = components[4 * i + 1], z = components[4 * i + 2];
-      const length = Math.hypot(x, y, z);
+      const length = Math.sqrt(x * x + y * y + z * z);
       if (!(length > one / 2)) throw meshoptError(`normal ${i} is not an octahedral ${p.normalBits}-bit vector`);
       normals[3 * i] = x / length;
       normals[3 * i + 1] = y / length;
