@@ -157,19 +157,17 @@ int main(int argc, char** argv) {
                  mesh.delta->added, mesh.delta->removed);
     }
     const std::string ext = std::filesystem::path(output).extension().string();
-    const bool draco_payload = mesh.codec == core::codec::Codec::kDraco;
-    if ((ext == ".drc" && draco_payload) || (ext == ".mopt" && !draco_payload)) {
+    if (const auto file_codec = core::codec::codec_of_file(ext); file_codec == mesh.codec) {
       std::ofstream out(output, std::ios::binary);
       out.write(reinterpret_cast<const char*>(payload.data()), static_cast<std::streamsize>(payload.size()));
       if (!out) return fail(fmt::format("{}: write failed", output));
-    } else if (ext == ".drc" || ext == ".mopt") {
-      return fail(fmt::format("{}: the payload is {}; write it as .{} or as a mesh file", output,
+    } else if (file_codec) {
+      return fail(fmt::format("{}: the payload is {}; write it as {} or as a mesh file", output,
                               protocol::enum_name(protocol::kCodecNames, mesh.codec),
-                              draco_payload ? "drc" : "mopt"));
+                              core::codec::kCodecFileExtensions[static_cast<std::size_t>(mesh.codec)]));
     } else if (ext == ".glb" && gltf_compression == "on") {
-      auto saved = draco_payload ? core::io::write_glb_draco(output, payload)
-                                 : core::io::write_glb_meshopt(output, payload);
-      if (!saved) return fail(saved.error().message);
+      if (auto saved = core::io::write_glb_payload(output, mesh.codec, payload); !saved)
+        return fail(saved.error().message);
     } else {
       auto decoded = core::codec::decode_payload(mesh.codec, payload);
       if (!decoded) return fail(decoded.error().message);

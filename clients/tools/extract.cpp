@@ -99,9 +99,10 @@ Status write_output(const std::string& path, bool gltf_compressed, const model::
                     const cut::CutMesh& cut, const protocol::Extract* request,
                     std::optional<codec::Codec> named, std::span<const std::uint32_t> labels) {
   const auto extension = std::filesystem::path(path).extension();
-  const bool glb = extension == ".glb", mopt = extension == ".mopt";
+  const bool glb = extension == ".glb";
+  const std::optional<codec::Codec> file_codec = codec::codec_of_file(extension.string());
   if (glb && !gltf_compressed) return io::write_glb(path, compact(mt, cut.triangles));
-  if (!glb && !mopt && extension != ".drc") return io::save_mesh(path, compact(mt, cut.triangles));
+  if (!glb && !file_codec) return io::save_mesh(path, compact(mt, cut.triangles));
   codec::EncodeOptions options;
   if (request) {
     options = protocol::to_encode_options(*request, {false, mt.has_colors(), mt.bounds.lo, mt.bounds.hi});
@@ -111,14 +112,12 @@ Status write_output(const std::string& path, bool gltf_compressed, const model::
     options.meshopt.colors = mt.has_colors();
   }
   // A payload file's extension names its codec; a .glb holds either (--codec, Draco by default).
-  const codec::Codec codec = glb    ? named.value_or(codec::Codec::kDraco)
-                             : mopt ? codec::Codec::kMeshopt
-                                    : codec::Codec::kDraco;
+  const codec::Codec codec = glb ? named.value_or(codec::Codec::kDraco) : *file_codec;
   if (named && *named != codec) {
     return make_error(
         ErrorCode::kInvalidArgument,
-        fmt::format("{}: --codec {} writes .{}", path, protocol::enum_name(protocol::kCodecNames, *named),
-                    *named == codec::Codec::kMeshopt ? "mopt" : "drc"));
+        fmt::format("{}: --codec {} writes {}", path, protocol::enum_name(protocol::kCodecNames, *named),
+                    codec::kCodecFileExtensions[static_cast<std::size_t>(*named)]));
   }
   if (request) {
     if (auto refusal = protocol::codec_refusal(*request, codec))
@@ -134,9 +133,7 @@ Status write_output(const std::string& path, bool gltf_compressed, const model::
   MTLOD_TRY(codec::EncodeStats stats,
             codec::CutEncoder().encode({mt.positions, mt.normals, labels, cut.triangles, mt.colors}, options,
                                        bytes));
-  if (glb)
-    return codec == codec::Codec::kMeshopt ? io::write_glb_meshopt(path, bytes)
-                                           : io::write_glb_draco(path, bytes);
+  if (glb) return io::write_glb_payload(path, codec, bytes);
   std::FILE* f = std::fopen(path.c_str(), "wb");
   const bool ok = f && std::fwrite(bytes.data(), 1, bytes.size(), f) == bytes.size();
   if (f) std::fclose(f);

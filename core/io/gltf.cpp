@@ -347,4 +347,15 @@ Status write_glb_meshopt(const std::filesystem::path& path, std::span<const std:
   });
 }
 
+Status write_glb_payload(const std::filesystem::path& path, codec::Codec codec,
+                         std::span<const std::uint8_t> payload) {
+  switch (codec) {
+    case codec::Codec::kDraco:
+      return write_glb_draco(path, payload);
+    case codec::Codec::kMeshopt:
+      return write_glb_meshopt(path, payload);
+  }
+  return make_error(ErrorCode::kInvalidArgument, "unknown codec");
+}
+
 }  // namespace mtlod::core::io

@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <span>
 
+#include "core/codec/cut_encoder.hpp"
 #include "core/model/mesh.hpp"
 #include "core/result.hpp"
 
@@ -35,5 +36,9 @@ Status write_glb_draco(const std::filesystem::path& path, std::span<const std::u
 // OCTAHEDRAL) as normalized int8 or int16, colours as normalized uint8 and uint32 indices (mode
 // TRIANGLES). Errors: kCorrupt when the payload does not decode, kIoError as above.
 Status write_glb_meshopt(const std::filesystem::path& path, std::span<const std::uint8_t> payload);
+
+// The writer above for `codec`'s payload.
+Status write_glb_payload(const std::filesystem::path& path, codec::Codec codec,
+                         std::span<const std::uint8_t> payload);
 
 }  // namespace mtlod::core::io
