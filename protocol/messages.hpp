@@ -130,13 +130,16 @@ inline Region& gaze_region(Criteria& criteria) {
   return *region;
 }
 
+// How finely either codec stores positions (on a grid over the box) and normals (octahedral).
+struct Quantization {
+  int position_bits = 14;
+  int normal_bits = 10;
+};
 struct DracoSettings {
   // Unset: edgebreaker for extract (smallest payload), sequential for gaze (lowest latency), the
   // defaults chosen from tests/bench/bench_pipeline (tests/bench/BENCHMARKS.md, "Draco").
   std::optional<core::codec::DracoMethod> method;
   int speed = 10;  // 0 best ratio .. 10 fastest; 10 is also no larger than 5-8 (bench_pipeline)
-  int position_bits = 14;
-  int normal_bits = 10;
   // Unset: entropy-coded attributes for extract, raw quantized values for gaze (about 15 % more
   // bytes, half of Draco's encoding time at 50k triangles).
   std::optional<bool> entropy_coding;
@@ -166,9 +169,10 @@ struct Extract {
   bool normals = true;                  // every model has normals (stored, or computed at load)
   std::optional<bool> colors;           // unset: the model's colours when it has them
   bool labels = false;
-  // The payload's codec; unset: the connection's (hello). meshopt quantizes with
-  // draco.position_bits (at most 16) and draco.normal_bits, and carries no labels: codec_refusal.
+  // The payload's codec; unset: the connection's (hello). meshopt quantizes positions to at most 16
+  // bits and carries no labels: codec_refusal.
   std::optional<core::codec::Codec> codec;
+  Quantization quantization;
   DracoSettings draco;
   // Replies (this one and the gazes that follow) carry what changed since the connection's previous
   // mesh, by MT triangle id, instead of the whole cut (PROTOCOL.md, "Delta replies"). Needs the

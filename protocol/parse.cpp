@@ -273,6 +273,14 @@ Criteria read_criteria(const json& v, const Limits& limits) {
   return c;
 }
 
+// position_bits and normal_bits, in `quantization` or under their older names in `draco`. Positions
+// are floats (24-bit mantissa), and Draco's entropy coder's time and memory double with each bit: 20
+// bits is finer than any model needs and still cheap. Octahedral normal coding needs at least 2 bits.
+void read_quantization(ObjectReader& r, Quantization& q) {
+  q.position_bits = static_cast<int>(r.integer("position_bits", q.position_bits, 1, 20));
+  q.normal_bits = static_cast<int>(r.integer("normal_bits", q.normal_bits, 2, 16));
+}
+
 Extract read_extract(ObjectReader& r, const Limits& limits) {
   Extract e;
   e.model = r.string("model", 256);
@@ -313,18 +321,26 @@ Extract read_extract(ObjectReader& r, const Limits& limits) {
   }
   e.delta = r.boolean("delta", false);
   if (r.has("codec")) e.codec = static_cast<core::codec::Codec>(r.choice("codec", kCodecNames, 0));
+  bool older_names = false;  // the bits under their names from when Draco was the only codec
   if (const json* d = r.find("draco")) {
     ObjectReader dr(*d, "draco");
     if (dr.has("method"))
       e.draco.method = static_cast<core::codec::DracoMethod>(dr.choice("method", kDracoMethodNames, 0));
     e.draco.speed = static_cast<int>(dr.integer("speed", e.draco.speed, 0, 10));
-    // Positions are floats (24-bit mantissa), and Draco's entropy coder's time and memory double with
-    // each bit: 20 bits is finer than any model needs and still cheap. Its octahedral normal coding
-    // needs at least 2 bits.
-    e.draco.position_bits = static_cast<int>(dr.integer("position_bits", e.draco.position_bits, 1, 20));
-    e.draco.normal_bits = static_cast<int>(dr.integer("normal_bits", e.draco.normal_bits, 2, 16));
+    older_names = dr.has("position_bits") || dr.has("normal_bits");
+    read_quantization(dr, e.quantization);
     if (dr.has("entropy_coding")) e.draco.entropy_coding = dr.boolean("entropy_coding", true);
     dr.finish();
+  }
+  if (const json* q = r.find("quantization")) {
+    if (older_names) {
+      fail(ErrorKind::kBadRequest,
+           "give the bits in 'quantization' only: draco.position_bits and draco.normal_bits are their older "
+           "names");
+    }
+    ObjectReader qr(*q, "quantization");
+    read_quantization(qr, e.quantization);
+    qr.finish();
   }
   if (e.codec) {
     if (auto refusal = codec_refusal(e, *e.codec)) fail(ErrorKind::kBadRequest, std::move(*refusal));
@@ -439,9 +455,10 @@ const char* to_string(ErrorKind kind) {
 std::optional<std::string> codec_refusal(const Extract& e, core::codec::Codec codec) {
   if (codec != core::codec::Codec::kMeshopt) return std::nullopt;
   if (e.labels) return "codec 'meshopt' cannot carry attributes.labels: use 'draco'";
-  if (e.draco.position_bits > 16) {
-    return fmt::format("codec 'meshopt' quantizes positions to at most 16 bits, not draco.position_bits {}",
-                       e.draco.position_bits);
+  if (e.quantization.position_bits > 16) {
+    return fmt::format(
+        "codec 'meshopt' quantizes positions to at most 16 bits, not quantization.position_bits {}",
+        e.quantization.position_bits);
   }
   return std::nullopt;
 }
@@ -513,9 +530,9 @@ json extract_json(const Extract& e) {
   if (e.colors) j["attributes"]["colors"] = *e.colors;
   if (e.delta) j["delta"] = true;
   if (e.codec) j["codec"] = enum_name(kCodecNames, *e.codec);
-  j["draco"] = {{"speed", e.draco.speed},
-                {"position_bits", e.draco.position_bits},
-                {"normal_bits", e.draco.normal_bits}};
+  j["quantization"] = {{"position_bits", e.quantization.position_bits},
+                       {"normal_bits", e.quantization.normal_bits}};
+  j["draco"] = {{"speed", e.draco.speed}};
   if (e.draco.method) j["draco"]["method"] = enum_name(kDracoMethodNames, *e.draco.method);
   if (e.draco.entropy_coding) j["draco"]["entropy_coding"] = *e.draco.entropy_coding;
   return j;

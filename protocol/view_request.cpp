@@ -57,8 +57,8 @@ core::codec::DracoOptions to_draco_options(const Extract& e, const EncodeContext
   draco.method = e.draco.method.value_or(fast ? core::codec::DracoMethod::kSequential
                                               : core::codec::DracoMethod::kEdgebreaker);
   draco.speed = e.draco.speed;
-  draco.position_bits = e.draco.position_bits;
-  draco.normal_bits = e.draco.normal_bits;
+  draco.position_bits = e.quantization.position_bits;
+  draco.normal_bits = e.quantization.normal_bits;
   draco.entropy_coding = e.draco.entropy_coding.value_or(!context.gaze);
   if (e.delta) {
     // One grid for every payload of the model: a vertex kept from an earlier delta and the same

@@ -131,10 +131,10 @@ void add_extract_flags(CLI::App& app, ExtractFlags& f) {
   app.add_option(
       "--draco-entropy", f.draco_entropy,
       "entropy-code Draco's attribute values: true or false (default: true for extract, false for gaze)");
-  app.add_option("--position-bits", f.position_bits, "Draco position quantization bits")
+  app.add_option("--position-bits", f.position_bits, "position quantization bits (meshopt: at most 16)")
       ->check(CLI::Range(1, 20))
       ->capture_default_str();
-  app.add_option("--normal-bits", f.normal_bits, "Draco normal quantization bits (octahedral)")
+  app.add_option("--normal-bits", f.normal_bits, "normal quantization bits (octahedral)")
       ->check(CLI::Range(2, 16))
       ->capture_default_str();
   app.add_flag("--no-normals", f.no_normals, "leave the vertex normals out (sent by default)");
@@ -199,10 +199,10 @@ Result<protocol::Extract> make_extract(const ExtractFlags& f, const std::string&
   if (f.colors && f.no_colors)
     return make_error(ErrorCode::kInvalidArgument, "--colors and --no-colors contradict each other");
   if (f.colors || f.no_colors) e.colors = f.colors;
-  e.draco.normal_bits = f.normal_bits;
+  e.quantization.normal_bits = f.normal_bits;
   e.labels = f.labels;
   e.draco.speed = f.draco_speed;
-  e.draco.position_bits = f.position_bits;
+  e.quantization.position_bits = f.position_bits;
   e.draco.entropy_coding = f.draco_entropy;
   e.delta = f.delta;
   e.criteria.internal_silhouettes = f.internal_silhouettes;

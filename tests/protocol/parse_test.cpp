@@ -44,7 +44,8 @@ Extract sample_extract() {
   e.budget = 50'000;
   e.normals = true;
   e.labels = true;
-  e.draco = {core::codec::DracoMethod::kSequential, 3, 12, 8, false};
+  e.quantization = {12, 8};
+  e.draco = {core::codec::DracoMethod::kSequential, 3, false};
   return e;
 }
 
@@ -75,7 +76,7 @@ TEST(ParseRequest, ReadsBackEveryFieldAClientWrote) {
   EXPECT_TRUE(got.normals && got.labels);
   EXPECT_EQ(got.draco.method, core::codec::DracoMethod::kSequential);
   EXPECT_EQ(got.draco.speed, 3);
-  EXPECT_EQ(got.draco.position_bits, 12);
+  EXPECT_EQ(got.quantization.position_bits, 12);
   EXPECT_EQ(got.draco.entropy_coding, false);
 }
 
@@ -186,7 +187,7 @@ TEST(ParseRequest, TheCodecRoundTrips) {
   Extract fine = sample_extract();
   fine.labels = false;
   fine.codec = core::codec::Codec::kMeshopt;
-  fine.draco.position_bits = 17;
+  fine.quantization.position_bits = 17;
   const auto refused = parse_request(to_json(fine, 4), Limits{});
   ASSERT_FALSE(refused.ok());
   EXPECT_NE(refused.error().message.find("at most 16 bits"), std::string::npos) << refused.error().message;
@@ -213,6 +214,25 @@ TEST(ParseRequest, AnExtractWithoutACodecLeavesItToTheConnection) {
   const auto unknown = parse_request(R"({"type":"hello","id":7,"version":1,"codec":"zstd"})", Limits{});
   ASSERT_FALSE(unknown.ok());
   EXPECT_NE(unknown.error().message.find("'codec' is 'zstd'"), std::string::npos) << unknown.error().message;
+}
+
+TEST(ParseRequest, QuantizationIsReadUnderEitherName) {
+  const std::string head =
+      R"({"type":"extract","id":1,"model":"bunny","error":0.01,"camera":{"view":[1,0,0,0,0,1,0,0,0,0,1,0,0,0,-3,1],)"
+      R"("projection":[1,0,0,0,0,1,0,0,0,0,-1,-1,0,0,-0.2,0]})";
+  const auto quantization = [](const Result<ParsedRequest, ProtocolError>& parsed) {
+    EXPECT_TRUE(parsed.ok()) << parsed.error().message;
+    const Quantization q = std::get<Extract>(parsed->request).quantization;
+    return std::pair(q.position_bits, q.normal_bits);
+  };
+  EXPECT_EQ(quantization(parse_request(head + "}", Limits{})), std::pair(14, 10));
+  EXPECT_EQ(quantization(
+                parse_request(head + R"(,"quantization":{"position_bits":11,"normal_bits":7}})", Limits{})),
+            std::pair(11, 7));
+  EXPECT_EQ(quantization(parse_request(head + R"(,"draco":{"position_bits":12,"normal_bits":8}})", Limits{})),
+            std::pair(12, 8));
+  EXPECT_FALSE(parse_request(head + R"(,"quantization":{"position_bits":21}})", Limits{}).ok());
+  EXPECT_FALSE(parse_request(head + R"(,"quantization":{"bits":12}})", Limits{}).ok());  // unknown field
 }
 
 TEST(ParseRequest, LimitsComeFromTheServerConfiguration) {

@@ -216,7 +216,7 @@ void ServerTest::expect_extract_decodes_to_the_in_process_cut(core::codec::Codec
   ASSERT_EQ(decoded->triangle_count(), cut.triangle_count());
   EXPECT_EQ(decoded->vertex_count(), mesh->vertices);
   const float tolerance = test::draco_tolerance(test::used_extent(g_fixture->mt.positions, cut.triangles),
-                                                request.draco.position_bits);
+                                                request.quantization.position_bits);
   const auto match = test::match_vertices(decoded->positions, g_fixture->mt.positions, cut.triangles,
                                           4 * tolerance, tolerance);
   EXPECT_EQ(test::canonical_triangles(decoded->triangles, &match), test::canonical_triangles(cut.triangles));
