@@ -52,6 +52,15 @@ class ToolsTest : public testing::Test {
     ASSERT_TRUE(server_->running()) << server_->log();
   }
 
+  // `mtlod-client extract bunny` of a 2,000-triangle cut at 0.5 px with `args` on a fresh connection;
+  // it must succeed.
+  void client_extract(const std::string& args) {
+    const std::string command =
+        fmt::format("{} --port {} extract bunny --error-px 0.5 --budget 2000 {} > {} 2>&1",
+                    MTLOD_CLIENT_BINARY, server_->port(), args, (*dir_ / "client.log").string());
+    EXPECT_EQ(std::system(command.c_str()), 0) << command << "\n" << test::read_file(*dir_ / "client.log");
+  }
+
   // Runs a tool with `args` and returns its JSON report.
   json run(const std::string& binary, const std::string& args) {
     const auto report = *dir_ / "report.json";
@@ -266,14 +275,8 @@ void expect_valid_gltf(const std::filesystem::path& dir, const std::vector<std::
 TEST_F(ToolsTest, ClientGlbEmbedsTheMeshoptStreamsItReceived) {
   // The same request twice on fresh connections: as .mopt (the payload as received) and as .glb,
   // whose buffer views' EXT_meshopt_compression data must be the payload's streams, unchanged.
-  const auto client = [&](const std::string& args) {
-    const std::string command =
-        fmt::format("{} --port {} extract bunny --codec meshopt --error-px 0.5 --budget 2000 {} > {} 2>&1",
-                    MTLOD_CLIENT_BINARY, server_->port(), args, (*dir_ / "client.log").string());
-    EXPECT_EQ(std::system(command.c_str()), 0) << command << "\n" << test::read_file(*dir_ / "client.log");
-  };
-  client("-o " + (*dir_ / "cut.mopt").string());
-  client("-o " + (*dir_ / "cut-meshopt.glb").string());
+  client_extract("--codec meshopt -o " + (*dir_ / "cut.mopt").string());
+  client_extract("--codec meshopt -o " + (*dir_ / "cut-meshopt.glb").string());
   const std::string mopt = test::read_file(*dir_ / "cut.mopt");
   const std::span<const std::uint8_t> bytes(reinterpret_cast<const std::uint8_t*>(mopt.data()), mopt.size());
   const auto streams = core::codec::read_meshopt(bytes);
@@ -316,15 +319,9 @@ TEST_F(ToolsTest, ClientGlbEmbedsTheDracoBytesItReceived) {
   // One request three times on fresh connections, which the server answers with the same bytes: as
   // .drc (the payload as received), as .glb (that payload as the Draco buffer view, unchanged) and
   // as a plain .glb (decoded: as many triangles and vertices as the payload holds).
-  const auto client = [&](const std::string& args) {
-    const std::string command =
-        fmt::format("{} --port {} extract bunny --error-px 0.5 --budget 2000 {} > {} 2>&1",
-                    MTLOD_CLIENT_BINARY, server_->port(), args, (*dir_ / "client.log").string());
-    EXPECT_EQ(std::system(command.c_str()), 0) << command << "\n" << test::read_file(*dir_ / "client.log");
-  };
-  client("-o " + (*dir_ / "cut.drc").string());
-  client("-o " + (*dir_ / "cut.glb").string());
-  client("--gltf-compression off -o " + (*dir_ / "cut-plain.glb").string());
+  client_extract("-o " + (*dir_ / "cut.drc").string());
+  client_extract("-o " + (*dir_ / "cut.glb").string());
+  client_extract("--gltf-compression off -o " + (*dir_ / "cut-plain.glb").string());
   const std::string drc = test::read_file(*dir_ / "cut.drc");
   ASSERT_GT(drc.size(), 0u);
 
