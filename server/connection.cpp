@@ -364,7 +364,7 @@ void Connection::finish_reply(const Job& job, std::int64_t started_ns, ExtractRe
       reply.focus = std::array<double, 2>{gazed->points.front().x, gazed->points.front().y};
     log_extraction(number_, job.id, job.gaze, reply);
     server_.metrics.extraction(reply.timings, reply.triangles, job.gaze);
-    replies_.fill(job.seq, make_frame(reply, job.id, result.payload));
+    replies_.fill(job.seq, make_frame(reply, job.id, result.payload), /*mesh=*/true);
   }
 }
 
@@ -401,13 +401,14 @@ void Connection::drain_jobs(protocol::ErrorKind code, const char* message) {
 
 void Connection::flush() {
   if (writing_ || closed_) return;
-  std::optional<std::vector<std::uint8_t>> frame = replies_.pop();
-  if (!frame) {
+  std::optional<Reply> reply = replies_.pop();
+  if (!reply) {
     if (stopping_ && replies_.outstanding() == 0 && !jobs_.running()) close();
     return;
   }
   writing_ = true;
-  outgoing_ = std::move(*frame);
+  outgoing_ = std::move(reply->frame);
+  outgoing_mesh_ = reply->mesh;
   write_frame(outgoing_);
 }
 
@@ -415,6 +416,7 @@ void Connection::on_written(bool ok, std::size_t bytes) {
   writing_ = false;
   if (!ok) return close();
   server_.metrics.bytes_out(bytes);
+  if (outgoing_mesh_) server_.metrics.mesh_sent();
   flush();
   if (read_paused_ && !paused() && !ending()) {
     read_paused_ = false;

@@ -155,6 +155,7 @@ class Connection : public std::enable_shared_from_this<Connection> {
   core::codec::Codec codec_ = core::codec::Codec::kDraco;  // for extracts that name none (hello)
   std::int64_t received_ns_ = 0;                           // arrival of the request being handled
   std::vector<std::uint8_t> outgoing_;
+  bool outgoing_mesh_ = false;  // outgoing_ is an extraction's mesh
   bool writing_ = false;
   bool read_paused_ = false;
   bool stopping_ = false;

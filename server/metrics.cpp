@@ -79,6 +79,7 @@ std::vector<std::pair<std::string, double>> Metrics::snapshot() const {
                                                      {"bytes_in", get(bytes_in_)},
                                                      {"bytes_out", get(bytes_out_)},
                                                      {"extractions", static_cast<double>(extractions)},
+                                                     {"meshes_sent", get(meshes_sent_)},
                                                      {"triangles_out", get(triangles_out_)},
                                                      {"worker_scratch_bytes", get(scratch_bytes_)}};
   for (std::size_t s = 0; s < kStages.size(); ++s) {
@@ -125,6 +126,8 @@ void Metrics::append_traffic(std::string& out) const {
   single(out, "mtlod_received_bytes_total", "counter", "Bytes of request frames received.", get(bytes_in_));
   single(out, "mtlod_sent_bytes_total", "counter", "Bytes of reply frames sent.", get(bytes_out_));
   single(out, "mtlod_sent_triangles_total", "counter", "Triangles of the cuts sent.", get(triangles_out_));
+  single(out, "mtlod_sent_meshes_total", "counter",
+         "Mesh replies (extract and gaze) written whole to their connections.", get(meshes_sent_));
 }
 
 void Metrics::append_durations(std::string& out) const {

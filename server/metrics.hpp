@@ -62,6 +62,9 @@ class Metrics {
   void error(protocol::ErrorKind kind) { add(errors_[static_cast<std::size_t>(kind)]); }
   void bytes_in(std::uint64_t n) { add(bytes_in_, n); }
   void bytes_out(std::uint64_t n) { add(bytes_out_, n); }
+  // A mesh reply (extract or gaze) has been written whole to its connection.
+  void mesh_sent() { add(meshes_sent_); }
+  std::uint64_t meshes_sent() const { return meshes_sent_.load(std::memory_order_relaxed); }
   // gaze: the extraction answered a gaze (else an extract).
   void extraction(const protocol::StageTimings& t, std::uint64_t triangles, bool gaze);
   // A connection's session now holds `delta` bytes more (or fewer).
@@ -70,6 +73,7 @@ class Metrics {
   void scratch_bytes(std::int64_t delta) { scratch_bytes_.fetch_add(static_cast<std::uint64_t>(delta)); }
 
   std::uint64_t open_connections() const { return connections_open_.load(std::memory_order_relaxed); }
+  std::uint64_t connections_accepted() const { return connections_total_.load(std::memory_order_relaxed); }
   // Named values, for the `stats` reply.
   std::vector<std::pair<std::string, double>> snapshot() const;
   // Everything, in Prometheus' text exposition format (version 0.0.4).
@@ -87,6 +91,7 @@ class Metrics {
   std::array<Counter, kRequestTypes> requests_{};
   std::array<Counter, kErrorKinds> errors_{};
   Counter bytes_in_{0}, bytes_out_{0};
+  Counter meshes_sent_{0};
   Counter triangles_out_{0};
   Counter session_bytes_{0};  // wraps through negative deltas; the sum is what sessions hold
   Counter scratch_bytes_{0};  // likewise, what the workers keep

@@ -10,16 +10,16 @@ std::uint64_t ReplyOrder::open() {
   return next_seq_++;
 }
 
-void ReplyOrder::fill(std::uint64_t seq, std::vector<std::uint8_t> frame) {
+void ReplyOrder::fill(std::uint64_t seq, std::vector<std::uint8_t> frame, bool mesh) {
   assert(seq >= next_pop_ && seq < next_seq_);
   auto& slot = waiting_[static_cast<std::size_t>(seq - next_pop_)];
   assert(!slot.has_value());
-  slot = std::move(frame);
+  slot = Reply{std::move(frame), mesh};
 }
 
-std::optional<std::vector<std::uint8_t>> ReplyOrder::pop() {
+std::optional<Reply> ReplyOrder::pop() {
   if (waiting_.empty() || !waiting_.front().has_value()) return std::nullopt;
-  std::optional<std::vector<std::uint8_t>> frame = std::move(waiting_.front());
+  std::optional<Reply> frame = std::move(waiting_.front());
   waiting_.pop_front();
   ++next_pop_;
   return frame;

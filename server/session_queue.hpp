@@ -13,27 +13,33 @@
 
 namespace mtlod::server {
 
+// A reply frame waiting for its turn.
+struct Reply {
+  std::vector<std::uint8_t> frame;
+  bool mesh = false;  // an extraction's mesh: counted as sent once written whole
+};
+
 // Holds replies until every earlier request has its reply, then releases them in order.
 class ReplyOrder {
  public:
   // Reserves the next place in the reply order; returns its sequence number.
   std::uint64_t open();
   // Gives the reply for a place (once).
-  void fill(std::uint64_t seq, std::vector<std::uint8_t> frame);
+  void fill(std::uint64_t seq, std::vector<std::uint8_t> frame, bool mesh = false);
   // Whether a place has its reply (popped places had theirs).
   bool filled(std::uint64_t seq) const {
     return seq < next_pop_ ||
            (seq < next_seq_ && waiting_[static_cast<std::size_t>(seq - next_pop_)].has_value());
   }
   // The next reply that may be written, if its turn has come.
-  std::optional<std::vector<std::uint8_t>> pop();
+  std::optional<Reply> pop();
   // Places opened and not yet popped: the connection's unanswered requests.
   std::size_t outstanding() const { return next_seq_ - next_pop_; }
 
  private:
   std::uint64_t next_seq_ = 0;
   std::uint64_t next_pop_ = 0;
-  std::deque<std::optional<std::vector<std::uint8_t>>> waiting_;  // index 0 is next_pop_
+  std::deque<std::optional<Reply>> waiting_;  // index 0 is next_pop_
 };
 
 // A compute request (extract, or a gaze already turned into a full extract) waiting for a worker.

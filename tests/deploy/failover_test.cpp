@@ -1,8 +1,10 @@
 // The deployment of docker/compose.yaml without Docker: two mtlod-server replicas sharing one model
 // folder behind HAProxy running docker/haproxy.cfg itself, all on loopback ports. mtlod-load runs
-// through HAProxy while one replica is killed (SIGKILL) and restarted; its JSON report must show
-// every request answered (the dropped ones retried, none lost) and traffic back on the restarted
-// replica. Also: /health, and clients that reconnect to a restarted server.
+// through HAProxy while one replica is killed (SIGKILL) and restarted, or drained (SIGTERM); its
+// JSON report must show every request answered (the dropped ones retried, none lost) and traffic on
+// the replicas left, and its count of meshes per replica must equal what each replica says it sent
+// (nothing lost, nothing served twice). Also: /health, and clients that reconnect to a restarted
+// server.
 #include <gtest/gtest.h>
 
 #include <fstream>
@@ -82,14 +84,42 @@ struct Replica {
   std::filesystem::path dir;
   std::unique_ptr<test::ServerProcess> process;
 
-  void start(const std::filesystem::path& models) {
+  void start(const std::filesystem::path& models, const std::string& log_level = "warn") {
     std::vector<std::string> args{
         "--models", models.string(), "--name", name, "--http-port", std::to_string(http_port), "--workers",
-        "1",        "--log-level",   "warn"};
+        "1",        "--log-level",   log_level};
     args.insert(args.end(), test::kBehindHaproxy.begin(), test::kBehindHaproxy.end());
     process = std::make_unique<test::ServerProcess>(args, dir, port);
   }
 };
+
+// The meshes a replica behind HAProxy says it has written whole (its /metrics), or -1.
+double meshes_sent(std::uint16_t http_port) {
+  const test::HttpReply reply = test::http_get(http_port, "/metrics", test::kProxyLocalHeader);
+  const std::string name = "\nmtlod_sent_meshes_total ";
+  const auto at = reply.body.find(name);
+  if (reply.status != 200 || at == std::string::npos) return -1;
+  return std::stod(reply.body.substr(at + name.size()));
+}
+
+// meshes_sent, given up to 2 s to reach `expected`: a write's completion is counted a moment after
+// the client may already hold its bytes.
+double settled_meshes_sent(std::uint16_t http_port, double expected) {
+  double last = meshes_sent(http_port);
+  for (int i = 0; i < 20 && last != expected; ++i) {
+    std::this_thread::sleep_for(100ms);
+    last = meshes_sent(http_port);
+  }
+  return last;
+}
+
+// The meshes a stopped replica's last log line says it sent, or -1.
+double meshes_sent_at_exit(const std::string& log) {
+  const std::string line = "stopped: ";
+  const auto at = log.rfind(line);
+  if (at == std::string::npos) return -1;
+  return std::stod(log.substr(at + line.size()));
+}
 
 json read_json(const std::filesystem::path& path) {
   std::ifstream in(path);
@@ -179,6 +209,88 @@ TEST(Failover, LoadThroughHaproxySurvivesAKilledReplicaAndComesBackToItsRestart)
   }
   EXPECT_TRUE(second) << instances.dump(2);
   EXPECT_EQ(total, r.at("ok").get<std::uint64_t>()) << "every reply is counted on one instance";
+  // Counted on both sides: the replicas that lived to the end sent exactly the meshes the client
+  // received from them (a mesh the killed one wrote just before the kill may never have arrived).
+  for (const Replica& replica : replicas) {
+    const std::string instance = health_instance(replica.http_port);
+    ASSERT_TRUE(instances.contains(instance)) << instance << instances.dump(2);
+    EXPECT_EQ(settled_meshes_sent(replica.http_port, instances.at(instance).at("ok").get<double>()),
+              instances.at(instance).at("ok").get<double>())
+        << replica.name;
+  }
+}
+
+TEST(Drain, ALoadedReplicaBehindHaproxyDrainsWithNothingLostOrServedTwice) {
+  const auto dir = test::scratch_dir("drain-behind-haproxy");
+  const auto models = write_model(dir, 8000);
+  std::vector<Replica> replicas;
+  for (const char* name : {"replica-1", "replica-2"}) {
+    replicas.push_back(Replica{name, test::free_port(), test::free_port(), dir / name, nullptr});
+    std::filesystem::create_directories(replicas.back().dir);
+    replicas.back().start(models, "info");  // info: the exit line with the meshes sent
+    ASSERT_TRUE(replicas.back().process->running()) << replicas.back().process->log();
+  }
+  const std::uint16_t lb_port = test::free_port(), lb_http_port = test::free_port(),
+                      stats_port = test::free_port();
+  const auto environment = test::haproxy_environment(
+      {lb_port,
+       lb_http_port,
+       stats_port,
+       {{{replicas[0].port, replicas[0].http_port}, {replicas[1].port, replicas[1].http_port}}}});
+  test::Child haproxy({MTLOD_HAPROXY_BINARY, "-db", "-f", MTLOD_SOURCE_DIR "/docker/haproxy.cfg"},
+                      environment, dir / "haproxy.log");
+  ASSERT_TRUE(wait_until(
+      [&] {
+        return haproxy_says_up(stats_port, "replicas", "replica-1") &&
+               haproxy_says_up(stats_port, "replicas", "replica-2");
+      },
+      30s))
+      << "HAProxy never saw both replicas up\n"
+      << haproxy.log();
+  const std::string drained = health_instance(replicas[0].http_port);
+  const std::string kept = health_instance(replicas[1].http_port);
+  ASSERT_FALSE(drained.empty());
+  ASSERT_FALSE(kept.empty());
+
+  const auto report = dir / "load.json";
+  test::Child load({MTLOD_LOAD_BINARY, "--port", std::to_string(lb_port), "--model", "sphere",
+                    "--connections", "4", "--duration", "8", "--budget", "2000", "--reconnect-after", "10",
+                    "--attempts", "40", "--quiet", "--json", report.string()},
+                   {}, dir / "load.log");
+  std::this_thread::sleep_for(2s);
+  ASSERT_TRUE(load.running()) << load.log();
+  ASSERT_TRUE(wait_until([&] { return haproxy_sessions(stats_port, "replicas", "replica-1") >= 1; }, 10s))
+      << "no connection reached replica-1\n"
+      << haproxy.log();
+  // What an orchestrator does to a replica it retires: SIGTERM, then wait. Its connections each
+  // have a request in flight, which it finishes and answers before closing them.
+  const int status = replicas[0].process->stop(SIGTERM, 30s);
+  ASSERT_TRUE(WIFEXITED(status)) << status << "\n" << replicas[0].process->log();
+  EXPECT_EQ(WEXITSTATUS(status), 0) << replicas[0].process->log();
+  const double sent_by_drained = meshes_sent_at_exit(replicas[0].process->log());
+  ASSERT_GT(sent_by_drained, 0) << replicas[0].process->log();
+
+  ASSERT_EQ(load.wait(90s), 0) << load.log();
+  const json r = read_json(report);
+  ASSERT_TRUE(r.contains("instances")) << r.dump(2) << load.log();
+  EXPECT_GT(r.at("sent").get<std::uint64_t>(), 0u);
+  EXPECT_EQ(r.at("ok"), r.at("sent")) << r.dump(2);
+  EXPECT_EQ(r.at("errors"), 0) << r.dump(2);
+  EXPECT_EQ(r.at("lost"), 0) << r.dump(2);
+  EXPECT_EQ(r.at("unsent"), 0) << r.dump(2);
+  EXPECT_EQ(r.at("gave_up"), 0) << r.dump(2);
+  const json& instances = r.at("instances");
+  ASSERT_TRUE(instances.contains(drained)) << instances.dump(2);
+  ASSERT_TRUE(instances.contains(kept)) << "the other replica took the load\n" << instances.dump(2);
+  EXPECT_EQ(instances.size(), 2u) << instances.dump(2);
+  EXPECT_GT(instances.at(kept).at("last_reply_s").get<double>(),
+            instances.at(drained).at("last_reply_s").get<double>());
+  // Both sides agree, replica by replica: every mesh a replica wrote reached the client once, and
+  // the client got none that no replica wrote.
+  EXPECT_EQ(instances.at(drained).at("ok").get<double>(), sent_by_drained) << instances.dump(2);
+  EXPECT_EQ(settled_meshes_sent(replicas[1].http_port, instances.at(kept).at("ok").get<double>()),
+            instances.at(kept).at("ok").get<double>())
+      << instances.dump(2);
 }
 
 TEST(Health, ReportsTheInstanceTheProtocolReports) {

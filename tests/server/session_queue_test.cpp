@@ -14,13 +14,17 @@ TEST(ReplyOrder, HoldsLaterRepliesUntilEarlierOnesArrive) {
   ReplyOrder order;
   const auto a = order.open(), b = order.open(), c = order.open();
   order.fill(c, bytes(3));
-  order.fill(b, bytes(2));
+  order.fill(b, bytes(2), /*mesh=*/true);
   EXPECT_FALSE(order.pop().has_value());  // a is still missing
   EXPECT_EQ(order.outstanding(), 3u);
   order.fill(a, bytes(1));
-  EXPECT_EQ(order.pop(), bytes(1));
-  EXPECT_EQ(order.pop(), bytes(2));
-  EXPECT_EQ(order.pop(), bytes(3));
+  EXPECT_EQ(order.pop()->frame, bytes(1));
+  const auto second = order.pop();
+  EXPECT_EQ(second->frame, bytes(2));
+  EXPECT_TRUE(second->mesh) << "the mark that counts a mesh as sent travels with its frame";
+  const auto third = order.pop();
+  EXPECT_EQ(third->frame, bytes(3));
+  EXPECT_FALSE(third->mesh);
   EXPECT_FALSE(order.pop().has_value());
   EXPECT_EQ(order.outstanding(), 0u);
 }
