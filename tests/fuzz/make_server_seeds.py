@@ -1,11 +1,14 @@
 #!/usr/bin/env python3
-"""Writes the hand-made seeds of the server fuzz targets (tests/fuzz/corpus/server_stream and
-server_messages): whole sessions as a client sends them. server_stream seeds are framed byte
-streams (PROTOCOL.md, "Framing"); server_messages seeds are chunks of a flags byte (bit 0: binary),
-a 16-bit little-endian length and the message (fuzz_server_messages.cpp). Usage: make_server_seeds.py
+"""Writes the hand-made seeds of the server fuzz targets (tests/fuzz/corpus/...): whole sessions as
+a client sends them. server_stream seeds are framed byte streams (PROTOCOL.md, "Framing"), which
+process_tcp reads too; server_messages seeds are chunks of a flags byte (bit 0: binary), a 16-bit
+little-endian length and the message (fuzz_server_messages.cpp), which process_websocket reads too;
+process_http seeds are HTTP/1.1 requests; process_tls seeds are a mode byte and a TLS ClientHello
+(even) or a framed byte stream (odd; fuzz_process_tls.cpp). Usage: make_server_seeds.py
 [CORPUS_DIR]; libFuzzer's merged finds sit beside these files and are left alone."""
 import json
 import os
+import ssl
 import struct
 import sys
 
@@ -91,6 +94,17 @@ SESSIONS = {
         extract(3, error=0, attributes={"normals": True}, draco={"normal_bits": 1}),
         extract(4, error=0, attributes={"normals": True}, draco={"position_bits": 20, "normal_bits": 16}),
     ],
+    # Both codecs: the session's from its hello, one named per extract, full and delta replies, and
+    # what meshopt refuses (labels).
+    "codecs": [
+        request("hello", 1, version=1, client="fuzz", codec="meshopt"),
+        extract(2, attributes={"normals": True}, quantization={"position_bits": 12, "normal_bits": 10}),
+        extract(3, delta=True, criteria={"focus": [{"x": 0.4, "y": 0.5}]}),
+        request("gaze", 4, x=0.6, y=0.5),
+        extract(5, codec="draco", delta=True),
+        extract(6, codec="meshopt", attributes={"labels": True}),
+        extract(7, codec="zstd"),
+    ],
     # Once crashed the server: the error message quoting the model name was not UTF-8.
     "model-info-invalid-utf8": [b'{"type":"model_info","id":1,"model":"\xff\xfe"}'],
 }
@@ -102,6 +116,43 @@ def frame(json_text, payload=b""):
 
 def message(text, binary=False):
     return struct.pack("<BH", 1 if binary else 0, len(text)) + text
+
+
+def http(target, method="GET", headers=(), body=b""):
+    head = [f"{method} {target} HTTP/1.1", "Host: 127.0.0.1", *headers]
+    if body:
+        head.append(f"Content-Length: {len(body)}")
+    return ("\r\n".join(head) + "\r\n\r\n").encode() + body
+
+
+UPGRADE = ("Upgrade: websocket", "Connection: Upgrade", "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==",
+           "Sec-WebSocket-Version: 13")
+
+HTTP = {
+    "health": http("/health"),
+    "metrics-then-health": http("/metrics") + http("/health"),
+    "viewer-files": http("/") + http("/viewer.js") + http("/three/build/three.module.js", headers=("Connection: close",)),
+    "post": http("/health", method="POST", body=b'{"type":"ping","id":1}'),
+    "escape": http("/../../etc/passwd") + http("/three/../../README.md") + http("/%2e%2e/CMakeLists.txt"),
+    "http10": b"GET /health HTTP/1.0\r\n\r\n",
+    "upgrade": http("/ws", headers=UPGRADE),
+    "upgrade-elsewhere": http("/viewer.js", headers=UPGRADE),
+    "chunked": http("/health", headers=("Transfer-Encoding: chunked",)) [:-2] + b"\r\n4\r\nabcd\r\n0\r\n\r\n",
+    "bad-then-good": b"GET /health HTTP/9.9\r\n\r\n" + http("/health"),
+}
+
+
+def client_hello():
+    """A TLS ClientHello as Python's OpenSSL sends it (its random bytes differ on every call)."""
+    context = ssl.SSLContext(ssl.PROTOCOL_TLS_CLIENT)
+    context.check_hostname = False
+    context.verify_mode = ssl.CERT_NONE
+    incoming, outgoing = ssl.MemoryBIO(), ssl.MemoryBIO()
+    try:
+        context.wrap_bio(incoming, outgoing).do_handshake()
+    except ssl.SSLWantReadError:
+        pass
+    return outgoing.read()
 
 
 def write(folder, name, data):
@@ -126,6 +177,17 @@ def main():
     write(messages, "binary", b"".join(message(frame(r), binary=True) for r in SESSIONS["delta"]))
     write(messages, "bad-binary", message(frame(ping), True) + message(frame(ping)[:-1], True))
     write(messages, "too-big", message(ping) + message(b" " * 5000) + message(ping))
+    # Text that is not UTF-8 breaks the WebSocket protocol (process_websocket: the server closes).
+    write(messages, "not-utf8", message(ping) + message(b'{"type":"ping","id":2}\xc3\x28'))
+    for name, data in HTTP.items():
+        write(os.path.join(root, "process_http"), name, data)
+    tls = os.path.join(root, "process_tls")
+    # Kept once made: a new ClientHello differs in its random bytes only.
+    if not os.path.exists(os.path.join(tls, "client-hello.bin")):
+        write(tls, "client-hello", b"\x00" + client_hello())
+    write(tls, "session", b"\x01" + b"".join(frame(r) for r in SESSIONS["session"]))
+    write(tls, "codecs", b"\x01" + b"".join(frame(r) for r in SESSIONS["codecs"]))
+    write(tls, "bad-frame", b"\x01" + frame(ping) + struct.pack("<II", 0, 0) + frame(ping))
 
 
 if __name__ == "__main__":

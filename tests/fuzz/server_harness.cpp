@@ -19,7 +19,7 @@
 #include <utility>
 
 #include "core/build/mt_builder.hpp"
-#include "core/codec/draco_decode.hpp"
+#include "core/codec/cut_encoder.hpp"
 #include "core/eval/mesh_gen.hpp"
 #include "core/io/mt_file.hpp"
 #include "fmt/format.h"
@@ -89,6 +89,24 @@ std::int64_t now_ns() {
       .count();
 }
 
+std::size_t write_fuzz_model(const std::filesystem::path& file) {
+  // A noisy sphere of about 2000 triangles, with normals so that requests for them take the
+  // encoder's normal path (a sphere's normals are its directions).
+  core::eval::GenerateOptions options;
+  options.target_triangles = 2000;
+  core::model::Mesh mesh = core::eval::generate_mesh(options);
+  mesh.normals.resize(mesh.positions.size());
+  for (std::size_t v = 0; v < mesh.positions.size(); v += 3) {
+    const float* p = &mesh.positions[v];
+    const float length = std::sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
+    for (int c = 0; c < 3; ++c) mesh.normals[v + c] = p[c] / length;
+  }
+  auto mt = core::build::build_mt(mesh);
+  if (!mt) fail("building the model: " + mt.error().message);
+  if (auto written = core::io::write_mt_file(file, *mt); !written) fail(written.error().message);
+  return mt->triangle_count();
+}
+
 // ---- Transcript ----
 
 Transcript::Transcript(const protocol::Limits& limits, std::size_t model_triangles)
@@ -150,13 +168,12 @@ void Transcript::check_mesh(const protocol::MeshReply& mesh, std::span<const std
     fail(fmt::format("mesh reply {} announces {} bytes and carries {}", n, mesh.bytes, payload.size()));
   }
   if (!mesh.delta) {
-    const auto decoded = core::codec::decode_draco(payload);
+    const auto decoded = core::codec::decode_payload(mesh.codec, payload);
     if (!decoded)
       fail(fmt::format("mesh reply {}: the payload does not decode: {}", n, decoded.error().message));
-    if (decoded->mesh.triangle_count() != mesh.triangles || decoded->mesh.vertex_count() != mesh.vertices) {
+    if (decoded->triangle_count() != mesh.triangles || decoded->vertex_count() != mesh.vertices) {
       fail(fmt::format("mesh reply {} announces {} triangles and {} vertices; its payload holds {} and {}", n,
-                       mesh.triangles, mesh.vertices, decoded->mesh.triangle_count(),
-                       decoded->mesh.vertex_count()));
+                       mesh.triangles, mesh.vertices, decoded->triangle_count(), decoded->vertex_count()));
     }
     client_keyed_ = false;  // the client now holds a mesh without ids: a delta must start afresh
     return;
@@ -165,15 +182,13 @@ void Transcript::check_mesh(const protocol::MeshReply& mesh, std::span<const std
   const auto parts = protocol::split_delta_payload(*mesh.delta, payload);
   if (!parts) fail(fmt::format("delta reply {}: {}", n, parts.error().message));
   if (!parts->mesh.empty()) {
-    const auto decoded = core::codec::decode_draco(parts->mesh);
+    const auto decoded = core::codec::decode_payload(mesh.codec, parts->mesh);
     if (!decoded)
-      fail(fmt::format("delta reply {}: the Draco part does not decode: {}", n, decoded.error().message));
-    if (decoded->mesh.triangle_count() != parts->added_ids.size() ||
-        decoded->mesh.vertex_count() != mesh.vertices) {
+      fail(fmt::format("delta reply {}: the mesh part does not decode: {}", n, decoded.error().message));
+    if (decoded->triangle_count() != parts->added_ids.size() || decoded->vertex_count() != mesh.vertices) {
       fail(fmt::format(
-          "delta reply {} adds {} ids and {} vertices; its Draco part holds {} triangles and {} vertices", n,
-          parts->added_ids.size(), mesh.vertices, decoded->mesh.triangle_count(),
-          decoded->mesh.vertex_count()));
+          "delta reply {} adds {} ids and {} vertices; its mesh part holds {} triangles and {} vertices", n,
+          parts->added_ids.size(), mesh.vertices, decoded->triangle_count(), decoded->vertex_count()));
     }
   }
   if (mesh.delta->reset) {
@@ -287,24 +302,10 @@ FuzzServer::FuzzServer() : memory_(kMemoryLimitBytes) {
   config_.workers = 1;
   config_.instance = "fuzz";
 
-  // The model: a noisy sphere of about 2000 triangles, with normals so that requests for them take
-  // the encoder's normal path (a sphere's normals are its directions).
-  core::eval::GenerateOptions options;
-  options.target_triangles = 2000;
-  core::model::Mesh mesh = core::eval::generate_mesh(options);
-  mesh.normals.resize(mesh.positions.size());
-  for (std::size_t v = 0; v < mesh.positions.size(); v += 3) {
-    const float* p = &mesh.positions[v];
-    const float length = std::sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
-    for (int c = 0; c < 3; ++c) mesh.normals[v + c] = p[c] / length;
-  }
-  auto mt = core::build::build_mt(mesh);
-  if (!mt) fail("building the model: " + mt.error().message);
-  model_triangles_ = mt->triangle_count();
   // The registry loads models from files only; the file is read whole and can go at once.
   const auto dir = std::filesystem::temp_directory_path() / fmt::format("mtlod-fuzz-{}", ::getpid());
   std::filesystem::create_directories(dir);
-  if (auto written = core::io::write_mt_file(dir / "bunny.mt", *mt); !written) fail(written.error().message);
+  model_triangles_ = write_fuzz_model(dir / "bunny.mt");
   if (auto added = models_.add_file(dir / "bunny.mt"); !added) fail(added.error().message);
   std::filesystem::remove_all(dir);
 }

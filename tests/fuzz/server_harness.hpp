@@ -11,6 +11,7 @@
 #include <boost/asio/thread_pool.hpp>
 
 #include <cstdint>
+#include <filesystem>
 #include <functional>
 #include <memory>
 #include <optional>
@@ -152,6 +153,10 @@ class FuzzServer {
   std::uint64_t next_number_ = 1;
   bool closed_ = false;
 };
+
+// Writes the targets' model to `file` (an .mt file; the model "bunny" when the file is bunny.mt)
+// and returns its triangle count.
+std::size_t write_fuzz_model(const std::filesystem::path& file);
 
 // Reports a broken server contract and traps.
 [[noreturn]] void fail(const std::string& what);
