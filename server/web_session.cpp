@@ -47,6 +47,9 @@ using Request = http::request<http::string_body>;
 
 constexpr auto kWebSocketHandshake = std::chrono::seconds(10);  // opening and closing handshakes
 constexpr std::size_t kHttpRequestMaxBytes = 16 * 1024;         // the viewer only sends small GETs
+// How long a closing HTTP connection keeps reading what its client still sends (see
+// HttpSession::linger_then_close), as web servers' lingering close does.
+constexpr auto kHttpLinger = std::chrono::seconds(2);
 
 std::int64_t now_ns() {
   return std::chrono::duration_cast<std::chrono::nanoseconds>(
@@ -363,6 +366,9 @@ class HttpSession : public HttpSessionBase, public std::enable_shared_from_this<
       if (ec != net::error::operation_aborted && ec != beast::error::timeout &&
           ec != ssl::error::stream_truncated) {
         spdlog::debug("http read failed: {}", ec.message());
+        // A request that does not parse ends the connection, and what the client pipelined
+        // behind it is unread: the responses before it must still arrive whole.
+        return linger_then_close();
       }
       return close_socket();
     }
@@ -476,9 +482,30 @@ class HttpSession : public HttpSessionBase, public std::enable_shared_from_this<
     auto message = std::make_shared<http::response<Body>>(std::move(response));
     http::async_write(stream_, *message,
                       [self = this->shared_from_this(), message](error_code ec, std::size_t) {
-                        if (ec || !message->keep_alive()) return self->close_socket();
+                        if (ec) return self->close_socket();
+                        if (!message->keep_alive()) return self->linger_then_close();
                         self->do_read();
                       });
+  }
+
+  // Ends the connection without losing the last response. A socket closed with input still unread
+  // sends a reset, and the reset discards whatever of the response the client has not yet received
+  // (a large file, say). So the sending side ends first (the client reads the response, then end
+  // of stream), and what still arrives is read and dropped until the client closes or kHttpLinger
+  // passes. Only with no read pending (not from close(), which a pending read may race).
+  void linger_then_close() {
+    error_code ignored;
+    tcp().socket().shutdown(tcp::socket::shutdown_send, ignored);
+    tcp().expires_after(kHttpLinger);
+    drain();
+  }
+  void drain() {
+    buffer_.clear();
+    tcp().async_read_some(buffer_.prepare(4096),
+                          [self = this->shared_from_this()](error_code ec, std::size_t) {
+                            if (ec) return self->close_socket();
+                            self->drain();
+                          });
   }
 
   // No TLS close_notify: every response is written whole, and waiting on the peer's would hold the
