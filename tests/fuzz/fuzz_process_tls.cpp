@@ -31,33 +31,40 @@ namespace {
 namespace net = boost::asio;
 namespace ssl = net::ssl;
 
-// A TLS client over a blocking socket, trusting the server's own certificate. Its waits have no
-// deadline of their own: a server that never answers shows up as libFuzzer's timeout (or ctest's).
+// A TLS client trusting the server's own certificate; every wait has a deadline (complete()).
 class TlsChannel final : public Channel {
  public:
   TlsChannel(std::uint16_t port, const std::filesystem::path& certificate)
       : context_(ssl::context::tls_client), stream_(io_, context_) {
     context_.load_verify_file(certificate.string());
     stream_.set_verify_mode(ssl::verify_peer);
-    boost::system::error_code ec;
-    stream_.lowest_layer().connect(net::ip::tcp::endpoint(net::ip::address_v4::loopback(), port), ec);
+    const net::ip::tcp::endpoint server(net::ip::address_v4::loopback(), port);
+    auto ec = complete(io_, "a TLS connect",
+                       [&](auto done) { stream_.lowest_layer().async_connect(server, done); });
     if (ec) fail("connecting to the TLS port: " + ec.message());
-    stream_.handshake(ssl::stream_base::client, ec);
+    ec = complete(io_, "a TLS handshake",
+                  [&](auto done) { stream_.async_handshake(ssl::stream_base::client, done); });
     if (ec) fail("a real client's TLS handshake failed: " + ec.message());
   }
 
   bool send(std::span<const std::uint8_t> bytes) override {
-    boost::system::error_code ec;
-    net::write(stream_, net::buffer(bytes.data(), bytes.size()), ec);
-    return !ec;
+    return !complete(io_, "a TLS write", [&](auto done) {
+      net::async_write(stream_, net::buffer(bytes.data(), bytes.size()), done);
+    });
   }
 
   void finish_sending() override { ::shutdown(stream_.lowest_layer().native_handle(), SHUT_WR); }
 
   bool receive(std::vector<std::uint8_t>& into) override {
     std::array<std::uint8_t, 65536> buffer;
-    boost::system::error_code ec;
-    const std::size_t n = stream_.read_some(net::buffer(buffer), ec);
+    std::size_t n = 0;
+    const auto ec = complete(io_, "a TLS read", [&](auto done) {
+      stream_.async_read_some(net::buffer(buffer),
+                              [&n, done](boost::system::error_code e, std::size_t got) mutable {
+                                n = got;
+                                done(e);
+                              });
+    });
     into.insert(into.end(), buffer.begin(), buffer.begin() + static_cast<std::ptrdiff_t>(n));
     return !ec;
   }

@@ -80,16 +80,15 @@ bool expect_message(Transcript& transcript, const Message& m, const protocol::Li
 class Client {
  public:
   explicit Client(std::uint16_t port) : ws_(io_) {
-    beast::get_lowest_layer(ws_).expires_after(kReplyDeadline);
-    beast::error_code ec;
-    beast::get_lowest_layer(ws_).connect(net::ip::tcp::endpoint(net::ip::address_v4::loopback(), port), ec);
+    auto& tcp = beast::get_lowest_layer(ws_);
+    const net::ip::tcp::endpoint server(net::ip::address_v4::loopback(), port);
+    beast::error_code ec = wait([&](auto done) { tcp.async_connect(server, done); });
     if (ec) fail("connecting to the WebSocket port: " + ec.message());
     // As browsers do: without it, each message sent right after another waits out the server's
     // delayed acknowledgement (40 ms).
-    beast::get_lowest_layer(ws_).socket().set_option(net::ip::tcp::no_delay(true), ec);
+    tcp.socket().set_option(net::ip::tcp::no_delay(true), ec);
     ec = wait([&](auto done) { ws_.async_handshake("127.0.0.1", "/ws", done); });
     if (ec) fail("the WebSocket upgrade failed: " + ec.message());
-    beast::get_lowest_layer(ws_).expires_never();
     ws_.read_message_max(0);  // replies carry meshes: no client-side limit
   }
 
@@ -122,22 +121,9 @@ class Client {
   }
 
  private:
-  // Runs one operation to its end; traps when it takes longer than kReplyDeadline.
   template <typename Start>
   beast::error_code wait(const Start& start) {
-    beast::error_code result;
-    bool done = false;
-    start([&](beast::error_code ec, std::size_t = 0) {
-      result = ec;
-      done = true;
-    });
-    io_.restart();
-    const auto deadline = std::chrono::steady_clock::now() + kReplyDeadline;
-    while (!done) {
-      if (io_.run_one_until(deadline) == 0 && !done)
-        fail("the server neither answered nor closed the WebSocket in time");
-    }
-    return result;
+    return complete(io_, "a WebSocket operation", start);
   }
 
   net::io_context io_;

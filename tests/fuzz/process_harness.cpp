@@ -111,8 +111,18 @@ ClientSocket::ClientSocket(std::uint16_t port) {
   address.sin_family = AF_INET;
   address.sin_port = htons(port);
   address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  if (::connect(fd_, reinterpret_cast<const sockaddr*>(&address), sizeof address) != 0)
-    fail(fmt::format("the server on port {} refused a connection: {}", port, std::strerror(errno)));
+  int error = ::connect(fd_, reinterpret_cast<const sockaddr*>(&address), sizeof address) == 0 ? 0 : errno;
+  if (error == EINTR) {
+    // A signal (libFuzzer's timer) interrupted the wait; the connection goes on: wait for it.
+    pollfd p{fd_, POLLOUT, 0};
+    while (::poll(&p, 1, static_cast<int>(std::chrono::milliseconds(kReplyDeadline).count())) < 0 &&
+           errno == EINTR) {
+    }
+    socklen_t length = sizeof error;
+    ::getsockopt(fd_, SOL_SOCKET, SO_ERROR, &error, &length);
+  }
+  if (error != 0)
+    fail(fmt::format("the server on port {} refused a connection: {}", port, std::strerror(error)));
 }
 
 ClientSocket::~ClientSocket() {
@@ -145,7 +155,10 @@ bool ClientSocket::receive(std::vector<std::uint8_t>& into) {
   } while (ready < 0 && errno == EINTR);
   if (ready == 0) fail("the server neither answered nor closed the connection in time");
   std::array<std::uint8_t, 65536> buffer;
-  const ssize_t n = ::recv(fd_, buffer.data(), buffer.size(), 0);
+  ssize_t n = 0;
+  do {
+    n = ::recv(fd_, buffer.data(), buffer.size(), 0);
+  } while (n < 0 && errno == EINTR);
   if (n <= 0) return false;  // end of stream, or reset after the server's last reply
   into.insert(into.end(), buffer.begin(), buffer.begin() + n);
   return true;

@@ -7,12 +7,16 @@
 // and a failed check traps.
 #pragma once
 
+#include <boost/asio/io_context.hpp>
+#include <boost/system/error_code.hpp>
+
 #include <chrono>
 #include <cstdint>
 #include <filesystem>
 #include <functional>
 #include <memory>
 #include <span>
+#include <string>
 #include <string_view>
 #include <vector>
 
@@ -104,6 +108,25 @@ std::size_t take_replies(std::vector<std::uint8_t>& bytes, Transcript& transcrip
 // come, so that each gaze and delta really runs).
 void run_stream_client(std::span<const std::uint8_t> input,
                        const std::function<std::unique_ptr<Channel>()>& open);
+
+// Runs one asynchronous operation on `io` to its end and returns its error; traps, naming `what`,
+// when it takes longer than kReplyDeadline. Clients here use Asio's asynchronous calls only: its
+// synchronous ones fail with EINTR when a signal (libFuzzer's timer) interrupts them.
+template <typename Start>
+boost::system::error_code complete(boost::asio::io_context& io, const char* what, const Start& start) {
+  boost::system::error_code result;
+  bool done = false;
+  start([&](boost::system::error_code ec, auto&&...) {
+    result = ec;
+    done = true;
+  });
+  io.restart();
+  const auto deadline = std::chrono::steady_clock::now() + kReplyDeadline;
+  while (!done) {
+    if (io.run_one_until(deadline) == 0 && !done) fail(std::string("no end in time: ") + what);
+  }
+  return result;
+}
 
 // Whether `text` is UTF-8 as RFC 3629 defines it (what a WebSocket text message must be).
 bool valid_utf8(std::string_view text);
