@@ -189,19 +189,19 @@ function updateFidelity(o, a) {
   const winner = pointer[0], def = pointer.find((r) => r.setting === a.settingNames[0]);
   const g = a.agreement;
   const lines = [marker, '', '## On the viewer\'s own pixels', '',
-    `[VIEWER.md](VIEWER.md) runs the same comparison on what the browser viewer shows: the real page in headless Chromium (software GL, ${o.size.width}×${o.size.height}) against the real server, ${o.meshes.length} meshes, up to ${o.cameraCount} cameras each (VIEWER.md says which runs stopped short), ${a.settingNames.length} criteria settings set through the page's panel at three equal-byte levels (the bytes today's default sends at ${a.levelsPx.join(', ')} px), scored by the same foveated error (\`mtlod-eval score\`, core/eval/image_metrics) against the full model drawn by the page.`,
+    `[VIEWER.md](VIEWER.md) runs the same comparison on what the browser viewer shows: the real page in headless Chromium (software GL, ${o.size.width}×${o.size.height}) against the real server, ${o.meshes.length} meshes, up to ${o.cameraCount} cameras each, ${a.settingNames.length} criteria settings set through the page's panel at three equal-byte levels (the bytes today's default sends at ${a.levelsPx.join(', ')} px), scored by the same foveated error (\`mtlod-eval score\`, core/eval/image_metrics) against the full model drawn by the page.`,
     '',
     `- Best setting, pointer as focus: **${winner.setting}** (error / best at equal bytes ${f3(winner.overall)}, geometric mean; best in ${winner.wins}/${winner.cases} cases); this report's default criteria \`${a.settingNames[0]}\`: ${f3(def?.overall)}.`,
     `- The viewer's default cut (as the page opens) over the best setting at its bytes: ${f3(a.defaultRatio.geoMean)} (worst mesh ${f3(a.defaultRatio.worst)}; target 1.2).`];
   if (g)
     lines.push(`- Agreement with this report's renderer on the same cuts (${g.cuts}, made again by \`mtlod-extract\` and drawn by \`mtlod-eval image\`): Spearman ${f3(g.pooled)} over all cuts, ${f3(g.withinCase)} among the settings of one case on average, ${f3(g.methods)} between the settings' overall scores. The pictures differ (dark background and two lights in the page, white and a headlight here), so absolute errors differ by ${f3(g.ratio)}× on average; the orders are what carry over.`);
   // Screenshots of the page as it opens (viewer_screenshots.mjs --name viewer-dragon..., the pointer on
-  // the model), when they are there: `-1px-` ones show the page with a 1 px bound, for comparison.
+  // the model), when they are there.
   const shots = fs.existsSync(path.join(o.out, 'figures'))
     ? fs.readdirSync(path.join(o.out, 'figures')).filter((f) => /^viewer-dragon.*\.png$/.test(f)).sort() : [];
   if (shots.length)
     lines.push('', '### The viewer at its defaults', '',
-               'The 871k dragon at 1280×720, the pointer on the model (`tests/evaluation/viewer_screenshots.mjs`); `smooth` is how it opens, `flat` the flat-shading toggle (the cut\'s facets); `1px` names pictures of the page with a 1 px bound instead of its default.', '',
+               'The 871k dragon at 1280×720, the pointer on the model (`tests/evaluation/viewer_screenshots.mjs`): `smooth` is how it opens, shaded with the normals its payload carries; `flat` is the same cut with the flat-shading toggle, which shows its facets (without normals the page could draw nothing else).', '',
                ...shots.map((f) => `![${f}](figures/${f})`));
   fs.writeFileSync(file, `${kept}\n\n${lines.join('\n')}\n`);
 }
