@@ -83,6 +83,9 @@ ProcessServer::ProcessServer() {
   config.workers = 1;
   config.web_root = MTLOD_SOURCE_DIR;
   config.instance = "fuzz";
+  // The model file never changes while the servers run, and its folder goes at exit, when a
+  // watcher waking up would log into a process tearing down.
+  config.watch_models = false;
   limits_ = config.limits;
   const server::Server& plain = start_server(config, model);
   port_ = plain.port();
