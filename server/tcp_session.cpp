@@ -10,6 +10,7 @@
 #include <boost/asio/steady_timer.hpp>
 #include <boost/asio/write.hpp>
 
+#include <array>
 #include <chrono>
 #include <type_traits>
 
@@ -159,15 +160,40 @@ class TcpSession final : public Connection {
   }
   void resume_reading() override { do_read_header(); }
   // No TLS close_notify: it would wait on the peer, and every reply owed has been written whole.
+  // With no read pending (after a bad frame, or once the client has ended its side) the socket
+  // lingers: its sending side ends, and what the client still sends is read and dropped until it
+  // closes or kLinger passes. Closed with input unread, it would send a reset, and a reset discards
+  // whatever of the replies the client has not yet received.
   void close_transport() override {
-    error_code ignored;
     deadline_.cancel();
+    if (reading_ || !socket().is_open()) return close_socket();
+    error_code ignored;
+    socket().shutdown(tcp::socket::shutdown_send, ignored);
+    deadline_.expires_after(kLinger);
+    deadline_.async_wait([self = shared_self()](error_code ec) {
+      if (!ec) self->close_socket();  // the pending drain ends with it
+    });
+    drain();
+  }
+  void drain() {
+    socket().async_read_some(net::buffer(drained_), [self = shared_self()](error_code ec, std::size_t) {
+      if (!ec) return self->drain();
+      self->deadline_.cancel();
+      self->close_socket();
+    });
+  }
+  void close_socket() {
+    error_code ignored;
     socket().shutdown(tcp::socket::shutdown_both, ignored);
     socket().close(ignored);
   }
 
+  // How long a closing connection keeps reading what its client still sends (close_transport).
+  static constexpr auto kLinger = std::chrono::seconds(2);
+
   Stream stream_;
   net::steady_timer deadline_;
+  std::array<std::uint8_t, 4096> drained_;
   std::array<std::uint8_t, protocol::kFrameHeaderBytes> header_{};
   std::vector<std::uint8_t> body_;
   std::uint32_t json_bytes_ = 0;

@@ -1,6 +1,10 @@
 // Integration tests: the real mtlod-server binary on an OS-chosen loopback port, driven by the
 // clients' connection code. Payloads are decoded and compared with an in-process extraction.
 #include <gtest/gtest.h>
+#include <netinet/in.h>
+#include <poll.h>
+#include <sys/socket.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <array>
@@ -428,6 +432,72 @@ TEST_F(ServerTest, OversizedFrameClosesOnlyThatConnection) {
   EXPECT_FALSE(bad.receive(std::chrono::seconds(10)).ok()) << "the connection should be closed";
   auto pong = good.call(protocol::Ping{}, 5);
   ASSERT_TRUE(pong.ok()) << pong.error().message;
+}
+
+// A connection that ends on a bad frame while its client is still sending loses none of the
+// replies before it. Closed with input unread, a socket sends a reset, and the reset discards what
+// the client has not yet received: here most of a mesh, since this client keeps its receive
+// buffer small and reads only once the server is done.
+TEST_F(ServerTest, ABadFrameAfterAnExtractLosesNoneOfTheMeshBeforeIt) {
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  ASSERT_GE(fd, 0);
+  const int small = 4096;
+  ::setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &small, sizeof small);
+  sockaddr_in address{};
+  address.sin_family = AF_INET;
+  address.sin_port = htons(g_fixture->server->port());
+  address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  ASSERT_EQ(::connect(fd, reinterpret_cast<const sockaddr*>(&address), sizeof address), 0);
+  protocol::Extract whole = extract_request();
+  whole.error = 0;  // the whole model: far more than the client's receive buffer
+  std::vector<std::uint8_t> out;
+  protocol::append_frame(protocol::to_json(protocol::Request{whole}, 1), {}, out);
+  const auto bad = protocol::encode_frame_header({0, 0});  // an empty JSON part
+  out.insert(out.end(), bad.begin(), bad.end());
+  out.resize(out.size() + 32768, 'x');  // what the client sends on: never read
+  ASSERT_EQ(::send(fd, out.data(), out.size(), MSG_NOSIGNAL), static_cast<ssize_t>(out.size()));
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));  // the server answers and ends
+
+  std::vector<std::uint8_t> in;
+  for (;;) {
+    pollfd p{fd, POLLIN, 0};
+    ASSERT_EQ(::poll(&p, 1, 10000), 1) << "the server neither sent nor closed";
+    std::array<std::uint8_t, 65536> buffer;
+    const ssize_t n = ::recv(fd, buffer.data(), buffer.size(), 0);
+    ASSERT_GE(n, 0) << "the connection was reset after " << in.size() << " bytes";
+    if (n == 0) break;
+    in.insert(in.end(), buffer.begin(), buffer.begin() + n);
+  }
+  ::close(fd);
+  std::vector<protocol::ParsedReply> replies;
+  std::span<const std::uint8_t> rest(in);
+  while (rest.size() >= protocol::kFrameHeaderBytes) {
+    const auto header = protocol::decode_frame_header(rest.first<protocol::kFrameHeaderBytes>(), 1u << 30);
+    ASSERT_TRUE(header.ok());
+    ASSERT_GE(rest.size(), protocol::kFrameHeaderBytes + header->body_bytes()) << "a reply cut short";
+    const std::string_view json(reinterpret_cast<const char*>(rest.data()) + protocol::kFrameHeaderBytes,
+                                header->json_bytes);
+    auto reply = protocol::parse_reply(json);
+    ASSERT_TRUE(reply.ok()) << json;
+    if (const auto* mesh = std::get_if<protocol::MeshReply>(&reply->reply)) {
+      // The whole payload arrived: it decodes to the cut the reply announces.
+      const auto payload =
+          rest.subspan(protocol::kFrameHeaderBytes + header->json_bytes, header->payload_bytes);
+      const auto decoded = core::codec::decode_payload(mesh->codec, payload);
+      ASSERT_TRUE(decoded.ok()) << decoded.error().message;
+      EXPECT_EQ(decoded->triangle_count(), mesh->triangles);
+      EXPECT_GT(payload.size(), 2u * static_cast<std::size_t>(small))
+          << "larger than the receive buffer (the kernel doubles what SO_RCVBUF asks)";
+    }
+    replies.push_back(std::move(*reply));
+    rest = rest.subspan(protocol::kFrameHeaderBytes + header->body_bytes());
+  }
+  EXPECT_TRUE(rest.empty());
+  ASSERT_EQ(replies.size(), 2u);
+  EXPECT_NE(std::get_if<protocol::MeshReply>(&replies[0].reply), nullptr);
+  const auto* error = std::get_if<protocol::ErrorReply>(&replies[1].reply);
+  ASSERT_NE(error, nullptr);
+  EXPECT_EQ(error->code, protocol::ErrorKind::kBadFrame);
 }
 
 TEST_F(ServerTest, AbruptDisconnectsMidFrameAndMidRequestLoseNothingForOthers) {
