@@ -121,6 +121,68 @@ double meshes_sent_at_exit(const std::string& log) {
   return std::stod(log.substr(at + line.size()));
 }
 
+// mtlod-load's report `r` says every request it sent was answered with a mesh: none lost, none
+// given up, none left unsent.
+void expect_every_request_answered(const json& r) {
+  EXPECT_GT(r.at("sent").get<std::uint64_t>(), 0u);
+  EXPECT_EQ(r.at("ok"), r.at("sent")) << r.dump(2);
+  EXPECT_EQ(r.at("errors"), 0) << r.dump(2);
+  EXPECT_EQ(r.at("lost"), 0) << r.dump(2);
+  EXPECT_EQ(r.at("unsent"), 0) << r.dump(2);
+  EXPECT_EQ(r.at("gave_up"), 0) << r.dump(2);
+}
+
+// Two replicas sharing `models` (logging at `log_level`) behind HAProxy running
+// docker/haproxy.cfg, on loopback ports, once HAProxy sees both up.
+struct Fleet {
+  std::vector<Replica> replicas;
+  std::uint16_t lb_port = test::free_port(), lb_http_port = test::free_port(), stats_port = test::free_port();
+  std::unique_ptr<test::Child> haproxy;
+
+  void start(const std::filesystem::path& dir, const std::filesystem::path& models,
+             const std::string& log_level = "warn") {
+    for (const char* name : {"replica-1", "replica-2"}) {
+      replicas.push_back(Replica{name, test::free_port(), test::free_port(), dir / name, nullptr});
+      std::filesystem::create_directories(replicas.back().dir);
+      replicas.back().start(models, log_level);
+      ASSERT_TRUE(replicas.back().process->running()) << replicas.back().process->log();
+    }
+    const auto environment = test::haproxy_environment(
+        {lb_port,
+         lb_http_port,
+         stats_port,
+         {{{replicas[0].port, replicas[0].http_port}, {replicas[1].port, replicas[1].http_port}}}});
+    haproxy = std::make_unique<test::Child>(
+        std::vector<std::string>{MTLOD_HAPROXY_BINARY, "-db", "-f", MTLOD_SOURCE_DIR "/docker/haproxy.cfg"},
+        environment, dir / "haproxy.log");
+    ASSERT_TRUE(wait_until(
+        [&] {
+          return haproxy_says_up(stats_port, "replicas", "replica-1") &&
+                 haproxy_says_up(stats_port, "replicas", "replica-2");
+        },
+        30s))
+        << "HAProxy never saw both replicas up\n"
+        << haproxy->log();
+  }
+
+  // mtlod-load through HAProxy for `seconds`, closed loop on 4 connections recycled every 10
+  // requests, its JSON report to `report`; returns once replica-1 serves one of them.
+  void start_load(const std::filesystem::path& dir, int seconds, const std::filesystem::path& report,
+                  std::unique_ptr<test::Child>& load) {
+    load = std::make_unique<test::Child>(
+        std::vector<std::string>{MTLOD_LOAD_BINARY, "--port", std::to_string(lb_port), "--model", "sphere",
+                                 "--connections", "4", "--duration", std::to_string(seconds), "--budget",
+                                 "2000", "--reconnect-after", "10", "--attempts", "40", "--quiet", "--json",
+                                 report.string()},
+        std::map<std::string, std::string>{}, dir / "load.log");
+    std::this_thread::sleep_for(2s);
+    ASSERT_TRUE(load->running()) << load->log();
+    ASSERT_TRUE(wait_until([&] { return haproxy_sessions(stats_port, "replicas", "replica-1") >= 1; }, 10s))
+        << "no connection reached replica-1\n"
+        << haproxy->log();
+  }
+};
+
 json read_json(const std::filesystem::path& path) {
   std::ifstream in(path);
   if (!in) return json::object();
@@ -130,46 +192,21 @@ json read_json(const std::filesystem::path& path) {
 TEST(Failover, LoadThroughHaproxySurvivesAKilledReplicaAndComesBackToItsRestart) {
   const auto dir = test::scratch_dir("failover");
   const auto models = write_model(dir, 8000);
-  std::vector<Replica> replicas;
-  for (const char* name : {"replica-1", "replica-2"}) {
-    replicas.push_back(Replica{name, test::free_port(), test::free_port(), dir / name, nullptr});
-    std::filesystem::create_directories(replicas.back().dir);
-    replicas.back().start(models);
-    ASSERT_TRUE(replicas.back().process->running()) << replicas.back().process->log();
-  }
-  const std::uint16_t lb_port = test::free_port(), lb_http_port = test::free_port(),
-                      stats_port = test::free_port();
-  const auto environment = test::haproxy_environment(
-      {lb_port,
-       lb_http_port,
-       stats_port,
-       {{{replicas[0].port, replicas[0].http_port}, {replicas[1].port, replicas[1].http_port}}}});
-  test::Child haproxy({MTLOD_HAPROXY_BINARY, "-db", "-f", MTLOD_SOURCE_DIR "/docker/haproxy.cfg"},
-                      environment, dir / "haproxy.log");
-  ASSERT_TRUE(wait_until(
-      [&] {
-        return haproxy_says_up(stats_port, "replicas", "replica-1") &&
-               haproxy_says_up(stats_port, "replicas", "replica-2");
-      },
-      30s))
-      << "HAProxy never saw both replicas up\n"
-      << haproxy.log();
+  Fleet fleet;
+  ASSERT_NO_FATAL_FAILURE(fleet.start(dir, models));
+  std::vector<Replica>& replicas = fleet.replicas;
+  const std::uint16_t stats_port = fleet.stats_port;
+  test::Child& haproxy = *fleet.haproxy;
   const std::string first_instance = health_instance(replicas[0].http_port);
   ASSERT_FALSE(first_instance.empty());
 
-  // Closed loop through HAProxy; connections are recycled every 10 requests so that the balancer
-  // can place them on the restarted replica.
+  // Connections are recycled every 10 requests so that the balancer can place them on the
+  // restarted replica.
   const auto report = dir / "load.json";
-  test::Child load({MTLOD_LOAD_BINARY, "--port", std::to_string(lb_port), "--model", "sphere",
-                    "--connections", "4", "--duration", "14", "--budget", "2000", "--reconnect-after", "10",
-                    "--attempts", "40", "--quiet", "--json", report.string()},
-                   {}, dir / "load.log");
-  std::this_thread::sleep_for(3s);
-  ASSERT_TRUE(load.running()) << load.log();
+  std::unique_ptr<test::Child> loading;
+  ASSERT_NO_FATAL_FAILURE(fleet.start_load(dir, 14, report, loading));
+  test::Child& load = *loading;
   // Kill it while it serves: a closed-loop connection always has a request in flight.
-  ASSERT_TRUE(wait_until([&] { return haproxy_sessions(stats_port, "replicas", "replica-1") >= 1; }, 10s))
-      << "no connection reached replica-1\n"
-      << haproxy.log();
   const int status = replicas[0].process->stop(SIGKILL);
   EXPECT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL) << status;
   std::this_thread::sleep_for(1500ms);
@@ -185,12 +222,7 @@ TEST(Failover, LoadThroughHaproxySurvivesAKilledReplicaAndComesBackToItsRestart)
   const json r = read_json(report);
   ASSERT_TRUE(r.contains("instances")) << r.dump(2) << load.log();
   // Every request answered: the ones on the killed replica were sent again, none lost.
-  EXPECT_GT(r.at("sent").get<std::uint64_t>(), 0u);
-  EXPECT_EQ(r.at("ok"), r.at("sent")) << r.dump(2);
-  EXPECT_EQ(r.at("errors"), 0) << r.dump(2);
-  EXPECT_EQ(r.at("lost"), 0) << r.dump(2);
-  EXPECT_EQ(r.at("unsent"), 0) << r.dump(2);
-  EXPECT_EQ(r.at("gave_up"), 0) << r.dump(2);
+  expect_every_request_answered(r);
   EXPECT_GE(r.at("retried").get<std::uint64_t>(), 1u) << "the kill caught requests in flight\n" << r.dump(2);
   EXPECT_GE(r.at("reconnects").get<std::uint64_t>(), 1u) << r.dump(2);
   // Both replicas served before the kill, and the restarted one served again afterwards.
@@ -223,45 +255,18 @@ TEST(Failover, LoadThroughHaproxySurvivesAKilledReplicaAndComesBackToItsRestart)
 TEST(Drain, ALoadedReplicaBehindHaproxyDrainsWithNothingLostOrServedTwice) {
   const auto dir = test::scratch_dir("drain-behind-haproxy");
   const auto models = write_model(dir, 8000);
-  std::vector<Replica> replicas;
-  for (const char* name : {"replica-1", "replica-2"}) {
-    replicas.push_back(Replica{name, test::free_port(), test::free_port(), dir / name, nullptr});
-    std::filesystem::create_directories(replicas.back().dir);
-    replicas.back().start(models, "info");  // info: the exit line with the meshes sent
-    ASSERT_TRUE(replicas.back().process->running()) << replicas.back().process->log();
-  }
-  const std::uint16_t lb_port = test::free_port(), lb_http_port = test::free_port(),
-                      stats_port = test::free_port();
-  const auto environment = test::haproxy_environment(
-      {lb_port,
-       lb_http_port,
-       stats_port,
-       {{{replicas[0].port, replicas[0].http_port}, {replicas[1].port, replicas[1].http_port}}}});
-  test::Child haproxy({MTLOD_HAPROXY_BINARY, "-db", "-f", MTLOD_SOURCE_DIR "/docker/haproxy.cfg"},
-                      environment, dir / "haproxy.log");
-  ASSERT_TRUE(wait_until(
-      [&] {
-        return haproxy_says_up(stats_port, "replicas", "replica-1") &&
-               haproxy_says_up(stats_port, "replicas", "replica-2");
-      },
-      30s))
-      << "HAProxy never saw both replicas up\n"
-      << haproxy.log();
+  Fleet fleet;
+  ASSERT_NO_FATAL_FAILURE(fleet.start(dir, models, "info"));  // info: the exit line with the meshes sent
+  std::vector<Replica>& replicas = fleet.replicas;
   const std::string drained = health_instance(replicas[0].http_port);
   const std::string kept = health_instance(replicas[1].http_port);
   ASSERT_FALSE(drained.empty());
   ASSERT_FALSE(kept.empty());
 
   const auto report = dir / "load.json";
-  test::Child load({MTLOD_LOAD_BINARY, "--port", std::to_string(lb_port), "--model", "sphere",
-                    "--connections", "4", "--duration", "8", "--budget", "2000", "--reconnect-after", "10",
-                    "--attempts", "40", "--quiet", "--json", report.string()},
-                   {}, dir / "load.log");
-  std::this_thread::sleep_for(2s);
-  ASSERT_TRUE(load.running()) << load.log();
-  ASSERT_TRUE(wait_until([&] { return haproxy_sessions(stats_port, "replicas", "replica-1") >= 1; }, 10s))
-      << "no connection reached replica-1\n"
-      << haproxy.log();
+  std::unique_ptr<test::Child> loading;
+  ASSERT_NO_FATAL_FAILURE(fleet.start_load(dir, 8, report, loading));
+  test::Child& load = *loading;
   // What an orchestrator does to a replica it retires: SIGTERM, then wait. Its connections each
   // have a request in flight, which it finishes and answers before closing them.
   const int status = replicas[0].process->stop(SIGTERM, 30s);
@@ -273,12 +278,7 @@ TEST(Drain, ALoadedReplicaBehindHaproxyDrainsWithNothingLostOrServedTwice) {
   ASSERT_EQ(load.wait(90s), 0) << load.log();
   const json r = read_json(report);
   ASSERT_TRUE(r.contains("instances")) << r.dump(2) << load.log();
-  EXPECT_GT(r.at("sent").get<std::uint64_t>(), 0u);
-  EXPECT_EQ(r.at("ok"), r.at("sent")) << r.dump(2);
-  EXPECT_EQ(r.at("errors"), 0) << r.dump(2);
-  EXPECT_EQ(r.at("lost"), 0) << r.dump(2);
-  EXPECT_EQ(r.at("unsent"), 0) << r.dump(2);
-  EXPECT_EQ(r.at("gave_up"), 0) << r.dump(2);
+  expect_every_request_answered(r);
   const json& instances = r.at("instances");
   ASSERT_TRUE(instances.contains(drained)) << instances.dump(2);
   ASSERT_TRUE(instances.contains(kept)) << "the other replica took the load\n" << instances.dump(2);
