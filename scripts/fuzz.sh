@@ -44,7 +44,8 @@ case $target in server_* | process_tcp | process_websocket | process_tls | reque
 # SIGINT (kill -INT) ends a campaign early and still merges what it found; SIGSTOP does not pause
 # one, since libFuzzer counts the stopped time against the unit and reports a timeout.
 commit=$(git -C "$root" rev-parse --short HEAD)
-git -C "$root" diff --quiet HEAD -- core protocol server tests/fuzz || commit="$commit+changes"
+git -C "$root" diff --quiet HEAD -- core protocol server tests/fuzz ':!tests/fuzz/corpus' ':!tests/fuzz/campaigns' ||
+  commit="$commit+changes"
 log=$build/logs/$target-$(date -u +%Y%m%dT%H%M%SZ).log
 mkdir -p "$build/logs"
 before=$(ls "$corpus" | wc -l)
@@ -55,12 +56,15 @@ status=0
 wait  # for tee
 elapsed=$(($(date +%s) - started))
 # Edges only (no hit counts): the committed corpus keeps one input per new branch and stays small.
-"$binary" -merge=1 -use_counters=0 "$corpus" "$found" 2>&1 | tail -1
+# The merge runs every input again: what fails there is a finding too (a flaky one), kept beside
+# the campaign's crashes and recorded with them.
+"$binary" -merge=1 -use_counters=0 -artifact_prefix="$build/crashes/$target-merge-" "$corpus" "$found" 2>&1 |
+  tee -a "$log" | tail -1
 after=$(ls "$corpus" | wc -l)
 echo "$corpus: $before -> $after files, $(du -sh --apparent-size "$corpus" | cut -f1)"
 # The campaign's record: libFuzzer's own final statistics, never edited by hand.
 final_stat() { sed -n "s/^stat::$1: *//p" "$log" | tail -1; }
-crash=$(sed -n 's/^artifact_prefix=.*; Test unit written to //p' "$log" | tail -1)
+crash=$(sed -n 's/^artifact_prefix=.*; Test unit written to //p' "$log" | paste -sd' ' -)
 record=$root/tests/fuzz/campaigns/$target.tsv
 mkdir -p "$(dirname "$record")"
 [[ -s $record ]] || printf 'date\tcommit\tsanitizers\tnice\tseconds\texecutions\texec_per_s\tnew_units\tpeak_rss_mb\tcorpus\texit\tcrash\n' >"$record"
