@@ -41,6 +41,22 @@ struct Expected {
   bool last = false;  // the server closes after answering it
 };
 
+// Feeds `bytes` to `parser` until it holds one whole message, fails, or wants more than `bytes`
+// holds (a header or chunk the input ends inside); returns the bytes it took.
+template <class Parser>
+std::size_t feed(Parser& parser, std::string_view bytes, beast::error_code& ec) {
+  std::size_t used = 0;
+  while (!parser.is_done() && !ec && used < bytes.size()) {
+    const std::size_t n = parser.put(net::buffer(bytes.data() + used, bytes.size() - used), ec);
+    used += n;
+    if (ec == http::error::need_more) {
+      ec = {};
+      if (n == 0) break;
+    }
+  }
+  return used;
+}
+
 // The requests of `input` the server answers, in order.
 std::vector<Expected> read_requests(std::string_view input) {
   std::vector<Expected> out;
@@ -50,15 +66,7 @@ std::vector<Expected> read_requests(std::string_view input) {
     parser.body_limit(kRequestMaxBytes);
     parser.eager(true);
     beast::error_code ec;
-    std::size_t used = 0;
-    while (!parser.is_done() && !ec && used < input.size()) {
-      const std::size_t n = parser.put(net::buffer(input.data() + used, input.size() - used), ec);
-      used += n;
-      if (ec == http::error::need_more) {
-        ec = {};
-        if (n == 0) break;  // the rest is not yet a whole header or chunk: the input ends first
-      }
-    }
+    const std::size_t used = feed(parser, input, ec);
     // At the input's end the client has closed: a body without a length ends there.
     if (!ec && !parser.is_done()) parser.put_eof(ec);
     if (ec || !parser.is_done()) break;
@@ -89,13 +97,7 @@ std::vector<Response> read_responses(std::string_view bytes) {
     parser.body_limit(boost::none);
     parser.eager(true);
     beast::error_code ec;
-    std::size_t used = 0;
-    while (!parser.is_done() && !ec && used < bytes.size()) {
-      const std::size_t n = parser.put(net::buffer(bytes.data() + used, bytes.size() - used), ec);
-      used += n;
-      if (ec == http::error::need_more && n > 0) ec = {};
-      if (parser.is_header_done() && parser.get().result_int() == 101) break;
-    }
+    const std::size_t used = feed(parser, bytes, ec);  // a 101 has no body: done after its header
     if (parser.is_header_done() && parser.get().result_int() == 101) {
       out.push_back(Response{101, {}});
       break;

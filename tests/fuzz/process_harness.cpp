@@ -229,21 +229,21 @@ void run_stream_client(std::span<const std::uint8_t> input,
       channel->send(input);
     } else {
       std::size_t owed = 0, answered = 0;
-      bool open_ = true;
+      bool connected = true;
       for (const StreamFrame& frame : frames) {
         expect(transcript, frame);
         ++owed;
         if (!channel->send(frame.bytes)) break;
-        while (open_ && answered < owed) {
-          open_ = channel->receive(received);
+        while (connected && answered < owed) {
+          connected = channel->receive(received);
           answered += take_replies(received, transcript);
         }
-        if (!open_) break;
+        if (!connected) break;
       }
       // What follows the last whole frame: a frame cut short, or what a refused header hid.
       std::size_t sent = 0;
       for (const StreamFrame& frame : frames) sent += frame.bytes.size();
-      if (open_ && (frames.empty() || !frames.back().bad)) channel->send(input.subspan(sent));
+      if (connected && (frames.empty() || !frames.back().bad)) channel->send(input.subspan(sent));
     }
     channel->finish_sending();
     std::vector<std::uint8_t> rest = channel->receive_all();

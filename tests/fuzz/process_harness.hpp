@@ -74,7 +74,6 @@ class ClientSocket final : public Channel {
   ClientSocket(const ClientSocket&) = delete;
   ClientSocket& operator=(const ClientSocket&) = delete;
 
-  int fd() const { return fd_; }
   bool send(std::span<const std::uint8_t> bytes) override;
   void finish_sending() override;
   bool receive(std::vector<std::uint8_t>& into) override;
