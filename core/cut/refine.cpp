@@ -350,7 +350,8 @@ CutSpan Refiner::run(const Refinement& what, CutMesh& scratch) {
     return CutSpan::of(scratch);
   }
   if (what.start != Start::kMove) {
-    on_demand ? refine_on_demand(*what.source, what.field, scratch) : refine_minimal(what.allowed, scratch);
+    on_demand ? refine_on_demand(*what.source, what.field, what.allowed.threshold, scratch)
+              : refine_minimal(what.allowed, scratch);
     return CutSpan::of(scratch);
   }
   if (on_demand) return update_view_on_demand(*what.source, what.field, *what.changed, scratch);
@@ -436,10 +437,13 @@ void Refiner::fill_split_vertices(const OnDemand& on_demand, std::size_t first) 
   on_demand.source.fill(batch_, on_demand.field);
 }
 
-void Refiner::refine_on_demand(const VertexErrorSource& source, std::span<float> field, CutMesh& out) {
+void Refiner::refine_on_demand(const VertexErrorSource& source, std::span<float> field, Rank threshold,
+                               CutMesh& out) {
   assert(field.size() == mt_.vertex_count());
   const OnDemand on_demand{source, field};
-  refine_from_root(AllowedError::from_vertices(field), out, &on_demand);
+  AllowedError allowed = AllowedError::from_vertices(field);
+  allowed.threshold = threshold;
+  refine_from_root(allowed, out, &on_demand);
 }
 
 void Refiner::refine_from_root(const AllowedError& allowed, CutMesh& out, const OnDemand* on_demand) {

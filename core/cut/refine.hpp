@@ -90,7 +90,10 @@ struct Refinement {
     kMove,  // from the kept cut, moved to the new allowed error (from the root when none is kept)
   };
   Start start = Start::kRoot;
-  AllowedError allowed;               // on demand: views `field`
+  // On demand: views `field`. Its threshold holds for a refinement from the root without a budget,
+  // on demand or not: the minimal cut of that threshold, a cut the worst-first order passes through
+  // (how a scene shares one budget among its instances, core/view/scene_extract.hpp).
+  AllowedError allowed;
   std::optional<std::size_t> budget;  // at most this many triangles, worst error/allowed first
   // On demand: the allowed error is asked of `source` for only the vertices the refinement reads
   // and written to `field` (one entry per MT vertex, the caller's scratch; other entries are left
@@ -254,7 +257,8 @@ class Refiner {
  private:
   // The kinds of refine_view, one per Refinement it dispatches.
   void refine_minimal(const AllowedError& allowed, CutMesh& out);
-  void refine_on_demand(const VertexErrorSource& source, std::span<float> field, CutMesh& out);
+  void refine_on_demand(const VertexErrorSource& source, std::span<float> field, Rank threshold,
+                        CutMesh& out);
   void refine_budget(const AllowedError& allowed, std::size_t max_triangles, CutMesh& out);
   void refine_budget_on_demand(const VertexErrorSource& source, std::span<float> field,
                                std::size_t max_triangles, CutMesh& out);

@@ -470,4 +470,32 @@ void euclidean_squared(std::span<const std::uint8_t> image, GridSize grid, std::
   DistanceTransformer().euclidean_squared(image, grid, out);
 }
 
+namespace {
+
+void to_fifths_of_pixel(std::span<const std::uint32_t> squared, std::span<std::uint16_t> out) {
+  for (std::size_t c = 0; c < out.size(); ++c) {
+    out[c] = squared[c] == kEuclideanUnreached
+                 ? kChamferUnreached
+                 : static_cast<std::uint16_t>(std::lround(5.0 * std::sqrt(static_cast<double>(squared[c]))));
+  }
+}
+
+}  // namespace
+
+void DistanceTransformer::labels(DistanceMetric metric, std::span<const std::uint8_t> image, GridSize grid,
+                                 std::span<std::uint16_t> out) {
+  if (metric != DistanceMetric::kEuclidean) return chamfer(metric, image, grid, out);
+  squared_.resize(out.size());
+  euclidean_squared(image, grid, squared_);
+  to_fifths_of_pixel(squared_, out);
+}
+
+void DistanceTransformer::labels_from_cells(DistanceMetric metric, std::span<const std::uint32_t> seed_cells,
+                                            GridSize grid, std::span<std::uint16_t> out) {
+  if (metric != DistanceMetric::kEuclidean) return chamfer_from_cells(metric, seed_cells, grid, out);
+  squared_.resize(out.size());
+  euclidean_squared_from_cells(seed_cells, grid, squared_);
+  to_fifths_of_pixel(squared_, out);
+}
+
 }  // namespace mtlod::core::view

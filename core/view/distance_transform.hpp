@@ -96,6 +96,15 @@ class DistanceTransformer {
   void euclidean_squared_from_cells(std::span<const std::uint32_t> seed_cells, GridSize grid,
                                     std::span<std::uint32_t> out);
 
+  // Labels of any metric as the allowed-error laws read them: the chamfer transform of `metric`, or
+  // for kEuclidean the exact distance in fifths of a pixel (the 5-per-pixel scale of the papers'
+  // labels, read as 5-7-11 units; fits 16 bits on grids up to 4096²). Seeded by the zero cells of
+  // image, or by a list of cells.
+  void labels(DistanceMetric metric, std::span<const std::uint8_t> image, GridSize grid,
+              std::span<std::uint16_t> out);
+  void labels_from_cells(DistanceMetric metric, std::span<const std::uint32_t> seed_cells, GridSize grid,
+                         std::span<std::uint16_t> out);
+
   // Runs the chamfer passes cell by cell (the portable code used without SSE2) instead of 8 cells at
   // a time. Same results; for tests and comparisons.
   void set_scalar(bool scalar) { scalar_ = scalar; }
@@ -118,7 +127,8 @@ class DistanceTransformer {
  public:
   // Bytes of scratch memory held.
   std::size_t memory_bytes() const {
-    return padded_.capacity() * 2 + passable_.capacity() + column_.capacity() * 2 + envelope_.capacity() * 4;
+    return padded_.capacity() * 2 + passable_.capacity() + column_.capacity() * 2 +
+           (envelope_.capacity() + squared_.capacity()) * 4;
   }
 
  private:
@@ -128,6 +138,7 @@ class DistanceTransformer {
   std::vector<std::uint8_t> passable_;   // chamfer_constrained: padded passable mask (padding blocked)
   std::vector<std::uint16_t> column_;    // Euclidean phase 1: distance to the nearest seed in the column
   std::vector<std::uint32_t> envelope_;  // Euclidean phase 2: s and t of the lower envelope
+  std::vector<std::uint32_t> squared_;   // labels(): the Euclidean transform before rounding
 };
 
 }  // namespace mtlod::core::view

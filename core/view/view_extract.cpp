@@ -3,26 +3,12 @@
 
 #include <algorithm>
 #include <cassert>
-#include <cmath>
 
 #include "core/model/bounds.hpp"
 #include "core/view/labels.hpp"
 #include "core/view/occupancy.hpp"
 
 namespace mtlod::core::view {
-namespace {
-
-// Exact squared distances → distances in fifths of a pixel: the 5-per-pixel scale of the papers'
-// labels, so the allowed-error laws read them as 5-7-11 units. Fits 16 bits on grids up to 4096².
-void to_fifths_of_pixel(std::span<const std::uint32_t> squared, std::span<std::uint16_t> out) {
-  for (std::size_t c = 0; c < out.size(); ++c) {
-    out[c] = squared[c] == kEuclideanUnreached
-                 ? kChamferUnreached
-                 : static_cast<std::uint16_t>(std::lround(5.0 * std::sqrt(static_cast<double>(squared[c]))));
-  }
-}
-
-}  // namespace
 
 // What the refiner asks for in a session: forwarded to ViewExtractor::fill_known.
 class ViewExtractor::KnownSource final : public cut::VertexErrorSource {
@@ -120,25 +106,7 @@ std::size_t ViewExtractor::occupancy() {
   return level.triangle_count();
 }
 
-void ViewExtractor::transform(std::span<const std::uint8_t> image, std::span<std::uint16_t> out) {
-  const DistanceMetric metric = request_->allowed.metric;
-  if (metric != DistanceMetric::kEuclidean) return transformer_.chamfer(metric, image, request_->grid, out);
-  euclidean_.resize(out.size());
-  transformer_.euclidean_squared(image, request_->grid, euclidean_);
-  to_fifths_of_pixel(euclidean_, out);
-}
-
-void ViewExtractor::transform_from_cells(std::span<const std::uint32_t> cells, std::span<std::uint16_t> out) {
-  const DistanceMetric metric = request_->allowed.metric;
-  if (metric != DistanceMetric::kEuclidean)
-    return transformer_.chamfer_from_cells(metric, cells, request_->grid, out);
-  euclidean_.resize(out.size());
-  transformer_.euclidean_squared_from_cells(cells, request_->grid, euclidean_);
-  to_fifths_of_pixel(euclidean_, out);
-}
-
-bool ViewExtractor::transform_needed(Criterion c) const {
-  const ViewRequest& r = *request_;
+bool criterion_transform_needed(const ViewRequest& r, Criterion c) {
   switch (traits(c).seeds) {
     case Seeds::kBackground:
       // Labels read the silhouette distance when there is no gaze to measure from.
@@ -151,9 +119,41 @@ bool ViewExtractor::transform_needed(Criterion c) const {
   return false;
 }
 
+void criterion_transform(DistanceTransformer& transformer, Criterion c, const ViewRequest& r,
+                         std::span<const std::uint8_t> background, std::vector<std::uint32_t>& cells,
+                         std::span<std::uint16_t> out) {
+  const DistanceMetric metric = r.allowed.metric;
+  switch (traits(c).seeds) {
+    case Seeds::kBackground:
+      return transformer.labels(metric, background, r.grid, out);
+    case Seeds::kPoints:
+      cells.clear();
+      for (const auto& p : r.points[c]) cells.push_back(focus_cell(r.grid, p[0], p[1]));
+      return transformer.labels_from_cells(metric, cells, r.grid, out);
+    case Seeds::kBorder:
+      cells.clear();
+      for (std::uint32_t x = 0; x < r.grid.width; ++x) {
+        cells.push_back(r.grid.cell(x, 0));
+        cells.push_back(r.grid.cell(x, r.grid.height - 1));
+      }
+      for (std::uint32_t y = 1; y + 1 < r.grid.height; ++y) {
+        cells.push_back(r.grid.cell(0, y));
+        cells.push_back(r.grid.cell(r.grid.width - 1, y));
+      }
+      return transformer.labels_from_cells(metric, cells, r.grid, out);
+  }
+}
+
 void ViewExtractor::distance_transforms() {
   const ViewRequest& r = *request_;
   const std::size_t cells = r.grid.cell_count();
+  // Internal silhouettes seed the silhouette transform at depth jumps too.
+  std::span<const std::uint8_t> background = occupancy_;
+  if (!incremental_ && r.internal_silhouettes && criterion_transform_needed(r, Criterion::kSilhouette)) {
+    seeds_image_ = occupancy_;
+    mark_depth_discontinuities(depth_, r.grid, r.depth_jump, seeds_image_);
+    background = seeds_image_;
+  }
   for (const Criterion c : kAllCriteria) {
     // A gaze keeps the view's transforms but the gaze criterion's.
     if (incremental_ && c != kGazeCriterion) {
@@ -162,36 +162,9 @@ void ViewExtractor::distance_transforms() {
     }
     std::vector<std::uint16_t>& out = dt_[c];
     out.clear();
-    if (transform_needed(c)) {
+    if (criterion_transform_needed(r, c)) {
       out.resize(cells);
-      switch (traits(c).seeds) {
-        case Seeds::kBackground:
-          if (r.internal_silhouettes) {
-            seeds_image_ = occupancy_;
-            mark_depth_discontinuities(depth_, r.grid, r.depth_jump, seeds_image_);
-            transform(seeds_image_, out);
-          } else {
-            transform(occupancy_, out);
-          }
-          break;
-        case Seeds::kPoints:
-          cells_.clear();
-          for (const auto& p : r.points[c]) cells_.push_back(focus_cell(r.grid, p[0], p[1]));
-          transform_from_cells(cells_, out);
-          break;
-        case Seeds::kBorder:
-          cells_.clear();
-          for (std::uint32_t x = 0; x < r.grid.width; ++x) {
-            cells_.push_back(r.grid.cell(x, 0));
-            cells_.push_back(r.grid.cell(x, r.grid.height - 1));
-          }
-          for (std::uint32_t y = 1; y + 1 < r.grid.height; ++y) {
-            cells_.push_back(r.grid.cell(0, y));
-            cells_.push_back(r.grid.cell(r.grid.width - 1, y));
-          }
-          transform_from_cells(cells_, out);
-          break;
-      }
+      criterion_transform(transformer_, c, r, background, cells_, out);
     }
     transforms_[c] = out;
   }
@@ -482,9 +455,8 @@ std::size_t ViewExtractor::memory_bytes() const {
   std::size_t dt_bytes = 0;
   for (const auto& dt : dt_.entries) dt_bytes += bytes(dt);
   return transformer_.memory_bytes() + bytes(occupancy_) + bytes(seeds_image_) + bytes(depth_) +
-         bytes(visible_depth_bound_) + dt_bytes + bytes(euclidean_) + bytes(cells_) +
-         vertex_allowed_error_.resident_bytes() + vertex_labels_.resident_bytes() + bytes(projected_) +
-         bytes(unknown_) + field_.memory_bytes();
+         bytes(visible_depth_bound_) + dt_bytes + bytes(cells_) + vertex_allowed_error_.resident_bytes() +
+         vertex_labels_.resident_bytes() + bytes(projected_) + bytes(unknown_) + field_.memory_bytes();
 }
 
 }  // namespace mtlod::core::view

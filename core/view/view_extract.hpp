@@ -101,6 +101,16 @@ class ViewCache {
   std::size_t forgets_ = 0;
 };
 
+// Whether a request computes a criterion's transform: the criterion is in use (with seeds), or the
+// labels need the silhouette's.
+bool criterion_transform_needed(const ViewRequest& request, Criterion c);
+// A criterion's transform as its traits seed it (criteria.hpp): from the zero cells of `background`
+// (the occupancy, or a copy with depth jumps marked), the request's points of the criterion, or the
+// grid's border; in the request's metric (DistanceTransformer::labels). cells: scratch.
+void criterion_transform(DistanceTransformer& transformer, Criterion c, const ViewRequest& request,
+                         std::span<const std::uint8_t> background, std::vector<std::uint32_t>& cells,
+                         std::span<std::uint16_t> out);
+
 // The five stages of a request, in the order they run.
 enum class Stage : std::uint8_t { kMap, kOccupancy, kTransforms, kAllowedError, kRefine };
 inline constexpr std::size_t kStageCount = 5;
@@ -177,12 +187,9 @@ class ViewExtractor {
  private:
   // Stages 1 to 4, telling the observer (if any) as each ends.
   void prepare(const ViewRequest& request, ViewCache* session, StageObserver* observer);
-  void transform(std::span<const std::uint8_t> image, std::span<std::uint16_t> out);
   // Stage 4 of a gaze: recomputes the session's known vertices in cells whose gaze multiplier
   // changed, listing them in its changed_ (metric: the labels', as bound to the field).
   void update_known_for_gaze(ViewCache& session, DistanceMetric metric);
-  // Whether a criterion's transform is computed for the request.
-  bool transform_needed(Criterion c) const;
   // Whether the request has the session's view (everything but the gaze points).
   static bool same_view(const ViewCache& session, const ViewRequest& request);
   void remember_view(ViewCache& session) const;
@@ -199,7 +206,6 @@ class ViewExtractor {
   class KnownSource;
   // Forgets the known vertices the session's cut does not read once they far outnumber those it does.
   void forget_unread(cut::Refiner& refiner);
-  void transform_from_cells(std::span<const std::uint32_t> cells, std::span<std::uint16_t> out);
 
   const model::Mt& mt_;
   std::array<float, 3> centre_{};
@@ -221,7 +227,7 @@ class ViewExtractor {
   std::vector<std::uint8_t> occupancy_, seeds_image_;
   std::vector<float> depth_, visible_depth_bound_;
   PerCriterion<std::vector<std::uint16_t>> dt_;
-  std::vector<std::uint32_t> euclidean_, cells_;
+  std::vector<std::uint32_t> cells_;
   util::ZeroedArray<float> vertex_allowed_error_;
   util::ZeroedArray<std::uint32_t> vertex_labels_;  // written for the cut's vertices only
   std::vector<ProjectedCorner> projected_;          // occupancy scratch

@@ -1,0 +1,300 @@
+// One extraction of a scene, stage by stage (see scene_extract.hpp).
+#include "core/view/scene_extract.hpp"
+
+#include <algorithm>
+#include <cassert>
+#include <cmath>
+#include <limits>
+
+#include <glm/mat3x3.hpp>
+#include <glm/vec3.hpp>
+
+#include "core/model/bounds.hpp"
+#include "core/view/occupancy.hpp"
+
+namespace mtlod::core::view {
+namespace {
+
+constexpr float kInfinity = std::numeric_limits<float>::infinity();
+
+// The budget's search stops once the scene's cut fills this much of the budget, or after this many
+// refinements of the whole scene, or when the thresholds it brackets are this close.
+constexpr double kFilled = 0.98;
+constexpr std::size_t kMaxPasses = 16;
+constexpr double kClosest = 1.0001;
+// Thresholds above this coarsen every positive allowed error to nothing: past it only the roots and
+// the triangles allowed no error at all are left (a budget below that gets the roots alone).
+constexpr double kLargestThreshold = 1e12;
+
+// Whether the model's bounding box, placed by the instance's mapping, may meet the view: not all
+// eight corners beyond one side of the frustum (clip-space x, y against w, and w ≤ 0 behind).
+bool box_may_be_in_view(const ViewMapping& mapping, const model::Bounds& box) {
+  int left = 0, right = 0, below = 0, above = 0, behind = 0;
+  for (int k = 0; k < 8; ++k) {
+    const float x = (k & 1) ? box.hi[0] : box.lo[0];
+    const float y = (k & 2) ? box.hi[1] : box.lo[1];
+    const float z = (k & 4) ? box.hi[2] : box.lo[2];
+    float cx, cy, cw;
+    mapping.clip_xyw(x, y, z, cx, cy, cw);
+    left += cx<-cw, right += cx> cw, below += cy<-cw, above += cy> cw, behind += !(cw > 0.0f);
+  }
+  return left < 8 && right < 8 && below < 8 && above < 8 && behind < 8;
+}
+
+}  // namespace
+
+float SceneExtractor::stretch(const glm::mat4& model) {
+  // The largest singular value of the 3×3 part: the square root of AᵀA's largest eigenvalue, by power
+  // iteration (AᵀA is symmetric and positive semi-definite, so it converges from any start with a
+  // component along that eigenvector; the largest column is one).
+  double a[3][3];
+  for (int c = 0; c < 3; ++c)
+    for (int r = 0; r < 3; ++r) {
+      a[c][r] = model[c][r];
+      if (!std::isfinite(a[c][r])) return 0.0f;
+    }
+  double b[3][3];
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) b[i][j] = a[i][0] * a[j][0] + a[i][1] * a[j][1] + a[i][2] * a[j][2];
+  int largest = 0;
+  for (int i = 1; i < 3; ++i)
+    if (b[i][i] > b[largest][largest]) largest = i;
+  double v[3] = {b[largest][0], b[largest][1], b[largest][2]};
+  double eigen = 0;
+  for (int step = 0; step < 64; ++step) {
+    const double norm = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+    if (!(norm > 0)) return 0.0f;
+    const double u[3] = {v[0] / norm, v[1] / norm, v[2] / norm};
+    for (int i = 0; i < 3; ++i) v[i] = b[i][0] * u[0] + b[i][1] * u[1] + b[i][2] * u[2];
+    const double next = u[0] * v[0] + u[1] * v[1] + u[2] * v[2];  // Rayleigh quotient
+    if (std::abs(next - eigen) <= 1e-12 * next) {
+      eigen = next;
+      break;
+    }
+    eigen = next;
+  }
+  return static_cast<float>(std::sqrt(std::max(eigen, 0.0)));
+}
+
+SceneExtractor::PerModel& SceneExtractor::per_model(const model::Mt& mt) {
+  std::unique_ptr<PerModel>& entry = models_[&mt];
+  if (!entry) entry = std::make_unique<PerModel>(mt);
+  if (entry->field.size() != mt.vertex_count()) entry->field.reset(mt.vertex_count());
+  return *entry;
+}
+
+void SceneExtractor::map(const SceneRequest& request) {
+  const std::size_t n = request.instances.size();
+  mappings_.clear();
+  in_view_.assign(n, 0);
+  for (std::size_t i = 0; i < n; ++i) {
+    Camera camera = request.view.camera;
+    camera.model = request.instances[i].model;
+    mappings_.emplace_back(camera, request.view.grid);
+    in_view_[i] = box_may_be_in_view(mappings_.back(), request.instances[i].mt->bounds);
+  }
+}
+
+void SceneExtractor::occupancy(const SceneRequest& request, SceneStats& stats) {
+  const GridSize grid = request.view.grid;
+  const std::size_t cells = grid.cell_count();
+  occupancy_.assign(cells, 0);
+  depth_.assign(cells, kInfinity);
+  owner_.assign(cells, kNoInstance);
+  instance_occupancy_.resize(cells);
+  instance_depth_.resize(cells);
+  for (std::size_t i = 0; i < request.instances.size(); ++i) {
+    if (!in_view_[i]) continue;
+    ++stats.instances_in_view;
+    const SceneInstance& instance = request.instances[i];
+    const ViewMapping& mapping = mappings_[i];
+    // The occupancy cut sized to the cells the instance's bounding sphere covers (as a single
+    // model's, ViewExtractor::covered_cells), its radius stretched by the instance's matrix.
+    const model::Bounds& box = instance.mt->bounds;
+    const std::array<float, 3> centre = box.centre();
+    float clip_w = 0;
+    mapping.map_point(centre[0], centre[1], centre[2], &clip_w);
+    const float radius = box.radius() * stretch(instance.model);
+    double covered = static_cast<double>(cells);
+    if (clip_w > radius) {
+      const double cell = mapping.model_units_per_pixel(clip_w, static_cast<float>(grid.height));
+      covered = std::min(covered, 3.14159265358979 * (radius / cell) * (radius / cell));
+    }
+    const OccupancyLevel& level = instance.levels->for_covered_cells(covered);
+    // Depths from the cut's own triangles (a hole's cap is not a surface); the nearest wins a cell.
+    stats.rasterized += rasterize_occupancy_compact(mapping, level.positions, level.cut_triangles(),
+                                                    instance_occupancy_, instance_depth_, projected_);
+    for (std::size_t c = 0; c < cells; ++c) {
+      if (!instance_occupancy_[c]) continue;
+      occupancy_[c] = 1;
+      if (owner_[c] == kNoInstance || instance_depth_[c] < depth_[c]) {
+        depth_[c] = instance_depth_[c];
+        owner_[c] = static_cast<std::uint32_t>(i);
+      }
+    }
+  }
+  if (request.view.allowed.hidden_factor != 1.0f) {
+    visible_depth_.resize(cells);
+    visible_depth_bound(depth_, grid, visible_depth_);
+  } else {
+    visible_depth_.clear();
+  }
+}
+
+void SceneExtractor::distance_transforms(const SceneRequest& request) {
+  const ViewRequest& r = request.view;
+  const GridSize grid = r.grid;
+  // The picture's outline: background, and where two instances' surfaces meet the nearer one's
+  // edge seeds the farther cell (as a depth jump does with internal silhouettes).
+  seeds_image_ = occupancy_;
+  for (std::uint32_t y = 0; y < grid.height; ++y) {
+    for (std::uint32_t x = 0; x < grid.width; ++x) {
+      const std::uint32_t c = grid.cell(x, y);
+      if (owner_[c] == kNoInstance) continue;
+      auto meet = [&](std::uint32_t d) {
+        if (owner_[d] == kNoInstance || owner_[d] == owner_[c]) return;
+        seeds_image_[depth_[c] < depth_[d] ? d : c] = 0;
+      };
+      if (x + 1 < grid.width) meet(c + 1);
+      if (y + 1 < grid.height) meet(c + grid.width);
+    }
+  }
+  if (r.internal_silhouettes) mark_depth_discontinuities(depth_, grid, r.depth_jump, seeds_image_);
+  for (const Criterion c : kAllCriteria) {
+    std::vector<std::uint16_t>& out = dt_[c];
+    out.clear();
+    if (!criterion_transform_needed(r, c)) continue;
+    out.resize(grid.cell_count());
+    criterion_transform(transformer_, c, r, seeds_image_, cells_, out);
+  }
+}
+
+void SceneExtractor::bind_fields(const SceneRequest& request) {
+  AllowedErrorOptions options = request.view.allowed;
+  if (options.metric == DistanceMetric::kEuclidean)
+    options.metric =
+        DistanceMetric::kChamfer5711;  // labels in fifths of a pixel (DistanceTransformer::labels)
+  PerCriterion<std::span<const std::uint16_t>> transforms;
+  for (const Criterion c : kAllCriteria) {
+    transforms[c] = dt_[c];
+    if (dt_[c].empty()) options.criteria[c].reset();
+  }
+  const float bound = options.error;
+  fields_.resize(request.instances.size());
+  for (std::size_t i = 0; i < request.instances.size(); ++i) {
+    const SceneInstance& instance = request.instances[i];
+    // The bound holds in the world: a model-space error of e/s moves no point farther than e
+    // once stretched at most s times.
+    options.error = bound / stretch(instance.model);
+    fields_[i].bind(mappings_[i], options,
+                    {transforms, instance.mt->positions, instance.mt->normals, visible_depth_});
+  }
+}
+
+Result<std::size_t> SceneExtractor::refine_all(const SceneRequest& request, cut::Rank threshold,
+                                               std::size_t stop_above) {
+  trial_.resize(request.instances.size());
+  std::size_t total = 0;
+  for (std::size_t i = 0; i < request.instances.size(); ++i) {
+    PerModel& model = per_model(*request.instances[i].mt);
+    cut::Refinement what = cut::Refinement::from_root(fields_[i], model.field);
+    what.allowed.threshold = threshold;
+    MTLOD_RETURN_IF_ERROR(model.refiner.refine(what, trial_[i]));
+    total += trial_[i].triangle_count();
+    if (total > stop_above) break;
+  }
+  return total;
+}
+
+Result<SceneStats> SceneExtractor::refine(const SceneRequest& request, std::vector<cut::CutMesh>& cuts,
+                                          SceneStats stats) {
+  const std::optional<std::size_t> budget = request.view.budget;
+  auto take = [&](cut::Rank threshold, std::size_t total) {
+    cuts.swap(trial_);
+    stats.threshold = threshold;
+    stats.triangles = total;
+  };
+  // The error bound alone: the cut a budget's worst-first refinement would stop at anyway.
+  MTLOD_TRY(std::size_t total, refine_all(request, cut::Rank{}, budget.value_or(SIZE_MAX)));
+  stats.passes = 1;
+  if (!budget || total <= *budget) {
+    take(cut::Rank{}, total);
+    return stats;
+  }
+  // The finest threshold whose cuts fit. The count falls as the threshold rises, roughly as its
+  // inverse on smooth surfaces: the next guess scales by count / budget until one fits, then
+  // interpolates between the two sides in logarithms, never closer than a tenth to either end.
+  double over = 1.0, fits = 0.0;  // fits = 0: none found yet
+  double over_count = static_cast<double>(total), fits_count = 0.0;
+  bool found = false;
+  const double target = static_cast<double>(*budget);
+  while (stats.passes < kMaxPasses) {
+    double next;
+    if (!found) {
+      next = over * std::max(1.25, 1.05 * over_count / target);
+      if (next > kLargestThreshold) break;
+    } else {
+      if (fits / over < kClosest || fits_count >= kFilled * target) break;
+      const double span = std::log(fits / over);
+      double at = fits_count > 0 ? std::log(over_count / target) / std::log(over_count / fits_count) : 0.5;
+      at = std::clamp(std::isfinite(at) ? at : 0.5, 0.1, 0.9);
+      next = over * std::exp(at * span);
+    }
+    const cut::Rank threshold{0, static_cast<float>(next)};
+    MTLOD_TRY(total, refine_all(request, threshold, *budget));
+    ++stats.passes;
+    if (total <= *budget) {
+      if (!found || total > fits_count) take(threshold, total);
+      found = true;
+      fits = next;
+      fits_count = static_cast<double>(total);
+    } else {
+      over = next;
+      over_count = static_cast<double>(total);
+    }
+  }
+  if (found) return stats;
+  // Nothing but the roots is coarse enough (or the triangles allowed no error fill the budget).
+  const cut::Rank roots{1, kInfinity};
+  MTLOD_TRY(total, refine_all(request, roots, SIZE_MAX));
+  ++stats.passes;
+  take(roots, total);
+  stats.within_budget = total <= *budget;
+  return stats;
+}
+
+Result<SceneStats> SceneExtractor::extract(const SceneRequest& request, std::vector<cut::CutMesh>& cuts,
+                                           StageObserver* observer) {
+  assert(request.view.grid.valid());
+  const auto finished = [observer](Stage stage) {
+    if (observer) observer->finished(stage);
+  };
+  SceneStats stats;
+  map(request);
+  finished(Stage::kMap);
+  occupancy(request, stats);
+  finished(Stage::kOccupancy);
+  distance_transforms(request);
+  finished(Stage::kTransforms);
+  bind_fields(request);
+  finished(Stage::kAllowedError);
+  Result<SceneStats> result = refine(request, cuts, stats);
+  finished(Stage::kRefine);
+  return result;
+}
+
+std::size_t SceneExtractor::memory_bytes() const {
+  auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
+  std::size_t total = bytes(mappings_) + bytes(in_view_) + transformer_.memory_bytes() + bytes(occupancy_) +
+                      bytes(instance_occupancy_) + bytes(seeds_image_) + bytes(depth_) +
+                      bytes(instance_depth_) + bytes(visible_depth_) + bytes(owner_) + bytes(cells_) +
+                      bytes(projected_);
+  for (const auto& dt : dt_.entries) total += bytes(dt);
+  for (const AllowedErrorField& field : fields_) total += sizeof(field) + field.memory_bytes();
+  for (const cut::CutMesh& cut : trial_) total += bytes(cut.triangles) + bytes(cut.ids);
+  for (const auto& [mt, model] : models_)
+    total += model->refiner.memory_bytes() + model->field.resident_bytes();
+  return total;
+}
+
+}  // namespace mtlod::core::view
