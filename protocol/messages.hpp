@@ -27,6 +27,7 @@ struct Limits {
   std::uint32_t max_grid = 4096;                   // grid width and height
   std::uint32_t max_budget = 5'000'000;            // triangles per extraction
   std::uint32_t max_foci = 16;                     // focus points plus neglect regions
+  std::uint32_t max_instances = 1024;              // model instances per scene
   std::uint32_t idle_timeout_ms = 300'000;         // a connection with no request for this long is closed
   std::uint32_t read_timeout_ms = 10'000;          // a frame started must arrive within this time
   std::uint32_t first_frame_timeout_ms = 5'000;    // a new connection's first frame must arrive by then
@@ -156,8 +157,19 @@ struct ListModels {};
 struct ModelInfo {
   std::string model;
 };
-struct Extract {
+// One placed model of a scene: `matrix` takes the model's coordinates to the world's (affine,
+// invertible, finite).
+struct Instance {
   std::string model;
+  Matrix4 matrix{1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+  bool operator==(const Instance&) const = default;
+};
+
+struct Extract {
+  std::string model;  // empty for a scene
+  // A scene (PROTOCOL.md, "Scenes"): set instead of `model`. One camera, criteria and budget for the
+  // whole picture; the reply carries one mesh per instance.
+  std::vector<Instance> instances;
   Matrix4 view{};
   Matrix4 projection{};
   std::array<std::uint32_t, 2> viewport{800, 600};  // pixels

@@ -281,9 +281,44 @@ void read_quantization(ObjectReader& r, Quantization& q) {
   q.normal_bits = static_cast<int>(r.integer("normal_bits", q.normal_bits, 2, 16));
 }
 
+// A scene's instances: {"instances": [{"model", "matrix"}, ...]}, at least one, at most the limit.
+std::vector<Instance> read_scene(const json& v, const Limits& limits) {
+  ObjectReader r(v, "scene");
+  const json& list = r.require("instances");
+  if (!list.is_array()) fail(ErrorKind::kBadRequest, "'scene.instances' must be an array of {model, matrix}");
+  if (list.empty()) fail(ErrorKind::kBadRequest, "'scene.instances' is empty: a scene needs an instance");
+  if (list.size() > limits.max_instances) {
+    fail(ErrorKind::kLimitExceeded,
+         fmt::format("{} scene instances exceed the server limit {}", list.size(), limits.max_instances));
+  }
+  std::vector<Instance> instances;
+  for (std::size_t i = 0; i < list.size(); ++i) {
+    const std::string path = fmt::format("scene.instances[{}]", i);
+    ObjectReader ir(list[i], path);
+    Instance instance;
+    instance.model = ir.string("model", 256);
+    if (const json* m = ir.find("matrix")) {
+      const std::string name = path + ".matrix";
+      instance.matrix = read_matrix(*m, name);
+      const Matrix4& a = instance.matrix;
+      if (a[3] != 0 || a[7] != 0 || a[11] != 0 || a[15] != 1)
+        fail(ErrorKind::kBadRequest, fmt::format("{} must be affine: its last row 0, 0, 0, 1", name));
+    }
+    ir.finish();
+    instances.push_back(std::move(instance));
+  }
+  r.finish();
+  return instances;
+}
+
 Extract read_extract(ObjectReader& r, const Limits& limits) {
   Extract e;
-  e.model = r.string("model", 256);
+  if (const json* scene = r.find("scene")) {
+    if (r.has("model")) fail(ErrorKind::kBadRequest, "give 'model' or 'scene', not both");
+    e.instances = read_scene(*scene, limits);
+  } else {
+    e.model = r.string("model", 256);
+  }
   {
     ObjectReader camera(r.require("camera"), "camera");
     e.view = read_matrix(camera.require("view"), "camera.view");
@@ -348,6 +383,8 @@ Extract read_extract(ObjectReader& r, const Limits& limits) {
   if (e.delta && e.draco.method == core::codec::DracoMethod::kEdgebreaker) {
     fail(ErrorKind::kBadRequest, "'delta' needs draco.method 'sequential': edgebreaker reorders the faces");
   }
+  if (!e.instances.empty() && e.labels)
+    fail(ErrorKind::kBadRequest, "a scene carries no attributes.labels: its silhouettes are the picture's");
   if (e.delta && e.labels) {
     fail(ErrorKind::kBadRequest,
          "'delta' cannot carry attributes.labels: the labels of kept triangles would go stale");
@@ -493,6 +530,19 @@ Result<ParsedRequest, ProtocolError> parse_request(std::string_view text, const 
   }
 }
 
+Result<std::vector<Instance>, ProtocolError> parse_scene(std::string_view text, const Limits& limits) {
+  try {
+    return read_scene(json::parse(text.begin(), text.end()), limits);
+  } catch (const json::parse_error& e) {
+    return ProtocolError{ErrorKind::kBadJson,
+                         printable(fmt::format("JSON does not parse at byte {}: {}", e.byte, e.what()))};
+  } catch (const Failure& f) {
+    return ProtocolError{f.code, printable(f.message)};
+  } catch (const json::exception& e) {
+    return ProtocolError{ErrorKind::kBadRequest, printable(e.what())};
+  }
+}
+
 // ---- Serialisation for clients ----------------------------------------------------------------
 
 namespace {
@@ -508,7 +558,13 @@ json region_json(const Region& region, core::view::Criterion criterion) {
 
 json extract_json(const Extract& e) {
   json j;
-  j["model"] = e.model;
+  if (e.instances.empty()) {
+    j["model"] = e.model;
+  } else {
+    json instances = json::array();
+    for (const Instance& i : e.instances) instances.push_back({{"model", i.model}, {"matrix", i.matrix}});
+    j["scene"] = {{"instances", instances}};
+  }
   j["camera"] = {{"view", e.view}, {"projection", e.projection}, {"viewport", e.viewport}};
   j["grid"] = e.grid;
   j["error"] = {{"value", e.error}, {"unit", enum_name(kErrorUnitNames, e.error_unit)}};

@@ -30,6 +30,7 @@ json limits_json(const Limits& l) {
           {"max_grid", l.max_grid},
           {"max_budget", l.max_budget},
           {"max_foci", l.max_foci},
+          {"max_instances", l.max_instances},
           {"idle_timeout_ms", l.idle_timeout_ms},
           {"read_timeout_ms", l.read_timeout_ms},
           {"first_frame_timeout_ms", l.first_frame_timeout_ms},
@@ -45,6 +46,7 @@ Limits limits_from(const json& j) {
   l.max_grid = j.value("max_grid", l.max_grid);
   l.max_budget = j.value("max_budget", l.max_budget);
   l.max_foci = j.value("max_foci", l.max_foci);
+  l.max_instances = j.value("max_instances", l.max_instances);
   l.idle_timeout_ms = j.value("idle_timeout_ms", l.idle_timeout_ms);
   l.read_timeout_ms = j.value("read_timeout_ms", l.read_timeout_ms);
   l.first_frame_timeout_ms = j.value("first_frame_timeout_ms", l.first_frame_timeout_ms);
@@ -162,6 +164,21 @@ ModelInfoReply read(std::type_identity<ModelInfoReply>, const json& j) {
   return r;
 }
 
+json delta_json(const MeshDelta& d) {
+  return {{"reset", d.reset},
+          {"payload_bytes", d.payload_bytes},
+          // The name of protocol version 1's first servers, when Draco was the only codec: kept for
+          // their clients.
+          {"draco_bytes", d.payload_bytes},
+          {"added", d.added},
+          {"removed", d.removed}};
+}
+MeshDelta delta_from(const json& d) {
+  return MeshDelta{d.value("reset", false),
+                   d.value("payload_bytes", d.value("draco_bytes", std::uint64_t{0})),
+                   d.value("added", std::uint64_t{0}), d.value("removed", std::uint64_t{0})};
+}
+
 json write(const MeshReply& r) {
   json m = {{"model", r.model},
             {"triangles", r.triangles},
@@ -175,14 +192,20 @@ json write(const MeshReply& r) {
   if (r.focus) m["focus"] = *r.focus;
   m["model_version"] = r.model_version;
   if (r.model_changed) m["model_changed"] = true;
-  if (r.delta) {
-    m["delta"] = {{"reset", r.delta->reset},
-                  {"payload_bytes", r.delta->payload_bytes},
-                  // The name of protocol version 1's first servers, when Draco was the only codec:
-                  // kept for their clients.
-                  {"draco_bytes", r.delta->payload_bytes},
-                  {"added", r.delta->added},
-                  {"removed", r.delta->removed}};
+  if (r.delta) m["delta"] = delta_json(*r.delta);
+  if (!r.instances.empty()) {
+    json instances = json::array();
+    for (const InstanceMesh& i : r.instances) {
+      json one = {{"model", i.model},
+                  {"triangles", i.triangles},
+                  {"vertices", i.vertices},
+                  {"max_error", i.max_error},
+                  {"bytes", i.bytes}};
+      if (i.delta) one["delta"] = delta_json(*i.delta);
+      instances.push_back(std::move(one));
+    }
+    m["instances"] = std::move(instances);
+    m["within_budget"] = r.within_budget;
   }
   return m;
 }
@@ -201,12 +224,18 @@ MeshReply read(std::type_identity<MeshReply>, const json& j) {
   if (j.contains("focus")) r.focus = j["focus"].get<std::array<double, 2>>();
   r.model_version = j.value("model_version", std::uint64_t{0});
   r.model_changed = j.value("model_changed", false);
-  if (j.contains("delta")) {
-    const json& d = j["delta"];
-    r.delta =
-        MeshDelta{d.value("reset", false), d.value("payload_bytes", d.value("draco_bytes", std::uint64_t{0})),
-                  d.value("added", std::uint64_t{0}), d.value("removed", std::uint64_t{0})};
+  if (j.contains("delta")) r.delta = delta_from(j["delta"]);
+  for (const json& i : j.value("instances", json::array())) {
+    InstanceMesh one;
+    one.model = i.value("model", "");
+    one.triangles = i.value("triangles", std::uint64_t{0});
+    one.vertices = i.value("vertices", std::uint64_t{0});
+    one.max_error = i.value("max_error", 0.0);
+    one.bytes = i.value("bytes", std::uint64_t{0});
+    if (i.contains("delta")) one.delta = delta_from(i["delta"]);
+    r.instances.push_back(std::move(one));
   }
+  r.within_budget = j.value("within_budget", true);
   r.timings = timings_from(j.value("timings_us", json::object()));
   return r;
 }
@@ -319,6 +348,23 @@ Result<DeltaPayload> split_delta_payload(const MeshDelta& delta, std::span<const
   read_ids(static_cast<std::size_t>(delta.payload_bytes), delta.added, out.added_ids);
   read_ids(static_cast<std::size_t>(delta.payload_bytes + 4 * delta.added), delta.removed, out.removed_ids);
   return out;
+}
+
+Result<std::vector<std::span<const std::uint8_t>>> split_scene_payload(
+    const MeshReply& reply, std::span<const std::uint8_t> payload) {
+  std::vector<std::span<const std::uint8_t>> parts;
+  std::uint64_t at = 0;
+  for (const InstanceMesh& instance : reply.instances) {
+    if (instance.bytes > payload.size() - at) break;
+    parts.push_back(payload.subspan(static_cast<std::size_t>(at), static_cast<std::size_t>(instance.bytes)));
+    at += instance.bytes;
+  }
+  if (parts.size() != reply.instances.size() || at != payload.size()) {
+    return make_error(ErrorCode::kInvalidArgument,
+                      fmt::format("scene payload of {} bytes does not hold its {} instances' parts",
+                                  payload.size(), reply.instances.size()));
+  }
+  return parts;
 }
 
 void append_delta_ids(std::span<const std::uint32_t> added_ids, std::span<const std::uint32_t> removed_ids,

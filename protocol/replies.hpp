@@ -88,6 +88,17 @@ Result<DeltaPayload> split_delta_payload(const MeshDelta& delta, std::span<const
 void append_delta_ids(std::span<const std::uint32_t> added_ids, std::span<const std::uint32_t> removed_ids,
                       std::vector<std::uint8_t>& payload);
 
+// One instance's mesh in a scene's reply (PROTOCOL.md, "Scenes"): the fields of a single model's,
+// for its part of the payload.
+struct InstanceMesh {
+  std::string model;
+  std::uint64_t triangles = 0;
+  std::uint64_t vertices = 0;
+  double max_error = 0;     // model units
+  std::uint64_t bytes = 0;  // this instance's part of the payload
+  std::optional<MeshDelta> delta;
+};
+
 // Header of an extract or gaze result; the encoded mesh follows as the frame's payload.
 struct MeshReply {
   std::string model;
@@ -106,7 +117,16 @@ struct MeshReply {
   // The model's file changed since this connection's previous cut: this cut starts afresh from the
   // new version (a delta reply then resets the client's mesh).
   bool model_changed = false;
+  // A scene's meshes, one per instance in the request's order; the payload is their parts one after
+  // the other (split_scene_payload). triangles, vertices and bytes are then the sums, max_error the
+  // largest, model empty.
+  std::vector<InstanceMesh> instances;
+  bool within_budget = true;  // false when even the coarsest meshes exceed the request's budget
 };
+
+// A scene reply's payload cut into the instances' parts. Fails when the sizes do not add up.
+Result<std::vector<std::span<const std::uint8_t>>> split_scene_payload(const MeshReply& reply,
+                                                                       std::span<const std::uint8_t> payload);
 
 struct ErrorReply {
   ErrorKind code = ErrorKind::kInternal;

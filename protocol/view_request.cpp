@@ -4,16 +4,12 @@
 #include <algorithm>
 
 namespace mtlod::protocol {
-namespace {
-
 glm::mat4 to_glm(const Matrix4& m) {
   glm::mat4 out;
   for (int col = 0; col < 4; ++col)
     for (int row = 0; row < 4; ++row) out[col][row] = static_cast<float>(m[col * 4 + row]);
   return out;
 }
-
-}  // namespace
 
 core::view::ViewRequest to_view_request(const Extract& e, bool model_has_normals) {
   core::view::ViewRequest v;

@@ -11,6 +11,9 @@
 
 namespace mtlod::protocol {
 
+// A wire matrix (column-major doubles) as GLM's floats.
+glm::mat4 to_glm(const Matrix4& m);
+
 // model_has_normals: back-face coarsening needs normals and is dropped without them.
 core::view::ViewRequest to_view_request(const Extract& request, bool model_has_normals);
 

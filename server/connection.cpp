@@ -160,6 +160,14 @@ ModelPtr Connection::visible_model(std::string_view name) const {
   return server_.models.find(name);
 }
 
+const std::string* Connection::unseen_model(const protocol::Extract& request) const {
+  if (request.instances.empty()) return visible_model(request.model) ? nullptr : &request.model;
+  for (const protocol::Instance& instance : request.instances) {
+    if (!visible_model(instance.model)) return &instance.model;
+  }
+  return nullptr;
+}
+
 void Connection::on_request(std::uint64_t seq, std::uint64_t id, const protocol::Hello& request) {
   const TokenTable* tokens = server_.config.tokens.get();
   // A token in hello is checked even on a connection already authorised: a wrong one revokes the
@@ -241,7 +249,7 @@ void Connection::on_request(std::uint64_t seq, std::uint64_t id, const protocol:
   replies_.fill(seq, make_frame(protocol::CancelReply{request.target, job.has_value()}, id));
 }
 void Connection::on_request(std::uint64_t seq, std::uint64_t id, const protocol::Extract& request) {
-  if (!visible_model(request.model)) return reply_unknown_model(seq, id, request.model);
+  if (const std::string* unseen = unseen_model(request)) return reply_unknown_model(seq, id, *unseen);
   if (!request.codec) {
     if (auto refusal = protocol::codec_refusal(request, codec_))
       return reply_error(seq, protocol::ErrorKind::kBadRequest, *refusal, id);
@@ -256,7 +264,7 @@ void Connection::on_request(std::uint64_t seq, std::uint64_t id, const protocol:
                        "gaze needs an earlier extract on this connection to know the view", id);
   }
   // A later hello may have changed the token: the view's model must still be one it sees.
-  if (!visible_model(last_extract_->model)) return reply_unknown_model(seq, id, last_extract_->model);
+  if (const std::string* unseen = unseen_model(*last_extract_)) return reply_unknown_model(seq, id, *unseen);
   protocol::Extract request = *last_extract_;
   protocol::Region& region = protocol::gaze_region(request.criteria);
   region.points.front() = {gaze.x, gaze.y};
@@ -295,13 +303,15 @@ void Connection::start_next_job() {
       break;
     }
     jobs_.finish();
-    reply_error(
-        job->seq, protocol::ErrorKind::kLimitExceeded,
-        fmt::format("this extraction could need {:.1f} MiB (grid {}x{} of model '{}'); the server holds "
-                    "{:.1f} MiB of its {:.1f} MiB memory limit",
-                    need / 1048576.0, job->extract.grid[0], job->extract.grid[1], job->extract.model,
-                    server_.memory.held() / 1048576.0, server_.memory.limit() / 1048576.0),
-        job->id);
+    reply_error(job->seq, protocol::ErrorKind::kLimitExceeded,
+                fmt::format("this extraction could need {:.1f} MiB (grid {}x{} of {}); the server holds "
+                            "{:.1f} MiB of its {:.1f} MiB memory limit",
+                            need / 1048576.0, job->extract.grid[0], job->extract.grid[1],
+                            job->extract.instances.empty()
+                                ? fmt::format("model '{}'", job->extract.model)
+                                : fmt::format("a scene of {} instances", job->extract.instances.size()),
+                            server_.memory.held() / 1048576.0, server_.memory.limit() / 1048576.0),
+                job->id);
   }
   server_.scheduler.submit(address(), [self = shared_from_this(), job = std::move(*job)]() mutable {
     const std::int64_t started = now_ns();

@@ -131,6 +131,8 @@ class Connection : public std::enable_shared_from_this<Connection> {
   bool authorised() const { return !server_.config.tokens || grant_ != nullptr; }
   // The model of that name if this connection's token lets it see it, else nullptr.
   ModelPtr visible_model(std::string_view name) const;
+  // The first model an extract names (its model, or its scene's) that visible_model does not give.
+  const std::string* unseen_model(const protocol::Extract& request) const;
   void reply_unknown_model(std::uint64_t seq, std::uint64_t id, const std::string& name);
   void reply_error(std::uint64_t seq, protocol::ErrorKind code, const std::string& message,
                    std::optional<std::uint64_t> id);

@@ -61,6 +61,9 @@ class Engine {
  private:
   ExtractResult run(const ModelPtr& model, const protocol::Extract& request, bool gaze,
                     ExtractionState& session);
+  // A scene (request.instances): one extraction of every instance, one mesh each in the payload.
+  ExtractResult run_scene(const protocol::Extract& request, bool gaze, ExtractionState& session);
+  std::uint64_t estimate_scene_bytes(const protocol::Extract& request) const;
   const ModelRegistry& models_;
 };
 

@@ -111,6 +111,9 @@ void add_options(CLI::App& app, Options& o) {
       ->capture_default_str();
   app.add_option("--max-foci", limits.max_foci, "most focus points plus neglect regions per request")
       ->capture_default_str();
+  app.add_option("--max-instances", limits.max_instances, "most model instances in one scene request")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
   app.add_option("--max-memory", limits.max_memory_bytes,
                  "memory for worker scratch plus every connection's session (e.g. 4G, 512M); extractions "
                  "that could pass it are refused with limit_exceeded (default: half the RAM or cgroup limit)")

@@ -1,9 +1,13 @@
 // mtlod-client: talks to mtlod-server from the command line: list models, describe one, extract a
 // view-dependent mesh with the same camera and criteria flags as mtlod-extract.
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <iterator>
+#include <map>
 #include <string>
+#include <vector>
 
 #include "CLI/CLI.hpp"
 #include "clients/common/extract_flags.hpp"
@@ -12,6 +16,7 @@
 #include "core/io/gltf.hpp"
 #include "core/io/mesh_io.hpp"
 #include "fmt/format.h"
+#include "protocol/parse.hpp"
 
 namespace {
 
@@ -29,6 +34,91 @@ bool is_error(const clients::ReplyFrame& frame) {
     return true;
   }
   return false;
+}
+
+// The scene's bounding box in the world: every instance's model box, its corners placed.
+Result<std::array<std::array<double, 3>, 2>> scene_bounds(clients::RetryingConnection& c,
+                                                          const std::vector<protocol::Instance>& instances) {
+  std::map<std::string, protocol::ModelInfoReply> models;
+  std::array<double, 3> lo{HUGE_VAL, HUGE_VAL, HUGE_VAL}, hi{-HUGE_VAL, -HUGE_VAL, -HUGE_VAL};
+  for (const protocol::Instance& instance : instances) {
+    if (!models.count(instance.model)) {
+      auto reply = c.call(protocol::ModelInfo{instance.model});
+      if (!reply) return reply.take_error();
+      if (const auto* e = std::get_if<protocol::ErrorReply>(&reply->header.reply))
+        return make_error(ErrorCode::kInvalidArgument,
+                          fmt::format("server error {}: {}", protocol::to_string(e->code), e->message));
+      models[instance.model] = std::get<protocol::ModelInfoReply>(reply->header.reply);
+    }
+    const protocol::ModelInfoReply& m = models[instance.model];
+    const protocol::Matrix4& a = instance.matrix;
+    for (int k = 0; k < 8; ++k) {
+      const double p[3] = {(k & 1) ? m.bounds_max[0] : m.bounds_min[0],
+                           (k & 2) ? m.bounds_max[1] : m.bounds_min[1],
+                           (k & 4) ? m.bounds_max[2] : m.bounds_min[2]};
+      for (int r = 0; r < 3; ++r) {
+        const double w = a[r] * p[0] + a[4 + r] * p[1] + a[8 + r] * p[2] + a[12 + r];
+        lo[r] = std::min(lo[r], w);
+        hi[r] = std::max(hi[r], w);
+      }
+    }
+  }
+  return std::array<std::array<double, 3>, 2>{lo, hi};
+}
+
+// `mtlod-client scene`: one request for the whole scene (the camera flags' defaults frame its
+// bounding box), a line per instance, and with -o a .glb of a node per instance.
+int fetch_scene(clients::RetryingConnection& c, const std::string& file, clients::ExtractFlags& flags,
+                const std::string& output) {
+  std::ifstream in(file, std::ios::binary);
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  auto instances = protocol::parse_scene(text, protocol::Limits{.max_instances = UINT32_MAX});
+  if (!instances) return fail(fmt::format("{}: {}", file, instances.error().message));
+  auto bounds = scene_bounds(c, *instances);
+  if (!bounds) return fail(bounds.error().message);
+  clients::apply_default_criteria(flags);
+  auto request = clients::make_extract(flags, "", (*bounds)[0], (*bounds)[1]);
+  if (!request) return fail(request.error().message);
+  request->model.clear();
+  request->instances = std::move(*instances);
+  auto reply = c.call(*request, std::chrono::seconds(120));
+  if (!reply) return fail(reply.error().message);
+  if (is_error(*reply)) return 1;
+  const auto& mesh = std::get<protocol::MeshReply>(reply->header.reply);
+  auto parts = protocol::split_scene_payload(mesh, reply->payload);
+  if (!parts) return fail(parts.error().message);
+  const auto& t = mesh.timings;
+  fmt::print(
+      "scene: {} instances, {} triangles, {} bytes{}; server µs: occupancy {} dt {} refine {} encode {} "
+      "total {}\n",
+      mesh.instances.size(), mesh.triangles, mesh.bytes, mesh.within_budget ? "" : " (over the budget)",
+      t.occupancy_us, t.dt_us, t.refine_us, t.encode_us, t.total_us);
+  std::vector<core::model::Mesh> meshes;
+  for (std::size_t i = 0; i < mesh.instances.size(); ++i) {
+    const protocol::InstanceMesh& one = mesh.instances[i];
+    fmt::print("  {:>4} {:<16} {:>8} triangles {:>9} bytes  max error {:.4g}\n", i, one.model, one.triangles,
+               one.bytes, one.max_error);
+    if (output.empty()) continue;
+    std::span<const std::uint8_t> part = (*parts)[i];
+    if (one.delta) {
+      auto split = protocol::split_delta_payload(*one.delta, part);
+      if (!split) return fail(split.error().message);
+      part = split->mesh;
+    }
+    auto decoded = core::codec::decode_payload(mesh.codec, part);
+    if (!decoded) return fail(fmt::format("instance {}: {}", i, decoded.error().message));
+    meshes.push_back(std::move(*decoded));
+  }
+  if (output.empty()) return 0;
+  if (std::filesystem::path(output).extension() != ".glb")
+    return fail(output + ": a scene is written as .glb");
+  std::vector<core::io::GlbInstance> nodes;
+  for (std::size_t i = 0; i < meshes.size(); ++i)
+    nodes.push_back(
+        {&meshes[i], request->instances[i].matrix, fmt::format("{} {}", i, mesh.instances[i].model)});
+  if (auto saved = core::io::write_glb_scene(output, nodes); !saved) return fail(saved.error().message);
+  fmt::print("wrote {}\n", output);
+  return 0;
 }
 
 }  // namespace
@@ -68,6 +158,16 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   clients::ExtractFlags flags;
   clients::add_extract_flags(*extract, flags);
+  std::string scene_file;
+  auto* scene = app.add_subcommand("scene", "fetch a view of a scene: one mesh per instance, one request");
+  scene
+      ->add_option(
+          "scene", scene_file,
+          "JSON file {\"instances\": [{\"model\": NAME, \"matrix\": [16 numbers, column-major]}, ...]}")
+      ->required()
+      ->check(CLI::ExistingFile);
+  scene->add_option("-o,--output", output, "write the scene as .glb: a node per instance with its matrix");
+  clients::add_extract_flags(*scene, flags);
   CLI11_PARSE(app, argc, argv);
 
   // Every request here is idempotent, so each is retried on a new connection when one drops.
@@ -105,6 +205,8 @@ int main(int argc, char** argv) {
     }
     return 0;
   }
+
+  if (*scene) return fetch_scene(c, scene_file, flags, output);
 
   auto described = c.call(protocol::ModelInfo{model});
   if (!described) return fail(described.error().message);

@@ -204,13 +204,15 @@ int add_meshopt_view(tinygltf::Model& model, MeshoptJson& extra, std::span<const
 
 }  // namespace
 
-Status write_glb(const std::filesystem::path& path, const model::Mesh& mesh) {
+namespace {
+
+// The mesh's arrays as plain accessors of `primitive` (see write_glb).
+Status add_plain_arrays(tinygltf::Model& model, const model::Mesh& mesh, tinygltf::Primitive& primitive) {
   const std::size_t n = mesh.vertex_count();
   assert(mesh.normals.empty() || mesh.normals.size() == 3 * n);
   assert(mesh.colors.empty() || mesh.colors.size() == 3 * n);
   MTLOD_RETURN_IF_ERROR(check_triangles(mesh.triangles, n));
-  tinygltf::Model model = make_model();
-  auto& attributes = model.meshes[0].primitives[0].attributes;
+  auto& attributes = primitive.attributes;
 
   const int position = add_accessor(
       model, add_view(model, as_bytes(std::span(mesh.positions)), TINYGLTF_TARGET_ARRAY_BUFFER, 0),
@@ -244,9 +246,39 @@ Status write_glb(const std::filesystem::path& path, const model::Mesh& mesh) {
         TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE, TINYGLTF_TYPE_VEC3, n, /*normalized=*/true);
   }
 
-  model.meshes[0].primitives[0].indices = add_accessor(
+  primitive.indices = add_accessor(
       model, add_view(model, as_bytes(std::span(mesh.triangles)), TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER, 0),
       TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT, TINYGLTF_TYPE_SCALAR, mesh.triangles.size());
+  return Ok{};
+}
+
+}  // namespace
+
+Status write_glb(const std::filesystem::path& path, const model::Mesh& mesh) {
+  tinygltf::Model model = make_model();
+  MTLOD_RETURN_IF_ERROR(add_plain_arrays(model, mesh, model.meshes[0].primitives[0]));
+  return write_model(path, model);
+}
+
+Status write_glb_scene(const std::filesystem::path& path, std::span<const GlbInstance> instances) {
+  if (instances.empty()) return make_error(ErrorCode::kInvalidArgument, "the scene has no instances");
+  tinygltf::Model model = make_model();
+  const tinygltf::Mesh mesh = model.meshes[0];
+  model.meshes.clear();
+  model.nodes.clear();
+  model.scenes[0].nodes.clear();
+  for (std::size_t i = 0; i < instances.size(); ++i) {
+    model.meshes.push_back(mesh);
+    const Status added = add_plain_arrays(model, *instances[i].mesh, model.meshes.back().primitives[0]);
+    if (!added)
+      return make_error(added.error().code, fmt::format("instance {}: {}", i, added.error().message));
+    tinygltf::Node node;
+    node.mesh = static_cast<int>(i);
+    node.name = instances[i].name;
+    node.matrix.assign(instances[i].matrix.begin(), instances[i].matrix.end());
+    model.nodes.push_back(std::move(node));
+    model.scenes[0].nodes.push_back(static_cast<int>(i));
+  }
   return write_model(path, model);
 }
 

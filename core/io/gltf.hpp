@@ -6,9 +6,11 @@
 // The JSON side goes through tinygltf inside gltf.cpp; callers see meshes and byte spans only.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <filesystem>
 #include <span>
+#include <string>
 
 #include "core/codec/cut_encoder.hpp"
 #include "core/model/mesh.hpp"
@@ -22,6 +24,18 @@ namespace mtlod::core::io {
 // for a mesh without triangles, an index out of range or a non-finite position; kIoError naming the
 // path when it cannot be written.
 Status write_glb(const std::filesystem::path& path, const model::Mesh& mesh);
+
+// One node of a scene: its mesh (model coordinates) and the column-major matrix placing it.
+struct GlbInstance {
+  const model::Mesh* mesh = nullptr;
+  std::array<double, 16> matrix{1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+  std::string name;
+};
+
+// Writes a scene as .glb: a node per instance with its matrix and name, each with its own mesh
+// stored as write_glb stores one. Errors as write_glb's, naming the instance; kInvalidArgument for
+// no instances.
+Status write_glb_scene(const std::filesystem::path& path, std::span<const GlbInstance> instances);
 
 // Writes a Draco triangle mesh (as DracoEncoder or the server produces it) as .glb: the bytes are the
 // buffer, unchanged, and the accessors describe what they decode to (counts, position bounds; normals

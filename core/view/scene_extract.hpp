@@ -86,6 +86,8 @@ class SceneExtractor {
 
   // Bytes of scratch memory held: the grids, and per model its refiner and allowed-error field.
   std::size_t memory_bytes() const;
+  // Drops what is kept for a model (before the MT goes away: a new one may come at its address).
+  void forget(const model::Mt& mt) { models_.erase(&mt); }
 
  private:
   struct PerModel {

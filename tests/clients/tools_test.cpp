@@ -5,6 +5,7 @@
 
 #include <sys/wait.h>
 
+#include <array>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
@@ -348,6 +349,49 @@ TEST_F(ToolsTest, ClientGlbEmbedsTheDracoBytesItReceived) {
             decoded->mesh.vertex_count());
 
   expect_valid_gltf(*dir_, {*dir_ / "cut.glb", *dir_ / "cut-plain.glb"});
+}
+
+TEST_F(ToolsTest, ClientWritesASceneAsANodePerInstance) {
+  // Three instances of the bunny from a scene file: the .glb has a node per instance with the file's
+  // matrix and a mesh of as many triangles as the reply gave the instance, and passes the validator.
+  const std::array<std::array<double, 16>, 3> matrices{{
+      {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1},
+      {0.5, 0, 0, 0, 0, 0.5, 0, 0, 0, 0, 0.5, 0, 12, 0, -4, 1},
+      {0, 0, -1, 0, 0, 1, 0, 0, 1, 0, 0, 0, -12, 0, 0, 1},
+  }};
+  json scene = {{"instances", json::array()}};
+  for (const auto& m : matrices) scene["instances"].push_back({{"model", "bunny"}, {"matrix", m}});
+  test::write_file(*dir_ / "scene.json", scene.dump());
+  const auto glb = *dir_ / "scene.glb";
+  const std::string command = fmt::format(
+      "{} --port {} scene {} --error-px 1 --budget 3000 -o {} > {} 2>&1", MTLOD_CLIENT_BINARY,
+      server_->port(), (*dir_ / "scene.json").string(), glb.string(), (*dir_ / "client.log").string());
+  ASSERT_EQ(std::system(command.c_str()), 0) << command << "\n" << test::read_file(*dir_ / "client.log");
+  const std::string log = test::read_file(*dir_ / "client.log");
+  const auto [gltf, bin] = glb_chunks(test::read_file(glb));
+  ASSERT_EQ(gltf.at("nodes").size(), 3u);
+  ASSERT_EQ(gltf.at("scenes")[0].at("nodes"), json({0, 1, 2}));
+  std::size_t triangles = 0;
+  for (std::size_t i = 0; i < 3; ++i) {
+    const json& node = gltf.at("nodes")[i];
+    for (int k = 0; k < 16; ++k) EXPECT_EQ(node.at("matrix")[k].get<double>(), matrices[i][k]) << i;
+    const json& primitive = gltf.at("meshes").at(node.at("mesh").get<std::size_t>()).at("primitives")[0];
+    const std::size_t count = gltf.at("accessors").at(primitive.at("indices").get<std::size_t>()).at("count");
+    triangles += count / 3;
+    // The client's line for this instance names its triangles.
+    EXPECT_NE(log.find(fmt::format("{:>4} {:<16} {:>8} triangles", i, "bunny", count / 3)), std::string::npos)
+        << log;
+  }
+  EXPECT_LE(triangles, 3000u);
+  EXPECT_NE(log.find(fmt::format("scene: 3 instances, {} triangles", triangles)), std::string::npos) << log;
+  expect_valid_gltf(*dir_, {glb});
+
+  // A scene naming a model the server does not have is refused whole.
+  scene["instances"].push_back({{"model", "teapot"}});
+  test::write_file(*dir_ / "scene.json", scene.dump());
+  EXPECT_NE(std::system(command.c_str()), 0);
+  EXPECT_NE(test::read_file(*dir_ / "client.log").find("unknown_model"), std::string::npos)
+      << test::read_file(*dir_ / "client.log");
 }
 
 }  // namespace

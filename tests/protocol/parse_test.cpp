@@ -247,6 +247,49 @@ TEST(ParseRequest, LimitsComeFromTheServerConfiguration) {
   EXPECT_EQ(parsed.error().request_id, 9u);
 }
 
+// A scene of three instances as a client writes it; without labels, which a scene refuses.
+Extract sample_scene() {
+  Extract e = sample_extract();
+  e.model.clear();
+  e.labels = false;
+  e.instances = {{"bunny", {2, 0, 0, 0, 0, 2, 0, 0, 0, 0, 2, 0, 1, 2, 3, 1}},
+                 {"dragon", {0, 1, 0, 0, -1, 0, 0, 0, 0, 0, 1, 0, -4, 0, 0.5, 1}},
+                 {"bunny", {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1}}};
+  return e;
+}
+
+TEST(ParseRequest, AScenesInstancesRoundTrip) {
+  const Extract e = sample_scene();
+  const auto parsed = parse_request(to_json(e, 3), Limits{});
+  ASSERT_TRUE(parsed.ok()) << parsed.error().message;
+  const auto& got = std::get<Extract>(parsed->request);
+  EXPECT_TRUE(got.model.empty());
+  EXPECT_EQ(got.instances, e.instances);
+  EXPECT_EQ(got.budget, e.budget);
+  // A matrix left out is the identity.
+  const auto minimal = parse_scene(R"({"instances": [{"model": "bunny"}]})", Limits{});
+  ASSERT_TRUE(minimal.ok()) << minimal.error().message;
+  ASSERT_EQ(minimal->size(), 1u);
+  EXPECT_EQ((*minimal)[0], (Instance{"bunny", {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1}}));
+}
+
+TEST(ParseRequest, AScenePastTheInstanceLimitIsRefusedWhole) {
+  Limits limits;
+  limits.max_instances = 2;
+  const auto parsed = parse_request(to_json(sample_scene(), 4), limits);
+  ASSERT_FALSE(parsed.ok());
+  EXPECT_EQ(parsed.error().code, ErrorKind::kLimitExceeded);
+  EXPECT_EQ(parsed.error().message, "3 scene instances exceed the server limit 2");
+  const auto file = parse_scene(R"({"instances": [{"model": "a"}, {"model": "b"}, {"model": "c"}]})", limits);
+  ASSERT_FALSE(file.ok());
+  EXPECT_EQ(file.error().code, ErrorKind::kLimitExceeded);
+  const auto broken = parse_scene(R"({"instances": [{"model": "a", "matrix": [1, 2]}]})", Limits{});
+  ASSERT_FALSE(broken.ok());
+  EXPECT_EQ(broken.error().message,
+            "scene.instances[0].matrix must be an array of 16 numbers (column-major), got 2 elements");
+  EXPECT_EQ(parse_scene("{\"instances\": [", Limits{}).error().code, ErrorKind::kBadJson);
+}
+
 TEST(ParseRequest, EveryMalformedCaseInTheDocumentGetsItsCode) {
   const std::vector<test::MalformedCase> cases = test::malformed_cases();
   ASSERT_GE(cases.size(), 15u) << "PROTOCOL.md's table of malformed requests was not found";

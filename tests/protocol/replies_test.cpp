@@ -63,6 +63,41 @@ TEST(Replies, DeltaHeaderAndPayloadRoundTrip) {
   EXPECT_FALSE(std::get<MeshReply>(parse_reply(to_json(MeshReply{}, 1))->reply).delta);
 }
 
+TEST(Replies, ASceneReplyCarriesItsInstancesAndSplitsItsPayload) {
+  MeshReply m;
+  m.triangles = 30;
+  m.bytes = 9;
+  m.within_budget = false;
+  m.instances = {{"bunny", 10, 7, 0.5, 4, std::nullopt},
+                 {"dragon", 20, 12, 0.25, 5, MeshDelta{true, 1, 1, 0}}};
+  auto parsed = parse_reply(to_json(m, 6));
+  ASSERT_TRUE(parsed.ok()) << parsed.error().message;
+  const auto& r = std::get<MeshReply>(parsed->reply);
+  ASSERT_EQ(r.instances.size(), 2u);
+  EXPECT_EQ(r.instances[0].model, "bunny");
+  EXPECT_EQ(r.instances[1].triangles, 20u);
+  EXPECT_EQ(r.instances[1].max_error, 0.25);
+  EXPECT_FALSE(r.instances[0].delta);
+  ASSERT_TRUE(r.instances[1].delta);
+  EXPECT_EQ(r.instances[1].delta->added, 1u);
+  EXPECT_FALSE(r.within_budget);
+  const std::vector<std::uint8_t> payload{1, 2, 3, 4, 5, 6, 7, 8, 9};
+  auto parts = split_scene_payload(r, payload);
+  ASSERT_TRUE(parts.ok()) << parts.error().message;
+  ASSERT_EQ(parts->size(), 2u);
+  EXPECT_EQ(std::vector<std::uint8_t>((*parts)[1].begin(), (*parts)[1].end()),
+            (std::vector<std::uint8_t>{5, 6, 7, 8, 9}));
+  // Sizes that do not add up to the payload's are refused, one byte either way.
+  for (const std::size_t size : {8u, 10u}) {
+    const std::vector<std::uint8_t> wrong(size);
+    EXPECT_FALSE(split_scene_payload(r, wrong).ok()) << size;
+  }
+  MeshReply huge = r;
+  huge.instances[0].bytes = UINT64_MAX;
+  EXPECT_FALSE(split_scene_payload(huge, payload).ok());
+  EXPECT_TRUE(std::get<MeshReply>(parse_reply(to_json(MeshReply{}, 1))->reply).instances.empty());
+}
+
 TEST(Replies, ADeltaFromAServerThatNamedItsMeshDracoBytesStillReads) {
   auto parsed = parse_reply(
       R"({"type":"mesh","id":2,"triangles":4,"delta":{"reset":false,"draco_bytes":17,"added":2,"removed":1}})");

@@ -23,6 +23,7 @@
 #include "core/io/mt_file.hpp"
 #include "core/model/bounds.hpp"
 #include "core/view/occupancy_levels.hpp"
+#include "core/view/scene_extract.hpp"
 #include "core/view/view_extract.hpp"
 #include "protocol/camera.hpp"
 #include "protocol/frame.hpp"
@@ -224,6 +225,92 @@ void ServerTest::expect_extract_decodes_to_the_in_process_cut(core::codec::Codec
   const auto match = test::match_vertices(decoded->positions, g_fixture->mt.positions, cut.triangles,
                                           4 * tolerance, tolerance);
   EXPECT_EQ(test::canonical_triangles(decoded->triangles, &match), test::canonical_triangles(cut.triangles));
+}
+
+// Three instances of the model: one in front, a small one hidden behind it, one beside them. Each
+// instance's part of the payload decodes to the cut the same scene gives in-process, the hidden one
+// is at its root, and a gaze after the scene answers with the scene again.
+TEST_F(ServerTest, ASceneDecodesToTheInProcessCutsOfItsInstances) {
+  const core::model::Bounds box = core::model::bounds_of(g_fixture->mt.positions);
+  const double size = box.largest_side();
+  const std::array<float, 3> c = box.centre();
+  auto placed = [&](double scale, double dx, double dz) {
+    // Scaled about the box centre, then moved by (dx, 0, dz) box sizes.
+    return protocol::Matrix4{scale,
+                             0,
+                             0,
+                             0,
+                             0,
+                             scale,
+                             0,
+                             0,
+                             0,
+                             0,
+                             scale,
+                             0,
+                             (1 - scale) * c[0] + dx * size,
+                             (1 - scale) * c[1],
+                             (1 - scale) * c[2] + dz * size,
+                             1};
+  };
+  for (const core::codec::Codec codec : {core::codec::Codec::kDraco, core::codec::Codec::kMeshopt}) {
+    SCOPED_TRACE(protocol::enum_name(protocol::kCodecNames, codec));
+    protocol::Extract request = extract_request(0.3, 0.4);
+    request.model.clear();
+    request.instances = {
+        {"bunny", placed(1.5, -0.3, 0)}, {"bunny", placed(0.3, -0.3, -2)}, {"bunny", placed(0.5, 0.8, 0)}};
+    request.criteria.hidden_factor = 1e6;
+    request.codec = codec;
+    // The camera frames the three of them.
+    protocol::look_at_camera(protocol::frame_bounds({c[0] - 1.5 * size, c[1] - size, c[2] - 2.5 * size},
+                                                    {c[0] + 1.5 * size, c[1] + size, c[2] + size}),
+                             4.0 / 3.0, request.view, request.projection);
+    ServerConnection conn = connect();
+    auto reply = conn.call(request, 3);
+    ASSERT_TRUE(reply.ok()) << reply.error().message;
+    const auto* mesh = as_mesh(*reply);
+    ASSERT_NE(mesh, nullptr) << reply->json;
+    ASSERT_EQ(mesh->instances.size(), 3u) << reply->json;
+    EXPECT_TRUE(mesh->model.empty());
+    auto parts = protocol::split_scene_payload(*mesh, reply->payload);
+    ASSERT_TRUE(parts.ok()) << parts.error().message;
+
+    std::vector<core::view::SceneInstance> instances;
+    for (const protocol::Instance& i : request.instances)
+      instances.push_back({&g_fixture->mt, g_fixture->levels.get(), protocol::to_glm(i.matrix)});
+    core::view::SceneExtractor extractor;
+    std::vector<core::cut::CutMesh> cuts;
+    ASSERT_TRUE(extractor.extract({protocol::to_view_request(request, true), instances}, cuts).ok());
+    std::uint64_t triangles = 0;
+    for (std::size_t i = 0; i < cuts.size(); ++i) {
+      const protocol::InstanceMesh& one = mesh->instances[i];
+      EXPECT_EQ(one.model, "bunny");
+      ASSERT_EQ(one.triangles, cuts[i].triangle_count()) << "instance " << i;
+      EXPECT_EQ(one.bytes, (*parts)[i].size());
+      triangles += one.triangles;
+      auto decoded = core::codec::decode_payload(codec, (*parts)[i]);
+      ASSERT_TRUE(decoded.ok()) << decoded.error().message;
+      const float tolerance = test::draco_tolerance(
+          test::used_extent(g_fixture->mt.positions, cuts[i].triangles), request.quantization.position_bits);
+      const auto match = test::match_vertices(decoded->positions, g_fixture->mt.positions, cuts[i].triangles,
+                                              4 * tolerance, tolerance);
+      EXPECT_EQ(test::canonical_triangles(decoded->triangles, &match),
+                test::canonical_triangles(cuts[i].triangles))
+          << "instance " << i;
+    }
+    EXPECT_EQ(mesh->triangles, triangles);
+    EXPECT_EQ(mesh->instances[1].triangles, g_fixture->mt.root_triangle_count());
+    EXPECT_GT(mesh->instances[0].triangles, 4 * g_fixture->mt.root_triangle_count());
+    if (codec == core::codec::Codec::kDraco) {
+      auto loaded = test::googles_draco_decode((*parts)[2], g_fixture->dir, "scene-instance");
+      ASSERT_TRUE(loaded.ok()) << loaded.error().message;
+      EXPECT_EQ(loaded->triangle_count(), mesh->instances[2].triangles);
+    }
+    auto gazed = conn.call(protocol::Gaze{0.7, 0.5, std::nullopt, std::nullopt}, 4);
+    ASSERT_TRUE(gazed.ok()) << gazed.error().message;
+    ASSERT_NE(as_mesh(*gazed), nullptr) << gazed->json;
+    EXPECT_EQ(as_mesh(*gazed)->instances.size(), 3u);
+  }
 }
 
 TEST_F(ServerTest, GooglesDracoDecoderReadsAServerPayload) {
