@@ -2,8 +2,8 @@
 // first use through a table over the model's vertices, whose touched entries are reset afterwards, so
 // the cost follows the cut and not the model; a reordering of the triangles then works on those compact
 // ids. Each attribute is quantized into its own stream and handed to meshopt_encodeVertexBuffer, the
-// triangles to meshopt_encodeIndexBuffer, both writing straight into the caller's buffer at their
-// place in the payload.
+// triangles to encode_index_stream_v1 (meshoptimizer's index codec, our faster writer of the same
+// bytes), both writing straight into the caller's buffer at their place in the payload.
 #include "core/codec/meshopt_encode.hpp"
 
 #include <meshoptimizer.h>
@@ -17,6 +17,7 @@
 #include <limits>
 #include <utility>
 
+#include "core/codec/index_encode.hpp"
 #include "core/model/bounds.hpp"
 #include "fmt/format.h"
 
@@ -25,14 +26,13 @@ namespace {
 
 constexpr std::uint32_t kUnused = std::numeric_limits<std::uint32_t>::max();
 
-// meshoptimizer keeps the codec versions it writes in process-wide variables, and 0.18 writes index
-// version 0 unless told. They are set once, before the first encoding (a function-local static is
-// initialised once even with several workers); each stream's first byte is checked afterwards in case
-// other code in the process set them differently.
+// meshoptimizer keeps the vertex codec version it writes in a process-wide variable. It is set once,
+// before the first encoding (a function-local static is initialised once even with several workers);
+// each vertex stream's first byte is checked afterwards in case other code in the process set it
+// differently. The index stream is ours (index_encode.hpp), version 1 whatever the library is set to.
 void set_codec_versions() {
   static const bool set = [] {
     meshopt_encodeVertexVersion(0);
-    meshopt_encodeIndexVersion(1);
     return true;
   }();
   (void)set;
@@ -237,7 +237,7 @@ Result<EncodeStats> MeshoptEncoder::encode(const DracoInput& input, const Meshop
   // The payload at its largest, trimmed at the end.
   const std::size_t normal_stride = options.normal_bits <= 8 ? 4 : 8;
   std::size_t bound = kMeshoptHeaderBytes + 4 + meshopt_encodeVertexBufferBound(n, 8) + 4 +
-                      meshopt_encodeIndexBufferBound(input.triangles.size(), n);
+                      index_stream_bound(input.triangles.size(), n);
   if (options.normals) bound += 4 + meshopt_encodeVertexBufferBound(n, normal_stride);
   if (options.colors) bound += 4 + meshopt_encodeVertexBufferBound(n, 4);
   out.resize(bound);
@@ -256,7 +256,7 @@ Result<EncodeStats> MeshoptEncoder::encode(const DracoInput& input, const Meshop
   auto version_error = [&out] {
     out.clear();
     return make_error(ErrorCode::kInternal,
-                      "meshoptimizer wrote a codec version the payload does not promise (vertex 0, index 1)");
+                      "meshoptimizer wrote a vertex codec version the payload does not promise (0)");
   };
 
   std::uint8_t* at = put_vertex_stream(header + kMeshoptHeaderBytes, quantized_.data(), n, 8);
@@ -282,11 +282,11 @@ Result<EncodeStats> MeshoptEncoder::encode(const DracoInput& input, const Meshop
     at = put_vertex_stream(at, attribute_.data(), n, 4);
     if (!at) return version_error();
   }
-  const std::size_t index_bound = meshopt_encodeIndexBufferBound(indices_.size(), n);
+  // Our index writer's first byte is a constant, so unlike the vertex streams there is nothing to check.
+  static_assert(kIndexStreamV1Header == kMeshoptIndexStreamHeader);
   const std::size_t index_size =
-      meshopt_encodeIndexBuffer(at + 4, index_bound, indices_.data(), indices_.size());
-  assert(index_size > 0);
-  if (at[4] != kMeshoptIndexStreamHeader) return version_error();
+      encode_index_stream_v1(indices_, {at + 4, index_stream_bound(indices_.size(), n)});
+  assert(index_size > 0);  // the bound is always enough
   put_u32(at, static_cast<std::uint32_t>(index_size));
   at += 4 + index_size;
   out.resize(static_cast<std::size_t>(at - out.data()));

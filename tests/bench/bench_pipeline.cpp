@@ -3,6 +3,7 @@
 // payload's bits per triangle. Run: build/release/tests/mtlod_bench_pipeline
 // (MTLOD_BENCH_DRAGON=path overrides the dragon, default ../shared/meshes or build/models).
 #include <benchmark/benchmark.h>
+#include <meshoptimizer.h>
 
 #include <algorithm>
 #include <chrono>
@@ -15,6 +16,7 @@
 #include "core/build/mt_builder.hpp"
 #include "core/codec/draco_decode.hpp"
 #include "core/codec/draco_encode.hpp"
+#include "core/codec/index_encode.hpp"
 #include "core/codec/meshopt_decode.hpp"
 #include "core/codec/meshopt_encode.hpp"
 #include "core/cut/cut_delta.hpp"
@@ -176,6 +178,21 @@ void request_args(benchmark::internal::Benchmark* b) {
 }
 BENCHMARK(BM_Request)->Apply(request_args);
 
+// The cut BM_Codec and BM_IndexEncode encode (see BM_Codec), refined once.
+const core::cut::CutMesh& codec_cut(const Model& m) {
+  static core::cut::CutMesh cut;
+  if (cut.triangles.empty()) {
+    core::view::ViewRequest view =
+        protocol::to_view_request(request_for(m, error_for_size(m, 50'000)), false);
+    view.dynamic = false;
+    core::view::ViewExtractor extractor(m.mt, *m.levels);
+    core::cut::Refiner refiner(m.mt);
+    extractor.map(view), extractor.occupancy(), extractor.distance_transforms(), extractor.allowed_error();
+    refined(extractor.refine(refiner, cut));
+  }
+  return cut;
+}
+
 // The codecs side by side on one cut: the dragon's static front view of about 50k triangles
 // (BM_Request's). The time is the encoding alone; counters give the payload's bytes per triangle
 // and the C++ decoder's time (Draco's decoder, decode_meshopt). Args: codec (0 Draco edgebreaker
@@ -185,16 +202,7 @@ BENCHMARK(BM_Request)->Apply(request_args);
 void BM_Codec(benchmark::State& state) {
   const Model* m = model("dragon");
   if (!m) return state.SkipWithError("mesh not found");
-  static core::cut::CutMesh cut;
-  if (cut.triangles.empty()) {
-    core::view::ViewRequest view =
-        protocol::to_view_request(request_for(*m, error_for_size(*m, 50'000)), false);
-    view.dynamic = false;
-    core::view::ViewExtractor extractor(m->mt, *m->levels);
-    core::cut::Refiner refiner(m->mt);
-    extractor.map(view), extractor.occupancy(), extractor.distance_transforms(), extractor.allowed_error();
-    refined(extractor.refine(refiner, cut));
-  }
+  const core::cut::CutMesh& cut = codec_cut(*m);
   const int codec = static_cast<int>(state.range(0));
   const bool normals = state.range(1) != 0;
   const core::codec::DracoInput input{
@@ -232,6 +240,53 @@ BENCHMARK(BM_Codec)
     ->ArgsProduct({{0, 1, 2, 3, 4}, {0, 1}})
     ->ArgNames({"codec", "normals"})
     ->Unit(benchmark::kMillisecond);
+
+// The triangles stream of BM_Codec's meshopt payloads alone: meshoptimizer's index encoder (index
+// codec version 1) against ours, which writes the same bytes. The triangles are the payload's own, as
+// the payload decodes, so numbered and ordered as MeshoptEncoder hands them over. Args: encoder (0
+// meshopt_encodeIndexBuffer, 1 encode_index_stream_v1), order (0 reordered spatially as codec 3,
+// 1 the cut's order as codec 4). Counters: time_per_tri (the encoding's time over the triangles),
+// bytes_per_tri.
+void BM_IndexEncode(benchmark::State& state) {
+  const Model* m = model("dragon");
+  if (!m) return state.SkipWithError("mesh not found");
+  const core::cut::CutMesh& cut = codec_cut(*m);
+  const bool ours = state.range(0) == 1;
+  core::codec::MeshoptOptions options;
+  options.keep_triangle_order = state.range(1) == 1;
+  std::vector<std::uint8_t> payload;
+  if (!core::codec::MeshoptEncoder()
+           .encode({m->mt.positions, {}, {}, cut.triangles, {}}, options, payload)
+           .ok())
+    return state.SkipWithError("encoding failed");
+  auto decoded = core::codec::decode_meshopt(payload);
+  if (!decoded) return state.SkipWithError("decoding failed");
+  const std::vector<std::uint32_t>& indices = decoded->mesh.triangles;
+  const std::size_t triangles = indices.size() / 3;
+  std::vector<std::uint8_t> stream(
+      core::codec::index_stream_bound(indices.size(), decoded->mesh.vertex_count()));
+  meshopt_encodeIndexVersion(1);
+  std::vector<std::uint8_t> expected(stream.size());
+  expected.resize(
+      meshopt_encodeIndexBuffer(expected.data(), expected.size(), indices.data(), indices.size()));
+  std::size_t size = 0;
+  for (auto _ : state) {
+    size = ours ? core::codec::encode_index_stream_v1(indices, stream)
+                : meshopt_encodeIndexBuffer(stream.data(), stream.size(), indices.data(), indices.size());
+    benchmark::DoNotOptimize(stream.data());
+  }
+  if (size != expected.size() || !std::equal(expected.begin(), expected.end(), stream.begin()))
+    return state.SkipWithError("the streams differ");
+  state.counters["time_per_tri"] =
+      benchmark::Counter(static_cast<double>(triangles),
+                         benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
+  state.counters["bytes_per_tri"] = static_cast<double>(size) / static_cast<double>(triangles);
+  state.SetItemsProcessed(state.iterations() * static_cast<std::int64_t>(triangles));
+}
+BENCHMARK(BM_IndexEncode)
+    ->ArgsProduct({{0, 1}, {0, 1}})
+    ->ArgNames({"encoder", "order"})
+    ->Unit(benchmark::kMicrosecond);
 
 // Dynamic refinement after a small camera move against refinement from the root, same result size.
 void BM_RefineAfterSmallMove(benchmark::State& state) {
