@@ -170,6 +170,8 @@ struct Extract {
   // A scene (PROTOCOL.md, "Scenes"): set instead of `model`. One camera, criteria and budget for the
   // whole picture; the reply carries one mesh per instance.
   std::vector<Instance> instances;
+  // A scene the server loaded, by name ("scene": "room"): the server fills `instances` from it.
+  std::string scene_name;
   Matrix4 view{};
   Matrix4 projection{};
   std::array<std::uint32_t, 2> viewport{800, 600};  // pixels

@@ -315,7 +315,11 @@ Extract read_extract(ObjectReader& r, const Limits& limits) {
   Extract e;
   if (const json* scene = r.find("scene")) {
     if (r.has("model")) fail(ErrorKind::kBadRequest, "give 'model' or 'scene', not both");
-    e.instances = read_scene(*scene, limits);
+    if (scene->is_string()) {
+      e.scene_name = ObjectReader::check_string(*scene, "'scene'", 256);
+    } else {
+      e.instances = read_scene(*scene, limits);
+    }
   } else {
     e.model = r.string("model", 256);
   }
@@ -383,7 +387,7 @@ Extract read_extract(ObjectReader& r, const Limits& limits) {
   if (e.delta && e.draco.method == core::codec::DracoMethod::kEdgebreaker) {
     fail(ErrorKind::kBadRequest, "'delta' needs draco.method 'sequential': edgebreaker reorders the faces");
   }
-  if (!e.instances.empty() && e.labels)
+  if ((!e.instances.empty() || !e.scene_name.empty()) && e.labels)
     fail(ErrorKind::kBadRequest, "a scene carries no attributes.labels: its silhouettes are the picture's");
   if (e.delta && e.labels) {
     fail(ErrorKind::kBadRequest,
@@ -558,7 +562,9 @@ json region_json(const Region& region, core::view::Criterion criterion) {
 
 json extract_json(const Extract& e) {
   json j;
-  if (e.instances.empty()) {
+  if (!e.scene_name.empty()) {
+    j["scene"] = e.scene_name;
+  } else if (e.instances.empty()) {
     j["model"] = e.model;
   } else {
     json instances = json::array();

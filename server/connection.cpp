@@ -248,7 +248,26 @@ void Connection::on_request(std::uint64_t seq, std::uint64_t id, const protocol:
     replies_.fill(job->seq, error_frame(protocol::ErrorKind::kCancelled, "cancelled by the client", job->id));
   replies_.fill(seq, make_frame(protocol::CancelReply{request.target, job.has_value()}, id));
 }
-void Connection::on_request(std::uint64_t seq, std::uint64_t id, const protocol::Extract& request) {
+void Connection::on_request(std::uint64_t seq, std::uint64_t id, const protocol::Extract& named) {
+  // A scene the server loaded stands for its instances from here on (gazes included).
+  const protocol::Extract* given = &named;
+  protocol::Extract resolved;
+  if (!named.scene_name.empty()) {
+    const auto scene = server_.config.scenes.find(named.scene_name);
+    if (scene == server_.config.scenes.end()) {
+      std::string known;
+      for (const auto& [name, instances] : server_.config.scenes) known += (known.empty() ? "" : ", ") + name;
+      return reply_error(seq, protocol::ErrorKind::kUnknownModel,
+                         fmt::format("no scene named '{}'; loaded: {}", named.scene_name,
+                                     known.empty() ? "none (mtlod-server --scene FILE)" : known),
+                         id);
+    }
+    resolved = named;
+    resolved.scene_name.clear();
+    resolved.instances = scene->second;
+    given = &resolved;
+  }
+  const protocol::Extract& request = *given;
   if (const std::string* unseen = unseen_model(request)) return reply_unknown_model(seq, id, *unseen);
   if (!request.codec) {
     if (auto refusal = protocol::codec_refusal(request, codec_))

@@ -6,10 +6,13 @@
 #include <cctype>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <string>
 #include <vector>
 
 #include "CLI/CLI.hpp"
+#include "protocol/parse.hpp"
 #include "server/auth.hpp"
 #include "server/log.hpp"
 #include "server/model_registry.hpp"
@@ -58,7 +61,7 @@ bool write_port_file(const std::string& port_file, unsigned port, unsigned http_
 // What the command line says beyond the server's own configuration.
 struct Options {
   mtlod::server::ServerConfig config;
-  std::vector<std::string> model_files, meshes;
+  std::vector<std::string> model_files, meshes, scene_files;
   std::string models_dir, cache_dir = "build/models", log_level = "info", port_file;
   std::string name, tokens_file, admin_tokens_file;
   std::string log_format = "text", reload_mode = "watch";
@@ -163,6 +166,11 @@ void add_options(CLI::App& app, Options& o) {
                  "fields as members)")
       ->check(CLI::IsMember({"text", "json"}))
       ->capture_default_str();
+  app.add_option(
+         "--scene", o.scene_files,
+         "a scene extracts may name (\"scene\": NAME; NAME = file stem): JSON {\"instances\": [{\"model\", "
+         "\"matrix\"}, ...]} as PROTOCOL.md's scenes; repeatable")
+      ->check(CLI::ExistingFile);
   app.add_option("--admin-tokens", o.admin_tokens_file,
                  "tokens that may send the `reload` message, one per line (# comments); without them "
                  "`reload` is refused");
@@ -195,6 +203,30 @@ void check(const mtlod::Status& status) {
   }
 }
 
+// The scene files, checked as a request's scene is; a model a scene names but no file gives is likely
+// a typo (it is refused per request, as an unknown model is).
+void load_scenes(Options& o, const mtlod::server::ModelRegistry& registry) {
+  for (const std::string& file : o.scene_files) {
+    std::ifstream in(file, std::ios::binary);
+    const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    auto instances = mtlod::protocol::parse_scene(text, o.config.limits);
+    if (!instances) {
+      spdlog::error("{}: {}", file, instances.error().message);
+      std::exit(1);
+    }
+    const std::string name = std::filesystem::path(file).stem().string();
+    for (const auto& instance : *instances) {
+      if (!registry.find(instance.model))
+        spdlog::warn("{}: model '{}' is not loaded here", file, instance.model);
+    }
+    spdlog::info("scene {}: {} instances from {}", name, instances->size(), file);
+    if (!o.config.scenes.emplace(name, std::move(*instances)).second) {
+      spdlog::error("{}: a scene named '{}' was given already", file, name);
+      std::exit(1);
+    }
+  }
+}
+
 // Loads the models and the token files the options name (ends the process when one fails).
 void load(Options& o, mtlod::server::ModelRegistry& registry) {
   if (!o.models_dir.empty()) check(registry.add_directory(o.models_dir));
@@ -216,6 +248,7 @@ void load(Options& o, mtlod::server::ModelRegistry& registry) {
   }
   if (!o.admin_tokens_file.empty()) o.config.admin_tokens = load_tokens(o.admin_tokens_file, "admin tokens");
   for (const auto& model : registry.models()) log_model(*model);
+  load_scenes(o, registry);
 }
 
 void announce(const mtlod::server::ServerConfig& config, const mtlod::server::Server& server) {

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstdint>
+#include <map>
 #include <memory>
 #include <optional>
 #include <string>
@@ -42,6 +43,8 @@ struct ServerConfig {
   std::shared_ptr<const TokenTable> admin_tokens;
   // Load changed model files when they change (inotify); off: on SIGHUP or `reload` only.
   bool watch_models = true;
+  // Scenes an extract may name ("scene": "room"; mtlod-server --scene), by name.
+  std::map<std::string, std::vector<protocol::Instance>, std::less<>> scenes;
 };
 
 // "<name>@<8 hex digits>", random per call: a replica's identity for this run.

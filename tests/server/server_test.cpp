@@ -70,8 +70,13 @@ class ServerTest : public testing::Test {
     ASSERT_TRUE(core::io::write_mt_file(g_fixture->dir / "bunny.mt", *mt).ok());
     g_fixture->mt = std::move(*mt);
     g_fixture->levels = core::view::OccupancyLevels::make(g_fixture->mt).value();
+    // A scene the server loads: two instances of the model, the second moved and halved.
+    test::write_file(g_fixture->dir / "pair.json",
+                     R"({"instances": [{"model": "bunny"},
+                                       {"model": "bunny", "matrix": [0.5,0,0,0, 0,0.5,0,0, 0,0,0.5,0, 1,0,-1,1]}]})");
     g_fixture->server = std::make_unique<test::ServerProcess>(
-        std::vector<std::string>{(g_fixture->dir / "bunny.mt").string(), "--workers", "2", "--log-level",
+        std::vector<std::string>{(g_fixture->dir / "bunny.mt").string(), "--scene",
+                                 (g_fixture->dir / "pair.json").string(), "--workers", "2", "--log-level",
                                  "warn"},
         g_fixture->dir);
     ASSERT_TRUE(g_fixture->server->running()) << g_fixture->server->log();
@@ -311,6 +316,34 @@ TEST_F(ServerTest, ASceneDecodesToTheInProcessCutsOfItsInstances) {
     ASSERT_NE(as_mesh(*gazed), nullptr) << gazed->json;
     EXPECT_EQ(as_mesh(*gazed)->instances.size(), 3u);
   }
+}
+
+TEST_F(ServerTest, ASceneTheServerLoadedIsServedByName) {
+  // The named scene and the same instances given in the request get the same meshes.
+  protocol::Extract named = extract_request();
+  named.model.clear();
+  named.scene_name = "pair";
+  named.draco.method = core::codec::DracoMethod::kSequential;
+  protocol::Extract inline_scene = named;
+  inline_scene.scene_name.clear();
+  inline_scene.instances = {{"bunny"}, {"bunny", {0.5, 0, 0, 0, 0, 0.5, 0, 0, 0, 0, 0.5, 0, 1, 0, -1, 1}}};
+  ServerConnection c = connect();
+  auto by_name = c.call(named, 1);
+  auto given = c.call(inline_scene, 2);
+  ASSERT_TRUE(by_name.ok() && given.ok());
+  ASSERT_NE(as_mesh(*by_name), nullptr) << by_name->json;
+  ASSERT_NE(as_mesh(*given), nullptr) << given->json;
+  ASSERT_EQ(as_mesh(*by_name)->instances.size(), 2u);
+  for (std::size_t i = 0; i < 2; ++i)
+    EXPECT_EQ(as_mesh(*by_name)->instances[i].triangles, as_mesh(*given)->instances[i].triangles) << i;
+  EXPECT_EQ(by_name->payload, given->payload);
+
+  named.scene_name = "trio";
+  auto unknown = c.call(named, 3);
+  ASSERT_TRUE(unknown.ok());
+  ASSERT_NE(as_error(*unknown), nullptr) << unknown->json;
+  EXPECT_EQ(as_error(*unknown)->code, protocol::ErrorKind::kUnknownModel);
+  EXPECT_EQ(as_error(*unknown)->message, "no scene named 'trio'; loaded: pair");
 }
 
 TEST_F(ServerTest, GooglesDracoDecoderReadsAServerPayload) {
