@@ -12,6 +12,7 @@
 #include "CLI/CLI.hpp"
 #include "clients/common/extract_flags.hpp"
 #include "clients/common/retry.hpp"
+#include "clients/common/scene_file.hpp"
 #include "core/codec/cut_encoder.hpp"
 #include "core/io/gltf.hpp"
 #include "core/io/mesh_io.hpp"
@@ -36,51 +37,24 @@ bool is_error(const clients::ReplyFrame& frame) {
   return false;
 }
 
-// The scene's bounding box in the world: every instance's model box, its corners placed.
-Result<std::array<std::array<double, 3>, 2>> scene_bounds(clients::RetryingConnection& c,
-                                                          const std::vector<protocol::Instance>& instances) {
-  std::map<std::string, protocol::ModelInfoReply> models;
-  std::array<double, 3> lo{HUGE_VAL, HUGE_VAL, HUGE_VAL}, hi{-HUGE_VAL, -HUGE_VAL, -HUGE_VAL};
-  for (const protocol::Instance& instance : instances) {
-    if (!models.count(instance.model)) {
-      auto reply = c.call(protocol::ModelInfo{instance.model});
-      if (!reply) return reply.take_error();
-      if (const auto* e = std::get_if<protocol::ErrorReply>(&reply->header.reply))
-        return make_error(ErrorCode::kInvalidArgument,
-                          fmt::format("server error {}: {}", protocol::to_string(e->code), e->message));
-      models[instance.model] = std::get<protocol::ModelInfoReply>(reply->header.reply);
-    }
-    const protocol::ModelInfoReply& m = models[instance.model];
-    const protocol::Matrix4& a = instance.matrix;
-    for (int k = 0; k < 8; ++k) {
-      const double p[3] = {(k & 1) ? m.bounds_max[0] : m.bounds_min[0],
-                           (k & 2) ? m.bounds_max[1] : m.bounds_min[1],
-                           (k & 4) ? m.bounds_max[2] : m.bounds_min[2]};
-      for (int r = 0; r < 3; ++r) {
-        const double w = a[r] * p[0] + a[4 + r] * p[1] + a[8 + r] * p[2] + a[12 + r];
-        lo[r] = std::min(lo[r], w);
-        hi[r] = std::max(hi[r], w);
-      }
-    }
-  }
-  return std::array<std::array<double, 3>, 2>{lo, hi};
-}
-
 // `mtlod-client scene`: one request for the whole scene (the camera flags' defaults frame its
 // bounding box), a line per instance, and with -o a .glb of a node per instance.
 int fetch_scene(clients::RetryingConnection& c, const std::string& file, clients::ExtractFlags& flags,
                 const std::string& output) {
-  std::ifstream in(file, std::ios::binary);
-  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  auto instances = protocol::parse_scene(text, protocol::Limits{.max_instances = UINT32_MAX});
-  if (!instances) return fail(fmt::format("{}: {}", file, instances.error().message));
-  auto bounds = scene_bounds(c, *instances);
+  auto instances = clients::read_scene_file(file);
+  if (!instances) return fail(instances.error().message);
+  auto bounds =
+      clients::scene_bounds(*instances, [&c](const std::string& model) -> Result<protocol::ModelInfoReply> {
+        MTLOD_TRY(const clients::ReplyFrame reply, c.call(protocol::ModelInfo{model}));
+        if (const auto* e = std::get_if<protocol::ErrorReply>(&reply.header.reply))
+          return make_error(ErrorCode::kNotFound,
+                            fmt::format("server error {}: {}", protocol::to_string(e->code), e->message));
+        return std::get<protocol::ModelInfoReply>(reply.header.reply);
+      });
   if (!bounds) return fail(bounds.error().message);
   clients::apply_default_criteria(flags);
-  auto request = clients::make_extract(flags, "", (*bounds)[0], (*bounds)[1]);
+  auto request = clients::make_scene_extract(flags, std::move(*instances), *bounds);
   if (!request) return fail(request.error().message);
-  request->model.clear();
-  request->instances = std::move(*instances);
   auto reply = c.call(*request, std::chrono::seconds(120));
   if (!reply) return fail(reply.error().message);
   if (is_error(*reply)) return 1;
