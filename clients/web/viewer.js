@@ -1,5 +1,6 @@
 // mtlod viewer: orbit the model, and the server sends a view-dependent cut refined near
-// the silhouette and around the mouse (the gaze/focus point of the attention-driven papers). Speaks
+// the silhouette and around the mouse (the gaze/focus point of the attention-driven papers). A built-in
+// scene (PROTOCOL.md, "Scenes") shows many placed instances of the served models, cut together. Speaks
 // protocol/PROTOCOL.md over the /ws WebSocket: text messages are JSON, binary messages are whole
 // frames (8-byte header, JSON, the mesh payload: Draco or meshoptimizer, as the panel's codec asks).
 import * as THREE from 'three';
@@ -34,6 +35,11 @@ const vertexColourMaterial = new THREE.MeshStandardMaterial({ vertexColors: true
                                                               flatShading: true });
 const mesh = new THREE.Mesh(new THREE.BufferGeometry(), material);
 scene.add(mesh);
+// A scene's instances: one mesh each, in the request's order, placed by the matrix the page sent
+// (matrixAutoUpdate off: the matrix is the instance's, not composed from position and rotation).
+const instanceGroup = new THREE.Group();
+instanceGroup.visible = false;
+scene.add(instanceGroup);
 
 // State the page shares with tests (tests/clients/viewer_test.mjs).
 const state = {
@@ -51,6 +57,8 @@ const state = {
   displayedTriangles: 0,
   focus: [0.5, 0.5],     // the gaze criterion's point: follows the mouse
   neglect: [0.5, 0.5],   // the neglect region's point: where the last shift-click was
+  models: [],            // the server's models, as list_models names them
+  scene: null,           // the scene shown: {name, instances: [{model, matrix}], lo, hi (its world box)}; null: one model
   errors: [],
 };
 window.mtlod = state;
@@ -67,6 +75,45 @@ const CRITERIA = [
 // The falloff laws (protocol/messages.hpp, kFalloffNames); the default is the study's winner.
 const FALLOFFS = ['step', 'linear', 'smoothstep', 'foveal'];
 const DEFAULT_FALLOFF = 'foveal';
+
+// The built-in scenes, each a name for the panel's select and ?scene= in the URL, and a function of the
+// server's models (model_info replies with their `name`; at most SCENE_MODELS of them, in list_models'
+// order) giving the instances, [{model, matrix}], matrices model → world, column-major and affine.
+const SCENES = {
+  room: { label: 'room (16 instances)', build: roomInstances },
+};
+const SCENE_MODELS = 4;
+
+// A matrix, column-major as the protocol and three.js store it, that stands a model on the floor: its
+// box's bottom centre to the origin, scaled so the box's largest side is `size`, turned by `angle`
+// radians about y (up), then moved to `at` ([x, z] on the floor).
+function placement(info, size, angle, at) {
+  const lo = info.bounds_min, hi = info.bounds_max;
+  const scale = size / Math.max(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]);
+  const matrix = new THREE.Matrix4().makeTranslation(at[0], 0, at[1])
+    .multiply(new THREE.Matrix4().makeRotationY(angle))
+    .multiply(new THREE.Matrix4().makeScale(scale, scale, scale))
+    .multiply(new THREE.Matrix4().makeTranslation(-(lo[0] + hi[0]) / 2, -lo[1], -(lo[2] + hi[2]) / 2));
+  return Array.from(matrix.elements);
+}
+
+// A room: 4 rows of 4 on the floor, the models taking turns along rows and columns (so each model
+// repeats), every instance scaled to a common size (largest side 1) whatever its model's units and
+// turned by the golden angle from the one before, odd rows shifted by a quarter step. From the default
+// camera, raised in front, the rows behind show between and above the rows in front, partly hidden.
+function roomInstances(models) {
+  const rows = 4, columns = 4, step = 1.3;
+  const goldenAngle = Math.PI * (3 - Math.sqrt(5));
+  const instances = [];
+  for (let r = 0; r < rows; ++r) {
+    for (let c = 0; c < columns; ++c) {
+      const info = models[(r + c) % models.length];
+      const at = [(c - (columns - 1) / 2 + (r % 2 ? 0.25 : -0.25)) * step, (r - (rows - 1) / 2) * step];
+      instances.push({ model: info.name, matrix: placement(info, 1, instances.length * goldenAngle, at) });
+    }
+  }
+  return instances;
+}
 
 function buildCriteriaPanel() {
   const panel = $('criteria');
@@ -85,6 +132,11 @@ function buildCriteriaPanel() {
     row('\u00a0 threshold (px) ', input(`${c.name}-distance`, { type: 'number', value: c.distance, min: 0, step: 1 }));
     row('\u00a0 factor ', input(`${c.name}-factor`, { type: 'number', value: c.factor, min: c.min, max: c.max, step: 0.05 }));
   }
+  // The scene: none (the model select's model) or a built-in one; ?scene= in the page's URL picks it.
+  const named = new URLSearchParams(location.search).get('scene');
+  const none = !Object.hasOwn(SCENES, named);
+  $('scene').append(new Option('none: one model', '', none, none));
+  for (const [name, s] of Object.entries(SCENES)) $('scene').append(new Option(s.label, name, name === named, name === named));
   for (const law of FALLOFFS) $('falloff').append(new Option(law, law, law === DEFAULT_FALLOFF, law === DEFAULT_FALLOFF));
   // The payload's codec (codecs.js): the first is the default, ?codec= in the page's URL picks another.
   const wanted = new URLSearchParams(location.search).get('codec');
@@ -101,6 +153,7 @@ let inFlight = false;        // one extraction at a time from this page: the nex
 let wantExtract = false;
 let wantGaze = null;
 let wholeNext = false;       // the next extract asks for a whole mesh (see extractRequest)
+let sentScene = null;        // the scene of the last extract sent (null: a model), which its gazes' replies show too
 
 function setStatus(text, error = false) {
   $('status').textContent = text;
@@ -152,14 +205,16 @@ function extractRequest() {
     const law = { distance: Number($(`${c.name}-distance`).value), factor: Number($(`${c.name}-factor`).value) };
     criteria[c.name] = c.point ? [{ x: state[c.point][0], y: state[c.point][1], ...law }] : law;
   }
+  // A scene names its instances instead of a model; it cannot carry labels, and each instance's
+  // colours come as its model has them (asking for colours would be refused for a model without).
   const request = {
-    type: 'extract', model: state.model,
+    type: 'extract', ...(state.scene ? { scene: { instances: state.scene.instances } } : { model: state.model }),
     camera: { view: Array.from(camera.matrixWorldInverse.elements), projection: Array.from(camera.projectionMatrix.elements),
               viewport: [width, height] },
     grid: [Math.min(512, Math.round(width / 2)), Math.min(512, Math.round(height / 2))],
     error: { value: Number($('error').value), unit: 'pixels' },
     criteria,
-    attributes: { normals: true, labels: wantLabels(), colors: state.colors },
+    attributes: state.scene ? { normals: true } : { normals: true, labels: wantLabels(), colors: state.colors },
     codec: $('codec').value,
   };
   // Delta replies send only what changed, named by triangle id; labels would go stale on kept triangles.
@@ -173,10 +228,11 @@ function extractRequest() {
 
 // Sends what the user asked for last: a new view wins over a gaze (it carries the focus too).
 function pump() {
-  if (inFlight || !state.connected || !state.model) return;
+  if (inFlight || !state.connected || !(state.model || state.scene)) return;
   let request;
   if (wantExtract) {
     request = extractRequest();
+    sentScene = state.scene;
     wantExtract = false;
     wantGaze = null;
   } else if (wantGaze) {
@@ -194,11 +250,11 @@ function pump() {
 
 // Labels come in Draco payloads only: the checkbox is off limits for other codecs.
 function wantLabels() {
-  return $('labels').checked && CODECS[$('codec').value].labels;
+  return $('labels').checked && CODECS[$('codec').value].labels && !state.scene;
 }
 
 function showCodec() {
-  $('labels').disabled = !CODECS[$('codec').value].labels;
+  $('labels').disabled = !CODECS[$('codec').value].labels || state.scene !== null;
 }
 
 function colourByLabel(geometry) {
@@ -217,14 +273,20 @@ function colourByLabel(geometry) {
   return true;
 }
 
-// The mesh kept across delta replies (PROTOCOL.md, "Delta replies"): 9 floats per triangle (and 9
-// for its corners' normals and 9 for their colours), keyed by the triangle's id in the model's
-// Multi-Tessellation; removal swaps in the last triangle.
+// A mesh kept across delta replies (PROTOCOL.md, "Delta replies"): 9 floats per triangle (and 9 for its
+// corners' normals and 9 for their colours), keyed by the triangle's id in the model's Multi-Tessellation;
+// removal swaps in the last triangle. The single model has one, and every scene instance its own: a
+// scene reply's deltas are per instance, each against that instance's previous mesh.
 const keptArrays = ['positions', 'normals', 'colors'];
-const kept = { ids: [], slot: new Map() };
-for (const key of keptArrays) kept[key] = new Float32Array(9 * 1024);
+function newKept() {
+  const kept = { ids: [], slot: new Map(), hasNormals: false, hasColors: false };
+  for (const key of keptArrays) kept[key] = new Float32Array(9 * 1024);
+  return kept;
+}
+const modelKept = newKept();
+const instanceKept = [];     // by instance: kept as long as the page runs, as the server keeps its side
 
-function keptRemove(id) {
+function keptRemove(kept, id) {
   const slot = kept.slot.get(id);
   if (slot === undefined) throw new Error(`the delta removes triangle ${id}, which the mesh does not hold`);
   const last = kept.ids.length - 1;
@@ -237,7 +299,7 @@ function keptRemove(id) {
   kept.ids.pop();
 }
 
-function keptAdd(id, corners, normals, colours) {
+function keptAdd(kept, id, corners, normals, colours) {
   if (kept.slot.has(id)) throw new Error(`the delta adds triangle ${id}, which the mesh already holds`);
   const slot = kept.ids.length;
   if (9 * (slot + 1) > kept.positions.length) {
@@ -254,9 +316,9 @@ function keptAdd(id, corners, normals, colours) {
   kept.slot.set(id, slot);
 }
 
-// Applies a delta reply to the kept mesh and returns a geometry showing it. The mesh part of the payload
-// keeps the cut's triangle order in every codec: its face f is the f-th added id.
-async function applyDelta(codec, delta, payload) {
+// Applies a delta to a kept mesh and returns a geometry showing it. The mesh part of the payload keeps the
+// cut's triangle order in every codec: its face f is the f-th added id.
+async function applyDelta(kept, codec, delta, payload) {
   if (delta.reset) {
     kept.ids.length = 0;
     kept.slot.clear();
@@ -265,7 +327,7 @@ async function applyDelta(codec, delta, payload) {
   // length was named `draco_bytes` before meshopt payloads came; servers send both names for now.
   const meshBytes = delta.payload_bytes ?? delta.draco_bytes;
   const ids = new DataView(payload ?? new ArrayBuffer(0), meshBytes);
-  for (let i = 0; i < delta.removed; ++i) keptRemove(ids.getUint32(4 * (delta.added + i), true));
+  for (let i = 0; i < delta.removed; ++i) keptRemove(kept, ids.getUint32(4 * (delta.added + i), true));
   if (delta.added > 0) {
     // The ids are read after decoding: the decoder gets a copy of its part, which it may take away.
     const added = await decodePayload(codec, payload.slice(0, meshBytes));
@@ -284,17 +346,72 @@ async function applyDelta(codec, delta, payload) {
         if (normal) normals.set([normal.getX(v), normal.getY(v), normal.getZ(v)], 3 * k);
         if (color) colours.set([color.getX(v), color.getY(v), color.getZ(v)], 3 * k);
       }
-      keptAdd(ids.getUint32(4 * f, true), corners, normals, colours);
+      keptAdd(kept, ids.getUint32(4 * f, true), corners, normals, colours);
     }
-    state.deltaNormals = normal !== undefined;
+    kept.hasNormals = normal !== undefined;
+    kept.hasColors = color !== undefined;
     added.dispose();
   }
   const geometry = new THREE.BufferGeometry();
-  geometry.setAttribute('position', new THREE.BufferAttribute(kept.positions.slice(0, 9 * kept.ids.length), 3));
-  if (state.deltaNormals) geometry.setAttribute('normal', new THREE.BufferAttribute(kept.normals.slice(0, 9 * kept.ids.length), 3));
-  if (state.colors) geometry.setAttribute('color', new THREE.BufferAttribute(kept.colors.slice(0, 9 * kept.ids.length), 3));
+  const floats = 9 * kept.ids.length;
+  geometry.setAttribute('position', new THREE.BufferAttribute(kept.positions.slice(0, floats), 3));
+  if (kept.hasNormals) geometry.setAttribute('normal', new THREE.BufferAttribute(kept.normals.slice(0, floats), 3));
+  if (kept.hasColors) geometry.setAttribute('color', new THREE.BufferAttribute(kept.colors.slice(0, floats), 3));
   return geometry;
 }
+
+// One mesh's part of a reply (the single model's, or one instance's) as a geometry: a whole mesh decoded,
+// or the kept mesh after the part's delta, which must then hold the server's `triangles`.
+async function partGeometry(codec, { kept, delta, payload, triangles }) {
+  if (!delta) return decodePayload(codec, payload);
+  const geometry = await applyDelta(kept, codec, delta, payload);
+  if (kept.ids.length !== triangles) {
+    geometry.dispose();
+    throw new Error(`the kept mesh has ${kept.ids.length} triangles, the server's cut ${triangles}`);
+  }
+  return geometry;
+}
+
+// A scene reply's parts: the payload cut by the instances' `bytes`, in order (PROTOCOL.md, "Scenes").
+function sceneParts(json, payload) {
+  const total = payload ? payload.byteLength : 0;
+  const sum = json.instances.reduce((bytes, instance) => bytes + instance.bytes, 0);
+  if (sum !== total) throw new Error(`the scene's payload has ${total} bytes, its instances ${sum}`);
+  while (instanceKept.length < json.instances.length) instanceKept.push(newKept());
+  let at = 0;
+  return json.instances.map((instance, i) => {
+    at += instance.bytes;
+    return { kept: instanceKept[i], delta: instance.delta, payload: payload ? payload.slice(at - instance.bytes, at) : null,
+             triangles: instance.triangles };
+  });
+}
+
+// Decodes every part (in parallel: each has its own kept mesh), or none: on the first failure the
+// geometries decoded are dropped and the error thrown.
+async function partGeometries(codec, parts) {
+  const settled = await Promise.allSettled(parts.map((part) => partGeometry(codec, part)));
+  const failed = settled.find((s) => s.status === 'rejected');
+  if (!failed) return settled.map((s) => s.value);
+  for (const s of settled) if (s.status === 'fulfilled') s.value.dispose();
+  throw failed.reason;
+}
+
+// The meshes of a scene's `count` instances, made or dropped to match.
+function instanceMeshes(count) {
+  while (instanceGroup.children.length > count) {
+    const gone = instanceGroup.children.at(-1);
+    gone.geometry.dispose();
+    instanceGroup.remove(gone);
+  }
+  while (instanceGroup.children.length < count) {
+    const made = new THREE.Mesh(new THREE.BufferGeometry(), material);
+    made.matrixAutoUpdate = false;
+    instanceGroup.add(made);
+  }
+  return instanceGroup.children;
+}
+
+const triangleCount = (geometry) => (geometry.index ? geometry.index.count : geometry.getAttribute('position').count) / 3;
 
 async function showReply({ json, payload, latencyMs }) {
   if (json.type === 'error') {
@@ -304,66 +421,130 @@ async function showReply({ json, payload, latencyMs }) {
   if (json.type !== 'mesh') return;
   // Replies from servers that predate the `codec` field carry Draco.
   const codec = json.codec ?? 'draco';
-  let geometry;
-  if (json.delta) {
-    try {
-      geometry = await applyDelta(codec, json.delta, payload);
-      if (kept.ids.length !== json.triangles) {
-        throw new Error(`the kept mesh has ${kept.ids.length} triangles, the server's cut ${json.triangles}`);
-      }
-    } catch (error) {
+  // A scene reply shows the scene of the last extract sent (a gaze's reply too: the server re-extracts
+  // its connection's latest extract).
+  const placed = Array.isArray(json.instances);
+  const delta = placed ? json.instances.some((instance) => instance.delta) : json.delta !== undefined;
+  let geometries;
+  try {
+    if (placed && (!sentScene || sentScene.instances.length !== json.instances.length)) {
+      throw new Error(`a scene reply of ${json.instances.length} instances, the page sent ${sentScene?.instances.length ?? 'none'}`);
+    }
+    const parts = placed ? sceneParts(json, payload)
+                         : [{ kept: modelKept, delta: json.delta, payload, triangles: json.triangles }];
+    geometries = await partGeometries(codec, parts);
+  } catch (error) {
+    // After a delta that did not apply the next view asks for whole meshes, which put the kept ones right;
+    // a damaged whole mesh leaves the meshes shown as they were.
+    if (delta) {
       wholeNext = true;
       requestExtract();
-      return setStatus(String(error.message ?? error), true);
     }
-  } else {
-    // A damaged payload leaves the mesh shown as it was; the next view asks for a whole mesh again.
-    try {
-      geometry = await decodePayload(codec, payload);
-    } catch (error) {
-      return setStatus(String(error.message ?? error), true);
-    }
-    wholeNext = false;
+    return setStatus(String(error.message ?? error), true);
   }
-  const labelled = $('labels').checked && colourByLabel(geometry);
-  mesh.geometry.dispose();
-  mesh.geometry = geometry;
-  // Label colours (colourByLabel) replace the model's own while labels are shown.
-  const coloured = labelled || geometry.getAttribute('color') !== undefined;
-  mesh.material = coloured ? vertexColourMaterial : material;
+  if (!delta) wholeNext = false;
+  const meshes = placed ? instanceMeshes(geometries.length) : [mesh];
+  mesh.visible = !placed;
+  instanceGroup.visible = placed;
+  // Label colours (colourByLabel) replace the model's own while labels are shown; scenes carry no labels.
+  const labelled = !placed && $('labels').checked && colourByLabel(geometries[0]);
+  meshes.forEach((shown, i) => {
+    shown.geometry.dispose();
+    shown.geometry = geometries[i];
+    shown.material = labelled || geometries[i].getAttribute('color') !== undefined ? vertexColourMaterial : material;
+    if (placed) shown.matrix.fromArray(sentScene.instances[i].matrix);
+  });
   setLook();
-  state.displayedTriangles = geometry.index ? geometry.index.count / 3 : geometry.getAttribute('position').count / 3;
+  const has = (name) => geometries.every((g) => g.getAttribute(name) !== undefined);
+  state.displayedTriangles = geometries.reduce((sum, g) => sum + triangleCount(g), 0);
   state.lastReply = json;
-  state.lastReplyHadLabels = geometry.getAttribute('label') !== undefined;
-  state.lastReplyHadColors = geometry.getAttribute('color') !== undefined && !labelled;
-  state.lastReplyHadNormals = geometry.getAttribute('normal') !== undefined;
+  state.lastReplyHadLabels = has('label');
+  state.lastReplyHadColors = geometries.some((g) => g.getAttribute('color') !== undefined) && !labelled;
+  state.lastReplyHadNormals = has('normal');
+  state.deltaNormals = modelKept.hasNormals;
   state.meshes += 1;
+  $('scene-totals').hidden = !placed;
+  if (placed) $('instances').textContent = String(json.instances.length);
   $('triangles').textContent = String(state.displayedTriangles);
-  $('vertices').textContent = json.delta ? `${json.vertices} new` : String(geometry.getAttribute('position').count);
+  const vertices = geometries.reduce((sum, g) => sum + g.getAttribute('position').count, 0);
+  $('vertices').textContent = delta ? `${json.vertices} new` : String(vertices);
   $('bytes').textContent = String(json.bytes);
   $('latency').textContent = latencyMs.toFixed(1);
   $('server-ms').textContent = (json.timings_us.total / 1000).toFixed(1);
   if (json.focus) $('focus-point').textContent = `${json.focus[0].toFixed(3)}, ${json.focus[1].toFixed(3)}`;
   $('meshes').textContent = String(state.meshes);
-  // The model's file changed on the server: this cut comes from its new version.
-  setStatus(json.model_changed ? `ok: ${state.model} was updated (version ${json.model_version})` : 'ok');
+  if (placed) {
+    // Under a budget too small for even the coarsest meshes of every instance, those are what is shown.
+    setStatus(`ok: scene ${sentScene.name}${json.within_budget === false ? ', over the budget at its coarsest' : ''}`);
+  } else {
+    // The model's file changed on the server: this cut comes from its new version.
+    setStatus(json.model_changed ? `ok: ${state.model} was updated (version ${json.model_version})` : 'ok');
+  }
+}
+
+// Frames the box lo..hi: the camera looks at its centre from `direction`, far enough for the box's
+// bounding sphere to fill the view's height, or with `tight` for the box's corners to fit the view (its
+// height and its width) with 5 % to spare: a flat scene seen from above its floor fills more of the view.
+function frame(lo, hi, direction, tight = false) {
+  resize();
+  const centre = lo.clone().add(hi).multiplyScalar(0.5);
+  const radius = hi.clone().sub(lo).length() / 2;
+  const back = direction.clone().normalize();
+  const tanHeight = Math.tan(THREE.MathUtils.degToRad(camera.fov / 2)), tanWidth = tanHeight * camera.aspect;
+  let distance = radius / tanHeight;
+  if (tight) {
+    const right = new THREE.Vector3(0, 1, 0).cross(back).normalize(), up = back.clone().cross(right);
+    distance = 0;
+    for (let k = 0; k < 8; ++k) {
+      const corner = new THREE.Vector3(k & 1 ? hi.x : lo.x, k & 2 ? hi.y : lo.y, k & 4 ? hi.z : lo.z).sub(centre);
+      distance = Math.max(distance, corner.dot(back) + Math.max(Math.abs(corner.dot(right)) / tanWidth,
+                                                                Math.abs(corner.dot(up)) / tanHeight));
+    }
+    distance *= 1.05;
+  }
+  camera.near = radius / 100;
+  camera.far = radius * 100;
+  camera.updateProjectionMatrix();
+  camera.position.copy(centre).addScaledVector(back, distance);
+  controls.target.copy(centre);
+  controls.update();
+  // The move's 'change' asked for a view in 50 ms; the caller asks for it now, once.
+  clearTimeout(extractTimer);
+  extractTimer = null;
 }
 
 async function selectModel(name) {
   const { json } = await send({ type: 'model_info', model: name });
   if (json.type !== 'model_info') return setStatus(`model_info: ${json.message}`, true);
   state.model = name;
+  state.scene = null;
+  showCodec();
   state.colors = json.colors === true;
   const lo = new THREE.Vector3(...json.bounds_min), hi = new THREE.Vector3(...json.bounds_max);
-  const centre = lo.clone().add(hi).multiplyScalar(0.5);
-  const radius = hi.clone().sub(lo).length() / 2;
   state.bounds = { lo, hi };
-  camera.near = radius / 100;
-  camera.far = radius * 100;
-  camera.position.copy(centre).add(new THREE.Vector3(0, 0, radius / Math.tan(THREE.MathUtils.degToRad(camera.fov / 2))));
-  controls.target.copy(centre);
-  controls.update();
-  resize();
+  frame(lo, hi, new THREE.Vector3(0, 0, 1));
+  wantExtract = true;
+  pump();
+}
+
+// Opens a built-in scene (SCENES) of the server's first models: their bounds place the instances, and
+// the camera frames the scene's world box from the front, raised so the rows behind show.
+async function selectScene(name) {
+  const infos = await Promise.all(state.models.slice(0, SCENE_MODELS).map((model) => send({ type: 'model_info', model })));
+  const failed = infos.find(({ json }) => json.type !== 'model_info');
+  if (failed) return setStatus(`model_info: ${failed.json.message}`, true);
+  if (infos.length === 0) return setStatus('the server has no model', true);
+  const models = infos.map(({ json }, i) => ({ ...json, name: state.models[i] }));
+  const instances = SCENES[name].build(models);
+  const box = new THREE.Box3(), placed = new THREE.Box3();
+  for (const instance of instances) {
+    const info = models.find((m) => m.name === instance.model);
+    placed.set(new THREE.Vector3(...info.bounds_min), new THREE.Vector3(...info.bounds_max));
+    box.union(placed.applyMatrix4(new THREE.Matrix4().fromArray(instance.matrix)));
+  }
+  state.scene = { name, instances, lo: box.min, hi: box.max };
+  showCodec();
+  frame(box.min, box.max, new THREE.Vector3(0, 0.6, 1), true);
   wantExtract = true;
   pump();
 }
@@ -403,11 +584,26 @@ state.setView = ({ eye, target, fov }) => {
 state.idle = () => !inFlight && !extractTimer && !wantExtract && !wantGaze;
 // The mesh kept from delta replies as the page holds it, for tests that compare codecs triangle by
 // triangle: ids, and per triangle 9 floats of corners (normals, colours when the mesh has them).
-state.keptMesh = () => {
+// `instance` picks a scene instance's kept mesh; without it, the single model's.
+state.keptMesh = (instance) => {
+  const kept = instance === undefined ? modelKept : instanceKept[instance];
   const floats = 9 * kept.ids.length;
   return { ids: Uint32Array.from(kept.ids), positions: kept.positions.slice(0, floats),
-           normals: state.deltaNormals ? kept.normals.slice(0, floats) : null,
-           colors: state.colors ? kept.colors.slice(0, floats) : null };
+           normals: kept.hasNormals ? kept.normals.slice(0, floats) : null,
+           colors: kept.hasColors ? kept.colors.slice(0, floats) : null };
+};
+// The scene's meshes as three.js draws them, for tests (tests/clients/viewer_scene_test.mjs): per instance
+// its triangles, its matrixWorld (column-major, as of the last frame drawn), its attributes and its kept
+// mesh's size; empty when no scene is shown. drawnMeshes() counts the visible meshes of the whole page.
+state.instances = () => (instanceGroup.visible ? instanceGroup.children : []).map((shown, i) => ({
+  triangles: triangleCount(shown.geometry), matrixWorld: Array.from(shown.matrixWorld.elements),
+  normals: shown.geometry.getAttribute('normal') !== undefined, colors: shown.geometry.getAttribute('color') !== undefined,
+  kept: instanceKept[i]?.ids.length ?? 0,
+}));
+state.drawnMeshes = () => {
+  let count = 0;
+  scene.traverseVisible((object) => { if (object.isMesh) count += 1; });
+  return count;
 };
 window.addEventListener('resize', () => {
   resize();
@@ -440,7 +636,8 @@ $('codec').addEventListener('change', () => {
 // Wireframe and flat shading change only how the mesh shown is drawn. A mesh without normals
 // (none sent) can only be drawn flat.
 function setLook() {
-  const flat = $('flat').checked || mesh.geometry.getAttribute('normal') === undefined;
+  const shown = instanceGroup.visible ? instanceGroup.children : [mesh];
+  const flat = $('flat').checked || shown.some((m) => m.geometry.getAttribute('normal') === undefined);
   state.flatShading = flat;
   for (const m of [material, vertexColourMaterial]) {
     m.wireframe = $('wireframe').checked;
@@ -451,7 +648,15 @@ function setLook() {
   }
 }
 for (const id of ['wireframe', 'flat']) $(id).addEventListener('change', setLook);
-$('model').addEventListener('change', () => selectModel($('model').value));
+// A model chosen in the panel is shown alone: the scene select goes back to none.
+$('model').addEventListener('change', () => {
+  $('scene').value = '';
+  selectModel($('model').value);
+});
+$('scene').addEventListener('change', () => {
+  const name = $('scene').value;
+  return Object.hasOwn(SCENES, name) ? selectScene(name) : selectModel($('model').value);
+});
 
 function connect() {
   // ?model= goes on to the WebSocket too: a load balancer in front of replicas can route by it
@@ -474,6 +679,7 @@ function connect() {
     state.connected = true;
     await send({ type: 'hello', version: 1, client: 'mtlod-viewer/0.1' });
     const { json } = await send({ type: 'list_models' });
+    state.models = json.models.map((m) => m.name);
     const select = $('model');
     for (const m of json.models) select.add(new Option(`${m.name} (${m.input_triangles} triangles)`, m.name));
     const wanted = new URLSearchParams(location.search).get('model');
@@ -481,7 +687,12 @@ function connect() {
     if (!first) return setStatus('the server has no model', true);
     select.value = first.name;
     setStatus('loading');
-    await selectModel(first.name);
+    if (Object.hasOwn(SCENES, $('scene').value)) {
+      state.model = first.name;
+      await selectScene($('scene').value);
+    } else {
+      await selectModel(first.name);
+    }
   };
 }
 
