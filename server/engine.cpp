@@ -28,6 +28,7 @@ struct ExtractionState::State {
   // for delta replies.
   std::vector<ModelPtr> scene_models;
   std::vector<core::cut::CutDelta> scene_sent;
+  core::view::SceneCache scene_view;  // lets a scene's gaze reuse its view's occupancy and transforms
 };
 
 ExtractionState::ExtractionState() = default;
@@ -173,6 +174,7 @@ std::uint64_t ExtractionState::memory_bytes() const {
   std::uint64_t bytes = state->view.memory_bytes() + state->sent.memory_bytes();
   if (state->refiner) bytes += state->refiner->memory_bytes();
   for (const core::cut::CutDelta& sent : state->scene_sent) bytes += sent.memory_bytes();
+  bytes += state->scene_view.memory_bytes();
   return bytes;
 }
 
@@ -320,10 +322,12 @@ ExtractResult Engine::run_scene(const protocol::Extract& request, bool gaze, Ext
 
   ExtractOutcome outcome;
   StageClock stages(outcome.reply.timings);
-  const Result<core::view::SceneStats> extracted = worker.scene->extract(scene, worker.scene_cuts, &stages);
+  const Result<core::view::SceneStats> extracted =
+      worker.scene->extract(scene, worker.scene_cuts, &stages, &state.scene_view);
   if (!extracted) {
     spdlog::error("scene: {}", extracted.error().message);
     state.scene_models.clear();
+    state.scene_view.reset();
     return protocol::ProtocolError{
         protocol::ErrorKind::kInternal,
         fmt::format("a model of the scene is damaged: {}", extracted.error().message)};

@@ -124,7 +124,7 @@ Result<std::unique_ptr<OccupancyLevels>> OccupancyLevels::make(const model::Mt& 
   // Uniform allowed error 0 ranks triangles by error alone: each budget gives the cut with the
   // smallest maximum error at that size.
   const cut::AllowedError everywhere_exact = cut::AllowedError::everywhere(0.0f);
-  for (std::size_t budget = 2048; budget <= (std::size_t{1} << 18); budget *= 2) {
+  for (std::size_t budget = 512; budget <= (std::size_t{1} << 18); budget *= 2) {
     MTLOD_RETURN_IF_ERROR(refiner.refine(cut::Refinement::from_root(everywhere_exact).within(budget), cut));
     if (!levels.empty() && cut.triangle_count() == levels.back().triangle_count()) break;  // nothing finer
     OccupancyLevel level;

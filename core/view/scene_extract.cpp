@@ -26,19 +26,41 @@ constexpr double kClosest = 1.0001;
 // the triangles allowed no error at all are left (a budget below that gets the roots alone).
 constexpr double kLargestThreshold = 1e12;
 
-// Whether the model's bounding box, placed by the instance's mapping, may meet the view: not all
-// eight corners beyond one side of the frustum (clip-space x, y against w, and w ≤ 0 behind).
-bool box_may_be_in_view(const ViewMapping& mapping, const model::Bounds& box) {
+// Cells [x0, x1) × [y0, y1) of the grid.
+struct CellRect {
+  std::uint32_t x0 = 0, y0 = 0, x1 = 0, y1 = 0;
+  bool empty() const { return x0 >= x1 || y0 >= y1; }
+};
+
+// The cells the model's bounding box, placed by the instance's mapping, may cover: empty when all
+// eight corners lie beyond one side of the frustum (clip-space x, y against w, or w ≤ 0 behind);
+// the whole grid when some corner is behind the eye (the box's projection is then unbounded),
+// else the corners' cells with a cell of margin (conservative rasterisation marks a cell a
+// triangle touches).
+CellRect box_cells(const ViewMapping& mapping, const model::Bounds& box) {
+  const GridSize grid = mapping.grid();
   int left = 0, right = 0, below = 0, above = 0, behind = 0;
+  float gx0 = kInfinity, gy0 = kInfinity, gx1 = -kInfinity, gy1 = -kInfinity;
   for (int k = 0; k < 8; ++k) {
     const float x = (k & 1) ? box.hi[0] : box.lo[0];
     const float y = (k & 2) ? box.hi[1] : box.lo[1];
     const float z = (k & 4) ? box.hi[2] : box.lo[2];
     float cx, cy, cw;
     mapping.clip_xyw(x, y, z, cx, cy, cw);
-    left += cx<-cw, right += cx> cw, below += cy<-cw, above += cy> cw, behind += !(cw > 0.0f);
+    left += (cx < -cw), right += (cx > cw), below += (cy < -cw), above += (cy > cw);
+    behind += !(cw > kMinClipW);
+    if (cw > kMinClipW) {
+      const GridPoint g = mapping.to_grid(cx, cy, cw);
+      gx0 = std::min(gx0, g.x), gx1 = std::max(gx1, g.x), gy0 = std::min(gy0, g.y), gy1 = std::max(gy1, g.y);
+    }
   }
-  return left < 8 && right < 8 && below < 8 && above < 8 && behind < 8;
+  if (left == 8 || right == 8 || below == 8 || above == 8 || behind == 8) return {};
+  if (behind > 0 || !std::isfinite(gx0 + gx1 + gy0 + gy1)) return {0, 0, grid.width, grid.height};
+  auto clamp = [](float v, std::uint32_t size) {
+    return static_cast<std::uint32_t>(std::clamp(v, 0.0f, static_cast<float>(size)));
+  };
+  return {clamp(std::floor(gx0) - 1.0f, grid.width), clamp(std::floor(gy0) - 1.0f, grid.height),
+          clamp(std::floor(gx1) + 2.0f, grid.width), clamp(std::floor(gy1) + 2.0f, grid.height)};
 }
 
 }  // namespace
@@ -87,11 +109,14 @@ void SceneExtractor::map(const SceneRequest& request) {
   const std::size_t n = request.instances.size();
   mappings_.clear();
   in_view_.assign(n, 0);
+  rects_.resize(n);
   for (std::size_t i = 0; i < n; ++i) {
     Camera camera = request.view.camera;
     camera.model = request.instances[i].model;
     mappings_.emplace_back(camera, request.view.grid);
-    in_view_[i] = box_may_be_in_view(mappings_.back(), request.instances[i].mt->bounds);
+    const CellRect cells = box_cells(mappings_.back(), request.instances[i].mt->bounds);
+    in_view_[i] = !cells.empty();
+    rects_[i] = {cells.x0, cells.y0, cells.x1, cells.y1};
   }
 }
 
@@ -124,12 +149,16 @@ void SceneExtractor::occupancy(const SceneRequest& request, SceneStats& stats) {
     // Depths from the cut's own triangles (a hole's cap is not a surface); the nearest wins a cell.
     stats.rasterized += rasterize_occupancy_compact(mapping, level.positions, level.cut_triangles(),
                                                     instance_occupancy_, instance_depth_, projected_);
-    for (std::size_t c = 0; c < cells; ++c) {
-      if (!instance_occupancy_[c]) continue;
-      occupancy_[c] = 1;
-      if (owner_[c] == kNoInstance || instance_depth_[c] < depth_[c]) {
-        depth_[c] = instance_depth_[c];
-        owner_[c] = static_cast<std::uint32_t>(i);
+    // Only the cells the instance's box may cover can hold its surface.
+    const std::array<std::uint32_t, 4>& rect = rects_[i];
+    for (std::uint32_t y = rect[1]; y < rect[3]; ++y) {
+      for (std::uint32_t c = grid.cell(rect[0], y), end = c + (rect[2] - rect[0]); c < end; ++c) {
+        if (!instance_occupancy_[c]) continue;
+        occupancy_[c] = 1;
+        if (owner_[c] == kNoInstance || instance_depth_[c] < depth_[c]) {
+          depth_[c] = instance_depth_[c];
+          owner_[c] = static_cast<std::uint32_t>(i);
+        }
       }
     }
   }
@@ -141,9 +170,17 @@ void SceneExtractor::occupancy(const SceneRequest& request, SceneStats& stats) {
   }
 }
 
-void SceneExtractor::distance_transforms(const SceneRequest& request) {
+void SceneExtractor::distance_transforms(const SceneRequest& request, std::optional<Criterion> only) {
   const ViewRequest& r = request.view;
   const GridSize grid = r.grid;
+  if (only) {
+    std::vector<std::uint16_t>& out = dt_[*only];
+    out.clear();
+    if (!criterion_transform_needed(r, *only)) return;
+    out.resize(grid.cell_count());
+    assert(traits(*only).seeds == Seeds::kPoints);  // needs no occupancy
+    return criterion_transform(transformer_, *only, r, {}, cells_, out);
+  }
   // The picture's outline: background, and where two instances' surfaces meet the nearer one's
   // edge seeds the farther cell (as a depth jump does with internal silhouettes).
   seeds_image_ = occupancy_;
@@ -263,8 +300,66 @@ Result<SceneStats> SceneExtractor::refine(const SceneRequest& request, std::vect
   return stats;
 }
 
+std::size_t SceneCache::memory_bytes() const {
+  auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
+  std::size_t total = bytes(instances_) + bytes(visible_depth_) + bytes(owner_) + bytes(in_view_);
+  for (const auto& dt : transforms_.entries) total += bytes(dt);
+  for (const Criterion c : kAllCriteria) total += bytes(view_.points[c]);
+  return total;
+}
+
+bool SceneExtractor::same_view(const SceneCache& s, const SceneRequest& request) {
+  const ViewRequest& a = s.view_;
+  const ViewRequest& b = request.view;
+  for (const Criterion c : kAllCriteria) {
+    if (c != kGazeCriterion && a.points[c] != b.points[c]) return false;
+  }
+  if (!s.valid_ || a.camera.view != b.camera.view || a.camera.projection != b.camera.projection ||
+      a.grid.width != b.grid.width || a.grid.height != b.grid.height || !(a.allowed == b.allowed) ||
+      s.has_gaze_ == b.points[kGazeCriterion].empty() || a.internal_silhouettes != b.internal_silhouettes ||
+      a.depth_jump != b.depth_jump || s.instances_.size() != request.instances.size())
+    return false;
+  for (std::size_t i = 0; i < s.instances_.size(); ++i) {
+    const SceneInstance &x = s.instances_[i], &y = request.instances[i];
+    if (x.mt != y.mt || x.levels != y.levels || x.model != y.model) return false;
+  }
+  return true;
+}
+
+void SceneExtractor::remember(const SceneRequest& request, const SceneStats& stats, SceneCache& s) const {
+  s.valid_ = true;
+  s.view_ = request.view;
+  s.has_gaze_ = !request.view.points[kGazeCriterion].empty();
+  s.view_.points[kGazeCriterion].clear();
+  s.view_.budget.reset();
+  s.instances_.assign(request.instances.begin(), request.instances.end());
+  for (const Criterion c : kAllCriteria) {
+    if (c == kGazeCriterion) {
+      s.transforms_[c].clear();
+    } else {
+      s.transforms_[c] = dt_[c];
+    }
+  }
+  s.visible_depth_ = visible_depth_;
+  s.owner_ = owner_;
+  s.in_view_ = in_view_;
+  s.rasterized_ = stats.rasterized;
+  s.instances_in_view_ = stats.instances_in_view;
+}
+
+void SceneExtractor::recall(const SceneCache& s, SceneStats& stats) {
+  for (const Criterion c : kAllCriteria) {
+    if (c != kGazeCriterion) dt_[c] = s.transforms_[c];
+  }
+  visible_depth_ = s.visible_depth_;
+  owner_ = s.owner_;
+  in_view_ = s.in_view_;
+  stats.rasterized = s.rasterized_;
+  stats.instances_in_view = s.instances_in_view_;
+}
+
 Result<SceneStats> SceneExtractor::extract(const SceneRequest& request, std::vector<cut::CutMesh>& cuts,
-                                           StageObserver* observer) {
+                                           StageObserver* observer, SceneCache* session) {
   assert(request.view.grid.valid());
   const auto finished = [observer](Stage stage) {
     if (observer) observer->finished(stage);
@@ -272,9 +367,19 @@ Result<SceneStats> SceneExtractor::extract(const SceneRequest& request, std::vec
   SceneStats stats;
   map(request);
   finished(Stage::kMap);
-  occupancy(request, stats);
-  finished(Stage::kOccupancy);
-  distance_transforms(request);
+  const bool gaze = session != nullptr && same_view(*session, request);
+  if (session) session->reused_ = gaze;
+  if (gaze) {
+    // Only the gaze points moved: the view's picture and other transforms are the session's.
+    recall(*session, stats);
+    finished(Stage::kOccupancy);
+    distance_transforms(request, kGazeCriterion);
+  } else {
+    occupancy(request, stats);
+    finished(Stage::kOccupancy);
+    distance_transforms(request);
+    if (session) remember(request, stats, *session);
+  }
   finished(Stage::kTransforms);
   bind_fields(request);
   finished(Stage::kAllowedError);
@@ -285,8 +390,8 @@ Result<SceneStats> SceneExtractor::extract(const SceneRequest& request, std::vec
 
 std::size_t SceneExtractor::memory_bytes() const {
   auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
-  std::size_t total = bytes(mappings_) + bytes(in_view_) + transformer_.memory_bytes() + bytes(occupancy_) +
-                      bytes(instance_occupancy_) + bytes(seeds_image_) + bytes(depth_) +
+  std::size_t total = bytes(mappings_) + bytes(in_view_) + bytes(rects_) + transformer_.memory_bytes() +
+                      bytes(occupancy_) + bytes(instance_occupancy_) + bytes(seeds_image_) + bytes(depth_) +
                       bytes(instance_depth_) + bytes(visible_depth_) + bytes(owner_) + bytes(cells_) +
                       bytes(projected_);
   for (const auto& dt : dt_.entries) total += bytes(dt);

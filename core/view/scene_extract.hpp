@@ -14,10 +14,12 @@
 // Instances of one model share its MT and one refiner; the per-request cost follows the cuts.
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <map>
 #include <memory>
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -59,18 +61,46 @@ struct SceneRequest {
 struct SceneStats {
   std::size_t triangles = 0;          // over every instance's cut
   std::size_t rasterized = 0;         // occupancy triangles of the instances in view
-  std::size_t instances_in_view = 0;  // whose bounding sphere meets the view
+  std::size_t instances_in_view = 0;  // whose bounding box may meet the view
   std::size_t passes = 0;             // refinements of the whole scene the budget's search made
   cut::Rank threshold;                // of the cuts returned ({0, 1}: the error bound alone)
   bool within_budget = true;          // false when even the roots exceed the budget
 };
 
+// What a client session keeps of its scene's view, so that a request with the same view (camera,
+// grid, instances, criteria; only the gaze criterion's points moved: a gaze) skips the occupancy and
+// every other transform, as ViewCache does for one model. Owned by the session, filled by
+// SceneExtractor; the cuts are the same as from every stage (tests/core/scene_extract_test.cpp).
+class SceneCache {
+ public:
+  // Whether the last request took the gaze's path.
+  bool reused() const { return reused_; }
+  // Bytes held: the view's transforms, visible depths and instance grid, about 12 a cell.
+  std::size_t memory_bytes() const;
+  void reset() { valid_ = false; }
+
+ private:
+  friend class SceneExtractor;
+  bool valid_ = false;
+  bool reused_ = false;
+  ViewRequest view_;                                     // the request's view, but its gaze points and budget
+  bool has_gaze_ = false;                                // the view had gaze points
+  std::vector<SceneInstance> instances_;                 // the MTs (versions) and matrices
+  PerCriterion<std::vector<std::uint16_t>> transforms_;  // of the view, but the gaze criterion's
+  std::vector<float> visible_depth_;
+  std::vector<std::uint32_t> owner_;
+  std::vector<std::uint8_t> in_view_;
+  std::size_t rasterized_ = 0, instances_in_view_ = 0;
+};
+
 class SceneExtractor {
  public:
   // Extracts every instance's cut into cuts[i] (resized to the instance count). Fails as
-  // cut::Refiner does (a damaged block of a mapped file), and then no cut is a result.
+  // cut::Refiner does (a damaged block of a mapped file), and then no cut is a result. With a
+  // session, a gaze (the session's view, the gaze points moved) reuses the view's occupancy and
+  // transforms but the gaze criterion's; the refinement runs from the roots either way.
   Result<SceneStats> extract(const SceneRequest& request, std::vector<cut::CutMesh>& cuts,
-                             StageObserver* observer = nullptr);
+                             StageObserver* observer = nullptr, SceneCache* session = nullptr);
 
   // The largest factor by which `model` stretches a length (its 3×3 part's largest singular
   // value); 0 for a matrix that is not finite.
@@ -97,7 +127,11 @@ class SceneExtractor {
   };
   void map(const SceneRequest& request);
   void occupancy(const SceneRequest& request, SceneStats& stats);
-  void distance_transforms(const SceneRequest& request);
+  // The transforms the request needs; with `only`, that criterion's alone.
+  void distance_transforms(const SceneRequest& request, std::optional<Criterion> only = std::nullopt);
+  static bool same_view(const SceneCache& session, const SceneRequest& request);
+  void remember(const SceneRequest& request, const SceneStats& stats, SceneCache& session) const;
+  void recall(const SceneCache& session, SceneStats& stats);
   void bind_fields(const SceneRequest& request);
   // Refines every instance at `threshold` into trial_, stopping once the total passes `stop_above`.
   // Returns the total, or the refiner's error.
@@ -106,8 +140,9 @@ class SceneExtractor {
   PerModel& per_model(const model::Mt& mt);
 
   std::vector<ViewMapping> mappings_;
-  std::vector<AllowedErrorField> fields_;  // one per instance, bound to its mapping
-  std::vector<std::uint8_t> in_view_;      // per instance: its bounding sphere meets the view
+  std::vector<AllowedErrorField> fields_;            // one per instance, bound to its mapping
+  std::vector<std::uint8_t> in_view_;                // per instance: its bounding box may meet the view
+  std::vector<std::array<std::uint32_t, 4>> rects_;  // per instance: the cells its box may cover
   std::map<const model::Mt*, std::unique_ptr<PerModel>> models_;
   std::vector<cut::CutMesh> trial_;
   DistanceTransformer transformer_;

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <memory>
 #include <set>
@@ -236,6 +237,39 @@ TEST(SceneExtract, OneBudgetIsSpentAcrossInstancesNearestFirst) {
     ASSERT_TRUE(refiner.refine(what, expected));
     EXPECT_EQ(ids_of(cuts[i]), ids_of(expected)) << "instance " << i;
   }
+}
+
+TEST(SceneExtract, AGazeInASessionGivesTheCutsOfAFreshExtraction) {
+  // A session's gazes skip the occupancy and the other transforms; their cuts are those every stage
+  // gives. The view then changes and the session computes it afresh.
+  const Model& m = sphere();
+  const std::vector<view::SceneInstance> instances{
+      instance(m, glm::translate(glm::mat4(1), glm::vec3(-1.2f, 0, 0))),
+      instance(m, glm::translate(glm::mat4(1), glm::vec3(0.9f, 0.2f, -2))),
+  };
+  view::ViewRequest r = pixel_request(2.0f);
+  r.allowed.criteria[view::kGazeCriterion] = view::RegionLaw{view::FalloffLaw::kStep, 12.0f, 0.1f};
+  r.allowed.hidden_factor = 16.0f;
+  view::SceneExtractor in_session, fresh;
+  view::SceneCache session;
+  const std::array<std::array<float, 2>, 4> gazes{
+      {{0.3f, 0.5f}, {0.35f, 0.52f}, {0.7f, 0.45f}, {0.7f, 0.45f}}};
+  for (std::size_t k = 0; k < gazes.size(); ++k) {
+    r.points[view::kGazeCriterion] = {gazes[k]};
+    std::vector<cut::CutMesh> kept, expected;
+    ASSERT_TRUE(in_session.extract({r, instances}, kept, nullptr, &session).ok());
+    EXPECT_EQ(session.reused(), k > 0) << "gaze " << k;
+    ASSERT_TRUE(fresh.extract({r, instances}, expected).ok());
+    for (std::size_t i = 0; i < instances.size(); ++i)
+      EXPECT_EQ(ids_of(kept[i]), ids_of(expected[i])) << "gaze " << k << ", instance " << i;
+  }
+  EXPECT_GT(session.memory_bytes(), r.grid.cell_count() * 2);
+  r.camera.view = glm::lookAt(glm::vec3(1, 0, 6), glm::vec3(0), glm::vec3(0, 1, 0));
+  std::vector<cut::CutMesh> moved, expected;
+  ASSERT_TRUE(in_session.extract({r, instances}, moved, nullptr, &session).ok());
+  EXPECT_FALSE(session.reused());
+  ASSERT_TRUE(fresh.extract({r, instances}, expected).ok());
+  for (std::size_t i = 0; i < instances.size(); ++i) EXPECT_EQ(ids_of(moved[i]), ids_of(expected[i]));
 }
 
 TEST(SceneExtract, ABudgetBelowTheRootsGetsTheRoots) {

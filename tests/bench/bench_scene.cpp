@@ -1,0 +1,214 @@
+// Scenes (core/view/scene_extract): a room of 100 instances of four scanned models at a shared
+// 100k-triangle budget, one scene request against one request per instance. Counters give the stage
+// times, triangles, payload bytes, the budget search's passes, and how many instances stayed at their
+// root (hidden or out of view). Run: build/release/tests/mtlod_bench_scene
+#include <benchmark/benchmark.h>
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <glm/ext/matrix_clip_space.hpp>
+#include <glm/ext/matrix_transform.hpp>
+#include <glm/mat4x4.hpp>
+
+#include "core/build/mt_builder.hpp"
+#include "core/codec/cut_encoder.hpp"
+#include "core/io/mesh_io.hpp"
+#include "core/model/bounds.hpp"
+#include "core/view/occupancy_levels.hpp"
+#include "core/view/scene_extract.hpp"
+#include "core/view/view_extract.hpp"
+
+namespace {
+
+using namespace mtlod;
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+
+struct Model {
+  std::string name;
+  core::model::Mt mt;
+  std::unique_ptr<core::view::OccupancyLevels> levels;
+  core::model::Bounds box;
+};
+
+// The four models: the bunny of build/models and three scans of the shared meshes (absent: skipped).
+const std::vector<std::unique_ptr<Model>>& models() {
+  static const std::vector<std::unique_ptr<Model>> loaded = [] {
+    const fs::path shared = MTLOD_SHARED_MESHES_DIR, built = MTLOD_MODELS_DIR;
+    std::vector<std::unique_ptr<Model>> out;
+    for (const fs::path& path : {built / "bunny.ply", shared / "armadillo-52k.ply", shared / "igea-269k.ply",
+                                 shared / "dragon-vrip-871k.ply"}) {
+      auto mesh = core::io::load_mesh(path);
+      if (!mesh) return std::vector<std::unique_ptr<Model>>{};
+      auto mt = core::build::build_mt(mesh->mesh);
+      if (!mt) return std::vector<std::unique_ptr<Model>>{};
+      auto m = std::make_unique<Model>();
+      m->name = path.stem().string();
+      m->mt = std::move(*mt);
+      m->levels = core::view::OccupancyLevels::make(m->mt).value();  // in memory: cannot fail
+      m->box = core::model::bounds_of(m->mt.positions);
+      out.push_back(std::move(m));
+    }
+    return out;
+  }();
+  return loaded;
+}
+
+// A room of `count` instances on a square floor, the models taking turns, each scaled so its box's
+// largest side is 1, stood on the floor and turned by the golden angle; rows 1.3 apart, so the rows
+// in front hide part of those behind from the camera, which looks down at the room from in front.
+std::vector<core::view::SceneInstance> room(std::size_t count) {
+  const auto& ms = models();
+  const auto side = static_cast<std::size_t>(std::ceil(std::sqrt(static_cast<double>(count))));
+  const float step = 1.3f, golden = 3.14159265f * (3.0f - std::sqrt(5.0f));
+  std::vector<core::view::SceneInstance> instances;
+  for (std::size_t i = 0; i < count; ++i) {
+    const Model& m = *ms[i % ms.size()];
+    const float scale = 1.0f / m.box.largest_side();
+    const std::array<float, 3> c = m.box.centre();
+    const float x = (static_cast<float>(i % side) - 0.5f * static_cast<float>(side - 1)) * step;
+    const float z = (static_cast<float>(i / side) - 0.5f * static_cast<float>(side - 1)) * step;
+    glm::mat4 matrix = glm::translate(glm::mat4(1), glm::vec3(x, 0, z));
+    matrix = glm::rotate(matrix, static_cast<float>(i) * golden, glm::vec3(0, 1, 0));
+    matrix = glm::scale(matrix, glm::vec3(scale));
+    matrix = glm::translate(matrix, glm::vec3(-c[0], -m.box.lo[1], -c[2]));
+    instances.push_back({&m.mt, m.levels.get(), matrix});
+  }
+  return instances;
+}
+
+// 1280×720, the room seen from in front and above; 0.5 px at the focus (the pointer at the centre),
+// the clients' foveal default and hidden-surface coarsening, a 320×180 grid.
+core::view::ViewRequest room_view(std::size_t count, std::size_t budget) {
+  const auto side = static_cast<float>(std::ceil(std::sqrt(static_cast<double>(count))));
+  const float extent = 0.65f * side;
+  core::view::ViewRequest r;
+  r.camera.view =
+      glm::lookAt(glm::vec3(0, 1.2f * extent, 2.2f * extent), glm::vec3(0, 0, 0), glm::vec3(0, 1, 0));
+  r.camera.projection = glm::perspective(glm::radians(45.0f), 1280.0f / 720.0f, 0.05f, 20.0f * extent);
+  r.grid = {320, 180};
+  r.allowed.error = 0.5f;
+  r.allowed.units = core::view::ErrorUnits::kScreenPixels;
+  r.allowed.viewport_height_px = 720;
+  r.allowed.criteria[core::view::kGazeCriterion] =
+      core::view::RegionLaw{core::view::FalloffLaw::kFoveal, 0.0f, 1.0f};
+  r.points[core::view::kGazeCriterion] = {{0.5f, 0.5f}};
+  r.allowed.hidden_factor = 16.0f;
+  r.allowed.outside_view_factor = 8.0f;
+  r.budget = budget;
+  r.dynamic = false;
+  return r;
+}
+
+double us_since(Clock::time_point& t) {
+  const auto now = Clock::now();
+  const double us = std::chrono::duration<double, std::micro>(now - t).count();
+  t = now;
+  return us;
+}
+
+// One observer that adds up the stages' times.
+struct StageTimes final : core::view::StageObserver {
+  void finished(core::view::Stage stage) override { us[static_cast<std::size_t>(stage)] += us_since(clock); }
+  std::array<double, core::view::kStageCount> us{};
+  Clock::time_point clock;
+};
+
+// Args: instances, budget, codec (0 Draco sequential with raw values, the gazes' default; 1 meshopt).
+void BM_Scene(benchmark::State& state) {
+  if (models().empty()) return state.SkipWithError("the shared meshes or build/models are missing");
+  const auto count = static_cast<std::size_t>(state.range(0));
+  const auto budget = static_cast<std::size_t>(state.range(1));
+  const std::vector<core::view::SceneInstance> instances = room(count);
+  const core::view::ViewRequest view = room_view(count, budget);
+  core::codec::EncodeOptions encoding;
+  encoding.codec = state.range(2) == 0 ? core::codec::Codec::kDraco : core::codec::Codec::kMeshopt;
+  encoding.draco.method = core::codec::DracoMethod::kSequential;
+  encoding.draco.entropy_coding = false;
+  core::view::SceneExtractor extractor;
+  core::codec::CutEncoder encoder;
+  std::vector<core::cut::CutMesh> cuts;
+  std::vector<std::uint8_t> payload;
+  StageTimes stages;
+  double encode_us = 0, bytes = 0;
+  core::view::SceneStats stats;
+  for (auto _ : state) {
+    stages.clock = Clock::now();
+    stats = *extractor.extract({view, instances}, cuts, &stages);
+    auto t = Clock::now();
+    bytes = 0;
+    for (std::size_t i = 0; i < count; ++i) {
+      const core::model::Mt& mt = *instances[i].mt;
+      auto encoded = encoder.encode({mt.positions, mt.normals, {}, cuts[i].triangles, {}}, encoding, payload);
+      benchmark::DoNotOptimize(encoded);
+      bytes += static_cast<double>(payload.size());
+    }
+    encode_us += us_since(t);
+  }
+  std::size_t at_root = 0;
+  for (std::size_t i = 0; i < count; ++i)
+    at_root += cuts[i].triangle_count() == instances[i].mt->root_triangle_count();
+  const auto avg = benchmark::Counter::kAvgIterations;
+  static constexpr std::array<const char*, core::view::kStageCount> kNames{"map_us", "occupancy_us", "dt_us",
+                                                                           "labels_us", "refine_us"};
+  for (std::size_t s = 0; s < kNames.size(); ++s)
+    state.counters[kNames[s]] = benchmark::Counter(stages.us[s], avg);
+  state.counters["encode_us"] = benchmark::Counter(encode_us, avg);
+  state.counters["triangles"] = static_cast<double>(stats.triangles);
+  state.counters["bytes"] = bytes;
+  state.counters["passes"] = static_cast<double>(stats.passes);
+  state.counters["in_view"] = static_cast<double>(stats.instances_in_view);
+  state.counters["at_root"] = static_cast<double>(at_root);
+  state.counters["memory_MiB"] = static_cast<double>(extractor.memory_bytes()) / 1048576.0;
+}
+BENCHMARK(BM_Scene)
+    ->Args({100, 100'000, 0})
+    ->Args({100, 100'000, 1})
+    ->Args({100, 20'000, 1})
+    ->Args({16, 100'000, 1})
+    ->ArgNames({"instances", "budget", "codec"})
+    ->Unit(benchmark::kMillisecond);
+
+// The same room as one request per instance, each with the budget's even share (the only split a
+// client without scenes can make) and its own transforms, blind to the others.
+void BM_RequestPerInstance(benchmark::State& state) {
+  if (models().empty()) return state.SkipWithError("the shared meshes or build/models are missing");
+  const auto count = static_cast<std::size_t>(state.range(0));
+  const auto budget = static_cast<std::size_t>(state.range(1));
+  const std::vector<core::view::SceneInstance> instances = room(count);
+  core::view::ViewRequest view = room_view(count, budget / count);
+  std::map<const core::model::Mt*, std::unique_ptr<core::view::ViewExtractor>> extractors;
+  std::map<const core::model::Mt*, std::unique_ptr<core::cut::Refiner>> refiners;
+  for (const auto& i : instances) {
+    if (!extractors.count(i.mt)) {
+      extractors[i.mt] = std::make_unique<core::view::ViewExtractor>(*i.mt, *i.levels);
+      refiners[i.mt] = std::make_unique<core::cut::Refiner>(*i.mt);
+    }
+  }
+  core::cut::CutMesh scratch;
+  double triangles = 0;
+  for (auto _ : state) {
+    triangles = 0;
+    for (const auto& i : instances) {
+      view.camera.model = i.model;
+      auto cut = extractors[i.mt]->extract(view, *refiners[i.mt], scratch);
+      if (!cut) return state.SkipWithError(cut.error().message.c_str());
+      triangles += static_cast<double>(cut->triangle_count());
+    }
+  }
+  state.counters["triangles"] = triangles;
+}
+BENCHMARK(BM_RequestPerInstance)
+    ->Args({100, 100'000})
+    ->ArgNames({"instances", "budget"})
+    ->Unit(benchmark::kMillisecond);
+
+}  // namespace
