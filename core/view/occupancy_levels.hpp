@@ -50,8 +50,8 @@ class OccupancyLevels {
  public:
   // Cuts with at most 512, 1k, 2k, ... 256k triangles (worst error first; the root when it is
   // larger), stopping early at the full-resolution mesh: at most twice the largest level in all. The
-  // small ones serve models that cover few cells, as most instances of a scene do. Fails (kCorrupt) when they reach
-  // a block of a mapped file that fails its check.
+  // small ones serve models that cover few cells, as most instances of a scene do. Fails (kCorrupt)
+  // when they reach a block of a mapped file that fails its check.
   static Result<std::unique_ptr<OccupancyLevels>> make(const model::Mt& mt);
 
   // The coarsest level with at least covered_cells / 4 triangles (the finest when none has as many).
