@@ -1,7 +1,9 @@
 // Scenes (core/view/scene_extract): a room of 100 instances of four scanned models at a shared
 // 100k-triangle budget, one scene request against one request per instance. Counters give the stage
 // times, triangles, payload bytes, the budget search's passes, and how many instances stayed at their
-// root (hidden or out of view). Run: build/release/tests/mtlod_bench_scene
+// root (hidden or out of view). BM_SceneFidelity renders both at the same total bytes and scores them
+// as tests/evaluation/FIDELITY.md does (the foveated error, 1 − foveated SSIM, against the full
+// models). Run: build/release/tests/mtlod_bench_scene
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
@@ -20,6 +22,8 @@
 
 #include "core/build/mt_builder.hpp"
 #include "core/codec/cut_encoder.hpp"
+#include "core/eval/image_metrics.hpp"
+#include "core/eval/render.hpp"
 #include "core/io/mesh_io.hpp"
 #include "core/model/bounds.hpp"
 #include "core/view/occupancy_levels.hpp"
@@ -210,5 +214,164 @@ BENCHMARK(BM_RequestPerInstance)
     ->Args({100, 100'000})
     ->ArgNames({"instances", "budget"})
     ->Unit(benchmark::kMillisecond);
+
+// The instances' cuts as one world-space mesh for the renderer: each instance's vertices placed by
+// its matrix, its model's normals turned with it (matrices without shear: their inverse transpose is
+// a multiple of themselves).
+struct WorldMesh {
+  std::vector<float> positions, normals;
+  std::vector<std::uint32_t> triangles;
+  std::vector<std::uint32_t> local;  // scratch: a model vertex's index here, per instance
+};
+
+void append(WorldMesh& world, const core::view::SceneInstance& instance,
+            std::span<const std::uint32_t> triangles) {
+  const core::model::Mt& mt = *instance.mt;
+  constexpr std::uint32_t kNone = UINT32_MAX;
+  world.local.assign(mt.vertex_count(), kNone);
+  const glm::mat4& m = instance.model;
+  for (const std::uint32_t v : triangles) {
+    std::uint32_t& id = world.local[v];
+    if (id == kNone) {
+      id = static_cast<std::uint32_t>(world.positions.size() / 3);
+      const glm::vec4 p =
+          m * glm::vec4(mt.positions[3 * v], mt.positions[3 * v + 1], mt.positions[3 * v + 2], 1);
+      const glm::vec3 n = glm::normalize(
+          glm::vec3(m * glm::vec4(mt.normals[3 * v], mt.normals[3 * v + 1], mt.normals[3 * v + 2], 0)));
+      world.positions.insert(world.positions.end(), {p.x, p.y, p.z});
+      world.normals.insert(world.normals.end(), {n.x, n.y, n.z});
+    }
+    world.triangles.push_back(id);
+  }
+}
+
+// The picture of the instances' cuts at the room's camera, 1280×720, shaded with the models' normals.
+std::vector<std::uint8_t> render(const std::vector<core::view::SceneInstance>& instances,
+                                 const std::vector<std::span<const std::uint32_t>>& cuts,
+                                 const core::view::ViewRequest& view, core::view::GridSize size) {
+  WorldMesh world;
+  for (std::size_t i = 0; i < instances.size(); ++i) append(world, instances[i], cuts[i]);
+  core::view::Camera camera = view.camera;
+  camera.model = glm::mat4(1);
+  const core::view::ViewMapping mapping(camera, size);
+  core::eval::RenderOptions options;
+  options.vertex_normals = world.normals;
+  std::vector<std::uint8_t> rgb(3 * size.cell_count());
+  core::eval::render_mesh(mapping, world.positions, world.triangles, {}, options, rgb);
+  return rgb;
+}
+
+// Encodes every instance's cut as an extract's reply would (Draco edgebreaker, 14-bit positions,
+// 10-bit normals); returns the bytes.
+std::size_t payload_bytes(const std::vector<core::view::SceneInstance>& instances,
+                          const std::vector<std::span<const std::uint32_t>>& cuts) {
+  core::codec::CutEncoder encoder;
+  core::codec::EncodeOptions encoding;
+  std::vector<std::uint8_t> payload;
+  std::size_t bytes = 0;
+  for (std::size_t i = 0; i < instances.size(); ++i) {
+    const core::model::Mt& mt = *instances[i].mt;
+    if (!encoder.encode({mt.positions, mt.normals, {}, cuts[i], {}}, encoding, payload)) return SIZE_MAX;
+    bytes += payload.size();
+  }
+  return bytes;
+}
+
+// One scene request at a budget against one request per instance at the same total bytes (their
+// even budget share found by bisection), both rendered and scored against the full models.
+// Args: instances, budget.
+void BM_SceneFidelity(benchmark::State& state) {
+  if (models().empty()) return state.SkipWithError("the shared meshes or build/models are missing");
+  const auto count = static_cast<std::size_t>(state.range(0));
+  const auto budget = static_cast<std::size_t>(state.range(1));
+  const std::vector<core::view::SceneInstance> instances = room(count);
+  const core::view::ViewRequest view = room_view(count, budget);
+  const core::view::GridSize size{1280, 720};
+  core::eval::Foveation foveation;  // the pointer at the centre, the camera's field of view
+  foveation.focus_x_px = 640, foveation.focus_y_px = 360;
+  foveation.focal_px = core::eval::focal_px_from_fov(720, 45.0);
+  double scene_error = 0, single_error = 0, scene_bytes = 0, single_bytes = 0, scene_triangles = 0,
+         single_triangles = 0, share = 0;
+  for (auto _ : state) {
+    // The reference: every instance at full resolution.
+    std::map<const core::model::Mt*, core::cut::CutMesh> full;
+    for (const auto& i : instances) {
+      if (full.count(i.mt)) continue;
+      core::cut::Refiner refiner(*i.mt);
+      if (!refiner.refine(core::cut::Refinement::from_root(core::cut::AllowedError::everywhere(0)),
+                          full[i.mt]))
+        return state.SkipWithError("a model does not refine");
+    }
+    std::vector<std::span<const std::uint32_t>> cuts;
+    for (const auto& i : instances) cuts.push_back(full[i.mt].triangles);
+    const std::vector<std::uint8_t> reference = render(instances, cuts, view, size);
+    auto score = [&](const std::vector<std::span<const std::uint32_t>>& c) {
+      const auto compared = core::eval::compare_rgb_renderings(render(instances, c, view, size), reference,
+                                                               size, {255, 255, 255}, foveation);
+      return 1.0 - compared.foveated_ssim;
+    };
+
+    core::view::SceneExtractor extractor;
+    std::vector<core::cut::CutMesh> scene;
+    if (!extractor.extract({view, instances}, scene).ok())
+      return state.SkipWithError("the scene does not refine");
+    cuts.clear();
+    scene_triangles = 0;
+    for (const auto& c : scene) {
+      cuts.push_back(c.triangles);
+      scene_triangles += static_cast<double>(c.triangle_count());
+    }
+    scene_bytes = static_cast<double>(payload_bytes(instances, cuts));
+    scene_error = score(cuts);
+
+    // One request per instance, each blind to the others, at the largest even share whose bytes fit.
+    std::map<const core::model::Mt*, std::unique_ptr<core::view::ViewExtractor>> extractors;
+    std::vector<core::cut::CutMesh> singles(count);
+    auto requests = [&](std::size_t each) {
+      core::view::ViewRequest one = view;
+      one.budget = each;
+      cuts.clear();
+      for (std::size_t i = 0; i < count; ++i) {
+        const auto& instance = instances[i];
+        auto& x = extractors[instance.mt];
+        if (!x) x = std::make_unique<core::view::ViewExtractor>(*instance.mt, *instance.levels);
+        one.camera.model = instance.model;
+        core::cut::Refiner refiner(*instance.mt);  // a new view: from the root
+        core::cut::CutMesh scratch;
+        auto cut = x->extract(one, refiner, scratch);
+        if (!cut) return SIZE_MAX;
+        singles[i].assign(*cut);
+        cuts.push_back(singles[i].triangles);
+      }
+      return payload_bytes(instances, cuts);
+    };
+    std::size_t lo = 1, hi = budget;  // lo fits (the roots at worst), hi may not
+    while (hi - lo > std::max<std::size_t>(1, lo / 100)) {
+      const std::size_t mid = (lo + hi) / 2;
+      (static_cast<double>(requests(mid)) <= scene_bytes ? lo : hi) = mid;
+    }
+    share = static_cast<double>(lo);
+    single_bytes = static_cast<double>(requests(lo));
+    single_triangles = 0;
+    for (const auto& c : singles) single_triangles += static_cast<double>(c.triangle_count());
+    single_error = score(cuts);
+  }
+  state.counters["scene_error"] = scene_error;
+  state.counters["per_instance_error"] = single_error;
+  state.counters["error_ratio"] = single_error / std::max(scene_error, 1e-12);
+  state.counters["scene_bytes"] = scene_bytes;
+  state.counters["per_instance_bytes"] = single_bytes;
+  state.counters["scene_triangles"] = scene_triangles;
+  state.counters["per_instance_triangles"] = single_triangles;
+  state.counters["budget_share"] = share;
+}
+BENCHMARK(BM_SceneFidelity)
+    ->Args({100, 100'000})
+    ->Args({100, 20'000})
+    ->Args({16, 20'000})
+    ->Args({16, 5'000})
+    ->ArgNames({"instances", "budget"})
+    ->Unit(benchmark::kSecond)
+    ->Iterations(1);
 
 }  // namespace
