@@ -4,6 +4,7 @@
 #include <cstdio>
 
 #include "CLI/CLI.hpp"
+#include "clients/common/scene_file.hpp"
 #include "fmt/format.h"
 #include "fmt/ranges.h"
 
@@ -36,7 +37,11 @@ void add_synthesis_flags(CLI::App& app, SynthesisOptions& s) {
 void add_gaze_flags(CLI::App& app, GazeOptions& o, clients::ExtractFlags& flags) {
   // Registered in the order --help lists them.
   add_endpoint_flags(app, o.endpoint);
-  app.add_option("--model", o.model, "model name")->capture_default_str();
+  CLI::Option* model = app.add_option("--model", o.model, "model name")->capture_default_str();
+  app.add_option("--scene", o.scene_file,
+                 "scene file instead of --model: JSON {\"instances\": [{\"model\", \"matrix\"}, ...]} "
+                 "(PROTOCOL.md, Scenes); every stream views the whole scene, framed unless --eye is given")
+      ->excludes(model);
   app.add_option("--trace", o.trace_paths,
                  "CSV trace: time_ms,x,y per line (x, y normalised, 0,0 top left; 'time_ms,,' or "
                  "'time_ms,nan,nan': the tracker lost the eye), or a folder of *.csv traces; repeat the "
@@ -83,6 +88,17 @@ Status complete_synthesis(GazeOptions& options, const clients::ExtractFlags& fla
   if (std::sscanf(flags.viewport.c_str(), "%ux%u", &width, &height) == 2 && width > 0 && height > 0)
     options.synthesis.aspect = static_cast<double>(width) / height;
   return check_synthesis_options(options.synthesis);
+}
+
+Status read_gaze_scene(GazeOptions& options) {
+  if (options.scene_file.empty()) return Ok{};
+  MTLOD_TRY(options.scene, clients::read_scene_file(options.scene_file));
+  return Ok{};
+}
+
+std::string describe_view(const GazeOptions& o) {
+  if (o.scene_file.empty()) return o.model;
+  return fmt::format("scene {} ({} instances)", o.scene_file, o.scene.size());
 }
 
 std::string describe_traces(const GazeOptions& o) {

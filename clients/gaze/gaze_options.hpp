@@ -7,6 +7,7 @@
 #include "clients/common/extract_flags.hpp"
 #include "clients/common/retry.hpp"
 #include "clients/gaze/trace.hpp"
+#include "protocol/messages.hpp"
 
 namespace CLI {
 class App;
@@ -17,6 +18,10 @@ namespace mtlod::clients {
 struct GazeOptions {
   Endpoint endpoint;
   std::string model = "bunny";
+  // --scene: a scene file ({"instances": [{"model", "matrix"}, ...]}) whose view every stream opens
+  // instead of the model's; `scene` holds its instances once read (read_gaze_scene).
+  std::string scene_file;
+  std::vector<protocol::Instance> scene;
   // CSV files (time_ms,x,y) or folders of them; stream k plays trace k mod n. None: each stream
   // synthesises one.
   std::vector<std::string> trace_paths;
@@ -28,6 +33,12 @@ struct GazeOptions {
   bool quiet = false;
   std::string write_trace;  // write the first stream's trace as CSV to this file and exit
 };
+
+// After parsing: with --scene, reads the file into options.scene. Errors name the file and the field.
+Status read_gaze_scene(GazeOptions& options);
+
+// What the streams look at, for the report: "bunny", or "scene FILE (N instances)".
+std::string describe_view(const GazeOptions& options);
 
 // A description of the traces for the report: the paths given, or the synthesis' rate and length.
 std::string describe_traces(const GazeOptions& options);

@@ -25,7 +25,9 @@ nlohmann::ordered_json report_json(const GazeOptions& o, const clients::ExtractF
                                    const GazeTotals& r, const GazeReplayEnd& end) {
   const double per_mesh = std::max<double>(1, static_cast<double>(r.meshes));
   return {
-      {"model", o.model},
+      {"model", o.scene_file.empty() ? nlohmann::json(o.model) : nlohmann::json(nullptr)},
+      {"scene", o.scene_file.empty() ? nlohmann::json(nullptr) : nlohmann::json(o.scene_file)},
+      {"instances", o.scene_file.empty() ? nlohmann::json(nullptr) : nlohmann::json(o.scene.size())},
       {"streams", o.streams},
       {"trace", describe_traces(o)},
       {"budget", flags.budget ? nlohmann::json(*flags.budget) : nlohmann::json(nullptr)},
@@ -61,7 +63,7 @@ void print_report(const GazeOptions& o, const clients::ExtractFlags& flags, cons
   const double per_mesh = std::max<double>(1, static_cast<double>(r.meshes));
   fmt::print(
       "{} stream(s) on {}: {} samples, {} meshes, {} superseded (server counted {}), {} errors, {} lost\n",
-      o.streams, o.model, r.sent, r.meshes, r.superseded, r.superseded_counted, r.errors, end.lost);
+      o.streams, describe_view(o), r.sent, r.meshes, r.superseded, r.superseded_counted, r.errors, end.lost);
   fmt::print("  tracker lost the eye: {} samples in {} blinks (not sent; the server kept the last gaze)\n",
              r.tracker_lost, r.blinks);
   const auto& h = r.mesh_latency_us;

@@ -7,6 +7,7 @@
 #include <thread>
 #include <utility>
 
+#include "clients/common/scene_view.hpp"
 #include "fmt/format.h"
 
 namespace mtlod::clients {
@@ -16,6 +17,21 @@ constexpr auto kUnavailablePatience = std::chrono::seconds(30);
 
 std::uint64_t microseconds_from(std::int64_t from_ns, std::int64_t to_ns) {
   return static_cast<std::uint64_t>(std::max<std::int64_t>(0, to_ns - from_ns) / 1000);
+}
+
+// The flags' extract of the options' view: the scene's (framing its box unless --eye is given), or
+// the model's.
+Result<protocol::Extract> view_extract(ServerConnection& connection, const GazeOptions& options,
+                                       const clients::ExtractFlags& flags) {
+  if (!options.scene_file.empty()) {
+    MTLOD_TRY(SceneView scene, describe_scene(connection, options.scene_file, options.scene, flags));
+    return std::move(scene.extract);
+  }
+  const std::string& model = options.model;
+  MTLOD_TRY(const ReplyFrame info, connection.call(protocol::ModelInfo{model}, 0));
+  const auto* m = std::get_if<protocol::ModelInfoReply>(&info.header.reply);
+  if (!m) return make_error(ErrorCode::kNotFound, fmt::format("model '{}' is not served", model));
+  return clients::make_extract(flags, model, m->bounds_min, m->bounds_max);
 }
 
 }  // namespace
@@ -31,13 +47,9 @@ GazeStream::GazeStream(GazeReplay& replay, unsigned index, std::vector<GazeSampl
 }
 
 Status GazeStream::open_view(const clients::ExtractFlags& flags) {
-  const std::string& model = replay_.options.model;
   MTLOD_RETURN_IF_ERROR(session_.connect());
   ServerConnection& connection = session_.connection();
-  MTLOD_TRY(const ReplyFrame info, connection.call(protocol::ModelInfo{model}, 0));
-  const auto* m = std::get_if<protocol::ModelInfoReply>(&info.header.reply);
-  if (!m) return make_error(ErrorCode::kNotFound, fmt::format("model '{}' is not served", model));
-  MTLOD_TRY(protocol::Extract request, clients::make_extract(flags, model, m->bounds_min, m->bounds_max));
+  MTLOD_TRY(protocol::Extract request, view_extract(connection, replay_.options, flags));
   const GazeSample& first_gaze =
       *std::find_if(trace_.begin(), trace_.end(), [](const GazeSample& s) { return s.tracked; });
   protocol::gaze_region(request.criteria).points.front() = {first_gaze.x, first_gaze.y};
@@ -53,8 +65,9 @@ Status GazeStream::open_view(const clients::ExtractFlags& flags) {
       return make_error(ErrorCode::kInvalidArgument, "extract: " + e->message);
     std::this_thread::sleep_for(std::chrono::milliseconds(250));
   }
-  if (const auto* mesh = std::get_if<protocol::MeshReply>(&first.header.reply); mesh && mesh->delta) {
-    MTLOD_RETURN_IF_ERROR(mesh_.apply(*mesh, first.payload));
+  if (const auto* mesh = std::get_if<protocol::MeshReply>(&first.header.reply);
+      mesh && is_delta_reply(*mesh)) {
+    MTLOD_RETURN_IF_ERROR(apply_delta(*mesh, first.payload));
   }
   view_ = std::move(request);
   return Ok{};
@@ -101,16 +114,21 @@ void GazeStream::apply_deltas() {
       to_apply_.pop_front();
     }
     const auto& mesh = std::get<protocol::MeshReply>(received.frame.header.reply);
-    auto applied = mesh_.apply(mesh, received.frame.payload);
+    auto applied = apply_delta(mesh, received.frame.payload);
     const std::int64_t now = nanoseconds_between(replay_.start, Clock::now());
     GazeTotals& totals = replay_.totals;
     std::lock_guard lock(totals.mutex);
     if (!applied) {
-      if (totals.delta_errors++ == 0) fmt::print(stderr, "mtlod-gaze: {}\n", applied.error().message);
+      if (totals.delta_errors == 0) fmt::print(stderr, "mtlod-gaze: {}\n", applied.error().message);
+      totals.delta_errors += mesh.instances.empty() ? 1 : scene_mesh_.failed_instances();
     } else if (received.sample_ns >= 0) {
       totals.applied_latency_us.record(microseconds_from(received.sample_ns, now));
     }
   }
+}
+
+Status GazeStream::apply_delta(const protocol::MeshReply& reply, std::span<const std::uint8_t> payload) {
+  return reply.instances.empty() ? mesh_.apply(reply, payload) : scene_mesh_.apply(reply, payload);
 }
 
 std::size_t GazeStream::outstanding() {
@@ -147,7 +165,8 @@ void GazeStream::on_reply(ReplyFrame& frame, Clock::time_point arrival, const st
   const std::uint64_t id = frame.header.id.value_or(0);
   const bool known_sample = id != 0 && id <= trace_.size();
   const std::size_t payload_bytes = frame.payload.size();  // before a delta's payload moves on
-  if (const auto* mesh = std::get_if<protocol::MeshReply>(&frame.header.reply); mesh && mesh->delta) {
+  if (const auto* mesh = std::get_if<protocol::MeshReply>(&frame.header.reply);
+      mesh && is_delta_reply(*mesh)) {
     // Every delta in arrival order, the view's re-extract after a reconnect (id 0) included.
     queue_delta(frame, known_sample ? sample_ns(trace_[id - 1]) : -1);
   }

@@ -4,6 +4,7 @@
 // that decoding one reply never delays the arrival time taken for the next. The stream lives on a
 // StreamSession: after a reconnect the view's extract and the newest unanswered sample are sent
 // again (older samples are stale: the newest supersedes them, as the server's coalescing would).
+// The view is a model's, or with --scene a scene's, whose delta replies are kept per instance.
 #pragma once
 
 #include <atomic>
@@ -18,6 +19,7 @@
 
 #include "clients/common/delta_mesh.hpp"
 #include "clients/common/extract_flags.hpp"
+#include "clients/common/scene_delta_mesh.hpp"
 #include "clients/common/stream_session.hpp"
 #include "clients/gaze/gaze_options.hpp"
 #include "clients/gaze/trace.hpp"
@@ -41,7 +43,9 @@ struct GazeTotals {
                 focus_mismatches = 0;
   std::uint64_t bytes = 0, triangles = 0, server_total_us = 0;
   std::map<std::string, std::uint64_t> errors_by_code;
-  std::uint64_t delta_errors = 0;  // delta replies that did not apply cleanly to the kept mesh
+  // Delta replies that did not apply cleanly to the kept mesh; for a scene, instance meshes (a reply
+  // may count once per instance).
+  std::uint64_t delta_errors = 0;
   // Samples where the tracker lost the eye (not sent), and the runs of them (blinks).
   std::uint64_t tracker_lost = 0, blinks = 0;
 };
@@ -63,8 +67,8 @@ class GazeStream : public StreamSession::Handler {
   // Stream `index` of `replay`, replaying `trace` (with at least one tracked sample).
   GazeStream(GazeReplay& replay, unsigned index, std::vector<GazeSample> trace);
 
-  // Connects and opens the stream's view: one extract of the model, focused on the first tracked
-  // sample (set-up, not measured). Errors name what failed.
+  // Connects and opens the stream's view: one extract of the model or the scene, focused on the
+  // first tracked sample (set-up, not measured). Errors name what failed.
   Status open_view(const clients::ExtractFlags& flags);
 
   StreamSession& session() { return session_; }
@@ -91,6 +95,8 @@ class GazeStream : public StreamSession::Handler {
     std::int64_t sample_ns;
   };
 
+  // Applies a delta reply to the kept mesh: the model's, or the scene's instance by instance.
+  Status apply_delta(const protocol::MeshReply& reply, std::span<const std::uint8_t> payload);
   // Hands a delta reply's header and payload to the applying thread.
   void queue_delta(ReplyFrame& frame, std::int64_t sample_time_ns);
   // Records the reply to sample `index`, read at `now`, which newly shows samples
@@ -111,7 +117,10 @@ class GazeStream : public StreamSession::Handler {
   std::condition_variable apply_changed_;
   std::deque<Received> to_apply_;
   bool receiving_done_ = false;
-  DeltaMesh mesh_;  // with --delta: the mesh the replies build (set-up, then the applying thread only)
+  // With --delta: the mesh the replies build, or the scene's meshes (set-up, then the applying
+  // thread only).
+  DeltaMesh mesh_;
+  SceneDeltaMesh scene_mesh_;
   StreamSession session_;
 };
 

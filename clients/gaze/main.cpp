@@ -7,7 +7,9 @@
 // too. A dropped connection is reopened with backoff; the view's extract and the newest unanswered
 // sample are sent again (older samples are stale: the newest one supersedes them, as the server's
 // coalescing would). Samples where the tracker lost the eye (blinks) are not sent: the server keeps
-// the last gaze; the report counts them.
+// the last gaze; the report counts them. With --scene every stream views a scene file's instances
+// instead of one model (PROTOCOL.md, "Scenes"): its gazes move the scene's focus, and with --delta
+// each instance's mesh is kept and checked on its own.
 #include <cstdio>
 #include <string>
 
@@ -40,6 +42,7 @@ int main(int argc, char** argv) {
 
   if (auto checked = clients::complete_synthesis(options, flags); !checked)
     return fail(checked.error().message);
+  if (auto scene = clients::read_gaze_scene(options); !scene) return fail(scene.error().message);
 
   auto file_traces = clients::read_trace_files(options.trace_paths);
   if (!file_traces) return fail(file_traces.error().message);

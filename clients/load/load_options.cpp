@@ -5,6 +5,7 @@
 #include <sstream>
 
 #include "CLI/CLI.hpp"
+#include "clients/common/scene_file.hpp"
 #include "fmt/format.h"
 
 namespace mtlod::clients {
@@ -12,8 +13,14 @@ namespace {
 
 // The flags of the run's shape: models, connections, how long, how fast.
 void add_run_flags(CLI::App& app, LoadOptions& o) {
-  app.add_option("--model", o.models, "model name; repeat to spread connections over several models")
-      ->capture_default_str()
+  app.add_option("--model", o.models,
+                 "model name; repeat to spread connections over several models (default: bunny, unless "
+                 "--scene is given)")
+      ->take_all();
+  app.add_option("--scene", o.scene_files,
+                 "scene file, JSON {\"instances\": [{\"model\", \"matrix\"}, ...]} (PROTOCOL.md, Scenes), "
+                 "viewed whole as a model is: cameras orbit its box; repeatable, beside --model (connections "
+                 "take the models, then the scenes, in turn)")
       ->take_all();
   app.add_option("-c,--connections", o.connections, "connections")
       ->capture_default_str()
@@ -36,7 +43,7 @@ void add_run_flags(CLI::App& app, LoadOptions& o) {
 // The flags of what is sent: cameras, foci, the mix of request kinds.
 void add_request_flags(CLI::App& app, LoadOptions& o) {
   app.add_option("--cameras", o.cameras,
-                 "random (orbits around the model), fixed (the camera flags) or a script file of "
+                 "random (orbits around the model or scene), fixed (the camera flags) or a script file of "
                  "ex,ey,ez,tx,ty,tz[,fx,fy] lines, cycled")
       ->capture_default_str();
   app.add_option("--random-focus", o.random_focus, "each extract gets a random focus point (true/false)")
@@ -96,6 +103,12 @@ void add_load_flags(CLI::App& app, LoadOptions& options, clients::ExtractFlags& 
 
 Result<RequestSettings> complete_load_options(LoadOptions& o, clients::ExtractFlags& flags) {
   clients::apply_default_criteria(flags);
+  if (o.models.empty() && o.scene_files.empty()) o.models.push_back("bunny");
+  o.scenes.clear();
+  for (const std::string& file : o.scene_files) {
+    MTLOD_TRY(std::vector<protocol::Instance> scene, clients::read_scene_file(file));
+    o.scenes.push_back(std::move(scene));
+  }
   if (o.gaze_hz > 0) {
     o.mix = "gaze=1";
     o.rate = o.gaze_hz * o.connections;

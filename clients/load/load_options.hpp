@@ -10,6 +10,7 @@
 #include "clients/common/retry.hpp"
 #include "clients/load/workload.hpp"
 #include "core/result.hpp"
+#include "protocol/messages.hpp"
 
 namespace CLI {
 class App;
@@ -19,7 +20,11 @@ namespace mtlod::clients {
 
 struct LoadOptions {
   Endpoint endpoint;
-  std::vector<std::string> models{"bunny"};
+  std::vector<std::string> models;  // empty after parsing: bunny, unless scenes are given
+  // --scene files ({"instances": [{"model", "matrix"}, ...]}), viewed whole like models; their
+  // instances, in the same order, once read (complete_load_options).
+  std::vector<std::string> scene_files;
+  std::vector<std::vector<protocol::Instance>> scenes;
   unsigned connections = 1;
   double duration_s = 10;
   std::uint64_t max_requests = 0;  // 0: bounded by duration only
@@ -44,7 +49,8 @@ struct LoadOptions {
 void add_load_flags(CLI::App& app, LoadOptions& options, clients::ExtractFlags& flags);
 
 // After parsing: fills the defaults that depend on other flags (mtlod-load's criteria, --gaze-hz's
-// mix and rate) and reads what the flags name. Errors name the flag or the file.
+// mix and rate, the model when no scene is given) and reads what the flags name (the camera script,
+// the scene files). Errors name the flag, or the file and its line or field.
 Result<RequestSettings> complete_load_options(LoadOptions& options, clients::ExtractFlags& flags);
 
 }  // namespace mtlod::clients

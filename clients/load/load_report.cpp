@@ -2,6 +2,8 @@
 #include "clients/load/load_report.hpp"
 
 #include <fstream>
+#include <string>
+#include <vector>
 
 #include "fmt/format.h"
 #include "nlohmann/json.hpp"
@@ -39,6 +41,24 @@ nlohmann::ordered_json server_json(const LoadTotals& r) {
           {"total_p99", r.server_total_us.value_at_percentile(99)}};
 }
 
+// Each scene: its file and its instance count.
+nlohmann::ordered_json scenes_json(const LoadOptions& o) {
+  nlohmann::ordered_json scenes = nlohmann::ordered_json::array();
+  for (std::size_t i = 0; i < o.scene_files.size(); ++i)
+    scenes.push_back({{"file", o.scene_files[i]}, {"instances", o.scenes[i].size()}});
+  return scenes;
+}
+
+// "models bunny,dragon", "scenes a.json (3 instances), b.json (10 instances)", or both.
+std::string describe_views(const LoadOptions& o) {
+  std::vector<std::string> parts, scenes;
+  if (!o.models.empty()) parts.push_back(fmt::format("models {}", fmt::join(o.models, ",")));
+  for (std::size_t i = 0; i < o.scene_files.size(); ++i)
+    scenes.push_back(fmt::format("{} ({} instances)", o.scene_files[i], o.scenes[i].size()));
+  if (!scenes.empty()) parts.push_back(fmt::format("scenes {}", fmt::join(scenes, ", ")));
+  return fmt::format("{}", fmt::join(parts, ", "));
+}
+
 nlohmann::ordered_json report_json(const LoadOptions& o, const clients::ExtractFlags& flags,
                                    const LoadTotals& r, const LoadRunEnd& end) {
   const double elapsed_s = end.elapsed_s;
@@ -46,6 +66,7 @@ nlohmann::ordered_json report_json(const LoadOptions& o, const clients::ExtractF
   nlohmann::ordered_json report = {
       {"mode", o.open_loop() ? "open" : "closed"},
       {"models", o.models},
+      {"scenes", scenes_json(o)},
       {"connections", o.connections},
       {"rate_rps", o.rate},
       {"mix", o.mix},
@@ -82,8 +103,8 @@ void print_report(const LoadOptions& o, const LoadTotals& r, const LoadRunEnd& e
   const double elapsed_s = end.elapsed_s;
   const double throughput = r.ok / std::max(elapsed_s, 1e-9);
   const double mean_div = std::max<double>(1, static_cast<double>(r.ok));
-  fmt::print("{} loop, {} connection(s), models {}, {:.1f} s{}\n", o.open_loop() ? "open" : "closed",
-             o.connections, fmt::join(o.models, ","), elapsed_s,
+  fmt::print("{} loop, {} connection(s), {}, {:.1f} s{}\n", o.open_loop() ? "open" : "closed", o.connections,
+             describe_views(o), elapsed_s,
              o.open_loop() ? fmt::format(", {:.0f} requests/s offered", o.rate) : "");
   fmt::print("  requests  sent {}  mesh {}  errors {}  superseded {}  unsent {}  lost {}\n", r.sent, r.ok,
              r.errors, r.superseded, end.unsent, end.lost);

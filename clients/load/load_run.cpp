@@ -7,6 +7,7 @@
 #include <memory>
 #include <thread>
 
+#include "clients/common/scene_view.hpp"
 #include "clients/load/schedule.hpp"
 #include "fmt/format.h"
 
@@ -27,12 +28,12 @@ Result<std::uint32_t> connect_streams(LoadRun& run, Streams& streams) {
   return server_window;
 }
 
-// Each model's bounds, and the extract the flags make for it.
-Result<std::vector<ModelView>> describe_models(ServerConnection& connection,
-                                               const std::vector<std::string>& names,
-                                               const clients::ExtractFlags& flags) {
+// Each model's bounds and each scene's, and the extract the flags make for it: the models first,
+// then the scenes.
+Result<std::vector<ModelView>> describe_views(ServerConnection& connection, const LoadOptions& options,
+                                              const clients::ExtractFlags& flags) {
   std::vector<ModelView> models;
-  for (const std::string& name : names) {
+  for (const std::string& name : options.models) {
     MTLOD_TRY(const ReplyFrame info, connection.call(protocol::ModelInfo{name}, 0));
     const auto* m = std::get_if<protocol::ModelInfoReply>(&info.header.reply);
     if (!m) {
@@ -42,6 +43,11 @@ Result<std::vector<ModelView>> describe_models(ServerConnection& connection,
     }
     MTLOD_TRY(protocol::Extract base, clients::make_extract(flags, name, m->bounds_min, m->bounds_max));
     models.push_back(ModelView{name, m->bounds_min, m->bounds_max, std::move(base)});
+  }
+  for (std::size_t i = 0; i < options.scene_files.size(); ++i) {
+    const std::string& file = options.scene_files[i];
+    MTLOD_TRY(SceneView scene, describe_scene(connection, file, options.scenes[i], flags));
+    models.push_back(ModelView{"scene " + file, scene.box.min, scene.box.max, std::move(scene.extract)});
   }
   return models;
 }
@@ -89,7 +95,7 @@ Result<LoadRunEnd> run_load(const LoadOptions& options, const RequestSettings& r
   LoadRun run(options, requests, totals);
   Streams streams;
   MTLOD_TRY(const std::uint32_t server_window, connect_streams(run, streams));
-  MTLOD_TRY(run.models, describe_models(streams.front()->session().connection(), options.models, flags));
+  MTLOD_TRY(run.models, describe_views(streams.front()->session().connection(), options, flags));
   run.window = options.open_loop() ? (options.window ? options.window : server_window) : 1;
   run.duration_ns = static_cast<std::int64_t>(options.duration_s * 1e9);
   if (options.open_loop()) {

@@ -20,7 +20,7 @@ struct LoadRunEnd {
 };
 
 // Runs the load test the options describe, recording into `totals`. Errors: set-up failed (a
-// connection, a model that is not served, an extract the flags cannot make).
+// connection, a model that is not served, a scene naming one, an extract the flags cannot make).
 Result<LoadRunEnd> run_load(const LoadOptions& options, const RequestSettings& requests,
                             const clients::ExtractFlags& flags, LoadTotals& totals);
 

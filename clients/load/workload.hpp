@@ -32,9 +32,9 @@ struct Mix {
 };
 Result<Mix> parse_mix(const std::string& text);
 
-// A served model: its bounds and the flags' extract for it.
+// A served model, or a scene: its bounds (a scene's in the world) and the flags' extract for it.
 struct ModelView {
-  std::string name;
+  std::string name;  // the model's, or "scene FILE"
   std::array<double, 3> bounds_min{}, bounds_max{};
   protocol::Extract base;
 };
@@ -42,7 +42,7 @@ struct ModelView {
 // What the connections send, from mtlod-load's flags.
 struct RequestSettings {
   Mix mix;
-  bool random_cameras = true;          // --cameras random: orbits around the model
+  bool random_cameras = true;          // --cameras random: orbits around the model or scene
   std::vector<ScriptedCamera> script;  // --cameras FILE: its cameras, cycled; else empty
   bool random_focus = true;            // without a script: each extract gets a random focus point
   double fov_deg = 45;

@@ -93,6 +93,30 @@ class ToolsTest : public testing::Test {
     return out;
   }
 
+  // Runs a tool with `args` that must fail; returns what it printed.
+  std::string run_failing(const std::string& binary, const std::string& args) {
+    const std::string command = fmt::format("{} --port {} --quiet {} > {} 2>&1", binary, server_->port(),
+                                            args, (*dir_ / "tool.log").string());
+    const int status = std::system(command.c_str());
+    const std::string output = test::read_file(*dir_ / "tool.log");
+    EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) != 0) << command << "\n" << output;
+    return output;
+  }
+
+  // A scene file of three bunnies, each placed by its own scale, turn and offset; returns its path.
+  static std::filesystem::path write_three_bunnies(const std::string& name) {
+    const std::array<std::array<double, 16>, 3> matrices{{
+        {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1},
+        {0.5, 0, 0, 0, 0, 0.5, 0, 0, 0, 0, 0.5, 0, 12, 0, -4, 1},
+        {0, 0, -1.5, 0, 0, 1.5, 0, 0, 1.5, 0, 0, 0, -14, 1, 0, 1},
+    }};
+    json scene = {{"instances", json::array()}};
+    for (const auto& m : matrices) scene["instances"].push_back({{"model", "bunny"}, {"matrix", m}});
+    const auto path = *dir_ / name;
+    test::write_file(path, scene.dump());
+    return path;
+  }
+
   static void expect_ordered_latency(const json& latency) {
     ASSERT_TRUE(latency.is_object());
     const double p50 = latency.at("p50"), p90 = latency.at("p90"), p99 = latency.at("p99"),
@@ -241,6 +265,100 @@ TEST_F(ToolsTest, GazeReplayWithDeltasKeepsTheServersCutInFewerBytes) {
   const double whole_per_mesh = whole.at("bytes").get<double>() / whole.at("meshes").get<double>();
   const double delta_per_mesh = delta.at("bytes").get<double>() / delta.at("meshes").get<double>();
   EXPECT_LT(delta_per_mesh, whole_per_mesh);
+}
+
+TEST_F(ToolsTest, GazeReplayOfASceneKeepsEveryInstancesMesh) {
+  // Two streams gaze at a scene of three bunnies for two seconds with deltas: each stream keeps a
+  // mesh per instance, and after every reply each must hold the triangles the reply gives that
+  // instance (delta_errors counts any that does not). The server saw exactly the samples as gazes
+  // and one opening scene extract per stream.
+  const auto scene = write_three_bunnies("gaze-scene.json");
+  const json r = run(MTLOD_GAZE_BINARY,
+                     "--scene " + scene.string() + " --streams 2 --delta --duration 2000 --budget 3000");
+  ASSERT_TRUE(r.contains("samples")) << r.dump(2);
+  EXPECT_EQ(r.at("scene"), scene.string());
+  EXPECT_EQ(r.at("instances"), 3);
+  EXPECT_TRUE(r.at("model").is_null());
+  const std::uint64_t samples = r.at("samples"), meshes = r.at("meshes");
+  EXPECT_GT(meshes, 0u);
+  EXPECT_EQ(r.at("delta"), true);
+  EXPECT_EQ(r.at("delta_errors"), 0);
+  EXPECT_EQ(r.at("errors"), 0);
+  EXPECT_EQ(r.at("lost"), 0);
+  EXPECT_EQ(r.at("focus_mismatches"), 0);
+  EXPECT_EQ(meshes + r.at("superseded").get<std::uint64_t>(), samples);
+  EXPECT_EQ(r.at("superseded_counted_by_server"), r.at("superseded"));
+  EXPECT_EQ(r.at("applied_latency_ms").at("count"), meshes);
+  auto counters = server_counters();
+  EXPECT_EQ(counters["requests_extract"], 2);
+  EXPECT_EQ(counters["requests_gaze"], static_cast<double>(samples));
+  EXPECT_EQ(counters["errors_superseded"], r.at("superseded").get<double>());
+  EXPECT_EQ(counters["extractions"], static_cast<double>(meshes) + 2);
+  EXPECT_GE(counters["bytes_out"], r.at("bytes").get<double>());
+}
+
+TEST_F(ToolsTest, ClosedLoopLoadOfASceneAgreesWithTheServer) {
+  // Two connections replay views of a three-bunny scene, extracts from random orbits around its box
+  // and gazes moving its focus: every request is answered by a scene's mesh, within the budget the
+  // instances share, and the server counted each request and the triangles the tool reports.
+  const auto scene = write_three_bunnies("load-scene.json");
+  const json r =
+      run(MTLOD_LOAD_BINARY,
+          "--scene " + scene.string() + " --connections 2 --duration 2 --budget 2000 --mix extract=1,gaze=1");
+  ASSERT_TRUE(r.contains("requests")) << r.dump(2);
+  EXPECT_EQ(r.at("scenes"),
+            json::parse(fmt::format(R"([{{"file": "{}", "instances": 3}}])", scene.string())));
+  EXPECT_EQ(r.at("models"), json::array());
+  const std::uint64_t requests = r.at("requests");
+  EXPECT_GT(requests, 0u);
+  EXPECT_EQ(r.at("ok"), requests);
+  EXPECT_EQ(r.at("sent"), requests);
+  EXPECT_EQ(r.at("errors"), 0);
+  EXPECT_EQ(r.at("superseded"), 0);  // closed loop: a gaze is sent once the previous reply is in
+  EXPECT_EQ(r.at("lost"), 0);
+  expect_ordered_latency(r.at("latency_ms"));
+  const double mean_triangles = r.at("mean_triangles");
+  EXPECT_GT(mean_triangles, 0);
+  EXPECT_LE(mean_triangles, 2000);
+  auto counters = server_counters();
+  EXPECT_EQ(counters["requests_extract"] + counters["requests_gaze"], static_cast<double>(requests));
+  EXPECT_GT(counters["requests_gaze"], 0);
+  EXPECT_GT(counters["requests_extract"], 0);
+  EXPECT_EQ(counters["extractions"], static_cast<double>(requests));
+  EXPECT_NEAR(counters["triangles_out"] / counters["extractions"], mean_triangles, 1e-6 * mean_triangles);
+  EXPECT_GE(counters["bytes_out"], r.at("bytes").get<double>());
+}
+
+TEST_F(ToolsTest, SceneToolsRefuseABadSceneFile) {
+  // A scene naming a model the server does not serve: both tools stop before any extract, saying
+  // the server's code and the model's name.
+  json unknown = json::parse(test::read_file(write_three_bunnies("unknown-scene.json")));
+  unknown["instances"].push_back({{"model", "teapot"}});
+  const auto unknown_file = *dir_ / "unknown-scene.json";
+  test::write_file(unknown_file, unknown.dump());
+  for (const char* binary : {MTLOD_GAZE_BINARY, MTLOD_LOAD_BINARY}) {
+    const std::string output = run_failing(binary, "--scene " + unknown_file.string());
+    EXPECT_NE(output.find(unknown_file.string() + ": unknown_model: no model named 'teapot'"),
+              std::string::npos)
+        << binary << "\n"
+        << output;
+  }
+  auto counters = server_counters();
+  EXPECT_EQ(counters["requests_extract"], 0);
+  EXPECT_EQ(counters["errors_unknown_model"], 2);  // one model_info per tool
+
+  // A singular matrix (its third column 0): refused with the file and the field, before connecting.
+  const auto singular = *dir_ / "singular-scene.json";
+  test::write_file(singular,
+                   R"({"instances": [{"model": "bunny", "matrix": [1,0,0,0, 0,1,0,0, 0,0,0,0, 0,0,0,1]}]})");
+  for (const char* binary : {MTLOD_GAZE_BINARY, MTLOD_LOAD_BINARY}) {
+    const std::string output = run_failing(binary, "--scene " + singular.string());
+    EXPECT_NE(output.find(singular.string() + ": scene.instances[0].matrix is singular"), std::string::npos)
+        << binary << "\n"
+        << output;
+  }
+  // No connection but the stats call's own.
+  EXPECT_EQ(server_counters()["connections_total"], counters["connections_total"] + 1);
 }
 
 // A GLB's JSON and BIN chunks, read by hand (a 12-byte header, then length, type, data).
