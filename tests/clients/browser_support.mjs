@@ -82,6 +82,20 @@ export async function startServer(binary, serverArgs, out, name) {
   return server;
 }
 
+// The end of a test of startServer's server: the browser closed, the server stopped and checked to have
+// drained and exited cleanly (killed if it did not), the deadline timer cleared; exits with the status
+// of the checks.
+export async function finish({ browser, server, deadline }) {
+  if (browser) await browser.close();
+  if (server) {
+    const exit = await server.stop();
+    check(exit && exit.code === 0, `the server drained and exited cleanly (${JSON.stringify(exit)})`);
+    if (!exit) server.child.kill('SIGKILL');
+  }
+  clearTimeout(deadline);
+  process.exit(results.failures ? 1 : 0);
+}
+
 // Two PNG pictures (Buffers) compared pixel by pixel in `page` (any page of a running Chromium, which
 // decodes them): { pixels, meanDifference (mean over pixels and RGB channels, 0..255), over (pixels whose
 // largest channel difference exceeds `threshold`), covered (pixels of `a` not of the colour

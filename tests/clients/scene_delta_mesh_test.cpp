@@ -18,6 +18,7 @@
 #include "clients/common/server_connection.hpp"
 #include "core/eval/mesh_gen.hpp"
 #include "core/io/mesh_io.hpp"
+#include "tests/clients/served_bunny.hpp"
 #include "tests/core/test_meshes.hpp"
 #include "tests/server/server_process.hpp"
 
@@ -109,14 +110,7 @@ class SceneDeltaMeshServerTest : public testing::Test {
  protected:
   static void SetUpTestSuite() {
     dir_ = new std::filesystem::path(test::scratch_dir("scene-delta-mesh"));
-    const auto bunny = test::models_dir() / "bunny.ply";
-    if (std::filesystem::exists(bunny)) {
-      std::filesystem::copy_file(bunny, *dir_ / "bunny.ply");
-    } else {
-      core::eval::GenerateOptions o;
-      o.target_triangles = 4000;
-      ASSERT_TRUE(core::io::save_mesh(*dir_ / "bunny.ply", core::eval::generate_mesh(o)).ok());
-    }
+    test::put_bunny(*dir_);
     server_ = new test::ServerProcess({"--mesh", (*dir_ / "bunny.ply").string(), "--cache-dir",
                                        dir_->string(), "--workers", "2", "--log-level", "warn"},
                                       *dir_);

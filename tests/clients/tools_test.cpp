@@ -21,6 +21,7 @@
 #include "core/io/mesh_io.hpp"
 #include "fmt/format.h"
 #include "nlohmann/json.hpp"
+#include "tests/clients/served_bunny.hpp"
 #include "tests/core/test_meshes.hpp"
 #include "tests/server/server_process.hpp"
 
@@ -32,16 +33,8 @@ using nlohmann::json;
 class ToolsTest : public testing::Test {
  protected:
   static void SetUpTestSuite() {
-    // The built-in bunny, or a generated stand-in of the same name when models are not prepared.
     dir_ = new std::filesystem::path(test::scratch_dir("clients-tools"));
-    const auto bunny = test::models_dir() / "bunny.ply";
-    if (std::filesystem::exists(bunny)) {
-      std::filesystem::copy_file(bunny, *dir_ / "bunny.ply");
-    } else {
-      core::eval::GenerateOptions o;
-      o.target_triangles = 4000;
-      ASSERT_TRUE(core::io::save_mesh(*dir_ / "bunny.ply", core::eval::generate_mesh(o)).ok());
-    }
+    test::put_bunny(*dir_);
   }
   static void TearDownTestSuite() { delete dir_; }
 
@@ -104,14 +97,15 @@ class ToolsTest : public testing::Test {
   }
 
   // A scene file of three bunnies, each placed by its own scale, turn and offset; returns its path.
+  // Three instances of the bunny: as it is, halved and moved, turned a quarter, enlarged and moved.
+  static constexpr std::array<std::array<double, 16>, 3> kThreeBunnies{{
+      {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1},
+      {0.5, 0, 0, 0, 0, 0.5, 0, 0, 0, 0, 0.5, 0, 12, 0, -4, 1},
+      {0, 0, -1.5, 0, 0, 1.5, 0, 0, 1.5, 0, 0, 0, -14, 1, 0, 1},
+  }};
   static std::filesystem::path write_three_bunnies(const std::string& name) {
-    const std::array<std::array<double, 16>, 3> matrices{{
-        {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1},
-        {0.5, 0, 0, 0, 0, 0.5, 0, 0, 0, 0, 0.5, 0, 12, 0, -4, 1},
-        {0, 0, -1.5, 0, 0, 1.5, 0, 0, 1.5, 0, 0, 0, -14, 1, 0, 1},
-    }};
     json scene = {{"instances", json::array()}};
-    for (const auto& m : matrices) scene["instances"].push_back({{"model", "bunny"}, {"matrix", m}});
+    for (const auto& m : kThreeBunnies) scene["instances"].push_back({{"model", "bunny"}, {"matrix", m}});
     const auto path = *dir_ / name;
     test::write_file(path, scene.dump());
     return path;
@@ -472,14 +466,8 @@ TEST_F(ToolsTest, ClientGlbEmbedsTheDracoBytesItReceived) {
 TEST_F(ToolsTest, ClientWritesASceneAsANodePerInstance) {
   // Three instances of the bunny from a scene file: the .glb has a node per instance with the file's
   // matrix and a mesh of as many triangles as the reply gave the instance, and passes the validator.
-  const std::array<std::array<double, 16>, 3> matrices{{
-      {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1},
-      {0.5, 0, 0, 0, 0, 0.5, 0, 0, 0, 0, 0.5, 0, 12, 0, -4, 1},
-      {0, 0, -1, 0, 0, 1, 0, 0, 1, 0, 0, 0, -12, 0, 0, 1},
-  }};
-  json scene = {{"instances", json::array()}};
-  for (const auto& m : matrices) scene["instances"].push_back({{"model", "bunny"}, {"matrix", m}});
-  test::write_file(*dir_ / "scene.json", scene.dump());
+  const auto& matrices = kThreeBunnies;
+  write_three_bunnies("scene.json");
   const auto glb = *dir_ / "scene.glb";
   const std::string command = fmt::format(
       "{} --port {} scene {} --error-px 1 --budget 3000 -o {} > {} 2>&1", MTLOD_CLIENT_BINARY,
@@ -505,6 +493,7 @@ TEST_F(ToolsTest, ClientWritesASceneAsANodePerInstance) {
   expect_valid_gltf(*dir_, {glb});
 
   // A scene naming a model the server does not have is refused whole.
+  json scene = json::parse(test::read_file(*dir_ / "scene.json"));
   scene["instances"].push_back({{"model", "teapot"}});
   test::write_file(*dir_ / "scene.json", scene.dump());
   EXPECT_NE(std::system(command.c_str()), 0);

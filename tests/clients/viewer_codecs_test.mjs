@@ -11,7 +11,7 @@
 // node viewer_codecs_test.mjs --server BIN --mesh bunny.ply [--painted painted.ply] --out DIR
 import fs from 'node:fs';
 import path from 'node:path';
-import { check, chromium, chromiumArgs, chromiumOrSkip, comparePictures, parseArgs, results, startServer } from './browser_support.mjs';
+import { check, chromium, chromiumArgs, chromiumOrSkip, comparePictures, finish, parseArgs, results, startServer } from './browser_support.mjs';
 
 const args = parseArgs(process.argv.slice(2), ['server', 'mesh', 'out']);
 const chromiumPath = chromiumOrSkip();
@@ -306,12 +306,5 @@ try {
   console.log(`FAIL ${error.stack ?? error}`);
   results.failures += 1;
 } finally {
-  if (browser) await browser.close();
-  if (server) {
-    const exit = await server.stop();
-    check(exit && exit.code === 0, `the server drained and exited cleanly (${JSON.stringify(exit)})`);
-    if (!exit) server.child.kill('SIGKILL');
-  }
-  clearTimeout(deadline);
+  await finish({ browser, server, deadline });
 }
-process.exit(results.failures ? 1 : 0);

@@ -19,7 +19,7 @@
 // node viewer_scene_test.mjs --server BIN --mesh bunny.ply --painted painted.ply --out DIR
 import fs from 'node:fs';
 import path from 'node:path';
-import { check, chromium, chromiumArgs, chromiumOrSkip, parseArgs, results, startServer } from './browser_support.mjs';
+import { check, chromium, chromiumArgs, chromiumOrSkip, finish, parseArgs, results, startServer } from './browser_support.mjs';
 
 const args = parseArgs(process.argv.slice(2), ['server', 'mesh', 'painted', 'out']);
 const chromiumPath = chromiumOrSkip();
@@ -301,12 +301,5 @@ try {
   console.log(`FAIL ${error.stack ?? error}`);
   results.failures += 1;
 } finally {
-  if (browser) await browser.close();
-  if (server) {
-    const exit = await server.stop();
-    check(exit && exit.code === 0, `the server drained and exited cleanly (${JSON.stringify(exit)})`);
-    if (!exit) server.child.kill('SIGKILL');
-  }
-  clearTimeout(deadline);
+  await finish({ browser, server, deadline });
 }
-process.exit(results.failures ? 1 : 0);
