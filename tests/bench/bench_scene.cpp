@@ -69,7 +69,9 @@ const std::vector<std::unique_ptr<Model>>& models() {
 // A room of `count` instances on a square floor, the models taking turns, each scaled so its box's
 // largest side is 1, stood on the floor and turned by the golden angle; rows 1.3 apart, so the rows
 // in front hide part of those behind from the camera, which looks down at the room from in front.
-std::vector<core::view::SceneInstance> room(std::size_t count) {
+// With `wall`, one more instance: the igea bust flattened into a wall across the left half of the
+// room's front, taller than the instances, hiding some of them whole.
+std::vector<core::view::SceneInstance> room(std::size_t count, bool wall = false) {
   const auto& ms = models();
   const auto side = static_cast<std::size_t>(std::ceil(std::sqrt(static_cast<double>(count))));
   const float step = 1.3f, golden = 3.14159265f * (3.0f - std::sqrt(5.0f));
@@ -84,6 +86,19 @@ std::vector<core::view::SceneInstance> room(std::size_t count) {
     matrix = glm::rotate(matrix, static_cast<float>(i) * golden, glm::vec3(0, 1, 0));
     matrix = glm::scale(matrix, glm::vec3(scale));
     matrix = glm::translate(matrix, glm::vec3(-c[0], -m.box.lo[1], -c[2]));
+    instances.push_back({&m.mt, m.levels.get(), matrix});
+  }
+  if (wall) {
+    const Model& m = *ms[2 % ms.size()];
+    const float width = 0.5f * static_cast<float>(side) * step,
+                front = 0.5f * static_cast<float>(side) * step;
+    const core::model::Bounds& b = m.box;
+    const std::array<float, 3> c = b.centre();
+    // Scaled to width × (2.5 × an instance's height) × 0.1, its base on the floor, in front of the rows.
+    glm::mat4 matrix = glm::translate(glm::mat4(1), glm::vec3(-0.5f * width, 0, front));
+    matrix = glm::scale(matrix, glm::vec3(width / (b.hi[0] - b.lo[0]), 2.5f / (b.hi[1] - b.lo[1]),
+                                          0.1f / (b.hi[2] - b.lo[2])));
+    matrix = glm::translate(matrix, glm::vec3(-c[0], -b.lo[1], -c[2]));
     instances.push_back({&m.mt, m.levels.get(), matrix});
   }
   return instances;
@@ -131,7 +146,8 @@ void BM_Scene(benchmark::State& state) {
   if (models().empty()) return state.SkipWithError("the shared meshes or build/models are missing");
   const auto count = static_cast<std::size_t>(state.range(0));
   const auto budget = static_cast<std::size_t>(state.range(1));
-  const std::vector<core::view::SceneInstance> instances = room(count);
+  const bool wall = state.range(3) != 0;
+  const std::vector<core::view::SceneInstance> instances = room(count, wall);
   const core::view::ViewRequest view = room_view(count, budget);
   core::codec::EncodeOptions encoding;
   encoding.codec = state.range(2) == 0 ? core::codec::Codec::kDraco : core::codec::Codec::kMeshopt;
@@ -149,7 +165,7 @@ void BM_Scene(benchmark::State& state) {
     stats = *extractor.extract({view, instances}, cuts, &stages);
     auto t = Clock::now();
     bytes = 0;
-    for (std::size_t i = 0; i < count; ++i) {
+    for (std::size_t i = 0; i < instances.size(); ++i) {
       const core::model::Mt& mt = *instances[i].mt;
       auto encoded = encoder.encode({mt.positions, mt.normals, {}, cuts[i].triangles, {}}, encoding, payload);
       benchmark::DoNotOptimize(encoded);
@@ -157,9 +173,22 @@ void BM_Scene(benchmark::State& state) {
     }
     encode_us += us_since(t);
   }
-  std::size_t at_root = 0;
-  for (std::size_t i = 0; i < count; ++i)
-    at_root += cuts[i].triangle_count() == instances[i].mt->root_triangle_count();
+  // Instances the picture does not show at all (none of its cells names them) and those at their root.
+  std::vector<std::uint8_t> shown(instances.size(), 0);
+  for (const std::uint32_t owner : extractor.instance_grid())
+    if (owner != core::view::SceneExtractor::kNoInstance) shown[owner] = 1;
+  std::size_t at_root = 0, hidden = 0, hidden_triangles = 0, hidden_over_root = 0;
+  for (std::size_t i = 0; i < count; ++i) {
+    const std::size_t triangles = cuts[i].triangle_count(), root = instances[i].mt->root_triangle_count();
+    at_root += triangles == root;
+    if (shown[i]) continue;
+    ++hidden;
+    hidden_triangles += triangles;
+    hidden_over_root += triangles - root;
+  }
+  state.counters["hidden"] = static_cast<double>(hidden);
+  state.counters["hidden_tris"] = static_cast<double>(hidden_triangles);
+  state.counters["hidden_over_root"] = static_cast<double>(hidden_over_root);
   const auto avg = benchmark::Counter::kAvgIterations;
   static constexpr std::array<const char*, core::view::kStageCount> kNames{"map_us", "occupancy_us", "dt_us",
                                                                            "labels_us", "refine_us"};
@@ -174,11 +203,12 @@ void BM_Scene(benchmark::State& state) {
   state.counters["memory_MiB"] = static_cast<double>(extractor.memory_bytes()) / 1048576.0;
 }
 BENCHMARK(BM_Scene)
-    ->Args({100, 100'000, 0})
-    ->Args({100, 100'000, 1})
-    ->Args({100, 20'000, 1})
-    ->Args({16, 100'000, 1})
-    ->ArgNames({"instances", "budget", "codec"})
+    ->Args({100, 100'000, 0, 0})
+    ->Args({100, 100'000, 1, 0})
+    ->Args({100, 20'000, 1, 0})
+    ->Args({16, 100'000, 1, 0})
+    ->Args({100, 100'000, 1, 1})
+    ->ArgNames({"instances", "budget", "codec", "wall"})
     ->Unit(benchmark::kMillisecond);
 
 // The same room as one request per instance, each with the budget's even share (the only split a
