@@ -179,31 +179,40 @@ MeshDelta delta_from(const json& d) {
                    d.value("added", std::uint64_t{0}), d.value("removed", std::uint64_t{0})};
 }
 
-json write(const MeshReply& r) {
+// The counts a mesh reply and each of a scene's instances share (MeshReply, InstanceMesh), and
+// their delta.
+template <class Mesh>
+json mesh_json(const Mesh& r) {
   json m = {{"model", r.model},
             {"triangles", r.triangles},
             {"vertices", r.vertices},
             {"max_error", r.max_error},
-            {"bytes", r.bytes},
-            {"codec", enum_name(kCodecNames, r.codec)},
-            {"superseded", r.superseded},
-            {"timings_us", timings_json(r.timings)},
-            {"memory", {{"session_bytes", r.session_bytes}, {"scratch_bytes", r.scratch_bytes}}}};
+            {"bytes", r.bytes}};
+  if (r.delta) m["delta"] = delta_json(*r.delta);
+  return m;
+}
+template <class Mesh>
+void read_mesh(const json& j, Mesh& r) {
+  r.model = j.value("model", "");
+  r.triangles = j.value("triangles", std::uint64_t{0});
+  r.vertices = j.value("vertices", std::uint64_t{0});
+  r.max_error = j.value("max_error", 0.0);
+  r.bytes = j.value("bytes", std::uint64_t{0});
+  if (j.contains("delta")) r.delta = delta_from(j["delta"]);
+}
+
+json write(const MeshReply& r) {
+  json m = mesh_json(r);
+  m["codec"] = enum_name(kCodecNames, r.codec);
+  m["superseded"] = r.superseded;
+  m["timings_us"] = timings_json(r.timings);
+  m["memory"] = {{"session_bytes", r.session_bytes}, {"scratch_bytes", r.scratch_bytes}};
   if (r.focus) m["focus"] = *r.focus;
   m["model_version"] = r.model_version;
   if (r.model_changed) m["model_changed"] = true;
-  if (r.delta) m["delta"] = delta_json(*r.delta);
   if (!r.instances.empty()) {
     json instances = json::array();
-    for (const InstanceMesh& i : r.instances) {
-      json one = {{"model", i.model},
-                  {"triangles", i.triangles},
-                  {"vertices", i.vertices},
-                  {"max_error", i.max_error},
-                  {"bytes", i.bytes}};
-      if (i.delta) one["delta"] = delta_json(*i.delta);
-      instances.push_back(std::move(one));
-    }
+    for (const InstanceMesh& i : r.instances) instances.push_back(mesh_json(i));
     m["instances"] = std::move(instances);
     m["within_budget"] = r.within_budget;
   }
@@ -211,11 +220,7 @@ json write(const MeshReply& r) {
 }
 MeshReply read(std::type_identity<MeshReply>, const json& j) {
   MeshReply r;
-  r.model = j.value("model", "");
-  r.triangles = j.value("triangles", std::uint64_t{0});
-  r.vertices = j.value("vertices", std::uint64_t{0});
-  r.max_error = j.value("max_error", 0.0);
-  r.bytes = j.value("bytes", std::uint64_t{0});
+  read_mesh(j, r);
   r.codec = codec_from(j);
   r.superseded = j.value("superseded", std::uint64_t{0});
   const json memory = j.value("memory", json::object());
@@ -224,17 +229,7 @@ MeshReply read(std::type_identity<MeshReply>, const json& j) {
   if (j.contains("focus")) r.focus = j["focus"].get<std::array<double, 2>>();
   r.model_version = j.value("model_version", std::uint64_t{0});
   r.model_changed = j.value("model_changed", false);
-  if (j.contains("delta")) r.delta = delta_from(j["delta"]);
-  for (const json& i : j.value("instances", json::array())) {
-    InstanceMesh one;
-    one.model = i.value("model", "");
-    one.triangles = i.value("triangles", std::uint64_t{0});
-    one.vertices = i.value("vertices", std::uint64_t{0});
-    one.max_error = i.value("max_error", 0.0);
-    one.bytes = i.value("bytes", std::uint64_t{0});
-    if (i.contains("delta")) one.delta = delta_from(i["delta"]);
-    r.instances.push_back(std::move(one));
-  }
+  for (const json& i : j.value("instances", json::array())) read_mesh(i, r.instances.emplace_back());
   r.within_budget = j.value("within_budget", true);
   r.timings = timings_from(j.value("timings_us", json::object()));
   return r;
