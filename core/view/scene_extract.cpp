@@ -244,7 +244,7 @@ Result<std::size_t> SceneExtractor::refine_all(const SceneRequest& request, cut:
 }
 
 Result<SceneStats> SceneExtractor::refine(const SceneRequest& request, std::vector<cut::CutMesh>& cuts,
-                                          SceneStats stats) {
+                                          SceneStats stats, std::optional<float> hint) {
   const std::optional<std::size_t> budget = request.view.budget;
   auto take = [&](cut::Rank threshold, std::size_t total) {
     cuts.swap(trial_);
@@ -268,7 +268,9 @@ Result<SceneStats> SceneExtractor::refine(const SceneRequest& request, std::vect
   while (stats.passes < kMaxPasses) {
     double next;
     if (!found) {
-      next = over * std::max(1.25, 1.05 * over_count / target);
+      // A gaze moves the threshold little: the session's last one first.
+      next = hint && *hint > over ? *hint : over * std::max(1.25, 1.05 * over_count / target);
+      hint.reset();
       if (next > kLargestThreshold) break;
     } else {
       if (fits / over < kClosest || fits_count >= kFilled * target) break;
@@ -383,7 +385,15 @@ Result<SceneStats> SceneExtractor::extract(const SceneRequest& request, std::vec
   finished(Stage::kTransforms);
   bind_fields(request);
   finished(Stage::kAllowedError);
-  Result<SceneStats> result = refine(request, cuts, stats);
+  std::optional<float> hint;
+  if (session && session->threshold_budget_ == request.view.budget) hint = session->threshold_;
+  Result<SceneStats> result = refine(request, cuts, stats, hint);
+  if (session && result) {
+    const cut::Rank threshold = result->threshold;
+    session->threshold_budget_ = request.view.budget;
+    session->threshold_ =
+        threshold.tier == 0 && threshold.key > 1.0f ? std::optional(threshold.key) : std::nullopt;
+  }
   finished(Stage::kRefine);
   return result;
 }

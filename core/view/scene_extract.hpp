@@ -91,6 +91,9 @@ class SceneCache {
   std::vector<std::uint32_t> owner_;
   std::vector<std::uint8_t> in_view_;
   std::size_t rasterized_ = 0, instances_in_view_ = 0;
+  // The budget's last threshold and the budget: where the next gaze's search starts.
+  std::optional<float> threshold_;
+  std::optional<std::size_t> threshold_budget_;
 };
 
 class SceneExtractor {
@@ -136,7 +139,9 @@ class SceneExtractor {
   // Refines every instance at `threshold` into trial_, stopping once the total passes `stop_above`.
   // Returns the total, or the refiner's error.
   Result<std::size_t> refine_all(const SceneRequest& request, cut::Rank threshold, std::size_t stop_above);
-  Result<SceneStats> refine(const SceneRequest& request, std::vector<cut::CutMesh>& cuts, SceneStats stats);
+  // hint: a threshold to try first when the bound's cut does not fit (the session's last).
+  Result<SceneStats> refine(const SceneRequest& request, std::vector<cut::CutMesh>& cuts, SceneStats stats,
+                            std::optional<float> hint);
   PerModel& per_model(const model::Mt& mt);
 
   std::vector<ViewMapping> mappings_;

@@ -211,6 +211,53 @@ BENCHMARK(BM_Scene)
     ->ArgNames({"instances", "budget", "codec", "wall"})
     ->Unit(benchmark::kMillisecond);
 
+// A session's gazes on the room: the focus moves along a circle each iteration; the view's occupancy
+// and transforms are the session's (SceneCache), the instances refined from their roots and encoded
+// (meshopt). Args: instances, budget.
+void BM_SceneGaze(benchmark::State& state) {
+  if (models().empty()) return state.SkipWithError("the shared meshes or build/models are missing");
+  const auto count = static_cast<std::size_t>(state.range(0));
+  const std::vector<core::view::SceneInstance> instances = room(count);
+  core::view::ViewRequest view = room_view(count, static_cast<std::size_t>(state.range(1)));
+  core::codec::EncodeOptions encoding;
+  encoding.codec = core::codec::Codec::kMeshopt;
+  core::view::SceneExtractor extractor;
+  core::view::SceneCache session;
+  core::codec::CutEncoder encoder;
+  std::vector<core::cut::CutMesh> cuts;
+  std::vector<std::uint8_t> payload;
+  StageTimes stages;
+  double triangles = 0;
+  std::size_t step = 0, reused = 0;
+  if (!extractor.extract({view, instances}, cuts, nullptr, &session).ok())
+    return state.SkipWithError("refine");
+  for (auto _ : state) {
+    const float angle = 0.1f * static_cast<float>(++step);
+    view.points[core::view::kGazeCriterion] = {
+        {0.5f + 0.2f * std::cos(angle), 0.5f + 0.2f * std::sin(angle)}};
+    stages.clock = Clock::now();
+    auto stats = extractor.extract({view, instances}, cuts, &stages, &session);
+    reused += session.reused();
+    for (std::size_t i = 0; i < count; ++i) {
+      const core::model::Mt& mt = *instances[i].mt;
+      benchmark::DoNotOptimize(
+          encoder.encode({mt.positions, mt.normals, {}, cuts[i].triangles, {}}, encoding, payload));
+    }
+    triangles = static_cast<double>(stats->triangles);
+  }
+  const auto avg = benchmark::Counter::kAvgIterations;
+  state.counters["transforms_us"] = benchmark::Counter(stages.us[2], avg);
+  state.counters["refine_us"] = benchmark::Counter(stages.us[4], avg);
+  state.counters["triangles"] = triangles;
+  state.counters["reused"] = benchmark::Counter(static_cast<double>(reused), avg);
+  state.counters["session_KiB"] = static_cast<double>(session.memory_bytes()) / 1024.0;
+}
+BENCHMARK(BM_SceneGaze)
+    ->Args({100, 20'000})
+    ->Args({16, 100'000})
+    ->ArgNames({"instances", "budget"})
+    ->Unit(benchmark::kMillisecond);
+
 // The same room as one request per instance, each with the budget's even share (the only split a
 // client without scenes can make) and its own transforms, blind to the others.
 void BM_RequestPerInstance(benchmark::State& state) {

@@ -272,6 +272,37 @@ TEST(SceneExtract, AGazeInASessionGivesTheCutsOfAFreshExtraction) {
   for (std::size_t i = 0; i < instances.size(); ++i) EXPECT_EQ(ids_of(moved[i]), ids_of(expected[i]));
 }
 
+TEST(SceneExtract, ASessionsGazesWithABudgetFillItAsAFreshSearchDoes) {
+  // A gaze starts the budget's search at the session's last threshold: its cuts still fit the
+  // budget, fill it as a fresh search's do, and take fewer passes.
+  const Model& m = sphere();
+  const std::vector<view::SceneInstance> instances{
+      instance(m, glm::translate(glm::mat4(1), glm::vec3(-1.2f, 0, 0))),
+      instance(m, glm::translate(glm::mat4(1), glm::vec3(1.5f, 0, -4))),
+  };
+  view::ViewRequest r = pixel_request(0.25f);
+  r.allowed.criteria[view::kGazeCriterion] = view::RegionLaw{view::FalloffLaw::kStep, 12.0f, 0.1f};
+  r.points[view::kGazeCriterion] = {{0.3f, 0.5f}};
+  view::SceneExtractor x, fresh;
+  view::SceneStats unbounded;
+  extract(fresh, r, instances, &unbounded);
+  r.budget = unbounded.triangles / 3;
+  view::SceneCache session;
+  std::size_t session_passes = 0, fresh_passes = 0;
+  for (int k = 0; k < 6; ++k) {
+    r.points[view::kGazeCriterion] = {{0.3f + 0.03f * static_cast<float>(k), 0.5f}};
+    std::vector<cut::CutMesh> cuts;
+    auto stats = x.extract({r, instances}, cuts, nullptr, &session);
+    ASSERT_TRUE(stats.ok());
+    view::SceneStats alone;
+    extract(fresh, r, instances, &alone);
+    EXPECT_LE(stats->triangles, *r.budget) << "gaze " << k;
+    EXPECT_GE(static_cast<double>(stats->triangles), 0.9 * static_cast<double>(*r.budget)) << "gaze " << k;
+    if (k > 0) session_passes += stats->passes, fresh_passes += alone.passes;
+  }
+  EXPECT_LT(session_passes, fresh_passes);
+}
+
 TEST(SceneExtract, ABudgetBelowTheRootsGetsTheRoots) {
   const Model& m = sphere();
   view::ViewRequest r = pixel_request();
