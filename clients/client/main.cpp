@@ -12,7 +12,7 @@
 #include "CLI/CLI.hpp"
 #include "clients/common/extract_flags.hpp"
 #include "clients/common/retry.hpp"
-#include "clients/common/scene_file.hpp"
+#include "clients/common/scene_view.hpp"
 #include "core/codec/cut_encoder.hpp"
 #include "core/io/gltf.hpp"
 #include "core/io/mesh_io.hpp"
@@ -43,19 +43,14 @@ int fetch_scene(clients::RetryingConnection& c, const std::string& file, clients
                 const std::string& output) {
   auto instances = clients::read_scene_file(file);
   if (!instances) return fail(instances.error().message);
-  auto bounds =
-      clients::scene_bounds(*instances, [&c](const std::string& model) -> Result<protocol::ModelInfoReply> {
-        MTLOD_TRY(const clients::ReplyFrame reply, c.call(protocol::ModelInfo{model}));
-        if (const auto* e = std::get_if<protocol::ErrorReply>(&reply.header.reply))
-          return make_error(ErrorCode::kNotFound,
-                            fmt::format("server error {}: {}", protocol::to_string(e->code), e->message));
-        return std::get<protocol::ModelInfoReply>(reply.header.reply);
-      });
-  if (!bounds) return fail(bounds.error().message);
   clients::apply_default_criteria(flags);
-  auto request = clients::make_scene_extract(flags, std::move(*instances), *bounds);
-  if (!request) return fail(request.error().message);
-  auto reply = c.call(*request, std::chrono::seconds(120));
+  const auto info = [&c](const std::string& model) {
+    return clients::model_info_reply(c.call(protocol::ModelInfo{model}));
+  };
+  auto scene = clients::describe_scene(info, file, *instances, flags);
+  if (!scene) return fail(scene.error().message);
+  const protocol::Extract& request = scene->extract;
+  auto reply = c.call(request, std::chrono::seconds(120));
   if (!reply) return fail(reply.error().message);
   if (is_error(*reply)) return 1;
   const auto& mesh = std::get<protocol::MeshReply>(reply->header.reply);
@@ -89,7 +84,7 @@ int fetch_scene(clients::RetryingConnection& c, const std::string& file, clients
   std::vector<core::io::GlbInstance> nodes;
   for (std::size_t i = 0; i < meshes.size(); ++i)
     nodes.push_back(
-        {&meshes[i], request->instances[i].matrix, fmt::format("{} {}", i, mesh.instances[i].model)});
+        {&meshes[i], request.instances[i].matrix, fmt::format("{} {}", i, mesh.instances[i].model)});
   if (auto saved = core::io::write_glb_scene(output, nodes); !saved) return fail(saved.error().message);
   fmt::print("wrote {}\n", output);
   return 0;

@@ -19,9 +19,16 @@ struct SceneView {
   protocol::Extract extract;  // make_scene_extract: the flags' camera, or one framing `box`
 };
 
-// Asks `connection` for each model of `instances` (model_info, once per model) and makes the scene's
+// A model_info call's reply as the model's description: an error reply becomes an error "code:
+// message".
+Result<protocol::ModelInfoReply> model_info_reply(Result<ReplyFrame> reply);
+
+// Asks for each model of `instances` (`info`: model_info, once per model) and makes the scene's
 // extract from `flags`. `file` names the scene in errors: "FILE: unknown_model: no model named 'x';
 // loaded: ..." for a model the server refuses; a bad flag's error names the flag.
+Result<SceneView> describe_scene(const ModelInfoFn& info, const std::string& file,
+                                 const std::vector<protocol::Instance>& instances, const ExtractFlags& flags);
+// The same over one connection.
 Result<SceneView> describe_scene(ServerConnection& connection, const std::string& file,
                                  const std::vector<protocol::Instance>& instances, const ExtractFlags& flags);
 

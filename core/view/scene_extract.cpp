@@ -26,18 +26,14 @@ constexpr double kClosest = 1.0001;
 // the triangles allowed no error at all are left (a budget below that gets the roots alone).
 constexpr double kLargestThreshold = 1e12;
 
-// Cells [x0, x1) × [y0, y1) of the grid.
-struct CellRect {
-  std::uint32_t x0 = 0, y0 = 0, x1 = 0, y1 = 0;
-  bool empty() const { return x0 >= x1 || y0 >= y1; }
-};
+}  // namespace
 
 // The cells the model's bounding box, placed by the instance's mapping, may cover: empty when all
 // eight corners lie beyond one side of the frustum (clip-space x, y against w, or w ≤ 0 behind);
 // the whole grid when some corner is behind the eye (the box's projection is then unbounded),
 // else the corners' cells with a cell of margin (conservative rasterisation marks a cell a
 // triangle touches).
-CellRect box_cells(const ViewMapping& mapping, const model::Bounds& box) {
+SceneExtractor::CellRect SceneExtractor::box_cells(const ViewMapping& mapping, const model::Bounds& box) {
   const GridSize grid = mapping.grid();
   int left = 0, right = 0, below = 0, above = 0, behind = 0;
   float gx0 = kInfinity, gy0 = kInfinity, gx1 = -kInfinity, gy1 = -kInfinity;
@@ -62,8 +58,6 @@ CellRect box_cells(const ViewMapping& mapping, const model::Bounds& box) {
   return {clamp(std::floor(gx0) - 1.0f, grid.width), clamp(std::floor(gy0) - 1.0f, grid.height),
           clamp(std::floor(gx1) + 2.0f, grid.width), clamp(std::floor(gy1) + 2.0f, grid.height)};
 }
-
-}  // namespace
 
 float SceneExtractor::stretch(const glm::mat4& model) {
   // The largest singular value of the 3×3 part: the square root of AᵀA's largest eigenvalue, by power
@@ -108,15 +102,14 @@ SceneExtractor::PerModel& SceneExtractor::per_model(const model::Mt& mt) {
 void SceneExtractor::map(const SceneRequest& request) {
   const std::size_t n = request.instances.size();
   mappings_.clear();
-  in_view_.assign(n, 0);
   rects_.resize(n);
+  stretches_.resize(n);
   for (std::size_t i = 0; i < n; ++i) {
     Camera camera = request.view.camera;
     camera.model = request.instances[i].model;
     mappings_.emplace_back(camera, request.view.grid);
-    const CellRect cells = box_cells(mappings_.back(), request.instances[i].mt->bounds);
-    in_view_[i] = !cells.empty();
-    rects_[i] = {cells.x0, cells.y0, cells.x1, cells.y1};
+    rects_[i] = box_cells(mappings_.back(), request.instances[i].mt->bounds);
+    stretches_[i] = stretch(camera.model);
   }
 }
 
@@ -129,30 +122,21 @@ void SceneExtractor::occupancy(const SceneRequest& request, SceneStats& stats) {
   instance_occupancy_.resize(cells);
   instance_depth_.resize(cells);
   for (std::size_t i = 0; i < request.instances.size(); ++i) {
-    if (!in_view_[i]) continue;
-    ++stats.instances_in_view;
+    const CellRect& rect = rects_[i];
+    if (rect.empty()) continue;
     const SceneInstance& instance = request.instances[i];
     const ViewMapping& mapping = mappings_[i];
-    // The occupancy cut sized to the cells the instance's bounding sphere covers (as a single
-    // model's, ViewExtractor::covered_cells), its radius stretched by the instance's matrix.
+    // The occupancy cut sized to the cells the instance's bounding sphere covers, its radius
+    // stretched by the instance's matrix.
     const model::Bounds& box = instance.mt->bounds;
-    const std::array<float, 3> centre = box.centre();
-    float clip_w = 0;
-    mapping.map_point(centre[0], centre[1], centre[2], &clip_w);
-    const float radius = box.radius() * stretch(instance.model);
-    double covered = static_cast<double>(cells);
-    if (clip_w > radius) {
-      const double cell = mapping.model_units_per_pixel(clip_w, static_cast<float>(grid.height));
-      covered = std::min(covered, 3.14159265358979 * (radius / cell) * (radius / cell));
-    }
-    const OccupancyLevel& level = instance.levels->for_covered_cells(covered);
+    const OccupancyLevel& level = instance.levels->for_covered_cells(
+        covered_cells(mapping, box.centre(), box.radius() * stretches_[i]));
     // Depths from the cut's own triangles (a hole's cap is not a surface); the nearest wins a cell.
     stats.rasterized += rasterize_occupancy_compact(mapping, level.positions, level.cut_triangles(),
                                                     instance_occupancy_, instance_depth_, projected_);
     // Only the cells the instance's box may cover can hold its surface.
-    const std::array<std::uint32_t, 4>& rect = rects_[i];
-    for (std::uint32_t y = rect[1]; y < rect[3]; ++y) {
-      for (std::uint32_t c = grid.cell(rect[0], y), end = c + (rect[2] - rect[0]); c < end; ++c) {
+    for (std::uint32_t y = rect.y0; y < rect.y1; ++y) {
+      for (std::uint32_t c = grid.cell(rect.x0, y), end = c + (rect.x1 - rect.x0); c < end; ++c) {
         if (!instance_occupancy_[c]) continue;
         occupancy_[c] = 1;
         if (owner_[c] == kNoInstance || instance_depth_[c] < depth_[c]) {
@@ -222,7 +206,7 @@ void SceneExtractor::bind_fields(const SceneRequest& request) {
     const SceneInstance& instance = request.instances[i];
     // The bound holds in the world: a model-space error of e/s moves no point farther than e
     // once stretched at most s times.
-    options.error = bound / stretch(instance.model);
+    options.error = bound / stretches_[i];
     fields_[i].bind(mappings_[i], options,
                     {transforms, instance.mt->positions, instance.mt->normals, visible_depth_});
   }
@@ -304,7 +288,7 @@ Result<SceneStats> SceneExtractor::refine(const SceneRequest& request, std::vect
 
 std::size_t SceneCache::memory_bytes() const {
   auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
-  std::size_t total = bytes(instances_) + bytes(visible_depth_) + bytes(owner_) + bytes(in_view_);
+  std::size_t total = bytes(instances_) + bytes(visible_depth_) + bytes(owner_);
   for (const auto& dt : transforms_.entries) total += bytes(dt);
   for (const Criterion c : kAllCriteria) total += bytes(view_.points[c]);
   return total;
@@ -344,9 +328,7 @@ void SceneExtractor::remember(const SceneRequest& request, const SceneStats& sta
   }
   s.visible_depth_ = visible_depth_;
   s.owner_ = owner_;
-  s.in_view_ = in_view_;
   s.rasterized_ = stats.rasterized;
-  s.instances_in_view_ = stats.instances_in_view;
 }
 
 void SceneExtractor::recall(const SceneCache& s, SceneStats& stats) {
@@ -355,9 +337,7 @@ void SceneExtractor::recall(const SceneCache& s, SceneStats& stats) {
   }
   visible_depth_ = s.visible_depth_;
   owner_ = s.owner_;
-  in_view_ = s.in_view_;
   stats.rasterized = s.rasterized_;
-  stats.instances_in_view = s.instances_in_view_;
 }
 
 Result<SceneStats> SceneExtractor::extract(const SceneRequest& request, std::vector<cut::CutMesh>& cuts,
@@ -368,6 +348,7 @@ Result<SceneStats> SceneExtractor::extract(const SceneRequest& request, std::vec
   };
   SceneStats stats;
   map(request);
+  for (const CellRect& rect : rects_) stats.instances_in_view += !rect.empty();
   finished(Stage::kMap);
   const bool gaze = session != nullptr && same_view(*session, request);
   if (session) session->reused_ = gaze;
@@ -400,7 +381,7 @@ Result<SceneStats> SceneExtractor::extract(const SceneRequest& request, std::vec
 
 std::size_t SceneExtractor::memory_bytes() const {
   auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
-  std::size_t total = bytes(mappings_) + bytes(in_view_) + bytes(rects_) + transformer_.memory_bytes() +
+  std::size_t total = bytes(mappings_) + bytes(rects_) + bytes(stretches_) + transformer_.memory_bytes() +
                       bytes(occupancy_) + bytes(instance_occupancy_) + bytes(seeds_image_) + bytes(depth_) +
                       bytes(instance_depth_) + bytes(visible_depth_) + bytes(owner_) + bytes(cells_) +
                       bytes(projected_);

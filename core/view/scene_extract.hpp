@@ -89,8 +89,7 @@ class SceneCache {
   PerCriterion<std::vector<std::uint16_t>> transforms_;  // of the view, but the gaze criterion's
   std::vector<float> visible_depth_;
   std::vector<std::uint32_t> owner_;
-  std::vector<std::uint8_t> in_view_;
-  std::size_t rasterized_ = 0, instances_in_view_ = 0;
+  std::size_t rasterized_ = 0;
   // The budget's last threshold and the budget: where the next gaze's search starts.
   std::optional<float> threshold_;
   std::optional<std::size_t> threshold_budget_;
@@ -145,9 +144,16 @@ class SceneExtractor {
   PerModel& per_model(const model::Mt& mt);
 
   std::vector<ViewMapping> mappings_;
-  std::vector<AllowedErrorField> fields_;            // one per instance, bound to its mapping
-  std::vector<std::uint8_t> in_view_;                // per instance: its bounding box may meet the view
-  std::vector<std::array<std::uint32_t, 4>> rects_;  // per instance: the cells its box may cover
+  std::vector<AllowedErrorField> fields_;  // one per instance, bound to its mapping
+  // Per instance: the grid cells [x0, x1) × [y0, y1) its placed box may cover (none: out of view),
+  // and its matrix's stretch.
+  struct CellRect {
+    std::uint32_t x0 = 0, y0 = 0, x1 = 0, y1 = 0;
+    bool empty() const { return x0 >= x1 || y0 >= y1; }
+  };
+  static CellRect box_cells(const ViewMapping& mapping, const model::Bounds& box);
+  std::vector<CellRect> rects_;
+  std::vector<float> stretches_;
   std::map<const model::Mt*, std::unique_ptr<PerModel>> models_;
   std::vector<cut::CutMesh> trial_;
   DistanceTransformer transformer_;

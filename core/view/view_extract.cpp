@@ -64,16 +64,19 @@ void ViewExtractor::map(const ViewRequest& request, ViewCache* session) {
   if (session) session->reused_ = incremental_;
 }
 
-double ViewExtractor::covered_cells() const {
-  // The bounding sphere's projected radius in cells at its centre's depth; a centre at or behind
-  // the eye means the model surrounds the camera: the whole grid.
+double covered_cells(const ViewMapping& mapping, const std::array<float, 3>& centre, float radius) {
   float clip_w = 0;
-  mapping_.map_point(centre_[0], centre_[1], centre_[2], &clip_w);
-  const double grid_cells = static_cast<double>(request_->grid.cell_count());
-  if (!(clip_w > radius_)) return grid_cells;
-  const double cell = mapping_.model_units_per_pixel(clip_w, static_cast<float>(request_->grid.height));
-  const double radius_cells = radius_ / cell;
+  mapping.map_point(centre[0], centre[1], centre[2], &clip_w);
+  const GridSize grid = mapping.grid();
+  const double grid_cells = static_cast<double>(grid.cell_count());
+  if (!(clip_w > radius)) return grid_cells;
+  const double cell = mapping.model_units_per_pixel(clip_w, static_cast<float>(grid.height));
+  const double radius_cells = radius / cell;
   return std::min(grid_cells, 3.14159265358979 * radius_cells * radius_cells);
+}
+
+double ViewExtractor::covered_cells() const {
+  return view::covered_cells(mapping_, centre_, radius_);
 }
 
 std::size_t ViewExtractor::occupancy() {

@@ -111,6 +111,11 @@ void criterion_transform(DistanceTransformer& transformer, Criterion c, const Vi
                          std::span<const std::uint8_t> background, std::vector<std::uint32_t>& cells,
                          std::span<std::uint16_t> out);
 
+// Grid cells a bounding sphere (centre in model space, radius in the mapping's world units) covers:
+// its projected disc at the centre's depth, at most the whole grid; the whole grid when the centre
+// is at or behind the eye, inside the sphere. What picks a model's occupancy level.
+double covered_cells(const ViewMapping& mapping, const std::array<float, 3>& centre, float radius);
+
 // The five stages of a request, in the order they run.
 enum class Stage : std::uint8_t { kMap, kOccupancy, kTransforms, kAllowedError, kRefine };
 inline constexpr std::size_t kStageCount = 5;
