@@ -453,9 +453,9 @@ class Refiner {
   Rank previous_threshold_;  // the threshold of the kept cut (unless field_ is kUnknown)
 };
 
-// One-off static refinement (allocates a Refiner).
+// One-off static refinement of an MT held in memory (allocates a Refiner).
 void refine_static(const model::Mt& mt, const AllowedError& allowed, CutMesh& out);
-// One-off budgeted refinement.
+// One-off budgeted refinement of an MT held in memory.
 void refine_budget(const model::Mt& mt, const AllowedError& allowed, std::size_t max_triangles, CutMesh& out);
 
 }  // namespace mtlod::core::cut

@@ -49,7 +49,8 @@ float law_factor(const RegionLaw& law, float distance_px, float tan_per_px) {
 void AllowedErrorField::bind(const ViewMapping& mapping, const AllowedErrorOptions& options,
                              const AllowedErrorInputs& inputs) {
   const std::size_t cells = mapping.grid().cell_count();
-  for (const Criterion c : kAllCriteria) assert(!options.criteria[c] || inputs.transforms[c].size() == cells);
+  for ([[maybe_unused]] const Criterion c : kAllCriteria)
+    assert(!options.criteria[c] || inputs.transforms[c].size() == cells);
   assert(inputs.normals.empty() || inputs.normals.size() == inputs.positions.size());
   assert(inputs.visible_depth.empty() || inputs.visible_depth.size() == cells);
   (void)cells;

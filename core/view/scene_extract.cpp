@@ -15,7 +15,7 @@
 namespace mtlod::core::view {
 namespace {
 
-constexpr float kInfinity = std::numeric_limits<float>::infinity();
+constexpr float kFar = std::numeric_limits<float>::infinity();
 
 // The budget's search stops once the scene's cut fills this much of the budget, or after this many
 // refinements of the whole scene, or when the thresholds it brackets are this close.
@@ -36,7 +36,7 @@ constexpr double kLargestThreshold = 1e12;
 SceneExtractor::CellRect SceneExtractor::box_cells(const ViewMapping& mapping, const model::Bounds& box) {
   const GridSize grid = mapping.grid();
   int left = 0, right = 0, below = 0, above = 0, behind = 0;
-  float gx0 = kInfinity, gy0 = kInfinity, gx1 = -kInfinity, gy1 = -kInfinity;
+  float gx0 = kFar, gy0 = kFar, gx1 = -kFar, gy1 = -kFar;
   for (int k = 0; k < 8; ++k) {
     const float x = (k & 1) ? box.hi[0] : box.lo[0];
     const float y = (k & 2) ? box.hi[1] : box.lo[1];
@@ -117,7 +117,7 @@ void SceneExtractor::occupancy(const SceneRequest& request, SceneStats& stats) {
   const GridSize grid = request.view.grid;
   const std::size_t cells = grid.cell_count();
   occupancy_.assign(cells, 0);
-  depth_.assign(cells, kInfinity);
+  depth_.assign(cells, kFar);
   owner_.assign(cells, kNoInstance);
   instance_occupancy_.resize(cells);
   instance_depth_.resize(cells);
@@ -278,7 +278,7 @@ Result<SceneStats> SceneExtractor::refine(const SceneRequest& request, std::vect
   }
   if (found) return stats;
   // Nothing but the roots is coarse enough (or the triangles allowed no error fill the budget).
-  const cut::Rank roots{1, kInfinity};
+  const cut::Rank roots{1, kFar};
   MTLOD_TRY(total, refine_all(request, roots, SIZE_MAX));
   ++stats.passes;
   take(roots, total);
