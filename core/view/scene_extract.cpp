@@ -59,39 +59,6 @@ SceneExtractor::CellRect SceneExtractor::box_cells(const ViewMapping& mapping, c
           clamp(std::floor(gx1) + 2.0f, grid.width), clamp(std::floor(gy1) + 2.0f, grid.height)};
 }
 
-float SceneExtractor::stretch(const glm::mat4& model) {
-  // The largest singular value of the 3×3 part: the square root of AᵀA's largest eigenvalue, by power
-  // iteration (AᵀA is symmetric and positive semi-definite, so it converges from any start with a
-  // component along that eigenvector; the largest column is one).
-  double a[3][3];
-  for (int c = 0; c < 3; ++c)
-    for (int r = 0; r < 3; ++r) {
-      a[c][r] = model[c][r];
-      if (!std::isfinite(a[c][r])) return 0.0f;
-    }
-  double b[3][3];
-  for (int i = 0; i < 3; ++i)
-    for (int j = 0; j < 3; ++j) b[i][j] = a[i][0] * a[j][0] + a[i][1] * a[j][1] + a[i][2] * a[j][2];
-  int largest = 0;
-  for (int i = 1; i < 3; ++i)
-    if (b[i][i] > b[largest][largest]) largest = i;
-  double v[3] = {b[largest][0], b[largest][1], b[largest][2]};
-  double eigen = 0;
-  for (int step = 0; step < 64; ++step) {
-    const double norm = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
-    if (!(norm > 0)) return 0.0f;
-    const double u[3] = {v[0] / norm, v[1] / norm, v[2] / norm};
-    for (int i = 0; i < 3; ++i) v[i] = b[i][0] * u[0] + b[i][1] * u[1] + b[i][2] * u[2];
-    const double next = u[0] * v[0] + u[1] * v[1] + u[2] * v[2];  // Rayleigh quotient
-    if (std::abs(next - eigen) <= 1e-12 * next) {
-      eigen = next;
-      break;
-    }
-    eigen = next;
-  }
-  return static_cast<float>(std::sqrt(std::max(eigen, 0.0)));
-}
-
 SceneExtractor::PerModel& SceneExtractor::per_model(const model::Mt& mt) {
   std::unique_ptr<PerModel>& entry = models_[&mt];
   if (!entry) entry = std::make_unique<PerModel>(mt);
@@ -103,13 +70,11 @@ void SceneExtractor::map(const SceneRequest& request) {
   const std::size_t n = request.instances.size();
   mappings_.clear();
   rects_.resize(n);
-  stretches_.resize(n);
   for (std::size_t i = 0; i < n; ++i) {
     Camera camera = request.view.camera;
     camera.model = request.instances[i].model;
     mappings_.emplace_back(camera, request.view.grid);
     rects_[i] = box_cells(mappings_.back(), request.instances[i].mt->bounds);
-    stretches_[i] = stretch(camera.model);
   }
 }
 
@@ -126,11 +91,11 @@ void SceneExtractor::occupancy(const SceneRequest& request, SceneStats& stats) {
     if (rect.empty()) continue;
     const SceneInstance& instance = request.instances[i];
     const ViewMapping& mapping = mappings_[i];
-    // The occupancy cut sized to the cells the instance's bounding sphere covers, its radius
-    // stretched by the instance's matrix.
+    // The occupancy cut sized to the cells the instance's bounding sphere covers (the mapping's
+    // pixels are in the instance's model units).
     const model::Bounds& box = instance.mt->bounds;
-    const OccupancyLevel& level = instance.levels->for_covered_cells(
-        covered_cells(mapping, box.centre(), box.radius() * stretches_[i]));
+    const OccupancyLevel& level =
+        instance.levels->for_covered_cells(covered_cells(mapping, box.centre(), box.radius()));
     // Depths from the cut's own triangles (a hole's cap is not a surface); the nearest wins a cell.
     stats.rasterized += rasterize_occupancy_compact(mapping, level.positions, level.cut_triangles(),
                                                     instance_occupancy_, instance_depth_, projected_);
@@ -204,9 +169,10 @@ void SceneExtractor::bind_fields(const SceneRequest& request) {
   fields_.resize(request.instances.size());
   for (std::size_t i = 0; i < request.instances.size(); ++i) {
     const SceneInstance& instance = request.instances[i];
-    // The bound holds in the world: a model-space error of e/s moves no point farther than e
+    // A pixel bound is converted by each instance's mapping, which knows its matrix's stretch. A
+    // bound in units holds in the world: a model-space error of e/s moves no point farther than e
     // once stretched at most s times.
-    options.error = bound / stretches_[i];
+    if (options.units == ErrorUnits::kModel) options.error = bound / largest_stretch(instance.model);
     fields_[i].bind(mappings_[i], options,
                     {transforms, instance.mt->positions, instance.mt->normals, visible_depth_});
   }
@@ -381,8 +347,8 @@ Result<SceneStats> SceneExtractor::extract(const SceneRequest& request, std::vec
 
 std::size_t SceneExtractor::memory_bytes() const {
   auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
-  std::size_t total = bytes(mappings_) + bytes(rects_) + bytes(stretches_) + transformer_.memory_bytes() +
-                      bytes(occupancy_) + bytes(instance_occupancy_) + bytes(seeds_image_) + bytes(depth_) +
+  std::size_t total = bytes(mappings_) + bytes(rects_) + transformer_.memory_bytes() + bytes(occupancy_) +
+                      bytes(instance_occupancy_) + bytes(seeds_image_) + bytes(depth_) +
                       bytes(instance_depth_) + bytes(visible_depth_) + bytes(owner_) + bytes(cells_) +
                       bytes(projected_);
   for (const auto& dt : dt_.entries) total += bytes(dt);

@@ -104,10 +104,6 @@ class SceneExtractor {
   Result<SceneStats> extract(const SceneRequest& request, std::vector<cut::CutMesh>& cuts,
                              StageObserver* observer = nullptr, SceneCache* session = nullptr);
 
-  // The largest factor by which `model` stretches a length (its 3×3 part's largest singular
-  // value); 0 for a matrix that is not finite.
-  static float stretch(const glm::mat4& model);
-
   // After extract: the shared grids, for tools and tests.
   std::span<const std::uint8_t> occupancy_grid() const { return occupancy_; }
   // Per cell: the instance whose surface is nearest, or kNoInstance for background.
@@ -145,15 +141,13 @@ class SceneExtractor {
 
   std::vector<ViewMapping> mappings_;
   std::vector<AllowedErrorField> fields_;  // one per instance, bound to its mapping
-  // Per instance: the grid cells [x0, x1) × [y0, y1) its placed box may cover (none: out of view),
-  // and its matrix's stretch.
+  // Per instance: the grid cells [x0, x1) × [y0, y1) its placed box may cover (none: out of view).
   struct CellRect {
     std::uint32_t x0 = 0, y0 = 0, x1 = 0, y1 = 0;
     bool empty() const { return x0 >= x1 || y0 >= y1; }
   };
   static CellRect box_cells(const ViewMapping& mapping, const model::Bounds& box);
   std::vector<CellRect> rects_;
-  std::vector<float> stretches_;
   std::map<const model::Mt*, std::unique_ptr<PerModel>> models_;
   std::vector<cut::CutMesh> trial_;
   DistanceTransformer transformer_;

@@ -34,6 +34,43 @@ ViewMapping::ViewMapping(const Camera& camera, GridSize grid) : grid_(grid) {
   eye_model_ = perspective ? model_view_inverse * glm::vec4(0.0f, 0.0f, 0.0f, 1.0f)
                            : model_view_inverse * glm::vec4(0.0f, 0.0f, 1.0f, 0.0f);
   if (perspective) eye_model_ /= eye_model_.w;
+  // A rotation's float entries are orthonormal only to rounding: a rigid view of an unscaled model
+  // keeps the exact conversion rather than one off by an ulp.
+  const float stretch = largest_stretch(camera.view * camera.model);
+  if (stretch > 0.0f && std::abs(stretch - 1.0f) > 1e-5f) model_view_stretch_ = stretch;
+}
+
+float largest_stretch(const glm::mat4& m) {
+  // The largest singular value of the 3×3 part: the square root of AᵀA's largest eigenvalue, by power
+  // iteration (AᵀA is symmetric and positive semi-definite, so it converges from any start with a
+  // component along that eigenvector; the largest column is one).
+  double a[3][3];
+  for (int c = 0; c < 3; ++c)
+    for (int r = 0; r < 3; ++r) {
+      a[c][r] = m[c][r];
+      if (!std::isfinite(a[c][r])) return 0.0f;
+    }
+  double b[3][3];
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) b[i][j] = a[i][0] * a[j][0] + a[i][1] * a[j][1] + a[i][2] * a[j][2];
+  int largest = 0;
+  for (int i = 1; i < 3; ++i)
+    if (b[i][i] > b[largest][largest]) largest = i;
+  double v[3] = {b[largest][0], b[largest][1], b[largest][2]};
+  double eigen = 0;
+  for (int step = 0; step < 64; ++step) {
+    const double norm = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+    if (!(norm > 0)) return 0.0f;
+    const double u[3] = {v[0] / norm, v[1] / norm, v[2] / norm};
+    for (int i = 0; i < 3; ++i) v[i] = b[i][0] * u[0] + b[i][1] * u[1] + b[i][2] * u[2];
+    const double next = u[0] * v[0] + u[1] * v[1] + u[2] * v[2];  // Rayleigh quotient
+    if (std::abs(next - eigen) <= 1e-12 * next) {
+      eigen = next;
+      break;
+    }
+    eigen = next;
+  }
+  return static_cast<float>(std::sqrt(std::max(eigen, 0.0)));
 }
 
 void map_vertices(const ViewMapping& mapping, std::span<const float> positions,

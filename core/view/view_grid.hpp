@@ -75,11 +75,15 @@ class ViewMapping {
   }
 
   // Size in model units of one pixel of a viewport viewport_height_px pixels tall, at a point whose
-  // clip.w is clip_w: 2·clip_w / (H·P[1][1]). For glm::perspective this is 2·depth·tan(fovy/2)/H; for
-  // glm::ortho (clip_w = 1) it is (top − bottom)/H. Requires clip_w > 0.
+  // clip.w is clip_w: 2·clip_w / (H·P[1][1]·s), s being how far V·M stretches a length at most. For
+  // glm::perspective this is 2·depth·tan(fovy/2)/(H·s); for glm::ortho (clip_w = 1) it is
+  // (top − bottom)/(H·s). A model placed by a scaling matrix (in `model`, or folded into `view` by a
+  // client) is held to the pixel bound on the screen, not in its own units. Requires clip_w > 0.
   float model_units_per_pixel(float clip_w, float viewport_height_px) const {
-    return 2.0f * clip_w / (viewport_height_px * projection_y_scale_);
+    return 2.0f * clip_w / (viewport_height_px * projection_y_scale_ * model_view_stretch_);
   }
+  // s above: 1 for a rigid view of an unscaled model.
+  float model_view_stretch() const { return model_view_stretch_; }
   // P[1][1]: 1/tan(fovy/2) for glm::perspective.
   float projection_y_scale() const { return projection_y_scale_; }
   // The eye in model space as a homogeneous point: (eye, 1) for a perspective camera, (direction
@@ -94,8 +98,13 @@ class ViewMapping {
   float width_f_ = 0.0f;
   float height_f_ = 0.0f;
   float projection_y_scale_ = 1.0f;
+  float model_view_stretch_ = 1.0f;
   glm::vec4 eye_model_{0.0f, 0.0f, 1.0f, 0.0f};
 };
+
+// The largest factor by which `m` stretches a length: its 3×3 part's largest singular value; 0 when
+// an entry is not finite.
+float largest_stretch(const glm::mat4& m);
 
 // Maps every vertex: cells[v] = its cell or kNoCell, clip_w[v] = its clip.w (the depth used to turn a
 // pixel error into model units). positions holds x, y, z per vertex; cells and clip_w hold

@@ -99,20 +99,6 @@ TEST(SceneExtract, OneInstanceIsTheSingleModelCut) {
   }
 }
 
-TEST(SceneExtract, StretchIsTheLargestSingularValue) {
-  EXPECT_NEAR(view::SceneExtractor::stretch(glm::mat4(1)), 1.0f, 1e-6f);
-  const glm::mat4 rotation = glm::rotate(glm::mat4(1), 1.1f, glm::vec3(1, 2, 3));
-  EXPECT_NEAR(view::SceneExtractor::stretch(glm::translate(rotation, glm::vec3(5, 6, 7))), 1.0f, 1e-5f);
-  EXPECT_NEAR(view::SceneExtractor::stretch(glm::scale(rotation, glm::vec3(3))), 3.0f, 1e-5f);
-  // Non-uniform: a rotation on each side leaves the singular values (1, 5, 2).
-  const glm::mat4 skewed = glm::rotate(glm::mat4(1), -0.4f, glm::vec3(0, 1, 1)) *
-                           glm::scale(glm::mat4(1), glm::vec3(1, 5, 2)) * rotation;
-  EXPECT_NEAR(view::SceneExtractor::stretch(skewed), 5.0f, 1e-4f);
-  glm::mat4 broken(1);
-  broken[1][2] = std::nanf("");
-  EXPECT_EQ(view::SceneExtractor::stretch(broken), 0.0f);
-}
-
 TEST(SceneExtract, AScaledInstanceKeepsAModelUnitBoundInTheWorld) {
   // No criteria and nothing outside the view: every vertex is allowed e / s, so the cut is the
   // MT's uniform cut at e / s.

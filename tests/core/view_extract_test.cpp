@@ -296,6 +296,42 @@ TEST(ViewExtract, ScreenEdgeCoarsensWithinItsDistanceOfTheBorder) {
   EXPECT_GT(far, 0u);
 }
 
+TEST(ViewExtract, APixelBoundHoldsOnTheScreenForAScaledModel) {
+  // The same picture two ways: the model as it is, and the model scaled x4 by its matrix seen from
+  // 4 times as far (near and far planes too). Each vertex lands on the same pixel at 4 times the
+  // clip.w, and a pixel spans 1/4 of the scaled model's units there: the allowed errors, in the
+  // model's own units, are the plain ones.
+  eval::GenerateOptions o;
+  o.target_triangles = 2000;
+  auto b = build(eval::generate_mesh(o));
+  ASSERT_NE(b, nullptr);
+  view::ViewRequest plain;
+  plain.camera = camera_along(b->input.positions, glm::vec3(0.3f, 0.2f, 1.0f), 1.0f);
+  plain.grid = {64, 64};
+  plain.allowed.error = 0.5f;
+  plain.allowed.units = view::ErrorUnits::kScreenPixels;
+  view::ViewRequest scaled = plain;
+  constexpr float kScale = 4.0f;
+  const glm::mat4 grow = glm::scale(glm::mat4(1), glm::vec3(kScale));
+  scaled.camera.model = grow;
+  scaled.camera.view = grow * plain.camera.view * glm::inverse(grow);  // the eye and target x4
+  // The plain camera's near and far planes, both x4.
+  const float p22 = plain.camera.projection[2][2], p32 = plain.camera.projection[3][2];
+  const float near = p32 / (p22 - 1.0f), far = p32 / (p22 + 1.0f);
+  scaled.camera.projection = glm::perspective(glm::radians(45.0f), 1.0f, kScale * near, kScale * far);
+  view::ViewExtractor x(b->mt, *b->levels), y(b->mt, *b->levels);
+  const std::span<const float> expected = x.allowed_error_field(plain);
+  const std::span<const float> got = y.allowed_error_field(scaled);
+  ASSERT_EQ(got.size(), expected.size());
+  std::size_t compared = 0;
+  for (std::size_t v = 0; v < got.size(); ++v) {
+    if (!std::isfinite(expected[v]) || !(expected[v] > 0.0f)) continue;
+    ASSERT_NEAR(got[v] / expected[v], 1.0f, 1e-3f) << "vertex " << v;
+    ++compared;
+  }
+  EXPECT_GT(compared, b->mt.vertex_count() / 2);
+}
+
 // Sorted triangles (each rotated to start at its smallest id) of a cut: its set, in any order.
 std::vector<std::array<std::uint32_t, 3>> triangle_set(const cut::CutMesh& cut) {
   std::vector<std::array<std::uint32_t, 3>> out;

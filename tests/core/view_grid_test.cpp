@@ -122,6 +122,41 @@ TEST(ViewMapping, PixelSizeInModelUnitsFollowsDepthAndFieldOfView) {
   EXPECT_EQ(ortho_mapping().model_units_per_pixel(1.0f, 8.0f), 0.5f);
 }
 
+TEST(ViewMapping, LargestStretchIsTheLargestSingularValue) {
+  EXPECT_NEAR(view::largest_stretch(glm::mat4(1)), 1.0f, 1e-6f);
+  const glm::mat4 rotation = glm::rotate(glm::mat4(1), 1.1f, glm::vec3(1, 2, 3));
+  EXPECT_NEAR(view::largest_stretch(glm::translate(rotation, glm::vec3(5, 6, 7))), 1.0f, 1e-5f);
+  EXPECT_NEAR(view::largest_stretch(glm::scale(rotation, glm::vec3(3))), 3.0f, 1e-5f);
+  // Non-uniform: a rotation on each side leaves the singular values (1, 5, 2).
+  const glm::mat4 skewed = glm::rotate(glm::mat4(1), -0.4f, glm::vec3(0, 1, 1)) *
+                           glm::scale(glm::mat4(1), glm::vec3(1, 5, 2)) * rotation;
+  EXPECT_NEAR(view::largest_stretch(skewed), 5.0f, 1e-4f);
+  glm::mat4 broken(1);
+  broken[1][2] = std::nanf("");
+  EXPECT_EQ(view::largest_stretch(broken), 0.0f);
+}
+
+TEST(ViewMapping, PixelSizeIsInTheModelsUnitsUnderAScalingMatrix) {
+  // The 90° camera's pixel at depth 5 on a 10 px viewport spans 1 eye unit; a model scaled ×4 by its
+  // matrix (or by a view that folds the model matrix in) has 4 of its units in each eye unit.
+  const view::ViewMapping plain = perspective_mapping();
+  for (const bool in_view : {false, true}) {
+    view::Camera camera;
+    camera.view = glm::lookAt(glm::vec3(0, 0, 0), glm::vec3(0, 0, -1), glm::vec3(0, 1, 0));
+    camera.projection = glm::perspective(glm::radians(90.0f), 1.0f, 0.1f, 100.0f);
+    const glm::mat4 scale = glm::scale(glm::rotate(glm::mat4(1), 0.7f, glm::vec3(0, 1, 0)), glm::vec3(4.0f));
+    if (in_view)
+      camera.view = camera.view * scale;
+    else
+      camera.model = scale;
+    const view::ViewMapping scaled(camera, view::GridSize{10, 10});
+    EXPECT_NEAR(scaled.model_view_stretch(), 4.0f, 1e-5f);
+    EXPECT_NEAR(scaled.model_units_per_pixel(5.0f, 10.0f), 0.25f, 1e-6f);
+  }
+  // A rigid view keeps the exact conversion.
+  EXPECT_EQ(plain.model_view_stretch(), 1.0f);
+}
+
 TEST(ViewMapping, EyeInModelSpace) {
   // Tolerance: the eye comes out of a float matrix inverse (relative error ~1e-6).
   view::Camera camera;
