@@ -67,6 +67,31 @@ const char* reply_type_for(const protocol::Request& request) {
   fail(fmt::format("no reply type is known for request type '{}'", type));
 }
 
+// The errors a request that parses may still get: the ones its session, the server's state or the
+// model can cause (limits in flight and in memory, a cancel, a newer gaze, a drain, a missing token, an
+// unknown model or one being rewritten, a codec or colours the model cannot give). Never `internal`,
+// and never one about the request's own bytes (bad_frame, bad_json, unknown_type...), which parsing
+// would have found.
+bool session_error(std::string_view reply_type, protocol::ErrorKind error) {
+  using protocol::ErrorKind;
+  switch (error) {
+    case ErrorKind::kShuttingDown:
+    case ErrorKind::kUnauthorized:
+      return true;
+    case ErrorKind::kUnknownModel:
+      return reply_type == "mesh" || reply_type == "model_info";
+    case ErrorKind::kLimitExceeded:
+    case ErrorKind::kNoView:
+    case ErrorKind::kCancelled:
+    case ErrorKind::kSuperseded:
+    case ErrorKind::kUnavailable:
+    case ErrorKind::kBadRequest:
+      return reply_type == "mesh";
+    default:
+      return false;
+  }
+}
+
 std::string id_text(std::optional<std::uint64_t> id) {
   return id ? std::to_string(*id) : "none";
 }
@@ -226,11 +251,9 @@ void Transcript::check_complete() const {
       fail(fmt::format("reply {} has id {}; its request has id {}", i, id_text(written.id),
                        id_text(expected.id)));
     }
-    // A valid request gets its reply type or an error of the session (limits, cancel, drain...),
-    // never one about its own bytes.
+    // A valid request gets its reply type or an error its session can cause (session_error).
     const bool ok = expected.error  ? written.error == expected.error
-                    : written.error ? *written.error != protocol::ErrorKind::kBadFrame &&
-                                          *written.error != protocol::ErrorKind::kBadJson
+                    : written.error ? session_error(expected.reply_type, *written.error)
                                     : std::string_view(written.type) == expected.reply_type;
     if (!ok) {
       fail(fmt::format("reply {} is {}; its request wants {}", i, outcome_text(written.type, written.error),
