@@ -59,6 +59,7 @@ const state = {
   neglect: [0.5, 0.5],   // the neglect region's point: where the last shift-click was
   models: [],            // the server's models, as list_models names them
   scene: null,           // the scene shown: {name, instances: [{model, matrix}], lo, hi (its world box)}; null: one model
+  maxInFlight: 1,        // requests the server takes unanswered from this connection (hello's limits)
   errors: [],
 };
 window.mtlod = state;
@@ -229,6 +230,17 @@ function extractRequest() {
 // Sends what the user asked for last: a new view wins over a gaze (it carries the focus too).
 function pump() {
   if (inFlight || !state.connected || !(state.model || state.scene)) return;
+  if (perInstance() && (wantExtract || wantGaze)) {
+    sentScene = state.scene;
+    wantExtract = false;
+    wantGaze = null;
+    inFlight = true;
+    sendPerInstance().then(showReply).finally(() => {
+      inFlight = false;
+      pump();
+    });
+    return;
+  }
   let request;
   if (wantExtract) {
     request = extractRequest();
@@ -246,6 +258,57 @@ function pump() {
     inFlight = false;
     pump();
   });
+}
+
+// A scene as a client without scene requests fetches it, to compare with one scene request on the
+// same page: one extract per instance, its camera's view taking the instance's matrix in (the server
+// holds the pixel bound on the screen whatever the matrix scales), the budget split evenly, and whole
+// meshes (a connection keeps one delta state per model, and models repeat). Each request sees its
+// instance alone: no silhouettes where instances meet, nothing hidden by another. A pointer move asks
+// for every instance again, as a gaze cannot name them.
+function perInstance() {
+  return state.scene !== null && $('scene-requests').value === 'instances';
+}
+
+// The replies joined as one scene reply (the instances' payloads one after the other), which
+// showReply draws as it draws the server's; the first error, if any, instead.
+async function sendPerInstance() {
+  const request = extractRequest();
+  delete request.scene;
+  delete request.delta;
+  const view = new THREE.Matrix4().fromArray(request.camera.view);
+  const instances = sentScene.instances;
+  const requestFor = (instance) => {
+    const own = structuredClone(request);
+    own.model = instance.model;
+    own.camera.view = Array.from(view.clone().multiply(new THREE.Matrix4().fromArray(instance.matrix)).elements);
+    if (request.budget) own.budget = Math.max(1, Math.floor(request.budget / instances.length));
+    return own;
+  };
+  // No more unanswered at once than the server takes from a connection (hello's limits).
+  const replies = new Array(instances.length);
+  let next = 0;
+  const lanes = Math.min(instances.length, Math.max(1, state.maxInFlight));
+  await Promise.all(Array.from({ length: lanes }, async () => {
+    while (next < instances.length) {
+      const i = next++;
+      replies[i] = await send(requestFor(instances[i]));
+    }
+  }));
+  const failed = replies.find(({ json }) => json.type !== 'mesh');
+  if (failed) return failed;
+  const sum = (key) => replies.reduce((total, { json }) => total + json[key], 0);
+  const payload = new Uint8Array(sum('bytes'));
+  let at = 0;
+  for (const { payload: part } of replies) {
+    payload.set(new Uint8Array(part), at);
+    at += part.byteLength;
+  }
+  const json = { type: 'mesh', codec: replies[0].json.codec, triangles: sum('triangles'), vertices: sum('vertices'),
+                 bytes: payload.byteLength, requests: replies.length,
+                 timings_us: { total: Math.max(...replies.map(({ json: j }) => j.timings_us.total)) },
+                 instances: replies.map(({ json: j }) => ({ model: j.model, triangles: j.triangles, bytes: j.bytes })) };
+  return { json, payload: payload.buffer, latencyMs: Math.max(...replies.map((r) => r.latencyMs)) };
 }
 
 // Labels come in Draco payloads only: the checkbox is off limits for other codecs.
@@ -475,7 +538,8 @@ async function showReply({ json, payload, latencyMs }) {
   $('meshes').textContent = String(state.meshes);
   if (placed) {
     // Under a budget too small for even the coarsest meshes of every instance, those are what is shown.
-    setStatus(`ok: scene ${sentScene.name}${json.within_budget === false ? ', over the budget at its coarsest' : ''}`);
+    const how = json.requests ? `, ${json.requests} requests` : '';
+    setStatus(`ok: scene ${sentScene.name}${how}${json.within_budget === false ? ', over the budget at its coarsest' : ''}`);
   } else {
     // The model's file changed on the server: this cut comes from its new version.
     setStatus(json.model_changed ? `ok: ${state.model} was updated (version ${json.model_version})` : 'ok');
@@ -626,7 +690,8 @@ renderer.domElement.addEventListener('pointerdown', (event) => {
   if ($('neglect').checked) requestExtract();
 });
 const criteriaControls = CRITERIA.flatMap((c) => [c.name, `${c.name}-distance`, `${c.name}-factor`]);
-for (const id of ['error', 'budget', ...criteriaControls, 'falloff', 'hidden-factor', 'labels', 'delta', 'codec']) {
+for (const id of ['error', 'budget', ...criteriaControls, 'falloff', 'hidden-factor', 'labels', 'delta', 'codec',
+                  'scene-requests']) {
   $(id).addEventListener('change', requestExtract);
 }
 $('codec').addEventListener('change', () => {
@@ -677,7 +742,8 @@ function connect() {
   ws.onopen = async () => {
     opened = true;
     state.connected = true;
-    await send({ type: 'hello', version: 1, client: 'mtlod-viewer/0.1' });
+    const hello = await send({ type: 'hello', version: 1, client: 'mtlod-viewer/0.1' });
+    state.maxInFlight = hello.json.limits?.max_in_flight ?? 1;
     const { json } = await send({ type: 'list_models' });
     state.models = json.models.map((m) => m.name);
     const select = $('model');

@@ -24,10 +24,11 @@
 //
 // --smoke: a check, not a study (the ctest entry): two settings, one level, 640×360; exits 1 unless
 // every score is finite and the default is within 1.2× of the best setting at its bytes.
-import { execFileSync, spawn } from 'node:child_process';
+import { execFileSync } from 'node:child_process';
 import fs from 'node:fs';
 import path from 'node:path';
-import { chromium, chromiumArgs, chromiumOrSkip, parseArgs, root, sleep, waitForHttpPort } from '../clients/browser_support.mjs';
+import { chromium, chromiumArgs, chromiumOrSkip, parseArgs, root } from '../clients/browser_support.mjs';
+import { capture, extract, score as scoreFile, startStudyServer } from './study_page.mjs';
 import { analyse, writeReport } from './viewer_study_report.mjs';
 
 const smoke = process.argv.includes('--smoke'), reportOnly = process.argv.includes('--report-only');
@@ -41,7 +42,6 @@ const cacheDir = args['cache-dir'] ?? path.join(root, 'build/eval-cache');
 // The smoke run draws smaller pictures: it checks the machinery, within a test's time.
 const size = { width: Number(args.width ?? (smoke ? 640 : 1280)), height: Number(args.height ?? (smoke ? 360 : 720)) };
 const kFovDeg = 40;  // mtlod-eval's orbit cameras (clients/tools/eval/support.hpp, kOrbitFovDeg)
-const kBackground = '202428';  // the page's scene.background
 const kByteTolerance = 0.03;
 fs.mkdirSync(args.work, { recursive: true });
 // A setting is the panel's controls (index.html ids); `error` is searched, so left out here.
@@ -87,22 +87,6 @@ if (missing.length) {
   process.exit(77);
 }
 
-// The server on OS-chosen ports, serving every mesh (MTs built into the cache on first use).
-async function startServer() {
-  const portFile = path.join(args.work, 'ports');
-  fs.rmSync(portFile, { force: true });
-  const log = fs.openSync(path.join(args.work, 'server.log'), 'w');
-  const server = spawn(args.server, [...meshes.flatMap((m) => ['--mesh', m]), '--cache-dir', cacheDir, '--port', '0',
-                                     '--http-port', '0', '--port-file', portFile, '--web-root', args['web-root'] ?? root,
-                                     '--log-level', 'warn'], { stdio: ['ignore', log, log] });
-  let exited = null;
-  server.on('exit', (code, signal) => { exited = { code, signal }; });
-  const httpPort = await waitForHttpPort(portFile, () => !exited, 6000);
-  if (httpPort) return { server, httpPort };
-  server.kill('SIGKILL');
-  throw new Error(`the server did not start: ${JSON.stringify(exited)} (see ${args.work}/server.log)`);
-}
-
 // Camera k of n as mtlod-eval's orbit_camera: azimuth k·360°/n, elevation +25° and −10° in turn, the
 // bounding sphere filling 90 % of the field of view.
 function orbitCamera(bounds, k, n) {
@@ -114,36 +98,7 @@ function orbitCamera(bounds, k, n) {
   return { eye: centre.map((c, a) => c + distance * dir[a]), target: centre, fov: kFovDeg };
 }
 
-// Sets the panel's controls as a user would (a change event each, which asks for a new view), then
-// waits until the page has shown the reply to the last request.
-async function extract(page, controls) {
-  const before = await page.evaluate(() => window.mtlod.meshes);
-  await page.evaluate((c) => {
-    for (const [id, value] of Object.entries(c)) {
-      const input = document.getElementById(id);
-      if (input.type === 'checkbox') input.checked = value;
-      else input.value = String(value);
-      input.dispatchEvent(new Event('change'));
-    }
-  }, controls);
-  await page.waitForFunction((n) => window.mtlod.idle() && window.mtlod.meshes > n, before, { timeout: 300_000 });
-  const reply = await page.evaluate(() => window.mtlod.lastReply);
-  if (reply.type !== 'mesh') throw new Error(`no mesh: ${JSON.stringify(reply)}`);
-  return reply;
-}
-
-// The picture as shown: two frames after the mesh arrived, panel and overlay hidden.
-async function capture(page, file) {
-  await page.evaluate(() => new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(r))));
-  // A loaded machine can hold a software-GL frame back for long: wait, as for the replies.
-  await page.screenshot({ path: file, timeout: 300_000 });
-}
-
-function score(reference, candidate, focus) {
-  const out = execFileSync(args.eval, ['score', reference, candidate, '--fov', String(kFovDeg), '--background', kBackground,
-                                       ...(focus ? ['--focus', focus.join(',')] : [])], { encoding: 'utf8' });
-  return JSON.parse(out);
-}
+const score = (reference, candidate, focus) => scoreFile(args.eval, reference, candidate, kFovDeg, focus);
 
 // The setting's cut whose payload is within kByteTolerance of targetBytes: secant steps on log(bytes)
 // against log(error px), starting from bytes ∝ 1/px; the closest try when none gets there.
@@ -292,7 +247,8 @@ const readWork = (file, fallback) => (resume && fs.existsSync(path.join(args.wor
 const records = readWork('records.json', []);
 const startedAt = Date.now(), earlierSeconds = readWork('progress.json', { seconds: 0 }).seconds;
 const elapsed = () => earlierSeconds + (Date.now() - startedAt) / 1000;
-const { server, httpPort } = await startServer();
+const { server, httpPort } = await startStudyServer({ binary: args.server, meshes, work: args.work, cacheDir,
+                                                     webRoot: args['web-root'] });
 const browser = await chromium.launch({
   executablePath: chromiumPath,
   args: chromiumArgs,
