@@ -582,6 +582,7 @@ async function selectModel(name) {
   if (json.type !== 'model_info') return setStatus(`model_info: ${json.message}`, true);
   state.model = name;
   state.scene = null;
+  $('scene-requests-row').hidden = true;
   showCodec();
   state.colors = json.colors === true;
   const lo = new THREE.Vector3(...json.bounds_min), hi = new THREE.Vector3(...json.bounds_max);
@@ -607,6 +608,7 @@ async function selectScene(name) {
     box.union(placed.applyMatrix4(new THREE.Matrix4().fromArray(instance.matrix)));
   }
   state.scene = { name, instances, lo: box.min, hi: box.max };
+  $('scene-requests-row').hidden = false;  // how the scene is asked for: only a scene has the choice
   showCodec();
   frame(box.min, box.max, new THREE.Vector3(0, 0.6, 1), true);
   wantExtract = true;
