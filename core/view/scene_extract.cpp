@@ -167,6 +167,7 @@ void SceneExtractor::bind_fields(const SceneRequest& request) {
   }
   const float bound = options.error;
   fields_.resize(request.instances.size());
+  hidden_whole_.assign(request.instances.size(), 0);
   for (std::size_t i = 0; i < request.instances.size(); ++i) {
     const SceneInstance& instance = request.instances[i];
     // A pixel bound is converted by each instance's mapping, which knows its matrix's stretch. A
@@ -175,7 +176,22 @@ void SceneExtractor::bind_fields(const SceneRequest& request) {
     if (options.units == ErrorUnits::kModel) options.error = bound / largest_stretch(instance.model);
     fields_[i].bind(mappings_[i], options,
                     {transforms, instance.mt->positions, instance.mt->normals, visible_depth_});
+    // With hidden surfaces coarsened, an instance in view that no cell of the picture shows is
+    // hidden whole by others: its coarsest cut. (Near an occluder's outline the per-vertex test
+    // keeps detail, as a cell next to the background is never behind the surface.)
+    hidden_whole_[i] = request.view.allowed.hidden_factor != 1.0f && !shows(request.view.grid, i);
   }
+}
+
+bool SceneExtractor::shows(GridSize grid, std::size_t i) const {
+  const CellRect& rect = rects_[i];
+  if (rect.empty()) return true;  // out of view: the frustum factor's business
+  for (std::uint32_t y = rect.y0; y < rect.y1; ++y) {
+    for (std::uint32_t c = grid.cell(rect.x0, y), end = c + (rect.x1 - rect.x0); c < end; ++c) {
+      if (owner_[c] == i) return true;
+    }
+  }
+  return false;
 }
 
 Result<std::size_t> SceneExtractor::refine_all(const SceneRequest& request, cut::Rank threshold,
@@ -185,7 +201,7 @@ Result<std::size_t> SceneExtractor::refine_all(const SceneRequest& request, cut:
   for (std::size_t i = 0; i < request.instances.size(); ++i) {
     PerModel& model = per_model(*request.instances[i].mt);
     cut::Refinement what = cut::Refinement::from_root(fields_[i], model.field);
-    what.allowed.threshold = threshold;
+    what.allowed.threshold = hidden_whole_[i] ? cut::Rank{1, kFar} : threshold;
     MTLOD_RETURN_IF_ERROR(model.refiner.refine(what, trial_[i]));
     total += trial_[i].triangle_count();
     if (total > stop_above) break;
@@ -347,8 +363,8 @@ Result<SceneStats> SceneExtractor::extract(const SceneRequest& request, std::vec
 
 std::size_t SceneExtractor::memory_bytes() const {
   auto bytes = [](const auto& v) { return v.capacity() * sizeof(v[0]); };
-  std::size_t total = bytes(mappings_) + bytes(rects_) + transformer_.memory_bytes() + bytes(occupancy_) +
-                      bytes(instance_occupancy_) + bytes(seeds_image_) + bytes(depth_) +
+  std::size_t total = bytes(mappings_) + bytes(rects_) + bytes(hidden_whole_) + transformer_.memory_bytes() +
+                      bytes(occupancy_) + bytes(instance_occupancy_) + bytes(seeds_image_) + bytes(depth_) +
                       bytes(instance_depth_) + bytes(visible_depth_) + bytes(owner_) + bytes(cells_) +
                       bytes(projected_);
   for (const auto& dt : dt_.entries) total += bytes(dt);

@@ -146,6 +146,25 @@ TEST(SceneExtract, AnInstanceHiddenBehindAnotherStaysAtItsRoot) {
   EXPECT_GT(cuts[1].triangle_count(), 2 * root);
 }
 
+TEST(SceneExtract, AnInstanceHiddenJustInsideAnOutlineCostsItsRoot) {
+  // A unit sphere at the origin hides a sphere four units behind it whose outline falls a few cells
+  // inside its own (95 % of its apparent radius, about 50 cells on this grid): cells there are next
+  // to none of the background, and still the hidden instance is at its coarsest cut.
+  const Model& m = sphere();
+  const std::size_t root = m.built->mt.root_triangle_count();
+  const float tan_front = 1.0f / std::sqrt(35.0f);  // the front sphere's apparent radius from z = 6
+  const float t = 0.95f * tan_front, back_radius = 10.0f * t / std::sqrt(1.0f + t * t);
+  const glm::mat4 back =
+      glm::scale(glm::translate(glm::mat4(1), glm::vec3(0, 0, -4)), glm::vec3(back_radius));
+  view::ViewRequest r = pixel_request(0.5f);
+  r.allowed.hidden_factor = 16.0f;
+  view::SceneExtractor x;
+  auto cuts = extract(x, r, {instance(m, glm::mat4(1)), instance(m, back)});
+  for (const std::uint32_t owner : x.instance_grid()) ASSERT_NE(owner, 1u);
+  EXPECT_GT(cuts[0].triangle_count(), 10 * root);
+  EXPECT_EQ(cuts[1].triangle_count(), root);
+}
+
 TEST(SceneExtract, AnInstanceOutsideTheViewIsNotRasterisedAndStaysAtItsRoot) {
   const Model& m = sphere();
   view::ViewRequest r = pixel_request();
