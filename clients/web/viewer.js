@@ -230,31 +230,21 @@ function extractRequest() {
 // Sends what the user asked for last: a new view wins over a gaze (it carries the focus too).
 function pump() {
   if (inFlight || !state.connected || !(state.model || state.scene)) return;
-  if (perInstance() && (wantExtract || wantGaze)) {
+  let sending;
+  // Requests per instance cannot be gazed at: a pointer move asks for every instance again.
+  if (wantExtract || (wantGaze && perInstance())) {
     sentScene = state.scene;
-    wantExtract = false;
-    wantGaze = null;
-    inFlight = true;
-    sendPerInstance().then(showReply).finally(() => {
-      inFlight = false;
-      pump();
-    });
-    return;
-  }
-  let request;
-  if (wantExtract) {
-    request = extractRequest();
-    sentScene = state.scene;
+    sending = perInstance() ? sendPerInstance() : send(extractRequest());
     wantExtract = false;
     wantGaze = null;
   } else if (wantGaze) {
-    request = { type: 'gaze', x: wantGaze[0], y: wantGaze[1] };
+    sending = send({ type: 'gaze', x: wantGaze[0], y: wantGaze[1] });
     wantGaze = null;
   } else {
     return;
   }
   inFlight = true;
-  send(request).then(showReply).finally(() => {
+  sending.then(showReply).finally(() => {
     inFlight = false;
     pump();
   });
@@ -264,8 +254,7 @@ function pump() {
 // same page: one extract per instance, its camera's view taking the instance's matrix in (the server
 // holds the pixel bound on the screen whatever the matrix scales), the budget split evenly, and whole
 // meshes (a connection keeps one delta state per model, and models repeat). Each request sees its
-// instance alone: no silhouettes where instances meet, nothing hidden by another. A pointer move asks
-// for every instance again, as a gaze cannot name them.
+// instance alone: no silhouettes where instances meet, nothing hidden by another.
 function perInstance() {
   return state.scene !== null && $('scene-requests').value === 'instances';
 }

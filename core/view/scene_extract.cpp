@@ -167,7 +167,16 @@ void SceneExtractor::bind_fields(const SceneRequest& request) {
   }
   const float bound = options.error;
   fields_.resize(request.instances.size());
+  // With hidden surfaces coarsened, an instance in view that no cell of the picture shows is hidden
+  // whole by others: its coarsest cut. (Near an occluder's outline the per-vertex test keeps detail,
+  // as a cell next to the background is never behind the surface.) Out of view is the frustum
+  // factor's business.
+  const bool hiding = request.view.allowed.hidden_factor != 1.0f;
   hidden_whole_.assign(request.instances.size(), 0);
+  for (std::size_t i = 0; i < request.instances.size(); ++i) hidden_whole_[i] = hiding && !rects_[i].empty();
+  for (const std::uint32_t owner : owner_) {
+    if (owner != kNoInstance) hidden_whole_[owner] = 0;
+  }
   for (std::size_t i = 0; i < request.instances.size(); ++i) {
     const SceneInstance& instance = request.instances[i];
     // A pixel bound is converted by each instance's mapping, which knows its matrix's stretch. A
@@ -176,22 +185,7 @@ void SceneExtractor::bind_fields(const SceneRequest& request) {
     if (options.units == ErrorUnits::kModel) options.error = bound / largest_stretch(instance.model);
     fields_[i].bind(mappings_[i], options,
                     {transforms, instance.mt->positions, instance.mt->normals, visible_depth_});
-    // With hidden surfaces coarsened, an instance in view that no cell of the picture shows is
-    // hidden whole by others: its coarsest cut. (Near an occluder's outline the per-vertex test
-    // keeps detail, as a cell next to the background is never behind the surface.)
-    hidden_whole_[i] = request.view.allowed.hidden_factor != 1.0f && !shows(request.view.grid, i);
   }
-}
-
-bool SceneExtractor::shows(GridSize grid, std::size_t i) const {
-  const CellRect& rect = rects_[i];
-  if (rect.empty()) return true;  // out of view: the frustum factor's business
-  for (std::uint32_t y = rect.y0; y < rect.y1; ++y) {
-    for (std::uint32_t c = grid.cell(rect.x0, y), end = c + (rect.x1 - rect.x0); c < end; ++c) {
-      if (owner_[c] == i) return true;
-    }
-  }
-  return false;
 }
 
 Result<std::size_t> SceneExtractor::refine_all(const SceneRequest& request, cut::Rank threshold,

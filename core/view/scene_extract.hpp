@@ -148,9 +148,7 @@ class SceneExtractor {
   };
   static CellRect box_cells(const ViewMapping& mapping, const model::Bounds& box);
   std::vector<CellRect> rects_;
-  // Whether instance i owns a cell of the picture (out of view counts as shown).
-  bool shows(GridSize grid, std::size_t i) const;
-  std::vector<std::uint8_t> hidden_whole_;  // per instance: in view, shown by no cell: its roots
+  std::vector<std::uint8_t> hidden_whole_;  // per instance: in view, owning no cell: its roots
   std::map<const model::Mt*, std::unique_ptr<PerModel>> models_;
   std::vector<cut::CutMesh> trial_;
   DistanceTransformer transformer_;

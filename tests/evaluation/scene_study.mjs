@@ -22,7 +22,7 @@
 import fs from 'node:fs';
 import path from 'node:path';
 import { chromium, chromiumArgs, chromiumOrSkip, parseArgs, root } from '../clients/browser_support.mjs';
-import { capture, extract, score, startStudyServer } from './study_page.mjs';
+import { atBytes, capture, extract, score, startStudyServer } from './study_page.mjs';
 
 const smoke = process.argv.includes('--smoke');
 const args = parseArgs(process.argv.slice(2), ['server', 'eval', 'mesh', 'work'], ['--smoke']);
@@ -63,29 +63,14 @@ function orbitCamera(lo, hi, k, n) {
   return { eye: centre.map((c, a) => c + distance * dir[a]), target: centre, fov: kFovDeg };
 }
 
-// The per-instance requests whose replies together have targetBytes: secant steps on log(bytes)
-// against log(budget), from the scene's triangle count; the closest try when none gets there.
+// The per-instance requests whose replies together have targetBytes, the budget searched from the
+// scene's triangle count.
 async function perInstanceAtBytes(page, error, targetBytes, startBudget, instances) {
-  const tries = [];
-  let budget = startBudget;
-  for (let step = 0; step < 8; ++step) {
-    const reply = await extract(page, { 'scene-requests': 'instances', error, budget });
-    tries.push({ budget, reply });
-    if (process.env.MTLOD_STUDY_TRACE) console.log(`  per instance: budget ${budget}, ${reply.bytes} bytes for ${targetBytes}`);
-    if (Math.abs(reply.bytes / targetBytes - 1) < kByteTolerance) break;
-    let slope = 1;
-    if (tries.length >= 2) {
-      const [a, b] = tries.slice(-2);
-      const s = Math.log(b.reply.bytes / a.reply.bytes) / Math.log(b.budget / a.budget);
-      if (Number.isFinite(s)) slope = Math.min(3, Math.max(0.2, s));
-    }
-    budget = Math.max(instances, Math.round(budget * (targetBytes / reply.bytes) ** (1 / slope)));
-    if (tries.some((t) => t.budget === budget)) break;  // saturated: every instance at its bound or root
-  }
-  const best = tries.reduce((a, b) => (Math.abs(Math.log(b.reply.bytes / targetBytes)) <
-                                       Math.abs(Math.log(a.reply.bytes / targetBytes)) ? b : a));
-  const reply = best === tries.at(-1) ? best.reply : await extract(page, { 'scene-requests': 'instances', error, budget: best.budget });
-  return { budget: best.budget, reply, steps: tries.length };
+  const request = (budget) => extract(page, { 'scene-requests': 'instances', error, budget });
+  const found = await atBytes(request, targetBytes, startBudget,
+                              { steps: 8, tolerance: kByteTolerance, slope: { guess: 1, min: 0.2, max: 3 },
+                                limit: (budget) => Math.max(instances, Math.round(budget)), same: (a, b) => a === b });
+  return { budget: found.input, reply: found.reply, steps: found.steps };
 }
 
 async function studyCamera(page, box, k, records) {

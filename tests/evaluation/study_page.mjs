@@ -56,3 +56,31 @@ export function score(evalBinary, reference, candidate, fovDeg, focus) {
                                         ...(focus ? ['--focus', focus.join(',')] : [])], { encoding: 'utf8' });
   return JSON.parse(out);
 }
+
+// The input (a pixel bound, a budget...) whose reply has targetBytes within `tolerance`: secant
+// steps on log(bytes) against log(input), the slope `guess` until two tries exist, then measured and
+// clamped to [min, max]; `limit` keeps each next input in range; a next input the tries already
+// hold (`same`) means the bytes saturated. tryAt(input) resolves to a reply with `bytes`. Resolves to
+// { input, reply, steps }: the closest try when none gets there (asked again unless it was the last).
+export async function atBytes(tryAt, targetBytes, start, { steps, tolerance, slope, limit,
+                                                           same = (a, b) => Math.abs(a / b - 1) < 1e-3 }) {
+  const tries = [];
+  let input = start;
+  for (let step = 0; step < steps; ++step) {
+    const reply = await tryAt(input);
+    tries.push({ input, reply });
+    if (Math.abs(reply.bytes / targetBytes - 1) < tolerance) return { input, reply, steps: tries.length };
+    let s = slope.guess;
+    if (tries.length >= 2) {
+      const [a, b] = tries.slice(-2);
+      const measured = Math.log(b.reply.bytes / a.reply.bytes) / Math.log(b.input / a.input);
+      if (Number.isFinite(measured)) s = Math.min(slope.max, Math.max(slope.min, measured));
+    }
+    input = limit(input * (targetBytes / reply.bytes) ** (1 / s));
+    if (tries.some((t) => same(t.input, input))) break;
+  }
+  const best = tries.reduce((a, b) => (Math.abs(Math.log(b.reply.bytes / targetBytes)) <
+                                       Math.abs(Math.log(a.reply.bytes / targetBytes)) ? b : a));
+  if (best === tries.at(-1)) return { input: best.input, reply: best.reply, steps: tries.length };
+  return { input: best.input, reply: await tryAt(best.input), steps: tries.length + 1 };
+}

@@ -28,7 +28,7 @@ import { execFileSync } from 'node:child_process';
 import fs from 'node:fs';
 import path from 'node:path';
 import { chromium, chromiumArgs, chromiumOrSkip, parseArgs, root } from '../clients/browser_support.mjs';
-import { capture, extract, score as scoreFile, startStudyServer } from './study_page.mjs';
+import { atBytes, capture, extract, score as scoreFile, startStudyServer } from './study_page.mjs';
 import { analyse, writeReport } from './viewer_study_report.mjs';
 
 const smoke = process.argv.includes('--smoke'), reportOnly = process.argv.includes('--report-only');
@@ -100,28 +100,13 @@ function orbitCamera(bounds, k, n) {
 
 const score = (reference, candidate, focus) => scoreFile(args.eval, reference, candidate, kFovDeg, focus);
 
-// The setting's cut whose payload is within kByteTolerance of targetBytes: secant steps on log(bytes)
-// against log(error px), starting from bytes ∝ 1/px; the closest try when none gets there.
+// The setting's cut whose payload is within kByteTolerance of targetBytes, its pixel bound searched
+// (bytes ∝ 1/px to start with).
 async function cutAtBytes(page, setting, targetBytes, startPx) {
-  const tries = [];
-  let px = startPx;
-  for (let step = 0; step < 7; ++step) {
-    const reply = await extract(page, { ...setting, error: px });
-    tries.push({ px, reply });
-    if (Math.abs(reply.bytes / targetBytes - 1) < kByteTolerance) return { px, reply, steps: tries.length };
-    let slope = -1;
-    if (tries.length >= 2) {
-      const [a, b] = tries.slice(-2);
-      const s = Math.log(b.reply.bytes / a.reply.bytes) / Math.log(b.px / a.px);
-      if (Number.isFinite(s)) slope = Math.min(-0.2, Math.max(-3, s));
-    }
-    px = Math.min(500, Math.max(0.01, px * (targetBytes / reply.bytes) ** (1 / slope)));
-    if (tries.some((t) => Math.abs(t.px / px - 1) < 1e-3)) break;  // saturated (whole model or root)
-  }
-  const best = tries.reduce((a, b) => (Math.abs(Math.log(b.reply.bytes / targetBytes)) <
-                                       Math.abs(Math.log(a.reply.bytes / targetBytes)) ? b : a));
-  const reply = best === tries.at(-1) ? best.reply : await extract(page, { ...setting, error: best.px });
-  return { px: best.px, reply, steps: tries.length + (best === tries.at(-1) ? 0 : 1) };
+  const found = await atBytes((px) => extract(page, { ...setting, error: px }), targetBytes, startPx,
+                              { steps: 7, tolerance: kByteTolerance, slope: { guess: -1, min: -3, max: -0.2 },
+                                limit: (px) => Math.min(500, Math.max(0.01, px)) });
+  return { px: found.input, reply: found.reply, steps: found.steps };
 }
 
 // mtlod-extract's flags for the request the page sends with these controls.
