@@ -44,7 +44,7 @@ command -v podman >/dev/null || skip "podman is not installed (scripts/bootstrap
 unshare --mount --uts --ipc --net --pid --fork true 2>/dev/null \
   || skip "this kernel or sandbox refuses new namespaces, so podman cannot run containers"
 podman info >/dev/null 2>&1 || skip "podman cannot run here: $(podman info 2>&1 | tail -n 1)"
-for tool in debootstrap podman-compose draco_decoder curl python3 flock; do
+for tool in debootstrap podman-compose draco_decoder curl python3 flock nsenter; do
   command -v "$tool" >/dev/null || fail "$tool is missing (scripts/bootstrap.sh installs it)"
 done
 
@@ -354,7 +354,7 @@ wait_until_up replica-1
 wait_until_up replica-2
 say "compose: HAProxy on 127.0.0.1:$MTLOD_PUBLISH_PORT sees both replicas up"
 # Each start of a replica logs its instance (NAME@8 hex digits) as it starts listening.
-instance_of() { podman logs "$1" 2>/dev/null | sed -n 's/.* \(mtlod-1@[0-9a-f]*\) listening.*/\1/p' | tail -n 1; }
+instance_of() { podman logs "$1" 2>/dev/null | sed -n 's/.* \(mtlod-[12]@[0-9a-f]*\) listening.*/\1/p' | tail -n 1; }
 first_instance=$(instance_of "$replica1")
 [ -n "$first_instance" ] || fail "$replica1 logged no instance"
 
@@ -419,5 +419,28 @@ print(f"  load report: sent {r['sent']}, ok {r['ok']}, lost {r['lost']}, retried
       ", ".join(f"{k} {v['ok']}" for k, v in sorted(instances.items())))
 sys.exit(1 if failed else 0)
 EOF
+# Counted on both sides: each replica that lived to the end says on its /metrics that it wrote
+# exactly the meshes the client counted from its instance (the killed one's counters died with it).
+# The replicas publish no port; their /metrics is read from inside their network namespace, over
+# loopback, which sends no PROXY header. A write is counted a moment after the client holds its bytes.
+served_by() {
+  local pid
+  pid=$(podman inspect --format '{{.State.Pid}}' "$1")
+  nsenter --target "$pid" --net curl -fsS http://127.0.0.1:8080/metrics 2>/dev/null | awk '$1 == "mtlod_sent_meshes_total" { print $2 }'
+}
+received_from() { python3 -c 'import json, sys; print(json.load(open(sys.argv[1]))["instances"][sys.argv[2]]["ok"])' "$work/load.json" "$1"; }
+replica2="${project}_mtlod-2_1"
+for container in "$replica1" "$replica2"; do
+  instance=$(instance_of "$container")
+  received=$(received_from "$instance") || fail "the load report has no replies from $instance"
+  served=""
+  for _ in $(seq 20); do
+    served=$(served_by "$container" || true)
+    [ "$served" = "$received" ] && break
+    sleep 0.1
+  done
+  [ "$served" = "$received" ] || fail "$instance says it sent ${served:-no} meshes; the client received $received from it"
+  say "ok: $instance sent $served meshes, the client received $received from it"
+done
 say "ok: failover through the containerised HAProxy: every request answered, none lost"
 echo "container_test: all checks passed in $((SECONDS - started)) s"
