@@ -76,6 +76,9 @@ void add_session_flags(CLI::App& app, LoadOptions& o) {
          "requests per connection: then it waits for its replies and reconnects, so a load balancer can "
          "move it (0: never)")
       ->capture_default_str();
+  app.add_flag("--decode", o.decode,
+               "decode every mesh payload (whole or delta, either codec) and check its triangles against the "
+               "reply, as a viewer would; a payload that fails makes the run fail");
   app.add_option("--json", o.json_file, "write the report as JSON to this file");
   app.add_flag("-q,--quiet", o.quiet, "no progress line");
 }

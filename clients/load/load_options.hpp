@@ -41,6 +41,7 @@ struct LoadOptions {
   std::uint64_t reconnect_after = 0;  // requests per connection before it is replaced; 0: never
   std::string json_file;
   bool quiet = false;
+  bool decode = false;  // decode every payload as a viewer would, and count those that fail
 
   bool open_loop() const { return rate > 0; }
 };

@@ -90,6 +90,11 @@ nlohmann::ordered_json report_json(const LoadOptions& o, const clients::ExtractF
       {"bytes_per_s", r.bytes / std::max(elapsed_s, 1e-9)},
       {"mean_triangles", r.triangles / mean_div},
       {"server_us", server_json(r)},
+      {"decode", o.decode ? nlohmann::ordered_json{{"payloads", r.decoded},
+                                                   {"errors", r.decode_errors},
+                                                   {"first_error", r.first_decode_error},
+                                                   {"ms", latency_json(r.decode_us)}}
+                          : nlohmann::ordered_json(nullptr)},
   };
   nlohmann::ordered_json instances = nlohmann::ordered_json::object();
   for (const auto& [name, i] : r.instances) {
@@ -133,6 +138,13 @@ void print_report(const LoadOptions& o, const LoadTotals& r, const LoadRunEnd& e
       "encode {:.0f}  total {:.0f}\n",
       s.queue_us / mean_div, s.map_us / mean_div, s.occupancy_us / mean_div, s.dt_us / mean_div,
       s.labels_us / mean_div, s.refine_us / mean_div, s.encode_us / mean_div, s.total_us / mean_div);
+  if (o.decode) {
+    const auto& d = r.decode_us;
+    fmt::print("  decoded {} payloads, {} failed; client decode ms  p50 {:.2f}  p99 {:.2f}  max {:.2f}\n",
+               r.decoded, r.decode_errors, ms(d.value_at_percentile(50)), ms(d.value_at_percentile(99)),
+               ms(d.max()));
+  }
+  if (r.decode_errors) fmt::print(stderr, "mtlod-load: a payload did not decode: {}\n", r.first_decode_error);
 }
 
 }  // namespace

@@ -127,7 +127,21 @@ void LoadStream::on_reply(ReplyFrame& frame, Clock::time_point arrival, const st
     }
   }
   session_.wake_waiters();
+  Status decoded = Ok{};
+  std::int64_t decode_ns = 0;
+  const auto* mesh = std::get_if<protocol::MeshReply>(&frame.header.reply);
+  if (run_.options.decode && mesh) {
+    const Clock::time_point started = Clock::now();
+    decoded = mesh_.apply(*mesh, frame.payload);
+    decode_ns = nanoseconds_between(started, Clock::now());
+  }
   std::lock_guard lock(run_.totals.mutex);
+  if (run_.options.decode && mesh) {
+    LoadTotals& t = run_.totals;
+    ++t.decoded;
+    t.decode_us.record(static_cast<std::uint64_t>(decode_ns / 1000));
+    if (!decoded && t.decode_errors++ == 0) t.first_decode_error = decoded.error().message;
+  }
   run_.totals.last_reply_ns = std::max(run_.totals.last_reply_ns, now);
   if (pending.setup && std::holds_alternative<protocol::MeshReply>(frame.header.reply)) return;
   record_reply(run_.totals, frame, pending.intended_ns, now, instance);

@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "clients/common/reply_mesh.hpp"
 #include "clients/common/stream_session.hpp"
 #include "clients/load/histogram.hpp"
 #include "clients/load/load_options.hpp"
@@ -37,6 +38,10 @@ struct LoadTotals {
     std::int64_t first_ns = -1, last_ns = 0;
   };
   std::map<std::string, Instance> instances;  // mesh replies by the server process that sent them
+  // --decode: payloads decoded (view-restoring extracts too), those that failed, the first failure.
+  std::uint64_t decoded = 0, decode_errors = 0;
+  LatencyHistogram decode_us;
+  std::string first_decode_error;
 };
 
 // What every connection of a run shares. Fixed before the threads start, but for the atomics and
@@ -98,6 +103,7 @@ class LoadStream : public StreamSession::Handler {
   std::optional<protocol::Extract> view_;  // the last extract sent: restores the view for gazes
   std::uint64_t next_id_ = 1;
   std::uint64_t unsent_ = 0;
+  ReplyMesh mesh_;  // --decode: the receiving thread's copy of what the replies hold
   StreamSession session_;
 };
 

@@ -40,5 +40,5 @@ int main(int argc, char** argv) {
   if (!end) return fail(end.error().message);
   if (auto reported = clients::report_load(options, flags, totals, *end); !reported)
     return fail(reported.error().message);
-  return totals.ok > 0 ? 0 : 1;
+  return totals.ok > 0 && totals.decode_errors == 0 ? 0 : 1;
 }

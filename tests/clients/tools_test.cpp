@@ -259,6 +259,13 @@ TEST_F(ToolsTest, GazeReplayWithDeltasKeepsTheServersCutInFewerBytes) {
   const double whole_per_mesh = whole.at("bytes").get<double>() / whole.at("meshes").get<double>();
   const double delta_per_mesh = delta.at("bytes").get<double>() / delta.at("meshes").get<double>();
   EXPECT_LT(delta_per_mesh, whole_per_mesh);
+  // The same with meshoptimizer's codec: its deltas decode into the server's cut as Draco's do.
+  const json meshopt = run(MTLOD_GAZE_BINARY, common + " --delta --codec meshopt");
+  ASSERT_TRUE(meshopt.contains("delta_errors")) << meshopt.dump(2);
+  EXPECT_EQ(meshopt.at("delta_errors"), 0);
+  EXPECT_EQ(meshopt.at("errors"), 0);
+  EXPECT_GT(meshopt.at("meshes").get<std::uint64_t>(), 0u);
+  EXPECT_EQ(meshopt.at("applied_latency_ms").at("count"), meshopt.at("meshes"));
 }
 
 TEST_F(ToolsTest, GazeReplayOfASceneKeepsEveryInstancesMesh) {
@@ -321,6 +328,29 @@ TEST_F(ToolsTest, ClosedLoopLoadOfASceneAgreesWithTheServer) {
   EXPECT_EQ(counters["extractions"], static_cast<double>(requests));
   EXPECT_NEAR(counters["triangles_out"] / counters["extractions"], mean_triangles, 1e-6 * mean_triangles);
   EXPECT_GE(counters["bytes_out"], r.at("bytes").get<double>());
+}
+
+TEST_F(ToolsTest, LoadDecodesEveryPayloadOfEitherCodec) {
+  // With --decode every mesh reply is decoded as a viewer would (whole meshes, deltas, a scene's
+  // parts) and checked against its header; a run where one fails exits non-zero.
+  const auto scene = write_three_bunnies("decode-scene.json");
+  for (const std::string codec : {"draco", "meshopt"}) {
+    for (const std::string& view : {std::string("--model bunny"), "--scene " + scene.string()}) {
+      for (const std::string delta : {"", " --delta"}) {
+        const std::string args = view + " --codec " + codec + delta +
+                                 " --decode --connections 2 --requests 40 --duration 10 --budget 2000 "
+                                 "--mix extract=1,gaze=1";
+        const json r = run(MTLOD_LOAD_BINARY, args);
+        ASSERT_TRUE(r.contains("decode")) << args << "\n" << r.dump(2);
+        EXPECT_EQ(r.at("ok"), 40) << args;
+        EXPECT_EQ(r.at("errors"), 0) << args;
+        EXPECT_EQ(r.at("decode").at("payloads"), r.at("ok")) << args;
+        EXPECT_EQ(r.at("decode").at("errors"), 0) << args << ": " << r.at("decode").at("first_error");
+      }
+    }
+  }
+  const json plain = run(MTLOD_LOAD_BINARY, "--model bunny --requests 5 --duration 10");
+  EXPECT_TRUE(plain.at("decode").is_null());
 }
 
 TEST_F(ToolsTest, SceneToolsRefuseABadSceneFile) {
