@@ -4,11 +4,14 @@
 // "The viewer at its defaults".
 //
 // node tests/evaluation/viewer_screenshots.mjs --url http://127.0.0.1:8080/?model=dragon-871k \
-//     --out tests/evaluation/figures [--name viewer-dragon] [--x 0.55 --y 0.45]
+//     --out tests/evaluation/figures [--name viewer-dragon] [--x 0.55 --y 0.45] [--as-opened]
+// --as-opened takes one screenshot, NAME.png, touching no control: for a page from an older commit
+// (the figure "before"), which has no shading toggle.
 import path from 'node:path';
 import { chromium, chromiumArgs, chromiumOrSkip, parseArgs } from '../clients/browser_support.mjs';
 
-const args = parseArgs(process.argv.slice(2), ['url', 'out']);
+const args = parseArgs(process.argv.slice(2), ['url', 'out'], ['--as-opened']);
+const asOpened = process.argv.includes('--as-opened');
 const name = args.name ?? 'viewer';
 const pointer = [Number(args.x ?? 0.55), Number(args.y ?? 0.45)];
 const size = { width: 1280, height: 720 };
@@ -29,7 +32,12 @@ try {
   }, pointer, { timeout: 60_000 });
   await page.waitForTimeout(500);  // frames drawn with the last mesh
   const reply = await page.evaluate(() => window.mtlod.lastReply);
-  for (const flat of [false, true]) {
+  if (asOpened) {
+    const file = path.join(args.out, `${name}.png`);
+    await page.screenshot({ path: file });
+    console.log(`${file}: ${reply.triangles} triangles, ${reply.bytes} bytes, as the page opened`);
+  }
+  for (const flat of asOpened ? [] : [false, true]) {
     if (flat) {
       await page.check('#flat');
       await page.waitForTimeout(300);

@@ -197,11 +197,15 @@ function updateFidelity(o, a) {
     lines.push(`- Agreement with this report's renderer on the same cuts (${g.cuts}, made again by \`mtlod-extract\` and drawn by \`mtlod-eval image\`): Spearman ${f3(g.pooled)} over all cuts, ${f3(g.withinCase)} among the settings of one case on average, ${f3(g.methods)} between the settings' overall scores. The pictures differ (dark background and two lights in the page, white and a headlight here), so absolute errors differ by ${f3(g.ratio)}× on average; the orders are what carry over.`);
   // Screenshots of the page as it opens (viewer_screenshots.mjs --name viewer-dragon..., the pointer on
   // the model), when they are there.
-  const shots = fs.existsSync(path.join(o.out, 'figures'))
-    ? fs.readdirSync(path.join(o.out, 'figures')).filter((f) => /^viewer-dragon.*\.png$/.test(f)).sort() : [];
+  // The one named -before is the page of an older commit (--as-opened), shown after them.
+  const figures = fs.existsSync(path.join(o.out, 'figures')) ? fs.readdirSync(path.join(o.out, 'figures')) : [];
+  const shots = figures.filter((f) => /^viewer-dragon-(flat|smooth)\.png$/.test(f)).sort();
   if (shots.length)
     lines.push('', '### The viewer at its defaults', '',
                'The 871k dragon at 1280×720, the pointer on the model (`tests/evaluation/viewer_screenshots.mjs`): `smooth` is how it opens, shaded with the normals its payload carries; `flat` is the same cut with the flat-shading toggle, which shows its facets (without normals the page could draw nothing else).', '',
                ...shots.map((f) => `![${f}](figures/${f})`));
+  if (shots.length && figures.includes('viewer-dragon-before.png'))
+    lines.push('', 'Before: the same page and camera at commit `229baa4`, as it opened with its defaults (4,556 triangles, 11,448 bytes; flat facets, since its payloads carried no normals), taken with `--as-opened` from that commit\'s server and web root:', '',
+               '![viewer-dragon-before.png](figures/viewer-dragon-before.png)');
   fs.writeFileSync(file, `${kept}\n\n${lines.join('\n')}\n`);
 }
