@@ -183,8 +183,8 @@ struct Extract {
   bool normals = true;                  // every model has normals (stored, or computed at load)
   std::optional<bool> colors;           // unset: the model's colours when it has them
   bool labels = false;
-  // The payload's codec; unset: the connection's (hello). meshopt quantizes positions to at most 16
-  // bits and carries no labels: codec_refusal.
+  // The payload's codec; unset: the connection's (hello). What a codec cannot carry (labels, finer
+  // positions) is refused: codec_refusal, from core::codec::kCodecTraits.
   std::optional<core::codec::Codec> codec;
   Quantization quantization;
   DracoSettings draco;

@@ -494,12 +494,17 @@ const char* to_string(ErrorKind kind) {
 }
 
 std::optional<std::string> codec_refusal(const Extract& e, core::codec::Codec codec) {
-  if (codec != core::codec::Codec::kMeshopt) return std::nullopt;
-  if (e.labels) return "codec 'meshopt' cannot carry attributes.labels: use 'draco'";
-  if (e.quantization.position_bits > 16) {
-    return fmt::format(
-        "codec 'meshopt' quantizes positions to at most 16 bits, not quantization.position_bits {}",
-        e.quantization.position_bits);
+  const core::codec::CodecTraits& can = core::codec::traits(codec);
+  if (e.labels && !can.carries_labels) {
+    std::vector<std::string_view> carriers;
+    for (std::size_t c = 0; c < kCodecNames.size(); ++c)
+      if (core::codec::kCodecTraits[c].carries_labels) carriers.emplace_back(kCodecNames[c]);
+    return fmt::format("codec '{}' cannot carry attributes.labels: use '{}'", enum_name(kCodecNames, codec),
+                       fmt::join(carriers, "' or '"));
+  }
+  if (e.quantization.position_bits > can.max_position_bits) {
+    return fmt::format("codec '{}' quantizes positions to at most {} bits, not quantization.position_bits {}",
+                       enum_name(kCodecNames, codec), can.max_position_bits, e.quantization.position_bits);
   }
   return std::nullopt;
 }

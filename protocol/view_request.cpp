@@ -47,15 +47,16 @@ core::view::ViewRequest to_view_request(const Extract& e, bool model_has_normals
   return v;
 }
 
-core::codec::DracoOptions to_draco_options(const Extract& e, const EncodeContext& context) {
-  core::codec::DracoOptions draco;
-  const bool fast = context.gaze || e.delta;
-  draco.method = e.draco.method.value_or(fast ? core::codec::DracoMethod::kSequential
-                                              : core::codec::DracoMethod::kEdgebreaker);
-  draco.speed = e.draco.speed;
-  draco.position_bits = e.quantization.position_bits;
-  draco.normal_bits = e.quantization.normal_bits;
-  draco.entropy_coding = e.draco.entropy_coding.value_or(!context.gaze);
+core::codec::EncodeOptions to_encode_options(const Extract& e, const EncodeContext& context) {
+  core::codec::EncodeOptions options;
+  options.codec = e.codec.value_or(core::codec::Codec::kDraco);
+  core::codec::PayloadOptions& p = options.payload;
+  p.position_bits = e.quantization.position_bits;
+  p.normal_bits = e.quantization.normal_bits;
+  p.normals = e.normals;
+  p.colors = e.colors.value_or(context.model_has_colors) && context.model_has_colors;
+  p.labels = e.labels;
+  p.keep_triangle_order = e.delta;
   if (e.delta) {
     // One grid for every payload of the model: a vertex kept from an earlier delta and the same
     // vertex in a new one decode to the same floats.
@@ -63,25 +64,13 @@ core::codec::DracoOptions to_draco_options(const Extract& e, const EncodeContext
     grid.origin = context.bounds_min;
     for (int c = 0; c < 3; ++c)
       grid.range = std::max(grid.range, context.bounds_max[c] - context.bounds_min[c]);
-    draco.position_grid = grid;
+    p.position_grid = grid;
   }
-  draco.normals = e.normals;
-  draco.colors = e.colors.value_or(context.model_has_colors) && context.model_has_colors;
-  draco.labels = e.labels;
-  return draco;
-}
-
-core::codec::EncodeOptions to_encode_options(const Extract& e, const EncodeContext& context) {
-  core::codec::EncodeOptions options;
-  options.codec = e.codec.value_or(core::codec::Codec::kDraco);
-  options.draco = to_draco_options(e, context);
-  core::codec::MeshoptOptions& m = options.meshopt;
-  m.position_bits = options.draco.position_bits;
-  m.normal_bits = options.draco.normal_bits;
-  m.normals = options.draco.normals;
-  m.colors = options.draco.colors;
-  m.keep_triangle_order = e.delta;
-  m.position_grid = options.draco.position_grid;
+  const bool fast = context.gaze || e.delta;
+  options.draco.method = e.draco.method.value_or(fast ? core::codec::DracoMethod::kSequential
+                                                      : core::codec::DracoMethod::kEdgebreaker);
+  options.draco.speed = e.draco.speed;
+  options.draco.entropy_coding = e.draco.entropy_coding.value_or(!context.gaze);
   return options;
 }
 

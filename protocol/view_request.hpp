@@ -25,13 +25,10 @@ struct EncodeContext {
   std::array<float, 3> bounds_min{}, bounds_max{};
 };
 
-// Unset choices get the defaults of DracoSettings: edgebreaker with entropy coding for an extract,
-// sequential without for a gaze, sequential for deltas (the parser refuses explicit edgebreaker).
-core::codec::DracoOptions to_draco_options(const Extract& request, const EncodeContext& context);
-
-// The request's codec and its options: to_draco_options' for Draco; for meshopt the same
-// quantization, attributes and grid, with the cut's triangle order kept for deltas (their ids
-// follow it).
+// The request's codec, what its payload carries (quantization, attributes, the model's grid and the
+// cut's triangle order for deltas) and Draco's choices; unset ones get the defaults of DracoSettings:
+// edgebreaker with entropy coding for an extract, sequential without for a gaze, sequential for
+// deltas (the parser refuses explicit edgebreaker).
 core::codec::EncodeOptions to_encode_options(const Extract& request, const EncodeContext& context);
 
 }  // namespace mtlod::protocol

@@ -235,7 +235,7 @@ int main(int argc, char** argv) {
     } else if (file_codec) {
       return fail(fmt::format("{}: the payload is {}; write it as {} or as a mesh file", output,
                               protocol::enum_name(protocol::kCodecNames, mesh.codec),
-                              core::codec::kCodecFileExtensions[static_cast<std::size_t>(mesh.codec)]));
+                              core::codec::traits(mesh.codec).file_extension));
     } else if (ext == ".glb" && gltf_compression == "on") {
       if (auto saved = core::io::write_glb_payload(output, mesh.codec, payload); !saved)
         return fail(saved.error().message);

@@ -106,10 +106,10 @@ Status write_output(const std::string& path, bool gltf_compressed, const model::
   codec::EncodeOptions options;
   if (request) {
     options = protocol::to_encode_options(*request, {false, mt.has_colors(), mt.bounds.lo, mt.bounds.hi});
-    options.draco.labels = options.draco.labels && !labels.empty();
+    options.payload.labels = options.payload.labels && !labels.empty();
   } else {
-    options.meshopt.normals = mt.has_normals();
-    options.meshopt.colors = mt.has_colors();
+    options.payload.normals = mt.has_normals();
+    options.payload.colors = mt.has_colors();
   }
   // A payload file's extension names its codec; a .glb holds either (--codec, Draco by default).
   const codec::Codec codec = glb ? named.value_or(codec::Codec::kDraco) : *file_codec;
@@ -117,7 +117,7 @@ Status write_output(const std::string& path, bool gltf_compressed, const model::
     return make_error(
         ErrorCode::kInvalidArgument,
         fmt::format("{}: --codec {} writes {}", path, protocol::enum_name(protocol::kCodecNames, *named),
-                    codec::kCodecFileExtensions[static_cast<std::size_t>(*named)]));
+                    codec::traits(*named).file_extension));
   }
   if (request) {
     if (auto refusal = protocol::codec_refusal(*request, codec))
@@ -125,9 +125,9 @@ Status write_output(const std::string& path, bool gltf_compressed, const model::
   }
   options.codec = codec;
   if (glb) {
-    options.draco.normals = mt.has_normals();
-    options.draco.colors = mt.has_colors();
-    options.draco.labels = false;
+    options.payload.normals = mt.has_normals();
+    options.payload.colors = mt.has_colors();
+    options.payload.labels = false;
   }
   std::vector<std::uint8_t> bytes;
   MTLOD_TRY(codec::EncodeStats stats,

@@ -22,7 +22,6 @@ std::vector<std::uint8_t> tetrahedron_payload(Codec codec) {
   core::codec::CutEncoder encoder;
   core::codec::EncodeOptions options;
   options.codec = codec;
-  options.draco.normals = options.meshopt.normals = false;
   std::vector<std::uint8_t> payload;
   const auto encoded = encoder.encode({mesh.positions, {}, {}, mesh.triangles, {}}, options, payload);
   EXPECT_TRUE(encoded.ok()) << encoded.error().message;
