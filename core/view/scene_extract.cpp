@@ -172,7 +172,7 @@ void SceneExtractor::bind_fields(const SceneRequest& request) {
   // as a cell next to the background is never behind the surface.) Out of view is the frustum
   // factor's business.
   const bool hiding = request.view.allowed.hidden_factor != 1.0f;
-  hidden_whole_.assign(request.instances.size(), 0);
+  hidden_whole_.resize(request.instances.size());
   for (std::size_t i = 0; i < request.instances.size(); ++i) hidden_whole_[i] = hiding && !rects_[i].empty();
   for (const std::uint32_t owner : owner_) {
     if (owner != kNoInstance) hidden_whole_[owner] = 0;
