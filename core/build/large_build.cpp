@@ -696,16 +696,24 @@ Status LargeBuilder::read_leaf(std::uint32_t s, bool parallel, std::vector<std::
   MTLOD_TRY(global, read_array<std::uint32_t>(file(fmt::format("leaf{}", stage.lo))));
   // Duplicates (the same vertex set as an earlier face) lie in the same cell, so in the same leaf.
   const std::size_t count = global.size() / 3;
-  std::vector<std::array<std::uint32_t, 4>> keys(count);
+  // Each face's corners in increasing order and its index; the first face of each vertex set is
+  // kept. Grouped by the lowest corner with a radix sort, then each group (a few faces: those whose
+  // lowest corner is that vertex) sorted whole: a full sort of the leaf took twice as long.
+  std::vector<std::array<std::uint32_t, 4>> keys(count), scratch;
   for (std::size_t f = 0; f < count; ++f) {
     std::array<std::uint32_t, 3> v = {global[3 * f], global[3 * f + 1], global[3 * f + 2]};
     std::sort(v.begin(), v.end());
     keys[f] = {v[0], v[1], v[2], std::uint32_t(f)};
   }
-  std::sort(keys.begin(), keys.end());
+  util::radix_sort(keys, scratch, [](const std::array<std::uint32_t, 4>& k) { return k[0]; });
   std::vector<std::uint8_t> duplicate(count, 0);
-  for (std::size_t i = 1; i < count; ++i)
-    if (std::equal(keys[i].begin(), keys[i].begin() + 3, keys[i - 1].begin())) duplicate[keys[i][3]] = 1;
+  for (std::size_t begin = 0, end = 0; begin < count; begin = end) {
+    for (end = begin + 1; end < count && keys[end][0] == keys[begin][0];) ++end;
+    if (end - begin == 1) continue;
+    std::sort(keys.begin() + std::ptrdiff_t(begin), keys.begin() + std::ptrdiff_t(end));
+    for (std::size_t i = begin + 1; i < end; ++i)
+      if (keys[i][1] == keys[i - 1][1] && keys[i][2] == keys[i - 1][2]) duplicate[keys[i][3]] = 1;
+  }
   std::size_t out = 0;
   for (std::size_t f = 0; f < count; ++f) {
     if (duplicate[f]) continue;
@@ -725,26 +733,32 @@ Status LargeBuilder::read_leaf(std::uint32_t s, bool parallel, std::vector<std::
 
 void LargeBuilder::add_leaf_normals(const std::vector<std::uint32_t>& global, std::size_t out,
                                     bool parallel) {
-  // Leaves that run side by side meet in shared vertices, and a lone leaf splits its faces over
-  // the runner: both add concurrently. Fixed-point sums make the result independent of the order.
   NormalAccumulator normals(std::span<const float>(positions_->data(), 3 * vertex_count_), normal_sums_);
-  const bool side_by_side = !parallel && options_.build.parallel_for != nullptr;
   if (parallel && options_.build.parallel_for != nullptr) {
-    struct Chunks {
+    // A lone leaf: each task owns a range of vertices and goes over all the faces, adding only to
+    // its own vertices, so no addition is atomic. A face is read once per range, which costs less
+    // than the locked additions would (a scan's corners are mostly close in number, so most faces
+    // fall in one range).
+    struct Ranges {
       NormalAccumulator* normals;
       const std::uint32_t* faces;
       std::size_t count;
-    } chunks{&normals, global.data(), out};
-    constexpr std::size_t kChunks = 64;
+      std::uint64_t vertices;
+    } ranges{&normals, global.data(), out, vertex_count_};
+    constexpr std::size_t kRanges = 4;
     options_.build.parallel_for(
-        options_.build.parallel_user, kChunks,
+        options_.build.parallel_user, kRanges,
         [](void* opaque, std::size_t i) {
-          const auto* c = static_cast<const Chunks*>(opaque);
-          for (std::size_t f = c->count * i / kChunks; f < c->count * (i + 1) / kChunks; ++f)
-            c->normals->add_concurrently(c->faces[3 * f], c->faces[3 * f + 1], c->faces[3 * f + 2]);
+          const auto* r = static_cast<const Ranges*>(opaque);
+          const auto lo = std::uint32_t(r->vertices * i / kRanges),
+                     hi = std::uint32_t(r->vertices * (i + 1) / kRanges);
+          for (std::size_t f = 0; f < r->count; ++f)
+            r->normals->add_within(r->faces[3 * f], r->faces[3 * f + 1], r->faces[3 * f + 2], lo, hi);
         },
-        &chunks);
-  } else if (side_by_side) {
+        &ranges);
+  } else if (options_.build.parallel_for != nullptr) {
+    // Leaves that run side by side meet in shared vertices: their additions are atomic, and the
+    // fixed-point sums make the result independent of the order.
     for (std::size_t f = 0; f < out; ++f)
       normals.add_concurrently(global[3 * f], global[3 * f + 1], global[3 * f + 2]);
   } else {

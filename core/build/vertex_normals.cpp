@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <numbers>
 
 namespace mtlod::core::build {
 namespace {
@@ -24,11 +25,6 @@ double length(const Vec& a) {
   return std::sqrt(dot(a, a));
 }
 
-// The angle between a and b (both non-zero), robust near 0 and π where acos is not.
-double angle(const Vec& a, const Vec& b) {
-  return std::atan2(length(cross(a, b)), dot(a, b));
-}
-
 }  // namespace
 
 bool usable_normal(const float* n) {
@@ -41,27 +37,37 @@ void make_unit(float* n) {
   for (int k = 0; k < 3; ++k) n[k] = static_cast<float>(n[k] / l);
 }
 
-void NormalAccumulator::add(std::uint32_t a, std::uint32_t b, std::uint32_t c, bool concurrently) {
+void NormalAccumulator::add(std::uint32_t a, std::uint32_t b, std::uint32_t c, std::uint32_t lo,
+                            std::uint32_t hi, bool concurrently) {
   const std::uint32_t v[3] = {a, b, c};
+  const bool any = (a >= lo && a < hi) || (b >= lo && b < hi) || (c >= lo && c < hi);
+  if (!any) return;
   Vec p[3];
   for (int k = 0; k < 3; ++k) {
     const float* q = positions_.data() + 3 * std::size_t{v[k]};
     p[k] = {q[0], q[1], q[2]};
   }
-  const Vec n = cross(sub(p[1], p[0]), sub(p[2], p[0]));
+  // Edge k runs from corner k to corner k + 1. Any two edges' cross product is the normal times
+  // twice the area, so the angle at corner k is atan2(twice the area, the dot product of its two
+  // edges), robust near 0 and π where acos is not; the angles sum to π, which saves the third
+  // atan2. A triangle with an area has no zero-length edge. The angles are computed the same way
+  // whichever corners are added, so that the sums do not depend on how the vertices are shared out.
+  const Vec e[3] = {sub(p[1], p[0]), sub(p[2], p[1]), sub(p[0], p[2])};
+  const Vec n = cross(e[0], e[1]);
   const double area2 = length(n);
   if (!(area2 > 0.0) || !std::isfinite(area2)) return;
-  const double unit[3] = {n.x / area2, n.y / area2, n.z / area2};
+  double angle[3];
+  angle[0] = std::atan2(area2, -dot(e[0], e[2]));
+  angle[1] = std::atan2(area2, -dot(e[1], e[0]));
+  angle[2] = std::max(0.0, std::numbers::pi - angle[0] - angle[1]);
   for (int k = 0; k < 3; ++k) {
-    const Vec e1 = sub(p[(k + 1) % 3], p[k]);
-    const Vec e2 = sub(p[(k + 2) % 3], p[k]);
-    if (length(e1) == 0.0 || length(e2) == 0.0) continue;
-    const double w = angle(e1, e2) * kScale;
+    if (v[k] < lo || v[k] >= hi) continue;
+    const double w = angle[k] * kScale / area2;
+    const double x[3] = {w * n.x, w * n.y, w * n.z};
     std::int64_t* s = sums_.data() + 3 * std::size_t{v[k]};
     for (int c = 0; c < 3; ++c) {
       // Rounded half away from zero, as llround, without its library call (|x| < 2^33 here).
-      const double x = w * unit[c];
-      const auto units = static_cast<std::int64_t>(x < 0 ? x - 0.5 : x + 0.5);
+      const auto units = static_cast<std::int64_t>(x[c] < 0 ? x[c] - 0.5 : x[c] + 0.5);
       if (concurrently)
         std::atomic_ref<std::int64_t>(s[c]).fetch_add(units, std::memory_order_relaxed);
       else

@@ -29,15 +29,23 @@ class NormalAccumulator {
   NormalAccumulator(std::span<const float> positions, std::span<std::int64_t> sums)
       : positions_(positions), sums_(sums) {}
   // Adds triangle (a, b, c), counter-clockwise; degenerate triangles add nothing.
-  void add(std::uint32_t a, std::uint32_t b, std::uint32_t c) { add(a, b, c, false); }
+  void add(std::uint32_t a, std::uint32_t b, std::uint32_t c) { add(a, b, c, 0, kAll, false); }
   // The same, safe while other threads add_concurrently() into the same sums.
-  void add_concurrently(std::uint32_t a, std::uint32_t b, std::uint32_t c) { add(a, b, c, true); }
+  void add_concurrently(std::uint32_t a, std::uint32_t b, std::uint32_t c) { add(a, b, c, 0, kAll, true); }
+  // Adds the triangle's share to those of its corners in [lo, hi) only: threads that each own a
+  // range of vertices can all go over the same triangles without atomic additions, which cost
+  // more than the arithmetic (each waits for its cache line).
+  void add_within(std::uint32_t a, std::uint32_t b, std::uint32_t c, std::uint32_t lo, std::uint32_t hi) {
+    add(a, b, c, lo, hi, false);
+  }
   // Unit normals from the sums (3 floats per vertex); a vertex no triangle gave a direction
   // (isolated, or only degenerate triangles around it) gets +z. Returns how many got +z.
   static std::size_t finish(std::span<const std::int64_t> sums, std::span<float> normals);
 
  private:
-  void add(std::uint32_t a, std::uint32_t b, std::uint32_t c, bool concurrently);
+  static constexpr std::uint32_t kAll = 0xffffffff;
+  void add(std::uint32_t a, std::uint32_t b, std::uint32_t c, std::uint32_t lo, std::uint32_t hi,
+           bool concurrently);
   std::span<const float> positions_;
   std::span<std::int64_t> sums_;
 };
