@@ -143,24 +143,37 @@ void MeshoptEncoder::reorder_spatially(int position_bits) {
     std::swap(key, key_out);
     std::swap(order, order_out);
   }
-  // Renumber by first use in the new order; the vertices' data and model ids follow.
+  // Renumber by first use in the new order; the vertices' data and model ids follow. Without
+  // branches, as in encode(): each vertex's data is written at the next id whether it is new or
+  // not, and kept by counting it only when it is.
   renumber_.assign(n, kUnused);
   reordered_.resize(indices_.size());
-  reordered_quantized_.resize(quantized_.size());
-  reordered_used_.clear();
+  reordered_quantized_.resize(quantized_.size() + 4);
+  reordered_used_.resize(n + 1);
   std::uint32_t* index = reordered_.data();
+  std::uint32_t* const renumber = renumber_.data();
+  const std::uint32_t* const used = used_.data();
+  const std::uint16_t* const quantized = quantized_.data();
+  std::uint16_t* const reordered_quantized = reordered_quantized_.data();
+  std::uint32_t* const reordered_used = reordered_used_.data();
+  std::uint32_t next = 0;
   for (std::size_t i = 0; i < count; ++i) {
     const std::uint32_t* corner = &indices_[3 * std::size_t{order[i]}];
     for (int k = 0; k < 3; ++k) {
-      std::uint32_t& id = renumber_[corner[k]];
-      if (id == kUnused) {
-        id = static_cast<std::uint32_t>(reordered_used_.size());
-        std::memcpy(&reordered_quantized_[4 * std::size_t{id}], &quantized_[4 * std::size_t{corner[k]}], 8);
-        reordered_used_.push_back(used_[corner[k]]);
-      }
+      const std::uint32_t old = corner[k];
+      const std::uint32_t seen = renumber[old];
+      const bool fresh = seen == kUnused;
+      const std::uint32_t id = fresh ? next : seen;
+      renumber[old] = id;
+      std::memcpy(&reordered_quantized[4 * std::size_t{next}], &quantized[4 * std::size_t{old}], 8);
+      reordered_used[next] = used[old];
+      next += fresh;
       *index++ = id;
     }
   }
+  assert(next == n);
+  reordered_quantized_.resize(quantized_.size());
+  reordered_used_.resize(n);
   indices_.swap(reordered_);
   quantized_.swap(reordered_quantized_);
   used_.swap(reordered_used_);  // the same vertices, so the encoded-id table is still reset right
@@ -179,8 +192,8 @@ Result<EncodeStats> MeshoptEncoder::encode(const DracoInput& input, const Meshop
   if (encoded_id_.size() < model_vertices) encoded_id_.resize(model_vertices, kUnused);
   used_.clear();
   struct ResetUsed {
-    std::vector<std::uint32_t>& encoded_id;
-    const std::vector<std::uint32_t>& used;
+    util::GrowOnlyVector<std::uint32_t>& encoded_id;
+    const util::GrowOnlyVector<std::uint32_t>& used;
     ~ResetUsed() {
       for (const std::uint32_t v : used) encoded_id[v] = kUnused;
     }
@@ -190,17 +203,31 @@ Result<EncodeStats> MeshoptEncoder::encode(const DracoInput& input, const Meshop
   // The table is as large as the model and the cut's corners land anywhere in it: each entry is asked
   // for well ahead.
   constexpr std::size_t kAheadCorners = 32;
-  for (std::size_t c = 0; c < input.triangles.size(); ++c) {
-    if (c + kAheadCorners < input.triangles.size())
-      __builtin_prefetch(&encoded_id_[input.triangles[c + kAheadCorners]], 1);
-    const std::uint32_t v = input.triangles[c];
-    assert(v < model_vertices);
-    std::uint32_t& id = encoded_id_[v];
-    if (id == kUnused) {
-      id = static_cast<std::uint32_t>(used_.size());
-      used_.push_back(v);
+  // Without branches (whether a corner's vertex is new goes either way too often to predict): each
+  // corner writes its vertex at the next id, which counts only when the vertex is new. used_ has
+  // room for that write after the last new vertex, and is cut to size after the loop, so the table
+  // is reset from it whatever happens.
+  used_.resize(std::min(input.triangles.size(), model_vertices) + 1);
+  {
+    const std::uint32_t* const corners = input.triangles.data();
+    const std::size_t corner_count = input.triangles.size();
+    std::uint32_t* const table = encoded_id_.data();
+    std::uint32_t* const used = used_.data();
+    std::uint32_t* const indices = indices_.data();
+    std::uint32_t next = 0;
+    for (std::size_t c = 0; c < corner_count; ++c) {
+      if (c + kAheadCorners < corner_count) __builtin_prefetch(&table[corners[c + kAheadCorners]], 1);
+      const std::uint32_t v = corners[c];
+      assert(v < model_vertices);
+      const std::uint32_t seen = table[v];
+      const bool fresh = seen == kUnused;
+      const std::uint32_t id = fresh ? next : seen;
+      table[v] = id;
+      used[next] = v;
+      next += fresh;
+      indices[c] = id;
     }
-    indices_[c] = id;
+    used_.resize(next);
   }
   const std::size_t n = used_.size();
   // Gather the used positions (sparse in the model's arrays: each read is asked for well ahead, as in

@@ -44,6 +44,7 @@
 
 #include "core/codec/draco_encode.hpp"
 #include "core/result.hpp"
+#include "core/util/grow_only_vector.hpp"
 
 namespace mtlod::core::codec {
 
@@ -92,18 +93,19 @@ class MeshoptEncoder {
   // first use in that order (indices_, used_ and quantized_ follow).
   void reorder_spatially(int position_bits);
 
-  std::vector<std::uint32_t> encoded_id_;      // per model vertex: its encoded id, kUnused between calls
-  std::vector<std::uint32_t> used_;            // encoded id -> model vertex id
-  std::vector<std::uint32_t> indices_;         // the payload's triangles in encoded ids
-  std::vector<std::uint32_t> keys_;            // reordering: the vertices' Z-order codes, triangle keys
-  std::vector<std::uint32_t> order_;           // reordering: the triangles in sorted order, and scratch
-  std::vector<std::uint32_t> renumber_;        // reordering: encoded id in the cut's order -> in the new one
-  std::vector<std::uint32_t> reordered_;       // reordering: the triangles renumbered
-  std::vector<std::uint32_t> reordered_used_;  // reordering: used_ in the new order
-  std::vector<std::uint16_t> reordered_quantized_;  // reordering: quantized_ in the new order
-  std::vector<float> gathered_;           // positions of the used vertices, then their normals (xyzw)
-  std::vector<std::uint16_t> quantized_;  // 4 per vertex: x, y, z, 0
-  std::vector<std::uint8_t> attribute_;   // octahedral normals or rgba colours, before the codec
+  // New elements of these arrays are left uninitialised: each call writes every element it reads.
+  util::GrowOnlyVector<std::uint32_t> encoded_id_;  // per model vertex: its encoded id, kUnused between calls
+  util::GrowOnlyVector<std::uint32_t> used_;        // encoded id -> model vertex id
+  util::GrowOnlyVector<std::uint32_t> indices_;     // the payload's triangles in encoded ids
+  util::GrowOnlyVector<std::uint32_t> keys_;        // reordering: the vertices' Z-order codes, triangle keys
+  util::GrowOnlyVector<std::uint32_t> order_;       // reordering: the triangles in sorted order, and scratch
+  util::GrowOnlyVector<std::uint32_t> renumber_;    // reordering: encoded id in the cut's order -> new one
+  util::GrowOnlyVector<std::uint32_t> reordered_;   // reordering: the triangles renumbered
+  util::GrowOnlyVector<std::uint32_t> reordered_used_;       // reordering: used_ in the new order
+  util::GrowOnlyVector<std::uint16_t> reordered_quantized_;  // reordering: quantized_ in the new order
+  util::GrowOnlyVector<float> gathered_;  // positions of the used vertices, then their normals (xyzw)
+  util::GrowOnlyVector<std::uint16_t> quantized_;  // 4 per vertex: x, y, z, 0
+  util::GrowOnlyVector<std::uint8_t> attribute_;   // octahedral normals or rgba colours, before the codec
 };
 
 }  // namespace mtlod::core::codec
