@@ -1,12 +1,12 @@
 // meshoptimizer encoding of a cut (layout in meshopt_encode.hpp). The cut's vertices are renumbered by
 // first use through a table over the model's vertices, whose touched entries are reset afterwards, so
 // the cost follows the cut and not the model; a reordering of the triangles then works on those compact
-// ids. Each attribute is quantized into its own stream and handed to meshopt_encodeVertexBuffer, the
-// triangles to encode_index_stream_v1 (meshoptimizer's index codec, our faster writer of the same
-// bytes), both writing straight into the caller's buffer at their place in the payload.
+// ids. Each attribute is quantized into its own stream, the normals through the octahedral filter
+// straight from the model's array, and written by encode_vertex_stream_v0 (meshoptimizer's vertex
+// codec, version 0); the triangles by encode_index_stream_v1 (its index codec, version 1): our faster
+// writers of the library's bytes, both writing straight into the caller's buffer at their place in
+// the payload.
 #include "core/codec/meshopt_encode.hpp"
-
-#include <meshoptimizer.h>
 
 #include <algorithm>
 #include <array>
@@ -18,6 +18,7 @@
 #include <utility>
 
 #include "core/codec/index_encode.hpp"
+#include "core/codec/vertex_encode.hpp"
 #include "core/model/bounds.hpp"
 #include "fmt/format.h"
 
@@ -25,18 +26,6 @@ namespace mtlod::core::codec {
 namespace {
 
 constexpr std::uint32_t kUnused = std::numeric_limits<std::uint32_t>::max();
-
-// meshoptimizer keeps the vertex codec version it writes in a process-wide variable. It is set once,
-// before the first encoding (a function-local static is initialised once even with several workers);
-// each vertex stream's first byte is checked afterwards in case other code in the process set it
-// differently. The index stream is ours (index_encode.hpp), version 1 whatever the library is set to.
-void set_codec_versions() {
-  static const bool set = [] {
-    meshopt_encodeVertexVersion(0);
-    return true;
-  }();
-  (void)set;
-}
 
 void put_u32(std::uint8_t* at, std::uint32_t value) {
   for (int i = 0; i < 4; ++i) at[i] = static_cast<std::uint8_t>(value >> (8 * i));
@@ -77,13 +66,11 @@ Status check_input(const DracoInput& input, const MeshoptOptions& options) {
   return Ok{};
 }
 
-// Appends one vertex stream (length, then meshoptimizer's bytes) at `at`; returns the end, or null when
-// the library wrote another codec version than the payload promises.
+// Appends one vertex stream (length, then the stream) at `at`; returns the end.
 std::uint8_t* put_vertex_stream(std::uint8_t* at, const void* values, std::size_t count, std::size_t stride) {
-  const std::size_t bound = meshopt_encodeVertexBufferBound(count, stride);
-  const std::size_t size = meshopt_encodeVertexBuffer(at + 4, bound, values, count, stride);
-  assert(size > 0);  // only a buffer below the bound makes it fail
-  if (at[4] != kMeshoptVertexStreamHeader) return nullptr;
+  const std::size_t size =
+      encode_vertex_stream_v0(values, count, stride, {at + 4, vertex_stream_bound(count, stride)});
+  assert(size > 0);  // the bound is always enough
   put_u32(at, static_cast<std::uint32_t>(size));
   return at + 4 + size;
 }
@@ -184,7 +171,6 @@ Result<EncodeStats> MeshoptEncoder::encode(const DracoInput& input, const Meshop
   out.clear();
   if (Status checked = check_input(input, options); !checked) return checked.error();
   assert(input.triangles.size() % 3 == 0);
-  set_codec_versions();
 
   // Renumber by first use. The table's entries go back to kUnused when the call ends, even when a
   // buffer below throws, so the next cut starts from a clean table without a pass over the model.
@@ -263,10 +249,10 @@ Result<EncodeStats> MeshoptEncoder::encode(const DracoInput& input, const Meshop
 
   // The payload at its largest, trimmed at the end.
   const std::size_t normal_stride = options.normal_bits <= 8 ? 4 : 8;
-  std::size_t bound = kMeshoptHeaderBytes + 4 + meshopt_encodeVertexBufferBound(n, 8) + 4 +
-                      index_stream_bound(input.triangles.size(), n);
-  if (options.normals) bound += 4 + meshopt_encodeVertexBufferBound(n, normal_stride);
-  if (options.colors) bound += 4 + meshopt_encodeVertexBufferBound(n, 4);
+  std::size_t bound =
+      kMeshoptHeaderBytes + 4 + vertex_stream_bound(n, 8) + 4 + index_stream_bound(input.triangles.size(), n);
+  if (options.normals) bound += 4 + vertex_stream_bound(n, normal_stride);
+  if (options.colors) bound += 4 + vertex_stream_bound(n, 4);
   out.resize(bound);
   std::uint8_t* const header = out.data();
   std::memcpy(header, kMeshoptMagic, 4);
@@ -280,25 +266,13 @@ Result<EncodeStats> MeshoptEncoder::encode(const DracoInput& input, const Meshop
   put_u32(header + 12, static_cast<std::uint32_t>(triangles));
   for (int k = 0; k < 3; ++k) put_f32(header + 16 + 4 * k, origin[k]);
   put_f32(header + 28, step);
-  auto version_error = [&out] {
-    out.clear();
-    return make_error(ErrorCode::kInternal,
-                      "meshoptimizer wrote a vertex codec version the payload does not promise (0)");
-  };
-
+  // The streams' first bytes are constants of our writers: the versions the payload promises.
+  static_assert(kVertexStreamV0Header == kMeshoptVertexStreamHeader);
   std::uint8_t* at = put_vertex_stream(header + kMeshoptHeaderBytes, quantized_.data(), n, 8);
-  if (!at) return version_error();
   if (options.normals) {
-    gathered_.resize(4 * n);
-    for (std::size_t i = 0; i < n; ++i) {
-      if (i + kAhead < n) __builtin_prefetch(&input.normals[3 * std::size_t{used_[i + kAhead]}]);
-      std::memcpy(&gathered_[4 * i], &input.normals[3 * std::size_t{used_[i]}], 12);
-      gathered_[4 * i + 3] = 0;  // the fourth component, which the filter keeps: constant, so free
-    }
     attribute_.resize(normal_stride * n);
-    meshopt_encodeFilterOct(attribute_.data(), n, normal_stride, options.normal_bits, gathered_.data());
+    encode_filter_oct(attribute_.data(), normal_stride, options.normal_bits, input.normals, used_);
     at = put_vertex_stream(at, attribute_.data(), n, normal_stride);
-    if (!at) return version_error();
   }
   if (options.colors) {
     attribute_.resize(4 * n);
@@ -307,9 +281,7 @@ Result<EncodeStats> MeshoptEncoder::encode(const DracoInput& input, const Meshop
       attribute_[4 * i + 3] = 255;
     }
     at = put_vertex_stream(at, attribute_.data(), n, 4);
-    if (!at) return version_error();
   }
-  // Our index writer's first byte is a constant, so unlike the vertex streams there is nothing to check.
   static_assert(kIndexStreamV1Header == kMeshoptIndexStreamHeader);
   const std::size_t index_size =
       encode_index_stream_v1(indices_, {at + 4, index_stream_bound(indices_.size(), n)});

@@ -1,8 +1,8 @@
 // meshoptimizer compression of an extracted cut (core/ARCHITECTURE.md §3), beside draco_encode: larger
 // payloads than Draco's edgebreaker, much smaller than its sequential method, quick to decode, and made
 // of streams a glTF client takes as they are (EXT_meshopt_compression buffer views: ATTRIBUTES with
-// KHR_mesh_quantization positions and OCTAHEDRAL normals, TRIANGLES indices). meshoptimizer's header
-// stays inside the .cpp files.
+// KHR_mesh_quantization positions and OCTAHEDRAL normals, TRIANGLES indices), written by our own
+// writers of meshoptimizer's codecs (index_encode.hpp, vertex_encode.hpp).
 //
 // The payload, little-endian:
 //   offset  bytes  field
@@ -76,15 +76,14 @@ struct MeshoptOptions {
 };
 
 // Reusable encoder: keeps its renumbering table (one entry per vertex of the largest model seen) and its
-// stream buffers between calls, so once they have grown a call allocates nothing (meshoptimizer's
-// codecs work in the caller's buffers). Labels in the input are ignored: the payload has no generic
+// stream buffers between calls, so once they have grown a call allocates nothing (the streams are
+// written in the caller's buffer). Labels in the input are ignored: the payload has no generic
 // attribute.
 class MeshoptEncoder {
  public:
   // Encodes the cut into `out` (cleared first). Fails with kInvalidArgument when options are out of
   // range, the grid is not a finite box, attributes asked for are missing or the cut has no
-  // triangles, and kInternal when meshoptimizer writes a codec version other than the one the
-  // payload promises (another part of the process changed the library's setting).
+  // triangles.
   Result<EncodeStats> encode(const DracoInput& input, const MeshoptOptions& options,
                              std::vector<std::uint8_t>& out);
 
@@ -103,9 +102,9 @@ class MeshoptEncoder {
   util::GrowOnlyVector<std::uint32_t> reordered_;   // reordering: the triangles renumbered
   util::GrowOnlyVector<std::uint32_t> reordered_used_;       // reordering: used_ in the new order
   util::GrowOnlyVector<std::uint16_t> reordered_quantized_;  // reordering: quantized_ in the new order
-  util::GrowOnlyVector<float> gathered_;  // positions of the used vertices, then their normals (xyzw)
-  util::GrowOnlyVector<std::uint16_t> quantized_;  // 4 per vertex: x, y, z, 0
-  util::GrowOnlyVector<std::uint8_t> attribute_;   // octahedral normals or rgba colours, before the codec
+  util::GrowOnlyVector<float> gathered_;                     // positions of the used vertices
+  util::GrowOnlyVector<std::uint16_t> quantized_;            // 4 per vertex: x, y, z, 0
+  util::GrowOnlyVector<std::uint8_t> attribute_;  // octahedral normals or rgba colours, before the codec
 };
 
 }  // namespace mtlod::core::codec

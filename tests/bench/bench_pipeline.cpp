@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <map>
 #include <memory>
@@ -19,6 +20,7 @@
 #include "core/codec/index_encode.hpp"
 #include "core/codec/meshopt_decode.hpp"
 #include "core/codec/meshopt_encode.hpp"
+#include "core/codec/vertex_encode.hpp"
 #include "core/cut/cut_delta.hpp"
 #include "core/io/mesh_io.hpp"
 #include "core/model/bounds.hpp"
@@ -286,6 +288,95 @@ void BM_IndexEncode(benchmark::State& state) {
 BENCHMARK(BM_IndexEncode)
     ->ArgsProduct({{0, 1}, {0, 1}})
     ->ArgNames({"encoder", "order"})
+    ->Unit(benchmark::kMicrosecond);
+
+// The vertex streams of BM_Codec's meshopt payloads with normals (codec 3) alone: meshoptimizer's
+// vertex encoder (codec version 0) and octahedral filter against ours, which write the same bytes.
+// The streams are the payload's own, decoded, so quantized, numbered and ordered as MeshoptEncoder
+// hands them over. Args: encoder (0 meshoptimizer, 1 vertex_encode.hpp), stream (0 positions, u16x4,
+// stride 8; 1 normals, 10-bit octahedral, stride 8; 2 normals, 8-bit, stride 4; 3 the filter of the
+// 10-bit normals: meshopt_encodeFilterOct on a copy of the cut's normals gathered with w = 0, which
+// the library needs, against encode_filter_oct reading the model's normals by vertex id).
+// Counters: time_per_vertex, bytes_per_vertex (the stream's, or the filter's output).
+void BM_VertexEncode(benchmark::State& state) {
+  const Model* m = model("dragon");
+  if (!m) return state.SkipWithError("mesh not found");
+  const core::cut::CutMesh& cut = codec_cut(*m);
+  const bool ours = state.range(0) == 1;
+  const int stream = static_cast<int>(state.range(1));
+  core::codec::MeshoptOptions options;
+  options.normals = true;
+  options.normal_bits = stream == 2 ? 8 : 10;
+  std::vector<std::uint8_t> payload;
+  if (!core::codec::MeshoptEncoder()
+           .encode({m->mt.positions, m->mt.normals, {}, cut.triangles, {}}, options, payload)
+           .ok())
+    return state.SkipWithError("encoding failed");
+  // The payload's vertex count, then its streams (a 4-byte length each): positions, then normals.
+  auto u32_at = [&payload](std::size_t at) {
+    std::uint32_t v;
+    std::memcpy(&v, &payload[at], 4);
+    return v;
+  };
+  const std::size_t n = u32_at(8);
+  const std::size_t position_size = u32_at(core::codec::kMeshoptHeaderBytes);
+  const std::size_t normals_at = core::codec::kMeshoptHeaderBytes + 4 + position_size;
+  const bool normals = stream != 0;
+  const std::size_t stride = stream == 2 ? 4 : 8;
+  const std::size_t stream_at = normals ? normals_at : core::codec::kMeshoptHeaderBytes;
+  std::vector<std::uint8_t> vertices(n * stride);
+  if (meshopt_decodeVertexBuffer(vertices.data(), n, stride, &payload[stream_at + 4], u32_at(stream_at)) != 0)
+    return state.SkipWithError("decoding failed");
+  // The filter's input: the cut's vertices by first use, the payload's numbering before reordering.
+  std::vector<std::uint32_t> ids;
+  std::vector<char> seen(m->mt.positions.size() / 3, 0);
+  for (const std::uint32_t v : cut.triangles)
+    if (!seen[v]) seen[v] = 1, ids.push_back(v);
+  std::vector<float> gathered(4 * ids.size());
+
+  std::vector<std::uint8_t> out(stream == 3 ? 8 * ids.size() : core::codec::vertex_stream_bound(n, stride));
+  std::vector<std::uint8_t> expected(out.size());
+  meshopt_encodeVertexVersion(0);
+  std::size_t size = 0;
+  if (stream == 3) {
+    for (std::size_t i = 0; i < ids.size(); ++i) {
+      std::memcpy(&gathered[4 * i], &m->mt.normals[3 * std::size_t{ids[i]}], 12);
+      gathered[4 * i + 3] = 0;
+    }
+    meshopt_encodeFilterOct(expected.data(), ids.size(), 8, options.normal_bits, gathered.data());
+  } else {
+    expected.resize(meshopt_encodeVertexBuffer(expected.data(), expected.size(), vertices.data(), n, stride));
+  }
+  for (auto _ : state) {
+    if (stream == 3) {
+      if (ours) {
+        core::codec::encode_filter_oct(out.data(), 8, options.normal_bits, m->mt.normals, ids);
+      } else {
+        for (std::size_t i = 0; i < ids.size(); ++i) {
+          std::memcpy(&gathered[4 * i], &m->mt.normals[3 * std::size_t{ids[i]}], 12);
+          gathered[4 * i + 3] = 0;
+        }
+        meshopt_encodeFilterOct(out.data(), ids.size(), 8, options.normal_bits, gathered.data());
+      }
+      size = out.size();
+    } else {
+      size = ours ? core::codec::encode_vertex_stream_v0(vertices.data(), n, stride, out)
+                  : meshopt_encodeVertexBuffer(out.data(), out.size(), vertices.data(), n, stride);
+    }
+    benchmark::DoNotOptimize(out.data());
+  }
+  if (size != expected.size() || !std::equal(expected.begin(), expected.end(), out.begin()))
+    return state.SkipWithError("the streams differ");
+  const std::size_t count = stream == 3 ? ids.size() : n;
+  state.counters["time_per_vertex"] =
+      benchmark::Counter(static_cast<double>(count),
+                         benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
+  state.counters["bytes_per_vertex"] = static_cast<double>(size) / static_cast<double>(count);
+  state.SetItemsProcessed(state.iterations() * static_cast<std::int64_t>(count));
+}
+BENCHMARK(BM_VertexEncode)
+    ->ArgsProduct({{0, 1}, {0, 1, 2, 3}})
+    ->ArgNames({"encoder", "stream"})
     ->Unit(benchmark::kMicrosecond);
 
 // Dynamic refinement after a small camera move against refinement from the root, same result size.
