@@ -12,6 +12,7 @@
 #include <filesystem>
 #include <map>
 #include <memory>
+#include <numeric>
 #include <random>
 
 #include "core/build/mt_builder.hpp"
@@ -418,6 +419,81 @@ protocol::Extract gaze_request(const Model& m) {
   e.criteria.regions[core::view::Criterion::kFocus] = protocol::Region{20, 0.1, {{0.5, 0.5}}};
   return e;
 }
+
+// Delta updates on a gaze stream as the server makes them for a connection with "delta": true and a
+// codec: mtlod-gaze's criteria on the dragon (cuts of about 50k triangles), drifting fixations and a
+// saccade one gaze in ten, the view kept per session; each update is the diff against the client's
+// cut (core::CutDelta), the new triangles gathered in cut order and encoded with the gaze's options
+// (protocol::to_encode_options: normals, the model's grid). The time is that update alone, one core.
+// Args: codec (0 Draco, 1 meshopt). Counters: update_p50/p90/p99/max_us, added (new triangles a
+// gaze, mean), added_p99, triangles (the cut, mean).
+void BM_DeltaUpdate(benchmark::State& state) {
+  const Model* m = model("dragon");
+  if (!m) return state.SkipWithError("mesh not found");
+  protocol::Extract e = gaze_request(*m);
+  e.codec = state.range(0) == 1 ? core::codec::Codec::kMeshopt : core::codec::Codec::kDraco;
+  e.delta = true;
+  protocol::EncodeContext context{true, m->mt.has_colors(), {}, {}};
+  for (int k = 0; k < 3; ++k)
+    context.bounds_min[k] = static_cast<float>(m->lo[k]),
+    context.bounds_max[k] = static_cast<float>(m->hi[k]);
+  const core::codec::EncodeOptions options = protocol::to_encode_options(e, context);
+  core::view::ViewExtractor x(m->mt, *m->levels);
+  core::view::ViewCache session;
+  core::cut::Refiner refiner(m->mt);
+  core::cut::CutMesh cut;
+  core::cut::CutDelta sent;
+  core::codec::CutEncoder encoder;
+  std::vector<std::uint32_t> added, removed, added_triangles;
+  std::vector<std::uint8_t> payload;
+  std::vector<double> update_us, added_counts;
+  double triangles = 0;
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> anywhere(0.2, 0.8), drift(-0.003, 0.003), chance(0, 1);
+  for (auto _ : state) {
+    protocol::Point& f = protocol::gaze_region(e.criteria).points[0];
+    if (chance(rng) < 0.1) {
+      f.x = anywhere(rng), f.y = anywhere(rng);
+    } else {
+      f.x = std::clamp(f.x + drift(rng), 0.0, 1.0), f.y = std::clamp(f.y + drift(rng), 0.0, 1.0);
+    }
+    const core::view::ViewRequest v = protocol::to_view_request(e, false);  // the extractor keeps a reference
+    x.map(v, &session);
+    x.occupancy(), x.distance_transforms(), x.allowed_error();
+    refined(x.refine(refiner, cut));
+    auto t = Clock::now();
+    sent.update(cut.ids, m->mt.triangle_count(), added, removed);
+    added_triangles.clear();
+    for (const std::uint32_t i : added)
+      added_triangles.insert(added_triangles.end(), &cut.triangles[3 * std::size_t{i}],
+                             &cut.triangles[3 * std::size_t{i}] + 3);
+    if (!added_triangles.empty()) {
+      auto encoded = encoder.encode({m->mt.positions, m->mt.normals, {}, added_triangles, m->mt.colors},
+                                    options, payload);
+      if (!encoded) return state.SkipWithError(encoded.error().message.c_str());
+    }
+    update_us.push_back(us_since(t));
+    added_counts.push_back(static_cast<double>(added.size()));
+    triangles += static_cast<double>(cut.triangle_count());
+  }
+  // The first update sends the whole cut (the client has nothing yet): not a gaze's update.
+  update_us.erase(update_us.begin()), added_counts.erase(added_counts.begin());
+  const double mean_added = std::accumulate(added_counts.begin(), added_counts.end(), 0.0) /
+                            static_cast<double>(added_counts.size());
+  std::sort(update_us.begin(), update_us.end());
+  std::sort(added_counts.begin(), added_counts.end());
+  auto at = [](const std::vector<double>& v, double q) {
+    return v[static_cast<std::size_t>(q * (v.size() - 1))];
+  };
+  state.counters["update_p50_us"] = at(update_us, 0.5);
+  state.counters["update_p90_us"] = at(update_us, 0.9);
+  state.counters["update_p99_us"] = at(update_us, 0.99);
+  state.counters["update_max_us"] = update_us.back();
+  state.counters["added"] = mean_added;
+  state.counters["added_p99"] = at(added_counts, 0.99);
+  state.counters["triangles"] = benchmark::Counter(triangles, benchmark::Counter::kAvgIterations);
+}
+BENCHMARK(BM_DeltaUpdate)->Arg(0)->Arg(1)->ArgName("codec")->Unit(benchmark::kMillisecond)->Iterations(1000);
 
 // A budgeted extraction of a new view (the dragon, mtlod-gaze's criteria, 50k triangles): the
 // refinement alone, worst-first from the root. kept:0 is Refiner::refine_budget (nothing kept),
