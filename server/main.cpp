@@ -1,5 +1,6 @@
 // mtlod-server: serves view-dependent, Draco-compressed extractions of Multi-Tessellations over the
 // protocol in protocol/PROTOCOL.md.
+#include <malloc.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -263,10 +264,23 @@ void announce(const mtlod::server::ServerConfig& config, const mtlod::server::Se
   }
 }
 
+// A reply's buffers are allocated by a worker and freed by the connection's thread after sending.
+// With glibc's defaults that memory goes back to the kernel between requests (big blocks are mapped
+// and unmapped, arenas trimmed), and a worker pays page faults and zero fills on every large reply:
+// on the 105M model one worker encoded a 124k-triangle view in 12-15 ms, the other in 8
+// (BENCHMARKS.md, "Scaling: serving large models"). Blocks up to 32 MiB (glibc's largest mmap
+// threshold) come from the arenas, which keep up to 256 MiB free before trimming; larger blocks are
+// still mapped and returned at once.
+void keep_reply_memory() {
+  mallopt(M_MMAP_THRESHOLD, 32 << 20);
+  mallopt(M_TRIM_THRESHOLD, 256 << 20);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   using namespace mtlod;
+  keep_reply_memory();
   CLI::App app{
       "mtlod-server: a network level-of-detail server. Clients send camera matrices and gaze points "
       "(protocol/PROTOCOL.md) and receive Draco-compressed view-dependent extractions."};
