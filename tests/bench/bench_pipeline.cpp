@@ -14,6 +14,7 @@
 #include <memory>
 #include <numeric>
 #include <random>
+#include <string>
 
 #include "core/build/mt_builder.hpp"
 #include "core/codec/draco_decode.hpp"
@@ -244,6 +245,20 @@ BENCHMARK(BM_Codec)
     ->ArgNames({"codec", "normals"})
     ->Unit(benchmark::kMillisecond);
 
+// The end of a stream encoder's benchmark: the last stream written must be the library's bytes;
+// counters time_per_<unit> (the encoding's time over `count` items) and bytes_per_<unit>.
+void report_stream(benchmark::State& state, const std::vector<std::uint8_t>& expected,
+                   const std::vector<std::uint8_t>& written, std::size_t size, std::size_t count,
+                   const std::string& unit) {
+  if (size != expected.size() || !std::equal(expected.begin(), expected.end(), written.begin()))
+    return state.SkipWithError("the streams differ");
+  state.counters["time_per_" + unit] =
+      benchmark::Counter(static_cast<double>(count),
+                         benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
+  state.counters["bytes_per_" + unit] = static_cast<double>(size) / static_cast<double>(count);
+  state.SetItemsProcessed(state.iterations() * static_cast<std::int64_t>(count));
+}
+
 // The triangles stream of BM_Codec's meshopt payloads alone: meshoptimizer's index encoder (index
 // codec version 1) against ours, which writes the same bytes. The triangles are the payload's own, as
 // the payload decodes, so numbered and ordered as MeshoptEncoder hands them over. Args: encoder (0
@@ -278,13 +293,7 @@ void BM_IndexEncode(benchmark::State& state) {
                 : meshopt_encodeIndexBuffer(stream.data(), stream.size(), indices.data(), indices.size());
     benchmark::DoNotOptimize(stream.data());
   }
-  if (size != expected.size() || !std::equal(expected.begin(), expected.end(), stream.begin()))
-    return state.SkipWithError("the streams differ");
-  state.counters["time_per_tri"] =
-      benchmark::Counter(static_cast<double>(triangles),
-                         benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
-  state.counters["bytes_per_tri"] = static_cast<double>(size) / static_cast<double>(triangles);
-  state.SetItemsProcessed(state.iterations() * static_cast<std::int64_t>(triangles));
+  report_stream(state, expected, stream, size, triangles, "tri");
 }
 BENCHMARK(BM_IndexEncode)
     ->ArgsProduct({{0, 1}, {0, 1}})
@@ -366,14 +375,7 @@ void BM_VertexEncode(benchmark::State& state) {
     }
     benchmark::DoNotOptimize(out.data());
   }
-  if (size != expected.size() || !std::equal(expected.begin(), expected.end(), out.begin()))
-    return state.SkipWithError("the streams differ");
-  const std::size_t count = stream == 3 ? ids.size() : n;
-  state.counters["time_per_vertex"] =
-      benchmark::Counter(static_cast<double>(count),
-                         benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
-  state.counters["bytes_per_vertex"] = static_cast<double>(size) / static_cast<double>(count);
-  state.SetItemsProcessed(state.iterations() * static_cast<std::int64_t>(count));
+  report_stream(state, expected, out, size, stream == 3 ? ids.size() : n, "vertex");
 }
 BENCHMARK(BM_VertexEncode)
     ->ArgsProduct({{0, 1}, {0, 1, 2, 3}})
