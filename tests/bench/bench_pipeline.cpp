@@ -422,6 +422,25 @@ protocol::Extract gaze_request(const Model& m) {
   return e;
 }
 
+// The gaze of the stream benchmarks: a fixation that drifts by a fraction of a percent of the
+// screen, and a saccade to a random point one gaze in ten.
+class GazeWalk {
+ public:
+  explicit GazeWalk(unsigned seed) : rng_(seed) {}
+  void step(protocol::Extract& e) {
+    protocol::Point& f = protocol::gaze_region(e.criteria).points[0];
+    if (chance_(rng_) < 0.1) {
+      f.x = anywhere_(rng_), f.y = anywhere_(rng_);
+    } else {
+      f.x = std::clamp(f.x + drift_(rng_), 0.0, 1.0), f.y = std::clamp(f.y + drift_(rng_), 0.0, 1.0);
+    }
+  }
+
+ private:
+  std::mt19937 rng_;
+  std::uniform_real_distribution<double> anywhere_{0.2, 0.8}, drift_{-0.003, 0.003}, chance_{0, 1};
+};
+
 // Delta updates on a gaze stream as the server makes them for a connection with "delta": true and a
 // codec: mtlod-gaze's criteria on the dragon (cuts of about 50k triangles), drifting fixations and a
 // saccade one gaze in ten, the view kept per session; each update is the diff against the client's
@@ -450,15 +469,9 @@ void BM_DeltaUpdate(benchmark::State& state) {
   std::vector<std::uint8_t> payload;
   std::vector<double> update_us, added_counts;
   double triangles = 0;
-  std::mt19937 rng(7);
-  std::uniform_real_distribution<double> anywhere(0.2, 0.8), drift(-0.003, 0.003), chance(0, 1);
+  GazeWalk walk(7);
   for (auto _ : state) {
-    protocol::Point& f = protocol::gaze_region(e.criteria).points[0];
-    if (chance(rng) < 0.1) {
-      f.x = anywhere(rng), f.y = anywhere(rng);
-    } else {
-      f.x = std::clamp(f.x + drift(rng), 0.0, 1.0), f.y = std::clamp(f.y + drift(rng), 0.0, 1.0);
-    }
+    walk.step(e);
     const core::view::ViewRequest v = protocol::to_view_request(e, false);  // the extractor keeps a reference
     x.map(v, &session);
     x.occupancy(), x.distance_transforms(), x.allowed_error();
@@ -552,19 +565,13 @@ void BM_GazeStream(benchmark::State& state) {
   draco.method = core::codec::DracoMethod::kSequential;
   draco.entropy_coding = state.range(1) == 0;
   std::vector<std::uint8_t> payload;
-  std::mt19937 rng(5);
-  std::uniform_real_distribution<double> anywhere(0.2, 0.8), drift(-0.003, 0.003), chance(0, 1);
+  GazeWalk walk(5);
   double labels_us = 0, refine_us = 0, before_us = 0, encode_us = 0, delta_us = 0, triangles = 0, changed = 0,
          bytes = 0;
   core::cut::CutDelta delta;  // what a delta reply's diff costs (server, "delta": true)
   std::vector<std::uint32_t> added, removed;
   for (auto _ : state) {
-    protocol::Point& f = protocol::gaze_region(e.criteria).points[0];
-    if (chance(rng) < 0.1) {
-      f.x = anywhere(rng), f.y = anywhere(rng);
-    } else {
-      f.x = std::clamp(f.x + drift(rng), 0.0, 1.0), f.y = std::clamp(f.y + drift(rng), 0.0, 1.0);
-    }
+    walk.step(e);
     const core::view::ViewRequest v = protocol::to_view_request(e, false);
     auto start = Clock::now();
     x.map(v, with_session ? &session : nullptr);
