@@ -25,6 +25,7 @@
 #include "core/codec/vertex_encode.hpp"
 #include "core/cut/cut_delta.hpp"
 #include "core/io/mesh_io.hpp"
+#include "core/io/mt_file.hpp"
 #include "core/model/bounds.hpp"
 #include "core/view/occupancy_levels.hpp"
 #include "core/view/view_extract.hpp"
@@ -51,6 +52,28 @@ fs::path find_mesh(const char* env, std::initializer_list<fs::path> candidates) 
     if (fs::exists(p)) return p;
   }
   return {};
+}
+
+// The MT file MTLOD_BENCH_MT names, mapped as the server maps it, once per process; nullptr when
+// the variable is unset or the file does not open.
+const Model* model_file() {
+  static std::unique_ptr<Model> slot;
+  static bool tried = false;
+  if (tried) return slot.get();
+  tried = true;
+  const char* path = std::getenv("MTLOD_BENCH_MT");
+  if (!path) return nullptr;
+  auto mt = core::io::read_mt_file(path);
+  if (!mt) return nullptr;
+  slot = std::make_unique<Model>();
+  slot->mt = std::move(*mt);
+  auto levels = core::view::OccupancyLevels::make(slot->mt);
+  if (!levels) return slot.reset(), nullptr;
+  slot->levels = std::move(*levels);
+  const core::model::Bounds box = core::model::bounds_of(slot->mt.positions);
+  slot->lo = core::model::to_double(box.lo);
+  slot->hi = core::model::to_double(box.hi);
+  return slot.get();
 }
 
 // Loads and builds once per process; nullptr when the mesh is not there.
@@ -616,5 +639,54 @@ BENCHMARK(BM_GazeStream)
     ->ArgNames({"session", "raw", "gaze_criteria"})
     ->Unit(benchmark::kMillisecond)
     ->Iterations(300);
+
+// The budgeted gaze stream of BENCHMARKS.md's large-model rows on the MT file MTLOD_BENCH_MT
+// (skipped without it), in one process: mtlod-gaze's criteria at 0.2 px with a 40k budget, the
+// session's view and refiner as the server keeps them per connection, GazeWalk's gazes. The time
+// of a gaze until its cut (no diff, no encoding), with percentiles; the first 100 gazes warm the
+// session and the file's pages and are not counted.
+void BM_GazeFile(benchmark::State& state) {
+  const Model* m = model_file();
+  if (!m) return state.SkipWithError("MTLOD_BENCH_MT not set or not an MT file");
+  protocol::Extract e = gaze_request(*m);
+  e.error = 0.2;
+  e.budget = 40'000;
+  core::view::ViewExtractor x(m->mt, *m->levels);
+  core::view::ViewCache session;
+  core::cut::Refiner refiner(m->mt);
+  core::cut::CutMesh cut;
+  GazeWalk walk(11);
+  std::vector<double> gaze_us;
+  double triangles = 0;
+  for (auto _ : state) {
+    walk.step(e);
+    const core::view::ViewRequest v = protocol::to_view_request(e, false);
+    auto start = Clock::now();
+    x.map(v, &session);
+    x.occupancy(), x.distance_transforms(), x.allowed_error();
+    refined(x.refine(refiner, cut));
+    gaze_us.push_back(us_since(start));
+    triangles += static_cast<double>(cut.triangle_count());
+  }
+  constexpr std::size_t kWarm = 100;
+  gaze_us.erase(gaze_us.begin(), gaze_us.begin() + std::ptrdiff_t(std::min(kWarm, gaze_us.size())));
+  if (gaze_us.empty()) return;
+  const double mean =
+      std::accumulate(gaze_us.begin(), gaze_us.end(), 0.0) / static_cast<double>(gaze_us.size());
+  std::sort(gaze_us.begin(), gaze_us.end());
+  auto at = [&](double q) {
+    return gaze_us[static_cast<std::size_t>(q * static_cast<double>(gaze_us.size() - 1))];
+  };
+  state.counters["gaze_mean_us"] = mean;
+  state.counters["gaze_p50_us"] = at(0.5);
+  state.counters["gaze_p90_us"] = at(0.9);
+  state.counters["gaze_p99_us"] = at(0.99);
+  state.counters["gaze_max_us"] = gaze_us.back();
+  state.counters["triangles"] = benchmark::Counter(triangles, benchmark::Counter::kAvgIterations);
+  state.counters["budget_raises"] = static_cast<double>(refiner.budget_raises());
+  state.counters["budget_starts"] = static_cast<double>(refiner.budget_starts());
+  state.counters["refine_restarts"] = static_cast<double>(refiner.restarts());
+}
+BENCHMARK(BM_GazeFile)->Unit(benchmark::kMillisecond)->Iterations(2100);
 
 }  // namespace
