@@ -606,8 +606,12 @@ bool Refiner::update_kept(const AllowedError& allowed, std::span<const std::uint
   }
   const bool field_all_changed =
       allowed.per_vertex.empty() || field_ == Field::kUnknown || field_ == Field::kUniform;
-  const bool all_changed = field_all_changed || !(allowed.threshold == previous_threshold_);
-  if (!all_changed && changed_vertices.empty() && kept_ == Kept::kMesh) {
+  const bool threshold_changed = !(allowed.threshold == previous_threshold_);
+  // A higher threshold over the same field only drops nodes: their witnesses are tested again, and
+  // of the other triangles only those they uncover and those with a changed corner.
+  const bool raised = !field_all_changed && threshold_changed && previous_threshold_ < allowed.threshold;
+  const bool all_changed = field_all_changed || (threshold_changed && !raised);
+  if (!all_changed && !raised && changed_vertices.empty() && kept_ == Kept::kMesh) {
     // The same field: the kept cut is its minimal cut already (a gaze within the same cells).
     ++unchanged_;
     return true;
@@ -619,7 +623,7 @@ bool Refiner::update_kept(const AllowedError& allowed, std::span<const std::uint
       if (field_ == Field::kCopied) previous_field_[v] = allowed.per_vertex[v];
     }
   }
-  move_cut(allowed, all_changed);
+  move_cut(allowed, all_changed, raised);
   if (field_all_changed) {
     // No copy: the callers that list their changes never need one (update without a list makes it).
     remember_field(allowed, false);
@@ -632,7 +636,7 @@ bool Refiner::update_kept(const AllowedError& allowed, std::span<const std::uint
 
 // One function for the five steps of a move, the gaze path BM_GazeStream measures: they share the
 // changed-vertex test, the kept count and the dropped list, and either restart check may end it.
-void Refiner::move_cut(const AllowedError& allowed, bool all_changed) {
+void Refiner::move_cut(const AllowedError& allowed, bool all_changed, bool raised) {
   if (kept_ == Kept::kThreshold) kept_mesh_from_cut();
   auto changed = [&](std::uint32_t v) { return all_changed || vertex_changed(v); };
 
@@ -658,7 +662,7 @@ void Refiner::move_cut(const AllowedError& allowed, bool all_changed) {
     const std::uint32_t n = cut_[i];
     const Witness w = witnesses_[i];
     bool keep = in_cut_[w.creator] == kIn;
-    if (keep && (changed(w.corners[0]) || changed(w.corners[1]) || changed(w.corners[2])))
+    if (keep && (raised || changed(w.corners[0]) || changed(w.corners[1]) || changed(w.corners[2])))
       keep = fails_at(mt_.triangle_remover[w.triangle], w.corners, allowed);
     // Parents can only be missing once something was dropped.
     if (keep && !dropped_.empty())
@@ -846,6 +850,7 @@ std::size_t Refiner::budget_from_root(const AllowedError& allowed, std::size_t m
                                       CutMesh& out) {
   reset_to_root();  // keeps no cut to move (start_budget_from keeps one)
   heap_.clear();
+  deferred_.clear();
   if (on_demand) fill_root_vertices(*on_demand);
   push_failing(0, allowed);
   std::size_t level_end = 0;
@@ -867,7 +872,7 @@ void Refiner::push_failing(std::uint32_t n, const AllowedError& allowed) {
     const std::uint32_t r = mt_.triangle_remover[t];
     if (r == model::kNoNode || in_cut_[r] == kIn || !fails(t, n, allowed)) continue;
     heap_.push_back(heap_entry(t, n, allowed));
-    std::push_heap(heap_.begin(), heap_.end(), heap_less);
+    std::push_heap(heap_.begin(), heap_.end(), HeapLess{});
   }
 }
 
@@ -879,8 +884,16 @@ void Refiner::fill_budget(const AllowedError& allowed, std::size_t count, std::s
   // search from the root), and when that smallest ratio first reaches ℓ every node whose forcing
   // path stays above ℓ is in the cut and no other: the minimal cut of threshold ℓ.
   Rank smallest{2, 0.0f};  // above every rank
-  while (!heap_.empty()) {
-    std::pop_heap(heap_.begin(), heap_.end(), heap_less);
+  while (true) {
+    // The entries set aside below deferred_below_ join once the heap's best is no better.
+    if (!deferred_.empty() &&
+        (heap_.empty() || Rank{heap_.front().tier, heap_.front().key} < deferred_below_)) {
+      heap_.insert(heap_.end(), deferred_.begin(), deferred_.end());
+      deferred_.clear();
+      std::make_heap(heap_.begin(), heap_.end(), HeapLess{});
+    }
+    if (heap_.empty()) break;
+    std::pop_heap(heap_.begin(), heap_.end(), HeapLess{});
     const HeapEntry top = heap_.back();
     heap_.pop_back();
     const std::uint32_t r = mt_.triangle_remover[top.triangle];
@@ -900,6 +913,7 @@ void Refiner::fill_budget(const AllowedError& allowed, std::size_t count, std::s
     }
     if (count + added - removed > max_triangles) {
       truncate_cut(first_new);
+      fill_floor_ = smallest;
       return;
     }
     count = count + added - removed;
@@ -909,6 +923,7 @@ void Refiner::fill_budget(const AllowedError& allowed, std::size_t count, std::s
   }
   // Nothing fails: the minimal cut of threshold 1.
   if (count <= target) level = Rank{}, level_end = cut_.size();
+  fill_floor_ = smallest;
 }
 
 Rank Refiner::threshold_dropping(const AllowedError& allowed, std::size_t nodes) {
@@ -951,6 +966,9 @@ namespace {
 // leaves the band (each change tests every triangle once).
 constexpr std::size_t kBudgetLow = 16;     // the band starts a sixteenth below the budget
 constexpr std::size_t kBudgetTarget = 32;  // a changed threshold aims a thirty-second below it
+// The heap of a budgeted update holds the failing triangles ranked at least this fraction of the
+// previous fill's lowest rank; the others join if the fill gets that far.
+constexpr float kDeferBelow = 0.75f;
 }  // namespace
 
 std::size_t Refiner::budget_target(std::size_t max_triangles) const {
@@ -1018,8 +1036,14 @@ void Refiner::update_budget(const AllowedError& allowed, std::span<const std::ui
     count = mesh_triangles_.size();
   }
   budget_threshold_ = at.threshold;
-  // Worst first from there, with a heap of the mesh's failing triangles.
+  // Worst first from there, with a heap of the mesh's failing triangles. A gaze's fill pops a few
+  // hundred of its tens of thousands, down to about where the previous gaze's stopped: the ones
+  // well below that wait aside (fill_budget takes them in once the heap's best is no better, so
+  // the order is the same) and the heap is built and popped at a fraction of the size.
   heap_.clear();
+  deferred_.clear();
+  deferred_below_ = Rank{0, 0.0f};  // nothing below: every entry in the heap
+  if (fill_floor_.tier == 0) deferred_below_.key = fill_floor_.key * kDeferBelow;
   for (std::size_t i = 0; i < mesh_triangles_.size(); ++i) {
     if (mesh_removers_[i] == model::kNoNode) continue;
     const std::uint32_t* corners = &mesh_corners_[3 * i];
@@ -1028,9 +1052,10 @@ void Refiner::update_budget(const AllowedError& allowed, std::span<const std::ui
     if (!(error > a)) continue;
     // Not checked before it is forced (see heap_entry).
     const Rank rank = rank_of(error, a);
-    heap_.push_back({rank.tier, rank.key, mesh_triangles_[i], mesh_creators_[i]});
+    (rank < deferred_below_ ? deferred_ : heap_)
+        .push_back({rank.tier, rank.key, mesh_triangles_[i], mesh_creators_[i]});
   }
-  std::make_heap(heap_.begin(), heap_.end(), heap_less);
+  std::make_heap(heap_.begin(), heap_.end(), HeapLess{});
   kept_ = Kept::kAdding;
   const std::size_t base = cut_.size();
   Rank level = at.threshold;
@@ -1081,7 +1106,7 @@ std::size_t Refiner::memory_bytes() const {
          bytes(mesh_errors_) + bytes(stack_) + bytes(previous_field_) + bytes(mesh_triangles_) +
          bytes(mesh_creators_) + bytes(mesh_removers_) + bytes(mesh_corners_) +
          changed_bits_.resident_bytes() + bytes(dropped_) + bytes(seeds_) + bytes(passing_) + bytes(heap_) +
-         bytes(ranks_) + bytes(root_vertices_) + bytes(batch_);
+         bytes(deferred_) + bytes(ranks_) + bytes(root_vertices_) + bytes(batch_);
 }
 
 }  // namespace mtlod::core::cut

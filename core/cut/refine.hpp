@@ -347,7 +347,9 @@ class Refiner {
   void mesh_push(std::uint32_t t, std::uint32_t creator, std::uint32_t remover, const std::uint32_t* corners,
                  float error);
   // Moves the kept cut, or refines it afresh from the nodes that stay; the kept mesh holds the result.
-  void move_cut(const AllowedError& allowed, bool all_changed);
+  // all_changed: every triangle is tested again. raised: the field is the same and the threshold
+  // higher, so only the witnesses are (a triangle that passed still passes).
+  void move_cut(const AllowedError& allowed, bool all_changed, bool raised = false);
   // update(allowed, changed, ·) up to the output: true when the kept mesh holds the result (false:
   // a static refinement wrote `out`, there being no kept cut to move).
   bool update_kept(const AllowedError& allowed, std::span<const std::uint32_t> changed_vertices,
@@ -417,6 +419,10 @@ class Refiner {
   };
   HeapEntry heap_entry(std::uint32_t t, std::uint32_t creator, const AllowedError& allowed) const;
   static bool heap_less(const HeapEntry& x, const HeapEntry& y);
+  // heap_less for the heap algorithms: a function object's call is inlined, a function pointer's not.
+  struct HeapLess {
+    bool operator()(const HeapEntry& x, const HeapEntry& y) const { return heap_less(x, y); }
+  };
   // Pushes node n's triangles that fail and are in the mesh.
   void push_failing(std::uint32_t n, const AllowedError& allowed);
   // Worst ratio first from the cut, heap_ holding its mesh's failing triangles (count of them in
@@ -445,6 +451,11 @@ class Refiner {
   // The kept mesh of the whole cut (after start_budget, before the next move).
   void kept_mesh_from_cut();
   std::vector<HeapEntry> heap_;
+  // A budgeted update's failing triangles ranked below deferred_below_, out of the heap until the
+  // fill reaches them; fill_floor_ is the lowest rank the last fill popped (above all: none).
+  std::vector<HeapEntry> deferred_;
+  Rank deferred_below_;
+  Rank fill_floor_{2, 0.0f};
   std::vector<Rank> ranks_;               // threshold_dropping's scratch
   std::optional<Rank> budget_threshold_;  // the kept cut's threshold for budget_max_
   std::size_t budget_max_ = 0;

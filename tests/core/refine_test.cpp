@@ -725,6 +725,43 @@ void expect_dynamic_budget_matches_static(const MtCase* c, std::uint32_t seed, i
   EXPECT_LT(dynamic.budget_starts(), std::size_t(steps) / 2);
 }
 
+// Moves of a kept cut whose field changes only where listed while its threshold rises and falls,
+// as a scene's shared budget moves each instance's (a rise is tested against the witnesses alone).
+TEST(Refine, MovesAcrossRisingAndFallingThresholdsEqualStatic) {
+  const MtCase* c = test::scan_case("dragon-vrip-res4-11k.ply");
+  if (!c) GTEST_SKIP() << "no shared meshes";
+  std::mt19937 rng(23);
+  const float top = max_node_error(c->mt);
+  cut::Refiner dynamic(c->mt), fixed(c->mt);
+  cut::CutMesh moving, reference;
+  std::vector<float> field = focus_field(c->mesh, rng, top * 1e-3f, top * 0.3f);
+  std::vector<std::uint32_t> changed;
+  std::uniform_int_distribution<std::uint32_t> pick(0, std::uint32_t(field.size() - 1));
+  std::uniform_real_distribution<float> scale(0.2f, 5.0f), exponent(0.0f, 1.5f);
+  int rises = 0, falls = 0;
+  cut::Rank previous;
+  for (int step = 0; step < 40; ++step) {
+    changed.clear();
+    if (step % 3 == 2) {  // now and then a few vertices change too
+      for (int i = 0; i < 20; ++i) {
+        changed.push_back(pick(rng));
+        field[changed.back()] *= scale(rng);
+      }
+    }
+    cut::AllowedError allowed = cut::AllowedError::from_vertices(field);
+    allowed.threshold = cut::Rank{0, std::pow(10.0f, exponent(rng))};
+    rises += previous < allowed.threshold, falls += allowed.threshold < previous;
+    previous = allowed.threshold;
+    EXPECT_TRUE(dynamic.refine(cut::Refinement::move(allowed, changed), moving));
+    EXPECT_TRUE(fixed.refine(cut::Refinement::from_root(allowed), reference));
+    ASSERT_EQ(test::triangle_set(moving.triangles), test::triangle_set(reference.triangles))
+        << "step " << step << " threshold " << allowed.threshold.key;
+    ASSERT_EQ(moving.node_count, reference.node_count) << "step " << step;
+  }
+  EXPECT_GT(rises, 5);
+  EXPECT_GT(falls, 5);
+}
+
 TEST(Refine, DynamicBudgetEqualsBudgetFromTheRoot) {
   for (const char* file : {"bunny-npm-3k.ply", "dragon-vrip-res4-11k.ply", "armadillo-52k.ply"})
     if (const MtCase* c = test::scan_case(file)) expect_dynamic_budget_matches_static(c, 41, 60);
