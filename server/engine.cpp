@@ -136,13 +136,8 @@ Result<std::uint64_t> encode_cut(const Model& model, const protocol::Extract& re
   std::span<const std::uint32_t> triangles = cut.triangles;
   if (request.delta) {
     const bool reset = sent.update(cut.ids, model.mt.triangle_count(), worker.added, worker.removed);
-    worker.added_triangles.clear();
-    worker.added_ids.clear();
-    for (const std::uint32_t i : worker.added) {
-      worker.added_triangles.insert(worker.added_triangles.end(), &cut.triangles[3 * std::size_t{i}],
-                                    &cut.triangles[3 * std::size_t{i}] + 3);
-      worker.added_ids.push_back(cut.ids[i]);
-    }
+    core::cut::gather_triangles(cut.triangles, cut.ids, worker.added, worker.added_triangles,
+                                worker.added_ids);
     triangles = worker.added_triangles;
     delta = protocol::MeshDelta{reset, 0, worker.added_ids.size(), worker.removed.size()};
   } else {

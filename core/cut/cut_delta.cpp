@@ -59,4 +59,19 @@ void CutDelta::reset() {
   empty_ = true;
 }
 
+void gather_triangles(std::span<const std::uint32_t> corners, std::span<const std::uint32_t> ids,
+                      std::span<const std::uint32_t> positions, std::vector<std::uint32_t>& triangles,
+                      std::vector<std::uint32_t>& gathered_ids) {
+  assert(corners.size() == 3 * ids.size());
+  triangles.resize(3 * positions.size());
+  gathered_ids.resize(positions.size());
+  std::uint32_t* corner = triangles.data();
+  for (std::size_t k = 0; k < positions.size(); ++k) {
+    const std::size_t i = positions[k];
+    assert(i < ids.size());
+    std::copy_n(&corners[3 * i], 3, corner + 3 * k);
+    gathered_ids[k] = ids[i];
+  }
+}
+
 }  // namespace mtlod::core::cut

@@ -38,4 +38,10 @@ class CutDelta {
   bool empty_ = true;                           // the client has no mesh yet
 };
 
+// Of a cut (corners and ids as CutMesh holds them), the triangles at `positions` (update's `added`),
+// in order: what a delta reply sends. Replaces `triangles` (three corners each) and `ids`.
+void gather_triangles(std::span<const std::uint32_t> corners, std::span<const std::uint32_t> ids,
+                      std::span<const std::uint32_t> positions, std::vector<std::uint32_t>& triangles,
+                      std::vector<std::uint32_t>& gathered_ids);
+
 }  // namespace mtlod::core::cut

@@ -488,7 +488,7 @@ void BM_DeltaUpdate(benchmark::State& state) {
   core::cut::CutMesh cut;
   core::cut::CutDelta sent;
   core::codec::CutEncoder encoder;
-  std::vector<std::uint32_t> added, removed, added_triangles;
+  std::vector<std::uint32_t> added, removed, added_triangles, added_ids;
   std::vector<std::uint8_t> payload;
   std::vector<double> update_us, added_counts;
   double triangles = 0;
@@ -501,10 +501,7 @@ void BM_DeltaUpdate(benchmark::State& state) {
     refined(x.refine(refiner, cut));
     auto t = Clock::now();
     sent.update(cut.ids, m->mt.triangle_count(), added, removed);
-    added_triangles.clear();
-    for (const std::uint32_t i : added)
-      added_triangles.insert(added_triangles.end(), &cut.triangles[3 * std::size_t{i}],
-                             &cut.triangles[3 * std::size_t{i}] + 3);
+    core::cut::gather_triangles(cut.triangles, cut.ids, added, added_triangles, added_ids);
     if (!added_triangles.empty()) {
       auto encoded = encoder.encode({m->mt.positions, m->mt.normals, {}, added_triangles, m->mt.colors},
                                     options, payload);

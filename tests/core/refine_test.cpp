@@ -6,8 +6,10 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
+#include <map>
 #include <random>
 #include <set>
 #include <string>
@@ -770,15 +772,16 @@ TEST(Refine, DynamicBudgetEqualsBudgetFromTheRoot) {
 }
 
 TEST(CutDelta, AppliedChangesRebuildEveryCutOfASequence) {
-  // A client that applies each delta to a set of ids holds exactly the latest cut's ids.
+  // A client that applies each delta (the ids to drop, the gathered triangles with their ids) to a
+  // mesh keyed by id holds exactly the latest cut: its ids, each with its corners.
   const MtCase* c = test::shape_case(eval::Shape::kSphere, 8'000);
   std::mt19937 rng(31);
   const float top = max_node_error(c->mt);
   cut::Refiner refiner(c->mt);
   cut::CutMesh cut;
   cut::CutDelta delta;
-  std::set<std::uint32_t> client;
-  std::vector<std::uint32_t> added, removed;
+  std::map<std::uint32_t, std::array<std::uint32_t, 3>> client;
+  std::vector<std::uint32_t> added, removed, triangles, ids;
   std::size_t partial = 0;
   for (int step = 0; step < 30; ++step) {
     if (step == 20) delta.reset();  // the client starts over
@@ -790,9 +793,17 @@ TEST(CutDelta, AppliedChangesRebuildEveryCutOfASequence) {
     if (from_empty) client.clear();
     for (const std::uint32_t id : removed)
       ASSERT_EQ(client.erase(id), 1u) << "removed twice or never added: " << id;
-    for (const std::uint32_t i : added)
-      ASSERT_TRUE(client.insert(cut.ids[i]).second) << "added twice: " << cut.ids[i];
-    ASSERT_EQ(client, std::set<std::uint32_t>(cut.ids.begin(), cut.ids.end())) << step;
+    cut::gather_triangles(cut.triangles, cut.ids, added, triangles, ids);
+    ASSERT_EQ(triangles.size(), 3 * added.size());
+    ASSERT_EQ(ids.size(), added.size());
+    for (std::size_t k = 0; k < ids.size(); ++k)
+      ASSERT_TRUE(
+          client.insert({ids[k], {triangles[3 * k], triangles[3 * k + 1], triangles[3 * k + 2]}}).second)
+          << "added twice: " << ids[k];
+    std::map<std::uint32_t, std::array<std::uint32_t, 3>> expected;
+    for (std::size_t i = 0; i < cut.ids.size(); ++i)
+      expected[cut.ids[i]] = {cut.triangles[3 * i], cut.triangles[3 * i + 1], cut.triangles[3 * i + 2]};
+    ASSERT_EQ(client, expected) << step;
     partial += !from_empty && added.size() < cut.ids.size();
   }
   EXPECT_GT(partial, 0u);  // deltas were smaller than the cut
