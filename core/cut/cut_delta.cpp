@@ -1,6 +1,7 @@
 // Differences between consecutive cuts by id (see cut_delta.hpp). Two bit arrays over the MT's
 // triangles keep every step O(cut), with no sorting; only the pages of the cut's ids are resident
-// (ZeroedArray), however large the model.
+// (ZeroedArray), however large the model. A moved cut, in the order the refiner keeps it, is
+// diffed by one ordered pass instead, its bits read for the appended part only.
 #include "core/cut/cut_delta.hpp"
 
 #include <algorithm>
@@ -36,6 +37,12 @@ bool CutDelta::update(std::span<const std::uint32_t> ids, std::size_t triangle_c
   // The same cut in the same order (a gaze that moved no allowed error): nothing to diff.
   if (!empty_ && ids.size() == sent_.size() && std::equal(ids.begin(), ids.end(), sent_.begin()))
     return false;
+  if (!empty_ && diff_in_order(ids, added, removed)) {
+    for (const std::uint32_t id : removed) clear(sent_bits_, id);
+    for (const std::uint32_t i : added) set(sent_bits_, ids[i]);
+    sent_.assign(ids.begin(), ids.end());
+    return false;
+  }
   for (std::uint32_t i = 0; i < ids.size(); ++i) {
     assert(ids[i] < triangle_count && !test(next_bits_, ids[i]));
     set(next_bits_, ids[i]);
@@ -51,6 +58,43 @@ bool CutDelta::update(std::span<const std::uint32_t> ids, std::size_t triangle_c
   sent_.assign(ids.begin(), ids.end());
   empty_ = false;
   return from_empty;
+}
+
+bool CutDelta::diff_in_order(std::span<const std::uint32_t> ids, std::vector<std::uint32_t>& added,
+                             std::vector<std::uint32_t>& removed) {
+  // The client's ids that stay are matched in order, the others are taken as dropped. Each id of
+  // the tail the client has was one of those (the matched part of ids holds distinct ids of the
+  // client's, matched once each): moved to the end, not dropped, and struck off the list. A cut
+  // refined afresh comes in another order and nearly every id fails to match: past half the
+  // client's ids the pass gives up rather than finish a scan that gains nothing.
+  const std::size_t most_removed = sent_.size() / 2;
+  std::size_t i = 0;
+  for (const std::uint32_t id : sent_) {
+    if (i < ids.size() && ids[i] == id) {
+      ++i;
+    } else {
+      removed.push_back(id);
+      if (removed.size() > most_removed) {
+        removed.clear();
+        return false;
+      }
+    }
+  }
+  std::size_t moved = 0;
+  for (std::size_t k = i; k < ids.size(); ++k) {
+    assert(ids[k] < triangle_count_ && !test(next_bits_, ids[k]));
+    if (test(sent_bits_, ids[k])) {
+      set(next_bits_, ids[k]);
+      ++moved;
+    } else {
+      added.push_back(static_cast<std::uint32_t>(k));
+    }
+  }
+  if (moved > 0) {
+    std::erase_if(removed, [&](std::uint32_t id) { return test(next_bits_, id); });
+    for (std::size_t k = i; k < ids.size(); ++k) clear(next_bits_, ids[k]);
+  }
+  return true;
 }
 
 void CutDelta::reset() {

@@ -31,6 +31,13 @@ class CutDelta {
   }
 
  private:
+  // A moved cut keeps the triangles that stay in their order and appends the others (Refiner's
+  // kept mesh: the new ones, and those of nodes dropped and forced back): one pass over both lists
+  // in order finds the change, with bit reads for the appended part only. False (added and removed
+  // left empty) when more than half of the client's ids are out of order, as after a restart.
+  bool diff_in_order(std::span<const std::uint32_t> ids, std::vector<std::uint32_t>& added,
+                     std::vector<std::uint32_t>& removed);
+
   util::ZeroedArray<std::uint64_t> sent_bits_;  // one bit per MT triangle: in the client's mesh
   util::ZeroedArray<std::uint64_t> next_bits_;  // scratch: in the new cut (all clear between calls)
   std::vector<std::uint32_t> sent_;             // the client's ids, in the order received

@@ -825,6 +825,31 @@ TEST(CutDelta, AppliedChangesRebuildEveryCutOfASequence) {
   EXPECT_TRUE(removed.empty());
 }
 
+TEST(CutDelta, KeptOrderAppendedTailAndReorderedCutsGiveTheSameChanges) {
+  // A moved cut (the triangles that stay in their order, new ones appended) and cuts in any other
+  // order: the positions new to the client and the ids it drops, worked out by hand.
+  cut::CutDelta delta;
+  std::vector<std::uint32_t> added, removed;
+  using Ids = std::vector<std::uint32_t>;
+  EXPECT_TRUE(delta.update(Ids{1, 2, 3, 4}, 10, added, removed));
+  EXPECT_EQ(added, (Ids{0, 1, 2, 3}));
+  EXPECT_FALSE(delta.update(Ids{1, 3, 4, 7, 8}, 10, added, removed));  // 2 dropped, 7 and 8 appended
+  EXPECT_EQ(added, (Ids{3, 4}));
+  EXPECT_EQ(removed, (Ids{2}));
+  EXPECT_FALSE(delta.update(Ids{3, 1, 4, 8, 9}, 10, added, removed));  // reordered, 7 dropped, 9 new
+  EXPECT_EQ(added, (Ids{4}));
+  EXPECT_EQ(removed, (Ids{7}));
+  EXPECT_FALSE(delta.update(Ids{3, 5, 1, 4, 8, 9, 7}, 10, added, removed));  // inserted in the middle
+  EXPECT_EQ(added, (Ids{1, 6}));
+  EXPECT_TRUE(removed.empty());
+  EXPECT_FALSE(delta.update(Ids{5, 4, 8, 9, 7, 3}, 10, added, removed));  // 1 dropped, 3 moved to the end
+  EXPECT_TRUE(added.empty());
+  EXPECT_EQ(removed, (Ids{1}));
+  EXPECT_FALSE(delta.update(Ids{5, 4, 9, 3, 0}, 10, added, removed));  // 8 and 7 dropped, 0 appended
+  EXPECT_EQ(added, (Ids{4}));
+  EXPECT_EQ(removed, (Ids{8, 7}));
+}
+
 TEST(Refine, DynamicAfterSmallMovesOfTheFocusEqualsStatic) {
   // The expected use: a focus drifting a little between requests.
   const MtCase* c = test::scan_case("bunny-zipper-69k.ply");
