@@ -46,7 +46,7 @@ class CutDelta {
 };
 
 // Of a cut (corners and ids as CutMesh holds them), the triangles at `positions` (update's `added`),
-// in order: what a delta reply sends. Replaces `triangles` (three corners each) and `ids`.
+// in order: what a delta reply sends. Replaces `triangles` (three corners each) and `gathered_ids`.
 void gather_triangles(std::span<const std::uint32_t> corners, std::span<const std::uint32_t> ids,
                       std::span<const std::uint32_t> positions, std::vector<std::uint32_t>& triangles,
                       std::vector<std::uint32_t>& gathered_ids);
