@@ -267,8 +267,7 @@ void announce(const mtlod::server::ServerConfig& config, const mtlod::server::Se
 // A reply's buffers are allocated by a worker and freed by the connection's thread after sending.
 // With glibc's defaults that memory goes back to the kernel between requests (big blocks are mapped
 // and unmapped, arenas trimmed), and a worker pays page faults and zero fills on every large reply
-// (BENCHMARKS.md, "Scaling: serving large models": half the encodes of a 105M model's views took
-// half again as long). Blocks up to 32 MiB (glibc's largest mmap
+// (BENCHMARKS.md, "Scaling: serving large models"). Blocks up to 32 MiB (glibc's largest mmap
 // threshold) come from the arenas, which keep up to 256 MiB free before trimming; larger blocks are
 // still mapped and returned at once.
 void keep_reply_memory() {

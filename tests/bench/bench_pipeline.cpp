@@ -35,6 +35,7 @@
 
 namespace {
 
+using mtlod::bench::quantile;
 using mtlod::bench::refined;
 
 using namespace mtlod;
@@ -485,7 +486,7 @@ void BM_DeltaUpdate(benchmark::State& state) {
   core::view::ViewExtractor x(m->mt, *m->levels);
   core::view::ViewCache session;
   core::cut::Refiner refiner(m->mt);
-  core::cut::CutMesh cut;
+  core::cut::CutMesh scratch;
   core::cut::CutDelta sent;
   core::codec::CutEncoder encoder;
   std::vector<std::uint32_t> added, removed, added_triangles, added_ids;
@@ -496,9 +497,7 @@ void BM_DeltaUpdate(benchmark::State& state) {
   for (auto _ : state) {
     walk.step(e);
     const core::view::ViewRequest v = protocol::to_view_request(e, false);  // the extractor keeps a reference
-    x.map(v, &session);
-    x.occupancy(), x.distance_transforms(), x.allowed_error();
-    refined(x.refine(refiner, cut));
+    const core::cut::CutSpan cut = refined(x.extract(v, refiner, scratch, &session));
     auto t = Clock::now();
     sent.update(cut.ids, m->mt.triangle_count(), added, removed);
     core::cut::gather_triangles(cut.triangles, cut.ids, added, added_triangles, added_ids);
@@ -517,15 +516,12 @@ void BM_DeltaUpdate(benchmark::State& state) {
                             static_cast<double>(added_counts.size());
   std::sort(update_us.begin(), update_us.end());
   std::sort(added_counts.begin(), added_counts.end());
-  auto at = [](const std::vector<double>& v, double q) {
-    return v[static_cast<std::size_t>(q * (v.size() - 1))];
-  };
-  state.counters["update_p50_us"] = at(update_us, 0.5);
-  state.counters["update_p90_us"] = at(update_us, 0.9);
-  state.counters["update_p99_us"] = at(update_us, 0.99);
+  state.counters["update_p50_us"] = quantile(update_us, 0.5);
+  state.counters["update_p90_us"] = quantile(update_us, 0.9);
+  state.counters["update_p99_us"] = quantile(update_us, 0.99);
   state.counters["update_max_us"] = update_us.back();
   state.counters["added"] = mean_added;
-  state.counters["added_p99"] = at(added_counts, 0.99);
+  state.counters["added_p99"] = quantile(added_counts, 0.99);
   state.counters["triangles"] = benchmark::Counter(triangles, benchmark::Counter::kAvgIterations);
 }
 BENCHMARK(BM_DeltaUpdate)->Arg(0)->Arg(1)->ArgName("codec")->Unit(benchmark::kMillisecond)->Iterations(1000);
@@ -640,7 +636,8 @@ BENCHMARK(BM_GazeStream)
 // The budgeted gaze stream of BENCHMARKS.md's large-model rows on the MT file MTLOD_BENCH_MT
 // (skipped without it), in one process: mtlod-gaze's criteria at 0.2 px with a 40k budget, the
 // session's view and refiner as the server keeps them per connection, GazeWalk's gazes. The time
-// of a gaze until its cut (no diff, no encoding), with percentiles; the first 100 gazes warm the
+// of a gaze until its cut (ViewExtractor::extract, as the server calls it; no diff, no encoding),
+// with percentiles; the first 100 gazes warm the
 // session and the file's pages and are not counted.
 void BM_GazeFile(benchmark::State& state) {
   const Model* m = model_file();
@@ -651,7 +648,7 @@ void BM_GazeFile(benchmark::State& state) {
   core::view::ViewExtractor x(m->mt, *m->levels);
   core::view::ViewCache session;
   core::cut::Refiner refiner(m->mt);
-  core::cut::CutMesh cut;
+  core::cut::CutMesh scratch;
   GazeWalk walk(11);
   std::vector<double> gaze_us;
   double triangles = 0;
@@ -659,9 +656,7 @@ void BM_GazeFile(benchmark::State& state) {
     walk.step(e);
     const core::view::ViewRequest v = protocol::to_view_request(e, false);
     auto start = Clock::now();
-    x.map(v, &session);
-    x.occupancy(), x.distance_transforms(), x.allowed_error();
-    refined(x.refine(refiner, cut));
+    const core::cut::CutSpan cut = refined(x.extract(v, refiner, scratch, &session));
     gaze_us.push_back(us_since(start));
     triangles += static_cast<double>(cut.triangle_count());
   }
@@ -671,13 +666,10 @@ void BM_GazeFile(benchmark::State& state) {
   const double mean =
       std::accumulate(gaze_us.begin(), gaze_us.end(), 0.0) / static_cast<double>(gaze_us.size());
   std::sort(gaze_us.begin(), gaze_us.end());
-  auto at = [&](double q) {
-    return gaze_us[static_cast<std::size_t>(q * static_cast<double>(gaze_us.size() - 1))];
-  };
   state.counters["gaze_mean_us"] = mean;
-  state.counters["gaze_p50_us"] = at(0.5);
-  state.counters["gaze_p90_us"] = at(0.9);
-  state.counters["gaze_p99_us"] = at(0.99);
+  state.counters["gaze_p50_us"] = quantile(gaze_us, 0.5);
+  state.counters["gaze_p90_us"] = quantile(gaze_us, 0.9);
+  state.counters["gaze_p99_us"] = quantile(gaze_us, 0.99);
   state.counters["gaze_max_us"] = gaze_us.back();
   state.counters["triangles"] = benchmark::Counter(triangles, benchmark::Counter::kAvgIterations);
   state.counters["budget_raises"] = static_cast<double>(refiner.budget_raises());

@@ -1,8 +1,11 @@
 // What the benchmarks share.
 #pragma once
 
+#include <cstddef>
 #include <cstdio>
 #include <cstdlib>
+#include <utility>
+#include <vector>
 
 #include "core/result.hpp"
 
@@ -14,6 +17,20 @@ inline void refined(const Status& status) {
   if (status) return;
   std::fprintf(stderr, "refinement failed: %s\n", status.error().message.c_str());
   std::abort();
+}
+// The same for a refinement that returns its cut: the cut.
+template <class T>
+T refined(Result<T> result) {
+  if (!result) {
+    std::fprintf(stderr, "refinement failed: %s\n", result.error().message.c_str());
+    std::abort();
+  }
+  return std::move(*result);
+}
+
+// The value at quantile q (0..1) of values sorted ascending, the nearest rank below; not empty.
+inline double quantile(const std::vector<double>& sorted, double q) {
+  return sorted[static_cast<std::size_t>(q * static_cast<double>(sorted.size() - 1))];
 }
 
 }  // namespace mtlod::bench
