@@ -65,8 +65,9 @@ bool CutDelta::diff_in_order(std::span<const std::uint32_t> ids, std::vector<std
   // The client's ids that stay are matched in order, the others are taken as dropped. Each id of
   // the tail the client has was one of those (the matched part of ids holds distinct ids of the
   // client's, matched once each): moved to the end, not dropped, and struck off the list. A cut
-  // refined afresh comes in another order and nearly every id fails to match: past half the
-  // client's ids the pass gives up rather than finish a scan that gains nothing.
+  // refined from the root comes in another order and nearly every id fails to match: once half the
+  // client's ids failed while fewer than a quarter as many matched, the pass gives up rather than
+  // finish a scan that gains nothing. (A saccade may replace more than half of a cut kept in order.)
   const std::size_t most_removed = sent_.size() / 2;
   std::size_t i = 0;
   for (const std::uint32_t id : sent_) {
@@ -74,7 +75,7 @@ bool CutDelta::diff_in_order(std::span<const std::uint32_t> ids, std::vector<std
       ++i;
     } else {
       removed.push_back(id);
-      if (removed.size() > most_removed) {
+      if (removed.size() > most_removed && 4 * i < removed.size()) {
         removed.clear();
         return false;
       }

@@ -151,7 +151,8 @@ void Refiner::reset_to_root() {
   cut_.push_back(0);
   witnesses_.push_back({model::kNoNode,
                         model::kNoNode,
-                        {model::kNoNode, model::kNoNode, model::kNoNode}});  // the root needs none
+                        {model::kNoNode, model::kNoNode, model::kNoNode},
+                        0.0f});  // the root needs none
 }
 
 template <class F>
@@ -163,7 +164,8 @@ void Refiner::for_each_removed(std::uint32_t x, F&& f) const {
   }
 }
 
-void Refiner::add_node(std::uint32_t x, std::uint32_t witness_triangle, std::uint32_t witness_creator) {
+void Refiner::add_node(std::uint32_t x, std::uint32_t witness_triangle, std::uint32_t witness_creator,
+                       float witness_error) {
   // Nodes are added with the kept mesh set aside (refine_forced and refine_budget emit at the end,
   // move_cut rebuilds the mesh once for all its additions).
   assert(kept_ != Kept::kMesh);
@@ -175,7 +177,8 @@ void Refiner::add_node(std::uint32_t x, std::uint32_t witness_triangle, std::uin
        witness_creator,
        {mt_.first_corner(model::TriangleId{witness_triangle}, model::NodeId{witness_creator}),
         mt_.triangle_corners[2 * std::size_t{witness_triangle}],
-        mt_.triangle_corners[2 * std::size_t{witness_triangle} + 1]}});
+        mt_.triangle_corners[2 * std::size_t{witness_triangle} + 1]},
+       witness_error});
 }
 
 void Refiner::force(std::uint32_t r, std::uint32_t witness_triangle, std::uint32_t witness_creator) {
@@ -192,7 +195,9 @@ void Refiner::force(std::uint32_t r, std::uint32_t witness_triangle, std::uint32
   bool parents_in = true;
   for (std::uint32_t i = offsets[r]; i < offsets[r + 1] && parents_in; ++i)
     parents_in = in_cut_[parents[i]] == kIn;
-  if (parents_in) return add_node(r, witness_triangle, witness_creator);
+  // r removes the witness: every node added here has its error (just read to find it failing).
+  const float witness_error = mt_.node_error[r];
+  if (parents_in) return add_node(r, witness_triangle, witness_creator, witness_error);
   stack_.clear();
   stack_.push_back(r);
   stack_.push_back(offsets[r]);
@@ -219,7 +224,7 @@ void Refiner::force(std::uint32_t r, std::uint32_t witness_triangle, std::uint32
       continue;
     }
     stack_.resize(top);
-    add_node(x, witness_triangle, witness_creator);
+    add_node(x, witness_triangle, witness_creator, witness_error);
   }
 }
 
@@ -497,7 +502,7 @@ void Refiner::refine_forced(const AllowedError& allowed, CutMesh* out, const OnD
     }
   }
   kept_ = Kept::kPassing;
-  if (!out) return take_kept_mesh();
+  if (!out) return;
   MeshWriter writer(mt_, *out, passing_.size());
   float max_error = 0.0f;
   for (const Passing& p : passing_) {
@@ -646,36 +651,36 @@ void Refiner::move_cut(const AllowedError& allowed, bool all_changed, bool raise
   std::size_t kept = 1;
   dropped_.clear();
   const std::size_t count = cut_.size();
+  // A node whose parent dropped drops too. Rather than reading every later node's parents, a
+  // dropped node marks the nodes its triangles name as removers (its children) in node_changed_;
+  // parents come before children in cut_, so the mark is set before its node is reached.
+  const std::uint32_t* triangle_offsets = mt_.node_triangle_offsets.data();
+  const std::uint32_t* removers = mt_.triangle_remover.data();
+  auto mark_children = [&](std::uint32_t x, auto&& mark) {
+    for (std::uint32_t t = triangle_offsets[x]; t < triangle_offsets[x + 1]; ++t)
+      if (const std::uint32_t r = removers[t]; r != model::kNoNode) mark(r);
+  };
   for (std::size_t i = 1; i < count; ++i) {
-    // What the nodes ahead will read, in stages as in fetch_ahead (cut_ and witnesses_ are read
-    // in order; only the rest is scattered).
+    // The witness creator's state is a scattered read: fetched ahead (cut_ and witnesses_ are
+    // read in order).
     if (i + 16 < count) __builtin_prefetch(in_cut_.address(witnesses_[i + 16].creator));
-    if (!dropped_.empty()) {  // parents are read once something was dropped
-      if (i + 16 < count) __builtin_prefetch(parent_offsets + cut_[i + 16]);
-      if (i + 8 < count) __builtin_prefetch(parents + parent_offsets[cut_[i + 8]]);
-      if (i + 4 < count) {
-        const std::uint32_t ahead = cut_[i + 4];
-        for (std::uint32_t j = parent_offsets[ahead]; j < parent_offsets[ahead + 1]; ++j)
-          __builtin_prefetch(in_cut_.address(parents[j]));
-      }
-    }
     const std::uint32_t n = cut_[i];
     const Witness w = witnesses_[i];
     bool keep = in_cut_[w.creator] == kIn;
     if (keep && (raised || changed(w.corners[0]) || changed(w.corners[1]) || changed(w.corners[2])))
-      keep = fails_at(mt_.triangle_remover[w.triangle], w.corners, allowed);
-    // Parents can only be missing once something was dropped.
-    if (keep && !dropped_.empty())
-      for (std::uint32_t j = parent_offsets[n]; j < parent_offsets[n + 1] && keep; ++j)
-        keep = in_cut_[parents[j]] == kIn;
+      keep = allowed.exceeded_by(w.error, allowed.of_triangle(w.corners[0], w.corners[1], w.corners[2]));
+    if (keep && !dropped_.empty()) keep = !util::test_bit(node_changed_, n);
     if (keep) {
       witnesses_[kept] = w;
       cut_[kept++] = n;
     } else {
       in_cut_.set(n, kDropped);
       dropped_.push_back(n);
+      mark_children(n, [&](std::uint32_t r) { util::set_bit(node_changed_, r); });
     }
   }
+  for (const std::uint32_t x : dropped_)  // node_changed_ is clear between steps
+    mark_children(x, [&](std::uint32_t r) { node_changed_[r >> 6] = 0; });
   cut_.resize(kept);
   witnesses_.resize(kept);
 
@@ -691,10 +696,14 @@ void Refiner::move_cut(const AllowedError& allowed, bool all_changed, bool raise
     for (const std::uint32_t n : dropped_)
       if (in_cut_[n] == kDropped) in_cut_.set(n, kOut);
   };
-  // The result becomes the kept mesh, as a move's does.
+  // The result becomes the kept mesh, as a move's does, the triangles that stay in their order
+  // (the old mesh is taken from the passing list first if it is still there: in the order the
+  // refinement from the root wrote it).
   auto refine_afresh = [&] {
+    if (kept_ == Kept::kPassing) take_kept_mesh();
     release_dropped();
     refine_forced(allowed, nullptr, filling_, true);
+    merge_kept_mesh(kept);
     ++restarts_;
   };
   if (3 * dropped_.size() > kept) return refine_afresh();
@@ -706,7 +715,23 @@ void Refiner::move_cut(const AllowedError& allowed, bool all_changed, bool raise
   // 2. Undo the dropped nodes: what they removed from kept nodes is uncovered and must be tested
   // (what they created leaves the mesh in step 5, by its creator's state).
   seeds_.clear();
-  for (const std::uint32_t x : dropped_) {
+  const std::size_t dropped_count = dropped_.size();
+  for (std::size_t k = 0; k < dropped_count; ++k) {
+    // The dropped nodes are scattered over the model: their parents, those parents' triangles and
+    // the triangles' removers are fetched in stages ahead, as in step 1.
+    if (k + 12 < dropped_count) __builtin_prefetch(parent_offsets + dropped_[k + 12]);
+    if (k + 8 < dropped_count) __builtin_prefetch(parents + parent_offsets[dropped_[k + 8]]);
+    if (k + 4 < dropped_count) {
+      const std::uint32_t ahead = dropped_[k + 4];
+      for (std::uint32_t j = parent_offsets[ahead]; j < parent_offsets[ahead + 1]; ++j)
+        __builtin_prefetch(triangle_offsets + parents[j]);
+    }
+    if (k + 2 < dropped_count) {
+      const std::uint32_t ahead = dropped_[k + 2];
+      for (std::uint32_t j = parent_offsets[ahead]; j < parent_offsets[ahead + 1]; ++j)
+        __builtin_prefetch(removers + triangle_offsets[parents[j]]);
+    }
+    const std::uint32_t x = dropped_[k];
     for_each_removed(x, [&](std::uint32_t t, std::uint32_t p) {
       if (in_cut_[p] != kIn) return;
       seeds_.push_back(t);
@@ -743,14 +768,18 @@ void Refiner::move_cut(const AllowedError& allowed, bool all_changed, bool raise
   ++moves_;
 }
 
-void Refiner::rebuild_kept_mesh(std::size_t added) {
-  // Of the old mesh, what kept nodes created and no node of the cut removes (compacted in place, in
-  // order); then the uncovered triangles no added node removes; then what the added nodes create and
-  // no node of the cut removes. Every old mesh triangle was created by a node of the old cut and removed by
-  // none: it stays unless its creator dropped (and perhaps came back: added nodes' triangles are pushed
-  // below) or its remover was added. Those nodes are marked in a bitmap 8 times denser than in_cut_.
+void Refiner::mark_changed_nodes(std::size_t added) {
   for (const std::uint32_t n : dropped_) util::set_bit(node_changed_, n);
   for (std::size_t i = added; i < cut_.size(); ++i) util::set_bit(node_changed_, cut_[i]);
+}
+
+void Refiner::clear_changed_nodes(std::size_t added) {
+  for (const std::uint32_t n : dropped_) node_changed_[n >> 6] = 0;
+  for (std::size_t i = added; i < cut_.size(); ++i) node_changed_[cut_[i] >> 6] = 0;
+}
+
+void Refiner::compact_kept_mesh() {
+  // In place, in order; the bitmap is 8 times denser than in_cut_.
   const std::size_t mesh_size = mesh_triangles_.size();
   std::size_t write = 0;
   for (std::size_t i = 0; i < mesh_size; ++i) {
@@ -761,11 +790,25 @@ void Refiner::rebuild_kept_mesh(std::size_t added) {
     mesh_triangles_[write] = mesh_triangles_[i];
     mesh_creators_[write] = mesh_creators_[i];
     mesh_removers_[write] = r;
-    std::copy_n(&mesh_corners_[3 * i], 3, &mesh_corners_[3 * write]);
+    // Three assignments: copy_n of the overlapping arrays would call memmove for 12 bytes.
+    mesh_corners_[3 * write] = mesh_corners_[3 * i];
+    mesh_corners_[3 * write + 1] = mesh_corners_[3 * i + 1];
+    mesh_corners_[3 * write + 2] = mesh_corners_[3 * i + 2];
     mesh_errors_[write] = mesh_errors_[i];
     ++write;
   }
   resize_kept_mesh(write);
+}
+
+void Refiner::rebuild_kept_mesh(std::size_t added) {
+  // Of the old mesh, what kept nodes created and no node of the cut removes; then the uncovered
+  // triangles no added node removes; then what the added nodes create and no node of the cut
+  // removes. Every old mesh triangle was created by a node of the old cut and removed by none: it
+  // stays unless its creator dropped (and perhaps came back: added nodes' triangles are pushed
+  // below) or its remover was added.
+  mark_changed_nodes(added);
+  compact_kept_mesh();
+  clear_changed_nodes(added);
   auto push = [&](std::uint32_t t, std::uint32_t creator) {
     const std::uint32_t r = mt_.triangle_remover[t];
     if (r != model::kNoNode && in_cut_[r] != kOut) return;
@@ -774,14 +817,29 @@ void Refiner::rebuild_kept_mesh(std::size_t added) {
                                       mt_.triangle_corners[2 * std::size_t{t} + 1]};
     mesh_push(t, creator, r, corners, r == model::kNoNode ? 0.0f : mt_.node_error[r]);
   };
-  for (const std::uint32_t n : dropped_) node_changed_[n >> 6] = 0;
-  for (std::size_t i = added; i < cut_.size(); ++i) node_changed_[cut_[i] >> 6] = 0;
   for (std::size_t i = 0; i < seeds_.size(); i += 2) push(seeds_[i], seeds_[i + 1]);
   for (std::size_t i = added; i < cut_.size(); ++i) {
     const std::uint32_t x = cut_[i];
     for (std::uint32_t t = mt_.node_triangle_offsets[x]; t < mt_.node_triangle_offsets[x + 1]; ++t)
       push(t, x);
   }
+  kept_ = Kept::kMesh;
+}
+
+void Refiner::merge_kept_mesh(std::size_t added) {
+  // The new mesh is among the passing triangles (see refine_forced). Of those, the old mesh already
+  // holds the ones whose creator was kept and whose remover neither dropped nor was added: a
+  // triangle is in a cut's mesh when its creator is in the cut and its remover is not.
+  assert(kept_ == Kept::kPassing);
+  mark_changed_nodes(added);
+  compact_kept_mesh();
+  for (const Passing& p : passing_) {
+    const bool remover_changed = p.remover != model::kNoNode && util::test_bit(node_changed_, p.remover);
+    if (!remover_changed && !util::test_bit(node_changed_, p.creator)) continue;  // in the old mesh
+    if (p.remover != model::kNoNode && in_cut_[p.remover] == kIn) continue;       // refined
+    mesh_push(p.triangle, p.creator, p.remover, p.corners, p.error);
+  }
+  clear_changed_nodes(added);
   kept_ = Kept::kMesh;
 }
 
@@ -933,7 +991,7 @@ Rank Refiner::threshold_dropping(const AllowedError& allowed, std::size_t nodes)
   for (std::size_t i = 1; i < cut_.size(); ++i) {
     const Witness& w = witnesses_[i];
     const float a = allowed.of_triangle(w.corners[0], w.corners[1], w.corners[2]);
-    ranks_.push_back(rank_of(mt_.node_error[mt_.triangle_remover[w.triangle]], a));
+    ranks_.push_back(rank_of(w.error, a));
   }
   if (ranks_.empty()) return Rank{2, 0.0f};
   const std::size_t k = std::min(nodes, ranks_.size()) - 1;

@@ -310,7 +310,8 @@ class Refiner {
   // Static refinement by forcing from the root; records witnesses so update can start from it.
   // from_cut: start from the nodes in cut_ instead (a subset of the new minimal cut, with their
   // witnesses, parents and witness creators before them).
-  // out null: the result becomes the kept mesh (from_cut only), the field stays known.
+  // out null (from_cut only): the cut's mesh stays in passing_ for the caller to take (kept_ is
+  // kPassing), the field stays known.
   void refine_forced(const AllowedError& allowed, CutMesh* out, const OnDemand* on_demand = nullptr,
                      bool from_cut = false);
   // Prefetches what refine_forced will read for the nodes queued after cut_[i].
@@ -326,7 +327,10 @@ class Refiner {
   void force(std::uint32_t r, std::uint32_t witness_triangle, std::uint32_t witness_creator);
   // The refinement of refine_view, by kind.
   CutSpan run(const Refinement& what, CutMesh& scratch);
-  void add_node(std::uint32_t x, std::uint32_t witness_triangle, std::uint32_t witness_creator);
+  // Adds node x, forced by witness_triangle (created by witness_creator, removed by a node of
+  // error witness_error).
+  void add_node(std::uint32_t x, std::uint32_t witness_triangle, std::uint32_t witness_creator,
+                float witness_error);
   void examine(std::uint32_t n, const AllowedError& allowed);
   // Examines cut_ from position first on, forcing what fails (asking filling_ for the split
   // vertices of those nodes first); false, leaving the rest unexamined, once cut_ holds more than
@@ -359,10 +363,12 @@ class Refiner {
   const model::Mt& mt_;
   util::PagedArray<std::uint8_t> in_cut_;  // per node: 0 out, 1 in, 2 being added, 3 dropped
   std::vector<std::uint32_t> cut_;         // nodes in the cut, in the order added
-  // Per entry of cut_ (same index): the failing triangle that forced the node, its creator and its
-  // three corners, so moving the cut reads them in one sequential pass.
+  // Per entry of cut_ (same index): the failing triangle that forced the node, its creator, its
+  // three corners and its error, so moving the cut tests it again from one sequential pass (the
+  // triangle's remover and that node's error are scattered reads in the model).
   struct Witness {
     std::uint32_t triangle, creator, corners[3];
+    float error;
   };
   std::vector<Witness> witnesses_;
   std::vector<std::uint32_t> batch_;          // split vertices computed together (on demand)
@@ -404,7 +410,9 @@ class Refiner {
   util::ZeroedArray<std::uint64_t> changed_bits_;  // per vertex, during update (clear between)
   std::vector<std::uint32_t> dropped_;             // nodes dropped during one update
   std::vector<std::uint32_t> seeds_;               // uncovered triangle, creator pairs of one update
-  util::ZeroedArray<std::uint64_t> node_changed_;  // per node: dropped or added by the update (clear between)
+  // Per node: dropped or added by the update; in move_cut's witness pass, a parent dropped. Clear
+  // between uses.
+  util::ZeroedArray<std::uint64_t> node_changed_;
   // Triangles seen passing in refine_forced, with what the output needs of them.
   struct Passing {
     std::uint32_t triangle, creator, remover, corners[3];
@@ -448,6 +456,18 @@ class Refiner {
   // Extends the kept mesh after nodes were dropped (dropped_, their uncovered triangles in seeds_)
   // or added (cut_ from position `added` on): move_cut's last step.
   void rebuild_kept_mesh(std::size_t added);
+  // Takes the mesh of a cut refined afresh from the kept nodes (dropped_ dropped, cut_ from position
+  // `added` on forced) while the old kept mesh is still in mesh_*: the old mesh keeps its order
+  // less what changed, and the passing triangles it lacks follow, so a client's cut is diffed in
+  // order (core/cut/cut_delta.hpp).
+  void merge_kept_mesh(std::size_t added);
+  // Marks in node_changed_ the nodes of dropped_ and of cut_ from position `added` on, or clears
+  // those marks.
+  void mark_changed_nodes(std::size_t added);
+  void clear_changed_nodes(std::size_t added);
+  // Drops from the kept mesh, keeping the order of the rest, the triangles whose creator or remover
+  // is marked changed (their creator dropped or came back, or their remover was added).
+  void compact_kept_mesh();
   // The kept mesh of the whole cut (after start_budget, before the next move).
   void kept_mesh_from_cut();
   std::vector<HeapEntry> heap_;

@@ -633,6 +633,41 @@ TEST(Refine, DynamicEqualsStaticAfterRandomSequences) {
   expect_dynamic_matches_static(test::shape_case(eval::Shape::kSphere, 8'000), 29, 60);
 }
 
+TEST(Refine, MovedCutsKeepTheOrderOfTheTrianglesThatStay) {
+  // A client's delta is one ordered pass when the triangles two consecutive cuts share come in the
+  // same order in both, but for those appended anew (core/cut/cut_delta.hpp): after small moves,
+  // and after jumps of the focus that refine afresh from the nodes kept. Matched in order as that
+  // pass does, nearly all shared triangles match; in any other order few would.
+  const MtCase* c = test::shape_case(eval::Shape::kSphere, 8'000);
+  std::mt19937 rng(37);
+  const float top = max_node_error(c->mt);
+  cut::Refiner refiner(c->mt);
+  cut::CutMesh cut;
+  std::vector<std::uint32_t> previous;
+  std::vector<std::uint8_t> in_cut(c->mt.triangle_count());
+  std::size_t afresh_shared = 0;
+  for (int step = 0; step < 40; ++step) {
+    const std::size_t restarts = refiner.restarts();
+    ASSERT_TRUE(refiner.refine(cut::Refinement::move(cut::AllowedError::from_vertices(
+                                   focus_field(c->mesh, rng, top * 1e-3f, top * 0.02f))),
+                               cut));
+    std::fill(in_cut.begin(), in_cut.end(), 0);
+    for (const std::uint32_t id : cut.ids) in_cut[id] = 1;
+    std::size_t shared = 0, matched = 0;
+    for (const std::uint32_t id : previous) {
+      shared += in_cut[id];
+      if (matched < cut.ids.size() && cut.ids[matched] == id) ++matched;
+    }
+    // Those that do not match came back with a node dropped and forced again, appended.
+    EXPECT_GE(10 * matched, 7 * shared)
+        << "step " << step << (refiner.restarts() > restarts ? ", afresh" : "");
+    afresh_shared += refiner.restarts() > restarts ? shared : 0;
+    previous = cut.ids;
+  }
+  EXPECT_GT(refiner.restarts(), 10u);  // the jumps refined afresh
+  EXPECT_GT(afresh_shared, 1'000u);
+}
+
 // Budgeted dynamic refinement after sequences of fields equals the budgeted refinement from the root
 // of the last field: a focus moving in steps (told which vertices changed), jumping, per-vertex
 // noise, budgets from near the root's size to more than the whole error-bound cut.
@@ -848,6 +883,13 @@ TEST(CutDelta, KeptOrderAppendedTailAndReorderedCutsGiveTheSameChanges) {
   EXPECT_FALSE(delta.update(Ids{5, 4, 9, 3, 0}, 10, added, removed));  // 8 and 7 dropped, 0 appended
   EXPECT_EQ(added, (Ids{4}));
   EXPECT_EQ(removed, (Ids{8, 7}));
+  // Most of a cut replaced, the rest in order (a saccade refined afresh), then again out of order.
+  EXPECT_FALSE(delta.update(Ids{5, 9, 1, 2, 6, 7, 8}, 10, added, removed));  // 4, 3 and 0 dropped
+  EXPECT_EQ(added, (Ids{2, 3, 4, 5, 6}));
+  EXPECT_EQ(removed, (Ids{4, 3, 0}));
+  EXPECT_FALSE(delta.update(Ids{8, 0, 3, 4}, 10, added, removed));
+  EXPECT_EQ(added, (Ids{1, 2, 3}));
+  EXPECT_EQ(removed, (Ids{5, 9, 1, 2, 6, 7}));
 }
 
 TEST(Refine, DynamicAfterSmallMovesOfTheFocusEqualsStatic) {
