@@ -136,13 +136,27 @@ std::size_t GazeStream::outstanding() {
   return locked.closed() ? 0 : tracked_before_[sent_] - tracked_before_[std::min(answered_, sent_)];
 }
 
-void GazeStream::choose_resend(std::vector<OutgoingRequest>& resend) {
-  // The view's extract first, focused on the newest sample sent; then that sample, if unanswered.
+OutgoingRequest GazeStream::view_request() const {
   protocol::Extract view = view_;
   if (sent_ > 0) {
     protocol::gaze_region(view.criteria).points.front() = {trace_[sent_ - 1].x, trace_[sent_ - 1].y};
   }
-  resend.push_back(OutgoingRequest{std::move(view), 0, true});
+  return OutgoingRequest{std::move(view), 0, true};
+}
+
+void GazeStream::restore_view() {
+  {
+    StreamSession::Locked locked = session_.lock();
+    if (view_pending_) return;
+    view_pending_ = true;
+  }
+  session_.send([&] { return view_request(); });
+}
+
+void GazeStream::choose_resend(std::vector<OutgoingRequest>& resend) {
+  // The view's extract first, focused on the newest sample sent; then that sample, if unanswered.
+  resend.push_back(view_request());
+  view_pending_ = true;
   if (sent_ > answered_) {
     const GazeSample& newest = trace_[sent_ - 1];
     resend.push_back(OutgoingRequest{protocol::Gaze{newest.x, newest.y, std::nullopt, std::nullopt}, sent_});
@@ -165,6 +179,14 @@ void GazeStream::on_reply(ReplyFrame& frame, Clock::time_point arrival, const st
   const std::uint64_t id = frame.header.id.value_or(0);
   const bool known_sample = id != 0 && id <= trace_.size();
   const std::size_t payload_bytes = frame.payload.size();  // before a delta's payload moves on
+  if (id == 0) {  // the view's extract, answered with a mesh or refused
+    StreamSession::Locked locked = session_.lock();
+    view_pending_ = false;
+  }
+  if (const auto* error = std::get_if<protocol::ErrorReply>(&frame.header.reply);
+      error && error->code == protocol::ErrorKind::kNoView) {
+    restore_view();
+  }
   if (const auto* mesh = std::get_if<protocol::MeshReply>(&frame.header.reply);
       mesh && is_delta_reply(*mesh)) {
     // Every delta in arrival order, the view's re-extract after a reconnect (id 0) included.

@@ -99,6 +99,11 @@ class GazeStream : public StreamSession::Handler {
   Status apply_delta(const protocol::MeshReply& reply, std::span<const std::uint8_t> payload);
   // Hands a delta reply's header and payload to the applying thread.
   void queue_delta(ReplyFrame& frame, std::int64_t sample_time_ns);
+  // The view's extract, focused on the newest sample sent (under the session's lock).
+  OutgoingRequest view_request() const;
+  // Sends the view's extract again when a gaze found the connection without one (its extract was
+  // refused while the model was being replaced, after a reconnect), unless one is on its way.
+  void restore_view();
   // Records the reply to sample `index`, read at `now`, which newly shows samples
   // [newly_from, newly_to).
   void record_reply(const protocol::Reply& reply, std::size_t payload_bytes, std::size_t index,
@@ -112,6 +117,8 @@ class GazeStream : public StreamSession::Handler {
   std::size_t sent_ = 0;       // samples up to the newest sent; sample i has request id i + 1
   std::size_t answered_ = 0;   // samples up to the newest answered (mesh or error)
   std::size_t reflected_ = 0;  // samples [0, reflected_) have a mesh showing them or a newer sample
+  // The view's extract was sent on the current connection and not answered yet.
+  bool view_pending_ = false;
   // The applying thread's queue, under its own lock.
   std::mutex apply_mutex_;
   std::condition_variable apply_changed_;

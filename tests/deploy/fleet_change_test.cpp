@@ -146,11 +146,15 @@ TEST(FleetChange, ReplicasBehindHaproxySurviveFileChangesAndAKill) {
     EXPECT_EQ(r->at("lost"), 0) << r->dump(2);
   }
   EXPECT_EQ(s.at("errors"), 0) << s.dump(2);
-  // Gazes a newer one replaced are answered `superseded`, as on any stream.
+  // Gazes a newer one replaced are answered `superseded`, as on any stream. A stream that
+  // reconnects while the model is being replaced may have its view's extract refused: its gazes
+  // are answered `no_view` until it has sent the view again, a few of them, not the rest of the run.
   for (const auto& [code, count] : c.at("errors_by_code").items()) {
-    EXPECT_TRUE(code == "unavailable" || code == "unknown_model" || code == "superseded")
+    EXPECT_TRUE(code == "unavailable" || code == "unknown_model" || code == "superseded" || code == "no_view")
         << code << " × " << count.dump();
   }
+  const std::uint64_t no_view = c.at("errors_by_code").value("no_view", std::uint64_t{0});
+  EXPECT_LT(no_view, c.at("samples").get<std::uint64_t>() / 50) << c.dump(2);
 }
 
 }  // namespace

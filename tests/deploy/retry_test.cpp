@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 
 #include "clients/common/retry.hpp"
@@ -108,6 +109,47 @@ TEST(Retry, GazeStreamReconnectsAfterItsServerIsKilledAndRestarted) {
   EXPECT_EQ(r.at("focus_mismatches"), 0) << r.dump(2);
   // Meshes kept coming after the restart: every sample, the last one included, is shown by a mesh
   // (its own or a newer sample's).
+  EXPECT_EQ(r.at("sample_latency_ms").at("count"), r.at("samples")) << r.dump(2);
+}
+
+TEST(Retry, GazeStreamSendsItsViewAgainOnceTheRestartedServerHasTheModel) {
+  // The server comes back without the stream's model (its file is added a second later): the view's
+  // extract sent on reconnecting is refused, so the stream's gazes find no view. The stream sends the
+  // view again when a gaze is answered `no_view`, and meshes come back once the model is served.
+  namespace fs = std::filesystem;
+  const auto dir = test::scratch_dir("retry-gaze-view");
+  const auto kept = write_sphere(dir);
+  const auto models = dir / "models";
+  fs::create_directories(models);
+  fs::copy_file(kept, models / "sphere.mt");
+  fs::copy_file(kept, models / "other.mt");
+  const std::uint16_t port = test::free_port();
+  const std::vector<std::string> args{"--models", models.string(), "--log-level", "warn"};
+  auto server = std::make_unique<test::ServerProcess>(args, dir, port);
+  ASSERT_TRUE(server->running()) << server->log();
+  const auto report = dir / "gaze.json";
+  test::Child gaze(
+      {MTLOD_GAZE_BINARY, "--port", std::to_string(port), "--model", "sphere", "--hz", "60", "--duration",
+       "7000", "--attempts", "40", "--budget", "1000", "--quiet", "--json", report.string()},
+      {}, dir / "gaze.log");
+  std::this_thread::sleep_for(2s);
+  server->stop(SIGKILL);
+  fs::remove(models / "sphere.mt");
+  server = std::make_unique<test::ServerProcess>(args, dir, port);
+  ASSERT_TRUE(server->running()) << server->log();
+  std::this_thread::sleep_for(1s);
+  fs::copy_file(kept, dir / "sphere.mt.new");
+  fs::rename(dir / "sphere.mt.new", models / "sphere.mt");  // added whole
+  ASSERT_EQ(gaze.wait(60s), 0) << gaze.log();
+  std::ifstream in(report);
+  ASSERT_TRUE(in) << gaze.log();
+  const auto r = nlohmann::json::parse(in);
+  EXPECT_GE(r.at("reconnects").get<int>(), 1) << r.dump(2);
+  EXPECT_EQ(r.at("lost"), 0) << r.dump(2);
+  // The gazes of the second without the model, and only those, found no view.
+  for (const auto& [code, count] : r.at("errors_by_code").items()) EXPECT_EQ(code, "no_view") << count.dump();
+  EXPECT_GT(r.at("errors_by_code").value("no_view", 0), 0) << r.dump(2);
+  // Every sample, the last one included, is shown by a mesh (its own or a newer sample's).
   EXPECT_EQ(r.at("sample_latency_ms").at("count"), r.at("samples")) << r.dump(2);
 }
 
