@@ -78,6 +78,16 @@ TEST(Retry, ClientWaitsForAServerThatIsStillStarting) {
   EXPECT_NE(client.log().find("sphere"), std::string::npos) << client.log();
 }
 
+// One mtlod-gaze stream on the model "sphere" at 60 Hz for `duration_ms`, patient with its server
+// (40 attempts); its report goes to DIR/gaze.json, its output to DIR/gaze.log.
+test::Child gaze_stream(std::uint16_t port, const std::string& duration_ms,
+                        const std::filesystem::path& dir) {
+  return test::Child({MTLOD_GAZE_BINARY, "--port", std::to_string(port), "--model", "sphere", "--hz", "60",
+                      "--duration", duration_ms, "--attempts", "40", "--budget", "1000", "--quiet", "--json",
+                      (dir / "gaze.json").string()},
+                     {}, dir / "gaze.log");
+}
+
 TEST(Retry, GazeStreamReconnectsAfterItsServerIsKilledAndRestarted) {
   const auto dir = test::scratch_dir("retry-gaze");
   const auto model = write_sphere(dir);
@@ -86,10 +96,7 @@ TEST(Retry, GazeStreamReconnectsAfterItsServerIsKilledAndRestarted) {
       std::vector<std::string>{model.string(), "--log-level", "warn"}, dir, port);
   ASSERT_TRUE(server->running()) << server->log();
   const auto report = dir / "gaze.json";
-  test::Child gaze(
-      {MTLOD_GAZE_BINARY, "--port", std::to_string(port), "--model", "sphere", "--hz", "60", "--duration",
-       "6000", "--attempts", "40", "--budget", "1000", "--quiet", "--json", report.string()},
-      {}, dir / "gaze.log");
+  test::Child gaze = gaze_stream(port, "6000", dir);
   std::this_thread::sleep_for(2s);
   const int status = server->stop(SIGKILL);
   EXPECT_TRUE(WIFSIGNALED(status)) << status;
@@ -128,10 +135,7 @@ TEST(Retry, GazeStreamSendsItsViewAgainOnceTheRestartedServerHasTheModel) {
   auto server = std::make_unique<test::ServerProcess>(args, dir, port);
   ASSERT_TRUE(server->running()) << server->log();
   const auto report = dir / "gaze.json";
-  test::Child gaze(
-      {MTLOD_GAZE_BINARY, "--port", std::to_string(port), "--model", "sphere", "--hz", "60", "--duration",
-       "7000", "--attempts", "40", "--budget", "1000", "--quiet", "--json", report.string()},
-      {}, dir / "gaze.log");
+  test::Child gaze = gaze_stream(port, "7000", dir);
   std::this_thread::sleep_for(2s);
   server->stop(SIGKILL);
   fs::remove(models / "sphere.mt");
