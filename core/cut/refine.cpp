@@ -458,7 +458,8 @@ void Refiner::refine_from_root(const AllowedError& allowed, CutMesh& out, const 
 }
 
 void Refiner::refine_forced(const AllowedError& allowed, CutMesh* out, const OnDemand* on_demand,
-                            bool from_cut) {
+                            bool from_cut, std::size_t kept_nodes, bool all_changed) {
+  assert(from_cut || kept_nodes == 0);
   kept_ = Kept::kNone;  // until the new cut is complete
   if (!from_cut) reset_to_root();
   // Like close_over, but remembering every passing triangle: the final mesh is among them (a
@@ -487,12 +488,16 @@ void Refiner::refine_forced(const AllowedError& allowed, CutMesh* out, const OnD
     const std::uint32_t n = cut_[i];
     const std::uint32_t split = n == 0 ? model::kNoVertex : mt_.node_vertex[n];
     const std::uint32_t end = offsets[n + 1];
+    const bool kept_node = i < kept_nodes && !all_changed;
     for (std::uint32_t t = offsets[n]; t < end; ++t) {
       const std::uint32_t r = removers[t];
       if (r != model::kNoNode && in_cut_[r] == kIn) continue;
       // fails(t, n, allowed), with the values kept for the output.
       const std::uint32_t a = n == 0 ? mt_.root_first_corner[t] : split;
       const std::uint32_t b = corners[2 * std::size_t{t}], c = corners[2 * std::size_t{t} + 1];
+      if (kept_node && !(r != model::kNoNode && util::test_bit(node_changed_, r)) && !vertex_changed(a) &&
+          !vertex_changed(b) && !vertex_changed(c))
+        continue;  // in the kept mesh, and still passing
       const float error = r == model::kNoNode ? 0.0f : mt_.node_error[r];
       if (r != model::kNoNode && allowed.exceeded_by(error, allowed.of_triangle(a, b, c))) {
         force(r, t, n);
@@ -699,10 +704,13 @@ void Refiner::move_cut(const AllowedError& allowed, bool all_changed, bool raise
   // The result becomes the kept mesh, as a move's does, the triangles that stay in their order
   // (the old mesh is taken from the passing list first if it is still there: in the order the
   // refinement from the root wrote it).
+  // The kept nodes' triangles are tested again only where a corner changed or the remover
+  // dropped (see refine_forced).
   auto refine_afresh = [&] {
     if (kept_ == Kept::kPassing) take_kept_mesh();
     release_dropped();
-    refine_forced(allowed, nullptr, filling_, true);
+    for (const std::uint32_t n : dropped_) util::set_bit(node_changed_, n);  // cleared by the merge
+    refine_forced(allowed, nullptr, filling_, true, kept, all_changed);
     merge_kept_mesh(kept);
     ++restarts_;
   };

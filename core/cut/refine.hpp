@@ -312,8 +312,14 @@ class Refiner {
   // witnesses, parents and witness creators before them).
   // out null (from_cut only): the cut's mesh stays in passing_ for the caller to take (kept_ is
   // kPassing), the field stays known.
+  // kept_nodes (from_cut only): the first kept_nodes nodes of cut_ were in the kept cut, whose mesh
+  // is still in mesh_*, and the field differs from its field only at the vertices in changed_bits_
+  // (anywhere when all_changed) with a threshold no lower. Their triangles whose corners did not
+  // change and whose remover did not drop (dropped nodes marked in node_changed_) passed then and
+  // pass now: they are neither tested nor listed in passing_ (merge_kept_mesh takes them from the
+  // kept mesh).
   void refine_forced(const AllowedError& allowed, CutMesh* out, const OnDemand* on_demand = nullptr,
-                     bool from_cut = false);
+                     bool from_cut = false, std::size_t kept_nodes = 0, bool all_changed = true);
   // Prefetches what refine_forced will read for the nodes queued after cut_[i].
   void fetch_ahead(std::size_t i, const float* field, bool on_demand) const;
   bool fails(std::uint32_t t, std::uint32_t creator, const AllowedError& allowed) const;
