@@ -120,7 +120,8 @@ TEST(Retry, GazeStreamReconnectsAfterItsServerIsKilledAndRestarted) {
 }
 
 TEST(Retry, GazeStreamSendsItsViewAgainOnceTheRestartedServerHasTheModel) {
-  // The server comes back without the stream's model (its file is added a second later): the view's
+  // The server comes back without the stream's model (its file is added 3 s after the server
+  // listens, longer than the stream's longest wait between reconnection attempts, 2 s): the view's
   // extract sent on reconnecting is refused, so the stream's gazes find no view. The stream sends the
   // view again when a gaze is answered `no_view`, and meshes come back once the model is served.
   namespace fs = std::filesystem;
@@ -135,13 +136,13 @@ TEST(Retry, GazeStreamSendsItsViewAgainOnceTheRestartedServerHasTheModel) {
   auto server = std::make_unique<test::ServerProcess>(args, dir, port);
   ASSERT_TRUE(server->running()) << server->log();
   const auto report = dir / "gaze.json";
-  test::Child gaze = gaze_stream(port, "7000", dir);
+  test::Child gaze = gaze_stream(port, "10000", dir);
   std::this_thread::sleep_for(2s);
   server->stop(SIGKILL);
   fs::remove(models / "sphere.mt");
   server = std::make_unique<test::ServerProcess>(args, dir, port);
   ASSERT_TRUE(server->running()) << server->log();
-  std::this_thread::sleep_for(1s);
+  std::this_thread::sleep_for(3s);
   fs::copy_file(kept, dir / "sphere.mt.new");
   fs::rename(dir / "sphere.mt.new", models / "sphere.mt");  // added whole
   ASSERT_EQ(gaze.wait(60s), 0) << gaze.log();
@@ -150,7 +151,7 @@ TEST(Retry, GazeStreamSendsItsViewAgainOnceTheRestartedServerHasTheModel) {
   const auto r = nlohmann::json::parse(in);
   EXPECT_GE(r.at("reconnects").get<int>(), 1) << r.dump(2);
   EXPECT_EQ(r.at("lost"), 0) << r.dump(2);
-  // The gazes of the second without the model, and only those, found no view.
+  // The gazes of the seconds without the model, and only those, found no view.
   for (const auto& [code, count] : r.at("errors_by_code").items()) EXPECT_EQ(code, "no_view") << count.dump();
   EXPECT_GT(r.at("errors_by_code").value("no_view", 0), 0) << r.dump(2);
   // Every sample, the last one included, is shown by a mesh (its own or a newer sample's).
