@@ -37,10 +37,15 @@ bool CutDelta::update(std::span<const std::uint32_t> ids, std::size_t triangle_c
   // The same cut in the same order (a gaze that moved no allowed error): nothing to diff.
   if (!empty_ && ids.size() == sent_.size() && std::equal(ids.begin(), ids.end(), sent_.begin()))
     return false;
-  if (!empty_ && diff_in_order(ids, added, removed)) {
+  // The new cut becomes the client's: sent_bits_ gains the added, loses the removed.
+  auto take = [&] {
     for (const std::uint32_t id : removed) clear(sent_bits_, id);
     for (const std::uint32_t i : added) set(sent_bits_, ids[i]);
     sent_.assign(ids.begin(), ids.end());
+    empty_ = false;
+  };
+  if (!empty_ && diff_in_order(ids, added, removed)) {
+    take();
     return false;
   }
   for (std::uint32_t i = 0; i < ids.size(); ++i) {
@@ -51,12 +56,8 @@ bool CutDelta::update(std::span<const std::uint32_t> ids, std::size_t triangle_c
   for (const std::uint32_t id : sent_) {
     if (!test(next_bits_, id)) removed.push_back(id);
   }
-  // The new cut becomes the client's: sent_bits_ gains the added, loses the removed.
-  for (const std::uint32_t id : removed) clear(sent_bits_, id);
-  for (const std::uint32_t i : added) set(sent_bits_, ids[i]);
   for (const std::uint32_t id : ids) clear(next_bits_, id);
-  sent_.assign(ids.begin(), ids.end());
-  empty_ = false;
+  take();
   return from_empty;
 }
 

@@ -544,9 +544,9 @@ void Refiner::resize_kept_mesh(std::size_t triangles) {
 void Refiner::take_kept_mesh() {
   // The kept mesh is set aside only by refine_forced (a move leaves it in place; the other
   // refinements keep no cut to move, so no move follows them): its passing list still holds the
-  // mesh's triangles (those not refined since), creators, removers, corners and errors. Called at the
-  // end of a restart (no node dropped), or after move_cut's witness pass, whose nodes are now kIn
-  // (kept) or kDropped: either way a passing triangle whose remover is kIn or kDropped is not in it.
+  // mesh's triangles (those not refined since), creators, removers, corners and errors. Called
+  // after move_cut's witness pass, whose nodes are now kIn (kept) or kDropped: a passing triangle
+  // whose remover is kIn or kDropped is not in it.
   assert(kept_ == Kept::kPassing);
   resize_kept_mesh(0);
   for (const Passing& p : passing_) {
@@ -703,13 +703,13 @@ void Refiner::move_cut(const AllowedError& allowed, bool all_changed, bool raise
   };
   // The result becomes the kept mesh, as a move's does, the triangles that stay in their order
   // (the old mesh is taken from the passing list first if it is still there: in the order the
-  // refinement from the root wrote it).
-  // The kept nodes' triangles are tested again only where a corner changed or the remover
-  // dropped (see refine_forced).
+  // refinement from the root wrote it). The kept nodes' triangles are tested again only where a
+  // corner changed or the remover dropped (see refine_forced): the dropped nodes are marked for it
+  // (nothing lies past cut_'s end yet to mark as added), and the merge clears the marks.
   auto refine_afresh = [&] {
     if (kept_ == Kept::kPassing) take_kept_mesh();
     release_dropped();
-    for (const std::uint32_t n : dropped_) util::set_bit(node_changed_, n);  // cleared by the merge
+    mark_changed_nodes(cut_.size());
     refine_forced(allowed, nullptr, filling_, true, kept, all_changed);
     merge_kept_mesh(kept);
     ++restarts_;

@@ -349,8 +349,8 @@ class Refiner {
   // The field of the kept cut: its kind and threshold, and with `copy` its values (for update
   // without a list of changes).
   void remember_field(const AllowedError& allowed, bool copy);
-  // Takes the mesh of the cut refine_forced left from its passing list: at the end of a restart, or
-  // once move_cut's witness pass has run (kept nodes kIn, dropped kDropped).
+  // Takes the mesh of the cut refine_forced left from its passing list, once move_cut's witness
+  // pass has run (kept nodes kIn, dropped kDropped), before the cut is moved or refined afresh.
   void take_kept_mesh();
   // Truncates the kept mesh's arrays (all five) to this many triangles.
   void resize_kept_mesh(std::size_t triangles);
