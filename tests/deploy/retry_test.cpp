@@ -151,8 +151,11 @@ TEST(Retry, GazeStreamSendsItsViewAgainOnceTheRestartedServerHasTheModel) {
   const auto r = nlohmann::json::parse(in);
   EXPECT_GE(r.at("reconnects").get<int>(), 1) << r.dump(2);
   EXPECT_EQ(r.at("lost"), 0) << r.dump(2);
-  // The gazes of the seconds without the model, and only those, found no view.
-  for (const auto& [code, count] : r.at("errors_by_code").items()) EXPECT_EQ(code, "no_view") << count.dump();
+  // The gazes of the seconds without the model, and only those, found no view. A gaze replaced by
+  // a newer one before it ran (`superseded`, a slow host's normal answer) is not an error.
+  for (const auto& [code, count] : r.at("errors_by_code").items()) {
+    if (code != "superseded") EXPECT_EQ(code, "no_view") << count.dump();
+  }
   EXPECT_GT(r.at("errors_by_code").value("no_view", 0), 0) << r.dump(2);
   // Every sample, the last one included, is shown by a mesh (its own or a newer sample's).
   EXPECT_EQ(r.at("sample_latency_ms").at("count"), r.at("samples")) << r.dump(2);
