@@ -39,8 +39,8 @@ std::size_t ViewCache::memory_bytes() const {
   for (const Criterion c : kAllCriteria) criteria += bytes(transforms_[c]) + bytes(points_[c]);
   return allowed_error_.resident_bytes() + known_bits_.resident_bytes() + criteria + bytes(visible_depth_) +
          bytes(gaze_factor_) + bytes(known_vertices_) + bytes(known_cells_) + bytes(known_clip_w_) +
-         bytes(cell_changed_) + bytes(cell_multiplier_) + bytes(changed_cells_) + bytes(changed_) +
-         bytes(gaze_cells_);
+         bytes(cell_last_known_) + bytes(known_in_cell_before_) + bytes(cell_changed_) +
+         bytes(changed_cells_) + bytes(changed_) + bytes(gaze_cells_);
 }
 
 bool ViewExtractor::same_view(const ViewCache& s, const ViewRequest& r) {
@@ -252,15 +252,15 @@ void ViewExtractor::update_known_for_gaze(ViewCache& s, DistanceMetric metric) {
   // The cell's labels give one multiplier for all its vertices, and each known vertex's depth was
   // kept with it: no vertex is projected again (the same values as field_.vertex_allowed_error(v),
   // which maps the vertex to this cell and depth).
-  for (const std::uint32_t c : s.changed_cells_) s.cell_multiplier_[c] = field_.cell_multiplier(c);
-  for (std::size_t k = 0; k < s.known_vertices_.size(); ++k) {
-    const std::uint32_t c = s.known_cells_[k];
-    if (c == kNoCell || !s.cell_changed_[c]) continue;
-    const std::uint32_t v = s.known_vertices_[k];
-    allowed_[v] = field_.vertex_allowed_error_in_cell(s.cell_multiplier_[c], c, s.known_clip_w_[k], v);
-    s.changed_.push_back(v);
+  for (const std::uint32_t c : s.changed_cells_) {
+    s.cell_changed_[c] = 0;
+    const float multiplier = field_.cell_multiplier(c);
+    for (std::uint32_t k = s.cell_last_known_[c]; k != ViewCache::kNoKnown; k = s.known_in_cell_before_[k]) {
+      const std::uint32_t v = s.known_vertices_[k];
+      allowed_[v] = field_.vertex_allowed_error_in_cell(multiplier, c, s.known_clip_w_[k], v);
+      s.changed_.push_back(v);
+    }
   }
-  for (const std::uint32_t c : s.changed_cells_) s.cell_changed_[c] = 0;
   vertices_computed_ += s.changed_.size();
 }
 
@@ -275,7 +275,6 @@ void ViewExtractor::remember_gaze(ViewCache& s) const {
   s.gaze_factor_.resize(cells);
   for (std::uint32_t c = 0; c < cells; ++c) s.gaze_factor_[c] = field_.gaze_factor(c);
   s.cell_changed_.assign(cells, 0);
-  s.cell_multiplier_.resize(cells);
   remember_gaze_cells(s);
 }
 
@@ -312,6 +311,18 @@ void ViewExtractor::list_all_vertices(ViewCache& s) {
   for (std::uint32_t v = 0; v < n; ++v) s.known_vertices_[v] = v;
   map_vertices(mapping_, mt_.positions, s.known_cells_, s.known_clip_w_);
   s.known_all_ = true;
+  link_known(s, 0);
+}
+
+void ViewExtractor::link_known(ViewCache& s, std::size_t first) {
+  if (first == 0) s.cell_last_known_.assign(s.grid_.cell_count(), ViewCache::kNoKnown);
+  s.known_in_cell_before_.resize(s.known_vertices_.size());
+  for (std::size_t k = first; k < s.known_vertices_.size(); ++k) {
+    const std::uint32_t c = s.known_cells_[k];
+    if (c == kNoCell) continue;  // no gaze multiplier off the grid
+    s.known_in_cell_before_[k] = s.cell_last_known_[c];
+    s.cell_last_known_[c] = std::uint32_t(k);
+  }
 }
 
 void ViewExtractor::forget_known(ViewCache& s) {
@@ -321,6 +332,7 @@ void ViewExtractor::forget_known(ViewCache& s) {
   s.known_vertices_.clear();
   s.known_cells_.clear();
   s.known_clip_w_.clear();
+  link_known(s, 0);
 }
 
 void ViewExtractor::fill_known(std::span<const std::uint32_t> vertices, std::span<float> field) {
@@ -341,6 +353,7 @@ void ViewExtractor::fill_known(std::span<const std::uint32_t> vertices, std::spa
   s.known_clip_w_.resize(first + count);
   field_.fill_mapped(unknown_, field, std::span(s.known_cells_).subspan(first),
                      std::span(s.known_clip_w_).subspan(first));
+  link_known(s, first);
   vertices_computed_ += count;
 }
 
@@ -366,6 +379,7 @@ void ViewExtractor::forget_unread(cut::Refiner& refiner) {
   s.known_vertices_.resize(kept);
   s.known_cells_.resize(kept);
   s.known_clip_w_.resize(kept);
+  link_known(s, 0);
   // Every vertex the cut reads was asked for (fill_known), so the bits set above are exactly those
   // of the entries kept.
 }

@@ -65,7 +65,7 @@ class ViewCache {
   std::size_t known_vertices() const { return known_vertices_.size(); }
   // How often the session forgot the known vertices its cut no longer read.
   std::size_t forgets() const { return forgets_; }
-  // Bytes held: 12 per known vertex, per cell about 14, and the field's pages that were written.
+  // Bytes held: 16 per known vertex, per cell about 14, and the field's pages that were written.
   std::size_t memory_bytes() const;
   // Forget everything (another model, say).
   void reset() { valid_ = false; }
@@ -92,10 +92,15 @@ class ViewCache {
   std::vector<std::uint32_t> known_vertices_;
   std::vector<std::uint32_t> known_cells_;
   std::vector<float> known_clip_w_;
+  // The known vertices of each cell, chained: a gaze visits those of the cells whose gaze
+  // multiplier changed, not every known vertex. Per cell the last known vertex added to it (an
+  // index into known_*, kNoKnown: none), per known vertex the one added to its cell before it.
+  static constexpr std::uint32_t kNoKnown = 0xFFFFFFFFu;
+  std::vector<std::uint32_t> cell_last_known_;
+  std::vector<std::uint32_t> known_in_cell_before_;
   bool known_all_ = false;                       // known_vertices_ lists every vertex (complete field)
   util::ZeroedArray<std::uint64_t> known_bits_;  // on demand: one bit per model vertex
   std::vector<std::uint8_t> cell_changed_;       // per cell, during a gaze: its gaze multiplier changed
-  std::vector<float> cell_multiplier_;           // per cell, for the changed ones: its label multiplier
   std::vector<std::uint32_t> changed_cells_;
   std::vector<std::uint32_t> changed_;  // vertices recomputed by the last request
   std::size_t forgets_ = 0;
@@ -205,6 +210,9 @@ class ViewExtractor {
   void list_all_vertices(ViewCache& session);
   // The session's known vertices become none (a new view).
   static void forget_known(ViewCache& session);
+  // Chains the known vertices from position `first` on into their cells' lists (from 0: every
+  // cell's list starts empty).
+  static void link_known(ViewCache& session, std::size_t first);
   // The session's on-demand allowed error: field_'s values for vertices the session does not know
   // yet, which become known (KnownSource forwards the refiner's requests here).
   void fill_known(std::span<const std::uint32_t> vertices, std::span<float> field);
