@@ -195,6 +195,7 @@ int run(int argc, char** argv) {
     extractor = std::make_unique<view::ViewExtractor>(*mt, *levels);
     view::ViewRequest v = mtlod::protocol::to_view_request(*request, mt->has_normals());
     v.dynamic = false;
+    if (!options.dump_dt.empty()) v.labels = true;  // every transform over the whole grid
     start = std::chrono::steady_clock::now();
     const Result<cut::CutSpan> extracted = extractor->extract(v, refiner, cut);
     if (!extracted) {

@@ -46,6 +46,33 @@ float law_factor(const RegionLaw& law, float distance_px, float tan_per_px) {
   return 1.0f;
 }
 
+std::optional<float> law_reach_px(const RegionLaw& law, float tan_per_px) {
+  switch (law.law) {
+    case FalloffLaw::kStep:
+      return law.distance_px;
+    case FalloffLaw::kLinear:
+    case FalloffLaw::kSmoothstep:
+      return law.distance_px + std::max(law.falloff_px, 0.0f);
+    case FalloffLaw::kFoveal: {
+      const float f = law.factor;
+      if (!(f > 0.0f && f < 1.0f && law.foveal_e2_deg > 0.0f && tan_per_px > 0.0f)) return std::nullopt;
+      // f·(1 + e/e2) reaches 1 at e = e2·(1/f − 1): a little further, so that rounding cannot leave
+      // the multiplier just below 1 there.
+      const double e = double(law.foveal_e2_deg) * (1.0 / f - 1.0) * 1.001 + 1e-3;
+      if (!(e < 89.0)) return std::nullopt;
+      return static_cast<float>(std::tan(e * (std::numbers::pi / 180.0)) / tan_per_px);
+    }
+  }
+  return std::nullopt;
+}
+
+float grid_tan_per_px(const ViewMapping& mapping, const AllowedErrorOptions& options) {
+  const float tan_half_fovy = options.fovy_deg > 0.0f
+                                  ? std::tan(options.fovy_deg * (std::numbers::pi_v<float> / 360.0f))
+                                  : 1.0f / mapping.projection_y_scale();
+  return 2.0f * tan_half_fovy / static_cast<float>(mapping.grid().height);
+}
+
 void AllowedErrorField::bind(const ViewMapping& mapping, const AllowedErrorOptions& options,
                              const AllowedErrorInputs& inputs) {
   const std::size_t cells = mapping.grid().cell_count();
@@ -59,10 +86,7 @@ void AllowedErrorField::bind(const ViewMapping& mapping, const AllowedErrorOptio
   inputs_ = inputs;
   const float grid_height = static_cast<float>(mapping.grid().height);
   viewport_height_px_ = options.viewport_height_px > 0.0f ? options.viewport_height_px : grid_height;
-  const float tan_half_fovy = options.fovy_deg > 0.0f
-                                  ? std::tan(options.fovy_deg * (std::numbers::pi_v<float> / 360.0f))
-                                  : 1.0f / mapping.projection_y_scale();
-  tan_per_px_ = 2.0f * tan_half_fovy / grid_height;
+  tan_per_px_ = grid_tan_per_px(mapping, options);
   // error · model_units_per_pixel(clip_w) = error · 2·clip_w/(H·P[1][1]), with the constant part folded.
   pixel_bound_per_clip_w_ = options.error * mapping.model_units_per_pixel(1.0f, viewport_height_px_);
   assert(options.metric != DistanceMetric::kEuclidean);

@@ -85,6 +85,12 @@ float eccentricity_deg(float distance_px, float tan_per_px);
 // The multiplier a law gives at a distance of distance_px grid pixels (+inf for unlabeled vertices,
 // which gives 1). tan_per_px is used by kFoveal only. Pure; exposed for tests and for the refiner.
 float law_factor(const RegionLaw& law, float distance_px, float tan_per_px);
+// A distance in grid pixels beyond which the law's multiplier is exactly 1 (none: it never is, a
+// foveal law with f ≥ 1 or f ≤ 0).
+std::optional<float> law_reach_px(const RegionLaw& law, float tan_per_px);
+// The tan_per_px of a view's grid pixel that AllowedErrorField uses: 2·tan(fovy/2)/H, fovy from the
+// options or else from the projection.
+float grid_tan_per_px(const ViewMapping& mapping, const AllowedErrorOptions& options);
 
 // Per-request inputs: the grids of the criteria in use (W×H chamfer transforms of the metric in the
 // options, which must not be kEuclidean, seeded as the criterion's traits say; an unused criterion's

@@ -498,4 +498,25 @@ void DistanceTransformer::labels_from_cells(DistanceMetric metric, std::span<con
   to_fifths_of_pixel(squared_, out);
 }
 
+void DistanceTransformer::labels_from_cells_within(DistanceMetric metric,
+                                                   std::span<const std::uint32_t> seed_cells, GridSize grid,
+                                                   Rect rect, std::span<std::uint16_t> out) {
+  assert(out.size() == grid.cell_count() && rect.x0 <= rect.x1 && rect.x1 < grid.width &&
+         rect.y0 <= rect.y1 && rect.y1 < grid.height);
+  const GridSize sub{rect.x1 - rect.x0 + 1, rect.y1 - rect.y0 + 1};
+  rect_seeds_.clear();
+  for (const std::uint32_t c : seed_cells) {
+    if (c == kNoCell) continue;
+    const std::uint32_t x = c % grid.width, y = c / grid.width;
+    assert(x >= rect.x0 && x <= rect.x1 && y >= rect.y0 && y <= rect.y1);
+    rect_seeds_.push_back(sub.cell(x - rect.x0, y - rect.y0));
+  }
+  rect_out_.resize(sub.cell_count());
+  labels_from_cells(metric, rect_seeds_, sub, rect_out_);
+  std::fill(out.begin(), out.end(), kChamferUnreached);
+  for (std::uint32_t y = 0; y < sub.height; ++y)
+    std::copy_n(rect_out_.data() + std::size_t{y} * sub.width, sub.width,
+                out.data() + grid.cell(rect.x0, rect.y0 + y));
+}
+
 }  // namespace mtlod::core::view

@@ -104,6 +104,15 @@ class DistanceTransformer {
               std::span<std::uint16_t> out);
   void labels_from_cells(DistanceMetric metric, std::span<const std::uint32_t> seed_cells, GridSize grid,
                          std::span<std::uint16_t> out);
+  // The same computed over a rectangle of the grid that holds every seed: its cells get the labels
+  // the whole grid's transform gives them (a shortest path of mask moves between two cells stays in
+  // their bounding box, as does the straight line), every other cell kChamferUnreached. A focus whose
+  // law ends within a few dozen cells costs that square instead of the grid.
+  struct Rect {
+    std::uint32_t x0, y0, x1, y1;  // inclusive
+  };
+  void labels_from_cells_within(DistanceMetric metric, std::span<const std::uint32_t> seed_cells,
+                                GridSize grid, Rect rect, std::span<std::uint16_t> out);
 
   // Runs the chamfer passes cell by cell (the portable code used without SSE2) instead of 8 cells at
   // a time. Same results; for tests and comparisons.
@@ -127,18 +136,20 @@ class DistanceTransformer {
  public:
   // Bytes of scratch memory held.
   std::size_t memory_bytes() const {
-    return padded_.capacity() * 2 + passable_.capacity() + column_.capacity() * 2 +
-           (envelope_.capacity() + squared_.capacity()) * 4;
+    return padded_.capacity() * 2 + passable_.capacity() + (column_.capacity() + rect_out_.capacity()) * 2 +
+           (envelope_.capacity() + squared_.capacity() + rect_seeds_.capacity()) * 4;
   }
 
  private:
-  std::vector<std::uint16_t> padded_;    // chamfer grid with 2 cells of +inf on every side
-  std::size_t stride_ = 0;               // padded row length
-  bool scalar_ = false;                  // set_scalar
-  std::vector<std::uint8_t> passable_;   // chamfer_constrained: padded passable mask (padding blocked)
-  std::vector<std::uint16_t> column_;    // Euclidean phase 1: distance to the nearest seed in the column
-  std::vector<std::uint32_t> envelope_;  // Euclidean phase 2: s and t of the lower envelope
-  std::vector<std::uint32_t> squared_;   // labels(): the Euclidean transform before rounding
+  std::vector<std::uint16_t> padded_;      // chamfer grid with 2 cells of +inf on every side
+  std::size_t stride_ = 0;                 // padded row length
+  bool scalar_ = false;                    // set_scalar
+  std::vector<std::uint8_t> passable_;     // chamfer_constrained: padded passable mask (padding blocked)
+  std::vector<std::uint16_t> column_;      // Euclidean phase 1: distance to the nearest seed in the column
+  std::vector<std::uint32_t> envelope_;    // Euclidean phase 2: s and t of the lower envelope
+  std::vector<std::uint32_t> squared_;     // labels(): the Euclidean transform before rounding
+  std::vector<std::uint32_t> rect_seeds_;  // labels_from_cells_within: the seeds in the rectangle's cells
+  std::vector<std::uint16_t> rect_out_;    // labels_from_cells_within: the rectangle's labels
 };
 
 }  // namespace mtlod::core::view

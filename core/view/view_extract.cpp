@@ -167,10 +167,45 @@ void ViewExtractor::distance_transforms() {
     out.clear();
     if (criterion_transform_needed(r, c)) {
       out.resize(cells);
-      criterion_transform(transformer_, c, r, background, cells_, out);
+      const std::optional<DistanceTransformer::Rect> rect =
+          c == kGazeCriterion ? gaze_rect() : std::optional<DistanceTransformer::Rect>();
+      if (rect) {
+        transformer_.labels_from_cells_within(r.allowed.metric, cells_, r.grid, *rect, out);
+      } else {
+        criterion_transform(transformer_, c, r, background, cells_, out);
+      }
     }
     transforms_[c] = out;
   }
+}
+
+std::optional<DistanceTransformer::Rect> ViewExtractor::gaze_rect() {
+  // Past its law's reach of every gaze point the gaze multiplier is 1, and a cell's label (in
+  // pixels) is at least its Chebyshev distance in cells: the transform is needed only in the boxes
+  // of that radius around the points (their bounding rectangle). Labels read it everywhere.
+  const ViewRequest& r = *request_;
+  if (r.labels) return std::nullopt;
+  const std::optional<float> reach =
+      law_reach_px(*r.allowed.criteria[kGazeCriterion], grid_tan_per_px(mapping_, r.allowed));
+  const GridSize grid = r.grid;
+  if (!reach || !(*reach < float(std::max(grid.width, grid.height)))) return std::nullopt;
+  const std::uint32_t radius = std::uint32_t(*reach) + 2;  // cells outside lie over reach + 1 px away
+  cells_.clear();
+  DistanceTransformer::Rect rect{grid.width, grid.height, 0, 0};
+  for (const auto& p : r.points[kGazeCriterion]) {
+    const std::uint32_t c = focus_cell(grid, p[0], p[1]);
+    cells_.push_back(c);
+    if (c == kNoCell) continue;
+    const std::uint32_t x = c % grid.width, y = c / grid.width;
+    rect.x0 = std::min(rect.x0, x > radius ? x - radius : 0);
+    rect.y0 = std::min(rect.y0, y > radius ? y - radius : 0);
+    rect.x1 = std::max(rect.x1, std::min(grid.width - 1, x + radius));
+    rect.y1 = std::max(rect.y1, std::min(grid.height - 1, y + radius));
+  }
+  if (rect.x0 > rect.x1) return DistanceTransformer::Rect{0, 0, 0, 0};  // no point on the grid
+  const std::size_t area = std::size_t{rect.x1 - rect.x0 + 1} * (rect.y1 - rect.y0 + 1);
+  if (2 * area > grid.cell_count()) return std::nullopt;
+  return rect;
 }
 
 void ViewExtractor::allowed_error() {

@@ -41,7 +41,7 @@ struct ViewRequest {
   // instead of every vertex's in stage 4; the same cut. false: stage 4 computes every vertex's (for
   // callers that read the whole field).
   bool allowed_error_on_demand = true;
-  bool labels = false;  // fill vertex labels (silhouette, else focus) for encoding
+  bool labels = false;  // fill vertex labels (silhouette, else focus) for encoding; whole transforms
 };
 
 // What one client session keeps between its requests, so that a request with the same view as the
@@ -180,7 +180,9 @@ class ViewExtractor {
   // demand, or changed by a gaze), since it was made.
   std::size_t vertices_computed() const { return vertices_computed_; }
   std::span<const std::uint8_t> occupancy_grid() const { return occupancy_; }
-  // A criterion's transform (empty when the request did not use it).
+  // A criterion's transform (empty when the request did not use it). The gaze criterion's is
+  // computed only within its law's reach of the gaze points (kChamferUnreached elsewhere, where the
+  // law's multiplier is 1) unless the request asks for labels.
   std::span<const std::uint16_t> distance_transform(Criterion c) const { return transforms_[c]; }
   // Every vertex's allowed error, or only the cut's when it was computed on demand.
   std::span<const float> vertex_allowed_error() const { return allowed_; }
@@ -200,6 +202,9 @@ class ViewExtractor {
   // Stage 4 of a gaze: recomputes the session's known vertices in cells whose gaze multiplier
   // changed, listing them in its changed_ (metric: the labels', as bound to the field).
   void update_known_for_gaze(ViewCache& session, DistanceMetric metric);
+  // The part of the grid the gaze criterion's transform is computed in, its seeds in cells_ (none:
+  // the whole grid, by criterion_transform).
+  std::optional<DistanceTransformer::Rect> gaze_rect();
   // Whether the request has the session's view (everything but the gaze points).
   static bool same_view(const ViewCache& session, const ViewRequest& request);
   void remember_view(ViewCache& session) const;

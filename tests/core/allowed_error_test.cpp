@@ -5,9 +5,11 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <optional>
 #include <vector>
 
 #include "core/view/occupancy.hpp"
@@ -64,6 +66,31 @@ TEST(LawFactor, FovealFromTheBaseErrorGrowsWithoutACap) {
   const double e1000 = std::atan(100.0 * std::tan(2.3 * std::numbers::pi / 180.0)) * 180.0 / std::numbers::pi;
   EXPECT_NEAR(view::law_factor(foveal, 1000.0f, tan_per_px), 1.0 + e1000 / 2.3, 1e-4);
   EXPECT_GT(view::law_factor(foveal, 1000.0f, tan_per_px), 30.0f);
+}
+
+TEST(LawFactor, PastItsReachEveryLawIsExactlyOne) {
+  // Every distance beyond law_reach_px, in steps of a fifth of a pixel, gives exactly 1; and the reach
+  // is tight: a pixel short of it the multiplier is not 1 yet.
+  const float tan_per_px = std::tan(2.3f * std::numbers::pi_v<float> / 180.0f) / 10.0f;
+  using view::FalloffLaw;
+  for (const view::RegionLaw law : {view::RegionLaw{FalloffLaw::kStep, 8.0f, 0.1f, 0.0f, 2.3f},
+                                    view::RegionLaw{FalloffLaw::kStep, 3.0f, 4.0f},
+                                    view::RegionLaw{FalloffLaw::kLinear, 8.0f, 0.1f, 16.0f},
+                                    view::RegionLaw{FalloffLaw::kLinear, 2.0f, 3.0f, 7.5f},
+                                    view::RegionLaw{FalloffLaw::kSmoothstep, 20.0f, 0.25f, 13.0f},
+                                    view::RegionLaw{FalloffLaw::kFoveal, 0.0f, 0.1f, 0.0f, 2.3f},
+                                    view::RegionLaw{FalloffLaw::kFoveal, 0.0f, 0.7f, 0.0f, 1.0f},
+                                    view::RegionLaw{FalloffLaw::kFoveal, 0.0f, 0.999f, 0.0f, 2.3f}}) {
+    const std::optional<float> reach = view::law_reach_px(law, tan_per_px);
+    ASSERT_TRUE(reach) << int(law.law) << " " << law.factor;
+    for (float d = *reach + 0.01f; d < *reach + 400.0f; d += 0.2f)
+      ASSERT_EQ(view::law_factor(law, d, tan_per_px), 1.0f)
+          << int(law.law) << " " << law.factor << " at " << d;
+    EXPECT_NE(view::law_factor(law, std::max(*reach - 1.0f, 0.0f), tan_per_px), 1.0f)
+        << int(law.law) << " " << law.factor;
+  }
+  // A foveal law from the base error up never comes back to 1.
+  EXPECT_FALSE(view::law_reach_px(view::RegionLaw{FalloffLaw::kFoveal, 0.0f, 1.0f, 0.0f, 2.3f}, tan_per_px));
 }
 
 TEST(LawFactor, NeglectRegionRaisesTheError) {

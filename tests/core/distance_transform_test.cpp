@@ -211,6 +211,41 @@ TEST(ChamferFocus, NoFocusLeavesEveryCellUnreached) {
       std::all_of(out.begin(), out.end(), [](std::uint16_t v) { return v == view::kChamferUnreached; }));
 }
 
+TEST(ChamferFocus, ARectangleHoldingTheFociGivesTheWholeGridsLabelsInside) {
+  // Every metric's labels over random rectangles holding random foci: inside, the whole grid's
+  // transform; outside, unreached.
+  const view::GridSize grid{70, 53};
+  std::mt19937 rng(11);
+  view::DistanceTransformer within, whole;
+  for (const view::DistanceMetric metric :
+       {view::DistanceMetric::kChamfer5711, view::DistanceMetric::kChamfer34,
+        view::DistanceMetric::kCityBlock, view::DistanceMetric::kChessboard,
+        view::DistanceMetric::kEuclidean}) {
+    for (int round = 0; round < 20; ++round) {
+      auto coordinate = [&](std::uint32_t n) {
+        return std::uniform_int_distribution<std::uint32_t>(0, n - 1)(rng);
+      };
+      view::DistanceTransformer::Rect rect{coordinate(grid.width), coordinate(grid.height), 0, 0};
+      rect.x1 = rect.x0 + coordinate(grid.width - rect.x0);
+      rect.y1 = rect.y0 + coordinate(grid.height - rect.y0);
+      std::vector<std::uint32_t> foci{view::kNoCell};
+      for (std::uint32_t k = 0, n = 1 + coordinate(3); k < n; ++k)
+        foci.push_back(grid.cell(rect.x0 + coordinate(rect.x1 - rect.x0 + 1),
+                                 rect.y0 + coordinate(rect.y1 - rect.y0 + 1)));
+      std::vector<std::uint16_t> inside(grid.cell_count()), expected(grid.cell_count());
+      within.labels_from_cells_within(metric, foci, grid, rect, inside);
+      whole.labels_from_cells(metric, foci, grid, expected);
+      for (std::uint32_t y = 0; y < grid.height; ++y) {
+        for (std::uint32_t x = 0; x < grid.width; ++x) {
+          const bool in = x >= rect.x0 && x <= rect.x1 && y >= rect.y0 && y <= rect.y1;
+          ASSERT_EQ(inside[grid.cell(x, y)], in ? expected[grid.cell(x, y)] : view::kChamferUnreached)
+              << int(metric) << " round " << round << " cell " << x << "," << y;
+        }
+      }
+    }
+  }
+}
+
 TEST(DistanceTransformer, ReusedObjectGivesSameResultsAcrossGridSizes) {
   // Scratch reuse must not leak values from a previous, larger or smaller request.
   std::mt19937 rng(7);

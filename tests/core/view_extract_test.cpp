@@ -89,6 +89,7 @@ void run_fresh(view::ViewExtractor& x, const model::Mt& mt, view::ViewRequest r,
   cut::Refiner fresh(mt);
   r.dynamic = false;
   r.allowed_error_on_demand = false;
+  r.labels = true;  // every transform over the whole grid: labels read them everywhere
   run(x, r, fresh, cut);
 }
 
@@ -228,6 +229,7 @@ TEST(ViewExtract, EuclideanLabelsAreExactDistancesInFifthsOfAPixel) {
   r.allowed.metric = view::DistanceMetric::kEuclidean;
   r.points[view::Criterion::kFocus] = {{0.25f, 0.5f}, {0.8f, 0.1f}};
   r.allowed.criteria[view::Criterion::kFocus] = view::RegionLaw{};
+  r.labels = true;  // the focus transform over the whole grid, not only within the law's reach
   view::ViewExtractor x(b->mt, *b->levels);
   cut::Refiner refiner(b->mt);
   cut::CutMesh cut;
