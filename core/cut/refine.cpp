@@ -839,7 +839,8 @@ void Refiner::merge_kept_mesh(std::size_t added) {
   // holds the ones whose creator was kept and whose remover neither dropped nor was added: a
   // triangle is in a cut's mesh when its creator is in the cut and its remover is not.
   assert(kept_ == Kept::kPassing);
-  mark_changed_nodes(added);
+  // The dropped nodes are marked already (refine_forced skipped by those marks); the added ones now.
+  for (std::size_t i = added; i < cut_.size(); ++i) util::set_bit(node_changed_, cut_[i]);
   compact_kept_mesh();
   for (const Passing& p : passing_) {
     const bool remover_changed = p.remover != model::kNoNode && util::test_bit(node_changed_, p.remover);

@@ -462,10 +462,10 @@ class Refiner {
   // Extends the kept mesh after nodes were dropped (dropped_, their uncovered triangles in seeds_)
   // or added (cut_ from position `added` on): move_cut's last step.
   void rebuild_kept_mesh(std::size_t added);
-  // Takes the mesh of a cut refined afresh from the kept nodes (dropped_ dropped, cut_ from position
-  // `added` on forced) while the old kept mesh is still in mesh_*: the old mesh keeps its order
-  // less what changed, and the passing triangles it lacks follow, so a client's cut is diffed in
-  // order (core/cut/cut_delta.hpp).
+  // Takes the mesh of a cut refined afresh from the kept nodes (dropped_ dropped and already marked
+  // in node_changed_, cut_ from position `added` on forced) while the old kept mesh is still in mesh_*: the
+  // old mesh keeps its order less what changed, and the passing triangles it lacks follow, so a client's cut
+  // is diffed in order (core/cut/cut_delta.hpp).
   void merge_kept_mesh(std::size_t added);
   // Marks in node_changed_ the nodes of dropped_ and of cut_ from position `added` on, or clears
   // those marks.

@@ -500,15 +500,14 @@ void DistanceTransformer::labels_from_cells(DistanceMetric metric, std::span<con
 
 void DistanceTransformer::labels_from_cells_within(DistanceMetric metric,
                                                    std::span<const std::uint32_t> seed_cells, GridSize grid,
-                                                   Rect rect, std::span<std::uint16_t> out) {
-  assert(out.size() == grid.cell_count() && rect.x0 <= rect.x1 && rect.x1 < grid.width &&
-         rect.y0 <= rect.y1 && rect.y1 < grid.height);
-  const GridSize sub{rect.x1 - rect.x0 + 1, rect.y1 - rect.y0 + 1};
+                                                   CellRect rect, std::span<std::uint16_t> out) {
+  assert(out.size() == grid.cell_count() && !rect.empty() && rect.x1 <= grid.width && rect.y1 <= grid.height);
+  const GridSize sub{rect.width(), rect.height()};
   rect_seeds_.clear();
   for (const std::uint32_t c : seed_cells) {
     if (c == kNoCell) continue;
     const std::uint32_t x = c % grid.width, y = c / grid.width;
-    assert(x >= rect.x0 && x <= rect.x1 && y >= rect.y0 && y <= rect.y1);
+    assert(x >= rect.x0 && x < rect.x1 && y >= rect.y0 && y < rect.y1);
     rect_seeds_.push_back(sub.cell(x - rect.x0, y - rect.y0));
   }
   rect_out_.resize(sub.cell_count());

@@ -104,15 +104,12 @@ class DistanceTransformer {
               std::span<std::uint16_t> out);
   void labels_from_cells(DistanceMetric metric, std::span<const std::uint32_t> seed_cells, GridSize grid,
                          std::span<std::uint16_t> out);
-  // The same computed over a rectangle of the grid that holds every seed: its cells get the labels
-  // the whole grid's transform gives them (a shortest path of mask moves between two cells stays in
-  // their bounding box, as does the straight line), every other cell kChamferUnreached. A focus whose
-  // law ends within a few dozen cells costs that square instead of the grid.
-  struct Rect {
-    std::uint32_t x0, y0, x1, y1;  // inclusive
-  };
+  // The same computed over a rectangle of the grid (not empty) that holds every seed: its cells get
+  // the labels the whole grid's transform gives them (a shortest path of mask moves between two cells
+  // stays in their bounding box, as does the straight line), every other cell kChamferUnreached. A
+  // focus whose law ends within a few dozen cells costs that square instead of the grid.
   void labels_from_cells_within(DistanceMetric metric, std::span<const std::uint32_t> seed_cells,
-                                GridSize grid, Rect rect, std::span<std::uint16_t> out);
+                                GridSize grid, CellRect rect, std::span<std::uint16_t> out);
 
   // Runs the chamfer passes cell by cell (the portable code used without SSE2) instead of 8 cells at
   // a time. Same results; for tests and comparisons.

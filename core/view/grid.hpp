@@ -24,4 +24,12 @@ struct GridSize {
   std::uint32_t cell(std::uint32_t i, std::uint32_t j) const { return j * width + i; }
 };
 
+// The cells [x0, x1) × [y0, y1) of a grid.
+struct CellRect {
+  std::uint32_t x0 = 0, y0 = 0, x1 = 0, y1 = 0;
+  bool empty() const { return x0 >= x1 || y0 >= y1; }
+  std::uint32_t width() const { return x1 - x0; }
+  std::uint32_t height() const { return y1 - y0; }
+};
+
 }  // namespace mtlod::core::view

@@ -33,7 +33,7 @@ constexpr double kLargestThreshold = 1e12;
 // the whole grid when some corner is behind the eye (the box's projection is then unbounded),
 // else the corners' cells with a cell of margin (conservative rasterisation marks a cell a
 // triangle touches).
-SceneExtractor::CellRect SceneExtractor::box_cells(const ViewMapping& mapping, const model::Bounds& box) {
+CellRect SceneExtractor::box_cells(const ViewMapping& mapping, const model::Bounds& box) {
   const GridSize grid = mapping.grid();
   int left = 0, right = 0, below = 0, above = 0, behind = 0;
   float gx0 = kFar, gy0 = kFar, gx1 = -kFar, gy1 = -kFar;

@@ -141,11 +141,7 @@ class SceneExtractor {
 
   std::vector<ViewMapping> mappings_;
   std::vector<AllowedErrorField> fields_;  // one per instance, bound to its mapping
-  // Per instance: the grid cells [x0, x1) × [y0, y1) its placed box may cover (none: out of view).
-  struct CellRect {
-    std::uint32_t x0 = 0, y0 = 0, x1 = 0, y1 = 0;
-    bool empty() const { return x0 >= x1 || y0 >= y1; }
-  };
+  // Per instance: the grid cells its placed box may cover (empty: out of view).
   static CellRect box_cells(const ViewMapping& mapping, const model::Bounds& box);
   std::vector<CellRect> rects_;
   std::vector<std::uint8_t> hidden_whole_;  // per instance: in view, owning no cell: its roots

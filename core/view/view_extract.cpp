@@ -122,6 +122,15 @@ bool criterion_transform_needed(const ViewRequest& r, Criterion c) {
   return false;
 }
 
+namespace {
+// The cells of a criterion's points (kNoCell for those off the grid).
+void point_cells(GridSize grid, std::span<const std::array<float, 2>> points,
+                 std::vector<std::uint32_t>& cells) {
+  cells.clear();
+  for (const auto& p : points) cells.push_back(focus_cell(grid, p[0], p[1]));
+}
+}  // namespace
+
 void criterion_transform(DistanceTransformer& transformer, Criterion c, const ViewRequest& r,
                          std::span<const std::uint8_t> background, std::vector<std::uint32_t>& cells,
                          std::span<std::uint16_t> out) {
@@ -130,8 +139,7 @@ void criterion_transform(DistanceTransformer& transformer, Criterion c, const Vi
     case Seeds::kBackground:
       return transformer.labels(metric, background, r.grid, out);
     case Seeds::kPoints:
-      cells.clear();
-      for (const auto& p : r.points[c]) cells.push_back(focus_cell(r.grid, p[0], p[1]));
+      point_cells(r.grid, r.points[c], cells);
       return transformer.labels_from_cells(metric, cells, r.grid, out);
     case Seeds::kBorder:
       cells.clear();
@@ -167,8 +175,7 @@ void ViewExtractor::distance_transforms() {
     out.clear();
     if (criterion_transform_needed(r, c)) {
       out.resize(cells);
-      const std::optional<DistanceTransformer::Rect> rect =
-          c == kGazeCriterion ? gaze_rect() : std::optional<DistanceTransformer::Rect>();
+      const std::optional<CellRect> rect = c == kGazeCriterion ? gaze_rect() : std::nullopt;
       if (rect) {
         transformer_.labels_from_cells_within(r.allowed.metric, cells_, r.grid, *rect, out);
       } else {
@@ -179,7 +186,7 @@ void ViewExtractor::distance_transforms() {
   }
 }
 
-std::optional<DistanceTransformer::Rect> ViewExtractor::gaze_rect() {
+std::optional<CellRect> ViewExtractor::gaze_rect() {
   // Past its law's reach of every gaze point the gaze multiplier is 1, and a cell's label (in
   // pixels) is at least its Chebyshev distance in cells: the transform is needed only in the boxes
   // of that radius around the points (their bounding rectangle). Labels read it everywhere.
@@ -190,21 +197,18 @@ std::optional<DistanceTransformer::Rect> ViewExtractor::gaze_rect() {
   const GridSize grid = r.grid;
   if (!reach || !(*reach < float(std::max(grid.width, grid.height)))) return std::nullopt;
   const std::uint32_t radius = std::uint32_t(*reach) + 2;  // cells outside lie over reach + 1 px away
-  cells_.clear();
-  DistanceTransformer::Rect rect{grid.width, grid.height, 0, 0};
-  for (const auto& p : r.points[kGazeCriterion]) {
-    const std::uint32_t c = focus_cell(grid, p[0], p[1]);
-    cells_.push_back(c);
+  point_cells(grid, r.points[kGazeCriterion], cells_);
+  CellRect rect{grid.width, grid.height, 0, 0};  // empty until a point is on the grid
+  for (const std::uint32_t c : cells_) {
     if (c == kNoCell) continue;
     const std::uint32_t x = c % grid.width, y = c / grid.width;
     rect.x0 = std::min(rect.x0, x > radius ? x - radius : 0);
     rect.y0 = std::min(rect.y0, y > radius ? y - radius : 0);
-    rect.x1 = std::max(rect.x1, std::min(grid.width - 1, x + radius));
-    rect.y1 = std::max(rect.y1, std::min(grid.height - 1, y + radius));
+    rect.x1 = std::max(rect.x1, std::min(grid.width, x + radius + 1));
+    rect.y1 = std::max(rect.y1, std::min(grid.height, y + radius + 1));
   }
-  if (rect.x0 > rect.x1) return DistanceTransformer::Rect{0, 0, 0, 0};  // no point on the grid
-  const std::size_t area = std::size_t{rect.x1 - rect.x0 + 1} * (rect.y1 - rect.y0 + 1);
-  if (2 * area > grid.cell_count()) return std::nullopt;
+  if (rect.empty()) return CellRect{0, 0, 1, 1};  // no point on the grid: every cell unreached
+  if (2 * std::size_t{rect.width()} * rect.height() > grid.cell_count()) return std::nullopt;
   return rect;
 }
 
@@ -300,9 +304,7 @@ void ViewExtractor::update_known_for_gaze(ViewCache& s, DistanceMetric metric) {
 }
 
 void ViewExtractor::remember_gaze_cells(ViewCache& s) const {
-  s.gaze_cells_.clear();
-  for (const auto& p : request_->points[kGazeCriterion])
-    s.gaze_cells_.push_back(focus_cell(request_->grid, p[0], p[1]));
+  point_cells(request_->grid, request_->points[kGazeCriterion], s.gaze_cells_);
 }
 
 void ViewExtractor::remember_gaze(ViewCache& s) const {

@@ -204,7 +204,7 @@ class ViewExtractor {
   void update_known_for_gaze(ViewCache& session, DistanceMetric metric);
   // The part of the grid the gaze criterion's transform is computed in, its seeds in cells_ (none:
   // the whole grid, by criterion_transform).
-  std::optional<DistanceTransformer::Rect> gaze_rect();
+  std::optional<CellRect> gaze_rect();
   // Whether the request has the session's view (everything but the gaze points).
   static bool same_view(const ViewCache& session, const ViewRequest& request);
   void remember_view(ViewCache& session) const;

@@ -225,19 +225,18 @@ TEST(ChamferFocus, ARectangleHoldingTheFociGivesTheWholeGridsLabelsInside) {
       auto coordinate = [&](std::uint32_t n) {
         return std::uniform_int_distribution<std::uint32_t>(0, n - 1)(rng);
       };
-      view::DistanceTransformer::Rect rect{coordinate(grid.width), coordinate(grid.height), 0, 0};
-      rect.x1 = rect.x0 + coordinate(grid.width - rect.x0);
-      rect.y1 = rect.y0 + coordinate(grid.height - rect.y0);
+      view::CellRect rect{coordinate(grid.width), coordinate(grid.height), 0, 0};
+      rect.x1 = rect.x0 + 1 + coordinate(grid.width - rect.x0);
+      rect.y1 = rect.y0 + 1 + coordinate(grid.height - rect.y0);
       std::vector<std::uint32_t> foci{view::kNoCell};
       for (std::uint32_t k = 0, n = 1 + coordinate(3); k < n; ++k)
-        foci.push_back(grid.cell(rect.x0 + coordinate(rect.x1 - rect.x0 + 1),
-                                 rect.y0 + coordinate(rect.y1 - rect.y0 + 1)));
+        foci.push_back(grid.cell(rect.x0 + coordinate(rect.width()), rect.y0 + coordinate(rect.height())));
       std::vector<std::uint16_t> inside(grid.cell_count()), expected(grid.cell_count());
       within.labels_from_cells_within(metric, foci, grid, rect, inside);
       whole.labels_from_cells(metric, foci, grid, expected);
       for (std::uint32_t y = 0; y < grid.height; ++y) {
         for (std::uint32_t x = 0; x < grid.width; ++x) {
-          const bool in = x >= rect.x0 && x <= rect.x1 && y >= rect.y0 && y <= rect.y1;
+          const bool in = x >= rect.x0 && x < rect.x1 && y >= rect.y0 && y < rect.y1;
           ASSERT_EQ(inside[grid.cell(x, y)], in ? expected[grid.cell(x, y)] : view::kChamferUnreached)
               << int(metric) << " round " << round << " cell " << x << "," << y;
         }

@@ -110,6 +110,22 @@ float max_node_error(const model::Mt& mt) {
   return *std::max_element(mt.node_error.begin(), mt.node_error.end());
 }
 
+// A refiner on the 8k-triangle sphere whose cut moves to fields focused at random vertices: 1e-3 of
+// the largest node error at the focus, `coarse` of it far away.
+struct SphereFocusJumps {
+  explicit SphereFocusJumps(std::uint32_t seed) : rng(seed) {}
+  Status jump(float coarse) {
+    return refiner.refine(cut::Refinement::move(cut::AllowedError::from_vertices(
+                              focus_field(c->mesh, rng, top * 1e-3f, top * coarse))),
+                          cut);
+  }
+  const MtCase* c = test::shape_case(eval::Shape::kSphere, 8'000);
+  std::mt19937 rng;
+  const float top = max_node_error(c->mt);
+  cut::Refiner refiner{c->mt};
+  cut::CutMesh cut;
+};
+
 TEST(Refine, SquareSwitchesBetweenItsTwoCutsAtTheNodeError) {
   // The square's MT has one collapse, of error e1 ≈ 1/√2: at allowed ≥ e1 the root triangle
   // passes; any smaller allowed error needs the two input triangles.
@@ -638,19 +654,15 @@ TEST(Refine, MovedCutsKeepTheOrderOfTheTrianglesThatStay) {
   // same order in both, but for those appended anew (core/cut/cut_delta.hpp): after small moves,
   // and after jumps of the focus that refine afresh from the nodes kept. Matched in order as that
   // pass does, nearly all shared triangles match; in any other order few would.
-  const MtCase* c = test::shape_case(eval::Shape::kSphere, 8'000);
-  std::mt19937 rng(37);
-  const float top = max_node_error(c->mt);
-  cut::Refiner refiner(c->mt);
-  cut::CutMesh cut;
+  SphereFocusJumps s(37);
+  const cut::Refiner& refiner = s.refiner;
+  const cut::CutMesh& cut = s.cut;
   std::vector<std::uint32_t> previous;
-  std::vector<std::uint8_t> in_cut(c->mt.triangle_count());
+  std::vector<std::uint8_t> in_cut(s.c->mt.triangle_count());
   std::size_t afresh_shared = 0;
   for (int step = 0; step < 40; ++step) {
     const std::size_t restarts = refiner.restarts();
-    ASSERT_TRUE(refiner.refine(cut::Refinement::move(cut::AllowedError::from_vertices(
-                                   focus_field(c->mesh, rng, top * 1e-3f, top * 0.02f))),
-                               cut));
+    ASSERT_TRUE(s.jump(0.02f));
     std::fill(in_cut.begin(), in_cut.end(), 0);
     for (const std::uint32_t id : cut.ids) in_cut[id] = 1;
     std::size_t shared = 0, matched = 0;
@@ -809,21 +821,17 @@ TEST(Refine, DynamicBudgetEqualsBudgetFromTheRoot) {
 TEST(CutDelta, AppliedChangesRebuildEveryCutOfASequence) {
   // A client that applies each delta (the ids to drop, the gathered triangles with their ids) to a
   // mesh keyed by id holds exactly the latest cut: its ids, each with its corners.
-  const MtCase* c = test::shape_case(eval::Shape::kSphere, 8'000);
-  std::mt19937 rng(31);
-  const float top = max_node_error(c->mt);
-  cut::Refiner refiner(c->mt);
-  cut::CutMesh cut;
+  SphereFocusJumps s(31);
+  const cut::CutMesh& cut = s.cut;
+  const std::size_t n = s.c->mt.triangle_count();
   cut::CutDelta delta;
   std::map<std::uint32_t, std::array<std::uint32_t, 3>> client;
   std::vector<std::uint32_t> added, removed, triangles, ids;
   std::size_t partial = 0;
   for (int step = 0; step < 30; ++step) {
     if (step == 20) delta.reset();  // the client starts over
-    EXPECT_TRUE(refiner.refine(cut::Refinement::move(cut::AllowedError::from_vertices(
-                                   focus_field(c->mesh, rng, top * 1e-3f, top * 0.3f))),
-                               cut));
-    const bool from_empty = delta.update(cut.ids, c->mt.triangle_count(), added, removed);
+    EXPECT_TRUE(s.jump(0.3f));
+    const bool from_empty = delta.update(cut.ids, n, added, removed);
     EXPECT_EQ(from_empty, step == 0 || step == 20) << step;
     if (from_empty) client.clear();
     for (const std::uint32_t id : removed)
@@ -843,11 +851,10 @@ TEST(CutDelta, AppliedChangesRebuildEveryCutOfASequence) {
   }
   EXPECT_GT(partial, 0u);  // deltas were smaller than the cut
   // The same cut again changes nothing, in the same order or another; after a reset it goes whole.
-  const std::size_t n = c->mt.triangle_count();
   EXPECT_FALSE(delta.update(cut.ids, n, added, removed));
   EXPECT_TRUE(added.empty() && removed.empty());
   std::vector<std::uint32_t> shuffled = cut.ids;
-  std::shuffle(shuffled.begin(), shuffled.end(), rng);
+  std::shuffle(shuffled.begin(), shuffled.end(), s.rng);
   EXPECT_FALSE(delta.update(shuffled, n, added, removed));
   EXPECT_TRUE(added.empty() && removed.empty());
   delta.reset();
